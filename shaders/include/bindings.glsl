@@ -1,0 +1,27 @@
+// Descriptor binding numbers, defined once for GLSL and Rust (build.rs turns every
+// `#define NAME <integer>` here into `umbra::vk::bindings::NAME`).
+#ifndef BINDINGS_GLSL
+#define BINDINGS_GLSL
+
+// shadow_trace.comp
+#define SHADOW_POSITION 0
+#define SHADOW_NORMAL 1
+#define SHADOW_LIGHTS 2
+#define SHADOW_BVH_NODES 3
+#define SHADOW_BVH_TRIANGLES 4
+#define SHADOW_VISIBILITY 5
+
+// compose.comp
+#define COMPOSE_POSITION 0
+#define COMPOSE_NORMAL 1
+#define COMPOSE_MATERIAL 2
+#define COMPOSE_LIGHTS 3
+#define COMPOSE_VISIBILITY 4
+#define COMPOSE_RADIANCE 5
+
+// tonemap.comp and debug_view.comp
+#define DISPLAY_INPUT 0
+#define DISPLAY_OUTPUT 1
+#define DISPLAY_VISIBILITY 2
+
+#endif

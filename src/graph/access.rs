@@ -1,0 +1,202 @@
+//! Every way a pass may touch a resource, as one closed enum, and the one table that maps each
+//! to pipeline stage, access mask, image layout and usage flag (after Tobias Hector's
+//! simple_vulkan_synchronization). Nothing else in umbra names raw stage or access flags.
+
+use ash::vk;
+
+/// How a pass uses a resource. Reads and writes are distinct variants, so read-after-read needs
+/// no barrier and the builder can reject a read declared through `write`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Access {
+    /// Not yet touched on the device (a resource's state before its first use).
+    Nothing,
+    /// Written by the host through a mapping before submission (scene buffers).
+    HostWrite,
+    HostRead,
+    VertexBuffer,
+    IndexBuffer,
+    VertexShaderReadUniformBuffer,
+    ComputeShaderReadStorageBuffer,
+    ComputeShaderReadUniformBuffer,
+    ComputeShaderReadSampledImage,
+    FragmentShaderReadSampledImage,
+    FragmentShaderReadStorageBuffer,
+    TransferRead,
+    ComputeShaderWrite,
+    ColorAttachmentWrite,
+    /// Depth test and write (the depth attachment of a geometry pass).
+    DepthAttachmentWrite,
+    TransferWrite,
+    /// Handed to the presentation engine (swapchain images).
+    Present,
+}
+
+/// Which kind of resource an access applies to.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Applies {
+    Image,
+    Buffer,
+    Both,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct AccessInfo {
+    pub stage: vk::PipelineStageFlags2,
+    pub access: vk::AccessFlags2,
+    pub layout: vk::ImageLayout,
+    pub image_usage: vk::ImageUsageFlags,
+    pub buffer_usage: vk::BufferUsageFlags,
+    pub applies: Applies,
+}
+
+impl Access {
+    pub fn is_write(self) -> bool {
+        matches!(
+            self,
+            Access::HostWrite
+                | Access::ComputeShaderWrite
+                | Access::ColorAttachmentWrite
+                | Access::DepthAttachmentWrite
+                | Access::TransferWrite
+        )
+    }
+
+    /// The table. Writes contribute their access mask to a barrier's source scope; reads only
+    /// their stage (an execution dependency is enough before a write-after-read).
+    pub fn info(self) -> AccessInfo {
+        use vk::AccessFlags2 as A;
+        use vk::BufferUsageFlags as B;
+        use vk::ImageLayout as L;
+        use vk::ImageUsageFlags as I;
+        use vk::PipelineStageFlags2 as S;
+        let (stage, access, layout, image_usage, buffer_usage, applies) = match self {
+            Access::Nothing => (S::NONE, A::NONE, L::UNDEFINED, I::empty(), B::empty(), Applies::Both),
+            Access::HostWrite => (S::HOST, A::HOST_WRITE, L::GENERAL, I::empty(), B::empty(), Applies::Buffer),
+            Access::HostRead => (S::HOST, A::HOST_READ, L::GENERAL, I::empty(), B::empty(), Applies::Buffer),
+            Access::VertexBuffer => (
+                S::VERTEX_ATTRIBUTE_INPUT,
+                A::VERTEX_ATTRIBUTE_READ,
+                L::UNDEFINED,
+                I::empty(),
+                B::VERTEX_BUFFER,
+                Applies::Buffer,
+            ),
+            Access::IndexBuffer => (S::INDEX_INPUT, A::INDEX_READ, L::UNDEFINED, I::empty(), B::INDEX_BUFFER, Applies::Buffer),
+            Access::VertexShaderReadUniformBuffer => {
+                (S::VERTEX_SHADER, A::UNIFORM_READ, L::UNDEFINED, I::empty(), B::UNIFORM_BUFFER, Applies::Buffer)
+            }
+            Access::ComputeShaderReadStorageBuffer => {
+                (S::COMPUTE_SHADER, A::SHADER_STORAGE_READ, L::UNDEFINED, I::empty(), B::STORAGE_BUFFER, Applies::Buffer)
+            }
+            Access::ComputeShaderReadUniformBuffer => {
+                (S::COMPUTE_SHADER, A::UNIFORM_READ, L::UNDEFINED, I::empty(), B::UNIFORM_BUFFER, Applies::Buffer)
+            }
+            Access::ComputeShaderReadSampledImage => (
+                S::COMPUTE_SHADER,
+                A::SHADER_SAMPLED_READ,
+                L::SHADER_READ_ONLY_OPTIMAL,
+                I::SAMPLED,
+                B::empty(),
+                Applies::Image,
+            ),
+            Access::FragmentShaderReadSampledImage => (
+                S::FRAGMENT_SHADER,
+                A::SHADER_SAMPLED_READ,
+                L::SHADER_READ_ONLY_OPTIMAL,
+                I::SAMPLED,
+                B::empty(),
+                Applies::Image,
+            ),
+            Access::FragmentShaderReadStorageBuffer => {
+                (S::FRAGMENT_SHADER, A::SHADER_STORAGE_READ, L::UNDEFINED, I::empty(), B::STORAGE_BUFFER, Applies::Buffer)
+            }
+            Access::TransferRead => {
+                (S::COPY, A::TRANSFER_READ, L::TRANSFER_SRC_OPTIMAL, I::TRANSFER_SRC, B::TRANSFER_SRC, Applies::Both)
+            }
+            Access::ComputeShaderWrite => (
+                S::COMPUTE_SHADER,
+                A::SHADER_STORAGE_WRITE,
+                L::GENERAL,
+                I::STORAGE,
+                B::STORAGE_BUFFER,
+                Applies::Both,
+            ),
+            Access::ColorAttachmentWrite => (
+                S::COLOR_ATTACHMENT_OUTPUT,
+                A::COLOR_ATTACHMENT_WRITE,
+                L::COLOR_ATTACHMENT_OPTIMAL,
+                I::COLOR_ATTACHMENT,
+                B::empty(),
+                Applies::Image,
+            ),
+            Access::DepthAttachmentWrite => (
+                S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS,
+                A::DEPTH_STENCIL_ATTACHMENT_READ | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                L::DEPTH_ATTACHMENT_OPTIMAL,
+                I::DEPTH_STENCIL_ATTACHMENT,
+                B::empty(),
+                Applies::Image,
+            ),
+            Access::TransferWrite => {
+                (S::COPY, A::TRANSFER_WRITE, L::TRANSFER_DST_OPTIMAL, I::TRANSFER_DST, B::TRANSFER_DST, Applies::Both)
+            }
+            Access::Present => (S::NONE, A::NONE, L::PRESENT_SRC_KHR, I::empty(), B::empty(), Applies::Image),
+        };
+        AccessInfo { stage, access, layout, image_usage, buffer_usage, applies }
+    }
+
+    pub fn applies_to_image(self) -> bool {
+        self.info().applies != Applies::Buffer
+    }
+
+    pub fn applies_to_buffer(self) -> bool {
+        self.info().applies != Applies::Image
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const ALL: &[Access] = &[
+        Access::Nothing,
+        Access::HostWrite,
+        Access::HostRead,
+        Access::VertexBuffer,
+        Access::IndexBuffer,
+        Access::VertexShaderReadUniformBuffer,
+        Access::ComputeShaderReadStorageBuffer,
+        Access::ComputeShaderReadUniformBuffer,
+        Access::ComputeShaderReadSampledImage,
+        Access::FragmentShaderReadSampledImage,
+        Access::FragmentShaderReadStorageBuffer,
+        Access::TransferRead,
+        Access::ComputeShaderWrite,
+        Access::ColorAttachmentWrite,
+        Access::DepthAttachmentWrite,
+        Access::TransferWrite,
+        Access::Present,
+    ];
+
+    #[test]
+    fn write_variants_carry_write_access_bits_and_reads_do_not() {
+        let write_bits = vk::AccessFlags2::HOST_WRITE
+            | vk::AccessFlags2::SHADER_STORAGE_WRITE
+            | vk::AccessFlags2::COLOR_ATTACHMENT_WRITE
+            | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE
+            | vk::AccessFlags2::TRANSFER_WRITE;
+        for &a in ALL {
+            assert_eq!(a.is_write(), a.info().access.intersects(write_bits), "{a:?}");
+        }
+    }
+
+    #[test]
+    fn image_accesses_name_a_layout_and_buffer_only_ones_do_not_need_one() {
+        for &a in ALL {
+            let info = a.info();
+            if info.applies == Applies::Image && a != Access::Nothing {
+                assert_ne!(info.layout, vk::ImageLayout::UNDEFINED, "{a:?}");
+            }
+        }
+    }
+}

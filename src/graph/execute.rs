@@ -1,0 +1,329 @@
+//! Executing a compiled graph: resolve every resource to a Vulkan object (imported, or a
+//! transient from the cache keyed by description and usage), record each live pass behind its
+//! one batched barrier, and bracket passes with timestamps when asked.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::compile::{Barrier, SlotKey};
+use super::{BufferKind, CompiledGraph, External, ImageKind, Ref, RenderGraph, ResourceDesc, Storage};
+use crate::vk::{Buffer, GpuContext, GpuResult, Image, PipelineLayout, VkContext};
+
+/// A resource bound to a descriptor; its descriptor type and image layout follow from the access
+/// the pass declared.
+#[derive(Clone, Copy, Debug)]
+pub enum Bound {
+    Image(Ref<ImageKind>),
+    Buffer(Ref<BufferKind>),
+}
+
+/// GPU state that outlives one frame's graph: transient images and buffers, the descriptor pool
+/// passes allocate from, and timestamp queries. One per frame in flight.
+pub struct TransientCache {
+    ctx: Arc<GpuContext>,
+    images: HashMap<SlotKey, Vec<Image>>,
+    buffers: HashMap<SlotKey, Vec<Buffer>>,
+    descriptor_pool: vk::DescriptorPool,
+    queries: Option<(vk::QueryPool, u32)>,
+    /// Names of the passes timed in the last execution, in order.
+    timed_passes: Vec<&'static str>,
+}
+
+const POOL_SETS: u32 = 64;
+
+impl TransientCache {
+    pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<TransientCache> {
+        let sizes = [
+            vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: POOL_SETS * 4 },
+            vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: POOL_SETS * 2 },
+            vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: POOL_SETS * 6 },
+            vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: POOL_SETS * 2 },
+        ];
+        let info = vk::DescriptorPoolCreateInfo::default().max_sets(POOL_SETS).pool_sizes(&sizes);
+        // SAFETY: valid device.
+        let descriptor_pool = unsafe { ctx.device.create_descriptor_pool(&info, None) }.vk("vkCreateDescriptorPool")?;
+        Ok(TransientCache {
+            ctx: ctx.clone(),
+            images: HashMap::new(),
+            buffers: HashMap::new(),
+            descriptor_pool,
+            queries: None,
+            timed_passes: Vec::new(),
+        })
+    }
+
+    /// Number of images and buffers the cache holds (for tests of reuse).
+    pub fn len(&self) -> usize {
+        self.images.values().map(Vec::len).sum::<usize>() + self.buffers.values().map(Vec::len).sum::<usize>()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn ensure_queries(&mut self, count: u32) -> GpuResult<vk::QueryPool> {
+        if let Some((pool, n)) = self.queries {
+            if n >= count {
+                return Ok(pool);
+            }
+            // SAFETY: the previous frame using it has completed (callers wait before reuse).
+            unsafe { self.ctx.device.destroy_query_pool(pool, None) };
+        }
+        let info = vk::QueryPoolCreateInfo::default().query_type(vk::QueryType::TIMESTAMP).query_count(count);
+        // SAFETY: valid device.
+        let pool = unsafe { self.ctx.device.create_query_pool(&info, None) }.vk("vkCreateQueryPool")?;
+        self.queries = Some((pool, count));
+        Ok(pool)
+    }
+
+    /// Milliseconds per timed pass of the last execution, once its submission has completed.
+    pub fn read_timings(&self) -> GpuResult<Vec<(&'static str, f64)>> {
+        let (Some((pool, _)), Some(period)) = (self.queries, self.ctx.timestamp_period_ns) else {
+            return Ok(Vec::new());
+        };
+        let n = self.timed_passes.len();
+        let mut ticks = vec![0u64; n * 2];
+        // SAFETY: the queries were written by the completed submission.
+        unsafe {
+            self.ctx
+                .device
+                .get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
+                .vk("vkGetQueryPoolResults")?
+        };
+        Ok(self
+            .timed_passes
+            .iter()
+            .enumerate()
+            .map(|(i, name)| (*name, ticks[2 * i + 1].saturating_sub(ticks[2 * i]) as f64 * period as f64 * 1e-6))
+            .collect())
+    }
+
+    fn slot(&mut self, key: SlotKey, index: usize, desc: ResourceDesc, name: &str) -> GpuResult<External> {
+        match desc {
+            ResourceDesc::Image(d) => {
+                let list = self.images.entry(key).or_default();
+                while list.len() <= index {
+                    let usage = vk::ImageUsageFlags::from_raw(key.image_usage);
+                    list.push(Image::new(&self.ctx, name, d, usage)?);
+                }
+                Ok(External::Image { image: list[index].raw, view: list[index].view })
+            }
+            ResourceDesc::Buffer(b) => {
+                let list = self.buffers.entry(key).or_default();
+                while list.len() <= index {
+                    let usage = vk::BufferUsageFlags::from_raw(key.buffer_usage);
+                    list.push(Buffer::new(&self.ctx, name, b.size, usage, gpu_allocator::MemoryLocation::GpuOnly)?);
+                }
+                Ok(External::Buffer { buffer: list[index].raw })
+            }
+        }
+    }
+
+    /// Records `graph` (compiled as `plan`) into `cmd`. Culled passes are dropped unrun.
+    pub fn execute(&mut self, graph: RenderGraph<'_>, plan: &CompiledGraph, cmd: vk::CommandBuffer, timestamps: bool) -> GpuResult<()> {
+        // SAFETY: the previous submission that used these sets has completed.
+        unsafe { self.ctx.device.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty()) }
+            .vk("vkResetDescriptorPool")?;
+        // Which occurrence of each slot key a slot is, so equal keys map to distinct objects.
+        let mut seen: HashMap<SlotKey, usize> = HashMap::new();
+        let slot_index: Vec<usize> = plan
+            .slots
+            .iter()
+            .map(|k| {
+                let n = seen.entry(*k).or_insert(0);
+                *n += 1;
+                *n - 1
+            })
+            .collect();
+        let mut resolved = Vec::with_capacity(graph.resources.len());
+        for (decl, rp) in graph.resources.iter().zip(&plan.resources) {
+            resolved.push(match rp.storage {
+                Storage::Imported => decl.imported.map(|(e, _)| e),
+                Storage::Transient(s) => Some(self.slot(plan.slots[s], slot_index[s], decl.desc, decl.name)?),
+                Storage::Unused => None,
+            });
+        }
+        let live = plan.passes.iter().filter(|p| !p.culled).count() as u32;
+        let queries = if timestamps && self.ctx.timestamp_period_ns.is_some() && live > 0 {
+            let pool = self.ensure_queries(live * 2)?;
+            // SAFETY: recording state; resets before first use in this command buffer.
+            unsafe { self.ctx.device.cmd_reset_query_pool(cmd, pool, 0, live * 2) };
+            Some(pool)
+        } else {
+            None
+        };
+        self.timed_passes.clear();
+        let device = self.ctx.device.clone();
+        for (decl, compiled) in graph.passes.into_iter().zip(&plan.passes) {
+            if compiled.culled {
+                continue;
+            }
+            record_barriers(&device, cmd, &compiled.barriers, &resolved, plan);
+            let q = self.timed_passes.len() as u32 * 2;
+            if let Some(pool) = queries {
+                // SAFETY: recording state; the query was reset above.
+                unsafe { device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::TOP_OF_PIPE, pool, q) };
+            }
+            let mut pctx = PassContext { cmd, device: &device, resolved: &resolved, descriptor_pool: self.descriptor_pool };
+            if let Some(run) = decl.run {
+                run(&mut pctx)?;
+            }
+            if let Some(pool) = queries {
+                // SAFETY: as above.
+                unsafe { device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, pool, q + 1) };
+                self.timed_passes.push(decl.name);
+            }
+        }
+        record_barriers(&device, cmd, &plan.export_barriers, &resolved, plan);
+        Ok(())
+    }
+}
+
+impl Drop for TransientCache {
+    fn drop(&mut self) {
+        // SAFETY: the owner waits for the GPU before dropping the cache.
+        unsafe {
+            if let Some((pool, _)) = self.queries {
+                self.ctx.device.destroy_query_pool(pool, None);
+            }
+            self.ctx.device.destroy_descriptor_pool(self.descriptor_pool, None);
+        }
+    }
+}
+
+fn record_barriers(device: &ash::Device, cmd: vk::CommandBuffer, barriers: &[Barrier], resolved: &[Option<External>], plan: &CompiledGraph) {
+    if barriers.is_empty() {
+        return;
+    }
+    let mut images = Vec::new();
+    let mut buffers = Vec::new();
+    for b in barriers {
+        match resolved[b.resource] {
+            Some(External::Image { image, .. }) => {
+                let ResourceDesc::Image(desc) = plan.resources[b.resource].desc else { unreachable!("image resource") };
+                let (old, new) = b.layouts.expect("image barrier has layouts");
+                images.push(
+                    vk::ImageMemoryBarrier2::default()
+                        .src_stage_mask(b.src_stage)
+                        .src_access_mask(b.src_access)
+                        .dst_stage_mask(b.dst_stage)
+                        .dst_access_mask(b.dst_access)
+                        .old_layout(old)
+                        .new_layout(new)
+                        .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                        .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                        .image(image)
+                        .subresource_range(crate::vk::subresource_range(desc.aspect())),
+                );
+            }
+            Some(External::Buffer { buffer }) => buffers.push(
+                vk::BufferMemoryBarrier2::default()
+                    .src_stage_mask(b.src_stage)
+                    .src_access_mask(b.src_access)
+                    .dst_stage_mask(b.dst_stage)
+                    .dst_access_mask(b.dst_access)
+                    .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+                    .buffer(buffer)
+                    .offset(0)
+                    .size(vk::WHOLE_SIZE),
+            ),
+            None => {}
+        }
+    }
+    let dep = vk::DependencyInfo::default().image_memory_barriers(&images).buffer_memory_barriers(&buffers);
+    // SAFETY: recording state; every handle was resolved for this frame.
+    unsafe { device.cmd_pipeline_barrier2(cmd, &dep) };
+}
+
+/// What a pass's closure gets: the command buffer, the objects behind its declared accesses,
+/// and descriptor allocation.
+pub struct PassContext<'e> {
+    pub cmd: vk::CommandBuffer,
+    pub device: &'e ash::Device,
+    resolved: &'e [Option<External>],
+    descriptor_pool: vk::DescriptorPool,
+}
+
+impl PassContext<'_> {
+    pub fn image(&self, r: Ref<ImageKind>) -> (vk::Image, vk::ImageView) {
+        match self.resolved[r.id] {
+            Some(External::Image { image, view }) => (image, view),
+            _ => unreachable!("image handle resolves to an image"),
+        }
+    }
+
+    pub fn buffer(&self, r: Ref<BufferKind>) -> vk::Buffer {
+        match self.resolved[r.id] {
+            Some(External::Buffer { buffer }) => buffer,
+            _ => unreachable!("buffer handle resolves to a buffer"),
+        }
+    }
+
+    /// Allocates set 0 for `layout`, writes `bound` into it, and binds it at `bind_point`.
+    pub fn bind_set(&mut self, bind_point: vk::PipelineBindPoint, layout: &PipelineLayout, bound: &[(u32, Bound)]) -> GpuResult<()> {
+        let set_layouts = [layout.set_layout];
+        let alloc = vk::DescriptorSetAllocateInfo::default().descriptor_pool(self.descriptor_pool).set_layouts(&set_layouts);
+        // SAFETY: pool and layout are valid; the pool is reset only after the frame completes.
+        let set = unsafe { self.device.allocate_descriptor_sets(&alloc) }.vk("vkAllocateDescriptorSets")?[0];
+        let mut image_infos = Vec::with_capacity(bound.len());
+        let mut buffer_infos = Vec::with_capacity(bound.len());
+        for &(_, b) in bound {
+            match b {
+                Bound::Image(r) => image_infos.push(
+                    vk::DescriptorImageInfo::default().image_view(self.image(r).1).image_layout(r.access.info().layout),
+                ),
+                Bound::Buffer(r) => {
+                    buffer_infos.push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(0).range(vk::WHOLE_SIZE))
+                }
+            }
+        }
+        let (mut ii, mut bi) = (0, 0);
+        let mut writes = Vec::with_capacity(bound.len());
+        for &(binding, b) in bound {
+            let kind = layout.kind_of(binding).unwrap_or_else(|| panic!("binding {binding} is not in the pipeline layout"));
+            let w = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(binding).descriptor_type(kind.vk());
+            writes.push(match b {
+                Bound::Image(_) => {
+                    ii += 1;
+                    w.image_info(std::slice::from_ref(&image_infos[ii - 1]))
+                }
+                Bound::Buffer(_) => {
+                    bi += 1;
+                    w.buffer_info(std::slice::from_ref(&buffer_infos[bi - 1]))
+                }
+            });
+        }
+        // SAFETY: the infos outlive the call; the set is bound in this command buffer only.
+        unsafe {
+            self.device.update_descriptor_sets(&writes, &[]);
+            self.device.cmd_bind_descriptor_sets(self.cmd, bind_point, layout.layout, 0, &[set], &[]);
+        }
+        Ok(())
+    }
+
+    /// Binds `pipeline` with `bound`, pushes `push`, and dispatches over `width` x `height`.
+    pub fn dispatch(
+        &mut self,
+        pipeline: &crate::vk::ComputePipeline,
+        bound: &[(u32, Bound)],
+        push: &[u8],
+        width: u32,
+        height: u32,
+    ) -> GpuResult<()> {
+        // SAFETY: recording state; the pipeline outlives the frame.
+        unsafe { self.device.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.pipeline) };
+        self.bind_set(vk::PipelineBindPoint::COMPUTE, &pipeline.layout, bound)?;
+        let [gx, gy] = pipeline.groups(width, height);
+        // SAFETY: recording state; push size matches the layout's range.
+        unsafe {
+            if !push.is_empty() {
+                self.device.cmd_push_constants(self.cmd, pipeline.layout.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+            }
+            self.device.cmd_dispatch(self.cmd, gx, gy, 1);
+        }
+        Ok(())
+    }
+}

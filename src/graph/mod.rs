@@ -1,0 +1,211 @@
+//! The frame graph. Passes declare what they read and write through typed, versioned handles;
+//! `compile` derives culling, lifetimes, usage flags, transient allocation and one batched
+//! barrier per pass; `execute` records it. Passes never write a barrier themselves.
+
+mod access;
+mod compile;
+mod execute;
+
+use std::marker::PhantomData;
+
+use ash::vk;
+
+pub use access::{Access, AccessInfo, Applies};
+pub use compile::{Barrier, CompiledGraph, CompiledPass, ResourcePlan, Storage};
+pub use execute::{Bound, PassContext, TransientCache};
+pub use compile::{ResourceDescKey, SlotKey};
+
+pub use crate::vk::ImageDesc;
+
+/// Marker types so image and buffer handles cannot be confused.
+#[derive(Debug)]
+pub enum ImageKind {}
+#[derive(Debug)]
+pub enum BufferKind {}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct BufferDesc {
+    pub size: u64,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum ResourceDesc {
+    Image(ImageDesc),
+    Buffer(BufferDesc),
+}
+
+/// A resource in the graph at one version. Not `Clone`: writing takes `&mut` and bumps the
+/// version, so a reader can never hold on to contents that a later pass has overwritten.
+#[derive(Debug)]
+pub struct Handle<K> {
+    id: usize,
+    version: u32,
+    _kind: PhantomData<K>,
+}
+
+/// What a pass's closure holds to find the Vulkan object behind a declared access.
+#[derive(Debug)]
+pub struct Ref<K> {
+    pub(crate) id: usize,
+    pub(crate) access: Access,
+    _kind: PhantomData<K>,
+}
+
+impl<K> Clone for Ref<K> {
+    fn clone(&self) -> Self {
+        *self
+    }
+}
+impl<K> Copy for Ref<K> {}
+
+impl<K> Handle<K> {
+    pub fn id(&self) -> usize {
+        self.id
+    }
+}
+
+/// A Vulkan object that lives outside the graph.
+#[derive(Clone, Copy, Debug)]
+pub enum External {
+    Image { image: vk::Image, view: vk::ImageView },
+    Buffer { buffer: vk::Buffer },
+}
+
+#[derive(Clone, Debug)]
+pub(crate) struct ResourceDecl {
+    pub name: &'static str,
+    pub desc: ResourceDesc,
+    /// Imported resources: the object and the access it was last used with.
+    pub imported: Option<(External, Access)>,
+    pub version: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct PassAccess {
+    pub resource: usize,
+    pub access: Access,
+}
+
+pub(crate) type PassFn<'a> = Box<dyn FnOnce(&mut PassContext) -> crate::vk::GpuResult<()> + 'a>;
+
+pub(crate) struct PassDecl<'a> {
+    pub name: &'static str,
+    pub accesses: Vec<PassAccess>,
+    pub run: Option<PassFn<'a>>,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct ExportDecl {
+    pub resource: usize,
+    pub access: Access,
+}
+
+/// One frame's graph, built fresh each frame; `'a` is the lifetime of what pass closures borrow.
+#[derive(Default)]
+pub struct RenderGraph<'a> {
+    pub(crate) resources: Vec<ResourceDecl>,
+    pub(crate) passes: Vec<PassDecl<'a>>,
+    pub(crate) exports: Vec<ExportDecl>,
+}
+
+impl<'a> RenderGraph<'a> {
+    pub fn new() -> Self {
+        RenderGraph { resources: Vec::new(), passes: Vec::new(), exports: Vec::new() }
+    }
+
+    fn declare<K>(&mut self, name: &'static str, desc: ResourceDesc, imported: Option<(External, Access)>) -> Handle<K> {
+        self.resources.push(ResourceDecl { name, desc, imported, version: 0 });
+        Handle { id: self.resources.len() - 1, version: 0, _kind: PhantomData }
+    }
+
+    /// A transient image: created (or taken from the cache) by the graph, usage derived.
+    pub fn create_image(&mut self, name: &'static str, desc: ImageDesc) -> Handle<ImageKind> {
+        self.declare(name, ResourceDesc::Image(desc), None)
+    }
+
+    pub fn create_buffer(&mut self, name: &'static str, size: u64) -> Handle<BufferKind> {
+        self.declare(name, ResourceDesc::Buffer(BufferDesc { size }), None)
+    }
+
+    /// An image that lives outside the graph, last used with `access`.
+    pub fn import_image(
+        &mut self,
+        name: &'static str,
+        desc: ImageDesc,
+        image: vk::Image,
+        view: vk::ImageView,
+        access: Access,
+    ) -> Handle<ImageKind> {
+        assert!(access.applies_to_image(), "{name}: {access:?} is not an image access");
+        self.declare(name, ResourceDesc::Image(desc), Some((External::Image { image, view }, access)))
+    }
+
+    pub fn import_buffer(&mut self, name: &'static str, buffer: vk::Buffer, size: u64, access: Access) -> Handle<BufferKind> {
+        assert!(access.applies_to_buffer(), "{name}: {access:?} is not a buffer access");
+        self.declare(name, ResourceDesc::Buffer(BufferDesc { size }), Some((External::Buffer { buffer }, access)))
+    }
+
+    /// Marks a result as leaving the graph, to be used next with `access`: the passes that lead
+    /// to it survive culling and a final barrier brings it to that access.
+    pub fn export<K>(&mut self, handle: Handle<K>, access: Access) {
+        self.check_version(&handle);
+        self.exports.push(ExportDecl { resource: handle.id, access });
+    }
+
+    pub fn add_pass<'g>(&'g mut self, name: &'static str) -> PassBuilder<'g, 'a> {
+        PassBuilder { graph: self, pass: PassDecl { name, accesses: Vec::new(), run: None } }
+    }
+
+    fn check_version<K>(&self, handle: &Handle<K>) {
+        let r = &self.resources[handle.id];
+        assert_eq!(handle.version, r.version, "{}: stale handle (version {} of {})", r.name, handle.version, r.version);
+    }
+
+    pub fn describe(&self, id: usize) -> (&'static str, ResourceDesc) {
+        (self.resources[id].name, self.resources[id].desc)
+    }
+}
+
+pub struct PassBuilder<'g, 'a> {
+    graph: &'g mut RenderGraph<'a>,
+    pass: PassDecl<'a>,
+}
+
+impl<'a> PassBuilder<'_, 'a> {
+    fn check_kind(&self, id: usize, access: Access) {
+        let r = &self.graph.resources[id];
+        let fits = match r.desc {
+            ResourceDesc::Image(_) => access.applies_to_image(),
+            ResourceDesc::Buffer(_) => access.applies_to_buffer(),
+        };
+        assert!(fits, "pass {}: {access:?} does not apply to {} ({:?})", self.pass.name, r.name, r.desc);
+        assert!(access != Access::Nothing, "pass {}: Access::Nothing is not a use", self.pass.name);
+    }
+
+    /// Declares a read. Rejects write accesses: those go through `write`.
+    pub fn read<K>(&mut self, handle: &Handle<K>, access: Access) -> Ref<K> {
+        assert!(!access.is_write(), "pass {}: {access:?} is a write; declare it with write()", self.pass.name);
+        self.graph.check_version(handle);
+        self.check_kind(handle.id, access);
+        self.pass.accesses.push(PassAccess { resource: handle.id, access });
+        Ref { id: handle.id, access, _kind: PhantomData }
+    }
+
+    /// Declares a write and bumps the handle's version. Rejects read accesses.
+    pub fn write<K>(&mut self, handle: &mut Handle<K>, access: Access) -> Ref<K> {
+        assert!(access.is_write(), "pass {}: {access:?} is a read; declare it with read()", self.pass.name);
+        self.graph.check_version(handle);
+        self.check_kind(handle.id, access);
+        self.pass.accesses.push(PassAccess { resource: handle.id, access });
+        let r = &mut self.graph.resources[handle.id];
+        r.version += 1;
+        handle.version = r.version;
+        Ref { id: handle.id, access, _kind: PhantomData }
+    }
+
+    /// Records the pass's commands when the graph executes (skipped if the pass is culled).
+    pub fn render(mut self, run: impl FnOnce(&mut PassContext) -> crate::vk::GpuResult<()> + 'a) {
+        self.pass.run = Some(Box::new(run));
+        self.graph.passes.push(self.pass);
+    }
+}

@@ -1,0 +1,283 @@
+//! Instance, device selection and the one queue umbra uses. Required: Vulkan 1.3 with dynamic
+//! rendering, synchronization2 and maintenance4 (glslang's vulkan1.3 target emits LocalSizeId).
+//! Optional features (timestamps) are detected and reported, never assumed.
+
+use std::ffi::{c_char, CStr};
+use std::mem::ManuallyDrop;
+use std::sync::{Arc, Mutex};
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+
+use super::debug::{messenger_info, ValidationLog};
+use super::{GpuError, GpuResult, VkContext};
+
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+#[derive(Clone, Debug, Default)]
+pub struct GpuOptions {
+    /// Khronos validation with synchronization validation; every message is counted.
+    pub validate: bool,
+    /// Pick the device whose name contains this (case-insensitive); otherwise discrete first.
+    pub device_name: Option<String>,
+}
+
+pub struct GpuContext {
+    pub entry: ash::Entry,
+    pub instance: ash::Instance,
+    pub physical: vk::PhysicalDevice,
+    pub device: ash::Device,
+    pub queue: vk::Queue,
+    pub queue_family: u32,
+    pub properties: vk::PhysicalDeviceProperties,
+    /// Nanoseconds per timestamp tick, or None where the queue cannot write timestamps.
+    pub timestamp_period_ns: Option<f32>,
+    pub(super) allocator: ManuallyDrop<Mutex<Allocator>>,
+    command_pool: vk::CommandPool,
+    debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+    // Boxed so its address, handed to the driver as user data, never moves.
+    validation: Box<ValidationLog>,
+}
+
+impl GpuContext {
+    /// Shared: buffers and images hold an `Arc` so the device outlives every resource made on it.
+    pub fn new(options: &GpuOptions) -> GpuResult<Arc<GpuContext>> {
+        // SAFETY: loading the system Vulkan loader; its symbols are trusted from here on.
+        let entry = unsafe { ash::Entry::load()? };
+        let validation = Box::<ValidationLog>::default();
+        let instance = create_instance(&entry, options.validate, &validation)?;
+        let debug = if options.validate {
+            let utils = ash::ext::debug_utils::Instance::new(&entry, &instance);
+            // SAFETY: valid instance; the log outlives the messenger (destroyed in Drop first).
+            let messenger = unsafe { utils.create_debug_utils_messenger(&messenger_info(&validation), None) }
+                .vk("vkCreateDebugUtilsMessengerEXT")?;
+            Some((utils, messenger))
+        } else {
+            None
+        };
+        let (physical, queue_family) = match pick_device(&instance, options.device_name.as_deref()) {
+            Ok(found) => found,
+            Err(e) => {
+                destroy_instance(&instance, &debug);
+                return Err(e);
+            }
+        };
+        // SAFETY: `physical` was enumerated from this instance.
+        let (properties, qprops) = unsafe {
+            (
+                instance.get_physical_device_properties(physical),
+                instance.get_physical_device_queue_family_properties(physical)[queue_family as usize],
+            )
+        };
+        let timestamp_period_ns = (qprops.timestamp_valid_bits > 0 && properties.limits.timestamp_period > 0.0)
+            .then_some(properties.limits.timestamp_period);
+
+        let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
+            .dynamic_rendering(true)
+            .synchronization2(true)
+            .maintenance4(true);
+        let priorities = [1.0];
+        let queue_info = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(queue_family)
+            .queue_priorities(&priorities)];
+        let device_info = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info).push_next(&mut f13);
+        // SAFETY: the features were checked in pick_device.
+        let device = unsafe { instance.create_device(physical, &device_info, None) }.vk("vkCreateDevice")?;
+        // SAFETY: queue 0 of the family we created.
+        let queue = unsafe { device.get_device_queue(queue_family, 0) };
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.clone(),
+            device: device.clone(),
+            physical_device: physical,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        })?;
+        let pool_info = vk::CommandPoolCreateInfo::default()
+            .queue_family_index(queue_family)
+            .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
+        // SAFETY: valid device.
+        let command_pool = unsafe { device.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
+        let ctx = GpuContext {
+            entry,
+            instance,
+            physical,
+            device,
+            queue,
+            queue_family,
+            properties,
+            timestamp_period_ns,
+            allocator: ManuallyDrop::new(Mutex::new(allocator)),
+            command_pool,
+            debug,
+            validation,
+        };
+        log::info!("device: {} (Vulkan {})", ctx.device_name(), version_string(properties.api_version));
+        Ok(Arc::new(ctx))
+    }
+
+    pub fn device_name(&self) -> String {
+        // SAFETY: the driver NUL-terminates device_name.
+        unsafe { CStr::from_ptr(self.properties.device_name.as_ptr()) }.to_string_lossy().into_owned()
+    }
+
+    /// Number of validation messages so far (always 0 without `--validate`).
+    pub fn validation_messages(&self) -> usize {
+        self.validation.count()
+    }
+
+    pub fn validation_log(&self) -> &ValidationLog {
+        &self.validation
+    }
+
+    pub fn validation_enabled(&self) -> bool {
+        self.debug.is_some()
+    }
+
+    /// Records with `record`, submits, and waits: the whole frame of a headless capture.
+    pub fn submit_and_wait<R>(&self, record: impl FnOnce(vk::CommandBuffer) -> GpuResult<R>) -> GpuResult<R> {
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(self.command_pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: pool and device are valid; the buffer is freed before returning.
+        unsafe {
+            let cmd = self.device.allocate_command_buffers(&alloc).vk("vkAllocateCommandBuffers")?[0];
+            let result = (|| {
+                let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+                self.device.begin_command_buffer(cmd, &begin).vk("vkBeginCommandBuffer")?;
+                let value = record(cmd)?;
+                self.device.end_command_buffer(cmd).vk("vkEndCommandBuffer")?;
+                let fence = self.device.create_fence(&vk::FenceCreateInfo::default(), None).vk("vkCreateFence")?;
+                let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(cmd)];
+                let submit = [vk::SubmitInfo2::default().command_buffer_infos(&cmds)];
+                let waited = self
+                    .device
+                    .queue_submit2(self.queue, &submit, fence)
+                    .vk("vkQueueSubmit2")
+                    .and_then(|_| self.device.wait_for_fences(&[fence], true, u64::MAX).vk("vkWaitForFences"));
+                self.device.destroy_fence(fence, None);
+                waited.map(|_| value)
+            })();
+            self.device.free_command_buffers(self.command_pool, &[cmd]);
+            result
+        }
+    }
+}
+
+impl Drop for GpuContext {
+    fn drop(&mut self) {
+        // SAFETY: we own every object; the device is idle before anything is destroyed, and the
+        // allocator goes before the device it allocates from.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            self.device.destroy_command_pool(self.command_pool, None);
+            ManuallyDrop::drop(&mut self.allocator);
+            self.device.destroy_device(None);
+        }
+        destroy_instance(&self.instance, &self.debug);
+    }
+}
+
+fn destroy_instance(instance: &ash::Instance, debug: &Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>) {
+    // SAFETY: nothing created from the instance outlives this call.
+    unsafe {
+        if let Some((utils, messenger)) = debug {
+            utils.destroy_debug_utils_messenger(*messenger, None);
+        }
+        instance.destroy_instance(None);
+    }
+}
+
+fn create_instance(entry: &ash::Entry, validate: bool, log: &ValidationLog) -> GpuResult<ash::Instance> {
+    let app = vk::ApplicationInfo::default()
+        .application_name(c"umbra")
+        .engine_name(c"umbra")
+        .api_version(vk::API_VERSION_1_3);
+    let mut layers: Vec<*const c_char> = Vec::new();
+    let mut extensions: Vec<*const c_char> = Vec::new();
+    if validate {
+        // SAFETY: plain enumeration.
+        let available = unsafe { entry.enumerate_instance_layer_properties() }.vk("vkEnumerateInstanceLayerProperties")?;
+        let found = available.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
+        if !found {
+            return Err(GpuError::Unsupported(
+                "--validate needs VK_LAYER_KHRONOS_validation, which is not installed; run tools/setup".into(),
+            ));
+        }
+        layers.push(VALIDATION_LAYER.as_ptr());
+        extensions.push(ash::ext::debug_utils::NAME.as_ptr());
+    }
+    let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
+    let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);
+    // Chained into instance creation too, so messages from vkCreateInstance itself are counted.
+    let mut messenger = messenger_info(log);
+    let mut info = vk::InstanceCreateInfo::default()
+        .application_info(&app)
+        .enabled_layer_names(&layers)
+        .enabled_extension_names(&extensions);
+    if validate {
+        info = info.push_next(&mut features).push_next(&mut messenger);
+    }
+    // SAFETY: every pointer in `info` outlives the call.
+    unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")
+}
+
+fn pick_device(instance: &ash::Instance, wanted: Option<&str>) -> GpuResult<(vk::PhysicalDevice, u32)> {
+    // SAFETY: enumeration and property queries on a valid instance.
+    let devices = unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+    let mut candidates = Vec::new();
+    let mut names = Vec::new();
+    for pd in devices {
+        let props = unsafe { instance.get_physical_device_properties(pd) };
+        let name = props.device_name_as_c_str().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        names.push(name.clone());
+        if let Some(w) = wanted {
+            if !name.to_lowercase().contains(&w.to_lowercase()) {
+                continue;
+            }
+        }
+        if vk::api_version_major(props.api_version) < 1 || vk::api_version_minor(props.api_version) < 3 {
+            log::info!("skipping {name}: Vulkan {} < 1.3", version_string(props.api_version));
+            continue;
+        }
+        let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
+        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
+        unsafe { instance.get_physical_device_features2(pd, &mut f2) };
+        if f13.dynamic_rendering == 0 || f13.synchronization2 == 0 || f13.maintenance4 == 0 {
+            log::info!("skipping {name}: lacks dynamicRendering, synchronization2 or maintenance4");
+            continue;
+        }
+        let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
+        let Some(family) = families
+            .iter()
+            .position(|q| q.queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE))
+        else {
+            continue;
+        };
+        let rank = match props.device_type {
+            vk::PhysicalDeviceType::DISCRETE_GPU => 0,
+            vk::PhysicalDeviceType::INTEGRATED_GPU => 1,
+            vk::PhysicalDeviceType::VIRTUAL_GPU => 2,
+            vk::PhysicalDeviceType::CPU => 3,
+            _ => 4,
+        };
+        candidates.push((rank, pd, family as u32));
+    }
+    candidates.sort_by_key(|c| c.0);
+    match (candidates.first(), wanted) {
+        (Some(&(_, pd, family)), _) => Ok((pd, family)),
+        (None, Some(w)) => Err(GpuError::Unsupported(format!(
+            "no usable Vulkan 1.3 device matches --device {w:?}; devices present: {}",
+            if names.is_empty() { "none".into() } else { names.join(", ") }
+        ))),
+        (None, None) => Err(GpuError::Unsupported(format!(
+            "no Vulkan 1.3 device with dynamic rendering, synchronization2 and maintenance4; devices present: {}; run tools/setup for lavapipe",
+            if names.is_empty() { "none".into() } else { names.join(", ") }
+        ))),
+    }
+}
+
+fn version_string(v: u32) -> String {
+    format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
+}

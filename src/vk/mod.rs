@@ -1,0 +1,48 @@
+//! The Vulkan layer: instance and device (with validation when asked), memory, buffers, images,
+//! pipelines and one-shot submission. Everything above it speaks in frame-graph terms.
+
+mod context;
+mod debug;
+mod pipeline;
+mod resources;
+
+pub use context::{GpuContext, GpuOptions};
+pub use debug::ValidationLog;
+pub use pipeline::{ComputePipeline, DescriptorKind, GraphicsPipeline, GraphicsPipelineDesc, PipelineLayout};
+pub use resources::{subresource_range, Buffer, Image, ImageDesc};
+
+/// SPIR-V produced by build.rs from `shaders/`.
+pub mod spirv {
+    include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
+}
+
+/// Descriptor binding numbers, defined once in `shaders/include/bindings.glsl`.
+pub mod bindings {
+    include!(concat!(env!("OUT_DIR"), "/bindings.rs"));
+}
+
+/// Errors from the GPU layer: one line each, naming the call that failed.
+#[derive(Debug, thiserror::Error)]
+pub enum GpuError {
+    #[error("cannot load the Vulkan loader (libvulkan.so.1): {0}; run tools/setup")]
+    Loader(#[from] ash::LoadingError),
+    #[error("{call} failed: {result}")]
+    Vk { call: &'static str, result: ash::vk::Result },
+    #[error("memory allocation failed: {0}")]
+    Alloc(#[from] gpu_allocator::AllocationError),
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+pub type GpuResult<T> = Result<T, GpuError>;
+
+/// Attaches the failing call's name to a raw `vk::Result`.
+pub(crate) trait VkContext<T> {
+    fn vk(self, call: &'static str) -> GpuResult<T>;
+}
+
+impl<T> VkContext<T> for Result<T, ash::vk::Result> {
+    fn vk(self, call: &'static str) -> GpuResult<T> {
+        self.map_err(|result| GpuError::Vk { call, result })
+    }
+}

@@ -1,0 +1,251 @@
+//! Compute and graphics pipelines, each with one descriptor set layout (set 0) described by
+//! binding numbers from `bindings.glsl` and a push-constant block. Compute workgroup sizes are
+//! specialisation constants 0 and 1, so the dispatch size is derived from the same numbers the
+//! shader runs with.
+
+use std::io::Cursor;
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::{GpuContext, GpuError, GpuResult, VkContext};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DescriptorKind {
+    StorageBuffer,
+    UniformBuffer,
+    /// A combined image sampler with the pipeline's nearest-filtering sampler (used with texelFetch).
+    SampledImage,
+    StorageImage,
+}
+
+impl DescriptorKind {
+    pub fn vk(self) -> vk::DescriptorType {
+        match self {
+            DescriptorKind::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
+            DescriptorKind::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
+            DescriptorKind::SampledImage => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+            DescriptorKind::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
+        }
+    }
+}
+
+/// What pipelines of both kinds share: the layouts and the nearest sampler.
+pub struct PipelineLayout {
+    pub set_layout: vk::DescriptorSetLayout,
+    pub layout: vk::PipelineLayout,
+    pub sampler: vk::Sampler,
+    pub bindings: Vec<(u32, DescriptorKind)>,
+    ctx: Arc<GpuContext>,
+}
+
+impl PipelineLayout {
+    fn new(ctx: &Arc<GpuContext>, bindings: &[(u32, DescriptorKind)], stages: vk::ShaderStageFlags, push_bytes: u32) -> GpuResult<Self> {
+        let device = &ctx.device;
+        let sampler_info = vk::SamplerCreateInfo::default()
+            .mag_filter(vk::Filter::NEAREST)
+            .min_filter(vk::Filter::NEAREST)
+            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
+            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
+            .max_lod(0.0);
+        // SAFETY: valid device; create infos outlive the calls.
+        unsafe {
+            let sampler = device.create_sampler(&sampler_info, None).vk("vkCreateSampler")?;
+            let samplers = [sampler];
+            let vk_bindings: Vec<_> = bindings
+                .iter()
+                .map(|&(binding, kind)| {
+                    let b = vk::DescriptorSetLayoutBinding::default()
+                        .binding(binding)
+                        .descriptor_type(kind.vk())
+                        .descriptor_count(1)
+                        .stage_flags(stages);
+                    if kind == DescriptorKind::SampledImage {
+                        b.immutable_samplers(&samplers)
+                    } else {
+                        b
+                    }
+                })
+                .collect();
+            let set_layout = device
+                .create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&vk_bindings), None)
+                .vk("vkCreateDescriptorSetLayout")?;
+            let set_layouts = [set_layout];
+            let ranges = [vk::PushConstantRange { stage_flags: stages, offset: 0, size: push_bytes }];
+            let mut info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
+            if push_bytes > 0 {
+                info = info.push_constant_ranges(&ranges);
+            }
+            let layout = device.create_pipeline_layout(&info, None).vk("vkCreatePipelineLayout")?;
+            Ok(PipelineLayout { set_layout, layout, sampler, bindings: bindings.to_vec(), ctx: ctx.clone() })
+        }
+    }
+
+    pub fn kind_of(&self, binding: u32) -> Option<DescriptorKind> {
+        self.bindings.iter().find(|b| b.0 == binding).map(|b| b.1)
+    }
+}
+
+impl Drop for PipelineLayout {
+    fn drop(&mut self) {
+        // SAFETY: the owner waits for the GPU before dropping pipelines.
+        unsafe {
+            self.ctx.device.destroy_pipeline_layout(self.layout, None);
+            self.ctx.device.destroy_descriptor_set_layout(self.set_layout, None);
+            self.ctx.device.destroy_sampler(self.sampler, None);
+        }
+    }
+}
+
+fn shader_module(ctx: &GpuContext, spirv: &[u8]) -> GpuResult<vk::ShaderModule> {
+    let words = ash::util::read_spv(&mut Cursor::new(spirv)).map_err(|e| GpuError::Unsupported(format!("bad SPIR-V: {e}")))?;
+    // SAFETY: the words come from spirv-val-checked SPIR-V built by build.rs.
+    unsafe { ctx.device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }
+        .vk("vkCreateShaderModule")
+}
+
+pub struct ComputePipeline {
+    pub name: &'static str,
+    pub pipeline: vk::Pipeline,
+    pub layout: PipelineLayout,
+    pub local_size: [u32; 2],
+}
+
+impl ComputePipeline {
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        name: &'static str,
+        spirv: &[u8],
+        bindings: &[(u32, DescriptorKind)],
+        push_bytes: u32,
+        local_size: [u32; 2],
+    ) -> GpuResult<ComputePipeline> {
+        let layout = PipelineLayout::new(ctx, bindings, vk::ShaderStageFlags::COMPUTE, push_bytes)?;
+        let module = shader_module(ctx, spirv)?;
+        let entries = [
+            vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 },
+            vk::SpecializationMapEntry { constant_id: 1, offset: 4, size: 4 },
+        ];
+        let data: [u8; 8] = bytemuck::cast(local_size);
+        let spec = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
+        let stage = vk::PipelineShaderStageCreateInfo::default()
+            .stage(vk::ShaderStageFlags::COMPUTE)
+            .module(module)
+            .name(c"main")
+            .specialization_info(&spec);
+        let info = [vk::ComputePipelineCreateInfo::default().stage(stage).layout(layout.layout)];
+        // SAFETY: valid module and layout; the module is destroyed after pipeline creation.
+        let pipeline = unsafe {
+            let p = ctx.device.create_compute_pipelines(vk::PipelineCache::null(), &info, None);
+            ctx.device.destroy_shader_module(module, None);
+            p.map_err(|(_, e)| e).vk("vkCreateComputePipelines")?[0]
+        };
+        Ok(ComputePipeline { name, pipeline, layout, local_size })
+    }
+
+    /// Workgroups covering `width` x `height` invocations.
+    pub fn groups(&self, width: u32, height: u32) -> [u32; 2] {
+        [width.div_ceil(self.local_size[0]), height.div_ceil(self.local_size[1])]
+    }
+}
+
+impl Drop for ComputePipeline {
+    fn drop(&mut self) {
+        // SAFETY: the owner waits for the GPU before dropping pipelines.
+        unsafe { self.layout.ctx.device.destroy_pipeline(self.pipeline, None) };
+    }
+}
+
+/// Fixed-function state of a graphics pipeline drawn with dynamic rendering.
+pub struct GraphicsPipelineDesc<'a> {
+    pub name: &'static str,
+    pub vertex: &'a [u8],
+    pub fragment: &'a [u8],
+    pub vertex_stride: u32,
+    /// (location, format, offset) of each vertex attribute in binding 0.
+    pub attributes: &'a [(u32, vk::Format, u32)],
+    pub color_formats: &'a [vk::Format],
+    pub depth_format: Option<vk::Format>,
+    pub bindings: &'a [(u32, DescriptorKind)],
+    pub push_bytes: u32,
+    pub cull_back_faces: bool,
+}
+
+pub struct GraphicsPipeline {
+    pub name: &'static str,
+    pub pipeline: vk::Pipeline,
+    pub layout: PipelineLayout,
+}
+
+impl GraphicsPipeline {
+    pub fn new(ctx: &Arc<GpuContext>, desc: &GraphicsPipelineDesc<'_>) -> GpuResult<GraphicsPipeline> {
+        let layout = PipelineLayout::new(ctx, desc.bindings, vk::ShaderStageFlags::ALL_GRAPHICS, desc.push_bytes)?;
+        let vs = shader_module(ctx, desc.vertex)?;
+        let fs = shader_module(ctx, desc.fragment)?;
+        let stages = [
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vs).name(c"main"),
+            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(fs).name(c"main"),
+        ];
+        let vb = [vk::VertexInputBindingDescription { binding: 0, stride: desc.vertex_stride, input_rate: vk::VertexInputRate::VERTEX }];
+        let attrs: Vec<_> = desc
+            .attributes
+            .iter()
+            .map(|&(location, format, offset)| vk::VertexInputAttributeDescription { location, binding: 0, format, offset })
+            .collect();
+        let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
+            .vertex_binding_descriptions(&vb)
+            .vertex_attribute_descriptions(&attrs);
+        let assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
+        let raster = vk::PipelineRasterizationStateCreateInfo::default()
+            .polygon_mode(vk::PolygonMode::FILL)
+            .cull_mode(if desc.cull_back_faces { vk::CullModeFlags::BACK } else { vk::CullModeFlags::NONE })
+            .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .line_width(1.0);
+        let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(desc.depth_format.is_some())
+            .depth_write_enable(desc.depth_format.is_some())
+            .depth_compare_op(vk::CompareOp::LESS);
+        let blend_attachments: Vec<_> = desc
+            .color_formats
+            .iter()
+            .map(|_| vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA))
+            .collect();
+        let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
+        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
+        let mut rendering = vk::PipelineRenderingCreateInfo::default()
+            .color_attachment_formats(desc.color_formats)
+            .depth_attachment_format(desc.depth_format.unwrap_or(vk::Format::UNDEFINED));
+        let info = [vk::GraphicsPipelineCreateInfo::default()
+            .stages(&stages)
+            .vertex_input_state(&vertex_input)
+            .input_assembly_state(&assembly)
+            .viewport_state(&viewport)
+            .rasterization_state(&raster)
+            .multisample_state(&multisample)
+            .depth_stencil_state(&depth)
+            .color_blend_state(&blend)
+            .dynamic_state(&dynamic)
+            .layout(layout.layout)
+            .push_next(&mut rendering)];
+        // SAFETY: every pointer in `info` outlives the call; modules are destroyed after it.
+        let pipeline = unsafe {
+            let p = ctx.device.create_graphics_pipelines(vk::PipelineCache::null(), &info, None);
+            ctx.device.destroy_shader_module(vs, None);
+            ctx.device.destroy_shader_module(fs, None);
+            p.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0]
+        };
+        Ok(GraphicsPipeline { name: desc.name, pipeline, layout })
+    }
+}
+
+impl Drop for GraphicsPipeline {
+    fn drop(&mut self) {
+        // SAFETY: the owner waits for the GPU before dropping pipelines.
+        unsafe { self.layout.ctx.device.destroy_pipeline(self.pipeline, None) };
+    }
+}

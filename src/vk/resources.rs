@@ -1,0 +1,197 @@
+//! Buffers and images with their memory. Each holds its context so that dropping it frees it
+//! and so that the device cannot be destroyed while it is alive.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocation, AllocationCreateDesc, AllocationScheme};
+use gpu_allocator::MemoryLocation;
+
+use super::{GpuContext, GpuResult, VkContext};
+
+pub struct Buffer {
+    pub raw: vk::Buffer,
+    pub size: u64,
+    allocation: Option<Allocation>,
+    ctx: Arc<GpuContext>,
+}
+
+impl Buffer {
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        name: &str,
+        size: u64,
+        usage: vk::BufferUsageFlags,
+        location: MemoryLocation,
+    ) -> GpuResult<Buffer> {
+        let info = vk::BufferCreateInfo::default()
+            .size(size.max(4))
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        // SAFETY: valid device and create info; on failure the buffer is destroyed before return.
+        unsafe {
+            let raw = ctx.device.create_buffer(&info, None).vk("vkCreateBuffer")?;
+            let requirements = ctx.device.get_buffer_memory_requirements(raw);
+            let allocation = ctx.allocator.lock().expect("allocator lock").allocate(&AllocationCreateDesc {
+                name,
+                requirements,
+                location,
+                linear: true,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            });
+            let allocation = match allocation {
+                Ok(a) => a,
+                Err(e) => {
+                    ctx.device.destroy_buffer(raw, None);
+                    return Err(e.into());
+                }
+            };
+            ctx.device
+                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
+                .vk("vkBindBufferMemory")?;
+            Ok(Buffer { raw, size, allocation: Some(allocation), ctx: ctx.clone() })
+        }
+    }
+
+    /// A host-visible buffer filled with `data` (device-local too on unified-memory devices).
+    pub fn with_data(ctx: &Arc<GpuContext>, name: &str, data: &[u8], usage: vk::BufferUsageFlags) -> GpuResult<Buffer> {
+        let mut buffer = Buffer::new(ctx, name, data.len() as u64, usage, MemoryLocation::CpuToGpu)?;
+        buffer.mapped_mut()[..data.len()].copy_from_slice(data);
+        Ok(buffer)
+    }
+
+    /// The mapped bytes of a host-visible buffer.
+    pub fn mapped(&self) -> &[u8] {
+        let a = self.allocation.as_ref().expect("live buffer");
+        &a.mapped_slice().expect("buffer is host-visible")[..self.size as usize]
+    }
+
+    pub fn mapped_mut(&mut self) -> &mut [u8] {
+        let size = self.size as usize;
+        let a = self.allocation.as_mut().expect("live buffer");
+        &mut a.mapped_slice_mut().expect("buffer is host-visible")[..size]
+    }
+}
+
+impl Drop for Buffer {
+    fn drop(&mut self) {
+        // SAFETY: callers wait for the GPU before dropping resources it may still use.
+        unsafe { self.ctx.device.destroy_buffer(self.raw, None) };
+        if let Some(a) = self.allocation.take() {
+            let _ = self.ctx.allocator.lock().map(|mut al| al.free(a));
+        }
+    }
+}
+
+/// What a 2D image is; the frame graph's transient cache is keyed by this plus usage.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct ImageDesc {
+    pub format: vk::Format,
+    pub width: u32,
+    pub height: u32,
+}
+
+impl ImageDesc {
+    pub fn new(format: vk::Format, width: u32, height: u32) -> ImageDesc {
+        ImageDesc { format, width, height }
+    }
+
+    pub fn extent(&self) -> vk::Extent2D {
+        vk::Extent2D { width: self.width, height: self.height }
+    }
+
+    pub fn aspect(&self) -> vk::ImageAspectFlags {
+        match self.format {
+            vk::Format::D16_UNORM | vk::Format::D32_SFLOAT | vk::Format::X8_D24_UNORM_PACK32 => {
+                vk::ImageAspectFlags::DEPTH
+            }
+            vk::Format::D24_UNORM_S8_UINT | vk::Format::D32_SFLOAT_S8_UINT | vk::Format::D16_UNORM_S8_UINT => {
+                vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL
+            }
+            _ => vk::ImageAspectFlags::COLOR,
+        }
+    }
+
+    /// Bytes per texel of the formats umbra reads back.
+    pub fn texel_size(&self) -> u32 {
+        match self.format {
+            vk::Format::R8G8B8A8_UNORM | vk::Format::R8G8B8A8_SRGB | vk::Format::B8G8R8A8_UNORM | vk::Format::R32_SFLOAT | vk::Format::D32_SFLOAT => 4,
+            vk::Format::R16G16B16A16_SFLOAT => 8,
+            vk::Format::R32G32B32A32_SFLOAT => 16,
+            f => panic!("texel size of {f:?} is not tabulated"),
+        }
+    }
+}
+
+pub struct Image {
+    pub raw: vk::Image,
+    pub view: vk::ImageView,
+    pub desc: ImageDesc,
+    allocation: Option<Allocation>,
+    ctx: Arc<GpuContext>,
+}
+
+impl Image {
+    pub fn new(ctx: &Arc<GpuContext>, name: &str, desc: ImageDesc, usage: vk::ImageUsageFlags) -> GpuResult<Image> {
+        let info = vk::ImageCreateInfo::default()
+            .image_type(vk::ImageType::TYPE_2D)
+            .format(desc.format)
+            .extent(vk::Extent3D { width: desc.width, height: desc.height, depth: 1 })
+            .mip_levels(1)
+            .array_layers(1)
+            .samples(vk::SampleCountFlags::TYPE_1)
+            .tiling(vk::ImageTiling::OPTIMAL)
+            .usage(usage)
+            .sharing_mode(vk::SharingMode::EXCLUSIVE)
+            .initial_layout(vk::ImageLayout::UNDEFINED);
+        // SAFETY: valid device and create info; partial objects are destroyed on failure.
+        unsafe {
+            let raw = ctx.device.create_image(&info, None).vk("vkCreateImage")?;
+            let requirements = ctx.device.get_image_memory_requirements(raw);
+            let allocation = ctx.allocator.lock().expect("allocator lock").allocate(&AllocationCreateDesc {
+                name,
+                requirements,
+                location: MemoryLocation::GpuOnly,
+                linear: false,
+                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
+            });
+            let allocation = match allocation {
+                Ok(a) => a,
+                Err(e) => {
+                    ctx.device.destroy_image(raw, None);
+                    return Err(e.into());
+                }
+            };
+            ctx.device.bind_image_memory(raw, allocation.memory(), allocation.offset()).vk("vkBindImageMemory")?;
+            let view_info = vk::ImageViewCreateInfo::default()
+                .image(raw)
+                .view_type(vk::ImageViewType::TYPE_2D)
+                .format(desc.format)
+                .subresource_range(subresource_range(desc.aspect()));
+            let view = ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?;
+            Ok(Image { raw, view, desc, allocation: Some(allocation), ctx: ctx.clone() })
+        }
+    }
+}
+
+impl Drop for Image {
+    fn drop(&mut self) {
+        // SAFETY: callers wait for the GPU before dropping resources it may still use.
+        unsafe {
+            self.ctx.device.destroy_image_view(self.view, None);
+            self.ctx.device.destroy_image(self.raw, None);
+        }
+        if let Some(a) = self.allocation.take() {
+            let _ = self.ctx.allocator.lock().map(|mut al| al.free(a));
+        }
+    }
+}
+
+pub fn subresource_range(aspect: vk::ImageAspectFlags) -> vk::ImageSubresourceRange {
+    vk::ImageSubresourceRange::default()
+        .aspect_mask(aspect)
+        .base_mip_level(0)
+        .level_count(1)
+        .base_array_layer(0)
+        .layer_count(1)
+}

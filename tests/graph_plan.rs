@@ -1,0 +1,303 @@
+//! Frame-graph plans checked on the CPU: which passes survive, which barriers sit before which
+//! pass with which layouts, and how transients are shared. No device is needed.
+
+use ash::vk;
+use umbra::graph::{Access, CompiledGraph, ImageDesc, RenderGraph, Storage};
+
+fn desc() -> ImageDesc {
+    ImageDesc::new(vk::Format::R16G16B16A16_SFLOAT, 64, 32)
+}
+
+fn noop(_: &mut umbra::graph::PassContext) -> umbra::vk::GpuResult<()> {
+    Ok(())
+}
+
+#[test]
+fn compute_write_then_read_gets_one_memory_barrier() {
+    let mut g = RenderGraph::new();
+    let mut buf = g.create_buffer("visibility", 1024);
+    let mut out = g.create_buffer("out", 16);
+    let mut p = g.add_pass("trace");
+    p.write(&mut buf, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("shade");
+    p.read(&buf, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut out, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(out, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+
+    assert!(plan.barriers_before("trace").is_empty(), "first use of a fresh buffer needs nothing:\n{plan}");
+    let b = plan.barriers_before("shade");
+    assert_eq!(b.len(), 1, "{plan}");
+    assert_eq!(b[0].after, vec![Access::ComputeShaderWrite]);
+    assert_eq!(b[0].src_stage, vk::PipelineStageFlags2::COMPUTE_SHADER);
+    assert_eq!(b[0].src_access, vk::AccessFlags2::SHADER_STORAGE_WRITE);
+    assert_eq!(b[0].dst_access, vk::AccessFlags2::SHADER_STORAGE_READ);
+    assert_eq!(b[0].layouts, None);
+}
+
+#[test]
+fn colour_attachment_then_sampled_read_transitions_layouts() {
+    let mut g = RenderGraph::new();
+    let mut albedo = g.create_image("albedo", desc());
+    let mut out = g.create_image("out", desc());
+    let mut p = g.add_pass("geometry");
+    p.write(&mut albedo, Access::ColorAttachmentWrite);
+    p.render(noop);
+    let mut p = g.add_pass("compose");
+    p.read(&albedo, Access::ComputeShaderReadSampledImage);
+    p.write(&mut out, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(out, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+
+    let first = plan.barriers_before("geometry");
+    assert_eq!(first.len(), 1);
+    assert_eq!(first[0].layouts, Some((vk::ImageLayout::UNDEFINED, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)));
+    let second = plan.barriers_before("compose");
+    let sampled = second.iter().find(|b| plan.resources[b.resource].name == "albedo").expect("albedo barrier");
+    assert_eq!(
+        sampled.layouts,
+        Some((vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL))
+    );
+    assert_eq!(sampled.src_stage, vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT);
+    assert_eq!(sampled.dst_stage, vk::PipelineStageFlags2::COMPUTE_SHADER);
+    assert!(plan.resources[albedo_id(&plan)].image_usage.contains(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::SAMPLED));
+}
+
+fn albedo_id(plan: &CompiledGraph) -> usize {
+    plan.resources.iter().position(|r| r.name == "albedo").unwrap()
+}
+
+#[test]
+fn read_after_read_needs_no_barrier() {
+    let mut g = RenderGraph::new();
+    let mut gbuf = g.create_image("normal", desc());
+    let mut a = g.create_buffer("a", 64);
+    let mut b = g.create_buffer("b", 64);
+    let mut p = g.add_pass("geometry");
+    p.write(&mut gbuf, Access::ColorAttachmentWrite);
+    p.render(noop);
+    let mut p = g.add_pass("shadow");
+    p.read(&gbuf, Access::ComputeShaderReadSampledImage);
+    p.write(&mut a, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("compose");
+    p.read(&gbuf, Access::ComputeShaderReadSampledImage);
+    p.read(&a, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut b, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(b, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+    let before_compose = plan.barriers_before("compose");
+    assert!(
+        before_compose.iter().all(|b| plan.resources[b.resource].name != "normal"),
+        "the second sampled read of the G-buffer must not get a barrier:\n{plan}"
+    );
+    assert_eq!(before_compose.len(), 1, "only the RAW on `a`:\n{plan}");
+}
+
+#[test]
+fn a_pass_that_reaches_no_export_is_culled_with_its_resources() {
+    let mut g = RenderGraph::new();
+    let mut gbuf = g.create_image("albedo", desc());
+    let mut vis = g.create_buffer("visibility", 256);
+    let mut shaded = g.create_image("shaded", desc());
+    let mut debug = g.create_image("debug", desc());
+    let mut p = g.add_pass("geometry");
+    p.write(&mut gbuf, Access::ColorAttachmentWrite);
+    p.render(noop);
+    let mut p = g.add_pass("shadow");
+    p.read(&gbuf, Access::ComputeShaderReadSampledImage);
+    p.write(&mut vis, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("compose");
+    p.read(&vis, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut shaded, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("debug view");
+    p.read(&gbuf, Access::ComputeShaderReadSampledImage);
+    p.write(&mut debug, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(debug, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+    assert_eq!(plan.live_pass_names(), vec!["geometry", "debug view"], "{plan}");
+    let by_name = |n: &str| plan.resources.iter().find(|r| r.name == n).unwrap();
+    assert_eq!(by_name("visibility").storage, Storage::Unused);
+    assert_eq!(by_name("shaded").storage, Storage::Unused);
+    assert!(matches!(by_name("debug").storage, Storage::Transient(_)));
+}
+
+#[test]
+fn exported_image_ends_in_its_export_access() {
+    let mut g = RenderGraph::new();
+    let mut img = g.create_image("radiance", desc());
+    let mut p = g.add_pass("compose");
+    p.write(&mut img, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(img, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+    assert_eq!(plan.export_barriers.len(), 1);
+    let b = &plan.export_barriers[0];
+    assert_eq!(b.layouts, Some((vk::ImageLayout::GENERAL, vk::ImageLayout::TRANSFER_SRC_OPTIMAL)));
+    assert_eq!(b.src_access, vk::AccessFlags2::SHADER_STORAGE_WRITE);
+    assert_eq!(b.dst_access, vk::AccessFlags2::TRANSFER_READ);
+    assert!(plan.resources[0].image_usage.contains(vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::TRANSFER_SRC));
+}
+
+#[test]
+fn write_after_read_is_an_execution_dependency_only() {
+    let mut g = RenderGraph::new();
+    let mut a = g.create_buffer("a", 64);
+    let mut out = g.create_buffer("out", 64);
+    let mut p = g.add_pass("fill");
+    p.write(&mut a, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("use");
+    p.read(&a, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut out, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("refill");
+    p.read(&out, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut a, Access::TransferWrite);
+    p.render(noop);
+    g.export(a, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+    let war = plan
+        .barriers_before("refill")
+        .iter()
+        .find(|b| plan.resources[b.resource].name == "a")
+        .expect("write after read on `a` needs ordering");
+    assert_eq!(war.src_access, vk::AccessFlags2::NONE, "reads are never in the source access mask");
+    assert!(war.src_stage.contains(vk::PipelineStageFlags2::COMPUTE_SHADER));
+}
+
+#[test]
+fn transients_with_disjoint_lifetimes_share_a_slot() {
+    let mut g = RenderGraph::new();
+    let mut first = g.create_image("first", desc());
+    let mut second = g.create_image("second", desc());
+    let mut third = g.create_image("third", desc());
+    let mut p = g.add_pass("a");
+    p.write(&mut first, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("b");
+    p.read(&first, Access::ComputeShaderReadSampledImage);
+    p.write(&mut second, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("c");
+    p.read(&second, Access::ComputeShaderReadSampledImage);
+    p.write(&mut third, Access::ComputeShaderWrite);
+    p.render(noop);
+    // `first` and `third` have the same usage (storage + sampled? no: third is only written and
+    // exported), so compare the two with identical usage instead.
+    g.export(third, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+    let s = |n: &str| plan.resources.iter().find(|r| r.name == n).unwrap().storage;
+    assert_ne!(s("first"), s("second"), "overlapping lifetimes (pass b) must not share:\n{plan}");
+    assert_eq!(plan.slots.len(), 3, "usages differ for `third`, so three slots:\n{plan}");
+
+    // Now two images with equal description and usage, used one after the other.
+    let mut g = RenderGraph::new();
+    let mut x = g.create_image("x", desc());
+    let mut y = g.create_image("y", desc());
+    let mut z = g.create_image("z", desc());
+    let mut w = g.create_image("w", desc());
+    let mut p = g.add_pass("x");
+    p.write(&mut x, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("y");
+    p.read(&x, Access::ComputeShaderReadSampledImage);
+    p.write(&mut y, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("z");
+    p.read(&y, Access::ComputeShaderReadSampledImage);
+    p.write(&mut z, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("w");
+    p.read(&z, Access::ComputeShaderReadSampledImage);
+    p.write(&mut w, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(w, Access::ComputeShaderReadSampledImage);
+    let plan = CompiledGraph::compile(&g);
+    let s = |n: &str| plan.resources.iter().find(|r| r.name == n).unwrap().storage;
+    assert_eq!(s("x"), s("z"), "x is dead before z is born:\n{plan}");
+    assert_eq!(s("y"), s("w"), "{plan}");
+    assert_eq!(plan.slots.len(), 2, "{plan}");
+    // z reuses x's image: its first use discards the contents and waits for x's last reader.
+    let reuse = plan.barriers_before("z").iter().find(|b| plan.resources[b.resource].name == "z").unwrap();
+    assert_eq!(reuse.layouts, Some((vk::ImageLayout::UNDEFINED, vk::ImageLayout::GENERAL)));
+    assert!(reuse.after.contains(&Access::ComputeShaderReadSampledImage), "{plan}");
+}
+
+#[test]
+fn imported_buffer_written_by_host_gets_a_barrier_before_its_first_gpu_read() {
+    let mut g = RenderGraph::new();
+    let nodes = g.import_buffer("bvh nodes", vk::Buffer::null(), 1024, Access::HostWrite);
+    let mut out = g.create_buffer("out", 64);
+    let mut p = g.add_pass("trace");
+    p.read(&nodes, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut out, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(out, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+    let b = &plan.barriers_before("trace")[0];
+    assert_eq!(b.src_access, vk::AccessFlags2::HOST_WRITE);
+    assert_eq!(plan.resources[0].storage, Storage::Imported);
+}
+
+#[test]
+fn the_plan_prints_as_expected() {
+    let mut g = RenderGraph::new();
+    let mut gbuf = g.create_image("normal", desc());
+    let mut vis = g.create_buffer("visibility", 256);
+    let mut hdr = g.create_image("radiance", desc());
+    let mut p = g.add_pass("geometry");
+    p.write(&mut gbuf, Access::ColorAttachmentWrite);
+    p.render(noop);
+    let mut p = g.add_pass("shadow trace");
+    p.read(&gbuf, Access::ComputeShaderReadSampledImage);
+    p.write(&mut vis, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("compose");
+    p.read(&gbuf, Access::ComputeShaderReadSampledImage);
+    p.read(&vis, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut hdr, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(hdr, Access::TransferRead);
+    let text = CompiledGraph::compile(&g).to_string();
+    let expected = "\
+frame graph plan:
+  resource 0 normal: image R16G16B16A16_SFLOAT 64x32 usage SAMPLED | COLOR_ATTACHMENT, transient slot 0, passes 0..=2
+  resource 1 visibility: buffer 256 B usage STORAGE_BUFFER, transient slot 1, passes 1..=2
+  resource 2 radiance: image R16G16B16A16_SFLOAT 64x32 usage TRANSFER_SRC | STORAGE, transient slot 2, passes 2..=3
+  pass 0 geometry
+    barrier normal: [] -> [ColorAttachmentWrite] [UNDEFINED -> COLOR_ATTACHMENT_OPTIMAL]
+  pass 1 shadow trace
+    barrier normal: [ColorAttachmentWrite] -> [ComputeShaderReadSampledImage] [COLOR_ATTACHMENT_OPTIMAL -> SHADER_READ_ONLY_OPTIMAL]
+  pass 2 compose
+    barrier visibility: [ComputeShaderWrite] -> [ComputeShaderReadStorageBuffer]
+    barrier radiance: [] -> [ComputeShaderWrite] [UNDEFINED -> GENERAL]
+  export: barrier radiance: [ComputeShaderWrite] -> [TransferRead] [GENERAL -> TRANSFER_SRC_OPTIMAL]
+";
+    assert_eq!(text, expected, "\n{text}");
+}
+
+#[test]
+#[should_panic(expected = "is a write; declare it with write()")]
+fn read_rejects_a_write_access() {
+    let mut g = RenderGraph::new();
+    let img = g.create_image("x", desc());
+    let mut p = g.add_pass("p");
+    p.read(&img, Access::ComputeShaderWrite);
+}
+
+#[test]
+#[should_panic(expected = "does not apply to")]
+fn image_access_on_a_buffer_is_rejected() {
+    let mut g = RenderGraph::new();
+    let buf = g.create_buffer("x", 4);
+    let mut p = g.add_pass("p");
+    p.read(&buf, Access::ComputeShaderReadSampledImage);
+}

@@ -2,6 +2,9 @@
 //! CPU-built BVH, so it runs on any Vulkan 1.3 device, software rasterisers included.
 
 pub mod graph;
+pub mod output;
+pub mod passes;
+pub mod renderer;
 pub mod scene;
 pub mod shading;
 pub mod vk;

@@ -1,1 +1,165 @@
-fn main() {}
+//! The command line: `umbra render` captures a frame headless (PNG or EXR), with optional
+//! validation, timings and debug views.
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+
+use umbra::output::{write_image, ImageFormat};
+use umbra::passes::debug_view::DebugView;
+use umbra::renderer::{OutputKind, RenderSettings, Renderer};
+use umbra::scene::Scene;
+use umbra::vk::{GpuContext, GpuOptions};
+
+#[derive(Parser)]
+#[command(name = "umbra", version, about = "Vulkan renderer with compute ray-traced shadows")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Render one frame (or several, for timings) to a PNG or EXR file, headless.
+    Render(RenderArgs),
+}
+
+#[derive(clap::Args)]
+struct RenderArgs {
+    /// Scene file (TOML); the built-in default scene if omitted.
+    scene: Option<PathBuf>,
+    /// Output file: .png (tone-mapped sRGB) or .exr (linear radiance, W/(m^2 sr), float32).
+    #[arg(short, long)]
+    output: PathBuf,
+    /// Image size as WIDTHxHEIGHT; overrides the scene's [image].
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Khronos validation with synchronization validation; exits non-zero on any message.
+    #[arg(long)]
+    validate: bool,
+    /// Frames to render (the last one is written); timings are medians over them.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    frames: u32,
+    /// Print per-pass GPU times from timestamp queries (median over --frames).
+    #[arg(long)]
+    timings: bool,
+    /// Write a G-buffer channel or the first light's visibility instead of the shaded image.
+    #[arg(long, value_enum)]
+    debug_view: Option<DebugView>,
+    /// Exposure in stops for PNG output.
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    exposure: f32,
+    /// Use the Vulkan device whose name contains this text.
+    #[arg(long)]
+    device: Option<String>,
+    /// Print the compiled frame-graph plan.
+    #[arg(long)]
+    print_plan: bool,
+}
+
+fn parse_size(text: &str) -> Result<(u32, u32), String> {
+    let (w, h) = text.split_once(['x', 'X']).ok_or_else(|| format!("{text:?} is not WIDTHxHEIGHT"))?;
+    let parse = |s: &str| s.trim().parse::<u32>().ok().filter(|v| (1..=16384).contains(v));
+    match (parse(w), parse(h)) {
+        (Some(w), Some(h)) => Ok((w, h)),
+        _ => Err(format!("{text:?}: width and height must be integers from 1 to 16384")),
+    }
+}
+
+fn main() -> ExitCode {
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).format_timestamp(None).init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Render(args) => render(args),
+    };
+    match result {
+        Ok(code) => code,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
+
+fn render(args: RenderArgs) -> Result<ExitCode> {
+    let format = ImageFormat::from_path(&args.output)?;
+    let scene = match &args.scene {
+        Some(path) => Scene::load(path)?,
+        None => Scene::default_scene(),
+    };
+    let (width, height) = args.size.or(scene.image_size).unwrap_or((320, 240));
+    let settings = RenderSettings {
+        width,
+        height,
+        exposure_ev: args.exposure,
+        debug_view: args.debug_view,
+        output: if format == ImageFormat::Png { OutputKind::Display } else { OutputKind::SceneLinear },
+        timestamps: args.timings,
+    };
+    let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
+    let device_name = ctx.device_name();
+    let mut renderer = Renderer::new(ctx.clone(), scene).context("preparing the scene")?;
+    if args.print_plan {
+        println!("{}", renderer.plan(&settings));
+    }
+    let mut per_pass: Vec<(&'static str, Vec<f64>)> = Vec::new();
+    let mut frame = None;
+    for _ in 0..args.frames {
+        frame = Some(renderer.render(&settings)?);
+        if args.timings {
+            for (i, (name, ms)) in renderer.last_timings()?.into_iter().enumerate() {
+                if per_pass.len() <= i {
+                    per_pass.push((name, Vec::new()));
+                }
+                per_pass[i].1.push(ms);
+            }
+        }
+    }
+    let frame = frame.expect("at least one frame");
+    write_image(&frame, &args.output)?;
+    println!("wrote {} ({width}x{height}) on {device_name}", args.output.display());
+    if args.timings {
+        print_timings(&per_pass, args.frames, ctx.timestamp_period_ns.is_some());
+    }
+    drop(renderer);
+    if args.validate {
+        let n = ctx.validation_messages();
+        println!("validation: {n} messages");
+        if n > 0 {
+            return Ok(ExitCode::FAILURE);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn print_timings(per_pass: &[(&'static str, Vec<f64>)], frames: u32, supported: bool) {
+    if !supported {
+        println!("timings: this device's queue has no timestamp support");
+        return;
+    }
+    println!("GPU time per pass, median of {frames} frame(s):");
+    let mut total = 0.0;
+    for (name, samples) in per_pass {
+        let mut s = samples.clone();
+        s.sort_by(f64::total_cmp);
+        let median = s[s.len() / 2];
+        total += median;
+        println!("  {name:<16} {median:9.3} ms");
+    }
+    println!("  {:<16} {total:9.3} ms", "sum");
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_size;
+
+    #[test]
+    fn sizes_parse_and_bad_ones_say_why() {
+        assert_eq!(parse_size("640x480"), Ok((640, 480)));
+        assert!(parse_size("640").unwrap_err().contains("WIDTHxHEIGHT"));
+        assert!(parse_size("0x10").unwrap_err().contains("1 to 16384"));
+    }
+}
+

@@ -24,4 +24,10 @@
 #define DISPLAY_OUTPUT 1
 #define DISPLAY_VISIBILITY 2
 
+// bvh_rays.comp: a batch of shadow queries, for checking traversal against the CPU
+#define RAYS_INPUT 0
+#define RAYS_BVH_NODES 1
+#define RAYS_BVH_TRIANGLES 2
+#define RAYS_OUTPUT 3
+
 #endif

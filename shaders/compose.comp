@@ -1,0 +1,4 @@
+#version 460
+// Compose with ray-traced visibility.
+#define WITH_VISIBILITY
+#include "compose_body.glsl"

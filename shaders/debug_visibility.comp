@@ -1,0 +1,4 @@
+#version 460
+// The visibility debug view: the shadow pass's output for the first light.
+#define WITH_VISIBILITY
+#include "debug_view_body.glsl"

@@ -1,0 +1,50 @@
+// Compose pass body (compose.comp defines WITH_VISIBILITY; compose_unshadowed.comp does not):
+// sum over lights of BRDF * cos * irradiance * visibility, as scene-referred radiance.
+#include "bindings.glsl"
+#include "brdf.glsl"
+#include "lights.glsl"
+layout(local_size_x_id = 0, local_size_y_id = 1) in;
+
+layout(set = 0, binding = COMPOSE_POSITION) uniform sampler2D gbuffer_position;
+layout(set = 0, binding = COMPOSE_NORMAL) uniform sampler2D gbuffer_normal;
+layout(set = 0, binding = COMPOSE_MATERIAL) uniform sampler2D gbuffer_material;
+layout(set = 0, binding = COMPOSE_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
+layout(set = 0, binding = COMPOSE_RADIANCE, rgba32f) uniform writeonly image2D radiance;
+#ifdef WITH_VISIBILITY
+layout(set = 0, binding = COMPOSE_VISIBILITY, std430) readonly buffer Visibility { float visibility[]; };
+#endif
+
+layout(push_constant) uniform Push {
+    vec4 eye;        // xyz
+    vec4 background; // rgb radiance where nothing was drawn
+    uvec4 dims;      // x: width, y: height, z: light count
+} pc;
+
+void main() {
+    uvec2 px = gl_GlobalInvocationID.xy;
+    if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
+    vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
+    if (position.w <= 0.0) {
+        imageStore(radiance, ivec2(px), vec4(pc.background.rgb, 1.0));
+        return;
+    }
+    vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
+    vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
+    vec3 n = normalize(normal_metallic.xyz);
+    vec3 v = normalize(pc.eye.xyz - position.xyz);
+    uint pixel = px.y * pc.dims.x + px.x;
+    vec3 sum = vec3(0.0);
+    for (uint i = 0u; i < pc.dims.z; i++) {
+        vec3 L;
+        float dist;
+        vec3 e;
+        light_sample(lights[i], position.xyz, L, dist, e);
+#ifdef WITH_VISIBILITY
+        float vis = visibility[i * pc.dims.x * pc.dims.y + pixel];
+#else
+        float vis = 1.0;
+#endif
+        sum += brdf_times_cos(n, v, L, material.rgb, material.a, normal_metallic.w) * e * vis;
+    }
+    imageStore(radiance, ivec2(px), vec4(sum, 1.0));
+}

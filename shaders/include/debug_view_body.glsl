@@ -1,0 +1,58 @@
+// Debug views (included by debug_view.comp and, with WITH_VISIBILITY, debug_visibility.comp): one G-buffer channel (or the first light's visibility) instead of the shaded
+// image. With `display` set, values are mapped to [0,1] for an 8-bit file.
+#include "bindings.glsl"
+layout(local_size_x_id = 0, local_size_y_id = 1) in;
+
+layout(set = 0, binding = DISPLAY_INPUT) uniform sampler2D gbuffer_channel;
+layout(set = 0, binding = DISPLAY_OUTPUT, rgba32f) uniform writeonly image2D result;
+#ifdef WITH_VISIBILITY
+layout(set = 0, binding = DISPLAY_VISIBILITY, std430) readonly buffer Visibility { float visibility[]; };
+#endif
+
+#define VIEW_ALBEDO 0
+#define VIEW_NORMAL 1
+#define VIEW_DEPTH 2
+#define VIEW_POSITION 3
+#define VIEW_VISIBILITY 4
+
+layout(push_constant) uniform Push {
+    vec4 eye;       // xyz eye, w: 1/far distance used to display depth
+    uvec4 params;   // x: width, y: height, z: view, w: display (1) or raw (0)
+} pc;
+
+float srgb_encode(float x) {
+    return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
+}
+
+void main() {
+    uvec2 p = gl_GlobalInvocationID.xy;
+    if (p.x >= pc.params.x || p.y >= pc.params.y) return;
+    vec4 texel = texelFetch(gbuffer_channel, ivec2(p), 0);
+    bool display = pc.params.w != 0u;
+    vec3 v;
+    switch (pc.params.z) {
+    case VIEW_ALBEDO:
+        v = display ? vec3(srgb_encode(texel.r), srgb_encode(texel.g), srgb_encode(texel.b)) : texel.rgb;
+        break;
+    case VIEW_NORMAL:
+        v = display ? texel.xyz * 0.5 + 0.5 : texel.xyz;
+        break;
+    case VIEW_DEPTH: {
+        // Input is the position channel: distance from the eye in metres (0 for background).
+        float d = texel.w > 0.0 ? distance(texel.xyz, pc.eye.xyz) : 0.0;
+        v = vec3(display ? clamp(d * pc.eye.w, 0.0, 1.0) : d);
+        break;
+    }
+    case VIEW_POSITION:
+        v = display ? fract(texel.xyz) : texel.xyz;
+        break;
+    default: // VIEW_VISIBILITY; input is the position channel, to tell background apart.
+#ifdef WITH_VISIBILITY
+        v = vec3(texel.w > 0.0 ? visibility[p.y * pc.params.x + p.x] : 1.0);
+#else
+        v = vec3(1.0); // no light: nothing to shadow
+#endif
+        break;
+    }
+    imageStore(result, ivec2(p), vec4(v, 1.0));
+}

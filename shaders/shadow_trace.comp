@@ -1,0 +1,48 @@
+#version 460
+// Shadow trace pass: one any-hit ray per drawn pixel and light through the shadow-caster BVH.
+// No ray is cast where the light cannot contribute (background, facing away, outside a spot's
+// cone): visibility there is 0 (1 for background, which nothing shadows).
+#include "bindings.glsl"
+layout(local_size_x_id = 0, local_size_y_id = 1) in;
+
+#define BVH_SET 0
+#define BVH_NODES_BINDING SHADOW_BVH_NODES
+#define BVH_TRIANGLES_BINDING SHADOW_BVH_TRIANGLES
+#include "bvh.glsl"
+#include "lights.glsl"
+#include "ray_offset.glsl"
+
+layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
+layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
+layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
+layout(set = 0, binding = SHADOW_VISIBILITY, std430) writeonly buffer Visibility { float visibility[]; };
+
+layout(push_constant) uniform Push {
+    uvec4 dims; // x: width, y: height, z: light count
+} pc;
+
+void main() {
+    uvec2 px = gl_GlobalInvocationID.xy;
+    if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
+    uint pixel = px.y * pc.dims.x + px.x;
+    uint stride = pc.dims.x * pc.dims.y;
+    vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
+    vec3 n = texelFetch(gbuffer_normal, ivec2(px), 0).xyz;
+    for (uint i = 0u; i < pc.dims.z; i++) {
+        float v = 1.0;
+        if (position.w > 0.0) {
+            vec3 L;
+            float dist;
+            vec3 e;
+            light_sample(lights[i], position.xyz, L, dist, e);
+            if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
+                v = 0.0;
+            } else {
+                vec3 origin = offset_ray_origin(position.xyz, n);
+                // The light's own position is not an occluder: stop just short of it.
+                v = bvh_occluded(origin, L, dist * (1.0 - 1e-5)) ? 0.0 : 1.0;
+            }
+        }
+        visibility[i * stride + pixel] = v;
+    }
+}

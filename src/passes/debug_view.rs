@@ -1,0 +1,88 @@
+//! Debug-view pass: writes one G-buffer channel, or the first light's visibility, instead of
+//! the shaded image. Only the passes that view needs survive culling.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::{UVec4, Vec4};
+
+use super::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::vk::bindings::*;
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum DebugView {
+    Albedo,
+    Normal,
+    Depth,
+    Position,
+    Visibility,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    eye: Vec4,
+    params: UVec4,
+}
+
+pub struct DebugPipelines {
+    channel: ComputePipeline,
+    visibility: ComputePipeline,
+}
+
+pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
+    let push = std::mem::size_of::<Push>() as u32;
+    let common = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)];
+    let mut with_vis = common.to_vec();
+    with_vis.push(storage(DISPLAY_VISIBILITY));
+    Ok(DebugPipelines {
+        channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &common, push, TILE)?,
+        visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, TILE)?,
+    })
+}
+
+pub struct DebugInputs<'h> {
+    pub view: DebugView,
+    /// The first light's slice of the visibility buffer is its first W*H floats.
+    pub visibility: Option<&'h Handle<BufferKind>>,
+    pub eye: glam::Vec3,
+    /// Distance shown as white in the display-referred depth view.
+    pub far: f32,
+    /// Map values into [0,1] for an 8-bit file (else raw values for EXR).
+    pub display: bool,
+}
+
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipelines: &'a DebugPipelines,
+    gbuffer: &GBuffer,
+    inputs: DebugInputs<'_>,
+    extent: vk::Extent2D,
+) -> Handle<ImageKind> {
+    let mut out = graph.create_image("debug view", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
+    let source = match inputs.view {
+        DebugView::Albedo => &gbuffer.material,
+        DebugView::Normal => &gbuffer.normal,
+        DebugView::Depth | DebugView::Position | DebugView::Visibility => &gbuffer.position,
+    };
+    let mut pass = graph.add_pass("debug view");
+    let mut bound = vec![
+        (DISPLAY_INPUT, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
+        (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
+    ];
+    let pipeline = match inputs.visibility.filter(|_| inputs.view == DebugView::Visibility) {
+        Some(v) => {
+            bound.push((DISPLAY_VISIBILITY, Bound::Buffer(pass.read(v, Access::ComputeShaderReadStorageBuffer))));
+            &pipelines.visibility
+        }
+        None => &pipelines.channel,
+    };
+    let push = Push {
+        eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
+        params: UVec4::new(extent.width, extent.height, inputs.view as u32, inputs.display as u32),
+    };
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    out
+}

@@ -1,0 +1,129 @@
+//! Geometry pass: rasterises every mesh with dynamic rendering into the G-buffer.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::{Mat4, Vec4};
+
+use super::{GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT};
+use crate::graph::{Access, BufferKind, Handle, ImageDesc, RenderGraph};
+use crate::renderer::{CameraMatrices, SceneGpu, Vertex};
+use crate::vk::{spirv, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    view_proj: Mat4,
+    eye: Vec4,
+    base_color_roughness: Vec4,
+    metallic: Vec4,
+}
+
+pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<GraphicsPipeline> {
+    GraphicsPipeline::new(
+        ctx,
+        &GraphicsPipelineDesc {
+            name: "geometry",
+            vertex: spirv::GEOMETRY_VERT,
+            fragment: spirv::GEOMETRY_FRAG,
+            vertex_stride: std::mem::size_of::<Vertex>() as u32,
+            attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0), (1, vk::Format::R32G32B32_SFLOAT, 12)],
+            color_formats: &[POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT],
+            depth_format: Some(DEPTH_FORMAT),
+            bindings: &[],
+            push_bytes: std::mem::size_of::<Push>() as u32,
+            cull_back_faces: true,
+        },
+    )
+}
+
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipeline: &'a GraphicsPipeline,
+    scene: &'a SceneGpu,
+    vertices: &Handle<BufferKind>,
+    indices: &Handle<BufferKind>,
+    camera: CameraMatrices,
+    extent: vk::Extent2D,
+) -> GBuffer {
+    let image = |format| ImageDesc::new(format, extent.width, extent.height);
+    let mut gbuffer = GBuffer {
+        depth: graph.create_image("depth", image(DEPTH_FORMAT)),
+        position: graph.create_image("gbuffer position", image(POSITION_FORMAT)),
+        normal: graph.create_image("gbuffer normal", image(NORMAL_FORMAT)),
+        material: graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
+    };
+    let mut pass = graph.add_pass("geometry");
+    let vb = pass.read(vertices, Access::VertexBuffer);
+    let ib = pass.read(indices, Access::IndexBuffer);
+    let depth = pass.write(&mut gbuffer.depth, Access::DepthAttachmentWrite);
+    let colors = [
+        pass.write(&mut gbuffer.position, Access::ColorAttachmentWrite),
+        pass.write(&mut gbuffer.normal, Access::ColorAttachmentWrite),
+        pass.write(&mut gbuffer.material, Access::ColorAttachmentWrite),
+    ];
+    pass.render(move |ctx| {
+        let attachment = |view, clear| {
+            vk::RenderingAttachmentInfo::default()
+                .image_view(view)
+                .image_layout(Access::ColorAttachmentWrite.info().layout)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .clear_value(clear)
+        };
+        let zero = vk::ClearValue { color: vk::ClearColorValue { float32: [0.0; 4] } };
+        let color_attachments: Vec<_> = colors.iter().map(|&c| attachment(ctx.image(c).1, zero)).collect();
+        let depth_attachment = vk::RenderingAttachmentInfo::default()
+            .image_view(ctx.image(depth).1)
+            .image_layout(Access::DepthAttachmentWrite.info().layout)
+            .load_op(vk::AttachmentLoadOp::CLEAR)
+            .store_op(vk::AttachmentStoreOp::STORE)
+            .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 } });
+        let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
+        let rendering = vk::RenderingInfo::default()
+            .render_area(area)
+            .layer_count(1)
+            .color_attachments(&color_attachments)
+            .depth_attachment(&depth_attachment);
+        let d = ctx.device;
+        // SAFETY: recording state; every object is resolved for this frame and outlives it.
+        unsafe {
+            d.cmd_begin_rendering(ctx.cmd, &rendering);
+            d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
+            let viewport = vk::Viewport {
+                x: 0.0,
+                y: 0.0,
+                width: extent.width as f32,
+                height: extent.height as f32,
+                min_depth: 0.0,
+                max_depth: 1.0,
+            };
+            d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
+            d.cmd_set_scissor(ctx.cmd, 0, &[area]);
+            if !scene.draws.is_empty() {
+                d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
+                d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
+            }
+            for draw in &scene.draws {
+                let m = draw.material;
+                let push = Push {
+                    view_proj: camera.view_proj_relative,
+                    eye: camera.eye.extend(0.0),
+                    base_color_roughness: m.base_color.extend(m.roughness),
+                    metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
+                };
+                d.cmd_push_constants(
+                    ctx.cmd,
+                    pipeline.layout.layout,
+                    vk::ShaderStageFlags::ALL_GRAPHICS,
+                    0,
+                    bytemuck::bytes_of(&push),
+                );
+                d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, 0);
+            }
+            d.cmd_end_rendering(ctx.cmd);
+        }
+        Ok(())
+    });
+    gbuffer
+}

@@ -1,0 +1,70 @@
+//! One file per pass. A pass is a free function from graph handles to graph handles: it declares
+//! what it reads and writes and records its draw or dispatch; the graph does the rest.
+
+pub mod compose;
+pub mod debug_view;
+pub mod geometry;
+pub mod ray_batch;
+pub mod readback;
+pub mod shadow_trace;
+pub mod tonemap;
+
+use std::sync::Arc;
+
+use ash::vk;
+
+use crate::graph::{Handle, ImageKind};
+use crate::vk::{ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsPipeline};
+
+/// Workgroup size of every full-screen compute pass (specialisation constants 0 and 1).
+pub const TILE: [u32; 2] = [8, 8];
+
+pub const POSITION_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+pub const NORMAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+pub const MATERIAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
+pub const RADIANCE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
+pub const DISPLAY_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
+
+/// The geometry pass's outputs (layout in shaders/include/gbuffer.glsl).
+pub struct GBuffer {
+    pub depth: Handle<ImageKind>,
+    pub position: Handle<ImageKind>,
+    pub normal: Handle<ImageKind>,
+    pub material: Handle<ImageKind>,
+}
+
+/// Every pipeline, built once per device and shared by all frames.
+pub struct Pipelines {
+    pub geometry: GraphicsPipeline,
+    pub shadow_trace: ComputePipeline,
+    pub compose: ComputePipeline,
+    pub compose_unshadowed: ComputePipeline,
+    pub tonemap: ComputePipeline,
+    pub debug_view: debug_view::DebugPipelines,
+}
+
+impl Pipelines {
+    pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
+        Ok(Pipelines {
+            geometry: geometry::pipeline(ctx)?,
+            shadow_trace: shadow_trace::pipeline(ctx)?,
+            compose: compose::pipeline(ctx, true)?,
+            compose_unshadowed: compose::pipeline(ctx, false)?,
+            tonemap: tonemap::pipeline(ctx)?,
+            debug_view: debug_view::pipelines(ctx)?,
+        })
+    }
+}
+
+pub(crate) fn storage(binding: u32) -> (u32, DescriptorKind) {
+    (binding, DescriptorKind::StorageBuffer)
+}
+
+pub(crate) fn sampled(binding: u32) -> (u32, DescriptorKind) {
+    (binding, DescriptorKind::SampledImage)
+}
+
+pub(crate) fn storage_image(binding: u32) -> (u32, DescriptorKind) {
+    (binding, DescriptorKind::StorageImage)
+}

@@ -1,0 +1,47 @@
+//! Read-back pass: copies an image into a host-visible buffer that lives outside the graph;
+//! the buffer is exported for host reads, so the graph places the final barrier.
+
+use ash::vk;
+
+use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
+use crate::vk::{Buffer, ImageDesc};
+
+pub fn add(graph: &mut RenderGraph<'_>, image: &Handle<ImageKind>, target: &Buffer) {
+    let (_, desc) = graph.describe(image.id());
+    let crate::graph::ResourceDesc::Image(desc) = desc else { unreachable!("an image handle") };
+    let mut buffer = graph.import_buffer("read-back", target.raw, target.size, Access::Nothing);
+    let mut pass = graph.add_pass("read-back");
+    let src = pass.read(image, Access::TransferRead);
+    let dst = pass.write(&mut buffer, Access::TransferWrite);
+    pass.render(move |ctx| {
+        let region = copy_region(&desc);
+        // SAFETY: recording state; the buffer holds width*height texels of this format.
+        unsafe {
+            ctx.device.cmd_copy_image_to_buffer(ctx.cmd, ctx.image(src).0, Access::TransferRead.info().layout, ctx.buffer(dst), &[region])
+        };
+        Ok(())
+    });
+    graph.export(buffer, Access::HostRead);
+}
+
+/// Copies a graph buffer into `target`, exported for host reads.
+pub fn add_buffer(graph: &mut RenderGraph<'_>, source: &Handle<BufferKind>, target: &Buffer) {
+    let mut buffer = graph.import_buffer("read-back", target.raw, target.size, Access::Nothing);
+    let mut pass = graph.add_pass("read-back");
+    let src = pass.read(source, Access::TransferRead);
+    let dst = pass.write(&mut buffer, Access::TransferWrite);
+    let size = target.size;
+    pass.render(move |ctx| {
+        let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size };
+        // SAFETY: recording state; both buffers hold at least `size` bytes.
+        unsafe { ctx.device.cmd_copy_buffer(ctx.cmd, ctx.buffer(src), ctx.buffer(dst), &[region]) };
+        Ok(())
+    });
+    graph.export(buffer, Access::HostRead);
+}
+
+fn copy_region(desc: &ImageDesc) -> vk::BufferImageCopy {
+    vk::BufferImageCopy::default()
+        .image_subresource(vk::ImageSubresourceLayers { aspect_mask: desc.aspect(), mip_level: 0, base_array_layer: 0, layer_count: 1 })
+        .image_extent(vk::Extent3D { width: desc.width, height: desc.height, depth: 1 })
+}

@@ -1,0 +1,282 @@
+//! Settings in, frame out: builds each frame's graph from the scene and the settings, compiles
+//! and records it, and reads the result back. Shared by capture, validation runs and tests.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::{Mat4, Vec3};
+use gpu_allocator::MemoryLocation;
+
+use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
+use crate::passes::debug_view::{self, DebugInputs, DebugView};
+use crate::passes::{compose, geometry, readback, shadow_trace, tonemap, Pipelines};
+use crate::scene::bvh::ShadowBvh;
+use crate::scene::{Material, Scene};
+use crate::shading::gpu_lights;
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult};
+
+/// Radiance of pixels no surface covers, W/(m^2 sr): a dim, neutral backdrop.
+pub const BACKGROUND: Vec3 = Vec3::new(0.02, 0.022, 0.025);
+
+/// What to render. Filled by the CLI (and later the viewer and the bench).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Exposure in stops applied before tone mapping (display output only).
+    pub exposure_ev: f32,
+    pub debug_view: Option<DebugView>,
+    pub output: OutputKind,
+    pub timestamps: bool,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputKind {
+    /// 8-bit sRGB, tone-mapped (PNG).
+    Display,
+    /// Linear float RGBA: radiance in W/(m^2 sr), or raw debug values (EXR).
+    SceneLinear,
+}
+
+/// A read-back frame.
+pub enum Frame {
+    Rgba8 { width: u32, height: u32, pixels: Vec<u8> },
+    Rgba32F { width: u32, height: u32, pixels: Vec<f32> },
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+/// One mesh's slice of the shared vertex and index buffers.
+pub struct Draw {
+    pub first_index: u32,
+    pub index_count: u32,
+    pub vertex_offset: i32,
+    pub material: Material,
+}
+
+/// The scene on the device: uploaded once, imported into every frame's graph.
+pub struct SceneGpu {
+    pub vertices: Buffer,
+    pub indices: Buffer,
+    pub draws: Vec<Draw>,
+    pub lights: Buffer,
+    pub light_count: u32,
+    pub bvh_nodes: Buffer,
+    pub bvh_triangles: Buffer,
+    pub has_casters: bool,
+    pub bounds: (Vec3, Vec3),
+}
+
+impl SceneGpu {
+    pub fn upload(ctx: &Arc<GpuContext>, scene: &Scene, bvh: &ShadowBvh) -> GpuResult<SceneGpu> {
+        let mut vertices = Vec::new();
+        let mut indices = Vec::new();
+        let mut draws = Vec::new();
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
+            draws.push(Draw {
+                first_index: indices.len() as u32,
+                index_count: mesh.indices.len() as u32,
+                vertex_offset: vertices.len() as i32,
+                material: mesh.material,
+            });
+            for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+                vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
+            }
+            indices.extend_from_slice(&mesh.indices);
+        }
+        if draws.is_empty() {
+            lo = Vec3::ZERO;
+            hi = Vec3::ZERO;
+        }
+        let lights = gpu_lights(&scene.lights);
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        Ok(SceneGpu {
+            vertices: Buffer::with_data(ctx, "vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?,
+            indices: Buffer::with_data(ctx, "indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER)?,
+            draws,
+            lights: Buffer::with_data(ctx, "lights", bytemuck::cast_slice(&lights), usage)?,
+            light_count: scene.lights.len() as u32,
+            bvh_nodes: Buffer::with_data(ctx, "bvh nodes", bytemuck::cast_slice(bvh.nodes()), usage)?,
+            bvh_triangles: Buffer::with_data(ctx, "bvh triangles", bytemuck::cast_slice(bvh.triangles()), usage)?,
+            has_casters: !bvh.is_empty(),
+            bounds: (lo, hi),
+        })
+    }
+}
+
+/// Camera matrices, camera-relative so that large world coordinates keep their precision.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraMatrices {
+    pub eye: Vec3,
+    pub view_proj_relative: Mat4,
+    pub far: f32,
+}
+
+impl CameraMatrices {
+    pub fn new(scene: &Scene, bounds: (Vec3, Vec3), width: u32, height: u32) -> CameraMatrices {
+        let cam = scene.camera;
+        // Near and far from the scene's extent: depth precision follows the scene's scale.
+        let (lo, hi) = bounds;
+        let centre = (lo + hi) * 0.5;
+        let radius = (hi - lo).length() * 0.5;
+        let far = ((centre - cam.eye).length() + radius).max(1.0) * 1.01;
+        let near = (far * 1e-5).max(1e-3);
+        let view = Mat4::look_at_rh(Vec3::ZERO, cam.target - cam.eye, cam.up);
+        let mut proj = Mat4::perspective_rh(cam.vfov_deg.to_radians(), width as f32 / height as f32, near, far);
+        // Vulkan's clip space has +Y down.
+        proj.y_axis.y = -proj.y_axis.y;
+        CameraMatrices { eye: cam.eye, view_proj_relative: proj * view, far }
+    }
+}
+
+pub struct Renderer {
+    // Field order is drop order: everything on the device goes before the context.
+    cache: TransientCache,
+    readback: Option<Buffer>,
+    pipelines: Pipelines,
+    pub gpu_scene: SceneGpu,
+    scene: Scene,
+    pub ctx: Arc<GpuContext>,
+}
+
+impl Renderer {
+    pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
+        let bvh = ShadowBvh::build(&scene);
+        log::info!(
+            "scene: {} triangles, {} lights, BVH of {} nodes over {} shadow-casting triangles",
+            scene.triangle_count(),
+            scene.lights.len(),
+            bvh.node_count(),
+            bvh.triangle_count()
+        );
+        let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
+        for (what, bytes) in [("BVH nodes", std::mem::size_of_val(bvh.nodes())), ("BVH triangles", std::mem::size_of_val(bvh.triangles()))] {
+            if bytes as u64 > limit {
+                return Err(GpuError::Unsupported(format!(
+                    "the scene's {what} take {bytes} bytes, over this device's storage-buffer limit of {limit}"
+                )));
+            }
+        }
+        Ok(Renderer {
+            cache: TransientCache::new(&ctx)?,
+            readback: None,
+            pipelines: Pipelines::new(&ctx)?,
+            gpu_scene: SceneGpu::upload(&ctx, &scene, &bvh)?,
+            scene,
+            ctx,
+        })
+    }
+
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The compiled plan for `settings`, for printing and inspection.
+    pub fn plan(&self, settings: &RenderSettings) -> CompiledGraph {
+        CompiledGraph::compile(&build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, None))
+    }
+    /// Renders one frame and reads it back.
+    pub fn render(&mut self, settings: &RenderSettings) -> GpuResult<Frame> {
+        let bytes8 = settings.output == OutputKind::Display && settings.debug_view.is_none();
+        let texel = if bytes8 { 4 } else { 16 };
+        let bytes = u64::from(settings.width) * u64::from(settings.height) * texel;
+        if self.readback.as_ref().is_none_or(|b| b.size != bytes) {
+            self.readback = Some(Buffer::new(&self.ctx, "read-back", bytes, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?);
+        }
+        let readback = self.readback.take().expect("just made");
+        let result = self.record_and_submit(settings, &readback);
+        let frame = result.map(|_| {
+            let data = readback.mapped();
+            if bytes8 {
+                Frame::Rgba8 { width: settings.width, height: settings.height, pixels: data.to_vec() }
+            } else {
+                Frame::Rgba32F { width: settings.width, height: settings.height, pixels: bytemuck::pod_collect_to_vec(data) }
+            }
+        });
+        self.readback = Some(readback);
+        frame
+    }
+
+    fn record_and_submit(&mut self, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
+        let Renderer { cache, ctx, .. } = self;
+        let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, Some(readback));
+        let plan = CompiledGraph::compile(&graph);
+        log::debug!("{plan}");
+        ctx.submit_and_wait(|cmd| cache.execute(graph, &plan, cmd, settings.timestamps))
+    }
+
+    /// Per-pass GPU milliseconds of the last frame (empty without timestamp support).
+    pub fn last_timings(&self) -> GpuResult<Vec<(&'static str, f64)>> {
+        self.cache.read_timings()
+    }
+}
+
+/// Builds the frame's graph. `readback` receives the output when given.
+fn build_graph<'a>(
+pipelines: &'a Pipelines,
+s: &'a SceneGpu,
+scene: &Scene,
+settings: &RenderSettings,
+readback: Option<&'a Buffer>,
+) -> RenderGraph<'a> {
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    let camera = CameraMatrices::new(scene, s.bounds, extent.width, extent.height);
+    let mut g = RenderGraph::new();
+    let vertices = g.import_buffer("vertices", s.vertices.raw, s.vertices.size, Access::HostWrite);
+    let indices = g.import_buffer("indices", s.indices.raw, s.indices.size, Access::HostWrite);
+    let lights = g.import_buffer("lights", s.lights.raw, s.lights.size, Access::HostWrite);
+    let gbuffer = geometry::add(&mut g, &pipelines.geometry, s, &vertices, &indices, camera, extent);
+
+    // Shadow rays only where something can cast a shadow on a lit point, or where the
+    // visibility view asks for them.
+    let wants_visibility = settings.debug_view == Some(DebugView::Visibility);
+    let visibility = (s.light_count > 0 && (s.has_casters || wants_visibility)).then(|| {
+        let nodes = g.import_buffer("bvh nodes", s.bvh_nodes.raw, s.bvh_nodes.size, Access::HostWrite);
+        let tris = g.import_buffer("bvh triangles", s.bvh_triangles.raw, s.bvh_triangles.size, Access::HostWrite);
+        let inputs = shadow_trace::ShadowInputs {
+            lights: &lights,
+            light_count: s.light_count,
+            bvh_nodes: &nodes,
+            bvh_triangles: &tris,
+        };
+        shadow_trace::add(&mut g, &pipelines.shadow_trace, &gbuffer, inputs, extent)
+    });
+
+    let display = settings.output == OutputKind::Display;
+    let result = match settings.debug_view {
+        Some(view) => {
+            let inputs = DebugInputs { view, visibility: visibility.as_ref(), eye: camera.eye, far: camera.far, display };
+            // Float even for PNG: the shader already mapped values to [0,1] for display.
+            debug_view::add(&mut g, &pipelines.debug_view, &gbuffer, inputs, extent)
+        }
+        None => {
+            let inputs = compose::ComposeInputs {
+                lights: &lights,
+                light_count: s.light_count,
+                visibility: visibility.as_ref(),
+                eye: camera.eye,
+                background: BACKGROUND,
+            };
+            let radiance = compose::add(&mut g, &pipelines, &gbuffer, inputs, extent);
+            if display {
+                tonemap::add(&mut g, &pipelines.tonemap, &radiance, settings.exposure_ev, extent)
+            } else {
+                radiance
+            }
+        }
+    };
+    match readback {
+        Some(buffer) => readback::add(&mut g, &result, buffer),
+        None => g.export(result, Access::ComputeShaderReadSampledImage),
+    }
+    g
+}

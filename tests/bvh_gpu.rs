@@ -1,0 +1,85 @@
+//! GPU traversal (shaders/include/bvh.glsl, run through the ray-batch pass on lavapipe) against
+//! obvhs's own CPU traversal, on the same 100k random shadow rays over a 20k-triangle mesh.
+
+mod common;
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use umbra::passes::ray_batch::{trace, GpuRay};
+use umbra::scene::bvh::ShadowBvh;
+
+/// A lumpy sphere (a closed surface with varied triangle sizes) plus a scatter of loose
+/// triangles, so rays meet near-parallel faces, shared edges and open space.
+fn test_mesh(rng: &mut impl Rng) -> Vec<[Vec3; 3]> {
+    let (rings, segments) = (60, 120);
+    let point = |i: u32, j: u32| {
+        let theta = std::f32::consts::PI * i as f32 / rings as f32;
+        let phi = std::f32::consts::TAU * j as f32 / segments as f32;
+        let r = 1.0 + 0.15 * (3.0 * phi).sin() * (4.0 * theta).cos();
+        Vec3::new(r * theta.sin() * phi.cos(), r * theta.cos(), r * theta.sin() * phi.sin())
+    };
+    let mut tris = Vec::new();
+    for i in 0..rings {
+        for j in 0..segments {
+            let (a, b, c, d) = (point(i, j), point(i + 1, j), point(i + 1, j + 1), point(i, j + 1));
+            tris.push([a, b, c]);
+            tris.push([a, c, d]);
+        }
+    }
+    for _ in 0..6000 {
+        let centre = Vec3::new(rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0));
+        let mut corner = || centre + Vec3::new(rng.gen_range(-0.2..0.2), rng.gen_range(-0.2..0.2), rng.gen_range(-0.2..0.2));
+        tris.push([corner(), corner(), corner()]);
+    }
+    tris
+}
+
+#[test]
+fn gpu_traversal_matches_obvhs_on_100k_rays() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0x5eed_0bb5);
+    let tris = test_mesh(&mut rng);
+    assert!(tris.len() >= 10_000);
+    let bvh = ShadowBvh::from_triangles(&tris);
+    let rays: Vec<(Vec3, Vec3, f32)> = (0..100_000)
+        .map(|_| {
+            let o = Vec3::new(rng.gen_range(-4.0..4.0), rng.gen_range(-4.0..4.0), rng.gen_range(-4.0..4.0));
+            let target = Vec3::new(rng.gen_range(-4.0..4.0), rng.gen_range(-4.0..4.0), rng.gen_range(-4.0..4.0));
+            let d = (target - o).normalize_or(Vec3::Y);
+            (o, d, (target - o).length().max(1e-3))
+        })
+        .collect();
+    let gpu_rays: Vec<GpuRay> = rays.iter().map(|&(o, d, t)| GpuRay::new(o, d, t)).collect();
+
+    let ctx = common::gpu();
+    let gpu_hits = trace(&ctx, &bvh, &gpu_rays).expect("trace on lavapipe");
+    common::assert_clean(&ctx);
+
+    let mut occluded = 0;
+    let mut mismatches_near_edge = 0;
+    let mut mismatches_elsewhere = Vec::new();
+    for (i, &(o, d, t)) in rays.iter().enumerate() {
+        let cpu = bvh.occluded_obvhs(o, d, t);
+        occluded += cpu as usize;
+        if cpu != gpu_hits[i] {
+            if bvh.ray_near_edge(o, d, t, 1e-5) {
+                mismatches_near_edge += 1;
+            } else {
+                mismatches_elsewhere.push((i, o, d, t, cpu));
+            }
+        }
+    }
+    // The test is only meaningful if both answers are common.
+    assert!(occluded > 20_000 && occluded < 80_000, "{occluded} of 100k occluded");
+    assert!(mismatches_elsewhere.is_empty(), "rays that disagree away from any edge: {:?}", &mismatches_elsewhere[..mismatches_elsewhere.len().min(10)]);
+    assert!(mismatches_near_edge * 10_000 < rays.len(), "{mismatches_near_edge} near-edge disagreements (limit 0.01%)");
+    eprintln!("{occluded} occluded; {mismatches_near_edge} near-edge disagreements of {}", rays.len());
+}
+
+#[test]
+fn an_empty_bvh_occludes_nothing_on_the_gpu() {
+    let bvh = ShadowBvh::from_triangles(&[]);
+    let ctx = common::gpu();
+    let rays = [GpuRay::new(Vec3::ZERO, Vec3::X, 10.0), GpuRay::new(Vec3::ONE, -Vec3::Y, 1e6)];
+    assert_eq!(trace(&ctx, &bvh, &rays).unwrap(), vec![false, false]);
+    common::assert_clean(&ctx);
+}

@@ -1,1 +1,534 @@
-//! file
+//! The TOML scene file: serde types that mirror docs/scene-format.md, and the checks that turn
+//! them into a `Scene`. Every check names its key path, so a message alone says what to fix.
+
+use std::fmt;
+use std::path::Path;
+
+use glam::{DMat4, DVec3, Vec3};
+use serde::de::{self, Deserializer, SeqAccess, Visitor};
+use serde::Deserialize;
+
+use super::error::SceneError;
+use super::mesh::{self, ObjectMesh};
+use super::{obj, shapes, Camera, Light, LoadStats, Material, Scene};
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    image: Option<ImageDesc>,
+    camera: Option<CameraDesc>,
+    #[serde(default)]
+    lights: Vec<LightDesc>,
+    #[serde(default)]
+    objects: Vec<ObjectDesc>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ImageDesc {
+    width: u32,
+    height: u32,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CameraDesc {
+    eye: [f64; 3],
+    target: [f64; 3],
+    up: Option<[f64; 3]>,
+    vfov_deg: f64,
+}
+
+#[derive(Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "lowercase")]
+enum LightKind {
+    Point,
+    Directional,
+    Spot,
+}
+
+/// One struct for every light type rather than a tagged enum: serde's tagged enums buffer their
+/// content and lose toml's spans, and per-type checks below give clearer messages anyway.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LightDesc {
+    #[serde(rename = "type")]
+    kind: LightKind,
+    position: Option<[f64; 3]>,
+    direction: Option<[f64; 3]>,
+    intensity: Option<[f64; 3]>,
+    irradiance: Option<[f64; 3]>,
+    inner_deg: Option<f64>,
+    outer_deg: Option<f64>,
+}
+
+#[derive(Clone, Copy, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum ShapeKind {
+    Plane,
+    Cube,
+    Sphere,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectDesc {
+    mesh: Option<String>,
+    shape: Option<ShapeKind>,
+    size: Option<f64>,
+    radius: Option<f64>,
+    segments: Option<u32>,
+    transform: Option<[[f64; 4]; 4]>,
+    translate: Option<[f64; 3]>,
+    rotate_deg: Option<[f64; 3]>,
+    scale: Option<Scale>,
+    material: Option<MaterialDesc>,
+    cast_shadows: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MaterialDesc {
+    base_color: Option<[f64; 3]>,
+    roughness: Option<f64>,
+    metallic: Option<f64>,
+}
+
+/// `scale = s` or `scale = [sx, sy, sz]`.
+struct Scale([f64; 3]);
+
+impl<'de> Deserialize<'de> for Scale {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct ScaleVisitor;
+        impl<'de> Visitor<'de> for ScaleVisitor {
+            type Value = Scale;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a number or an array of 3 numbers")
+            }
+            fn visit_f64<E: de::Error>(self, s: f64) -> Result<Scale, E> {
+                Ok(Scale([s; 3]))
+            }
+            fn visit_i64<E: de::Error>(self, s: i64) -> Result<Scale, E> {
+                Ok(Scale([s as f64; 3]))
+            }
+            fn visit_u64<E: de::Error>(self, s: u64) -> Result<Scale, E> {
+                Ok(Scale([s as f64; 3]))
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Scale, A::Error> {
+                <[f64; 3]>::deserialize(de::value::SeqAccessDeserializer::new(seq)).map(Scale)
+            }
+        }
+        deserializer.deserialize_any(ScaleVisitor)
+    }
+}
+
+/// Largest image edge accepted; beyond this the renderer's images would not fit most devices.
+const MAX_IMAGE_EDGE: u32 = 16384;
+/// Sphere tessellation limits: below 3 it is not a solid, above 256 it is ~130k triangles.
+const SPHERE_SEGMENTS: std::ops::RangeInclusive<u32> = 3..=256;
+const DEFAULT_SPHERE_SEGMENTS: u32 = 32;
+/// Built-in shapes default to filling the unit cube [-0.5, 0.5]^3.
+const DEFAULT_SIZE: f64 = 1.0;
+const DEFAULT_RADIUS: f64 = 0.5;
+
+/// Parses and checks a scene. `source_name` names the file in errors; mesh paths are relative to
+/// `base_dir`.
+pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+    let file: SceneFile =
+        toml::from_str(text).map_err(|e| SceneError::from_toml(source_name, text, &e))?;
+    let check = Check { file: source_name };
+
+    let image_size = file.image.map(|image| check.image(&image)).transpose()?;
+    let camera = match &file.camera {
+        Some(camera) => check.camera(camera)?,
+        None => return Err(check.fail("camera", "missing [camera] table; every scene needs one")),
+    };
+    let lights = file
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(i, light)| check.light(&format!("lights[{i}]"), light))
+        .collect::<Result<Vec<_>, _>>()?;
+
+    let mut meshes = Vec::new();
+    let mut stats = LoadStats::default();
+    for (i, object) in file.objects.iter().enumerate() {
+        let path = format!("objects[{i}]");
+        let placed = check.object(&path, object, base_dir)?;
+        let mut dropped = LoadStats::default();
+        for local in &placed.meshes {
+            let material = placed.material.apply(local.material.unwrap_or_default());
+            let cast_shadows = object.cast_shadows.unwrap_or(true);
+            meshes.extend(mesh::place(
+                local,
+                &placed.transform,
+                material,
+                cast_shadows,
+                &mut dropped,
+            ));
+        }
+        if dropped != LoadStats::default() {
+            log::warn!(
+                "{source_name}: {path} ({}): dropped {} degenerate and {} non-finite triangles",
+                placed.source,
+                dropped.degenerate_triangles,
+                dropped.non_finite_triangles
+            );
+        }
+        stats.degenerate_triangles += dropped.degenerate_triangles;
+        stats.non_finite_triangles += dropped.non_finite_triangles;
+    }
+    Ok(Scene { image_size, camera, lights, meshes, stats })
+}
+
+/// An object ready to place: its meshes in object space, transform and material overrides.
+struct PlacedObject {
+    /// What the object is made from, for messages: the mesh path or the shape name.
+    source: String,
+    meshes: Vec<ObjectMesh>,
+    transform: DMat4,
+    material: MaterialOverride,
+}
+
+/// The scene's `material` fields, each replacing the MTL value when given.
+struct MaterialOverride {
+    base_color: Option<Vec3>,
+    roughness: Option<f32>,
+    metallic: Option<f32>,
+}
+
+impl MaterialOverride {
+    fn apply(&self, m: Material) -> Material {
+        Material {
+            base_color: self.base_color.unwrap_or(m.base_color),
+            roughness: self.roughness.unwrap_or(m.roughness),
+            metallic: self.metallic.unwrap_or(m.metallic),
+        }
+    }
+}
+
+/// Validation helpers that know the file name for their errors.
+struct Check<'a> {
+    file: &'a str,
+}
+
+impl Check<'_> {
+    fn fail(&self, key_path: &str, message: impl Into<String>) -> SceneError {
+        SceneError::Invalid {
+            file: self.file.to_owned(),
+            key_path: key_path.to_owned(),
+            message: message.into(),
+        }
+    }
+
+    fn image(&self, image: &ImageDesc) -> Result<(u32, u32), SceneError> {
+        for (key, value) in [("width", image.width), ("height", image.height)] {
+            if !(1..=MAX_IMAGE_EDGE).contains(&value) {
+                return Err(self.fail(
+                    &format!("image.{key}"),
+                    format!("{value} is outside [1, {MAX_IMAGE_EDGE}]"),
+                ));
+            }
+        }
+        Ok((image.width, image.height))
+    }
+
+    fn camera(&self, camera: &CameraDesc) -> Result<Camera, SceneError> {
+        let eye = self.point("camera.eye", camera.eye)?;
+        let target = self.point("camera.target", camera.target)?;
+        let up = match camera.up {
+            Some(up) => self.direction("camera.up", up)?,
+            None => DVec3::Y,
+        };
+        let Some(view) = (target - eye).try_normalize() else {
+            return Err(self.fail("camera.target", "must differ from camera.eye"));
+        };
+        if view.cross(up).length() < 1e-6 {
+            return Err(self.fail("camera.up", "is parallel to the view direction"));
+        }
+        let vfov = camera.vfov_deg;
+        if !(vfov > 0.0 && vfov < 180.0) {
+            return Err(self.fail("camera.vfov_deg", format!("{vfov} is outside (0, 180)")));
+        }
+        Ok(Camera {
+            eye: eye.as_vec3(),
+            target: target.as_vec3(),
+            up: up.as_vec3(),
+            vfov_deg: vfov as f32,
+        })
+    }
+
+    fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {
+        let (name, needs): (&str, &[&str]) = match light.kind {
+            LightKind::Point => ("point", &["position", "intensity"]),
+            LightKind::Directional => ("directional", &["direction", "irradiance"]),
+            LightKind::Spot => {
+                ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"])
+            }
+        };
+        let given = [
+            ("position", light.position.is_some()),
+            ("direction", light.direction.is_some()),
+            ("intensity", light.intensity.is_some()),
+            ("irradiance", light.irradiance.is_some()),
+            ("inner_deg", light.inner_deg.is_some()),
+            ("outer_deg", light.outer_deg.is_some()),
+        ];
+        for (key, present) in given {
+            if present && !needs.contains(&key) {
+                let expected = needs.join("`, `");
+                let message = format!("not used by a {name} light (it takes `{expected}`)");
+                return Err(self.fail(&format!("{path}.{key}"), message));
+            }
+            if !present && needs.contains(&key) {
+                return Err(self.fail(path, format!("a {name} light needs `{key}`")));
+            }
+        }
+        // Presence is checked above; these defaults are never used.
+        let field = |v: Option<[f64; 3]>| v.unwrap_or_default();
+        let position = || self.point(&format!("{path}.position"), field(light.position));
+        let direction = || self.direction(&format!("{path}.direction"), field(light.direction));
+        let power = |key: &str, v| self.power(&format!("{path}.{key}"), field(v));
+        Ok(match light.kind {
+            LightKind::Point => Light::Point {
+                position: position()?.as_vec3(),
+                intensity: power("intensity", light.intensity)?,
+            },
+            LightKind::Directional => Light::Directional {
+                direction: direction()?.as_vec3(),
+                irradiance: power("irradiance", light.irradiance)?,
+            },
+            LightKind::Spot => {
+                let inner = light.inner_deg.unwrap_or_default();
+                let outer = light.outer_deg.unwrap_or_default();
+                if !(0.0 <= inner && inner < outer && outer <= 90.0) {
+                    let message =
+                        format!("need 0 <= inner_deg < outer_deg <= 90, got {inner} and {outer}");
+                    return Err(self.fail(path, message));
+                }
+                Light::Spot {
+                    position: position()?.as_vec3(),
+                    direction: direction()?.as_vec3(),
+                    intensity: power("intensity", light.intensity)?,
+                    inner_deg: inner as f32,
+                    outer_deg: outer as f32,
+                }
+            }
+        })
+    }
+
+    fn object(
+        &self,
+        path: &str,
+        object: &ObjectDesc,
+        base_dir: &Path,
+    ) -> Result<PlacedObject, SceneError> {
+        let (source, meshes) = match (&object.mesh, object.shape) {
+            (Some(_), Some(_)) | (None, None) => {
+                return Err(self.fail(path, "give exactly one of `mesh` or `shape`"));
+            }
+            (Some(mesh), None) => {
+                let shape_keys = [
+                    ("size", object.size.is_some()),
+                    ("radius", object.radius.is_some()),
+                    ("segments", object.segments.is_some()),
+                ];
+                if let Some((key, _)) = shape_keys.iter().find(|(_, present)| *present) {
+                    return Err(self.fail(&format!("{path}.{key}"), "only built-in shapes take it"));
+                }
+                (mesh.clone(), self.mesh_file(path, mesh, base_dir)?)
+            }
+            (None, Some(shape)) => self.shape(path, shape, object)?,
+        };
+        Ok(PlacedObject {
+            source,
+            meshes,
+            transform: self.transform(path, object)?,
+            material: self.material(&format!("{path}.material"), object.material.as_ref())?,
+        })
+    }
+
+    fn mesh_file(
+        &self,
+        path: &str,
+        mesh: &str,
+        base_dir: &Path,
+    ) -> Result<Vec<ObjectMesh>, SceneError> {
+        let key_path = format!("{path}.mesh");
+        obj::load(&base_dir.join(mesh)).map_err(|error| match error {
+            obj::ObjError::Read(error) => SceneError::MeshRead {
+                file: self.file.to_owned(),
+                key_path,
+                mesh: mesh.to_owned(),
+                error,
+            },
+            obj::ObjError::Parse(reason) => SceneError::MeshParse {
+                file: self.file.to_owned(),
+                key_path,
+                mesh: mesh.to_owned(),
+                reason,
+            },
+        })
+    }
+
+    fn shape(
+        &self,
+        path: &str,
+        shape: ShapeKind,
+        object: &ObjectDesc,
+    ) -> Result<(String, Vec<ObjectMesh>), SceneError> {
+        let is_sphere = matches!(shape, ShapeKind::Sphere);
+        let misplaced = if is_sphere {
+            object.size.is_some().then_some(("size", "a sphere takes `radius`"))
+        } else if object.radius.is_some() {
+            Some(("radius", "only a sphere takes it; use `size`"))
+        } else {
+            object.segments.is_some().then_some(("segments", "only a sphere takes it"))
+        };
+        if let Some((key, message)) = misplaced {
+            return Err(self.fail(&format!("{path}.{key}"), message));
+        }
+        let mesh = match shape {
+            ShapeKind::Plane => {
+                shapes::plane(self.length(path, "size", object.size, DEFAULT_SIZE)?)
+            }
+            ShapeKind::Cube => {
+                shapes::cube(self.length(path, "size", object.size, DEFAULT_SIZE)?)
+            }
+            ShapeKind::Sphere => {
+                let radius = self.length(path, "radius", object.radius, DEFAULT_RADIUS)?;
+                let segments = object.segments.unwrap_or(DEFAULT_SPHERE_SEGMENTS);
+                if !SPHERE_SEGMENTS.contains(&segments) {
+                    let (lo, hi) = (SPHERE_SEGMENTS.start(), SPHERE_SEGMENTS.end());
+                    let message = format!("{segments} is outside [{lo}, {hi}]");
+                    return Err(self.fail(&format!("{path}.segments"), message));
+                }
+                shapes::sphere(radius, segments)
+            }
+        };
+        Ok((format!("shape {}", mesh.name), vec![mesh]))
+    }
+
+    /// Object-to-world matrix from `transform` or from translate/rotate_deg/scale
+    /// (M = T * Rz * Ry * Rx * S, i.e. scale, then rotate about X, Y, Z, then translate).
+    fn transform(&self, path: &str, object: &ObjectDesc) -> Result<DMat4, SceneError> {
+        let parts =
+            object.translate.is_some() || object.rotate_deg.is_some() || object.scale.is_some();
+        let key_path = format!("{path}.transform");
+        let matrix = match object.transform {
+            Some(_) if parts => {
+                return Err(self.fail(
+                    &key_path,
+                    "give either `transform` or translate/rotate_deg/scale, not both",
+                ));
+            }
+            Some(rows) => {
+                if rows.iter().flatten().any(|v| !v.is_finite()) {
+                    return Err(self.fail(&key_path, "has a non-finite entry"));
+                }
+                if rows[3] != [0.0, 0.0, 0.0, 1.0] {
+                    return Err(self.fail(&key_path, "last row must be [0, 0, 0, 1] (affine)"));
+                }
+                // The file is row-major; glam stores columns.
+                DMat4::from_cols_array_2d(&rows).transpose()
+            }
+            None => {
+                let translate =
+                    self.point(&format!("{path}.translate"), object.translate.unwrap_or_default())?;
+                let rotate = self
+                    .point(&format!("{path}.rotate_deg"), object.rotate_deg.unwrap_or_default())?;
+                let scale = DVec3::from(object.scale.as_ref().map_or([1.0; 3], |s| s.0));
+                if !scale.is_finite() || scale.cmpeq(DVec3::ZERO).any() {
+                    return Err(self.fail(&format!("{path}.scale"), "must be finite and non-zero"));
+                }
+                let rotate = rotate * (std::f64::consts::PI / 180.0);
+                DMat4::from_translation(translate)
+                    * DMat4::from_rotation_z(rotate.z)
+                    * DMat4::from_rotation_y(rotate.y)
+                    * DMat4::from_rotation_x(rotate.x)
+                    * DMat4::from_scale(scale)
+            }
+        };
+        let det = matrix.determinant();
+        if det == 0.0 || !det.is_finite() {
+            return Err(
+                self.fail(&key_path, "is singular (determinant 0); it would flatten the mesh")
+            );
+        }
+        Ok(matrix)
+    }
+
+    fn material(
+        &self,
+        path: &str,
+        material: Option<&MaterialDesc>,
+    ) -> Result<MaterialOverride, SceneError> {
+        let Some(m) = material else {
+            return Ok(MaterialOverride { base_color: None, roughness: None, metallic: None });
+        };
+        let unit = |key: &str, v: f64| {
+            if (0.0..=1.0).contains(&v) {
+                Ok(v as f32)
+            } else {
+                Err(self.fail(&format!("{path}.{key}"), format!("{v} is outside [0, 1]")))
+            }
+        };
+        let base_color = match m.base_color {
+            Some(c) => {
+                let c = [
+                    unit("base_color", c[0])?,
+                    unit("base_color", c[1])?,
+                    unit("base_color", c[2])?,
+                ];
+                Some(Vec3::from(c))
+            }
+            None => None,
+        };
+        Ok(MaterialOverride {
+            base_color,
+            roughness: m.roughness.map(|v| unit("roughness", v)).transpose()?,
+            metallic: m.metallic.map(|v| unit("metallic", v)).transpose()?,
+        })
+    }
+
+    /// A position (or angle triple) that must be finite, also once stored in f32.
+    fn point(&self, path: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
+        let v = DVec3::from(v);
+        if !v.as_vec3().is_finite() {
+            return Err(self.fail(path, format!("{:?} is not finite", v.to_array())));
+        }
+        Ok(v)
+    }
+
+    /// A direction, returned unit length; the zero vector has none.
+    fn direction(&self, path: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
+        let v = self.point(path, v)?;
+        v.try_normalize().ok_or_else(|| self.fail(path, "must not be the zero vector"))
+    }
+
+    /// A radiometric RGB triple: finite and non-negative.
+    fn power(&self, path: &str, v: [f64; 3]) -> Result<Vec3, SceneError> {
+        let v = DVec3::from(v);
+        if !(v.as_vec3().is_finite() && v.min_element() >= 0.0) {
+            return Err(self.fail(path, format!("{:?} must be finite and >= 0", v.to_array())));
+        }
+        Ok(v.as_vec3())
+    }
+
+    /// A shape's size or radius: positive and finite.
+    fn length(
+        &self,
+        path: &str,
+        key: &str,
+        v: Option<f64>,
+        default: f64,
+    ) -> Result<f32, SceneError> {
+        let v = v.unwrap_or(default);
+        if !(v > 0.0 && (v as f32).is_finite()) {
+            return Err(
+                self.fail(&format!("{path}.{key}"), format!("{v} must be positive and finite"))
+            );
+        }
+        Ok(v as f32)
+    }
+}

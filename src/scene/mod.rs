@@ -2,11 +2,17 @@
 //! materials. Loaded from a TOML scene file (see docs/scene-format.md) or built in.
 
 pub mod bvh;
+mod error;
 mod file;
+mod mesh;
 mod obj;
 mod shapes;
 
-use glam::Vec3;
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+
+pub use error::SceneError;
 
 /// Pinhole camera. `vfov_deg` is the full vertical field of view.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -79,8 +85,70 @@ pub struct Scene {
     pub stats: LoadStats,
 }
 
+/// The built-in scene: built-in shapes only, so it needs no file beside the binary.
+const DEFAULT_SCENE: &str = include_str!("../../assets/default.toml");
+
 impl Scene {
     pub fn triangle_count(&self) -> usize {
         self.meshes.iter().map(Mesh::triangle_count).sum()
+    }
+
+    /// Reads a scene file; mesh paths in it are relative to its directory.
+    pub fn load(path: &Path) -> Result<Scene, SceneError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|error| SceneError::Read { path: path.to_owned(), error })?;
+        let base_dir = path.parent().unwrap_or(Path::new(""));
+        Scene::parse(&text, &path.display().to_string(), base_dir)
+    }
+
+    /// Parses scene text. `source_name` names it in errors; mesh paths resolve against
+    /// `base_dir`.
+    pub fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+        file::parse(text, source_name, base_dir)
+    }
+
+    /// The built-in default scene (`assets/default.toml`): a floor, objects of contrasting
+    /// materials, a point light, a sun and a spot.
+    pub fn default_scene() -> Scene {
+        // The text is compiled in and covered by a unit test, so failing here is a build bug.
+        Scene::parse(DEFAULT_SCENE, "assets/default.toml", Path::new("assets"))
+            .expect("the built-in default scene parses")
+    }
+
+    /// The same scene moved by `offset`: camera, lights and every vertex. The sums are taken in
+    /// f64 and rounded once, so far from the origin each point is the nearest f32 to its true
+    /// position. Directions and normals do not change.
+    pub fn translated(&self, offset: DVec3) -> Scene {
+        let shift = |p: Vec3| (p.as_dvec3() + offset).as_vec3();
+        let mut scene = self.clone();
+        scene.camera.eye = shift(scene.camera.eye);
+        scene.camera.target = shift(scene.camera.target);
+        for light in &mut scene.lights {
+            match light {
+                Light::Point { position, .. } | Light::Spot { position, .. } => {
+                    *position = shift(*position);
+                }
+                Light::Directional { .. } => {}
+            }
+        }
+        for mesh in &mut scene.meshes {
+            for p in &mut mesh.positions {
+                *p = shift(*p);
+            }
+        }
+        scene
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn default_scene_parses_and_stays_small() {
+        let scene = Scene::parse(DEFAULT_SCENE, "default.toml", Path::new("assets"))
+            .unwrap_or_else(|e| panic!("{e}"));
+        assert!(scene.triangle_count() < 20_000, "{} triangles", scene.triangle_count());
+        assert_eq!(scene.stats, LoadStats::default());
     }
 }

@@ -1,1 +1,200 @@
-//! obj
+//! OBJ/MTL loading through tobj, to object-space meshes with their MTL materials mapped onto the
+//! renderer's metalness/roughness model. Files are read here, not by tobj, so errors keep the
+//! io reason and the line they happened on.
+
+use std::io::{self, BufRead, Read};
+use std::path::Path;
+
+use glam::Vec3;
+
+use super::mesh::ObjectMesh;
+use super::Material;
+
+/// Why an OBJ file could not be used.
+#[derive(Debug)]
+pub(super) enum ObjError {
+    Read(io::Error),
+    Parse(String),
+}
+
+/// Loads every model of the OBJ file at `path` (one `ObjectMesh` per model), with the materials
+/// of its MTL libraries looked up next to it. A missing or broken MTL only costs the materials.
+pub(super) fn load(path: &Path) -> Result<Vec<ObjectMesh>, ObjError> {
+    let bytes = std::fs::read(path).map_err(ObjError::Read)?;
+    let options = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let dir = path.parent().unwrap_or(Path::new(""));
+    let mut reader = LineCounter::new(&bytes);
+    let loaded = tobj::load_obj_buf(&mut reader, &options, |mtl| load_mtl(path, &dir.join(mtl)));
+    let (models, materials) = loaded.map_err(|e| ObjError::Parse(located(e, reader.lines)))?;
+    let materials = materials.unwrap_or_else(|e| {
+        log::warn!("{}: material library unusable ({e}); using default materials", path.display());
+        Vec::new()
+    });
+
+    let file_name = path
+        .file_name()
+        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let meshes = models
+        .into_iter()
+        .map(|model| {
+            let mesh = model.mesh;
+            let positions = to_vec3(&mesh.positions);
+            // tobj leaves normals short when only some faces have `vn`; shade such a mesh flat.
+            let normals = Some(to_vec3(&mesh.normals)).filter(|n| n.len() == positions.len());
+            ObjectMesh {
+                name: format!("{file_name}/{}", model.name),
+                positions,
+                normals,
+                indices: mesh.indices,
+                material: mesh.material_id.and_then(|id| materials.get(id)).map(convert_material),
+            }
+        })
+        .collect();
+    Ok(meshes)
+}
+
+fn to_vec3(flat: &[f32]) -> Vec<Vec3> {
+    flat.chunks_exact(3).map(Vec3::from_slice).collect()
+}
+
+/// Names the line for errors tobj raises while reading one; the rest surface later, when it
+/// assembles a model, where the current line would mislead.
+fn located(error: tobj::LoadError, lines_read: usize) -> String {
+    use tobj::LoadError::*;
+    match error {
+        PositionParseError
+        | NormalParseError
+        | TexcoordParseError
+        | FaceParseError
+        | ColorParseError
+        | ScalingByZeroError
+        | InvalidObjectName
+        | UnrecognizedCharacter
+        | ReadError => format!("line {lines_read}: {error}"),
+        _ => error.to_string(),
+    }
+}
+
+/// Reads an MTL library for tobj, refusing the lines tobj would panic on (a colour with fewer
+/// than three numbers).
+fn load_mtl(obj: &Path, mtl: &Path) -> tobj::MTLLoadResult {
+    let bytes = std::fs::read(mtl).map_err(|e| {
+        log::warn!("{}: cannot read material library {}: {e}", obj.display(), mtl.display());
+        tobj::LoadError::OpenFileFailed
+    })?;
+    let text = String::from_utf8_lossy(&bytes);
+    for (n, line) in text.lines().enumerate() {
+        let mut words = line.split_whitespace();
+        if matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke")) && words.count() < 3 {
+            log::warn!("{}:{}: colour needs three numbers", mtl.display(), n + 1);
+            return Err(tobj::LoadError::MaterialParseError);
+        }
+    }
+    let mut reader = LineCounter::new(text.as_bytes());
+    tobj::load_mtl_buf(&mut reader).inspect_err(|e| {
+        log::warn!("{}:{}: {e}", mtl.display(), reader.lines);
+    })
+}
+
+/// MTL (Phong) to metalness/roughness. Kd is the base colour; Pr/Pm (the PBR extension) win when
+/// given; otherwise roughness comes from the Phong exponent Ns through the usual Beckmann match
+/// alpha^2 = 2 / (Ns + 2), with perceptual roughness = sqrt(alpha).
+fn convert_material(mtl: &tobj::Material) -> Material {
+    let default = Material::default();
+    let unit = |value: f32| value.is_finite().then(|| value.clamp(0.0, 1.0));
+    let param = |key: &str| mtl.unknown_param.get(key).and_then(|v| v.trim().parse::<f32>().ok());
+
+    let base_color = mtl
+        .diffuse
+        .map(Vec3::from)
+        .filter(|c| c.is_finite())
+        .map_or(default.base_color, |c| c.clamp(Vec3::ZERO, Vec3::ONE));
+    let from_shininess = |ns: f32| (2.0 / (ns.max(0.0) + 2.0)).powf(0.25);
+    let roughness = param("Pr")
+        .and_then(unit)
+        .or_else(|| mtl.shininess.map(from_shininess).and_then(unit))
+        .unwrap_or(default.roughness);
+    let metallic = param("Pm").and_then(unit).unwrap_or(default.metallic);
+    Material { base_color, roughness, metallic }
+}
+
+/// An in-memory `BufRead` that counts the lines handed out, so a parse error can name its line.
+struct LineCounter<'a> {
+    rest: &'a [u8],
+    lines: usize,
+}
+
+impl<'a> LineCounter<'a> {
+    fn new(bytes: &'a [u8]) -> Self {
+        LineCounter { rest: bytes, lines: 0 }
+    }
+}
+
+impl Read for LineCounter<'_> {
+    fn read(&mut self, buf: &mut [u8]) -> io::Result<usize> {
+        let n = buf.len().min(self.rest.len());
+        buf[..n].copy_from_slice(&self.rest[..n]);
+        self.consume(n);
+        Ok(n)
+    }
+}
+
+impl BufRead for LineCounter<'_> {
+    fn fill_buf(&mut self) -> io::Result<&[u8]> {
+        Ok(self.rest)
+    }
+
+    fn consume(&mut self, amount: usize) {
+        let (used, rest) = self.rest.split_at(amount.min(self.rest.len()));
+        // A last line without '\n' is still a line.
+        self.lines += used.iter().filter(|&&b| b == b'\n').count();
+        if rest.is_empty() && used.last().is_some_and(|&b| b != b'\n') {
+            self.lines += 1;
+        }
+        self.rest = rest;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shininess_maps_to_roughness_monotonically() {
+        let material = |ns: f32| tobj::Material { shininess: Some(ns), ..Default::default() };
+        let rough = convert_material(&material(0.0)).roughness;
+        let mid = convert_material(&material(50.0)).roughness;
+        let glossy = convert_material(&material(1000.0)).roughness;
+        assert!((rough - 1.0).abs() < 1e-6);
+        assert!(rough > mid && mid > glossy && glossy > 0.0);
+    }
+
+    #[test]
+    fn pbr_extension_wins_and_is_clamped() {
+        let mut mtl = tobj::Material {
+            shininess: Some(10.0),
+            diffuse: Some([2.0, 0.5, -1.0]),
+            ..Default::default()
+        };
+        mtl.unknown_param.insert("Pr".into(), "0.25".into());
+        mtl.unknown_param.insert("Pm".into(), "1.5".into());
+        let m = convert_material(&mtl);
+        assert_eq!(
+            m,
+            Material { base_color: Vec3::new(1.0, 0.5, 0.0), roughness: 0.25, metallic: 1.0 }
+        );
+    }
+
+    #[test]
+    fn line_counter_counts_a_final_unterminated_line() {
+        let mut reader = LineCounter::new(b"a\nb\nc");
+        let lines: Vec<String> = (&mut reader).lines().map(Result::unwrap).collect();
+        assert_eq!(lines.len(), 3);
+        assert_eq!(reader.lines, 3);
+    }
+}

@@ -1,0 +1,199 @@
+//! Places an object-space mesh (from an OBJ file or a built-in shape) in the world: transforms
+//! positions in f64, normals by the inverse-transpose, keeps front faces counter-clockwise under
+//! mirroring, and drops triangles the renderer cannot use, counting them.
+
+use glam::{DMat3, DMat4, DVec3, Vec3};
+
+use super::{LoadStats, Material, Mesh};
+
+/// A mesh as loaded, before placement. Without `normals` it is shaded flat.
+#[derive(Clone, Debug)]
+pub(super) struct ObjectMesh {
+    pub name: String,
+    pub positions: Vec<Vec3>,
+    /// One per position when the source has smooth normals.
+    pub normals: Option<Vec<Vec3>>,
+    pub indices: Vec<u32>,
+    /// From the MTL file, before the scene's overrides.
+    pub material: Option<Material>,
+}
+
+/// Below this sine of the angle between two edges a triangle has no usable plane: its face
+/// normal is noise. Slightly above f32 epsilon, as positions are stored in f32.
+const MIN_EDGE_SINE: f64 = 2.0 * f32::EPSILON as f64;
+
+/// What is left of a triangle list after dropping unusable triangles, in world space.
+struct Builder {
+    positions: Vec<Vec3>,
+    normals: Vec<Vec3>,
+    indices: Vec<u32>,
+    /// Output index of each source vertex already emitted as a smooth vertex.
+    smooth_slot: Vec<Option<u32>>,
+}
+
+impl Builder {
+    fn push_vertex(&mut self, position: Vec3, normal: Vec3) -> u32 {
+        // Meshes over 4G vertices are far beyond what the loader is asked to handle.
+        let index = self.positions.len() as u32;
+        self.positions.push(position);
+        self.normals.push(normal);
+        index
+    }
+
+    fn smooth_vertex(&mut self, source: usize, position: Vec3, normal: Vec3) -> u32 {
+        if let Some(index) = self.smooth_slot[source] {
+            return index;
+        }
+        let index = self.push_vertex(position, normal);
+        self.smooth_slot[source] = Some(index);
+        index
+    }
+}
+
+/// Transforms `mesh` by `object_to_world` and returns it as a world-space `Mesh`, or `None` when
+/// no triangle survives. `object_to_world` must be affine and invertible (the scene file checks).
+pub(super) fn place(
+    mesh: &ObjectMesh,
+    object_to_world: &DMat4,
+    material: Material,
+    cast_shadows: bool,
+    stats: &mut LoadStats,
+) -> Option<Mesh> {
+    let world: Vec<DVec3> = mesh
+        .positions
+        .iter()
+        .map(|p| object_to_world.transform_point3(p.as_dvec3()))
+        // Round to what the renderer stores, so the checks below judge the stored triangle.
+        .map(|p| p.as_vec3().as_dvec3())
+        .collect();
+    let normal_matrix = DMat3::from_mat4(*object_to_world).inverse().transpose();
+    let world_normals: Option<Vec<Option<DVec3>>> = mesh.normals.as_ref().map(|normals| {
+        normals.iter().map(|n| (normal_matrix * n.as_dvec3()).try_normalize()).collect()
+    });
+    let mirrored = object_to_world.determinant() < 0.0;
+
+    let mut out = Builder {
+        positions: Vec::new(),
+        normals: Vec::new(),
+        indices: Vec::with_capacity(mesh.indices.len()),
+        smooth_slot: vec![None; mesh.positions.len()],
+    };
+    for tri in mesh.indices.chunks_exact(3) {
+        let mut tri = [tri[0] as usize, tri[1] as usize, tri[2] as usize];
+        if mirrored {
+            // A mirroring transform turns counter-clockwise into clockwise; swap to undo it.
+            tri.swap(1, 2);
+        }
+        let Some(corners) = tri.iter().map(|&i| world.get(i).copied()).collect::<Option<Vec<_>>>()
+        else {
+            stats.degenerate_triangles += 1; // index out of range: no triangle to speak of
+            continue;
+        };
+        if corners.iter().any(|p| !p.is_finite()) {
+            stats.non_finite_triangles += 1;
+            continue;
+        }
+        let Some(face_normal) = face_normal(tri, [corners[0], corners[1], corners[2]]) else {
+            stats.degenerate_triangles += 1;
+            continue;
+        };
+
+        let smooth = world_normals.as_ref().and_then(|normals| {
+            let n = tri.map(|i| normals.get(i).copied().flatten());
+            Some([n[0]?, n[1]?, n[2]?])
+        });
+        match smooth {
+            Some(normals) => {
+                for ((&source, corner), normal) in tri.iter().zip(&corners).zip(normals) {
+                    let v = out.smooth_vertex(source, corner.as_vec3(), normal.as_vec3());
+                    out.indices.push(v);
+                }
+            }
+            // Flat, or a smooth mesh with an unusable normal here: use the face's own.
+            None => {
+                for corner in &corners {
+                    let v = out.push_vertex(corner.as_vec3(), face_normal.as_vec3());
+                    out.indices.push(v);
+                }
+            }
+        }
+    }
+
+    if out.indices.is_empty() {
+        return None;
+    }
+    Some(Mesh {
+        name: mesh.name.clone(),
+        positions: out.positions,
+        normals: out.normals,
+        indices: out.indices,
+        material,
+        cast_shadows,
+    })
+}
+
+/// Unit normal of a counter-clockwise triangle, or `None` when it has no area (repeated
+/// indices, coincident or collinear corners).
+fn face_normal(tri: [usize; 3], [a, b, c]: [DVec3; 3]) -> Option<DVec3> {
+    if tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2] {
+        return None;
+    }
+    let (e1, e2) = (b - a, c - a);
+    let cross = e1.cross(e2);
+    let area2 = cross.length();
+    if area2 <= MIN_EDGE_SINE * e1.length() * e2.length() {
+        return None;
+    }
+    Some(cross / area2)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn quad() -> ObjectMesh {
+        ObjectMesh {
+            name: "quad".into(),
+            positions: vec![
+                Vec3::new(0.0, 0.0, 0.0),
+                Vec3::new(1.0, 0.0, 0.0),
+                Vec3::new(1.0, 1.0, 0.0),
+                Vec3::new(0.0, 1.0, 0.0),
+            ],
+            normals: Some(vec![Vec3::Z; 4]),
+            indices: vec![0, 1, 2, 0, 2, 3],
+            material: None,
+        }
+    }
+
+    #[test]
+    fn smooth_vertices_are_shared() {
+        let mut stats = LoadStats::default();
+        let mesh = place(&quad(), &DMat4::IDENTITY, Material::default(), true, &mut stats).unwrap();
+        assert_eq!(mesh.positions.len(), 4);
+        assert_eq!(mesh.indices, vec![0, 1, 2, 0, 2, 3]);
+        assert_eq!(stats, LoadStats::default());
+    }
+
+    #[test]
+    fn mirroring_keeps_front_faces_counter_clockwise() {
+        let mut stats = LoadStats::default();
+        let mirror = DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0));
+        let mesh = place(&quad(), &mirror, Material::default(), true, &mut stats).unwrap();
+        for tri in mesh.indices.chunks_exact(3) {
+            let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
+            let geometric = (b - a).cross(c - a);
+            assert!(geometric.dot(mesh.normals[tri[0] as usize]) > 0.0);
+        }
+    }
+
+    #[test]
+    fn bad_normals_fall_back_to_the_face_normal() {
+        let mut bad = quad();
+        bad.normals = Some(vec![Vec3::ZERO, Vec3::Z, Vec3::Z, Vec3::Z]);
+        let mut stats = LoadStats::default();
+        let mesh = place(&bad, &DMat4::IDENTITY, Material::default(), true, &mut stats).unwrap();
+        assert_eq!(mesh.triangle_count(), 2);
+        assert!(mesh.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+    }
+}

@@ -1,0 +1,412 @@
+//! Scene loading from the outside: error messages a user would see, what happens to bad mesh
+//! data, the geometry conventions (flat/smooth normals, winding under mirroring, transforms) and
+//! the built-in default scene.
+
+use std::path::{Path, PathBuf};
+
+use glam::{DVec3, Vec3};
+use rand::{Rng, SeedableRng};
+use umbra::scene::{Light, Mesh, Scene, SceneError};
+
+fn data(path: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data").join(path)
+}
+
+/// Loads a fixture that must fail and returns its message, checked to be one clean line.
+fn load_error(scene: &str) -> String {
+    match Scene::load(&data(scene)) {
+        Ok(_) => panic!("{scene} loaded but should not"),
+        Err(error) => clean_message(&error),
+    }
+}
+
+fn parse_error(text: &str) -> String {
+    match Scene::parse(text, "inline.toml", &data("scenes")) {
+        Ok(_) => panic!("scene parsed but should not:\n{text}"),
+        Err(error) => clean_message(&error),
+    }
+}
+
+fn clean_message(error: &SceneError) -> String {
+    let message = error.to_string();
+    assert!(!message.contains('\n'), "not one line: {message:?}");
+    assert!(!message.contains("panicked") && !message.contains("backtrace"), "{message}");
+    message
+}
+
+fn parse(text: &str) -> Scene {
+    Scene::parse(text, "inline.toml", &data("scenes")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+const CAMERA: &str = "[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
+
+fn with_camera(rest: &str) -> String {
+    format!("{CAMERA}{rest}")
+}
+
+fn mesh_named<'a>(scene: &'a Scene, name: &str) -> &'a Mesh {
+    scene.meshes.iter().find(|m| m.name == name).unwrap_or_else(|| {
+        let names: Vec<_> = scene.meshes.iter().map(|m| &m.name).collect();
+        panic!("no mesh {name:?} in {names:?}")
+    })
+}
+
+fn triangles(mesh: &Mesh) -> impl Iterator<Item = [usize; 3]> + '_ {
+    mesh.indices.chunks_exact(3).map(|t| [t[0] as usize, t[1] as usize, t[2] as usize])
+}
+
+fn geometric_normal(mesh: &Mesh, [a, b, c]: [usize; 3]) -> Vec3 {
+    let p = &mesh.positions;
+    (p[b] - p[a]).cross(p[c] - p[a]).normalize()
+}
+
+fn assert_close(a: Vec3, b: Vec3, tolerance: f32, what: &str) {
+    assert!((a - b).length() <= tolerance, "{what}: {a} vs {b}");
+}
+
+// ---- errors ------------------------------------------------------------------------------
+
+#[test]
+fn missing_scene_file_names_the_path() {
+    let message = load_error("scenes/no_such_scene.toml");
+    assert!(message.contains("no_such_scene.toml"), "{message}");
+    assert!(message.contains("cannot read scene file"), "{message}");
+    assert!(!message.contains("os error"), "{message}");
+}
+
+#[test]
+fn syntax_error_names_line_and_column() {
+    let message = load_error("scenes/syntax_error.toml");
+    // The array opened on line 5 is still open when the file ends on line 6.
+    assert!(message.contains("syntax_error.toml:6:1: "), "{message}");
+}
+
+#[test]
+fn unknown_key_names_the_key_and_the_object() {
+    let message = load_error("scenes/unknown_key.toml");
+    assert!(message.contains("unknown_key.toml:11:1: objects[1]: "), "{message}");
+    assert!(message.contains("unknown field `colour`"), "{message}");
+    assert!(message.contains("`material`"), "should list the expected keys: {message}");
+}
+
+#[test]
+fn wrong_type_names_the_key_path() {
+    let message = load_error("scenes/wrong_type.toml");
+    assert!(message.contains("wrong_type.toml:8:"), "{message}");
+    assert!(message.contains("objects[0].material.roughness"), "{message}");
+    assert!(message.contains("invalid type: string \"shiny\""), "{message}");
+}
+
+#[test]
+fn missing_mesh_names_the_mesh_and_the_object() {
+    let message = load_error("scenes/missing_mesh.toml");
+    assert!(message.contains("missing_mesh.toml: objects[1].mesh: "), "{message}");
+    assert!(message.contains("cannot read \"../meshes/bunny.obj\""), "{message}");
+}
+
+#[test]
+fn broken_mesh_names_the_line() {
+    let message = load_error("scenes/broken_mesh.toml");
+    assert!(message.contains("objects[0].mesh: \"../meshes/broken.obj\""), "{message}");
+    assert!(message.contains("line 4: face parse error"), "{message}");
+}
+
+#[test]
+fn missing_camera_is_an_error() {
+    let message = parse_error("[[objects]]\nshape = \"cube\"\n");
+    assert!(message.starts_with("inline.toml: camera: "), "{message}");
+}
+
+#[test]
+fn missing_field_names_the_table() {
+    let message = parse_error("[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\n");
+    assert!(message.starts_with("inline.toml:1:1: camera: missing field `vfov_deg`"), "{message}");
+}
+
+#[test]
+fn out_of_range_values_name_the_field() {
+    let cases = [
+        (
+            "[[objects]]\nshape = \"cube\"\n[[objects]]\nshape = \"cube\"\n[[objects]]\n\
+             shape = \"cube\"\nmaterial = { roughness = 1.5 }\n",
+            "objects[2].material.roughness: 1.5 is outside [0, 1]",
+        ),
+        ("[[objects]]\nshape = \"cube\"\nmaterial = { base_color = [0.5, 1.2, 0.0] }\n", "objects[0].material.base_color: 1.2"),
+        ("[[objects]]\nshape = \"cube\"\nmesh = \"x.obj\"\n", "objects[0]: give exactly one of `mesh` or `shape`"),
+        ("[[objects]]\ncast_shadows = false\n", "objects[0]: give exactly one"),
+        ("[[objects]]\nshape = \"cube\"\nradius = 1.0\n", "objects[0].radius"),
+        ("[[objects]]\nshape = \"sphere\"\nsegments = 2\n", "objects[0].segments: 2 is outside [3, 256]"),
+        ("[[objects]]\nshape = \"cube\"\nsize = -1\n", "objects[0].size"),
+        ("[[objects]]\nshape = \"cone\"\n", "unknown variant `cone`"),
+        ("[[objects]]\nshape = \"cube\"\nscale = [1.0, 0.0, 1.0]\n", "objects[0].scale"),
+        (
+            "[[objects]]\nshape = \"cube\"\ntranslate = [1, 2, 3]\ntransform = [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1]]\n",
+            "objects[0].transform: give either",
+        ),
+        (
+            "[[objects]]\nshape = \"cube\"\ntransform = [[1,0,0,0],[0,1,0,0],[0,0,0,0],[0,0,0,1]]\n",
+            "objects[0].transform: is singular",
+        ),
+        ("[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [-1, 1, 1]\n", "lights[0].intensity"),
+        ("[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [inf, 1, 1]\n", "lights[0].intensity"),
+        ("[[lights]]\ntype = \"point\"\nintensity = [1, 1, 1]\n", "lights[0]: a point light needs `position`"),
+        (
+            "[[lights]]\ntype = \"directional\"\ndirection = [0, 0, 0]\nirradiance = [1, 1, 1]\n",
+            "lights[0].direction: must not be the zero vector",
+        ),
+        (
+            "[[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\nposition = [0, 0, 0]\n",
+            "lights[0].position: not used by a directional light",
+        ),
+        (
+            "[[lights]]\ntype = \"spot\"\nposition = [0, 3, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\ninner_deg = 30\nouter_deg = 20\n",
+            "lights[0]: need 0 <= inner_deg < outer_deg <= 90",
+        ),
+        ("[[lights]]\ntype = \"area\"\n", "unknown variant `area`"),
+        ("[image]\nwidth = 0\nheight = 240\n", "image.width: 0 is outside [1, 16384]"),
+        ("[image]\nwidth = -5\nheight = 240\n", "image.width: invalid value: integer `-5`"),
+    ];
+    for (rest, expected) in cases {
+        let message = parse_error(&with_camera(rest));
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+    }
+}
+
+#[test]
+fn bad_cameras_are_rejected() {
+    let cases = [
+        ("eye = [0, 1, 5]\ntarget = [0, 1, 5]\nvfov_deg = 40\n", "camera.target: must differ"),
+        ("eye = [0, 5, 0]\ntarget = [0, 0, 0]\nvfov_deg = 40\n", "camera.up: is parallel"),
+        (
+            "eye = [0, 1, 5]\ntarget = [0, 0, 0]\nvfov_deg = 180\n",
+            "camera.vfov_deg: 180 is outside (0, 180)",
+        ),
+        ("eye = [0, nan, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n", "camera.eye"),
+    ];
+    for (camera, expected) in cases {
+        let message = parse_error(&format!("[camera]\n{camera}"));
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+    }
+}
+
+/// Random damage to a valid scene must give a clean one-line error or a scene, never a panic.
+#[test]
+fn damaged_scene_text_never_panics() {
+    let original =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/default.toml"))
+            .expect("default scene readable");
+    let mut rng = rand::rngs::StdRng::seed_from_u64(7);
+    let alphabet = b"[]{}=,.\"'#\n 0123456789-eaxyz_";
+    for _ in 0..1500 {
+        let mut bytes = original.clone().into_bytes();
+        for _ in 0..rng.gen_range(1..4) {
+            let at = rng.gen_range(0..bytes.len());
+            match rng.gen_range(0..3) {
+                0 => bytes[at] = alphabet[rng.gen_range(0..alphabet.len())],
+                1 => {
+                    bytes.remove(at);
+                }
+                _ => bytes.truncate(at),
+            }
+        }
+        let text = String::from_utf8_lossy(&bytes);
+        if let Err(error) = Scene::parse(&text, "damaged.toml", &data("scenes")) {
+            let message = clean_message(&error);
+            assert!(message.starts_with("damaged.toml"), "{message}");
+        }
+    }
+}
+
+// ---- mesh data ---------------------------------------------------------------------------
+
+#[test]
+fn non_finite_and_degenerate_triangles_are_dropped_and_counted() {
+    let scene = Scene::load(&data("scenes/meshes.toml")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.stats.non_finite_triangles, 2);
+    assert_eq!(scene.stats.degenerate_triangles, 4);
+    assert_eq!(mesh_named(&scene, "nan.obj/nan").triangle_count(), 2);
+    assert_eq!(mesh_named(&scene, "degenerate.obj/kept").triangle_count(), 1);
+    // A model with no triangle left is skipped, not kept empty.
+    assert!(scene.meshes.iter().all(|m| m.name != "degenerate.obj/dropped"));
+    for mesh in &scene.meshes {
+        assert!(mesh.positions.iter().all(|p| p.is_finite()), "{}", mesh.name);
+    }
+}
+
+#[test]
+fn obj_without_normals_is_flat_shaded() {
+    let scene = Scene::load(&data("scenes/meshes.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let tetra = mesh_named(&scene, "tetra.obj/tetra");
+    assert_eq!(tetra.triangle_count(), 4);
+    // Flat: every triangle has its own three vertices.
+    assert_eq!(tetra.positions.len(), 12);
+    for tri in triangles(tetra) {
+        let face = geometric_normal(tetra, tri);
+        for i in tri {
+            assert_close(tetra.normals[i], face, 1e-5, "flat normal");
+        }
+    }
+    // Faces still point out of the (rotated, unevenly scaled) solid.
+    let centre = tetra.positions.iter().copied().sum::<Vec3>() / tetra.positions.len() as f32;
+    for tri in triangles(tetra) {
+        assert!(geometric_normal(tetra, tri).dot(tetra.positions[tri[0]] - centre) > 0.0);
+    }
+}
+
+#[test]
+fn obj_with_normals_keeps_them_and_its_mtl_material() {
+    let scene = Scene::load(&data("scenes/meshes.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let patch = mesh_named(&scene, "smooth.obj/patch");
+    assert_eq!(patch.positions.len(), 4, "smooth vertices are shared");
+    let expected = [
+        (Vec3::new(0.0, 0.0, 0.0), Vec3::new(-0.3, 0.0, 1.0)),
+        (Vec3::new(1.0, 0.0, 0.0), Vec3::new(0.3, 0.0, 1.0)),
+        (Vec3::new(1.0, 1.0, 0.5), Vec3::new(0.3, -0.2, 1.0)),
+        (Vec3::new(0.0, 1.0, 0.5), Vec3::new(-0.3, -0.2, 1.0)),
+    ];
+    for (position, normal) in expected {
+        let i = patch.positions.iter().position(|p| *p == position).expect("vertex kept");
+        assert_close(patch.normals[i], normal.normalize(), 1e-6, "smooth normal");
+    }
+    // Kd and Pm come from the MTL; the scene overrides roughness only.
+    assert_eq!(patch.material.base_color, Vec3::new(0.2, 0.4, 0.6));
+    assert_eq!(patch.material.metallic, 1.0);
+    assert_eq!(patch.material.roughness, 0.3);
+}
+
+// ---- transforms --------------------------------------------------------------------------
+
+#[test]
+fn mirroring_transform_keeps_front_faces_counter_clockwise() {
+    let scene = parse(&with_camera(
+        "[[objects]]\nshape = \"sphere\"\nsegments = 12\nscale = [-1.0, 1.0, 1.0]\n\
+         [[objects]]\nmesh = \"../meshes/smooth.obj\"\n\
+         transform = [[1,0,0,0],[0,1,0,0],[0,0,-2,0],[0,0,0,1]]\n\
+         [[objects]]\nmesh = \"../meshes/tetra.obj\"\nscale = [1.0, -1.0, 1.0]\n",
+    ));
+    assert_eq!(scene.meshes.len(), 3);
+    for mesh in &scene.meshes {
+        for tri in triangles(mesh) {
+            let geometric = geometric_normal(mesh, tri);
+            for i in tri {
+                assert!(geometric.dot(mesh.normals[i]) > 0.0, "{}: triangle {tri:?}", mesh.name);
+            }
+        }
+    }
+}
+
+#[test]
+fn transform_matrix_equals_translate_rotate_scale() {
+    // Scale, then 90 degrees about X, then 90 about Y, then translate, written out by hand:
+    // X then Y sends x to -z, y to x and z to -y.
+    let by_parts = parse(&with_camera(
+        "[[objects]]\nshape = \"cube\"\ntranslate = [1, 2, 3]\nrotate_deg = [90, 90, 0]\nscale = [2, 3, 4]\n",
+    ));
+    let by_matrix = parse(&with_camera(
+        "[[objects]]\nshape = \"cube\"\n\
+         transform = [[0, 3, 0, 1], [0, 0, -4, 2], [-2, 0, 0, 3], [0, 0, 0, 1]]\n",
+    ));
+    let (a, b) = (&by_parts.meshes[0], &by_matrix.meshes[0]);
+    assert_eq!(a.indices, b.indices);
+    for (pa, pb) in a.positions.iter().zip(&b.positions) {
+        assert_close(*pa, *pb, 1e-5, "position");
+    }
+    for (na, nb) in a.normals.iter().zip(&b.normals) {
+        assert_close(*na, *nb, 1e-5, "normal");
+    }
+    // The cube's (+, +, +) corner lands where the hand-written matrix puts it.
+    let corner = Vec3::new(2.5, 0.0, 2.0);
+    assert!(a.positions.iter().any(|p| (*p - corner).length() < 1e-5), "{:?}", a.positions);
+}
+
+#[test]
+fn uniform_scale_may_be_a_single_number() {
+    let a = parse(&with_camera("[[objects]]\nshape = \"cube\"\nscale = 2\n"));
+    let b = parse(&with_camera("[[objects]]\nshape = \"cube\"\nscale = [2.0, 2.0, 2.0]\n"));
+    assert_eq!(a.meshes[0].positions, b.meshes[0].positions);
+    let message = parse_error(&with_camera("[[objects]]\nshape = \"cube\"\nscale = \"big\"\n"));
+    assert!(message.contains("objects[0].scale: invalid type"), "{message}");
+}
+
+// ---- whole scenes ------------------------------------------------------------------------
+
+#[test]
+fn empty_scene_is_valid() {
+    let scene = parse(CAMERA);
+    assert!(scene.meshes.is_empty() && scene.lights.is_empty());
+    assert_eq!(scene.image_size, None);
+    assert_eq!(scene.camera.up, Vec3::Y);
+}
+
+#[test]
+fn default_scene_is_rich_enough_to_test_shadows() {
+    let scene = Scene::default_scene();
+    assert!(scene.lights.len() >= 2);
+    assert!(scene.lights.iter().any(|l| matches!(l, Light::Point { .. })));
+    assert!(scene.lights.iter().any(|l| matches!(l, Light::Directional { .. })));
+    assert!(scene.meshes.len() >= 4);
+    assert!(scene.meshes.iter().all(|m| m.cast_shadows));
+
+    let mut materials = Vec::new();
+    for mesh in &scene.meshes {
+        if !materials.contains(&mesh.material) {
+            materials.push(mesh.material);
+        }
+    }
+    assert!(materials.len() >= 3, "{materials:?}");
+    assert!(materials.iter().any(|m| m.metallic == 1.0), "needs a metal");
+    assert!(materials.iter().any(|m| m.metallic == 0.0 && m.roughness >= 0.7), "rough dielectric");
+    assert!(materials.iter().any(|m| m.metallic == 0.0 && m.roughness <= 0.3), "glossy dielectric");
+    assert_eq!(scene.image_size, Some((320, 240)));
+    assert!(scene.triangle_count() < 20_000);
+}
+
+#[test]
+fn translated_moves_everything_by_the_offset() {
+    let scene = Scene::default_scene();
+    let offset = DVec3::new(100_000.0, -3.0, -100_000.0);
+    let moved = scene.translated(offset);
+    // Each moved point is the f32 nearest the exact f64 sum: within half an ulp at 1e5.
+    let half_ulp = 0.5 * 100_000f32.next_up() as f64 - 0.5 * 100_000.0;
+    let check = |before: Vec3, after: Vec3| {
+        let error = (after.as_dvec3() - (before.as_dvec3() + offset)).abs().max_element();
+        assert!(error <= half_ulp + 1e-9, "{before} moved to {after}");
+    };
+    check(scene.camera.eye, moved.camera.eye);
+    check(scene.camera.target, moved.camera.target);
+    assert_eq!(scene.camera.up, moved.camera.up);
+    for (before, after) in scene.lights.iter().zip(&moved.lights) {
+        match (before, after) {
+            (Light::Point { position: a, .. }, Light::Point { position: b, .. }) => check(*a, *b),
+            (
+                Light::Spot { position: a, direction: da, .. },
+                Light::Spot { position: b, direction: db, .. },
+            ) => {
+                check(*a, *b);
+                assert_eq!(da, db);
+            }
+            (a, b) => assert_eq!(a, b),
+        }
+    }
+    assert_eq!(scene.meshes.len(), moved.meshes.len());
+    for (before, after) in scene.meshes.iter().zip(&moved.meshes) {
+        assert_eq!(before.indices, after.indices);
+        assert_eq!(before.normals, after.normals);
+        for (a, b) in before.positions.iter().zip(&after.positions) {
+            check(*a, *b);
+        }
+    }
+}
+
+#[test]
+fn translated_is_exact_when_the_sum_is_representable() {
+    // Cube corners at multiples of 1/2 stay exact after a 100 km shift (f32 spacing there is 1/128).
+    let scene =
+        parse(&with_camera("[[objects]]\nshape = \"cube\"\nsize = 2\ntranslate = [0.5, 1, 0]\n"));
+    let offset = DVec3::new(100_000.0, 0.0, -100_000.0);
+    let moved = scene.translated(offset);
+    for (a, b) in scene.meshes[0].positions.iter().zip(&moved.meshes[0].positions) {
+        assert_eq!(b.as_dvec3() - offset, a.as_dvec3());
+    }
+    assert_eq!(moved.camera.eye.as_dvec3() - offset, scene.camera.eye.as_dvec3());
+}

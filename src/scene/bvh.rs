@@ -18,7 +18,8 @@
 //! triangle at the origin, which no ray can hit, so buffers are never zero-sized.
 
 use glam::{Vec3, Vec3A};
-use obvhs::bvh2::{builder::build_bvh2_from_tris, Bvh2};
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::{builder::build_bvh2_from_tris, node::Bvh2Node, Bvh2};
 use obvhs::ray::Ray;
 use obvhs::triangle::Triangle;
 use obvhs::BvhBuildParams;
@@ -112,6 +113,37 @@ impl ShadowBvh {
     }
 
     pub fn from_triangles(tris: &[[Vec3; 3]]) -> ShadowBvh {
+        ShadowBvh::with_builder(tris, |reference_triangles| {
+            // PLOC with a medium search radius, reinsertion before and after leaf collapse:
+            // the "medium" preset. Spatial pre-splits stay off so each triangle is in one leaf.
+            let mut bvh = build_bvh2_from_tris(
+                reference_triangles,
+                BvhBuildParams::medium_build(),
+                &mut Duration::default(),
+            );
+            // Depth-first order: parents before children, siblings together, for GPU caches.
+            bvh.reorder_in_stack_traversal_order();
+            let depth = bvh.depth(0);
+            if depth <= BVH_STACK_SIZE {
+                return bvh;
+            }
+            // PLOC gives no depth bound; a pathological input gets a balanced tree instead,
+            // slower to trace but never deeper than log2(triangles) levels.
+            log::warn!(
+                "shadow BVH is {depth} levels deep, over the shader's stack of \
+                 {BVH_STACK_SIZE}: falling back to a median-split build"
+            );
+            median_split_bvh(reference_triangles)
+        })
+    }
+
+    /// The balanced fallback build that `from_triangles` uses when PLOC's tree is too deep for
+    /// the shader's stack; public so tests can exercise it.
+    pub fn from_triangles_median_split(tris: &[[Vec3; 3]]) -> ShadowBvh {
+        ShadowBvh::with_builder(tris, median_split_bvh)
+    }
+
+    fn with_builder(tris: &[[Vec3; 3]], build: impl FnOnce(&[Triangle]) -> Bvh2) -> ShadowBvh {
         let reference_triangles: Vec<Triangle> = tris
             .iter()
             .map(|&[a, b, c]| Triangle {
@@ -133,19 +165,11 @@ impl ShadowBvh {
                 depth: 0,
             };
         }
-        // PLOC with a medium search radius, reinsertion before and after leaf collapse: the
-        // "medium" preset. Spatial pre-splits stay off so each triangle lives in one leaf.
-        let mut reference = build_bvh2_from_tris(
-            &reference_triangles,
-            BvhBuildParams::medium_build(),
-            &mut Duration::default(),
-        );
-        // Depth-first order: parents before children, siblings together, for GPU cache reuse.
-        reference.reorder_in_stack_traversal_order();
+        let reference = build(&reference_triangles);
         let depth = reference.depth(0);
         assert!(
             depth <= BVH_STACK_SIZE,
-            "shadow BVH is {depth} levels deep; bvh.glsl's stack holds {BVH_STACK_SIZE}"
+            "{depth} levels overflow bvh.glsl's stack"
         );
 
         let nodes = reference
@@ -287,11 +311,15 @@ impl ShadowBvh {
         !miss
     }
 
-    /// True when the ray, evaluated in f64 against every triangle, passes within `eps`
-    /// (barycentric units) of a triangle edge, within `eps` of grazing a triangle's plane, or
-    /// hits a triangle within `eps * tmax` of either end of the segment. Such rays may
-    /// legitimately differ between two f32 implementations; everything else must agree.
-    /// Brute force over all triangles: call it only on rays whose results differ.
+    /// True when the ray passes so close to a triangle's edge, or meets it so close to either
+    /// end of the segment, that two f32 implementations may legitimately disagree: everything
+    /// else must agree exactly. Evaluated in f64 against every triangle; each barycentric
+    /// margin is turned into a distance to its edge (times the altitude) and compared with
+    /// `eps` times the magnitude of the coordinates involved (f32 rounding is relative to
+    /// them, not to the triangle's size), divided by the cosine to the plane (a grazing hit
+    /// point is ill-conditioned along the plane). The tests use `eps = 1e-6`, about 8 f32
+    /// ulps of the largest coordinate.
+    /// Brute force: call it only on rays whose results differ.
     pub fn ray_near_edge(&self, origin: Vec3, dir: Vec3, tmax: f32, eps: f64) -> bool {
         if self.is_empty() {
             return false;
@@ -299,38 +327,90 @@ impl ShadowBvh {
         let o = origin.as_dvec3();
         let d = dir.as_dvec3();
         let tmax = tmax as f64;
-        let t_slack = eps * tmax;
         self.triangles.iter().any(|tri| {
             let (v0, e1, e2) = (
                 tri.v0().as_dvec3(),
                 tri.e1().as_dvec3(),
                 tri.e2().as_dvec3(),
             );
+            let twice_area = e1.cross(e2).length();
+            if twice_area == 0.0 {
+                return false; // degenerate: no implementation can hit it
+            }
             let p = d.cross(e2);
             let det = e1.dot(p);
-            let plane_scale = e1.cross(e2).length() * d.length();
-            if plane_scale == 0.0 {
-                return false; // degenerate triangle: no implementation can hit it
-            }
+            let cos = det.abs() / (twice_area * d.length());
             let s = o - v0;
-            if det.abs() <= eps * plane_scale {
-                // Grazing: the hit is ill-conditioned; ambiguous if the ray passes close to
-                // the triangle's plane at all within the segment.
-                let n = e1.cross(e2) / e1.cross(e2).length();
-                let (h0, h1) = (s.dot(n), (s + d * tmax).dot(n));
-                let scale = e1.length().max(e2.length());
-                return h0.min(h1) <= eps * scale && h0.max(h1) >= -eps * scale;
+            let magnitude = o.abs().max_element() + v0.abs().max_element() + s.length();
+            if cos < 1e-12 {
+                // In the plane (or as near as makes no difference): ambiguous if it touches it.
+                let n = e1.cross(e2) / twice_area;
+                return s.dot(n).abs() <= eps * magnitude;
             }
+            let tolerance = eps * magnitude / cos;
             let u = s.dot(p) / det;
             let q = s.cross(e1);
             let v = d.dot(q) / det;
             let t = e2.dot(q) / det;
-            let margin = u.min(v).min(1.0 - u - v);
-            let in_segment = t > -t_slack && t < tmax + t_slack;
-            let near_edge = margin.abs() <= eps && in_segment;
-            let near_end = margin >= -eps && (t.abs() <= t_slack || (t - tmax).abs() <= t_slack);
+            let edge_distance = (u * twice_area / e2.length())
+                .min(v * twice_area / e1.length())
+                .min((1.0 - u - v) * twice_area / (e2 - e1).length());
+            let t_tolerance = tolerance / d.length();
+            let in_segment = t > -t_tolerance && t < tmax + t_tolerance;
+            let near_edge = edge_distance.abs() <= tolerance && in_segment;
+            let near_end = edge_distance >= -tolerance
+                && (t.abs() <= t_tolerance || (t - tmax).abs() <= t_tolerance);
             near_edge || near_end
         })
+    }
+}
+
+/// Triangles per leaf in the fallback build.
+const MEDIAN_SPLIT_LEAF_SIZE: usize = 4;
+
+/// A balanced Bvh2: each node splits its triangles in half at the median centroid along the
+/// widest axis of their centroids. Children are allocated in pairs, depth first, as obvhs does.
+fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
+    fn split(
+        tris: &[Triangle],
+        order: &mut [u32],
+        first: u32,
+        slot: usize,
+        nodes: &mut Vec<Bvh2Node>,
+    ) {
+        let mut aabb = Aabb::empty();
+        let mut centroids = Aabb::empty();
+        for &i in order.iter() {
+            let tri = &tris[i as usize];
+            aabb = aabb.union(&tri.aabb());
+            centroids.extend((tri.v0 + tri.v1 + tri.v2) / 3.0);
+        }
+        if order.len() <= MEDIAN_SPLIT_LEAF_SIZE {
+            nodes[slot] = Bvh2Node::new(aabb, order.len() as u32, first);
+            return;
+        }
+        let axis = centroids.largest_axis();
+        let key = |i: &u32| {
+            let tri = &tris[*i as usize];
+            tri.v0[axis] + tri.v1[axis] + tri.v2[axis]
+        };
+        let mid = order.len() / 2;
+        order.select_nth_unstable_by(mid, |a, b| key(a).total_cmp(&key(b)));
+        let children = nodes.len();
+        nodes.resize(children + 2, Bvh2Node::default());
+        nodes[slot] = Bvh2Node::new(aabb, 0, children as u32);
+        let (left, right) = order.split_at_mut(mid);
+        split(tris, left, first, children, nodes);
+        split(tris, right, first + mid as u32, children + 1, nodes);
+    }
+
+    let mut order: Vec<u32> = (0..tris.len() as u32).collect();
+    let mut nodes = vec![Bvh2Node::default()];
+    split(tris, &mut order, 0, 0, &mut nodes);
+    Bvh2 {
+        nodes,
+        primitive_indices: order,
+        ..Bvh2::default()
     }
 }
 

@@ -32,7 +32,7 @@ fn main() {
         run_tool(
             "glslangValidator",
             Command::new("glslangValidator")
-                .args(["-V", "--target-env", "vulkan1.3", "-I", "shaders/include", "-o"])
+                .args(["-V", "--target-env", "vulkan1.3", "-Ishaders/include", "-o"])
                 .arg(&spv)
                 .arg(src),
         );
@@ -51,11 +51,9 @@ fn run_tool(name: &str, cmd: &mut Command) {
             panic!("{name} was not found on PATH: {SETUP_HINT}")
         }
         Err(e) => panic!("could not run {name}: {e}"),
-        Ok(o) if !o.status.success() => panic!(
-            "{name} failed:\n{}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        ),
+        Ok(o) if !o.status.success() => {
+            panic!("{name} failed:\n{}{}", String::from_utf8_lossy(&o.stdout), String::from_utf8_lossy(&o.stderr))
+        }
         Ok(_) => {}
     }
 }

@@ -1,4 +1,5 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
 // A batch of any-hit queries through the same bvh.glsl the shadow pass uses, so traversal can
 // be checked ray for ray against the CPU.
 #include "bindings.glsl"

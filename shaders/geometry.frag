@@ -1,4 +1,5 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
 // Geometry pass: fills the G-buffer (see gbuffer.glsl).
 #include "gbuffer.glsl"
 #include "geometry_push.glsl"

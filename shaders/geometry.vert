@@ -1,4 +1,5 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
 // Geometry pass: world-space vertices, projected camera-relative so that a scene far from the
 // origin does not lose precision in the view transform.
 #include "geometry_push.glsl"

@@ -1,4 +1,5 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
 // Shadow trace pass: one any-hit ray per drawn pixel and light through the shadow-caster BVH.
 // No ray is cast where the light cannot contribute (background, facing away, outside a spot's
 // cone): visibility there is 0 (1 for background, which nothing shadows).

@@ -1,4 +1,5 @@
 #version 460
+#extension GL_GOOGLE_include_directive : require
 // Tone-map pass: exposure, the tone curve of tonemap.glsl, then the sRGB encoding, to 8 bits.
 #include "bindings.glsl"
 #include "tonemap.glsl"

@@ -162,4 +162,3 @@ mod tests {
         assert!(parse_size("0x10").unwrap_err().contains("1 to 16384"));
     }
 }
-

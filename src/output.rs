@@ -63,7 +63,10 @@ fn write_png(frame: &Frame, tmp: &Path) -> Result<(), String> {
     for p in img.pixels_mut() {
         p.0[3] = 255;
     }
-    image::DynamicImage::ImageRgba8(img).to_rgb8().save_with_format(tmp, image::ImageFormat::Png).map_err(|e| e.to_string())
+    image::DynamicImage::ImageRgba8(img)
+        .to_rgb8()
+        .save_with_format(tmp, image::ImageFormat::Png)
+        .map_err(|e| e.to_string())
 }
 
 fn write_exr(frame: &Frame, tmp: &Path) -> Result<(), String> {

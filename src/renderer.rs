@@ -100,8 +100,18 @@ impl SceneGpu {
         let lights = gpu_lights(&scene.lights);
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(SceneGpu {
-            vertices: Buffer::with_data(ctx, "vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?,
-            indices: Buffer::with_data(ctx, "indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER)?,
+            vertices: Buffer::with_data(
+                ctx,
+                "vertices",
+                bytemuck::cast_slice(&vertices),
+                vk::BufferUsageFlags::VERTEX_BUFFER,
+            )?,
+            indices: Buffer::with_data(
+                ctx,
+                "indices",
+                bytemuck::cast_slice(&indices),
+                vk::BufferUsageFlags::INDEX_BUFFER,
+            )?,
             draws,
             lights: Buffer::with_data(ctx, "lights", bytemuck::cast_slice(&lights), usage)?,
             light_count: scene.lights.len() as u32,
@@ -130,10 +140,15 @@ impl CameraMatrices {
         let radius = (hi - lo).length() * 0.5;
         let far = ((centre - cam.eye).length() + radius).max(1.0) * 1.01;
         let near = (far * 1e-5).max(1e-3);
-        let view = Mat4::look_at_rh(Vec3::ZERO, cam.target - cam.eye, cam.up);
-        let mut proj = Mat4::perspective_rh(cam.vfov_deg.to_radians(), width as f32 / height as f32, near, far);
-        // Vulkan's clip space has +Y down.
-        proj.y_axis.y = -proj.y_axis.y;
+        let view =
+            glam::camera::rh::view::look_to_mat4(Vec3::ZERO, (cam.target - cam.eye).normalize(), cam.up.normalize());
+        // Vulkan's clip space: depth in [0, 1], +Y down.
+        let proj = glam::camera::rh::proj::vulkan::perspective(
+            cam.vfov_deg.to_radians(),
+            width as f32 / height as f32,
+            near,
+            far,
+        );
         CameraMatrices { eye: cam.eye, view_proj_relative: proj * view, far }
     }
 }
@@ -159,7 +174,10 @@ impl Renderer {
             bvh.triangle_count()
         );
         let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
-        for (what, bytes) in [("BVH nodes", std::mem::size_of_val(bvh.nodes())), ("BVH triangles", std::mem::size_of_val(bvh.triangles()))] {
+        for (what, bytes) in [
+            ("BVH nodes", std::mem::size_of_val(bvh.nodes())),
+            ("BVH triangles", std::mem::size_of_val(bvh.triangles())),
+        ] {
             if bytes as u64 > limit {
                 return Err(GpuError::Unsupported(format!(
                     "the scene's {what} take {bytes} bytes, over this device's storage-buffer limit of {limit}"
@@ -190,7 +208,13 @@ impl Renderer {
         let texel = if bytes8 { 4 } else { 16 };
         let bytes = u64::from(settings.width) * u64::from(settings.height) * texel;
         if self.readback.as_ref().is_none_or(|b| b.size != bytes) {
-            self.readback = Some(Buffer::new(&self.ctx, "read-back", bytes, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?);
+            self.readback = Some(Buffer::new(
+                &self.ctx,
+                "read-back",
+                bytes,
+                vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryLocation::GpuToCpu,
+            )?);
         }
         let readback = self.readback.take().expect("just made");
         let result = self.record_and_submit(settings, &readback);
@@ -199,7 +223,11 @@ impl Renderer {
             if bytes8 {
                 Frame::Rgba8 { width: settings.width, height: settings.height, pixels: data.to_vec() }
             } else {
-                Frame::Rgba32F { width: settings.width, height: settings.height, pixels: bytemuck::pod_collect_to_vec(data) }
+                Frame::Rgba32F {
+                    width: settings.width,
+                    height: settings.height,
+                    pixels: bytemuck::pod_collect_to_vec(data),
+                }
             }
         });
         self.readback = Some(readback);
@@ -222,11 +250,11 @@ impl Renderer {
 
 /// Builds the frame's graph. `readback` receives the output when given.
 fn build_graph<'a>(
-pipelines: &'a Pipelines,
-s: &'a SceneGpu,
-scene: &Scene,
-settings: &RenderSettings,
-readback: Option<&'a Buffer>,
+    pipelines: &'a Pipelines,
+    s: &'a SceneGpu,
+    scene: &Scene,
+    settings: &RenderSettings,
+    readback: Option<&'a Buffer>,
 ) -> RenderGraph<'a> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let camera = CameraMatrices::new(scene, s.bounds, extent.width, extent.height);
@@ -254,7 +282,8 @@ readback: Option<&'a Buffer>,
     let display = settings.output == OutputKind::Display;
     let result = match settings.debug_view {
         Some(view) => {
-            let inputs = DebugInputs { view, visibility: visibility.as_ref(), eye: camera.eye, far: camera.far, display };
+            let inputs =
+                DebugInputs { view, visibility: visibility.as_ref(), eye: camera.eye, far: camera.far, display };
             // Float even for PNG: the shader already mapped values to [0,1] for display.
             debug_view::add(&mut g, &pipelines.debug_view, &gbuffer, inputs, extent)
         }

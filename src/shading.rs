@@ -51,33 +51,19 @@ pub fn gpu_lights(lights: &[Light]) -> Vec<GpuLight> {
 fn gpu_light(light: &Light) -> GpuLight {
     let pack = |v: Vec3, w: f32| v.extend(w).to_array();
     match *light {
-        Light::Point {
-            position,
-            intensity,
-        } => GpuLight {
+        Light::Point { position, intensity } => GpuLight {
             position_kind: pack(position, LIGHT_POINT),
             direction_cos_outer: pack(Vec3::ZERO, -1.0),
             intensity_cos_inner: pack(intensity, 1.0),
         },
-        Light::Directional {
-            direction,
-            irradiance,
-        } => GpuLight {
+        Light::Directional { direction, irradiance } => GpuLight {
             position_kind: pack(Vec3::ZERO, LIGHT_DIRECTIONAL),
             direction_cos_outer: pack(direction.normalize(), -1.0),
             intensity_cos_inner: pack(irradiance, 1.0),
         },
-        Light::Spot {
-            position,
-            direction,
-            intensity,
-            inner_deg,
-            outer_deg,
-        } => {
+        Light::Spot { position, direction, intensity, inner_deg, outer_deg } => {
             let outer = outer_deg.clamp(0.0, 180.0).to_radians();
-            let inner = inner_deg
-                .clamp(0.0, outer_deg.clamp(0.0, 180.0))
-                .to_radians();
+            let inner = inner_deg.clamp(0.0, outer_deg.clamp(0.0, 180.0)).to_radians();
             let cos_inner = inner.cos();
             let cos_outer = outer.cos().min(cos_inner - SPOT_MIN_PENUMBRA_COS);
             GpuLight {
@@ -106,20 +92,12 @@ pub fn light_sample(light: &GpuLight, p: Vec3) -> LightSample {
     let axis = Vec3::from_slice(&light.direction_cos_outer[..3]);
     let power = Vec3::from_slice(&light.intensity_cos_inner[..3]);
     if kind == LIGHT_DIRECTIONAL {
-        return LightSample {
-            l: -axis,
-            dist: DIRECTIONAL_LIGHT_DISTANCE,
-            e_normal: power,
-        };
+        return LightSample { l: -axis, dist: DIRECTIONAL_LIGHT_DISTANCE, e_normal: power };
     }
     let to_light = Vec3::from_slice(&light.position_kind[..3]) - p;
     let dist_squared = to_light.dot(to_light);
     let dist = dist_squared.sqrt();
-    let l = if dist > 0.0 {
-        to_light / dist
-    } else {
-        Vec3::ZERO
-    };
+    let l = if dist > 0.0 { to_light / dist } else { Vec3::ZERO };
     let mut e_normal = power / dist_squared.max(LIGHT_MIN_DISTANCE_SQUARED);
     if kind == LIGHT_SPOT {
         let cos_outer = light.direction_cos_outer[3];
@@ -161,14 +139,7 @@ pub fn fresnel_schlick(f0: Vec3, v_dot_h: f32) -> Vec3 {
 /// f_r * (n.l) for unit vectors `n`, `v` (toward the viewer) and `l` (toward the light): Lambert
 /// `base_color (1 - metallic) / pi` plus GGX `D Vis F`. Zero when the light is behind the surface;
 /// n.v is floored at `BRDF_MIN_N_DOT_V`. Twin of `brdf_times_cos` in brdf.glsl.
-pub fn brdf_times_cos(
-    n: Vec3,
-    v: Vec3,
-    l: Vec3,
-    base_color: Vec3,
-    roughness: f32,
-    metallic: f32,
-) -> Vec3 {
+pub fn brdf_times_cos(n: Vec3, v: Vec3, l: Vec3, base_color: Vec3, roughness: f32, metallic: f32) -> Vec3 {
     let n_dot_l = n.dot(l);
     if n_dot_l <= 0.0 {
         return Vec3::ZERO;
@@ -177,19 +148,14 @@ pub fn brdf_times_cos(
     let half = v + l;
     let half_len = half.length();
     // v == -l only when n.v was clamped; a zero half vector then gives a finite, tiny lobe.
-    let h = if half_len > 0.0 {
-        half / half_len
-    } else {
-        Vec3::ZERO
-    };
+    let h = if half_len > 0.0 { half / half_len } else { Vec3::ZERO };
     let n_dot_h = n.dot(h).clamp(0.0, 1.0);
     let v_dot_h = v.dot(h).clamp(0.0, 1.0);
 
     let metallic = metallic.clamp(0.0, 1.0);
     let alpha = (roughness * roughness).max(BRDF_MIN_ALPHA);
     let f0 = Vec3::splat(0.04).lerp(base_color, metallic);
-    let specular =
-        fresnel_schlick(f0, v_dot_h) * (ggx_d(n_dot_h, alpha) * smith_vis(n_dot_l, n_dot_v, alpha));
+    let specular = fresnel_schlick(f0, v_dot_h) * (ggx_d(n_dot_h, alpha) * smith_vis(n_dot_l, n_dot_v, alpha));
     let diffuse = base_color * ((1.0 - metallic) / PI);
     (diffuse + specular) * n_dot_l
 }
@@ -205,24 +171,14 @@ pub fn shade_point(
     lights: &[GpuLight],
     visibility: impl Fn(usize) -> f32,
 ) -> Vec3 {
-    lights
-        .iter()
-        .enumerate()
-        .fold(Vec3::ZERO, |radiance, (i, light)| {
-            let sample = light_sample(light, p);
-            let f = brdf_times_cos(
-                n,
-                v,
-                sample.l,
-                material.base_color,
-                material.roughness,
-                material.metallic,
-            );
-            if f == Vec3::ZERO {
-                return radiance;
-            }
-            radiance + f * sample.e_normal * visibility(i)
-        })
+    lights.iter().enumerate().fold(Vec3::ZERO, |radiance, (i, light)| {
+        let sample = light_sample(light, p);
+        let f = brdf_times_cos(n, v, sample.l, material.base_color, material.roughness, material.metallic);
+        if f == Vec3::ZERO {
+            return radiance;
+        }
+        radiance + f * sample.e_normal * visibility(i)
+    })
 }
 
 /// Display-linear colour in [0, 1] from scene radiance: scale by 2^exposure_ev, then the ACES

@@ -7,9 +7,7 @@ use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::f32::consts::PI;
 use std::process::Command;
-use umbra::scene::bvh::{
-    offset_ray_origin, GpuBvhNode, GpuTriangle, ShadowBvh, BVH_STACK_SIZE, RAY_OFFSET_MIN,
-};
+use umbra::scene::bvh::{offset_ray_origin, GpuBvhNode, GpuTriangle, ShadowBvh, BVH_STACK_SIZE, RAY_OFFSET_MIN};
 use umbra::scene::{Camera, LoadStats, Material, Mesh, Scene};
 
 /// Barycentric (and relative-t) tolerance under which two f32 implementations may disagree.
@@ -17,11 +15,7 @@ const EDGE_EPS: f64 = 1e-6;
 
 fn random_unit(rng: &mut StdRng) -> Vec3 {
     loop {
-        let v = Vec3::new(
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-            rng.gen_range(-1.0..1.0),
-        );
+        let v = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0));
         let len = v.length();
         if len > 1e-3 && len <= 1.0 {
             return v / len;
@@ -36,33 +30,18 @@ fn bumpy_sphere_and_soup(rng: &mut StdRng) -> Vec<[Vec3; 3]> {
     let vertex = |ring: usize, seg: usize, bump: f32| {
         let theta = PI * ring as f32 / rings as f32;
         let phi = 2.0 * PI * (seg % segments) as f32 / segments as f32;
-        Vec3::new(
-            theta.sin() * phi.cos(),
-            theta.cos(),
-            theta.sin() * phi.sin(),
-        ) * (1.0 + bump)
+        Vec3::new(theta.sin() * phi.cos(), theta.cos(), theta.sin() * phi.sin()) * (1.0 + bump)
     };
-    let bumps: Vec<f32> = (0..(rings + 1) * segments)
-        .map(|_| rng.gen_range(-0.05..0.05))
-        .collect();
+    let bumps: Vec<f32> = (0..(rings + 1) * segments).map(|_| rng.gen_range(-0.05..0.05)).collect();
     let at = |ring: usize, seg: usize| {
         // The poles and the seam share one bump so the surface stays closed.
-        let bump = if ring == 0 || ring == rings {
-            0.0
-        } else {
-            bumps[ring * segments + seg % segments]
-        };
+        let bump = if ring == 0 || ring == rings { 0.0 } else { bumps[ring * segments + seg % segments] };
         vertex(ring, seg, bump)
     };
     let mut tris = Vec::new();
     for ring in 0..rings {
         for seg in 0..segments {
-            let (a, b, c, d) = (
-                at(ring, seg),
-                at(ring, seg + 1),
-                at(ring + 1, seg),
-                at(ring + 1, seg + 1),
-            );
+            let (a, b, c, d) = (at(ring, seg), at(ring, seg + 1), at(ring + 1, seg), at(ring + 1, seg + 1));
             if ring != 0 {
                 tris.push([a, b, d]);
             }
@@ -72,11 +51,7 @@ fn bumpy_sphere_and_soup(rng: &mut StdRng) -> Vec<[Vec3; 3]> {
         }
     }
     for _ in 0..3000 {
-        let centre = Vec3::new(
-            rng.gen_range(-3.0..3.0),
-            rng.gen_range(-3.0..3.0),
-            rng.gen_range(-3.0..3.0),
-        );
+        let centre = Vec3::new(rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0));
         let size = rng.gen_range(0.02..0.3);
         tris.push([0, 1, 2].map(|_| centre + random_unit(rng) * size));
     }
@@ -89,12 +64,7 @@ fn gpu_layout_traversal_matches_obvhs() {
     let tris = bumpy_sphere_and_soup(&mut rng);
     assert!(tris.len() >= 10_000);
     let bvh = ShadowBvh::from_triangles(&tris);
-    println!(
-        "{} triangles, {} nodes, depth {}",
-        bvh.triangle_count(),
-        bvh.node_count(),
-        bvh.depth()
-    );
+    println!("{} triangles, {} nodes, depth {}", bvh.triangle_count(), bvh.node_count(), bvh.depth());
     compare_with_obvhs(&bvh, &tris, &mut rng, 100_000);
 }
 
@@ -105,12 +75,7 @@ fn median_split_fallback_matches_obvhs() {
     let tris = bumpy_sphere_and_soup(&mut rng);
     let bvh = ShadowBvh::from_triangles_median_split(&tris);
     let bound = (tris.len() as f64).log2().ceil() as usize;
-    assert!(
-        bvh.depth() <= bound,
-        "depth {} for {} triangles",
-        bvh.depth(),
-        tris.len()
-    );
+    assert!(bvh.depth() <= bound, "depth {} for {} triangles", bvh.depth(), tris.len());
     compare_with_obvhs(&bvh, &tris, &mut rng, 20_000);
 }
 
@@ -125,25 +90,13 @@ fn compare_with_obvhs(bvh: &ShadowBvh, tris: &[[Vec3; 3]], rng: &mut StdRng, ray
     for i in 0..ray_count {
         let (origin, dir, tmax) = if i % 2 == 0 {
             // Arbitrary segments through the scene, non-unit directions included.
-            let o = Vec3::new(
-                rng.gen_range(-4.0..4.0),
-                rng.gen_range(-4.0..4.0),
-                rng.gen_range(-4.0..4.0),
-            );
-            (
-                o,
-                random_unit(rng) * rng.gen_range(0.5..2.0),
-                rng.gen_range(0.1..8.0),
-            )
+            let o = Vec3::new(rng.gen_range(-4.0..4.0), rng.gen_range(-4.0..4.0), rng.gen_range(-4.0..4.0));
+            (o, random_unit(rng) * rng.gen_range(0.5..2.0), rng.gen_range(0.1..8.0))
         } else {
             // Shadow rays as the shadow pass casts them: from a surface point to a point light.
             let tri = tris[rng.gen_range(0..tris.len())];
             let (a, b): (f32, f32) = (rng.gen(), rng.gen());
-            let (a, b) = if a + b > 1.0 {
-                (1.0 - a, 1.0 - b)
-            } else {
-                (a, b)
-            };
+            let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
             let p = tri[0] + (tri[1] - tri[0]) * a + (tri[2] - tri[0]) * b;
             let mut n = (tri[1] - tri[0]).cross(tri[2] - tri[0]).normalize();
             let light = random_unit(rng) * rng.gen_range(2.0..6.0);
@@ -169,23 +122,11 @@ fn compare_with_obvhs(bvh: &ShadowBvh, tris: &[[Vec3; 3]], rng: &mut StdRng, ray
         }
     }
     println!("{ray_count} rays, {occluded} occluded, {mismatches} differ (all near an edge)");
-    assert!(
-        unexplained.is_empty(),
-        "rays differing away from any edge: {unexplained:?}"
-    );
-    assert!(
-        mismatches * 10_000 < ray_count,
-        "{mismatches} near-edge disagreements is too many"
-    );
-    assert!(
-        loosely_near <= 5,
-        "{loosely_near} of 1000 random rays classified near an edge"
-    );
+    assert!(unexplained.is_empty(), "rays differing away from any edge: {unexplained:?}");
+    assert!(mismatches * 10_000 < ray_count, "{mismatches} near-edge disagreements is too many");
+    assert!(loosely_near <= 5, "{loosely_near} of 1000 random rays classified near an edge");
     // Both outcomes must be well represented, or the comparison proves little.
-    assert!(
-        occluded > ray_count / 5 && occluded < ray_count * 4 / 5,
-        "occluded {occluded}"
-    );
+    assert!(occluded > ray_count / 5 && occluded < ray_count * 4 / 5, "occluded {occluded}");
 
     // Rays aimed exactly at edges, where f32 implementations may legitimately differ: whatever
     // differs must be flagged by ray_near_edge, or the classifier is not doing its job.
@@ -199,16 +140,10 @@ fn compare_with_obvhs(bvh: &ShadowBvh, tris: &[[Vec3; 3]], rng: &mut StdRng, ray
         let tmax = rng.gen_range(1.0..2.0);
         if bvh.occluded_gpu_layout(origin, dir, tmax) != bvh.occluded_obvhs(origin, dir, tmax) {
             edge_mismatches += 1;
-            assert!(
-                bvh.ray_near_edge(origin, dir, tmax, EDGE_EPS),
-                "edge ray not classified: {origin} {dir} {tmax}"
-            );
+            assert!(bvh.ray_near_edge(origin, dir, tmax, EDGE_EPS), "edge ray not classified: {origin} {dir} {tmax}");
         }
     }
-    println!(
-        "{} edge-aimed rays, {edge_mismatches} differ",
-        ray_count / 10
-    );
+    println!("{} edge-aimed rays, {edge_mismatches} differ", ray_count / 10);
 }
 
 #[test]
@@ -218,11 +153,7 @@ fn empty_bvh_uploads_a_dummy_and_never_occludes() {
     assert_eq!((bvh.triangle_count(), bvh.node_count()), (0, 0));
     assert_eq!((bvh.nodes().len(), bvh.triangles().len()), (1, 1));
     for dir in [Vec3::X, Vec3::NEG_Y, Vec3::new(1.0, 1.0, 1.0).normalize()] {
-        for origin in [
-            Vec3::ZERO,
-            Vec3::new(-1.0, 0.0, 0.0),
-            Vec3::new(0.0, 5.0, 0.0),
-        ] {
+        for origin in [Vec3::ZERO, Vec3::new(-1.0, 0.0, 0.0), Vec3::new(0.0, 5.0, 0.0)] {
             assert!(!bvh.occluded_gpu_layout(origin, dir, 1e30));
             assert!(!bvh.occluded_obvhs(origin, dir, 1e30));
         }
@@ -233,11 +164,7 @@ fn empty_bvh_uploads_a_dummy_and_never_occludes() {
 fn scene_build_takes_only_shadow_casters() {
     let mesh = |name: &str, y: f32, cast_shadows| Mesh {
         name: name.into(),
-        positions: vec![
-            Vec3::new(-1.0, y, -1.0),
-            Vec3::new(1.0, y, -1.0),
-            Vec3::new(0.0, y, 1.0),
-        ],
+        positions: vec![Vec3::new(-1.0, y, -1.0), Vec3::new(1.0, y, -1.0), Vec3::new(0.0, y, 1.0)],
         normals: vec![Vec3::Y; 3],
         indices: vec![0, 1, 2],
         material: Material::default(),
@@ -245,12 +172,7 @@ fn scene_build_takes_only_shadow_casters() {
     };
     let scene = Scene {
         image_size: None,
-        camera: Camera {
-            eye: Vec3::Z,
-            target: Vec3::ZERO,
-            up: Vec3::Y,
-            vfov_deg: 60.0,
-        },
+        camera: Camera { eye: Vec3::Z, target: Vec3::ZERO, up: Vec3::Y, vfov_deg: 60.0 },
         lights: vec![],
         meshes: vec![mesh("caster", 1.0, true), mesh("receiver", 2.0, false)],
         stats: LoadStats::default(),
@@ -264,76 +186,28 @@ fn scene_build_takes_only_shadow_casters() {
 #[test]
 fn single_triangle_cases() {
     // In the plane z = 1, wound so its normal faces -z (towards the origin's rays going +z).
-    let tri = [
-        Vec3::new(-1.0, -1.0, 1.0),
-        Vec3::new(0.0, 1.0, 1.0),
-        Vec3::new(1.0, -1.0, 1.0),
-    ];
+    let tri = [Vec3::new(-1.0, -1.0, 1.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, -1.0, 1.0)];
     let bvh = ShadowBvh::from_triangles(&[tri]);
-    assert_eq!(
-        (bvh.triangle_count(), bvh.node_count(), bvh.depth()),
-        (1, 1, 1)
-    );
+    assert_eq!((bvh.triangle_count(), bvh.node_count(), bvh.depth()), (1, 1, 1));
     let cases = [
         ("hit", Vec3::ZERO, Vec3::Z, 2.0, true),
-        (
-            "hit from the other face",
-            Vec3::new(0.0, 0.0, 2.0),
-            Vec3::NEG_Z,
-            2.0,
-            true,
-        ),
+        ("hit from the other face", Vec3::new(0.0, 0.0, 2.0), Vec3::NEG_Z, 2.0, true),
         ("non-unit direction", Vec3::ZERO, Vec3::Z * 4.0, 0.5, true),
-        (
-            "miss beside it",
-            Vec3::new(3.0, 0.0, 0.0),
-            Vec3::Z,
-            2.0,
-            false,
-        ),
-        (
-            "triangle behind the origin",
-            Vec3::new(0.0, 0.0, 2.0),
-            Vec3::Z,
-            10.0,
-            false,
-        ),
+        ("miss beside it", Vec3::new(3.0, 0.0, 0.0), Vec3::Z, 2.0, false),
+        ("triangle behind the origin", Vec3::new(0.0, 0.0, 2.0), Vec3::Z, 10.0, false),
         ("triangle beyond tmax", Vec3::ZERO, Vec3::Z, 0.999, false),
-        (
-            "parallel to the plane",
-            Vec3::new(-5.0, 0.0, 1.0),
-            Vec3::X,
-            10.0,
-            false,
-        ),
-        (
-            "through the box corner only",
-            Vec3::new(-1.0, 1.0, 0.0),
-            Vec3::Z,
-            2.0,
-            false,
-        ),
+        ("parallel to the plane", Vec3::new(-5.0, 0.0, 1.0), Vec3::X, 10.0, false),
+        ("through the box corner only", Vec3::new(-1.0, 1.0, 0.0), Vec3::Z, 2.0, false),
     ];
     for (what, origin, dir, tmax, expected) in cases {
-        assert_eq!(
-            bvh.occluded_gpu_layout(origin, dir, tmax),
-            expected,
-            "gpu layout: {what}"
-        );
-        assert_eq!(
-            bvh.occluded_obvhs(origin, dir, tmax),
-            expected,
-            "obvhs: {what}"
-        );
+        assert_eq!(bvh.occluded_gpu_layout(origin, dir, tmax), expected, "gpu layout: {what}");
+        assert_eq!(bvh.occluded_obvhs(origin, dir, tmax), expected, "obvhs: {what}");
     }
     // The ambiguity classifier: through the middle is clear-cut, along an edge is not.
     assert!(!bvh.ray_near_edge(Vec3::ZERO, Vec3::Z, 2.0, EDGE_EPS));
     assert!(bvh.ray_near_edge(Vec3::new(0.0, -1.0, 0.0), Vec3::Z, 2.0, EDGE_EPS));
     assert!(bvh.ray_near_edge(Vec3::new(0.5, 0.0, 0.0), Vec3::Z, 2.0, EDGE_EPS));
-    assert!(
-        bvh.ray_near_edge(Vec3::ZERO, Vec3::Z, 1.0, EDGE_EPS),
-        "hit right at tmax"
-    );
+    assert!(bvh.ray_near_edge(Vec3::ZERO, Vec3::Z, 1.0, EDGE_EPS), "hit right at tmax");
     assert!(!bvh.ray_near_edge(Vec3::new(0.0, 0.0, -1.0), Vec3::Z, 1.5, EDGE_EPS));
 }
 
@@ -344,28 +218,15 @@ fn depth_fits_the_shader_stack() {
     let mut tris: Vec<[Vec3; 3]> = (0..50_000)
         .map(|i| {
             let x = i as f32 * 0.01;
-            [
-                Vec3::new(x, 0.0, 0.0),
-                Vec3::new(x + 0.005, 0.0, 0.0),
-                Vec3::new(x, 0.005, 0.0),
-            ]
+            [Vec3::new(x, 0.0, 0.0), Vec3::new(x + 0.005, 0.0, 0.0), Vec3::new(x, 0.005, 0.0)]
         })
         .collect();
     tris.extend((0..20_000).map(|_| {
         let c = random_unit(&mut rng) * 1e-3;
-        [
-            c,
-            c + random_unit(&mut rng) * 1e-4,
-            c + random_unit(&mut rng) * 1e-4,
-        ]
+        [c, c + random_unit(&mut rng) * 1e-4, c + random_unit(&mut rng) * 1e-4]
     }));
     let bvh = ShadowBvh::from_triangles(&tris);
-    println!(
-        "{} triangles, {} nodes, depth {}",
-        bvh.triangle_count(),
-        bvh.node_count(),
-        bvh.depth()
-    );
+    println!("{} triangles, {} nodes, depth {}", bvh.triangle_count(), bvh.node_count(), bvh.depth());
     assert!(bvh.depth() >= 10 && bvh.depth() <= BVH_STACK_SIZE);
     let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
     assert!(glsl.contains(&format!("#define BVH_STACK_SIZE {BVH_STACK_SIZE}\n")));
@@ -377,11 +238,7 @@ fn depth_fits_the_shader_stack() {
 #[test]
 fn offset_origin_clears_its_surface_at_any_distance() {
     let mut rng = StdRng::seed_from_u64(0x0FF5E7);
-    for far in [
-        Vec3::ZERO,
-        Vec3::new(1e5, 0.0, 0.0),
-        Vec3::new(1e5, -1e5, 1e5) / 3f32.sqrt(),
-    ] {
+    for far in [Vec3::ZERO, Vec3::new(1e5, 0.0, 0.0), Vec3::new(1e5, -1e5, 1e5) / 3f32.sqrt()] {
         let mut worst_ratio = 0.0f64;
         for _ in 0..2_000 {
             let centre = far + random_unit(&mut rng) * rng.gen_range(0.0..200.0);
@@ -393,60 +250,34 @@ fn offset_origin_clears_its_surface_at_any_distance() {
             for _ in 0..20 {
                 // Interpolated in f32, as the rasteriser does for the G-buffer position.
                 let (a, b): (f32, f32) = (rng.gen(), rng.gen());
-                let (a, b) = if a + b > 1.0 {
-                    (1.0 - a, 1.0 - b)
-                } else {
-                    (a, b)
-                };
+                let (a, b) = if a + b > 1.0 { (1.0 - a, 1.0 - b) } else { (a, b) };
                 let p = tri[0] * (1.0 - a - b) + tri[1] * a + tri[2] * b;
                 let o = offset_ray_origin(p, n);
                 let height = (o.as_dvec3() - tri64[0]).dot(n64);
-                assert!(
-                    height > 0.0,
-                    "origin {o} below its plane by {height} (p = {p})"
-                );
+                assert!(height > 0.0, "origin {o} below its plane by {height} (p = {p})");
                 let pushed = (o - p).length() as f64;
-                assert!(
-                    pushed < 1e-3 * (p.length() as f64 + 1.0),
-                    "pushed {pushed} at {p}"
-                );
+                assert!(pushed < 1e-3 * (p.length() as f64 + 1.0), "pushed {pushed} at {p}");
                 worst_ratio = worst_ratio.max(pushed / (p.length() as f64).max(1.0));
                 let mut dir = random_unit(&mut rng);
                 if dir.dot(n) < 0.0 {
                     dir = -dir;
                 }
-                assert!(
-                    !bvh.occluded_gpu_layout(o, dir, 1e30),
-                    "self-shadowed at {p}, dir {dir}"
-                );
+                assert!(!bvh.occluded_gpu_layout(o, dir, 1e30), "self-shadowed at {p}, dir {dir}");
             }
         }
         println!("centre {far}: worst push / max(|p|, 1) = {worst_ratio:e}");
     }
     // Near the origin the floor dominates.
-    assert_eq!(
-        offset_ray_origin(Vec3::ZERO, Vec3::Y),
-        Vec3::new(0.0, RAY_OFFSET_MIN, 0.0)
-    );
+    assert_eq!(offset_ray_origin(Vec3::ZERO, Vec3::Y), Vec3::new(0.0, RAY_OFFSET_MIN, 0.0));
 }
 
 /// The std430 layout glslang assigns to the include's structs, read from its reflection.
 fn glsl_layout(shader: &str) -> String {
     let out = Command::new("glslangValidator")
-        .args([
-            "-q",
-            "--target-env",
-            "vulkan1.3",
-            "-Ishaders/include",
-            shader,
-        ])
+        .args(["-q", "--target-env", "vulkan1.3", "-Ishaders/include", shader])
         .output()
         .expect("glslangValidator must be installed");
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stdout)
-    );
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
     String::from_utf8(out.stdout).unwrap()
 }
 
@@ -454,41 +285,22 @@ fn glsl_layout(shader: &str) -> String {
 fn compile_and_validate(shader: &str) {
     let spv = std::env::temp_dir().join(format!(
         "umbra-{}-{}.spv",
-        std::path::Path::new(shader)
-            .file_stem()
-            .unwrap()
-            .to_string_lossy(),
+        std::path::Path::new(shader).file_stem().unwrap().to_string_lossy(),
         std::process::id()
     ));
     let out = Command::new("glslangValidator")
-        .args([
-            "-V",
-            "--target-env",
-            "vulkan1.3",
-            "-Ishaders/include",
-            shader,
-            "-o",
-        ])
+        .args(["-V", "--target-env", "vulkan1.3", "-Ishaders/include", shader, "-o"])
         .arg(&spv)
         .output()
         .expect("glslangValidator must be installed");
-    assert!(
-        out.status.success(),
-        "{}{}",
-        String::from_utf8_lossy(&out.stdout),
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
     let val = Command::new("spirv-val")
         .args(["--target-env", "vulkan1.3"])
         .arg(&spv)
         .output()
         .expect("spirv-val must be installed");
     let _ = std::fs::remove_file(&spv);
-    assert!(
-        val.status.success(),
-        "{}",
-        String::from_utf8_lossy(&val.stderr)
-    );
+    assert!(val.status.success(), "{}", String::from_utf8_lossy(&val.stderr));
 }
 
 #[test]
@@ -499,48 +311,16 @@ fn bvh_glsl_compiles_with_the_rust_layout() {
     let expect = |member: &str, offset: usize, stride: usize| {
         let line = format!("{member}: offset {offset}, ");
         let found = reflection.lines().find(|l| l.starts_with(&line));
-        let found =
-            found.unwrap_or_else(|| panic!("{member} not at offset {offset}:\n{reflection}"));
-        assert!(
-            found.ends_with(&format!("topLevelArrayStride {stride}")),
-            "{found}"
-        );
+        let found = found.unwrap_or_else(|| panic!("{member} not at offset {offset}:\n{reflection}"));
+        assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
     };
     let node = size_of::<GpuBvhNode>();
-    expect(
-        "bvh_nodes.aabb_min",
-        std::mem::offset_of!(GpuBvhNode, aabb_min),
-        node,
-    );
-    expect(
-        "bvh_nodes.first",
-        std::mem::offset_of!(GpuBvhNode, first),
-        node,
-    );
-    expect(
-        "bvh_nodes.aabb_max",
-        std::mem::offset_of!(GpuBvhNode, aabb_max),
-        node,
-    );
-    expect(
-        "bvh_nodes.count",
-        std::mem::offset_of!(GpuBvhNode, count),
-        node,
-    );
+    expect("bvh_nodes.aabb_min", std::mem::offset_of!(GpuBvhNode, aabb_min), node);
+    expect("bvh_nodes.first", std::mem::offset_of!(GpuBvhNode, first), node);
+    expect("bvh_nodes.aabb_max", std::mem::offset_of!(GpuBvhNode, aabb_max), node);
+    expect("bvh_nodes.count", std::mem::offset_of!(GpuBvhNode, count), node);
     let tri = size_of::<GpuTriangle>();
-    expect(
-        "bvh_triangles.v0",
-        std::mem::offset_of!(GpuTriangle, v0),
-        tri,
-    );
-    expect(
-        "bvh_triangles.e1",
-        std::mem::offset_of!(GpuTriangle, e1),
-        tri,
-    );
-    expect(
-        "bvh_triangles.e2",
-        std::mem::offset_of!(GpuTriangle, e2),
-        tri,
-    );
+    expect("bvh_triangles.v0", std::mem::offset_of!(GpuTriangle, v0), tri);
+    expect("bvh_triangles.e1", std::mem::offset_of!(GpuTriangle, e1), tri);
+    expect("bvh_triangles.e2", std::mem::offset_of!(GpuTriangle, e2), tri);
 }

@@ -28,7 +28,8 @@ fn test_mesh(rng: &mut impl Rng) -> Vec<[Vec3; 3]> {
     }
     for _ in 0..6000 {
         let centre = Vec3::new(rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0));
-        let mut corner = || centre + Vec3::new(rng.gen_range(-0.2..0.2), rng.gen_range(-0.2..0.2), rng.gen_range(-0.2..0.2));
+        let mut corner =
+            || centre + Vec3::new(rng.gen_range(-0.2..0.2), rng.gen_range(-0.2..0.2), rng.gen_range(-0.2..0.2));
         tris.push([corner(), corner(), corner()]);
     }
     tris
@@ -70,7 +71,11 @@ fn gpu_traversal_matches_obvhs_on_100k_rays() {
     }
     // The test is only meaningful if both answers are common.
     assert!(occluded > 20_000 && occluded < 80_000, "{occluded} of 100k occluded");
-    assert!(mismatches_elsewhere.is_empty(), "rays that disagree away from any edge: {:?}", &mismatches_elsewhere[..mismatches_elsewhere.len().min(10)]);
+    assert!(
+        mismatches_elsewhere.is_empty(),
+        "rays that disagree away from any edge: {:?}",
+        &mismatches_elsewhere[..mismatches_elsewhere.len().min(10)]
+    );
     assert!(mismatches_near_edge * 10_000 < rays.len(), "{mismatches_near_edge} near-edge disagreements (limit 0.01%)");
     eprintln!("{occluded} occluded; {mismatches_near_edge} near-edge disagreements of {}", rays.len());
 }

@@ -63,7 +63,9 @@ fn colour_attachment_then_sampled_read_transitions_layouts() {
     );
     assert_eq!(sampled.src_stage, vk::PipelineStageFlags2::COLOR_ATTACHMENT_OUTPUT);
     assert_eq!(sampled.dst_stage, vk::PipelineStageFlags2::COMPUTE_SHADER);
-    assert!(plan.resources[albedo_id(&plan)].image_usage.contains(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::SAMPLED));
+    assert!(plan.resources[albedo_id(&plan)]
+        .image_usage
+        .contains(vk::ImageUsageFlags::COLOR_ATTACHMENT | vk::ImageUsageFlags::SAMPLED));
 }
 
 fn albedo_id(plan: &CompiledGraph) -> usize {

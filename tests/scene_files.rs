@@ -177,10 +177,7 @@ fn bad_cameras_are_rejected() {
     let cases = [
         ("eye = [0, 1, 5]\ntarget = [0, 1, 5]\nvfov_deg = 40\n", "camera.target: must differ"),
         ("eye = [0, 5, 0]\ntarget = [0, 0, 0]\nvfov_deg = 40\n", "camera.up: is parallel"),
-        (
-            "eye = [0, 1, 5]\ntarget = [0, 0, 0]\nvfov_deg = 180\n",
-            "camera.vfov_deg: 180 is outside (0, 180)",
-        ),
+        ("eye = [0, 1, 5]\ntarget = [0, 0, 0]\nvfov_deg = 180\n", "camera.vfov_deg: 180 is outside (0, 180)"),
         ("eye = [0, nan, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n", "camera.eye"),
     ];
     for (camera, expected) in cases {
@@ -192,9 +189,8 @@ fn bad_cameras_are_rejected() {
 /// Random damage to a valid scene must give a clean one-line error or a scene, never a panic.
 #[test]
 fn damaged_scene_text_never_panics() {
-    let original =
-        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/default.toml"))
-            .expect("default scene readable");
+    let original = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/default.toml"))
+        .expect("default scene readable");
     let mut rng = rand::rngs::StdRng::seed_from_u64(7);
     let alphabet = b"[]{}=,.\"'#\n 0123456789-eaxyz_";
     for _ in 0..1500 {
@@ -378,10 +374,7 @@ fn translated_moves_everything_by_the_offset() {
     for (before, after) in scene.lights.iter().zip(&moved.lights) {
         match (before, after) {
             (Light::Point { position: a, .. }, Light::Point { position: b, .. }) => check(*a, *b),
-            (
-                Light::Spot { position: a, direction: da, .. },
-                Light::Spot { position: b, direction: db, .. },
-            ) => {
+            (Light::Spot { position: a, direction: da, .. }, Light::Spot { position: b, direction: db, .. }) => {
                 check(*a, *b);
                 assert_eq!(da, db);
             }
@@ -401,8 +394,7 @@ fn translated_moves_everything_by_the_offset() {
 #[test]
 fn translated_is_exact_when_the_sum_is_representable() {
     // Cube corners at multiples of 1/2 stay exact after a 100 km shift (f32 spacing there is 1/128).
-    let scene =
-        parse(&with_camera("[[objects]]\nshape = \"cube\"\nsize = 2\ntranslate = [0.5, 1, 0]\n"));
+    let scene = parse(&with_camera("[[objects]]\nshape = \"cube\"\nsize = 2\ntranslate = [0.5, 1, 0]\n"));
     let offset = DVec3::new(100_000.0, 0.0, -100_000.0);
     let moved = scene.translated(offset);
     for (a, b) in scene.meshes[0].positions.iter().zip(&moved.meshes[0].positions) {

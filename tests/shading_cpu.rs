@@ -19,10 +19,7 @@ fn close3(a: Vec3, b: Vec3, rel: f32) -> bool {
 fn white_dielectric_at_normal_incidence() {
     // n = v = l: D = 1/pi (alpha 1), Vis = 0.5 / (1 + 1), F = F0 = 0.04.
     let f = brdf_times_cos(Vec3::Z, Vec3::Z, Vec3::Z, Vec3::ONE, 1.0, 0.0);
-    assert!(
-        close3(f, Vec3::splat((1.0 + 0.04 * 0.25) / PI), 1e-6),
-        "{f}"
-    );
+    assert!(close3(f, Vec3::splat((1.0 + 0.04 * 0.25) / PI), 1e-6), "{f}");
     // A pure metal has no diffuse term, and its F0 is the base colour.
     let base = Vec3::new(0.9, 0.6, 0.3);
     let f = brdf_times_cos(Vec3::Z, Vec3::Z, Vec3::Z, base, 1.0, 1.0);
@@ -51,10 +48,7 @@ fn ggx_d_is_normalised() {
             * 2.0
             * std::f64::consts::PI
             / steps as f64;
-        assert!(
-            (integral - 1.0).abs() < 2e-3,
-            "roughness {roughness}: {integral}"
-        );
+        assert!((integral - 1.0).abs() < 2e-3, "roughness {roughness}: {integral}");
     }
 }
 
@@ -74,10 +68,7 @@ fn brdf_edge_cases_stay_finite() {
     let n = Vec3::Z;
     let oblique = Vec3::new(0.6, 0.0, 0.8);
     // Light behind the surface: nothing.
-    assert_eq!(
-        brdf_times_cos(n, Vec3::Z, -oblique, Vec3::ONE, 0.5, 0.0),
-        Vec3::ZERO
-    );
+    assert_eq!(brdf_times_cos(n, Vec3::Z, -oblique, Vec3::ONE, 0.5, 0.0), Vec3::ZERO);
     // Roughness 0, mirror direction: large but finite (alpha is floored).
     let mirror = Vec3::new(-0.6, 0.0, 0.8);
     let f = brdf_times_cos(n, oblique, mirror, Vec3::ONE, 0.0, 1.0);
@@ -92,10 +83,7 @@ fn brdf_edge_cases_stay_finite() {
 
 #[test]
 fn point_light_falls_off_with_the_square_of_distance() {
-    let light = gpu_lights(&[Light::Point {
-        position: Vec3::new(0.0, 2.0, 0.0),
-        intensity: Vec3::splat(8.0),
-    }])[0];
+    let light = gpu_lights(&[Light::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0) }])[0];
     let s = light_sample(&light, Vec3::ZERO);
     assert_eq!((s.l, s.dist, s.e_normal), (Vec3::Y, 2.0, Vec3::splat(2.0)));
     let s = light_sample(&light, Vec3::new(0.0, -2.0, 0.0));
@@ -108,16 +96,10 @@ fn point_light_falls_off_with_the_square_of_distance() {
 #[test]
 fn directional_light_comes_from_against_its_travel() {
     let down = Vec3::new(0.0, -1.0, 0.0);
-    let light = gpu_lights(&[Light::Directional {
-        direction: down,
-        irradiance: Vec3::splat(3.0),
-    }])[0];
+    let light = gpu_lights(&[Light::Directional { direction: down, irradiance: Vec3::splat(3.0) }])[0];
     for p in [Vec3::ZERO, Vec3::splat(1e5)] {
         let s = light_sample(&light, p);
-        assert_eq!(
-            (s.l, s.dist, s.e_normal),
-            (Vec3::Y, DIRECTIONAL_LIGHT_DISTANCE, Vec3::splat(3.0))
-        );
+        assert_eq!((s.l, s.dist, s.e_normal), (Vec3::Y, DIRECTIONAL_LIGHT_DISTANCE, Vec3::splat(3.0)));
     }
 }
 
@@ -134,9 +116,7 @@ fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
     // Points at unit distance, `deg` off the axis.
     let at = |deg: f32| {
         let r = deg.to_radians();
-        light_sample(&light, Vec3::new(r.sin(), -r.cos(), 0.0))
-            .e_normal
-            .x
+        light_sample(&light, Vec3::new(r.sin(), -r.cos(), 0.0)).e_normal.x
     };
     assert!(close(at(0.0), 1.0, 1e-5));
     assert!(close(at(19.9), 1.0, 1e-5));
@@ -158,24 +138,11 @@ fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
 
 #[test]
 fn shade_point_sums_visible_lights() {
-    let material = Material {
-        base_color: Vec3::ONE,
-        roughness: 1.0,
-        metallic: 0.0,
-    };
+    let material = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0 };
     let lights = gpu_lights(&[
-        Light::Point {
-            position: Vec3::new(0.0, 1.0, 0.0),
-            intensity: Vec3::ONE,
-        },
-        Light::Directional {
-            direction: Vec3::NEG_Y,
-            irradiance: Vec3::ONE,
-        },
-        Light::Point {
-            position: Vec3::new(0.0, -1.0, 0.0),
-            intensity: Vec3::splat(100.0),
-        },
+        Light::Point { position: Vec3::new(0.0, 1.0, 0.0), intensity: Vec3::ONE },
+        Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE },
+        Light::Point { position: Vec3::new(0.0, -1.0, 0.0), intensity: Vec3::splat(100.0) },
     ]);
     let one = brdf_times_cos(Vec3::Y, Vec3::Y, Vec3::Y, Vec3::ONE, 1.0, 0.0);
     let asked = std::cell::RefCell::new(Vec::new());
@@ -197,10 +164,7 @@ fn tonemap_and_srgb() {
     assert_eq!(tonemap(Vec3::ZERO, 0.0), Vec3::ZERO);
     assert_eq!(tonemap(Vec3::splat(1e6), 0.0), Vec3::ONE);
     // +1 EV is twice the light.
-    assert_eq!(
-        tonemap(Vec3::splat(0.2), 1.0),
-        tonemap(Vec3::splat(0.4), 0.0)
-    );
+    assert_eq!(tonemap(Vec3::splat(0.2), 1.0), tonemap(Vec3::splat(0.4), 0.0));
     // Narkowicz's fit at 1: 2.54 / 3.16.
     assert!(close(tonemap(Vec3::ONE, 0.0).x, 2.54 / 3.16, 1e-6));
     let mut last = 0.0;
@@ -220,14 +184,7 @@ fn tonemap_and_srgb() {
 fn compile_and_validate(shader: &str) {
     let spv = std::env::temp_dir().join(format!("umbra-shading-{}.spv", std::process::id()));
     let out = Command::new("glslangValidator")
-        .args([
-            "-V",
-            "--target-env",
-            "vulkan1.3",
-            "-Ishaders/include",
-            shader,
-            "-o",
-        ])
+        .args(["-V", "--target-env", "vulkan1.3", "-Ishaders/include", shader, "-o"])
         .arg(&spv)
         .output()
         .expect("glslangValidator must be installed");
@@ -239,11 +196,7 @@ fn compile_and_validate(shader: &str) {
         .output()
         .expect("spirv-val must be installed");
     let _ = std::fs::remove_file(&spv);
-    assert!(
-        val.status.success(),
-        "{}",
-        String::from_utf8_lossy(&val.stderr)
-    );
+    assert!(val.status.success(), "{}", String::from_utf8_lossy(&val.stderr));
 }
 
 #[test]
@@ -251,38 +204,20 @@ fn shading_glsl_compiles_with_the_rust_light_layout() {
     let shader = "tests/shaders/shading_include.comp";
     compile_and_validate(shader);
     let out = Command::new("glslangValidator")
-        .args([
-            "-q",
-            "--target-env",
-            "vulkan1.3",
-            "-Ishaders/include",
-            shader,
-        ])
+        .args(["-q", "--target-env", "vulkan1.3", "-Ishaders/include", shader])
         .output()
         .expect("glslangValidator must be installed");
     let reflection = String::from_utf8(out.stdout).unwrap();
     let stride = size_of::<GpuLight>();
     for (member, offset) in [
-        (
-            "position_kind",
-            std::mem::offset_of!(GpuLight, position_kind),
-        ),
-        (
-            "direction_cos_outer",
-            std::mem::offset_of!(GpuLight, direction_cos_outer),
-        ),
-        (
-            "intensity_cos_inner",
-            std::mem::offset_of!(GpuLight, intensity_cos_inner),
-        ),
+        ("position_kind", std::mem::offset_of!(GpuLight, position_kind)),
+        ("direction_cos_outer", std::mem::offset_of!(GpuLight, direction_cos_outer)),
+        ("intensity_cos_inner", std::mem::offset_of!(GpuLight, intensity_cos_inner)),
     ] {
         let line = format!("lights.{member}: offset {offset}, ");
         let found = reflection.lines().find(|l| l.starts_with(&line));
         let found = found.unwrap_or_else(|| panic!("{line} missing:\n{reflection}"));
-        assert!(
-            found.ends_with(&format!("topLevelArrayStride {stride}")),
-            "{found}"
-        );
+        assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
     }
 }
 
@@ -295,10 +230,7 @@ fn glsl_constants_match() {
     assert!(lights.contains("const float DIRECTIONAL_LIGHT_DISTANCE = 1e30;"));
     assert_eq!(LIGHT_MIN_DISTANCE_SQUARED, 1e-8);
     assert!(lights.contains("const float LIGHT_MIN_DISTANCE_SQUARED = 1e-8;"));
-    assert_eq!(
-        (LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT),
-        (0.0, 1.0, 2.0)
-    );
+    assert_eq!((LIGHT_POINT, LIGHT_DIRECTIONAL, LIGHT_SPOT), (0.0, 1.0, 2.0));
     assert!(lights.contains("LIGHT_POINT = 0.0;") && lights.contains("LIGHT_SPOT = 2.0;"));
     assert_eq!((BRDF_MIN_ALPHA, BRDF_MIN_N_DOT_V), (1e-3, 1e-4));
     assert!(brdf.contains("BRDF_MIN_ALPHA = 1e-3;") && brdf.contains("BRDF_MIN_N_DOT_V = 1e-4;"));

@@ -19,7 +19,13 @@ fn run(declare_the_read: bool) -> Vec<String> {
     let rays = Buffer::new(&ctx, "rays", 64 * 32, usage, MemoryLocation::GpuOnly).unwrap();
     let nodes = Buffer::with_data(&ctx, "nodes", bytemuck::cast_slice(bvh.nodes()), usage).unwrap();
     let tris = Buffer::with_data(&ctx, "tris", bytemuck::cast_slice(bvh.triangles()), usage).unwrap();
-    let staging = Buffer::with_data(&ctx, "ray source", bytemuck::cast_slice(&[GpuRay::new(Vec3::Z, -Vec3::Z, 2.0); 64]), vk::BufferUsageFlags::TRANSFER_SRC).unwrap();
+    let staging = Buffer::with_data(
+        &ctx,
+        "ray source",
+        bytemuck::cast_slice(&[GpuRay::new(Vec3::Z, -Vec3::Z, 2.0); 64]),
+        vk::BufferUsageFlags::TRANSFER_SRC,
+    )
+    .unwrap();
 
     let mut pool_to_free = None;
     let mut g = RenderGraph::new();
@@ -31,7 +37,14 @@ fn run(declare_the_read: bool) -> Vec<String> {
     let dst = p.write(&mut ray_handle, Access::TransferWrite);
     let (src_buf, size) = (staging.raw, staging.size);
     p.render(move |ctx| {
-        unsafe { ctx.device.cmd_copy_buffer(ctx.cmd, src_buf, ctx.buffer(dst), &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size }]) };
+        unsafe {
+            ctx.device.cmd_copy_buffer(
+                ctx.cmd,
+                src_buf,
+                ctx.buffer(dst),
+                &[vk::BufferCopy { src_offset: 0, dst_offset: 0, size }],
+            )
+        };
         Ok(())
     });
     // Pass 2: the query reads the rays. The faulty variant binds them without declaring the read.
@@ -52,7 +65,11 @@ fn run(declare_the_read: bool) -> Vec<String> {
             // Written by hand (not through the graph) so the ray buffer can be bound undeclared.
             unsafe {
                 let layouts = [pipeline.layout.set_layout];
-                let set = d.allocate_descriptor_sets(&vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts)).unwrap()[0];
+                let set = d
+                    .allocate_descriptor_sets(
+                        &vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts),
+                    )
+                    .unwrap()[0];
                 let infos = [
                     (RAYS_INPUT, undeclared),
                     (RAYS_BVH_NODES, pctx.buffer(nr)),
@@ -72,9 +89,22 @@ fn run(declare_the_read: bool) -> Vec<String> {
                     .collect();
                 d.update_descriptor_sets(&writes, &[]);
                 d.cmd_bind_pipeline(pctx.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.pipeline);
-                d.cmd_bind_descriptor_sets(pctx.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.layout.layout, 0, &[set], &[]);
+                d.cmd_bind_descriptor_sets(
+                    pctx.cmd,
+                    vk::PipelineBindPoint::COMPUTE,
+                    pipeline.layout.layout,
+                    0,
+                    &[set],
+                    &[],
+                );
                 let push = glam::UVec4::new(64, 0, 0, 0);
-                d.cmd_push_constants(pctx.cmd, pipeline.layout.layout, vk::ShaderStageFlags::COMPUTE, 0, bytemuck::bytes_of(&push));
+                d.cmd_push_constants(
+                    pctx.cmd,
+                    pipeline.layout.layout,
+                    vk::ShaderStageFlags::COMPUTE,
+                    0,
+                    bytemuck::bytes_of(&push),
+                );
                 d.cmd_dispatch(pctx.cmd, 1, 1, 1);
             }
             Ok(())
@@ -95,15 +125,19 @@ fn run(declare_the_read: bool) -> Vec<String> {
 
 fn descriptor_pool(device: &ash::Device) -> vk::DescriptorPool {
     let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 4 }];
-    unsafe { device.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None) }
-        .unwrap()
+    unsafe {
+        device.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None)
+    }
+    .unwrap()
 }
 
 #[test]
 fn an_undeclared_read_is_reported_as_a_hazard() {
     let messages = run(false);
     assert!(
-        messages.iter().any(|m| m.contains("SYNC-HAZARD-READ-AFTER-WRITE") || m.contains("SYNC-HAZARD-READ_AFTER_WRITE")),
+        messages
+            .iter()
+            .any(|m| m.contains("SYNC-HAZARD-READ-AFTER-WRITE") || m.contains("SYNC-HAZARD-READ_AFTER_WRITE")),
         "expected a read-after-write hazard, got: {messages:#?}"
     );
 }

@@ -81,13 +81,20 @@ impl Access {
                 B::VERTEX_BUFFER,
                 Applies::Buffer,
             ),
-            Access::IndexBuffer => (S::INDEX_INPUT, A::INDEX_READ, L::UNDEFINED, I::empty(), B::INDEX_BUFFER, Applies::Buffer),
+            Access::IndexBuffer => {
+                (S::INDEX_INPUT, A::INDEX_READ, L::UNDEFINED, I::empty(), B::INDEX_BUFFER, Applies::Buffer)
+            }
             Access::VertexShaderReadUniformBuffer => {
                 (S::VERTEX_SHADER, A::UNIFORM_READ, L::UNDEFINED, I::empty(), B::UNIFORM_BUFFER, Applies::Buffer)
             }
-            Access::ComputeShaderReadStorageBuffer => {
-                (S::COMPUTE_SHADER, A::SHADER_STORAGE_READ, L::UNDEFINED, I::empty(), B::STORAGE_BUFFER, Applies::Buffer)
-            }
+            Access::ComputeShaderReadStorageBuffer => (
+                S::COMPUTE_SHADER,
+                A::SHADER_STORAGE_READ,
+                L::UNDEFINED,
+                I::empty(),
+                B::STORAGE_BUFFER,
+                Applies::Buffer,
+            ),
             Access::ComputeShaderReadUniformBuffer => {
                 (S::COMPUTE_SHADER, A::UNIFORM_READ, L::UNDEFINED, I::empty(), B::UNIFORM_BUFFER, Applies::Buffer)
             }
@@ -107,20 +114,20 @@ impl Access {
                 B::empty(),
                 Applies::Image,
             ),
-            Access::FragmentShaderReadStorageBuffer => {
-                (S::FRAGMENT_SHADER, A::SHADER_STORAGE_READ, L::UNDEFINED, I::empty(), B::STORAGE_BUFFER, Applies::Buffer)
-            }
+            Access::FragmentShaderReadStorageBuffer => (
+                S::FRAGMENT_SHADER,
+                A::SHADER_STORAGE_READ,
+                L::UNDEFINED,
+                I::empty(),
+                B::STORAGE_BUFFER,
+                Applies::Buffer,
+            ),
             Access::TransferRead => {
                 (S::COPY, A::TRANSFER_READ, L::TRANSFER_SRC_OPTIMAL, I::TRANSFER_SRC, B::TRANSFER_SRC, Applies::Both)
             }
-            Access::ComputeShaderWrite => (
-                S::COMPUTE_SHADER,
-                A::SHADER_STORAGE_WRITE,
-                L::GENERAL,
-                I::STORAGE,
-                B::STORAGE_BUFFER,
-                Applies::Both,
-            ),
+            Access::ComputeShaderWrite => {
+                (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE, L::GENERAL, I::STORAGE, B::STORAGE_BUFFER, Applies::Both)
+            }
             Access::ColorAttachmentWrite => (
                 S::COLOR_ATTACHMENT_OUTPUT,
                 A::COLOR_ATTACHMENT_WRITE,

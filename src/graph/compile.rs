@@ -8,7 +8,7 @@ use std::fmt;
 
 use ash::vk;
 
-use super::{Access, ResourceDesc, RenderGraph};
+use super::{Access, RenderGraph, ResourceDesc};
 
 /// One memory/execution dependency (plus layout transition for images) before a pass.
 #[derive(Clone, Debug, PartialEq)]
@@ -171,9 +171,8 @@ fn derive_usage_and_lifetimes(graph: &RenderGraph<'_>, live: &[bool]) -> Vec<Res
 /// Phase 4: transient resources share a slot when description and usage match and lifetimes
 /// do not overlap.
 fn assign_transients(plans: &mut [ResourcePlan]) -> Vec<SlotKey> {
-    let mut order: Vec<usize> = (0..plans.len())
-        .filter(|&i| plans[i].storage != Storage::Imported && plans[i].lifetime.is_some())
-        .collect();
+    let mut order: Vec<usize> =
+        (0..plans.len()).filter(|&i| plans[i].storage != Storage::Imported && plans[i].lifetime.is_some()).collect();
     order.sort_by_key(|&i| plans[i].lifetime.map(|l| l.0));
     let mut slots: Vec<SlotKey> = Vec::new();
     let mut busy_until: Vec<usize> = Vec::new();
@@ -194,7 +193,9 @@ fn assign_transients(plans: &mut [ResourcePlan]) -> Vec<SlotKey> {
 
 fn slot_key(plan: &ResourcePlan) -> SlotKey {
     let desc = match plan.desc {
-        ResourceDesc::Image(d) => ResourceDescKey::Image { format: d.format.as_raw(), width: d.width, height: d.height },
+        ResourceDesc::Image(d) => {
+            ResourceDescKey::Image { format: d.format.as_raw(), width: d.width, height: d.height }
+        }
         ResourceDesc::Buffer(b) => ResourceDescKey::Buffer { size: b.size },
     };
     SlotKey { desc, image_usage: plan.image_usage.as_raw(), buffer_usage: plan.buffer_usage.as_raw() }
@@ -294,7 +295,8 @@ fn transition(st: &mut SyncState, resource: usize, accesses: &[Access], is_image
         }
     }
     let new_occupant = st.occupant != Some(resource);
-    let old_layout = if new_occupant { vk::ImageLayout::UNDEFINED } else { st.layout.unwrap_or(vk::ImageLayout::UNDEFINED) };
+    let old_layout =
+        if new_occupant { vk::ImageLayout::UNDEFINED } else { st.layout.unwrap_or(vk::ImageLayout::UNDEFINED) };
     let layout_change = is_image && layout != Some(old_layout);
     let read_stages = st.reads.iter().fold(vk::PipelineStageFlags2::NONE, |s, a| s | a.info().stage);
     let write_info = st.write.map(|w| w.info());
@@ -352,7 +354,9 @@ impl fmt::Display for CompiledGraph {
         writeln!(f, "frame graph plan:")?;
         for (i, r) in self.resources.iter().enumerate() {
             let what = match r.desc {
-                ResourceDesc::Image(d) => format!("image {:?} {}x{} usage {:?}", d.format, d.width, d.height, r.image_usage),
+                ResourceDesc::Image(d) => {
+                    format!("image {:?} {}x{} usage {:?}", d.format, d.width, d.height, r.image_usage)
+                }
                 ResourceDesc::Buffer(b) => format!("buffer {} B usage {:?}", b.size, r.buffer_usage),
             };
             let storage = match r.storage {

@@ -122,7 +122,13 @@ impl TransientCache {
     }
 
     /// Records `graph` (compiled as `plan`) into `cmd`. Culled passes are dropped unrun.
-    pub fn execute(&mut self, graph: RenderGraph<'_>, plan: &CompiledGraph, cmd: vk::CommandBuffer, timestamps: bool) -> GpuResult<()> {
+    pub fn execute(
+        &mut self,
+        graph: RenderGraph<'_>,
+        plan: &CompiledGraph,
+        cmd: vk::CommandBuffer,
+        timestamps: bool,
+    ) -> GpuResult<()> {
         // SAFETY: the previous submission that used these sets has completed.
         unsafe { self.ctx.device.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty()) }
             .vk("vkResetDescriptorPool")?;
@@ -166,7 +172,8 @@ impl TransientCache {
                 // SAFETY: recording state; the query was reset above.
                 unsafe { device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::TOP_OF_PIPE, pool, q) };
             }
-            let mut pctx = PassContext { cmd, device: &device, resolved: &resolved, descriptor_pool: self.descriptor_pool };
+            let mut pctx =
+                PassContext { cmd, device: &device, resolved: &resolved, descriptor_pool: self.descriptor_pool };
             if let Some(run) = decl.run {
                 run(&mut pctx)?;
             }
@@ -193,7 +200,13 @@ impl Drop for TransientCache {
     }
 }
 
-fn record_barriers(device: &ash::Device, cmd: vk::CommandBuffer, barriers: &[Barrier], resolved: &[Option<External>], plan: &CompiledGraph) {
+fn record_barriers(
+    device: &ash::Device,
+    cmd: vk::CommandBuffer,
+    barriers: &[Barrier],
+    resolved: &[Option<External>],
+    plan: &CompiledGraph,
+) {
     if barriers.is_empty() {
         return;
     }
@@ -263,9 +276,15 @@ impl PassContext<'_> {
     }
 
     /// Allocates set 0 for `layout`, writes `bound` into it, and binds it at `bind_point`.
-    pub fn bind_set(&mut self, bind_point: vk::PipelineBindPoint, layout: &PipelineLayout, bound: &[(u32, Bound)]) -> GpuResult<()> {
+    pub fn bind_set(
+        &mut self,
+        bind_point: vk::PipelineBindPoint,
+        layout: &PipelineLayout,
+        bound: &[(u32, Bound)],
+    ) -> GpuResult<()> {
         let set_layouts = [layout.set_layout];
-        let alloc = vk::DescriptorSetAllocateInfo::default().descriptor_pool(self.descriptor_pool).set_layouts(&set_layouts);
+        let alloc =
+            vk::DescriptorSetAllocateInfo::default().descriptor_pool(self.descriptor_pool).set_layouts(&set_layouts);
         // SAFETY: pool and layout are valid; the pool is reset only after the frame completes.
         let set = unsafe { self.device.allocate_descriptor_sets(&alloc) }.vk("vkAllocateDescriptorSets")?[0];
         let mut image_infos = Vec::with_capacity(bound.len());
@@ -275,15 +294,15 @@ impl PassContext<'_> {
                 Bound::Image(r) => image_infos.push(
                     vk::DescriptorImageInfo::default().image_view(self.image(r).1).image_layout(r.access.info().layout),
                 ),
-                Bound::Buffer(r) => {
-                    buffer_infos.push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(0).range(vk::WHOLE_SIZE))
-                }
+                Bound::Buffer(r) => buffer_infos
+                    .push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(0).range(vk::WHOLE_SIZE)),
             }
         }
         let (mut ii, mut bi) = (0, 0);
         let mut writes = Vec::with_capacity(bound.len());
         for &(binding, b) in bound {
-            let kind = layout.kind_of(binding).unwrap_or_else(|| panic!("binding {binding} is not in the pipeline layout"));
+            let kind =
+                layout.kind_of(binding).unwrap_or_else(|| panic!("binding {binding} is not in the pipeline layout"));
             let w = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(binding).descriptor_type(kind.vk());
             writes.push(match b {
                 Bound::Image(_) => {
@@ -320,7 +339,13 @@ impl PassContext<'_> {
         // SAFETY: recording state; push size matches the layout's range.
         unsafe {
             if !push.is_empty() {
-                self.device.cmd_push_constants(self.cmd, pipeline.layout.layout, vk::ShaderStageFlags::COMPUTE, 0, push);
+                self.device.cmd_push_constants(
+                    self.cmd,
+                    pipeline.layout.layout,
+                    vk::ShaderStageFlags::COMPUTE,
+                    0,
+                    push,
+                );
             }
             self.device.cmd_dispatch(self.cmd, gx, gy, 1);
         }

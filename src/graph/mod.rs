@@ -12,8 +12,8 @@ use ash::vk;
 
 pub use access::{Access, AccessInfo, Applies};
 pub use compile::{Barrier, CompiledGraph, CompiledPass, ResourcePlan, Storage};
-pub use execute::{Bound, PassContext, TransientCache};
 pub use compile::{ResourceDescKey, SlotKey};
+pub use execute::{Bound, PassContext, TransientCache};
 
 pub use crate::vk::ImageDesc;
 
@@ -113,7 +113,12 @@ impl<'a> RenderGraph<'a> {
         RenderGraph { resources: Vec::new(), passes: Vec::new(), exports: Vec::new() }
     }
 
-    fn declare<K>(&mut self, name: &'static str, desc: ResourceDesc, imported: Option<(External, Access)>) -> Handle<K> {
+    fn declare<K>(
+        &mut self,
+        name: &'static str,
+        desc: ResourceDesc,
+        imported: Option<(External, Access)>,
+    ) -> Handle<K> {
         self.resources.push(ResourceDecl { name, desc, imported, version: 0 });
         Handle { id: self.resources.len() - 1, version: 0, _kind: PhantomData }
     }
@@ -140,7 +145,13 @@ impl<'a> RenderGraph<'a> {
         self.declare(name, ResourceDesc::Image(desc), Some((External::Image { image, view }, access)))
     }
 
-    pub fn import_buffer(&mut self, name: &'static str, buffer: vk::Buffer, size: u64, access: Access) -> Handle<BufferKind> {
+    pub fn import_buffer(
+        &mut self,
+        name: &'static str,
+        buffer: vk::Buffer,
+        size: u64,
+        access: Access,
+    ) -> Handle<BufferKind> {
         assert!(access.applies_to_buffer(), "{name}: {access:?} is not a buffer access");
         self.declare(name, ResourceDesc::Buffer(BufferDesc { size }), Some((External::Buffer { buffer }, access)))
     }

@@ -70,7 +70,13 @@ pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResu
     let nodes = Buffer::with_data(ctx, "bvh nodes", bytemuck::cast_slice(bvh.nodes()), usage)?;
     let tris = Buffer::with_data(ctx, "bvh triangles", bytemuck::cast_slice(bvh.triangles()), usage)?;
     let count = rays.len() as u32;
-    let out = Buffer::new(ctx, "hits read-back", u64::from(count.max(1)) * 4, vk::BufferUsageFlags::TRANSFER_DST, MemoryLocation::GpuToCpu)?;
+    let out = Buffer::new(
+        ctx,
+        "hits read-back",
+        u64::from(count.max(1)) * 4,
+        vk::BufferUsageFlags::TRANSFER_DST,
+        MemoryLocation::GpuToCpu,
+    )?;
     let mut cache = TransientCache::new(ctx)?;
     let mut g = RenderGraph::new();
     let r = g.import_buffer("rays", ray_buf.raw, ray_buf.size, Access::HostWrite);

@@ -17,7 +17,13 @@ pub fn add(graph: &mut RenderGraph<'_>, image: &Handle<ImageKind>, target: &Buff
         let region = copy_region(&desc);
         // SAFETY: recording state; the buffer holds width*height texels of this format.
         unsafe {
-            ctx.device.cmd_copy_image_to_buffer(ctx.cmd, ctx.image(src).0, Access::TransferRead.info().layout, ctx.buffer(dst), &[region])
+            ctx.device.cmd_copy_image_to_buffer(
+                ctx.cmd,
+                ctx.image(src).0,
+                Access::TransferRead.info().layout,
+                ctx.buffer(dst),
+                &[region],
+            )
         };
         Ok(())
     });
@@ -42,6 +48,11 @@ pub fn add_buffer(graph: &mut RenderGraph<'_>, source: &Handle<BufferKind>, targ
 
 fn copy_region(desc: &ImageDesc) -> vk::BufferImageCopy {
     vk::BufferImageCopy::default()
-        .image_subresource(vk::ImageSubresourceLayers { aspect_mask: desc.aspect(), mip_level: 0, base_array_layer: 0, layer_count: 1 })
+        .image_subresource(vk::ImageSubresourceLayers {
+            aspect_mask: desc.aspect(),
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        })
         .image_extent(vk::Extent3D { width: desc.width, height: desc.height, depth: 1 })
 }

@@ -42,7 +42,8 @@ pub fn add<'a>(
         (DISPLAY_INPUT, Bound::Image(pass.read(radiance, Access::ComputeShaderReadSampledImage))),
         (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut display, Access::ComputeShaderWrite))),
     ];
-    let push = Push { exposure: Vec4::new(exposure_ev, 0.0, 0.0, 0.0), dims: UVec4::new(extent.width, extent.height, 0, 0) };
+    let push =
+        Push { exposure: Vec4::new(exposure_ev, 0.0, 0.0, 0.0), dims: UVec4::new(extent.width, extent.height, 0, 0) };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     display
 }

@@ -65,11 +65,7 @@ pub struct GpuTriangle {
 
 impl GpuTriangle {
     fn new([a, b, c]: [Vec3; 3]) -> Self {
-        GpuTriangle {
-            v0: a.extend(0.0).into(),
-            e1: (b - a).extend(0.0).into(),
-            e2: (c - a).extend(0.0).into(),
-        }
+        GpuTriangle { v0: a.extend(0.0).into(), e1: (b - a).extend(0.0).into(), e2: (c - a).extend(0.0).into() }
     }
     fn v0(&self) -> Vec3 {
         Vec3::from_slice(&self.v0[..3])
@@ -103,9 +99,7 @@ impl ShadowBvh {
             .iter()
             .filter(|mesh| mesh.cast_shadows)
             .flat_map(|mesh| {
-                mesh.indices
-                    .chunks_exact(3)
-                    .map(|i| [i[0], i[1], i[2]].map(|index| mesh.positions[index as usize]))
+                mesh.indices.chunks_exact(3).map(|i| [i[0], i[1], i[2]].map(|index| mesh.positions[index as usize]))
             })
             .filter(|tri| tri.iter().all(|v| v.is_finite()))
             .collect();
@@ -116,11 +110,8 @@ impl ShadowBvh {
         ShadowBvh::with_builder(tris, |reference_triangles| {
             // PLOC with a medium search radius, reinsertion before and after leaf collapse:
             // the "medium" preset. Spatial pre-splits stay off so each triangle is in one leaf.
-            let mut bvh = build_bvh2_from_tris(
-                reference_triangles,
-                BvhBuildParams::medium_build(),
-                &mut Duration::default(),
-            );
+            let mut bvh =
+                build_bvh2_from_tris(reference_triangles, BvhBuildParams::medium_build(), &mut Duration::default());
             // Depth-first order: parents before children, siblings together, for GPU caches.
             bvh.reorder_in_stack_traversal_order();
             let depth = bvh.depth(0);
@@ -144,22 +135,13 @@ impl ShadowBvh {
     }
 
     fn with_builder(tris: &[[Vec3; 3]], build: impl FnOnce(&[Triangle]) -> Bvh2) -> ShadowBvh {
-        let reference_triangles: Vec<Triangle> = tris
-            .iter()
-            .map(|&[a, b, c]| Triangle {
-                v0: a.into(),
-                v1: b.into(),
-                v2: c.into(),
-            })
-            .collect();
+        let reference_triangles: Vec<Triangle> =
+            tris.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
         if tris.is_empty() {
             return ShadowBvh {
                 reference: Bvh2::default(),
                 reference_triangles,
-                nodes: vec![GpuBvhNode {
-                    count: 1,
-                    ..Default::default()
-                }],
+                nodes: vec![GpuBvhNode { count: 1, ..Default::default() }],
                 triangles: vec![GpuTriangle::default()],
                 triangle_count: 0,
                 depth: 0,
@@ -167,10 +149,7 @@ impl ShadowBvh {
         }
         let reference = build(&reference_triangles);
         let depth = reference.depth(0);
-        assert!(
-            depth <= BVH_STACK_SIZE,
-            "{depth} levels overflow bvh.glsl's stack"
-        );
+        assert!(depth <= BVH_STACK_SIZE, "{depth} levels overflow bvh.glsl's stack");
 
         let nodes = reference
             .nodes
@@ -182,19 +161,8 @@ impl ShadowBvh {
                 count: node.prim_count,
             })
             .collect();
-        let triangles = reference
-            .primitive_indices
-            .iter()
-            .map(|&i| GpuTriangle::new(tris[i as usize]))
-            .collect();
-        ShadowBvh {
-            reference,
-            reference_triangles,
-            nodes,
-            triangles,
-            triangle_count: tris.len(),
-            depth,
-        }
+        let triangles = reference.primitive_indices.iter().map(|&i| GpuTriangle::new(tris[i as usize])).collect();
+        ShadowBvh { reference, reference_triangles, nodes, triangles, triangle_count: tris.len(), depth }
     }
 
     /// Shadow-casting triangles in the BVH (the dummy triangle of an empty BVH not counted).
@@ -328,11 +296,7 @@ impl ShadowBvh {
         let d = dir.as_dvec3();
         let tmax = tmax as f64;
         self.triangles.iter().any(|tri| {
-            let (v0, e1, e2) = (
-                tri.v0().as_dvec3(),
-                tri.e1().as_dvec3(),
-                tri.e2().as_dvec3(),
-            );
+            let (v0, e1, e2) = (tri.v0().as_dvec3(), tri.e1().as_dvec3(), tri.e2().as_dvec3());
             let twice_area = e1.cross(e2).length();
             if twice_area == 0.0 {
                 return false; // degenerate: no implementation can hit it
@@ -358,8 +322,7 @@ impl ShadowBvh {
             let t_tolerance = tolerance / d.length();
             let in_segment = t > -t_tolerance && t < tmax + t_tolerance;
             let near_edge = edge_distance.abs() <= tolerance && in_segment;
-            let near_end = edge_distance >= -tolerance
-                && (t.abs() <= t_tolerance || (t - tmax).abs() <= t_tolerance);
+            let near_end = edge_distance >= -tolerance && (t.abs() <= t_tolerance || (t - tmax).abs() <= t_tolerance);
             near_edge || near_end
         })
     }
@@ -371,13 +334,7 @@ const MEDIAN_SPLIT_LEAF_SIZE: usize = 4;
 /// A balanced Bvh2: each node splits its triangles in half at the median centroid along the
 /// widest axis of their centroids. Children are allocated in pairs, depth first, as obvhs does.
 fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
-    fn split(
-        tris: &[Triangle],
-        order: &mut [u32],
-        first: u32,
-        slot: usize,
-        nodes: &mut Vec<Bvh2Node>,
-    ) {
+    fn split(tris: &[Triangle], order: &mut [u32], first: u32, slot: usize, nodes: &mut Vec<Bvh2Node>) {
         let mut aabb = Aabb::empty();
         let mut centroids = Aabb::empty();
         for &i in order.iter() {
@@ -407,11 +364,7 @@ fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
     let mut order: Vec<u32> = (0..tris.len() as u32).collect();
     let mut nodes = vec![Bvh2Node::default()];
     split(tris, &mut order, 0, 0, &mut nodes);
-    Bvh2 {
-        nodes,
-        primitive_indices: order,
-        ..Bvh2::default()
-    }
+    Bvh2 { nodes, primitive_indices: order, ..Bvh2::default() }
 }
 
 /// Returned by `slab_entry` for a box the ray misses (GLSL: `BVH_SLAB_MISS`).
@@ -448,15 +401,8 @@ fn slab_entry(node: &GpuBvhNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> f32 
     }
 }
 
-fn leaf_occludes(
-    tris: &[GpuTriangle],
-    leaf: &GpuBvhNode,
-    origin: Vec3,
-    dir: Vec3,
-    tmax: f32,
-) -> bool {
-    (leaf.first..leaf.first + leaf.count)
-        .any(|i| triangle_occludes(&tris[i as usize], origin, dir, tmax))
+fn leaf_occludes(tris: &[GpuTriangle], leaf: &GpuBvhNode, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+    (leaf.first..leaf.first + leaf.count).any(|i| triangle_occludes(&tris[i as usize], origin, dir, tmax))
 }
 
 /// Möller–Trumbore without back-face culling: shadows are cast by both faces. Comparisons are

@@ -64,13 +64,7 @@ impl SceneError {
         let message = message.collect::<Vec<_>>().join("; ");
         let offset = error.span().map_or(0, |span| span.start);
         let (line, column) = line_column(text, offset);
-        SceneError::Toml {
-            file: file.to_owned(),
-            line,
-            column,
-            key_path: key_path_at(text, offset),
-            message,
-        }
+        SceneError::Toml { file: file.to_owned(), line, column, key_path: key_path_at(text, offset), message }
     }
 }
 
@@ -207,8 +201,7 @@ fn header_path(line: &str, array_counts: &mut HashMap<String, usize>) -> Vec<Str
     let is_array = line.starts_with("[[");
     let inner = line.trim_start_matches('[');
     let inner = inner.split(']').next().unwrap_or("");
-    let parts: Vec<String> =
-        inner.split('.').map(|p| p.trim().trim_matches(['"', '\'']).to_owned()).collect();
+    let parts: Vec<String> = inner.split('.').map(|p| p.trim().trim_matches(['"', '\'']).to_owned()).collect();
     if is_array {
         *array_counts.entry(parts.join(".")).or_insert(0) += 1;
     }

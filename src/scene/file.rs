@@ -134,8 +134,7 @@ const DEFAULT_RADIUS: f64 = 0.5;
 /// Parses and checks a scene. `source_name` names the file in errors; mesh paths are relative to
 /// `base_dir`.
 pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Scene, SceneError> {
-    let file: SceneFile =
-        toml::from_str(text).map_err(|e| SceneError::from_toml(source_name, text, &e))?;
+    let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::from_toml(source_name, text, &e))?;
     let check = Check { file: source_name };
 
     let image_size = file.image.map(|image| check.image(&image)).transpose()?;
@@ -159,13 +158,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         for local in &placed.meshes {
             let material = placed.material.apply(local.material.unwrap_or_default());
             let cast_shadows = object.cast_shadows.unwrap_or(true);
-            meshes.extend(mesh::place(
-                local,
-                &placed.transform,
-                material,
-                cast_shadows,
-                &mut dropped,
-            ));
+            meshes.extend(mesh::place(local, &placed.transform, material, cast_shadows, &mut dropped));
         }
         if dropped != LoadStats::default() {
             log::warn!(
@@ -214,20 +207,13 @@ struct Check<'a> {
 
 impl Check<'_> {
     fn fail(&self, key_path: &str, message: impl Into<String>) -> SceneError {
-        SceneError::Invalid {
-            file: self.file.to_owned(),
-            key_path: key_path.to_owned(),
-            message: message.into(),
-        }
+        SceneError::Invalid { file: self.file.to_owned(), key_path: key_path.to_owned(), message: message.into() }
     }
 
     fn image(&self, image: &ImageDesc) -> Result<(u32, u32), SceneError> {
         for (key, value) in [("width", image.width), ("height", image.height)] {
             if !(1..=MAX_IMAGE_EDGE).contains(&value) {
-                return Err(self.fail(
-                    &format!("image.{key}"),
-                    format!("{value} is outside [1, {MAX_IMAGE_EDGE}]"),
-                ));
+                return Err(self.fail(&format!("image.{key}"), format!("{value} is outside [1, {MAX_IMAGE_EDGE}]")));
             }
         }
         Ok((image.width, image.height))
@@ -250,21 +236,14 @@ impl Check<'_> {
         if !(vfov > 0.0 && vfov < 180.0) {
             return Err(self.fail("camera.vfov_deg", format!("{vfov} is outside (0, 180)")));
         }
-        Ok(Camera {
-            eye: eye.as_vec3(),
-            target: target.as_vec3(),
-            up: up.as_vec3(),
-            vfov_deg: vfov as f32,
-        })
+        Ok(Camera { eye: eye.as_vec3(), target: target.as_vec3(), up: up.as_vec3(), vfov_deg: vfov as f32 })
     }
 
     fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {
         let (name, needs): (&str, &[&str]) = match light.kind {
             LightKind::Point => ("point", &["position", "intensity"]),
             LightKind::Directional => ("directional", &["direction", "irradiance"]),
-            LightKind::Spot => {
-                ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"])
-            }
+            LightKind::Spot => ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"]),
         };
         let given = [
             ("position", light.position.is_some()),
@@ -290,10 +269,9 @@ impl Check<'_> {
         let direction = || self.direction(&format!("{path}.direction"), field(light.direction));
         let power = |key: &str, v| self.power(&format!("{path}.{key}"), field(v));
         Ok(match light.kind {
-            LightKind::Point => Light::Point {
-                position: position()?.as_vec3(),
-                intensity: power("intensity", light.intensity)?,
-            },
+            LightKind::Point => {
+                Light::Point { position: position()?.as_vec3(), intensity: power("intensity", light.intensity)? }
+            }
             LightKind::Directional => Light::Directional {
                 direction: direction()?.as_vec3(),
                 irradiance: power("irradiance", light.irradiance)?,
@@ -302,8 +280,7 @@ impl Check<'_> {
                 let inner = light.inner_deg.unwrap_or_default();
                 let outer = light.outer_deg.unwrap_or_default();
                 if !(0.0 <= inner && inner < outer && outer <= 90.0) {
-                    let message =
-                        format!("need 0 <= inner_deg < outer_deg <= 90, got {inner} and {outer}");
+                    let message = format!("need 0 <= inner_deg < outer_deg <= 90, got {inner} and {outer}");
                     return Err(self.fail(path, message));
                 }
                 Light::Spot {
@@ -317,12 +294,7 @@ impl Check<'_> {
         })
     }
 
-    fn object(
-        &self,
-        path: &str,
-        object: &ObjectDesc,
-        base_dir: &Path,
-    ) -> Result<PlacedObject, SceneError> {
+    fn object(&self, path: &str, object: &ObjectDesc, base_dir: &Path) -> Result<PlacedObject, SceneError> {
         let (source, meshes) = match (&object.mesh, object.shape) {
             (Some(_), Some(_)) | (None, None) => {
                 return Err(self.fail(path, "give exactly one of `mesh` or `shape`"));
@@ -348,26 +320,15 @@ impl Check<'_> {
         })
     }
 
-    fn mesh_file(
-        &self,
-        path: &str,
-        mesh: &str,
-        base_dir: &Path,
-    ) -> Result<Vec<ObjectMesh>, SceneError> {
+    fn mesh_file(&self, path: &str, mesh: &str, base_dir: &Path) -> Result<Vec<ObjectMesh>, SceneError> {
         let key_path = format!("{path}.mesh");
         obj::load(&base_dir.join(mesh)).map_err(|error| match error {
-            obj::ObjError::Read(error) => SceneError::MeshRead {
-                file: self.file.to_owned(),
-                key_path,
-                mesh: mesh.to_owned(),
-                error,
-            },
-            obj::ObjError::Parse(reason) => SceneError::MeshParse {
-                file: self.file.to_owned(),
-                key_path,
-                mesh: mesh.to_owned(),
-                reason,
-            },
+            obj::ObjError::Read(error) => {
+                SceneError::MeshRead { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), error }
+            }
+            obj::ObjError::Parse(reason) => {
+                SceneError::MeshParse { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), reason }
+            }
         })
     }
 
@@ -389,12 +350,8 @@ impl Check<'_> {
             return Err(self.fail(&format!("{path}.{key}"), message));
         }
         let mesh = match shape {
-            ShapeKind::Plane => {
-                shapes::plane(self.length(path, "size", object.size, DEFAULT_SIZE)?)
-            }
-            ShapeKind::Cube => {
-                shapes::cube(self.length(path, "size", object.size, DEFAULT_SIZE)?)
-            }
+            ShapeKind::Plane => shapes::plane(self.length(path, "size", object.size, DEFAULT_SIZE)?),
+            ShapeKind::Cube => shapes::cube(self.length(path, "size", object.size, DEFAULT_SIZE)?),
             ShapeKind::Sphere => {
                 let radius = self.length(path, "radius", object.radius, DEFAULT_RADIUS)?;
                 let segments = object.segments.unwrap_or(DEFAULT_SPHERE_SEGMENTS);
@@ -412,15 +369,11 @@ impl Check<'_> {
     /// Object-to-world matrix from `transform` or from translate/rotate_deg/scale
     /// (M = T * Rz * Ry * Rx * S, i.e. scale, then rotate about X, Y, Z, then translate).
     fn transform(&self, path: &str, object: &ObjectDesc) -> Result<DMat4, SceneError> {
-        let parts =
-            object.translate.is_some() || object.rotate_deg.is_some() || object.scale.is_some();
+        let parts = object.translate.is_some() || object.rotate_deg.is_some() || object.scale.is_some();
         let key_path = format!("{path}.transform");
         let matrix = match object.transform {
             Some(_) if parts => {
-                return Err(self.fail(
-                    &key_path,
-                    "give either `transform` or translate/rotate_deg/scale, not both",
-                ));
+                return Err(self.fail(&key_path, "give either `transform` or translate/rotate_deg/scale, not both"));
             }
             Some(rows) => {
                 if rows.iter().flatten().any(|v| !v.is_finite()) {
@@ -433,10 +386,8 @@ impl Check<'_> {
                 DMat4::from_cols_array_2d(&rows).transpose()
             }
             None => {
-                let translate =
-                    self.point(&format!("{path}.translate"), object.translate.unwrap_or_default())?;
-                let rotate = self
-                    .point(&format!("{path}.rotate_deg"), object.rotate_deg.unwrap_or_default())?;
+                let translate = self.point(&format!("{path}.translate"), object.translate.unwrap_or_default())?;
+                let rotate = self.point(&format!("{path}.rotate_deg"), object.rotate_deg.unwrap_or_default())?;
                 let scale = DVec3::from(object.scale.as_ref().map_or([1.0; 3], |s| s.0));
                 if !scale.is_finite() || scale.cmpeq(DVec3::ZERO).any() {
                     return Err(self.fail(&format!("{path}.scale"), "must be finite and non-zero"));
@@ -451,18 +402,12 @@ impl Check<'_> {
         };
         let det = matrix.determinant();
         if det == 0.0 || !det.is_finite() {
-            return Err(
-                self.fail(&key_path, "is singular (determinant 0); it would flatten the mesh")
-            );
+            return Err(self.fail(&key_path, "is singular (determinant 0); it would flatten the mesh"));
         }
         Ok(matrix)
     }
 
-    fn material(
-        &self,
-        path: &str,
-        material: Option<&MaterialDesc>,
-    ) -> Result<MaterialOverride, SceneError> {
+    fn material(&self, path: &str, material: Option<&MaterialDesc>) -> Result<MaterialOverride, SceneError> {
         let Some(m) = material else {
             return Ok(MaterialOverride { base_color: None, roughness: None, metallic: None });
         };
@@ -475,11 +420,7 @@ impl Check<'_> {
         };
         let base_color = match m.base_color {
             Some(c) => {
-                let c = [
-                    unit("base_color", c[0])?,
-                    unit("base_color", c[1])?,
-                    unit("base_color", c[2])?,
-                ];
+                let c = [unit("base_color", c[0])?, unit("base_color", c[1])?, unit("base_color", c[2])?];
                 Some(Vec3::from(c))
             }
             None => None,
@@ -516,18 +457,10 @@ impl Check<'_> {
     }
 
     /// A shape's size or radius: positive and finite.
-    fn length(
-        &self,
-        path: &str,
-        key: &str,
-        v: Option<f64>,
-        default: f64,
-    ) -> Result<f32, SceneError> {
+    fn length(&self, path: &str, key: &str, v: Option<f64>, default: f64) -> Result<f32, SceneError> {
         let v = v.unwrap_or(default);
         if !(v > 0.0 && (v as f32).is_finite()) {
-            return Err(
-                self.fail(&format!("{path}.{key}"), format!("{v} must be positive and finite"))
-            );
+            return Err(self.fail(&format!("{path}.{key}"), format!("{v} must be positive and finite")));
         }
         Ok(v as f32)
     }

@@ -67,9 +67,10 @@ pub(super) fn place(
         .map(|p| p.as_vec3().as_dvec3())
         .collect();
     let normal_matrix = DMat3::from_mat4(*object_to_world).inverse().transpose();
-    let world_normals: Option<Vec<Option<DVec3>>> = mesh.normals.as_ref().map(|normals| {
-        normals.iter().map(|n| (normal_matrix * n.as_dvec3()).try_normalize()).collect()
-    });
+    let world_normals: Option<Vec<Option<DVec3>>> = mesh
+        .normals
+        .as_ref()
+        .map(|normals| normals.iter().map(|n| (normal_matrix * n.as_dvec3()).try_normalize()).collect());
     let mirrored = object_to_world.determinant() < 0.0;
 
     let mut out = Builder {
@@ -84,8 +85,7 @@ pub(super) fn place(
             // A mirroring transform turns counter-clockwise into clockwise; swap to undo it.
             tri.swap(1, 2);
         }
-        let Some(corners) = tri.iter().map(|&i| world.get(i).copied()).collect::<Option<Vec<_>>>()
-        else {
+        let Some(corners) = tri.iter().map(|&i| world.get(i).copied()).collect::<Option<Vec<_>>>() else {
             stats.degenerate_triangles += 1; // index out of range: no triangle to speak of
             continue;
         };

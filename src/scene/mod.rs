@@ -95,8 +95,7 @@ impl Scene {
 
     /// Reads a scene file; mesh paths in it are relative to its directory.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|error| SceneError::Read { path: path.to_owned(), error })?;
+        let text = std::fs::read_to_string(path).map_err(|error| SceneError::Read { path: path.to_owned(), error })?;
         let base_dir = path.parent().unwrap_or(Path::new(""));
         Scene::parse(&text, &path.display().to_string(), base_dir)
     }
@@ -146,8 +145,7 @@ mod tests {
 
     #[test]
     fn default_scene_parses_and_stays_small() {
-        let scene = Scene::parse(DEFAULT_SCENE, "default.toml", Path::new("assets"))
-            .unwrap_or_else(|e| panic!("{e}"));
+        let scene = Scene::parse(DEFAULT_SCENE, "default.toml", Path::new("assets")).unwrap_or_else(|e| panic!("{e}"));
         assert!(scene.triangle_count() < 20_000, "{} triangles", scene.triangle_count());
         assert_eq!(scene.stats, LoadStats::default());
     }

@@ -21,12 +21,7 @@ pub(super) enum ObjError {
 /// of its MTL libraries looked up next to it. A missing or broken MTL only costs the materials.
 pub(super) fn load(path: &Path) -> Result<Vec<ObjectMesh>, ObjError> {
     let bytes = std::fs::read(path).map_err(ObjError::Read)?;
-    let options = tobj::LoadOptions {
-        triangulate: true,
-        single_index: true,
-        ignore_points: true,
-        ignore_lines: true,
-    };
+    let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let dir = path.parent().unwrap_or(Path::new(""));
     let mut reader = LineCounter::new(&bytes);
     let loaded = tobj::load_obj_buf(&mut reader, &options, |mtl| load_mtl(path, &dir.join(mtl)));
@@ -36,9 +31,7 @@ pub(super) fn load(path: &Path) -> Result<Vec<ObjectMesh>, ObjError> {
         Vec::new()
     });
 
-    let file_name = path
-        .file_name()
-        .map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let file_name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     let meshes = models
         .into_iter()
         .map(|model| {
@@ -176,18 +169,11 @@ mod tests {
 
     #[test]
     fn pbr_extension_wins_and_is_clamped() {
-        let mut mtl = tobj::Material {
-            shininess: Some(10.0),
-            diffuse: Some([2.0, 0.5, -1.0]),
-            ..Default::default()
-        };
+        let mut mtl = tobj::Material { shininess: Some(10.0), diffuse: Some([2.0, 0.5, -1.0]), ..Default::default() };
         mtl.unknown_param.insert("Pr".into(), "0.25".into());
         mtl.unknown_param.insert("Pm".into(), "1.5".into());
         let m = convert_material(&mtl);
-        assert_eq!(
-            m,
-            Material { base_color: Vec3::new(1.0, 0.5, 0.0), roughness: 0.25, metallic: 1.0 }
-        );
+        assert_eq!(m, Material { base_color: Vec3::new(1.0, 0.5, 0.0), roughness: 0.25, metallic: 1.0 });
     }
 
     #[test]

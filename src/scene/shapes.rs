@@ -12,12 +12,7 @@ pub(super) fn plane(size: f32) -> ObjectMesh {
     let h = 0.5 * size;
     ObjectMesh {
         name: "plane".into(),
-        positions: vec![
-            Vec3::new(-h, 0.0, -h),
-            Vec3::new(-h, 0.0, h),
-            Vec3::new(h, 0.0, h),
-            Vec3::new(h, 0.0, -h),
-        ],
+        positions: vec![Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, h), Vec3::new(h, 0.0, -h)],
         normals: Some(vec![Vec3::Y; 4]),
         indices: vec![0, 1, 2, 0, 2, 3],
         material: None,

@@ -77,9 +77,8 @@ impl GpuContext {
             .synchronization2(true)
             .maintenance4(true);
         let priorities = [1.0];
-        let queue_info = [vk::DeviceQueueCreateInfo::default()
-            .queue_family_index(queue_family)
-            .queue_priorities(&priorities)];
+        let queue_info =
+            [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
         let device_info = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info).push_next(&mut f13);
         // SAFETY: the features were checked in pick_device.
         let device = unsafe { instance.create_device(physical, &device_info, None) }.vk("vkCreateDevice")?;
@@ -179,7 +178,10 @@ impl Drop for GpuContext {
     }
 }
 
-fn destroy_instance(instance: &ash::Instance, debug: &Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>) {
+fn destroy_instance(
+    instance: &ash::Instance,
+    debug: &Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
+) {
     // SAFETY: nothing created from the instance outlives this call.
     unsafe {
         if let Some((utils, messenger)) = debug {
@@ -198,7 +200,8 @@ fn create_instance(entry: &ash::Entry, validate: bool, log: &ValidationLog) -> G
     let mut extensions: Vec<*const c_char> = Vec::new();
     if validate {
         // SAFETY: plain enumeration.
-        let available = unsafe { entry.enumerate_instance_layer_properties() }.vk("vkEnumerateInstanceLayerProperties")?;
+        let available =
+            unsafe { entry.enumerate_instance_layer_properties() }.vk("vkEnumerateInstanceLayerProperties")?;
         let found = available.iter().any(|l| l.layer_name_as_c_str().is_ok_and(|n| n == VALIDATION_LAYER));
         if !found {
             return Err(GpuError::Unsupported(
@@ -249,9 +252,8 @@ fn pick_device(instance: &ash::Instance, wanted: Option<&str>) -> GpuResult<(vk:
             continue;
         }
         let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
-        let Some(family) = families
-            .iter()
-            .position(|q| q.queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE))
+        let Some(family) =
+            families.iter().position(|q| q.queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE))
         else {
             continue;
         };

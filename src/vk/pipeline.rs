@@ -40,7 +40,12 @@ pub struct PipelineLayout {
 }
 
 impl PipelineLayout {
-    fn new(ctx: &Arc<GpuContext>, bindings: &[(u32, DescriptorKind)], stages: vk::ShaderStageFlags, push_bytes: u32) -> GpuResult<Self> {
+    fn new(
+        ctx: &Arc<GpuContext>,
+        bindings: &[(u32, DescriptorKind)],
+        stages: vk::ShaderStageFlags,
+        push_bytes: u32,
+    ) -> GpuResult<Self> {
         let device = &ctx.device;
         let sampler_info = vk::SamplerCreateInfo::default()
             .mag_filter(vk::Filter::NEAREST)
@@ -70,7 +75,10 @@ impl PipelineLayout {
                 })
                 .collect();
             let set_layout = device
-                .create_descriptor_set_layout(&vk::DescriptorSetLayoutCreateInfo::default().bindings(&vk_bindings), None)
+                .create_descriptor_set_layout(
+                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&vk_bindings),
+                    None,
+                )
                 .vk("vkCreateDescriptorSetLayout")?;
             let set_layouts = [set_layout];
             let ranges = [vk::PushConstantRange { stage_flags: stages, offset: 0, size: push_bytes }];
@@ -100,7 +108,8 @@ impl Drop for PipelineLayout {
 }
 
 fn shader_module(ctx: &GpuContext, spirv: &[u8]) -> GpuResult<vk::ShaderModule> {
-    let words = ash::util::read_spv(&mut Cursor::new(spirv)).map_err(|e| GpuError::Unsupported(format!("bad SPIR-V: {e}")))?;
+    let words =
+        ash::util::read_spv(&mut Cursor::new(spirv)).map_err(|e| GpuError::Unsupported(format!("bad SPIR-V: {e}")))?;
     // SAFETY: the words come from spirv-val-checked SPIR-V built by build.rs.
     unsafe { ctx.device.create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None) }
         .vk("vkCreateShaderModule")
@@ -188,23 +197,34 @@ impl GraphicsPipeline {
             vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vs).name(c"main"),
             vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(fs).name(c"main"),
         ];
-        let vb = [vk::VertexInputBindingDescription { binding: 0, stride: desc.vertex_stride, input_rate: vk::VertexInputRate::VERTEX }];
+        let vb = [vk::VertexInputBindingDescription {
+            binding: 0,
+            stride: desc.vertex_stride,
+            input_rate: vk::VertexInputRate::VERTEX,
+        }];
         let attrs: Vec<_> = desc
             .attributes
             .iter()
-            .map(|&(location, format, offset)| vk::VertexInputAttributeDescription { location, binding: 0, format, offset })
+            .map(|&(location, format, offset)| vk::VertexInputAttributeDescription {
+                location,
+                binding: 0,
+                format,
+                offset,
+            })
             .collect();
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
             .vertex_binding_descriptions(&vb)
             .vertex_attribute_descriptions(&attrs);
-        let assembly = vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let assembly =
+            vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
         let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
         let raster = vk::PipelineRasterizationStateCreateInfo::default()
             .polygon_mode(vk::PolygonMode::FILL)
             .cull_mode(if desc.cull_back_faces { vk::CullModeFlags::BACK } else { vk::CullModeFlags::NONE })
             .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
             .line_width(1.0);
-        let multisample = vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
+        let multisample =
+            vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
         let depth = vk::PipelineDepthStencilStateCreateInfo::default()
             .depth_test_enable(desc.depth_format.is_some())
             .depth_write_enable(desc.depth_format.is_some())

@@ -24,10 +24,8 @@ impl Buffer {
         usage: vk::BufferUsageFlags,
         location: MemoryLocation,
     ) -> GpuResult<Buffer> {
-        let info = vk::BufferCreateInfo::default()
-            .size(size.max(4))
-            .usage(usage)
-            .sharing_mode(vk::SharingMode::EXCLUSIVE);
+        let info =
+            vk::BufferCreateInfo::default().size(size.max(4)).usage(usage).sharing_mode(vk::SharingMode::EXCLUSIVE);
         // SAFETY: valid device and create info; on failure the buffer is destroyed before return.
         unsafe {
             let raw = ctx.device.create_buffer(&info, None).vk("vkCreateBuffer")?;
@@ -46,9 +44,7 @@ impl Buffer {
                     return Err(e.into());
                 }
             };
-            ctx.device
-                .bind_buffer_memory(raw, allocation.memory(), allocation.offset())
-                .vk("vkBindBufferMemory")?;
+            ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()).vk("vkBindBufferMemory")?;
             Ok(Buffer { raw, size, allocation: Some(allocation), ctx: ctx.clone() })
         }
     }
@@ -115,7 +111,11 @@ impl ImageDesc {
     /// Bytes per texel of the formats umbra reads back.
     pub fn texel_size(&self) -> u32 {
         match self.format {
-            vk::Format::R8G8B8A8_UNORM | vk::Format::R8G8B8A8_SRGB | vk::Format::B8G8R8A8_UNORM | vk::Format::R32_SFLOAT | vk::Format::D32_SFLOAT => 4,
+            vk::Format::R8G8B8A8_UNORM
+            | vk::Format::R8G8B8A8_SRGB
+            | vk::Format::B8G8R8A8_UNORM
+            | vk::Format::R32_SFLOAT
+            | vk::Format::D32_SFLOAT => 4,
             vk::Format::R16G16B16A16_SFLOAT => 8,
             vk::Format::R32G32B32A32_SFLOAT => 16,
             f => panic!("texel size of {f:?} is not tabulated"),

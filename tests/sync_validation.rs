@@ -113,6 +113,8 @@ fn run(declare_the_read: bool) -> Vec<String> {
         hits
     };
     g.export(hits, Access::ComputeShaderReadStorageBuffer);
+    // Exported so the upload survives culling even when no pass declares that it reads the rays.
+    g.export(ray_handle, Access::ComputeShaderReadStorageBuffer);
     let plan = CompiledGraph::compile(&g);
     let mut cache = TransientCache::new(&ctx).unwrap();
     ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false)).unwrap();

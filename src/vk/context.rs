@@ -210,6 +210,18 @@ fn create_instance(entry: &ash::Entry, validate: bool, log: &ValidationLog) -> G
         }
         layers.push(VALIDATION_LAYER.as_ptr());
         extensions.push(ash::ext::debug_utils::NAME.as_ptr());
+        // The layer implements VK_EXT_validation_features; enabling it makes the layer honour
+        // the chained VkValidationFeaturesEXT that turns synchronization validation on.
+        // SAFETY: plain enumeration.
+        let layer_extensions = unsafe { entry.enumerate_instance_extension_properties(Some(VALIDATION_LAYER)) }
+            .vk("vkEnumerateInstanceExtensionProperties")?;
+        let name = ash::ext::validation_features::NAME;
+        if !layer_extensions.iter().any(|e| e.extension_name_as_c_str().is_ok_and(|n| n == name)) {
+            return Err(GpuError::Unsupported(
+                "the validation layer lacks VK_EXT_validation_features, needed for synchronization validation".into(),
+            ));
+        }
+        extensions.push(name.as_ptr());
     }
     let enables = [vk::ValidationFeatureEnableEXT::SYNCHRONIZATION_VALIDATION];
     let mut features = vk::ValidationFeaturesEXT::default().enabled_validation_features(&enables);

@@ -4,7 +4,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
 use umbra::output::{write_image, ImageFormat};
@@ -69,7 +69,12 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
 }
 
 fn main() -> ExitCode {
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn")).format_timestamp(None).init();
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
+        .format(|buf, record| {
+            use std::io::Write;
+            writeln!(buf, "{}: {}", record.level().as_str().to_lowercase(), record.args())
+        })
+        .init();
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
@@ -85,6 +90,12 @@ fn main() -> ExitCode {
 
 fn render(args: RenderArgs) -> Result<ExitCode> {
     let format = ImageFormat::from_path(&args.output)?;
+    // Fail before any GPU work if the file could never be written.
+    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+        if !dir.is_dir() {
+            bail!("{}: the directory {} does not exist", args.output.display(), dir.display());
+        }
+    }
     let scene = match &args.scene {
         Some(path) => Scene::load(path)?,
         None => Scene::default_scene(),

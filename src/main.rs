@@ -112,13 +112,15 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();
     let mut renderer = Renderer::new(ctx.clone(), scene).context("preparing the scene")?;
-    if args.print_plan {
-        println!("{}", renderer.plan(&settings));
-    }
     let mut per_pass: Vec<(&'static str, Vec<f64>)> = Vec::new();
     let mut frame = None;
-    for _ in 0..args.frames {
+    for i in 0..args.frames {
         frame = Some(renderer.render(&settings)?);
+        if i == 0 && args.print_plan {
+            if let Some(plan) = renderer.last_plan() {
+                println!("{plan}");
+            }
+        }
         if args.timings {
             for (i, (name, ms)) in renderer.last_timings()?.into_iter().enumerate() {
                 if per_pass.len() <= i {

@@ -157,6 +157,7 @@ pub struct Renderer {
     // Field order is drop order: everything on the device goes before the context.
     cache: TransientCache,
     readback: Option<Buffer>,
+    last_plan: Option<CompiledGraph>,
     pipelines: Pipelines,
     pub gpu_scene: SceneGpu,
     scene: Scene,
@@ -187,6 +188,7 @@ impl Renderer {
         Ok(Renderer {
             cache: TransientCache::new(&ctx)?,
             readback: None,
+            last_plan: None,
             pipelines: Pipelines::new(&ctx)?,
             gpu_scene: SceneGpu::upload(&ctx, &scene, &bvh)?,
             scene,
@@ -239,7 +241,14 @@ impl Renderer {
         let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, Some(readback));
         let plan = CompiledGraph::compile(&graph);
         log::debug!("{plan}");
-        ctx.submit_and_wait(|cmd| cache.execute(graph, &plan, cmd, settings.timestamps))
+        let result = ctx.submit_and_wait(|cmd| cache.execute(graph, &plan, cmd, settings.timestamps));
+        self.last_plan = Some(plan);
+        result
+    }
+
+    /// The plan of the last rendered frame, read-back included.
+    pub fn last_plan(&self) -> Option<&CompiledGraph> {
+        self.last_plan.as_ref()
     }
 
     /// Per-pass GPU milliseconds of the last frame (empty without timestamp support).

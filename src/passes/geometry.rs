@@ -8,7 +8,14 @@ use glam::{Mat4, Vec4};
 use super::{GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT};
 use crate::graph::{Access, BufferKind, Handle, ImageDesc, RenderGraph};
 use crate::renderer::{CameraMatrices, SceneGpu, Vertex};
-use crate::vk::{spirv, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
+use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
+
+// The colour attachments below are listed in the order gbuffer.glsl gives their locations.
+const _: () = assert!(
+    bindings::GBUFFER_POSITION_LOCATION == 0
+        && bindings::GBUFFER_NORMAL_LOCATION == 1
+        && bindings::GBUFFER_MATERIAL_LOCATION == 2
+);
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]

@@ -16,7 +16,7 @@ pub mod spirv {
     include!(concat!(env!("OUT_DIR"), "/shaders.rs"));
 }
 
-/// Descriptor binding numbers, defined once in `shaders/include/bindings.glsl`.
+/// Descriptor binding numbers and G-buffer locations, defined once in `shaders/include/`.
 pub mod bindings {
     include!(concat!(env!("OUT_DIR"), "/bindings.rs"));
 }

@@ -19,8 +19,13 @@ layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLig
 layout(set = 0, binding = SHADOW_VISIBILITY, std430) writeonly buffer Visibility { float visibility[]; };
 
 layout(push_constant) uniform Push {
-    uvec4 dims; // x: width, y: height, z: light count
+    uvec4 dims;   // x: width, y: height, z: light count
+    uvec4 traced; // bit i: light i casts ray-traced shadows (lights past 128 always do)
 } pc;
+
+bool is_traced(uint light) {
+    return light >= 128u || ((pc.traced[light / 32u] >> (light % 32u)) & 1u) != 0u;
+}
 
 void main() {
     uvec2 px = gl_GlobalInvocationID.xy;
@@ -38,6 +43,8 @@ void main() {
             light_sample(lights[i], position.xyz, L, dist, e);
             if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
                 v = 0.0;
+            } else if (!is_traced(i)) {
+                v = 1.0;
             } else {
                 vec3 origin = offset_ray_origin(position.xyz, n);
                 // The light's own position is not an occluder: stop just short of it.

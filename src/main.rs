@@ -9,7 +9,7 @@ use clap::{Parser, Subcommand};
 
 use umbra::output::{write_image, ImageFormat};
 use umbra::passes::debug_view::DebugView;
-use umbra::renderer::{OutputKind, RenderSettings, Renderer};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowMethod};
 use umbra::scene::Scene;
 use umbra::vk::{GpuContext, GpuOptions};
 
@@ -51,6 +51,9 @@ struct RenderArgs {
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     exposure: f32,
+    /// Shadow method for every light.
+    #[arg(long, value_enum, default_value_t = ShadowMethod::RayTraced)]
+    shadows: ShadowMethod,
     /// Use the Vulkan device whose name contains this text.
     #[arg(long)]
     device: Option<String>,
@@ -108,6 +111,8 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         debug_view: args.debug_view,
         output: if format == ImageFormat::Png { OutputKind::Display } else { OutputKind::SceneLinear },
         timestamps: args.timings,
+        camera: None,
+        shadows: vec![args.shadows; scene.lights.len()],
     };
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();

@@ -9,11 +9,12 @@ use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
 use crate::passes::debug_view::{self, DebugInputs, DebugView};
-use crate::passes::{compose, geometry, readback, shadow_trace, tonemap, Pipelines};
+use crate::passes::overlay::OverlayInputs;
+use crate::passes::{compose, geometry, overlay, present, readback, shadow_trace, tonemap, Pipelines};
 use crate::scene::bvh::ShadowBvh;
-use crate::scene::{Material, Scene};
+use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
-use crate::vk::{Buffer, GpuContext, GpuError, GpuResult};
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, ImageDesc};
 
 /// Radiance of pixels no surface covers, W/(m^2 sr): a dim, neutral backdrop.
 pub const BACKGROUND: Vec3 = Vec3::new(0.02, 0.022, 0.025);
@@ -28,6 +29,59 @@ pub struct RenderSettings {
     pub debug_view: Option<DebugView>,
     pub output: OutputKind,
     pub timestamps: bool,
+    /// Overrides the scene's camera (the viewer's fly camera).
+    pub camera: Option<Camera>,
+    /// Shadow method per light, in scene order; lights past the end are ray traced.
+    pub shadows: Vec<ShadowMethod>,
+}
+
+impl RenderSettings {
+    /// Settings for a `width` x `height` capture of the scene as authored.
+    pub fn new(width: u32, height: u32, output: OutputKind) -> RenderSettings {
+        RenderSettings {
+            width,
+            height,
+            exposure_ev: 0.0,
+            debug_view: None,
+            output,
+            timestamps: false,
+            camera: None,
+            shadows: Vec::new(),
+        }
+    }
+
+    pub fn shadow_method(&self, light: usize) -> ShadowMethod {
+        self.shadows.get(light).copied().unwrap_or_default()
+    }
+}
+
+/// How a light's shadows are made.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+pub enum ShadowMethod {
+    /// One any-hit ray per pixel through the BVH.
+    #[default]
+    RayTraced,
+    /// Unshadowed: the light reaches every surface facing it.
+    None,
+}
+
+impl ShadowMethod {
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadowMethod::RayTraced => "ray traced (hard)",
+            ShadowMethod::None => "none",
+        }
+    }
+}
+
+/// Where a frame's result goes.
+pub enum Target<'a> {
+    /// Copied into a host-visible buffer.
+    ReadBack(&'a Buffer),
+    /// Blitted into an acquired swapchain image, with the overlay drawn first when given.
+    Present { image: vk::Image, view: vk::ImageView, desc: ImageDesc, overlay: Option<OverlayInputs<'a>> },
+    /// Left in the graph (for plans and tests).
+    Inspect,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -132,8 +186,7 @@ pub struct CameraMatrices {
 }
 
 impl CameraMatrices {
-    pub fn new(scene: &Scene, bounds: (Vec3, Vec3), width: u32, height: u32) -> CameraMatrices {
-        let cam = scene.camera;
+    pub fn new(cam: &Camera, bounds: (Vec3, Vec3), width: u32, height: u32) -> CameraMatrices {
         // Near and far from the scene's extent: depth precision follows the scene's scale.
         let (lo, hi) = bounds;
         let centre = (lo + hi) * 0.5;
@@ -200,9 +253,28 @@ impl Renderer {
         &self.scene
     }
 
+    fn build_graph<'a>(&'a self, settings: &RenderSettings, target: Target<'a>) -> RenderGraph<'a> {
+        build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, target)
+    }
+
     /// The compiled plan for `settings`, for printing and inspection.
     pub fn plan(&self, settings: &RenderSettings) -> CompiledGraph {
-        CompiledGraph::compile(&build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, None))
+        CompiledGraph::compile(&self.build_graph(settings, Target::Inspect))
+    }
+
+    pub fn pipelines(&self) -> &Pipelines {
+        &self.pipelines
+    }
+
+    /// Records one frame into `cmd` using `cache` (one per frame in flight); returns its plan.
+    pub fn record(
+        &self,
+        cache: &mut TransientCache,
+        cmd: vk::CommandBuffer,
+        settings: &RenderSettings,
+        target: Target<'_>,
+    ) -> GpuResult<CompiledGraph> {
+        record_frame(&self.pipelines, &self.gpu_scene, &self.scene, cache, cmd, settings, target)
     }
     /// Renders one frame and reads it back.
     pub fn render(&mut self, settings: &RenderSettings) -> GpuResult<Frame> {
@@ -237,13 +309,12 @@ impl Renderer {
     }
 
     fn record_and_submit(&mut self, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
-        let Renderer { cache, ctx, .. } = self;
-        let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, Some(readback));
-        let plan = CompiledGraph::compile(&graph);
-        log::debug!("{plan}");
-        let result = ctx.submit_and_wait(|cmd| cache.execute(graph, &plan, cmd, settings.timestamps));
-        self.last_plan = Some(plan);
-        result
+        let Renderer { cache, ctx, pipelines, gpu_scene, scene, last_plan, .. } = self;
+        let plan = ctx.submit_and_wait(|cmd| {
+            record_frame(pipelines, gpu_scene, scene, cache, cmd, settings, Target::ReadBack(readback))
+        })?;
+        *last_plan = Some(plan);
+        Ok(())
     }
 
     /// The plan of the last rendered frame, read-back included.
@@ -256,17 +327,32 @@ impl Renderer {
         self.cache.read_timings()
     }
 }
+fn record_frame(
+    pipelines: &Pipelines,
+    gpu_scene: &SceneGpu,
+    scene: &Scene,
+    cache: &mut TransientCache,
+    cmd: vk::CommandBuffer,
+    settings: &RenderSettings,
+    target: Target<'_>,
+) -> GpuResult<CompiledGraph> {
+    let graph = build_graph(pipelines, gpu_scene, scene, settings, target);
+    let plan = CompiledGraph::compile(&graph);
+    log::debug!("{plan}");
+    cache.execute(graph, &plan, cmd, settings.timestamps)?;
+    Ok(plan)
+}
 
-/// Builds the frame's graph. `readback` receives the output when given.
+/// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
 fn build_graph<'a>(
     pipelines: &'a Pipelines,
     s: &'a SceneGpu,
     scene: &Scene,
     settings: &RenderSettings,
-    readback: Option<&'a Buffer>,
+    target: Target<'a>,
 ) -> RenderGraph<'a> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
-    let camera = CameraMatrices::new(scene, s.bounds, extent.width, extent.height);
+    let camera = CameraMatrices::new(&settings.camera.unwrap_or(scene.camera), s.bounds, extent.width, extent.height);
     let mut g = RenderGraph::new();
     let vertices = g.import_buffer("vertices", s.vertices.raw, s.vertices.size, Access::HostWrite);
     let indices = g.import_buffer("indices", s.indices.raw, s.indices.size, Access::HostWrite);
@@ -276,7 +362,10 @@ fn build_graph<'a>(
     // Shadow rays only where something can cast a shadow on a lit point, or where the
     // visibility view asks for them.
     let wants_visibility = settings.debug_view == Some(DebugView::Visibility);
-    let visibility = (s.light_count > 0 && (s.has_casters || wants_visibility)).then(|| {
+    let traced: Vec<bool> =
+        (0..s.light_count as usize).map(|i| settings.shadow_method(i) == ShadowMethod::RayTraced).collect();
+    let any_traced = traced.iter().any(|&t| t);
+    let visibility = (s.light_count > 0 && ((s.has_casters && any_traced) || wants_visibility)).then(|| {
         let nodes = g.import_buffer("bvh nodes", s.bvh_nodes.raw, s.bvh_nodes.size, Access::HostWrite);
         let tris = g.import_buffer("bvh triangles", s.bvh_triangles.raw, s.bvh_triangles.size, Access::HostWrite);
         let inputs = shadow_trace::ShadowInputs {
@@ -284,6 +373,7 @@ fn build_graph<'a>(
             light_count: s.light_count,
             bvh_nodes: &nodes,
             bvh_triangles: &tris,
+            traced: &traced,
         };
         shadow_trace::add(&mut g, &pipelines.shadow_trace, &gbuffer, inputs, extent)
     });
@@ -312,9 +402,23 @@ fn build_graph<'a>(
             }
         }
     };
-    match readback {
-        Some(buffer) => readback::add(&mut g, &result, buffer),
-        None => g.export(result, Access::ComputeShaderReadSampledImage),
+    match target {
+        Target::ReadBack(buffer) => readback::add(&mut g, &result, buffer),
+        Target::Present { image, view, desc, overlay } => {
+            let mut canvas = result;
+            if let Some(inputs) = overlay {
+                if settings.debug_view.is_some() {
+                    // Debug views are float; the overlay draws on 8-bit display values.
+                    let display = ImageDesc::new(crate::passes::DISPLAY_FORMAT, extent.width, extent.height);
+                    let mut converted = g.create_image("overlay canvas", display);
+                    present::blit(&mut g, &canvas, &mut converted);
+                    canvas = converted;
+                }
+                overlay::add(&mut g, &inputs, &mut canvas, extent);
+            }
+            present::add(&mut g, &canvas, (image, view, desc));
+        }
+        Target::Inspect => g.export(result, Access::ComputeShaderReadSampledImage),
     }
     g
 }

@@ -30,4 +30,9 @@
 #define RAYS_BVH_TRIANGLES 2
 #define RAYS_OUTPUT 3
 
+// overlay.comp: text over the presented image
+#define OVERLAY_CANVAS 0
+#define OVERLAY_GLYPHS 1
+#define OVERLAY_TEXT 2
+
 #endif

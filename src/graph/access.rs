@@ -27,6 +27,12 @@ pub enum Access {
     /// Depth test and write (the depth attachment of a geometry pass).
     DepthAttachmentWrite,
     TransferWrite,
+    /// Read back by a compute shader as a storage image (read-modify-write passes).
+    ComputeShaderReadStorageImage,
+    /// A swapchain image just acquired: contents undefined, usable once the acquire
+    /// semaphore's wait (at the copy stage, where umbra first writes it) has completed. Counted
+    /// as a write so the first use orders itself after that stage.
+    AcquiredImage,
     /// Handed to the presentation engine (swapchain images).
     Present,
 }
@@ -58,6 +64,7 @@ impl Access {
                 | Access::ColorAttachmentWrite
                 | Access::DepthAttachmentWrite
                 | Access::TransferWrite
+                | Access::AcquiredImage
         )
     }
 
@@ -147,6 +154,10 @@ impl Access {
             Access::TransferWrite => {
                 (S::COPY, A::TRANSFER_WRITE, L::TRANSFER_DST_OPTIMAL, I::TRANSFER_DST, B::TRANSFER_DST, Applies::Both)
             }
+            Access::ComputeShaderReadStorageImage => {
+                (S::COMPUTE_SHADER, A::SHADER_STORAGE_READ, L::GENERAL, I::STORAGE, B::empty(), Applies::Image)
+            }
+            Access::AcquiredImage => (S::COPY, A::NONE, L::UNDEFINED, I::empty(), B::empty(), Applies::Image),
             Access::Present => (S::NONE, A::NONE, L::PRESENT_SRC_KHR, I::empty(), B::empty(), Applies::Image),
         };
         AccessInfo { stage, access, layout, image_usage, buffer_usage, applies }
@@ -182,6 +193,8 @@ mod tests {
         Access::ColorAttachmentWrite,
         Access::DepthAttachmentWrite,
         Access::TransferWrite,
+        Access::ComputeShaderReadStorageImage,
+        Access::AcquiredImage,
         Access::Present,
     ];
 
@@ -193,7 +206,9 @@ mod tests {
             | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE
             | vk::AccessFlags2::TRANSFER_WRITE;
         for &a in ALL {
-            assert_eq!(a.is_write(), a.info().access.intersects(write_bits), "{a:?}");
+            // An acquired swapchain image is a write with no memory access of its own.
+            let expected = a.info().access.intersects(write_bits) || a == Access::AcquiredImage;
+            assert_eq!(a.is_write(), expected, "{a:?}");
         }
     }
 
@@ -201,7 +216,7 @@ mod tests {
     fn image_accesses_name_a_layout_and_buffer_only_ones_do_not_need_one() {
         for &a in ALL {
             let info = a.info();
-            if info.applies == Applies::Image && a != Access::Nothing {
+            if info.applies == Applies::Image && a != Access::Nothing && a != Access::AcquiredImage {
                 assert_ne!(info.layout, vk::ImageLayout::UNDEFINED, "{a:?}");
             }
         }

@@ -4,6 +4,8 @@
 pub mod compose;
 pub mod debug_view;
 pub mod geometry;
+pub mod overlay;
+pub mod present;
 pub mod ray_batch;
 pub mod readback;
 pub mod shadow_trace;

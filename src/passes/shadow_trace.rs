@@ -24,7 +24,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
             storage(SHADOW_BVH_TRIANGLES),
             storage(SHADOW_VISIBILITY),
         ],
-        16,
+        32,
         TILE,
     )
 }
@@ -39,6 +39,8 @@ pub struct ShadowInputs<'h> {
     pub light_count: u32,
     pub bvh_nodes: &'h Handle<BufferKind>,
     pub bvh_triangles: &'h Handle<BufferKind>,
+    /// Per light: trace rays (true) or leave it unshadowed.
+    pub traced: &'h [bool],
 }
 
 pub fn add<'a>(
@@ -58,7 +60,13 @@ pub fn add<'a>(
         (SHADOW_BVH_TRIANGLES, Bound::Buffer(pass.read(inputs.bvh_triangles, Access::ComputeShaderReadStorageBuffer))),
         (SHADOW_VISIBILITY, Bound::Buffer(pass.write(&mut visibility, Access::ComputeShaderWrite))),
     ];
-    let push = UVec4::new(extent.width, extent.height, inputs.light_count, 0);
-    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    let mut mask = [0u32; 4];
+    for (i, _) in inputs.traced.iter().enumerate().filter(|(_, &t)| t) {
+        if i < 128 {
+            mask[i / 32] |= 1 << (i % 32);
+        }
+    }
+    let push = [UVec4::new(extent.width, extent.height, inputs.light_count, 0), UVec4::from_array(mask)];
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), extent.width, extent.height));
     visibility
 }

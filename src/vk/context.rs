@@ -8,6 +8,7 @@ use std::sync::{Arc, Mutex};
 
 use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+use raw_window_handle::{RawDisplayHandle, RawWindowHandle};
 
 use super::debug::{messenger_info, ValidationLog};
 use super::{GpuError, GpuResult, VkContext};
@@ -33,6 +34,9 @@ pub struct GpuContext {
     /// Nanoseconds per timestamp tick, or None where the queue cannot write timestamps.
     pub timestamp_period_ns: Option<f32>,
     pub(super) allocator: ManuallyDrop<Mutex<Allocator>>,
+    /// Present only for contexts made `with_window`.
+    pub surface_loader: Option<ash::khr::surface::Instance>,
+    pub swapchain_loader: Option<ash::khr::swapchain::Device>,
     command_pool: vk::CommandPool,
     debug: Option<(ash::ext::debug_utils::Instance, vk::DebugUtilsMessengerEXT)>,
     // Boxed so its address, handed to the driver as user data, never moves.
@@ -42,10 +46,32 @@ pub struct GpuContext {
 impl GpuContext {
     /// Shared: buffers and images hold an `Arc` so the device outlives every resource made on it.
     pub fn new(options: &GpuOptions) -> GpuResult<Arc<GpuContext>> {
+        Self::create(options, None).map(|(ctx, _)| ctx)
+    }
+
+    /// A context that can present to `window`: the device chosen must present to its surface.
+    pub fn with_window(
+        options: &GpuOptions,
+        display: RawDisplayHandle,
+        window: RawWindowHandle,
+    ) -> GpuResult<(Arc<GpuContext>, WindowSurface)> {
+        let (ctx, surface) = Self::create(options, Some((display, window)))?;
+        let raw = surface.expect("a surface was asked for");
+        Ok((ctx.clone(), WindowSurface { raw, ctx }))
+    }
+
+    fn create(
+        options: &GpuOptions,
+        window: Option<(RawDisplayHandle, RawWindowHandle)>,
+    ) -> GpuResult<(Arc<GpuContext>, Option<vk::SurfaceKHR>)> {
         // SAFETY: loading the system Vulkan loader; its symbols are trusted from here on.
         let entry = unsafe { ash::Entry::load()? };
         let validation = Box::<ValidationLog>::default();
-        let instance = create_instance(&entry, options.validate, &validation)?;
+        let window_extensions = match window {
+            Some((display, _)) => ash_window::enumerate_required_extensions(display).vk("surface extensions")?.to_vec(),
+            None => Vec::new(),
+        };
+        let instance = create_instance(&entry, options.validate, &validation, &window_extensions)?;
         let debug = if options.validate {
             let utils = ash::ext::debug_utils::Instance::new(&entry, &instance);
             // SAFETY: valid instance; the log outlives the messenger (destroyed in Drop first).
@@ -55,9 +81,28 @@ impl GpuContext {
         } else {
             None
         };
-        let (physical, queue_family) = match pick_device(&instance, options.device_name.as_deref()) {
+        let surface_loader = window.map(|_| ash::khr::surface::Instance::new(&entry, &instance));
+        let surface = match window {
+            // SAFETY: the handles come from a live winit window that outlives the surface.
+            Some((display, win)) => {
+                match unsafe { ash_window::create_surface(&entry, &instance, display, win, None) } {
+                    Ok(s) => Some(s),
+                    Err(e) => {
+                        destroy_instance(&instance, &debug);
+                        return Err(GpuError::Vk { call: "vkCreate*SurfaceKHR", result: e });
+                    }
+                }
+            }
+            None => None,
+        };
+        let present = surface_loader.as_ref().zip(surface);
+        let (physical, queue_family) = match pick_device(&instance, options.device_name.as_deref(), present) {
             Ok(found) => found,
             Err(e) => {
+                if let Some((loader, s)) = present {
+                    // SAFETY: nothing else uses the surface yet.
+                    unsafe { loader.destroy_surface(s, None) };
+                }
                 destroy_instance(&instance, &debug);
                 return Err(e);
             }
@@ -79,7 +124,12 @@ impl GpuContext {
         let priorities = [1.0];
         let queue_info =
             [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
-        let device_info = vk::DeviceCreateInfo::default().queue_create_infos(&queue_info).push_next(&mut f13);
+        let device_extensions: Vec<*const c_char> =
+            if window.is_some() { vec![ash::khr::swapchain::NAME.as_ptr()] } else { Vec::new() };
+        let device_info = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queue_info)
+            .enabled_extension_names(&device_extensions)
+            .push_next(&mut f13);
         // SAFETY: the features were checked in pick_device.
         let device = unsafe { instance.create_device(physical, &device_info, None) }.vk("vkCreateDevice")?;
         // SAFETY: queue 0 of the family we created.
@@ -97,7 +147,10 @@ impl GpuContext {
             .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER);
         // SAFETY: valid device.
         let command_pool = unsafe { device.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
+        let swapchain_loader = window.map(|_| ash::khr::swapchain::Device::new(&instance, &device));
         let ctx = GpuContext {
+            surface_loader,
+            swapchain_loader,
             entry,
             instance,
             physical,
@@ -112,7 +165,7 @@ impl GpuContext {
             validation,
         };
         log::info!("device: {} (Vulkan {})", ctx.device_name(), version_string(properties.api_version));
-        Ok(Arc::new(ctx))
+        Ok((Arc::new(ctx), surface))
     }
 
     pub fn device_name(&self) -> String {
@@ -191,13 +244,18 @@ fn destroy_instance(
     }
 }
 
-fn create_instance(entry: &ash::Entry, validate: bool, log: &ValidationLog) -> GpuResult<ash::Instance> {
+fn create_instance(
+    entry: &ash::Entry,
+    validate: bool,
+    log: &ValidationLog,
+    window_extensions: &[*const c_char],
+) -> GpuResult<ash::Instance> {
     let app = vk::ApplicationInfo::default()
         .application_name(c"umbra")
         .engine_name(c"umbra")
         .api_version(vk::API_VERSION_1_3);
     let mut layers: Vec<*const c_char> = Vec::new();
-    let mut extensions: Vec<*const c_char> = Vec::new();
+    let mut extensions: Vec<*const c_char> = window_extensions.to_vec();
     if validate {
         // SAFETY: plain enumeration.
         let available =
@@ -238,7 +296,11 @@ fn create_instance(entry: &ash::Entry, validate: bool, log: &ValidationLog) -> G
     unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")
 }
 
-fn pick_device(instance: &ash::Instance, wanted: Option<&str>) -> GpuResult<(vk::PhysicalDevice, u32)> {
+fn pick_device(
+    instance: &ash::Instance,
+    wanted: Option<&str>,
+    present: Option<(&ash::khr::surface::Instance, vk::SurfaceKHR)>,
+) -> GpuResult<(vk::PhysicalDevice, u32)> {
     // SAFETY: enumeration and property queries on a valid instance.
     let devices = unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
     let mut candidates = Vec::new();
@@ -264,9 +326,16 @@ fn pick_device(instance: &ash::Instance, wanted: Option<&str>) -> GpuResult<(vk:
             continue;
         }
         let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
-        let Some(family) =
-            families.iter().position(|q| q.queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE))
-        else {
+        let presents = |family: usize| {
+            present.is_none_or(|(loader, surface)| {
+                // SAFETY: valid device, family index and surface.
+                unsafe { loader.get_physical_device_surface_support(pd, family as u32, surface) }.unwrap_or(false)
+            })
+        };
+        let Some(family) = (0..families.len()).find(|&i| {
+            families[i].queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE) && presents(i)
+        }) else {
+            log::info!("skipping {name}: no queue family with graphics and compute (and presentation)");
             continue;
         };
         let rank = match props.device_type {
@@ -294,4 +363,25 @@ fn pick_device(instance: &ash::Instance, wanted: Option<&str>) -> GpuResult<(vk:
 
 fn version_string(v: u32) -> String {
     format!("{}.{}.{}", vk::api_version_major(v), vk::api_version_minor(v), vk::api_version_patch(v))
+}
+
+/// A window's Vulkan surface; destroyed before the context that made it.
+pub struct WindowSurface {
+    pub raw: vk::SurfaceKHR,
+    ctx: Arc<GpuContext>,
+}
+
+impl WindowSurface {
+    pub fn ctx(&self) -> &Arc<GpuContext> {
+        &self.ctx
+    }
+}
+
+impl Drop for WindowSurface {
+    fn drop(&mut self) {
+        if let Some(loader) = &self.ctx.surface_loader {
+            // SAFETY: the swapchain made from this surface is gone (it holds the surface's owner).
+            unsafe { loader.destroy_surface(self.raw, None) };
+        }
+    }
 }

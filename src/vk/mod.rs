@@ -5,11 +5,13 @@ mod context;
 mod debug;
 mod pipeline;
 mod resources;
+mod swapchain;
 
-pub use context::{GpuContext, GpuOptions};
+pub use context::{GpuContext, GpuOptions, WindowSurface};
 pub use debug::ValidationLog;
 pub use pipeline::{ComputePipeline, DescriptorKind, GraphicsPipeline, GraphicsPipelineDesc, PipelineLayout};
 pub use resources::{subresource_range, Buffer, Image, ImageDesc};
+pub use swapchain::{Acquired, Swapchain};
 
 /// SPIR-V produced by build.rs from `shaders/`.
 pub mod spirv {

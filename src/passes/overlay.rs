@@ -1,0 +1,89 @@
+//! Overlay pass: the viewer's text (frame rate, pass timings, scene and shadow settings) drawn
+//! over the display image with the public-domain font8x8 glyphs.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::UVec4;
+
+use super::{storage, storage_image, TILE};
+use crate::graph::{Access, Bound, BufferKind, Handle, ImageKind, RenderGraph};
+use crate::vk::bindings::*;
+use crate::vk::{spirv, Buffer, ComputePipeline, GpuContext, GpuResult};
+
+/// Glyph rows of the printable ASCII range, 8 bytes per character, for the shader.
+pub fn glyph_words() -> Vec<u32> {
+    font8x8::legacy::BASIC_LEGACY
+        .iter()
+        .flat_map(|g| [u32::from_le_bytes([g[0], g[1], g[2], g[3]]), u32::from_le_bytes([g[4], g[5], g[6], g[7]])])
+        .collect()
+}
+
+pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(
+        ctx,
+        "overlay",
+        spirv::OVERLAY_COMP,
+        &[storage_image(OVERLAY_CANVAS), storage(OVERLAY_GLYPHS), storage(OVERLAY_TEXT)],
+        32,
+        TILE,
+    )
+}
+
+/// Text laid out in a fixed grid of `columns` x `rows` characters.
+pub struct OverlayText {
+    pub columns: u32,
+    pub rows: u32,
+    pub chars: Vec<u32>,
+}
+
+impl OverlayText {
+    pub fn new(lines: &[String]) -> OverlayText {
+        let columns = lines.iter().map(|l| l.chars().count()).max().unwrap_or(0).max(1) as u32;
+        let rows = lines.len().max(1) as u32;
+        let mut chars = vec![u32::from(b' '); (columns * rows) as usize];
+        for (r, line) in lines.iter().enumerate() {
+            for (c, ch) in line.chars().enumerate() {
+                chars[r * columns as usize + c] = if ch.is_ascii() { ch as u32 } else { u32::from(b'?') };
+            }
+        }
+        OverlayText { columns, rows, chars }
+    }
+}
+
+/// The overlay's inputs: its pipeline, the glyph buffer and this frame's text buffer (both
+/// host-written and imported).
+pub struct OverlayInputs<'a> {
+    pub pipeline: &'a ComputePipeline,
+    pub glyphs: &'a Buffer,
+    pub text: &'a Buffer,
+    pub columns: u32,
+    pub rows: u32,
+    pub scale: u32,
+}
+
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    inputs: &OverlayInputs<'a>,
+    canvas: &mut Handle<ImageKind>,
+    extent: vk::Extent2D,
+) {
+    let glyphs: Handle<BufferKind> =
+        graph.import_buffer("glyphs", inputs.glyphs.raw, inputs.glyphs.size, Access::HostWrite);
+    let text = graph.import_buffer("overlay text", inputs.text.raw, inputs.text.size, Access::HostWrite);
+    let mut pass = graph.add_pass("overlay");
+    pass.read(canvas, Access::ComputeShaderReadStorageImage);
+    let bound = [
+        (OVERLAY_CANVAS, Bound::Image(pass.write(canvas, Access::ComputeShaderWrite))),
+        (OVERLAY_GLYPHS, Bound::Buffer(pass.read(&glyphs, Access::ComputeShaderReadStorageBuffer))),
+        (OVERLAY_TEXT, Bound::Buffer(pass.read(&text, Access::ComputeShaderReadStorageBuffer))),
+    ];
+    let margin = 4 * inputs.scale;
+    let push =
+        [UVec4::new(inputs.columns, inputs.rows, inputs.scale, margin), UVec4::new(extent.width, extent.height, 0, 0)];
+    let (w, h) = (inputs.columns * 8 * inputs.scale + 2 * margin, inputs.rows * 8 * inputs.scale + 2 * margin);
+    let pipeline = inputs.pipeline;
+    pass.render(move |ctx| {
+        ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), w.min(extent.width), h.min(extent.height))
+    });
+}

@@ -1,0 +1,64 @@
+//! Present pass: blits the finished image into the acquired swapchain image (converting format
+//! and swizzle), which the graph then exports for presentation.
+
+use ash::vk;
+
+use crate::graph::{Access, Handle, ImageDesc, ImageKind, RenderGraph};
+
+pub fn add(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, swapchain: (vk::Image, vk::ImageView, ImageDesc)) {
+    let (image, view, desc) = swapchain;
+    let crate::graph::ResourceDesc::Image(src_desc) = graph.describe(source.id()).1 else {
+        unreachable!("an image handle")
+    };
+    let mut target = graph.import_image("swapchain image", desc, image, view, Access::AcquiredImage);
+    blit_named(graph, "present blit", source, &mut target, src_desc, desc);
+    graph.export(target, Access::Present);
+}
+
+/// Copies `source` into `target`, converting format and scaling to fit.
+pub fn blit(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, target: &mut Handle<ImageKind>) {
+    let desc = |h: &Handle<ImageKind>, g: &RenderGraph<'_>| match g.describe(h.id()).1 {
+        crate::graph::ResourceDesc::Image(d) => d,
+        crate::graph::ResourceDesc::Buffer(_) => unreachable!("an image handle"),
+    };
+    let (s, d) = (desc(source, graph), desc(target, graph));
+    blit_named(graph, "blit", source, target, s, d);
+}
+
+fn blit_named(
+    graph: &mut RenderGraph<'_>,
+    name: &'static str,
+    source: &Handle<ImageKind>,
+    target: &mut Handle<ImageKind>,
+    src_desc: ImageDesc,
+    desc: ImageDesc,
+) {
+    let mut pass = graph.add_pass(name);
+    let src = pass.read(source, Access::TransferRead);
+    let dst = pass.write(target, Access::TransferWrite);
+    pass.render(move |ctx| {
+        let layers = vk::ImageSubresourceLayers {
+            aspect_mask: vk::ImageAspectFlags::COLOR,
+            mip_level: 0,
+            base_array_layer: 0,
+            layer_count: 1,
+        };
+        let corner = |d: &ImageDesc| vk::Offset3D { x: d.width as i32, y: d.height as i32, z: 1 };
+        let region = vk::ImageBlit2::default()
+            .src_subresource(layers)
+            .src_offsets([vk::Offset3D::default(), corner(&src_desc)])
+            .dst_subresource(layers)
+            .dst_offsets([vk::Offset3D::default(), corner(&desc)]);
+        let regions = [region];
+        let blit = vk::BlitImageInfo2::default()
+            .src_image(ctx.image(src).0)
+            .src_image_layout(Access::TransferRead.info().layout)
+            .dst_image(ctx.image(dst).0)
+            .dst_image_layout(Access::TransferWrite.info().layout)
+            .regions(&regions)
+            .filter(vk::Filter::NEAREST);
+        // SAFETY: recording state; both images are resolved for this frame.
+        unsafe { ctx.device.cmd_blit_image2(ctx.cmd, &blit) };
+        Ok(())
+    });
+}

@@ -1,0 +1,172 @@
+//! The swapchain: mailbox where offered (no tearing, lowest latency), else FIFO; recreated on
+//! resize or when the surface reports it out of date. Its images enter each frame's graph as
+//! imports and leave it as exports for presentation.
+
+use std::sync::Arc;
+
+use ash::vk;
+
+use super::{GpuContext, GpuError, GpuResult, ImageDesc, VkContext, WindowSurface};
+
+pub struct Swapchain {
+    pub raw: vk::SwapchainKHR,
+    pub images: Vec<vk::Image>,
+    pub views: Vec<vk::ImageView>,
+    pub format: vk::Format,
+    pub extent: vk::Extent2D,
+    pub present_mode: vk::PresentModeKHR,
+    /// Signalled when an image's rendering is done, one per image so that a semaphore is never
+    /// reused while a presentation may still wait on it.
+    pub render_done: Vec<vk::Semaphore>,
+    ctx: Arc<GpuContext>,
+}
+
+/// What acquiring an image gave.
+pub enum Acquired {
+    Image { index: u32, suboptimal: bool },
+    OutOfDate,
+}
+
+impl Swapchain {
+    /// A swapchain for `surface` of about `width` x `height` (the surface may insist on its own
+    /// extent). `old` is retired if given.
+    pub fn new(surface: &WindowSurface, width: u32, height: u32, old: Option<&Swapchain>) -> GpuResult<Swapchain> {
+        let ctx = surface.ctx().clone();
+        let surface_loader = ctx.surface_loader.as_ref().expect("a windowed context");
+        let loader = ctx.swapchain_loader.as_ref().expect("a windowed context");
+        // SAFETY: queries on a valid device and surface.
+        let (caps, formats, modes) = unsafe {
+            (
+                surface_loader
+                    .get_physical_device_surface_capabilities(ctx.physical, surface.raw)
+                    .vk("vkGetPhysicalDeviceSurfaceCapabilitiesKHR")?,
+                surface_loader
+                    .get_physical_device_surface_formats(ctx.physical, surface.raw)
+                    .vk("vkGetPhysicalDeviceSurfaceFormatsKHR")?,
+                surface_loader
+                    .get_physical_device_surface_present_modes(ctx.physical, surface.raw)
+                    .vk("vkGetPhysicalDeviceSurfacePresentModesKHR")?,
+            )
+        };
+        // UNORM formats: the tone-map pass writes sRGB-encoded values itself.
+        let format = formats
+            .iter()
+            .find(|f| {
+                matches!(f.format, vk::Format::B8G8R8A8_UNORM | vk::Format::R8G8B8A8_UNORM)
+                    && f.color_space == vk::ColorSpaceKHR::SRGB_NONLINEAR
+            })
+            .or(formats.first())
+            .copied()
+            .ok_or_else(|| GpuError::Unsupported("the surface offers no formats".into()))?;
+        let present_mode = if modes.contains(&vk::PresentModeKHR::MAILBOX) {
+            vk::PresentModeKHR::MAILBOX
+        } else {
+            vk::PresentModeKHR::FIFO
+        };
+        let extent = if caps.current_extent.width != u32::MAX {
+            caps.current_extent
+        } else {
+            vk::Extent2D {
+                width: width.clamp(caps.min_image_extent.width, caps.max_image_extent.width),
+                height: height.clamp(caps.min_image_extent.height, caps.max_image_extent.height),
+            }
+        };
+        let mut count = caps.min_image_count + 1;
+        if caps.max_image_count > 0 {
+            count = count.min(caps.max_image_count);
+        }
+        let usage = vk::ImageUsageFlags::TRANSFER_DST;
+        if !caps.supported_usage_flags.contains(usage) {
+            return Err(GpuError::Unsupported("swapchain images cannot be transfer destinations".into()));
+        }
+        let info = vk::SwapchainCreateInfoKHR::default()
+            .surface(surface.raw)
+            .min_image_count(count)
+            .image_format(format.format)
+            .image_color_space(format.color_space)
+            .image_extent(extent)
+            .image_array_layers(1)
+            .image_usage(usage)
+            .image_sharing_mode(vk::SharingMode::EXCLUSIVE)
+            .pre_transform(caps.current_transform)
+            .composite_alpha(vk::CompositeAlphaFlagsKHR::OPAQUE)
+            .present_mode(present_mode)
+            .clipped(true)
+            .old_swapchain(old.map_or(vk::SwapchainKHR::null(), |o| o.raw));
+        // SAFETY: valid create info; views and semaphores are destroyed in Drop.
+        unsafe {
+            let raw = loader.create_swapchain(&info, None).vk("vkCreateSwapchainKHR")?;
+            let images = loader.get_swapchain_images(raw).vk("vkGetSwapchainImagesKHR")?;
+            let mut views = Vec::with_capacity(images.len());
+            let mut render_done = Vec::with_capacity(images.len());
+            for &image in &images {
+                let view_info = vk::ImageViewCreateInfo::default()
+                    .image(image)
+                    .view_type(vk::ImageViewType::TYPE_2D)
+                    .format(format.format)
+                    .subresource_range(super::subresource_range(vk::ImageAspectFlags::COLOR));
+                views.push(ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?);
+                render_done.push(
+                    ctx.device.create_semaphore(&vk::SemaphoreCreateInfo::default(), None).vk("vkCreateSemaphore")?,
+                );
+            }
+            log::info!(
+                "swapchain: {}x{} {:?} {:?}, {} images",
+                extent.width,
+                extent.height,
+                format.format,
+                present_mode,
+                images.len()
+            );
+            Ok(Swapchain { raw, images, views, format: format.format, extent, present_mode, render_done, ctx })
+        }
+    }
+
+    pub fn desc(&self) -> ImageDesc {
+        ImageDesc::new(self.format, self.extent.width, self.extent.height)
+    }
+
+    /// Acquires the next image, signalling `ready` when it may be written.
+    pub fn acquire(&self, ready: vk::Semaphore) -> GpuResult<Acquired> {
+        let loader = self.ctx.swapchain_loader.as_ref().expect("a windowed context");
+        // SAFETY: valid swapchain and unsignalled semaphore.
+        match unsafe { loader.acquire_next_image(self.raw, u64::MAX, ready, vk::Fence::null()) } {
+            Ok((index, suboptimal)) => Ok(Acquired::Image { index, suboptimal }),
+            Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => Ok(Acquired::OutOfDate),
+            Err(e) => Err(GpuError::Vk { call: "vkAcquireNextImageKHR", result: e }),
+        }
+    }
+
+    /// Presents `index` once `render_done[index]` is signalled. Returns false when the
+    /// swapchain must be recreated.
+    pub fn present(&self, index: u32) -> GpuResult<bool> {
+        let loader = self.ctx.swapchain_loader.as_ref().expect("a windowed context");
+        let waits = [self.render_done[index as usize]];
+        let swapchains = [self.raw];
+        let indices = [index];
+        let info =
+            vk::PresentInfoKHR::default().wait_semaphores(&waits).swapchains(&swapchains).image_indices(&indices);
+        // SAFETY: the image was acquired and rendered in this frame.
+        match unsafe { loader.queue_present(self.ctx.queue, &info) } {
+            Ok(false) => Ok(true),
+            Ok(true) | Err(vk::Result::ERROR_OUT_OF_DATE_KHR) => Ok(false),
+            Err(e) => Err(GpuError::Vk { call: "vkQueuePresentKHR", result: e }),
+        }
+    }
+}
+
+impl Drop for Swapchain {
+    fn drop(&mut self) {
+        let loader = self.ctx.swapchain_loader.as_ref().expect("a windowed context");
+        // SAFETY: the owner waits for the device to be idle before dropping the swapchain.
+        unsafe {
+            for &v in &self.views {
+                self.ctx.device.destroy_image_view(v, None);
+            }
+            for &s in &self.render_done {
+                self.ctx.device.destroy_semaphore(s, None);
+            }
+            loader.destroy_swapchain(self.raw, None);
+        }
+    }
+}

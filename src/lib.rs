@@ -7,4 +7,5 @@ pub mod passes;
 pub mod renderer;
 pub mod scene;
 pub mod shading;
+pub mod viewer;
 pub mod vk;

@@ -24,6 +24,29 @@ struct Cli {
 enum Command {
     /// Render one frame (or several, for timings) to a PNG or EXR file, headless.
     Render(RenderArgs),
+    /// Open a window: fly through the scene, switch shadow methods and views, see timings.
+    View(ViewArgs),
+}
+
+#[derive(clap::Args)]
+struct ViewArgs {
+    /// Scene file (TOML); the built-in default scene if omitted.
+    scene: Option<PathBuf>,
+    /// Initial window size as WIDTHxHEIGHT (default: the scene's [image], else 960x540).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Khronos validation with synchronization validation; exits non-zero on any message.
+    #[arg(long)]
+    validate: bool,
+    /// Close the window after this many frames.
+    #[arg(long)]
+    frames: Option<u64>,
+    /// Replay camera moves and key presses from a file (see docs/viewer.md).
+    #[arg(long)]
+    script: Option<PathBuf>,
+    /// Use the Vulkan device whose name contains this text.
+    #[arg(long)]
+    device: Option<String>,
 }
 
 #[derive(clap::Args)]
@@ -81,6 +104,7 @@ fn main() -> ExitCode {
     let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
+        Command::View(args) => view(args),
     };
     match result {
         Ok(code) => code,
@@ -146,6 +170,51 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         let n = ctx.validation_messages();
         println!("validation: {n} messages");
         if n > 0 {
+            return Ok(ExitCode::FAILURE);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn view(args: ViewArgs) -> Result<ExitCode> {
+    let scene = match &args.scene {
+        Some(path) => Scene::load(path)?,
+        None => Scene::default_scene(),
+    };
+    let script = match &args.script {
+        Some(path) => {
+            let text =
+                std::fs::read_to_string(path).with_context(|| format!("{}: cannot read script", path.display()))?;
+            umbra::viewer::script::parse(&text, &path.display().to_string())?
+        }
+        None => Vec::new(),
+    };
+    let screenshot_dir = match args.scene.as_ref().and_then(|p| p.parent()) {
+        Some(dir) if !dir.as_os_str().is_empty() => dir.to_owned(),
+        _ => std::env::current_dir().context("working directory")?,
+    };
+    let title = match &args.scene {
+        Some(p) => format!("umbra - {}", p.display()),
+        None => "umbra - default scene".into(),
+    };
+    let options = umbra::viewer::ViewerOptions {
+        size: args.size.or(scene.image_size).unwrap_or((960, 540)),
+        scene,
+        screenshot_dir,
+        title,
+        validate: args.validate,
+        device: args.device,
+        frames: args.frames,
+        script,
+    };
+    let report = umbra::viewer::run(options)?;
+    println!("viewer: {} frames presented, {} turns without a frame", report.frames, report.skipped);
+    for shot in &report.screenshots {
+        println!("screenshot: {}", shot.display());
+    }
+    if args.validate {
+        println!("validation: {} messages", report.validation_messages);
+        if report.validation_messages > 0 {
             return Ok(ExitCode::FAILURE);
         }
     }

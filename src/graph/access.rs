@@ -30,7 +30,7 @@ pub enum Access {
     /// Read back by a compute shader as a storage image (read-modify-write passes).
     ComputeShaderReadStorageImage,
     /// A swapchain image just acquired: contents undefined, usable once the acquire
-    /// semaphore's wait (at the copy stage, where umbra first writes it) has completed. Counted
+    /// semaphore's wait (at the transfer stage, where umbra first writes it) has completed. Counted
     /// as a write so the first use orders itself after that stage.
     AcquiredImage,
     /// Handed to the presentation engine (swapchain images).
@@ -129,9 +129,14 @@ impl Access {
                 B::STORAGE_BUFFER,
                 Applies::Buffer,
             ),
-            Access::TransferRead => {
-                (S::COPY, A::TRANSFER_READ, L::TRANSFER_SRC_OPTIMAL, I::TRANSFER_SRC, B::TRANSFER_SRC, Applies::Both)
-            }
+            Access::TransferRead => (
+                S::ALL_TRANSFER,
+                A::TRANSFER_READ,
+                L::TRANSFER_SRC_OPTIMAL,
+                I::TRANSFER_SRC,
+                B::TRANSFER_SRC,
+                Applies::Both,
+            ),
             Access::ComputeShaderWrite => {
                 (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE, L::GENERAL, I::STORAGE, B::STORAGE_BUFFER, Applies::Both)
             }
@@ -151,13 +156,18 @@ impl Access {
                 B::empty(),
                 Applies::Image,
             ),
-            Access::TransferWrite => {
-                (S::COPY, A::TRANSFER_WRITE, L::TRANSFER_DST_OPTIMAL, I::TRANSFER_DST, B::TRANSFER_DST, Applies::Both)
-            }
+            Access::TransferWrite => (
+                S::ALL_TRANSFER,
+                A::TRANSFER_WRITE,
+                L::TRANSFER_DST_OPTIMAL,
+                I::TRANSFER_DST,
+                B::TRANSFER_DST,
+                Applies::Both,
+            ),
             Access::ComputeShaderReadStorageImage => {
                 (S::COMPUTE_SHADER, A::SHADER_STORAGE_READ, L::GENERAL, I::STORAGE, B::empty(), Applies::Image)
             }
-            Access::AcquiredImage => (S::COPY, A::NONE, L::UNDEFINED, I::empty(), B::empty(), Applies::Image),
+            Access::AcquiredImage => (S::ALL_TRANSFER, A::NONE, L::UNDEFINED, I::empty(), B::empty(), Applies::Image),
             Access::Present => (S::NONE, A::NONE, L::PRESENT_SRC_KHR, I::empty(), B::empty(), Applies::Image),
         };
         AccessInfo { stage, access, layout, image_usage, buffer_usage, applies }

@@ -186,6 +186,16 @@ impl GpuContext {
         self.debug.is_some()
     }
 
+    /// Primary command buffers from the context's pool (resettable one by one).
+    pub fn allocate_command_buffers(&self, count: u32) -> GpuResult<Vec<vk::CommandBuffer>> {
+        let alloc = vk::CommandBufferAllocateInfo::default()
+            .command_pool(self.command_pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(count);
+        // SAFETY: valid pool; buffers are freed with the pool when the context drops.
+        unsafe { self.device.allocate_command_buffers(&alloc) }.vk("vkAllocateCommandBuffers")
+    }
+
     /// Records with `record`, submits, and waits: the whole frame of a headless capture.
     pub fn submit_and_wait<R>(&self, record: impl FnOnce(vk::CommandBuffer) -> GpuResult<R>) -> GpuResult<R> {
         let alloc = vk::CommandBufferAllocateInfo::default()

@@ -163,12 +163,17 @@ impl Image {
                 }
             };
             ctx.device.bind_image_memory(raw, allocation.memory(), allocation.offset()).vk("vkBindImageMemory")?;
-            let view_info = vk::ImageViewCreateInfo::default()
-                .image(raw)
-                .view_type(vk::ImageViewType::TYPE_2D)
-                .format(desc.format)
-                .subresource_range(subresource_range(desc.aspect()));
-            let view = ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?;
+            // Images used only by transfers get no view (a view needs a shader or attachment use).
+            let view = if usage.intersects(!(vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)) {
+                let view_info = vk::ImageViewCreateInfo::default()
+                    .image(raw)
+                    .view_type(vk::ImageViewType::TYPE_2D)
+                    .format(desc.format)
+                    .subresource_range(subresource_range(desc.aspect()));
+                ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?
+            } else {
+                vk::ImageView::null()
+            };
             Ok(Image { raw, view, desc, allocation: Some(allocation), ctx: ctx.clone() })
         }
     }
@@ -178,7 +183,9 @@ impl Drop for Image {
     fn drop(&mut self) {
         // SAFETY: callers wait for the GPU before dropping resources it may still use.
         unsafe {
-            self.ctx.device.destroy_image_view(self.view, None);
+            if self.view != vk::ImageView::null() {
+                self.ctx.device.destroy_image_view(self.view, None);
+            }
             self.ctx.device.destroy_image(self.raw, None);
         }
         if let Some(a) = self.allocation.take() {

@@ -10,8 +10,8 @@ use super::{GpuContext, GpuError, GpuResult, ImageDesc, VkContext, WindowSurface
 
 pub struct Swapchain {
     pub raw: vk::SwapchainKHR,
+    /// Written only by blits, so the images need no views.
     pub images: Vec<vk::Image>,
-    pub views: Vec<vk::ImageView>,
     pub format: vk::Format,
     pub extent: vk::Extent2D,
     pub present_mode: vk::PresentModeKHR,
@@ -97,15 +97,8 @@ impl Swapchain {
         unsafe {
             let raw = loader.create_swapchain(&info, None).vk("vkCreateSwapchainKHR")?;
             let images = loader.get_swapchain_images(raw).vk("vkGetSwapchainImagesKHR")?;
-            let mut views = Vec::with_capacity(images.len());
             let mut render_done = Vec::with_capacity(images.len());
-            for &image in &images {
-                let view_info = vk::ImageViewCreateInfo::default()
-                    .image(image)
-                    .view_type(vk::ImageViewType::TYPE_2D)
-                    .format(format.format)
-                    .subresource_range(super::subresource_range(vk::ImageAspectFlags::COLOR));
-                views.push(ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?);
+            for _ in &images {
                 render_done.push(
                     ctx.device.create_semaphore(&vk::SemaphoreCreateInfo::default(), None).vk("vkCreateSemaphore")?,
                 );
@@ -118,7 +111,7 @@ impl Swapchain {
                 present_mode,
                 images.len()
             );
-            Ok(Swapchain { raw, images, views, format: format.format, extent, present_mode, render_done, ctx })
+            Ok(Swapchain { raw, images, format: format.format, extent, present_mode, render_done, ctx })
         }
     }
 
@@ -160,9 +153,6 @@ impl Drop for Swapchain {
         let loader = self.ctx.swapchain_loader.as_ref().expect("a windowed context");
         // SAFETY: the owner waits for the device to be idle before dropping the swapchain.
         unsafe {
-            for &v in &self.views {
-                self.ctx.device.destroy_image_view(v, None);
-            }
             for &s in &self.render_done {
                 self.ctx.device.destroy_semaphore(s, None);
             }

@@ -1,0 +1,447 @@
+//! The interactive viewer: a winit window showing the same frame graph as capture, with a fly
+//! camera, live shadow-method and debug-view switching, an overlay and screenshots. Scripted
+//! input (`--script`) drives exactly the same handlers as the keyboard and mouse.
+
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use anyhow::{Context, Result};
+use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{DeviceEvent, DeviceId, ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::keyboard::{KeyCode, PhysicalKey};
+use winit::window::{CursorGrabMode, Window, WindowId};
+
+use super::camera::FlyCamera;
+use super::input::{InputEvent, InputState, Key};
+use super::presenter::{Drawn, Presenter};
+use super::script::ScriptStep;
+use super::settings::ViewerSettings;
+use crate::renderer::{OutputKind, Renderer};
+use crate::scene::Scene;
+use crate::vk::{GpuContext, GpuOptions};
+
+pub struct ViewerOptions {
+    pub scene: Scene,
+    /// Where screenshots go: beside the scene file (or the working directory).
+    pub screenshot_dir: PathBuf,
+    pub title: String,
+    pub size: (u32, u32),
+    pub validate: bool,
+    pub device: Option<String>,
+    /// Close after this many presented frames.
+    /// (Script `frames N` counts turns of the loop, drawn or not, so it also runs while minimised.)
+    pub frames: Option<u64>,
+    pub script: Vec<ScriptStep>,
+}
+
+/// What a viewer session did, for the CLI to report.
+#[derive(Debug, Default)]
+pub struct ViewerReport {
+    /// Frames presented.
+    pub frames: u64,
+    /// Turns with nothing presented (minimised, or the swapchain being recreated).
+    pub skipped: u64,
+    pub validation_messages: usize,
+    pub screenshots: Vec<PathBuf>,
+}
+
+/// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
+pub fn run(options: ViewerOptions) -> Result<ViewerReport> {
+    let event_loop = EventLoop::new().context("cannot open a window (is there a display? try xvfb-run)")?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let mut app = App { options, running: None, error: None, report: ViewerReport::default() };
+    event_loop.run_app(&mut app).context("window event loop")?;
+    if let Some(e) = app.error {
+        return Err(e);
+    }
+    Ok(app.report)
+}
+
+struct App {
+    options: ViewerOptions,
+    running: Option<Running>,
+    error: Option<anyhow::Error>,
+    report: ViewerReport,
+}
+
+/// Everything that exists while the window is open. Field order is drop order.
+struct Running {
+    presenter: Presenter,
+    renderer: Renderer,
+    window: Arc<Window>,
+    ctx: Arc<GpuContext>,
+    camera: FlyCamera,
+    input: InputState,
+    settings: ViewerSettings,
+    script: std::collections::VecDeque<ScriptStep>,
+    /// Frames the script still lets run before its next step.
+    script_frames: u64,
+    script_wait_until: Option<Instant>,
+    last_frame: Instant,
+    fps: FrameRate,
+    timings: Vec<(&'static str, f64)>,
+    screenshot_requests: Vec<Option<String>>,
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.running.is_some() {
+            return;
+        }
+        match self.open(event_loop) {
+            Ok(r) => self.running = Some(r),
+            Err(e) => self.fail(event_loop, e),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        let Some(r) = self.running.as_mut() else { return };
+        let input = match event {
+            WindowEvent::CloseRequested => {
+                event_loop.exit();
+                return;
+            }
+            WindowEvent::Resized(size) => Some(InputEvent::Resize(size.width, size.height)),
+            WindowEvent::KeyboardInput { event, .. } => match event.physical_key {
+                PhysicalKey::Code(code) => map_key(code).map(|k| match event.state {
+                    ElementState::Pressed if !event.repeat => InputEvent::KeyDown(k),
+                    ElementState::Pressed => InputEvent::KeyRepeat(k),
+                    ElementState::Released => InputEvent::KeyUp(k),
+                }),
+                _ => None,
+            },
+            WindowEvent::MouseInput { button: MouseButton::Right, state, .. } => {
+                Some(InputEvent::RightButton(state == ElementState::Pressed))
+            }
+            WindowEvent::MouseWheel { delta, .. } => Some(InputEvent::Scroll(match delta {
+                MouseScrollDelta::LineDelta(_, y) => y,
+                MouseScrollDelta::PixelDelta(p) => p.y as f32 / 40.0,
+            })),
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.frame(event_loop) {
+                    self.fail(event_loop, e);
+                }
+                return;
+            }
+            _ => None,
+        };
+        if let Some(ev) = input {
+            r.handle(ev);
+        }
+    }
+
+    fn device_event(&mut self, _: &ActiveEventLoop, _: DeviceId, event: DeviceEvent) {
+        if let (Some(r), DeviceEvent::MouseMotion { delta }) = (self.running.as_mut(), event) {
+            r.handle(InputEvent::MouseMotion { dx: delta.0 as f32, dy: delta.1 as f32 });
+        }
+    }
+
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        let Some(r) = &self.running else { return };
+        if r.presenter.is_minimised() {
+            // Nothing to draw, and a minimised window may get no redraws: tick the script and
+            // frame counters here instead, without spinning.
+            event_loop.set_control_flow(ControlFlow::WaitUntil(Instant::now() + Duration::from_millis(16)));
+            if let Err(e) = self.frame(event_loop) {
+                self.fail(event_loop, e);
+            }
+        } else {
+            event_loop.set_control_flow(ControlFlow::Poll);
+            r.window.request_redraw();
+        }
+    }
+
+    fn exiting(&mut self, _: &ActiveEventLoop) {
+        if let Some(r) = self.running.take() {
+            let _ = r.presenter.wait_idle();
+            let ctx = r.ctx.clone();
+            drop(r);
+            self.report.validation_messages = ctx.validation_messages();
+        }
+    }
+}
+
+impl App {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: anyhow::Error) {
+        self.error.get_or_insert(e);
+        event_loop.exit();
+    }
+
+    fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<Running> {
+        let o = &self.options;
+        let attributes = Window::default_attributes()
+            .with_title(o.title.clone())
+            .with_inner_size(PhysicalSize::new(o.size.0, o.size.1));
+        let window = Arc::new(event_loop.create_window(attributes).context("creating the window")?);
+        let display = window.display_handle().context("display handle")?.as_raw();
+        let handle = window.window_handle().context("window handle")?.as_raw();
+        let gpu = GpuOptions { validate: o.validate, device_name: o.device.clone() };
+        let (ctx, surface) = GpuContext::with_window(&gpu, display, handle)?;
+        let renderer = Renderer::new(ctx.clone(), o.scene.clone()).context("preparing the scene")?;
+        let size = window.inner_size();
+        let presenter = Presenter::new(surface, size.width, size.height)?;
+        log::info!("viewer on {} ({:?})", ctx.device_name(), presenter.present_mode());
+        Ok(Running {
+            presenter,
+            camera: FlyCamera::from_scene(&o.scene.camera),
+            settings: ViewerSettings::new(o.scene.lights.len()),
+            renderer,
+            window,
+            ctx,
+            input: InputState::default(),
+            script: o.script.iter().cloned().collect(),
+            script_frames: 0,
+            script_wait_until: None,
+            last_frame: Instant::now(),
+            fps: FrameRate::default(),
+            timings: Vec::new(),
+            screenshot_requests: Vec::new(),
+        })
+    }
+
+    fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
+        let Some(r) = self.running.as_mut() else { return Ok(()) };
+        if !r.run_script(event_loop) {
+            return Ok(());
+        }
+        let now = Instant::now();
+        let dt = (now - r.last_frame).as_secs_f32().min(0.25);
+        r.last_frame = now;
+        r.camera.update(&r.input, dt);
+        let settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
+        let lines = r.settings.overlay.then(|| r.overlay_lines());
+        match r.presenter.draw(&r.renderer, &settings, lines.as_deref())? {
+            Drawn::Frame { timings } => {
+                if !timings.is_empty() {
+                    r.timings = timings;
+                }
+                r.fps.tick(now);
+                self.report.frames += 1;
+                r.script_frames = r.script_frames.saturating_sub(1);
+            }
+            Drawn::Skipped => {
+                self.report.skipped += 1;
+                r.script_frames = r.script_frames.saturating_sub(1);
+            }
+        }
+        for name in std::mem::take(&mut r.screenshot_requests) {
+            let paths = r.screenshot(&self.options.screenshot_dir, name)?;
+            self.report.screenshots.extend(paths);
+        }
+        if self.options.frames.is_some_and(|n| self.report.frames >= n) {
+            event_loop.exit();
+        }
+        Ok(())
+    }
+}
+
+impl Running {
+    fn handle(&mut self, event: InputEvent) {
+        self.input.apply(&event);
+        match event {
+            InputEvent::Resize(w, h) => self.presenter.resize(w, h),
+            InputEvent::MouseMotion { dx, dy } if self.input.looking() => self.camera.look(dx, dy),
+            InputEvent::RightButton(held) => {
+                // Raw motion with a hidden, confined cursor while looking around.
+                self.window.set_cursor_visible(!held);
+                let mode = if held { CursorGrabMode::Confined } else { CursorGrabMode::None };
+                if self.window.set_cursor_grab(mode).is_err() && held {
+                    let _ = self.window.set_cursor_grab(CursorGrabMode::Locked);
+                }
+            }
+            InputEvent::Scroll(steps) => self.camera.scroll(steps),
+            InputEvent::KeyDown(key) => match key {
+                Key::Home => self.camera.reset(&self.renderer.scene().camera),
+                Key::F12 => self.screenshot_requests.push(None),
+                _ => self.settings.on_key(key),
+            },
+            _ => {}
+        }
+    }
+
+    /// Feeds script steps until one asks for frames or time to pass. Returns false to skip
+    /// drawing this turn (waiting on the clock).
+    fn run_script(&mut self, event_loop: &ActiveEventLoop) -> bool {
+        if let Some(t) = self.script_wait_until {
+            if Instant::now() < t {
+                return false;
+            }
+            self.script_wait_until = None;
+        }
+        while self.script_frames == 0 {
+            let Some(step) = self.script.pop_front() else { return true };
+            match step {
+                ScriptStep::Frames(n) => self.script_frames = n,
+                ScriptStep::Input(ev) => {
+                    if let InputEvent::Resize(w, h) = ev {
+                        // Ask the window system too; the resulting Resized event is handled
+                        // like any other.
+                        let _ = self.window.request_inner_size(PhysicalSize::new(w.max(1), h.max(1)));
+                    }
+                    self.handle(ev);
+                }
+                ScriptStep::Minimise(on) => {
+                    // Without a window manager (Xvfb) iconifying may do nothing, so the 0x0
+                    // size a minimised window reports is fed in directly as well.
+                    self.window.set_minimized(on);
+                    let size = self.window.inner_size();
+                    self.handle(if on {
+                        InputEvent::Resize(0, 0)
+                    } else {
+                        InputEvent::Resize(size.width, size.height)
+                    });
+                }
+                ScriptStep::Screenshot(name) => self.screenshot_requests.push(Some(name)),
+                ScriptStep::Wait(d) => {
+                    self.script_wait_until = Some(Instant::now() + d);
+                    return false;
+                }
+                ScriptStep::Quit => {
+                    event_loop.exit();
+                    return false;
+                }
+            }
+        }
+        true
+    }
+
+    fn overlay_lines(&self) -> Vec<String> {
+        let extent = self.presenter.extent().map_or((0, 0), |e| (e.width, e.height));
+        let mut lines = vec![format!(
+            "umbra  {:6.1} fps  {:6.2} ms  {}x{}",
+            self.fps.fps(),
+            self.fps.frame_ms(),
+            extent.0,
+            extent.1
+        )];
+        let scene = self.renderer.scene();
+        lines.push(format!("{} triangles, {} lights", scene.triangle_count(), scene.lights.len()));
+        lines.extend(self.settings.describe(&scene.lights));
+        let total: f64 = self.timings.iter().map(|t| t.1).sum();
+        for (name, ms) in &self.timings {
+            lines.push(format!("  {name:<14} {ms:7.3} ms"));
+        }
+        if !self.timings.is_empty() {
+            lines.push(format!("  {:<14} {total:7.3} ms", "GPU total"));
+        }
+        lines.push("F1 overlay  F12 shot  RMB look  WASD QE move  Home reset".into());
+        lines
+    }
+
+    fn screenshot(&mut self, dir: &std::path::Path, name: Option<String>) -> Result<Vec<PathBuf>> {
+        let stem = name.unwrap_or_else(timestamp_name);
+        let extent = self.presenter.extent().unwrap_or(ash::vk::Extent2D { width: 320, height: 240 });
+        let mut settings = self.settings.render_settings(self.camera.to_camera(self.renderer.scene().camera.vfov_deg));
+        settings.width = extent.width;
+        settings.height = extent.height;
+        settings.timestamps = false;
+        let mut written = Vec::new();
+        for (ext, output) in [("png", OutputKind::Display), ("exr", OutputKind::SceneLinear)] {
+            settings.output = output;
+            let frame = self.renderer.render(&settings)?;
+            let path = dir.join(format!("{stem}.{ext}"));
+            crate::output::write_image(&frame, &path)?;
+            log::info!("screenshot: {}", path.display());
+            written.push(path);
+        }
+        Ok(written)
+    }
+}
+
+fn map_key(code: KeyCode) -> Option<Key> {
+    Some(match code {
+        KeyCode::KeyW => Key::W,
+        KeyCode::KeyA => Key::A,
+        KeyCode::KeyS => Key::S,
+        KeyCode::KeyD => Key::D,
+        KeyCode::KeyQ => Key::Q,
+        KeyCode::KeyE => Key::E,
+        KeyCode::ShiftLeft | KeyCode::ShiftRight => Key::Shift,
+        KeyCode::Home => Key::Home,
+        KeyCode::F1 => Key::F1,
+        KeyCode::F12 => Key::F12,
+        KeyCode::KeyL => Key::L,
+        KeyCode::KeyT => Key::T,
+        KeyCode::KeyV => Key::V,
+        KeyCode::Equal | KeyCode::NumpadAdd => Key::Plus,
+        KeyCode::Minus | KeyCode::NumpadSubtract => Key::Minus,
+        _ => return None,
+    })
+}
+
+/// `umbra-YYYYMMDD-HHMMSS-mmm` in UTC, from the system clock.
+fn timestamp_name() -> String {
+    let since = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
+    let secs = since.as_secs();
+    let (days, rem) = (secs / 86_400, secs % 86_400);
+    let (y, m, d) = civil_from_days(days as i64);
+    format!(
+        "umbra-{y:04}{m:02}{d:02}-{:02}{:02}{:02}-{:03}",
+        rem / 3600,
+        rem % 3600 / 60,
+        rem % 60,
+        since.subsec_millis()
+    )
+}
+
+/// Howard Hinnant's days-to-civil-date conversion.
+fn civil_from_days(z: i64) -> (i64, u32, u32) {
+    let z = z + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    (yoe + era * 400 + i64::from(m <= 2), m, d)
+}
+
+/// Frames per second over the last second of frames.
+#[derive(Default)]
+struct FrameRate {
+    times: std::collections::VecDeque<Instant>,
+}
+
+impl FrameRate {
+    fn tick(&mut self, now: Instant) {
+        self.times.push_back(now);
+        while self.times.front().is_some_and(|&t| now - t > Duration::from_secs(1)) {
+            self.times.pop_front();
+        }
+    }
+
+    fn fps(&self) -> f64 {
+        match (self.times.front(), self.times.back()) {
+            (Some(a), Some(b)) if self.times.len() > 1 => {
+                (self.times.len() - 1) as f64 / (*b - *a).as_secs_f64().max(1e-9)
+            }
+            _ => 0.0,
+        }
+    }
+
+    fn frame_ms(&self) -> f64 {
+        let fps = self.fps();
+        if fps > 0.0 {
+            1000.0 / fps
+        } else {
+            0.0
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::civil_from_days;
+
+    #[test]
+    fn civil_dates_from_the_epoch() {
+        assert_eq!(civil_from_days(0), (1970, 1, 1));
+        assert_eq!(civil_from_days(20_415), (2025, 11, 24));
+        assert_eq!(civil_from_days(11_016), (2000, 2, 29));
+    }
+}

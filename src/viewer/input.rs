@@ -1,0 +1,96 @@
+//! The viewer's inputs in its own words, independent of the window system, so scripted input
+//! and real input take the same path.
+
+use std::collections::HashSet;
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Key {
+    W,
+    A,
+    S,
+    D,
+    Q,
+    E,
+    Shift,
+    Home,
+    F1,
+    F12,
+    /// Select the next light.
+    L,
+    /// Cycle the selected light's shadow method.
+    T,
+    /// Cycle the debug view.
+    V,
+    Plus,
+    Minus,
+}
+
+impl Key {
+    pub fn parse(name: &str) -> Option<Key> {
+        Some(match name.to_ascii_uppercase().as_str() {
+            "W" => Key::W,
+            "A" => Key::A,
+            "S" => Key::S,
+            "D" => Key::D,
+            "Q" => Key::Q,
+            "E" => Key::E,
+            "SHIFT" => Key::Shift,
+            "HOME" => Key::Home,
+            "F1" => Key::F1,
+            "F12" => Key::F12,
+            "L" => Key::L,
+            "T" => Key::T,
+            "V" => Key::V,
+            "PLUS" | "+" => Key::Plus,
+            "MINUS" | "-" => Key::Minus,
+            _ => return None,
+        })
+    }
+}
+
+#[derive(Clone, Debug, PartialEq)]
+pub enum InputEvent {
+    KeyDown(Key),
+    /// Auto-repeat of a held key: movement keys are already held, actions ignore it.
+    KeyRepeat(Key),
+    KeyUp(Key),
+    /// Raw pointer motion in counts (only turns the camera while the right button is held).
+    MouseMotion {
+        dx: f32,
+        dy: f32,
+    },
+    RightButton(bool),
+    /// Wheel steps; positive is away from the user.
+    Scroll(f32),
+    Resize(u32, u32),
+}
+
+/// Which keys and buttons are held.
+#[derive(Clone, Debug, Default)]
+pub struct InputState {
+    held: HashSet<Key>,
+    right_button: bool,
+}
+
+impl InputState {
+    pub fn apply(&mut self, event: &InputEvent) {
+        match *event {
+            InputEvent::KeyDown(k) => {
+                self.held.insert(k);
+            }
+            InputEvent::KeyUp(k) => {
+                self.held.remove(&k);
+            }
+            InputEvent::RightButton(b) => self.right_button = b,
+            _ => {}
+        }
+    }
+
+    pub fn held(&self, key: Key) -> bool {
+        self.held.contains(&key)
+    }
+
+    pub fn looking(&self) -> bool {
+        self.right_button
+    }
+}

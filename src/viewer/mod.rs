@@ -1,0 +1,11 @@
+//! `umbra view`: the interactive viewer. The window is a front end over the same renderer and
+//! frame graph as capture; input, camera, toggles and scripts are window-system independent.
+
+mod app;
+pub mod camera;
+pub mod input;
+mod presenter;
+pub mod script;
+pub mod settings;
+
+pub use app::{run, ViewerOptions, ViewerReport};

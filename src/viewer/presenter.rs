@@ -1,0 +1,232 @@
+//! Frames in flight over the swapchain: each slot has its command buffer, fence, acquire
+//! semaphore, overlay text buffer and its own transient resources, so the CPU records frame
+//! N+1 while the GPU still draws frame N. A 0x0 (minimised) window draws nothing.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use crate::graph::TransientCache;
+use crate::passes::overlay::{self, OverlayInputs, OverlayText};
+use crate::renderer::{RenderSettings, Renderer, Target};
+use crate::vk::{Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
+
+const FRAMES_IN_FLIGHT: usize = 2;
+/// Characters the overlay's text buffer holds (columns x rows).
+const OVERLAY_CAPACITY: usize = 96 * 24;
+
+struct FrameSlot {
+    cmd: vk::CommandBuffer,
+    fence: vk::Fence,
+    acquired: vk::Semaphore,
+    cache: TransientCache,
+    text: Buffer,
+    /// Whether this slot has been submitted (its timings are then readable after the fence).
+    used: bool,
+}
+
+pub struct Presenter {
+    slots: Vec<FrameSlot>,
+    next: usize,
+    swapchain: Option<Swapchain>,
+    glyphs: Buffer,
+    overlay_pipeline: ComputePipeline,
+    surface: WindowSurface,
+    size: (u32, u32),
+    stale: bool,
+    ctx: Arc<GpuContext>,
+}
+
+/// What one call to `draw` did.
+pub enum Drawn {
+    /// A frame was submitted; timings are those of the last frame this slot drew.
+    Frame { timings: Vec<(&'static str, f64)> },
+    /// Nothing to draw into (minimised, or the swapchain was just recreated).
+    Skipped,
+}
+
+impl Presenter {
+    pub fn new(surface: WindowSurface, width: u32, height: u32) -> GpuResult<Presenter> {
+        let ctx = surface.ctx().clone();
+        let cmds = ctx.allocate_command_buffers(FRAMES_IN_FLIGHT as u32)?;
+        let mut slots = Vec::with_capacity(FRAMES_IN_FLIGHT);
+        for cmd in cmds {
+            // SAFETY: valid device; destroyed in Drop after the device is idle.
+            let (fence, acquired) = unsafe {
+                (
+                    ctx.device
+                        .create_fence(&vk::FenceCreateInfo::default().flags(vk::FenceCreateFlags::SIGNALED), None)
+                        .vk("vkCreateFence")?,
+                    ctx.device.create_semaphore(&vk::SemaphoreCreateInfo::default(), None).vk("vkCreateSemaphore")?,
+                )
+            };
+            let text = Buffer::new(
+                &ctx,
+                "overlay text",
+                (OVERLAY_CAPACITY * 4) as u64,
+                vk::BufferUsageFlags::STORAGE_BUFFER,
+                MemoryLocation::CpuToGpu,
+            )?;
+            slots.push(FrameSlot { cmd, fence, acquired, cache: TransientCache::new(&ctx)?, text, used: false });
+        }
+        let glyphs = Buffer::with_data(
+            &ctx,
+            "glyphs",
+            bytemuck::cast_slice(&overlay::glyph_words()),
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+        )?;
+        let mut presenter = Presenter {
+            slots,
+            next: 0,
+            swapchain: None,
+            glyphs,
+            overlay_pipeline: overlay::pipeline(&ctx)?,
+            surface,
+            size: (width, height),
+            stale: true,
+            ctx,
+        };
+        presenter.recreate()?;
+        Ok(presenter)
+    }
+
+    /// The window's new size; the swapchain follows on the next draw.
+    pub fn resize(&mut self, width: u32, height: u32) {
+        if (width, height) != self.size {
+            self.size = (width, height);
+            self.stale = true;
+        }
+    }
+
+    pub fn extent(&self) -> Option<vk::Extent2D> {
+        self.swapchain.as_ref().map(|s| s.extent)
+    }
+
+    pub fn present_mode(&self) -> Option<vk::PresentModeKHR> {
+        self.swapchain.as_ref().map(|s| s.present_mode)
+    }
+
+    pub fn is_minimised(&self) -> bool {
+        self.minimised()
+    }
+
+    fn minimised(&self) -> bool {
+        self.size.0 == 0 || self.size.1 == 0
+    }
+
+    fn recreate(&mut self) -> GpuResult<()> {
+        if self.minimised() {
+            return Ok(());
+        }
+        self.wait_idle()?;
+        let new = Swapchain::new(&self.surface, self.size.0, self.size.1, self.swapchain.as_ref())?;
+        self.swapchain = Some(new);
+        self.stale = false;
+        Ok(())
+    }
+
+    pub fn wait_idle(&self) -> GpuResult<()> {
+        // SAFETY: valid device.
+        unsafe { self.ctx.device.device_wait_idle() }.vk("vkDeviceWaitIdle")
+    }
+
+    /// Renders and presents one frame at the swapchain's size, with `overlay_lines` on top.
+    pub fn draw(
+        &mut self,
+        renderer: &Renderer,
+        settings: &RenderSettings,
+        overlay_lines: Option<&[String]>,
+    ) -> GpuResult<Drawn> {
+        if self.minimised() {
+            return Ok(Drawn::Skipped);
+        }
+        if self.stale || self.swapchain.is_none() {
+            self.recreate()?;
+        }
+        let device = &self.ctx.device;
+        let slot = &mut self.slots[self.next];
+        // SAFETY: the fence belongs to this slot and was submitted (or created signalled).
+        unsafe { device.wait_for_fences(&[slot.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
+        let timings = if slot.used { slot.cache.read_timings()? } else { Vec::new() };
+        let swapchain = self.swapchain.as_ref().expect("recreated above");
+        let index = match swapchain.acquire(slot.acquired)? {
+            Acquired::Image { index, suboptimal } => {
+                self.stale |= suboptimal;
+                index
+            }
+            Acquired::OutOfDate => {
+                self.stale = true;
+                return Ok(Drawn::Skipped);
+            }
+        };
+        let mut frame_settings = settings.clone();
+        frame_settings.width = swapchain.extent.width;
+        frame_settings.height = swapchain.extent.height;
+        let overlay = overlay_lines.map(|lines| {
+            let text = OverlayText::new(lines);
+            let n = text.chars.len().min(OVERLAY_CAPACITY);
+            slot.text.mapped_mut()[..n * 4].copy_from_slice(bytemuck::cast_slice(&text.chars[..n]));
+            let rows = (n as u32 / text.columns).max(1);
+            OverlayInputs {
+                pipeline: &self.overlay_pipeline,
+                glyphs: &self.glyphs,
+                text: &slot.text,
+                columns: text.columns,
+                rows,
+                scale: if swapchain.extent.height >= 720 { 2 } else { 1 },
+            }
+        });
+        let target = Target::Present {
+            image: swapchain.images[index as usize],
+            view: vk::ImageView::null(),
+            desc: swapchain.desc(),
+            overlay,
+        };
+        // SAFETY: the slot's previous submission has completed (fence waited above).
+        unsafe {
+            device.reset_fences(&[slot.fence]).vk("vkResetFences")?;
+            device.reset_command_buffer(slot.cmd, vk::CommandBufferResetFlags::empty()).vk("vkResetCommandBuffer")?;
+            let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
+            device.begin_command_buffer(slot.cmd, &begin).vk("vkBeginCommandBuffer")?;
+        }
+        renderer.record(&mut slot.cache, slot.cmd, &frame_settings, target)?;
+        let waits = [vk::SemaphoreSubmitInfo::default()
+            .semaphore(slot.acquired)
+            .stage_mask(crate::graph::Access::AcquiredImage.info().stage)];
+        let signals = [vk::SemaphoreSubmitInfo::default()
+            .semaphore(swapchain.render_done[index as usize])
+            .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)];
+        let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(slot.cmd)];
+        let submit = [vk::SubmitInfo2::default()
+            .wait_semaphore_infos(&waits)
+            .command_buffer_infos(&cmds)
+            .signal_semaphore_infos(&signals)];
+        // SAFETY: recorded above; the semaphores and fence belong to this frame.
+        unsafe {
+            device.end_command_buffer(slot.cmd).vk("vkEndCommandBuffer")?;
+            device.queue_submit2(self.ctx.queue, &submit, slot.fence).vk("vkQueueSubmit2")?;
+        }
+        slot.used = true;
+        if !swapchain.present(index)? {
+            self.stale = true;
+        }
+        self.next = (self.next + 1) % FRAMES_IN_FLIGHT;
+        Ok(Drawn::Frame { timings })
+    }
+}
+
+impl Drop for Presenter {
+    fn drop(&mut self) {
+        let _ = self.wait_idle();
+        // SAFETY: the device is idle; the slots' objects are ours.
+        unsafe {
+            for slot in &self.slots {
+                self.ctx.device.destroy_fence(slot.fence, None);
+                self.ctx.device.destroy_semaphore(slot.acquired, None);
+            }
+        }
+        // The swapchain goes before the surface it was made from.
+        self.swapchain = None;
+    }
+}

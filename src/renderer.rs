@@ -394,7 +394,7 @@ fn build_graph<'a>(
                 eye: camera.eye,
                 background: BACKGROUND,
             };
-            let radiance = compose::add(&mut g, &pipelines, &gbuffer, inputs, extent);
+            let radiance = compose::add(&mut g, pipelines, &gbuffer, inputs, extent);
             if display {
                 tonemap::add(&mut g, &pipelines.tonemap, &radiance, settings.exposure_ev, extent)
             } else {

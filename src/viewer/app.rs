@@ -84,7 +84,8 @@ struct Running {
     last_frame: Instant,
     fps: FrameRate,
     timings: Vec<(&'static str, f64)>,
-    screenshot_requests: Vec<Option<String>>,
+    screenshot_dir: PathBuf,
+    screenshots: Vec<PathBuf>,
 }
 
 impl ApplicationHandler for App {
@@ -199,13 +200,16 @@ impl App {
             last_frame: Instant::now(),
             fps: FrameRate::default(),
             timings: Vec::new(),
-            screenshot_requests: Vec::new(),
+            screenshot_dir: o.screenshot_dir.clone(),
+            screenshots: Vec::new(),
         })
     }
 
     fn frame(&mut self, event_loop: &ActiveEventLoop) -> Result<()> {
         let Some(r) = self.running.as_mut() else { return Ok(()) };
-        if !r.run_script(event_loop) {
+        let draw = r.run_script(event_loop)?;
+        self.report.screenshots.append(&mut r.screenshots);
+        if !draw {
             return Ok(());
         }
         let now = Instant::now();
@@ -228,10 +232,7 @@ impl App {
                 r.script_frames = r.script_frames.saturating_sub(1);
             }
         }
-        for name in std::mem::take(&mut r.screenshot_requests) {
-            let paths = r.screenshot(&self.options.screenshot_dir, name)?;
-            self.report.screenshots.extend(paths);
-        }
+        self.report.screenshots.append(&mut r.screenshots);
         if self.options.frames.is_some_and(|n| self.report.frames >= n) {
             event_loop.exit();
         }
@@ -256,7 +257,11 @@ impl Running {
             InputEvent::Scroll(steps) => self.camera.scroll(steps),
             InputEvent::KeyDown(key) => match key {
                 Key::Home => self.camera.reset(&self.renderer.scene().camera),
-                Key::F12 => self.screenshot_requests.push(None),
+                Key::F12 => {
+                    if let Err(e) = self.screenshot(None) {
+                        log::error!("screenshot failed: {e:#}");
+                    }
+                }
                 _ => self.settings.on_key(key),
             },
             _ => {}
@@ -264,16 +269,16 @@ impl Running {
     }
 
     /// Feeds script steps until one asks for frames or time to pass. Returns false to skip
-    /// drawing this turn (waiting on the clock).
-    fn run_script(&mut self, event_loop: &ActiveEventLoop) -> bool {
+    /// drawing this turn (waiting on the clock, or quitting).
+    fn run_script(&mut self, event_loop: &ActiveEventLoop) -> Result<bool> {
         if let Some(t) = self.script_wait_until {
             if Instant::now() < t {
-                return false;
+                return Ok(false);
             }
             self.script_wait_until = None;
         }
         while self.script_frames == 0 {
-            let Some(step) = self.script.pop_front() else { return true };
+            let Some(step) = self.script.pop_front() else { return Ok(true) };
             match step {
                 ScriptStep::Frames(n) => self.script_frames = n,
                 ScriptStep::Input(ev) => {
@@ -295,18 +300,19 @@ impl Running {
                         InputEvent::Resize(size.width, size.height)
                     });
                 }
-                ScriptStep::Screenshot(name) => self.screenshot_requests.push(Some(name)),
+                // Taken at this point of the script, before any later step changes the view.
+                ScriptStep::Screenshot(name) => self.screenshot(Some(name))?,
                 ScriptStep::Wait(d) => {
                     self.script_wait_until = Some(Instant::now() + d);
-                    return false;
+                    return Ok(false);
                 }
                 ScriptStep::Quit => {
                     event_loop.exit();
-                    return false;
+                    return Ok(false);
                 }
             }
         }
-        true
+        Ok(true)
     }
 
     fn overlay_lines(&self) -> Vec<String> {
@@ -332,23 +338,24 @@ impl Running {
         lines
     }
 
-    fn screenshot(&mut self, dir: &std::path::Path, name: Option<String>) -> Result<Vec<PathBuf>> {
+    /// Writes NAME.png (as shown) and NAME.exr (linear radiance) beside the scene, rendering the
+    /// current view through the capture path at the window's size.
+    fn screenshot(&mut self, name: Option<String>) -> Result<()> {
         let stem = name.unwrap_or_else(timestamp_name);
         let extent = self.presenter.extent().unwrap_or(ash::vk::Extent2D { width: 320, height: 240 });
         let mut settings = self.settings.render_settings(self.camera.to_camera(self.renderer.scene().camera.vfov_deg));
         settings.width = extent.width;
         settings.height = extent.height;
         settings.timestamps = false;
-        let mut written = Vec::new();
         for (ext, output) in [("png", OutputKind::Display), ("exr", OutputKind::SceneLinear)] {
             settings.output = output;
             let frame = self.renderer.render(&settings)?;
-            let path = dir.join(format!("{stem}.{ext}"));
+            let path = self.screenshot_dir.join(format!("{stem}.{ext}"));
             crate::output::write_image(&frame, &path)?;
             log::info!("screenshot: {}", path.display());
-            written.push(path);
+            self.screenshots.push(path);
         }
-        Ok(written)
+        Ok(())
     }
 }
 

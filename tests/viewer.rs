@@ -1,0 +1,115 @@
+//! The viewer under Xvfb on lavapipe with validation on: scripted input drives the real window,
+//! and the viewer's own screenshots show that the image changes as it should.
+
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::Output;
+
+use umbra::output::read_exr;
+
+/// A fresh directory holding a copy of the default scene (screenshots land beside it).
+fn scene_dir(name: &str) -> PathBuf {
+    let dir = std::env::temp_dir().join(format!("umbra-viewer-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/default.toml")).unwrap();
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    dir
+}
+
+/// Runs `umbra view scene.toml --validate --script` under its own Xvfb server.
+fn view(dir: &Path, display: u32, script: &str, extra: &[&str]) -> Output {
+    common::lavapipe_env();
+    std::fs::write(dir.join("script.txt"), script).unwrap();
+    let server = 100 + (std::process::id() % 400) * 8 + display;
+    let out = std::process::Command::new("xvfb-run")
+        .args(["-n", &server.to_string(), "-s", "-screen 0 1024x768x24", env!("CARGO_BIN_EXE_umbra"), "view"])
+        .arg(dir.join("scene.toml"))
+        .args(["--validate", "--script"])
+        .arg(dir.join("script.txt"))
+        .args(extra)
+        .output()
+        .expect("xvfb-run (installed by tools/setup)");
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "viewer failed:\n{text}");
+    assert!(text.contains("validation: 0 messages"), "{text}");
+    out
+}
+
+fn luminance(p: &[f32]) -> f32 {
+    0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]
+}
+
+/// Mean x of the darkest lit-scene pixels (shadows), ignoring the flat background.
+fn shadow_centroid_x(path: &Path) -> f32 {
+    let (w, _, px) = read_exr(path).unwrap();
+    let bg = umbra::renderer::BACKGROUND;
+    let covered: Vec<(usize, f32)> = px
+        .chunks(4)
+        .enumerate()
+        .filter(|(_, p)| (p[0] - bg.x).abs() > 1e-6 || (p[1] - bg.y).abs() > 1e-6)
+        .map(|(i, p)| (i, luminance(p)))
+        .collect();
+    let mut l: Vec<f32> = covered.iter().map(|c| c.1).collect();
+    l.sort_by(f32::total_cmp);
+    let threshold = l[l.len() * 15 / 100];
+    let dark: Vec<usize> = covered.iter().filter(|c| c.1 <= threshold).map(|c| c.0 % w as usize).collect();
+    dark.iter().sum::<usize>() as f32 / dark.len() as f32
+}
+
+#[test]
+fn turning_the_camera_moves_the_shadows_on_screen() {
+    let dir = scene_dir("turn");
+    view(&dir, 1, "frames 2\nscreenshot before\nmouse 120 0\nframes 2\nscreenshot turned\nquit\n", &[]);
+    let (before, after) = (shadow_centroid_x(&dir.join("before.exr")), shadow_centroid_x(&dir.join("turned.exr")));
+    // 120 counts turn the camera 0.3 rad to the right, so the scene slides left by ~100 px.
+    assert!(after < before - 30.0, "shadow centroid x {before} -> {after}");
+    assert!(dir.join("before.png").exists() && dir.join("turned.png").exists());
+}
+
+#[test]
+fn switching_a_light_to_no_shadows_brightens_its_shadows_only() {
+    let dir = scene_dir("none");
+    view(&dir, 2, "frames 2\nscreenshot hard\npress T\nframes 2\nscreenshot unshadowed\nquit\n", &[]);
+    let (w, h, hard) = read_exr(&dir.join("hard.exr")).unwrap();
+    let (w2, h2, none) = read_exr(&dir.join("unshadowed.exr")).unwrap();
+    assert_eq!((w, h), (w2, h2));
+    let mut brighter = 0;
+    for (a, b) in hard.chunks(4).zip(none.chunks(4)) {
+        let (la, lb) = (luminance(a), luminance(b));
+        assert!(lb >= la - 1e-5, "removing a shadow darkened a pixel: {la} -> {lb}");
+        if lb > la * 1.2 + 1e-3 {
+            brighter += 1;
+        }
+    }
+    let n = (w * h) as usize;
+    assert!(brighter * 100 > n, "only {brighter} of {n} pixels brightened");
+}
+
+#[test]
+fn resizing_and_minimising_stay_validation_clean() {
+    let dir = scene_dir("resize");
+    let script = "frames 2\nresize 200 150\nframes 3\nscreenshot small\nresize 480 360\nframes 3\nminimise\nframes 4\nrestore\nframes 3\nscreenshot big\nresize 320 240\nframes 2\nquit\n";
+    let out = view(&dir, 3, script, &[]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let small = image::open(dir.join("small.png")).unwrap();
+    let big = image::open(dir.join("big.png")).unwrap();
+    assert_eq!((small.width(), small.height()), (200, 150));
+    assert_eq!((big.width(), big.height()), (480, 360));
+    // While minimised the viewer presents nothing.
+    let skipped: u64 = text
+        .split("frames presented, ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("viewer summary line");
+    assert!(skipped >= 4, "{text}");
+}
+
+#[test]
+fn frames_closes_the_window_after_n_frames() {
+    let dir = scene_dir("frames");
+    let out = view(&dir, 4, "", &["--frames", "5"]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("viewer: 5 frames presented"));
+}

@@ -4,7 +4,7 @@
 use std::sync::Arc;
 
 use ash::vk;
-use glam::{Mat4, Vec3};
+use glam::{DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
@@ -123,11 +123,15 @@ pub struct SceneGpu {
     pub bvh_nodes: Buffer,
     pub bvh_triangles: Buffer,
     pub has_casters: bool,
+    /// Bounds of the geometry in the scene-local frame.
     pub bounds: (Vec3, Vec3),
+    /// World position of the scene-local frame's origin (see `Renderer::new`).
+    pub origin: DVec3,
 }
 
 impl SceneGpu {
-    pub fn upload(ctx: &Arc<GpuContext>, scene: &Scene, bvh: &ShadowBvh) -> GpuResult<SceneGpu> {
+    /// Uploads `scene`, already moved into the local frame whose origin is `origin`.
+    pub fn upload(ctx: &Arc<GpuContext>, scene: &Scene, bvh: &ShadowBvh, origin: DVec3) -> GpuResult<SceneGpu> {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         let mut draws = Vec::new();
@@ -173,7 +177,14 @@ impl SceneGpu {
             bvh_triangles: Buffer::with_data(ctx, "bvh triangles", bytemuck::cast_slice(bvh.triangles()), usage)?,
             has_casters: !bvh.is_empty(),
             bounds: (lo, hi),
+            origin,
         })
+    }
+
+    /// A world-space camera in the scene-local frame.
+    pub fn to_local(&self, cam: &Camera) -> Camera {
+        let shift = |p: Vec3| (p.as_dvec3() - self.origin).as_vec3();
+        Camera { eye: shift(cam.eye), target: shift(cam.target), ..*cam }
     }
 }
 
@@ -218,8 +229,14 @@ pub struct Renderer {
 }
 
 impl Renderer {
+    /// Prepares `scene` for the GPU. Everything the GPU sees — vertices, BVH, lights, camera —
+    /// is moved (in f64) into a scene-local frame centred on the geometry, so positions stay
+    /// small and f32 keeps its precision (and shadow-ray offsets stay tiny) wherever the scene
+    /// sits in the world.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
-        let bvh = ShadowBvh::build(&scene);
+        let origin = geometry_centre(&scene);
+        let local = scene.translated(-origin);
+        let bvh = ShadowBvh::build(&local);
         log::info!(
             "scene: {} triangles, {} lights, BVH of {} nodes over {} shadow-casting triangles",
             scene.triangle_count(),
@@ -243,7 +260,7 @@ impl Renderer {
             readback: None,
             last_plan: None,
             pipelines: Pipelines::new(&ctx)?,
-            gpu_scene: SceneGpu::upload(&ctx, &scene, &bvh)?,
+            gpu_scene: SceneGpu::upload(&ctx, &local, &bvh, origin)?,
             scene,
             ctx,
         })
@@ -352,7 +369,12 @@ fn build_graph<'a>(
     target: Target<'a>,
 ) -> RenderGraph<'a> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
-    let camera = CameraMatrices::new(&settings.camera.unwrap_or(scene.camera), s.bounds, extent.width, extent.height);
+    let camera = CameraMatrices::new(
+        &s.to_local(&settings.camera.unwrap_or(scene.camera)),
+        s.bounds,
+        extent.width,
+        extent.height,
+    );
     let mut g = RenderGraph::new();
     let vertices = g.import_buffer("vertices", s.vertices.raw, s.vertices.size, Access::HostWrite);
     let indices = g.import_buffer("indices", s.indices.raw, s.indices.size, Access::HostWrite);
@@ -381,8 +403,14 @@ fn build_graph<'a>(
     let display = settings.output == OutputKind::Display;
     let result = match settings.debug_view {
         Some(view) => {
-            let inputs =
-                DebugInputs { view, visibility: visibility.as_ref(), eye: camera.eye, far: camera.far, display };
+            let inputs = DebugInputs {
+                view,
+                visibility: visibility.as_ref(),
+                eye: camera.eye,
+                origin: s.origin.as_vec3(),
+                far: camera.far,
+                display,
+            };
             // Float even for PNG: the shader already mapped values to [0,1] for display.
             debug_view::add(&mut g, &pipelines.debug_view, &gbuffer, inputs, extent)
         }
@@ -421,4 +449,19 @@ fn build_graph<'a>(
         Target::Inspect => g.export(result, Access::ComputeShaderReadSampledImage),
     }
     g
+}
+
+/// Centre of the geometry's bounds in world space (f64), or the origin for an empty scene.
+fn geometry_centre(scene: &Scene) -> DVec3 {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for p in scene.meshes.iter().flat_map(|m| &m.positions) {
+        lo = lo.min(p.as_dvec3());
+        hi = hi.max(p.as_dvec3());
+    }
+    if lo.x.is_finite() {
+        (lo + hi) * 0.5
+    } else {
+        DVec3::ZERO
+    }
 }

@@ -16,7 +16,8 @@ layout(set = 0, binding = DISPLAY_VISIBILITY, std430) readonly buffer Visibility
 #define VIEW_VISIBILITY 4
 
 layout(push_constant) uniform Push {
-    vec4 eye;       // xyz eye, w: 1/far distance used to display depth
+    vec4 eye;       // xyz eye (scene-local), w: 1/far distance used to display depth
+    vec4 origin;    // xyz: world position of the scene-local origin
     uvec4 params;   // x: width, y: height, z: view, w: display (1) or raw (0)
 } pc;
 
@@ -44,7 +45,7 @@ void main() {
         break;
     }
     case VIEW_POSITION:
-        v = display ? fract(texel.xyz) : texel.xyz;
+        v = display ? fract(texel.xyz + pc.origin.xyz) : texel.xyz + pc.origin.xyz;
         break;
     default: // VIEW_VISIBILITY; input is the position channel, to tell background apart.
 #ifdef WITH_VISIBILITY

@@ -24,6 +24,7 @@ pub enum DebugView {
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct Push {
     eye: Vec4,
+    origin: Vec4,
     params: UVec4,
 }
 
@@ -47,7 +48,10 @@ pub struct DebugInputs<'h> {
     pub view: DebugView,
     /// The first light's slice of the visibility buffer is its first W*H floats.
     pub visibility: Option<&'h Handle<BufferKind>>,
+    /// Scene-local eye.
     pub eye: glam::Vec3,
+    /// World position of the scene-local origin: the position view reports world positions.
+    pub origin: glam::Vec3,
     /// Distance shown as white in the display-referred depth view.
     pub far: f32,
     /// Map values into [0,1] for an 8-bit file (else raw values for EXR).
@@ -81,6 +85,7 @@ pub fn add<'a>(
     };
     let push = Push {
         eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
+        origin: inputs.origin.extend(0.0),
         params: UVec4::new(extent.width, extent.height, inputs.view as u32, inputs.display as u32),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));

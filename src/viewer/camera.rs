@@ -123,7 +123,7 @@ mod tests {
         let mut c = FlyCamera::from_scene(&cam(Vec3::ZERO, Vec3::NEG_Z));
         c.look(0.0, -1e6);
         assert!((c.pitch - MAX_PITCH_DEG.to_radians()).abs() < 1e-6);
-        assert!(c.forward().y > 0.98 && c.forward().cross(c.right()).y > 0.0, "up stays up");
+        assert!(c.forward().y > 0.98 && c.right().cross(c.forward()).y > 0.0, "up stays up");
         c.look(0.0, 2e6);
         assert!((c.pitch + MAX_PITCH_DEG.to_radians()).abs() < 1e-6);
     }

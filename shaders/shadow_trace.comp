@@ -1,6 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// Shadow trace pass: one any-hit ray per drawn pixel and light through the shadow-caster BVH.
+// Shadow trace pass: any-hit rays per drawn pixel and light through the shadow-caster BVH: one
+// toward the light's centre (hard), or several toward points over its extent (soft).
 // No ray is cast where the light cannot contribute (background, facing away, outside a spot's
 // cone): visibility there is 0 (1 for background, which nothing shadows).
 #include "bindings.glsl"
@@ -11,6 +12,7 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 #define BVH_TRIANGLES_BINDING SHADOW_BVH_TRIANGLES
 #include "bvh.glsl"
 #include "lights.glsl"
+#include "random.glsl"
 #include "ray_offset.glsl"
 
 layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
@@ -19,12 +21,27 @@ layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLig
 layout(set = 0, binding = SHADOW_VISIBILITY, std430) writeonly buffer Visibility { float visibility[]; };
 
 layout(push_constant) uniform Push {
-    uvec4 dims;   // x: width, y: height, z: light count
-    uvec4 traced; // bit i: light i casts ray-traced shadows (lights past 128 always do)
+    uvec4 dims;   // x: width, y: height, z: light count, w: rays per pixel for soft shadows
+    uvec4 traced; // bit i: light i casts ray-traced shadows (lights past 128 always do, hard)
+    uvec4 soft;   // bit i: light i's shadows are soft (sampled over its extent)
+    uvec4 frame;  // x: frame index, seeding the samples
 } pc;
 
-bool is_traced(uint light) {
-    return light >= 128u || ((pc.traced[light / 32u] >> (light % 32u)) & 1u) != 0u;
+bool bit(uvec4 mask, uint light) {
+    return ((mask[light / 32u] >> (light % 32u)) & 1u) != 0u;
+}
+
+// Fraction of `spp` rays toward points spread over the light that reach it.
+float soft_visibility(GpuLight l, uint light, uint pixel, vec3 origin) {
+    uint spp = max(pc.dims.w, 1u);
+    uint reached = 0u;
+    for (uint k = 0u; k < spp; k++) {
+        vec2 u = random2(uvec3(pixel, pc.frame.x, light * spp + k));
+        float dist;
+        vec3 L = light_sample_point(l, origin, u, dist);
+        if (!bvh_occluded(origin, L, dist * (1.0 - 1e-5))) reached++;
+    }
+    return float(reached) / float(spp);
 }
 
 void main() {
@@ -43,8 +60,10 @@ void main() {
             light_sample(lights[i], position.xyz, L, dist, e);
             if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
                 v = 0.0;
-            } else if (!is_traced(i)) {
+            } else if (i < 128u && !bit(pc.traced, i)) {
                 v = 1.0;
+            } else if (i < 128u && bit(pc.soft, i)) {
+                v = soft_visibility(lights[i], i, pixel, offset_ray_origin(position.xyz, n));
             } else {
                 vec3 origin = offset_ray_origin(position.xyz, n);
                 // The light's own position is not an occluder: stop just short of it.

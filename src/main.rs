@@ -77,6 +77,9 @@ struct RenderArgs {
     /// Shadow method for every light.
     #[arg(long, value_enum, default_value_t = ShadowMethod::RayTraced)]
     shadows: ShadowMethod,
+    /// Soft shadows: rays per pixel and light.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=256))]
+    spp: u32,
     /// Use the Vulkan device whose name contains this text.
     #[arg(long)]
     device: Option<String>,
@@ -137,6 +140,8 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         timestamps: args.timings,
         camera: None,
         shadows: vec![args.shadows; scene.lights.len()],
+        soft_spp: args.spp,
+        frame_index: 0,
     };
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();

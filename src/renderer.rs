@@ -9,6 +9,7 @@ use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
 use crate::passes::debug_view::{self, DebugInputs, DebugView};
+use crate::passes::accumulate::{self, History};
 use crate::passes::overlay::OverlayInputs;
 use crate::passes::{compose, geometry, overlay, present, readback, shadow_trace, tonemap, Pipelines};
 use crate::scene::bvh::ShadowBvh;
@@ -33,6 +34,10 @@ pub struct RenderSettings {
     pub camera: Option<Camera>,
     /// Shadow method per light, in scene order; lights past the end are ray traced.
     pub shadows: Vec<ShadowMethod>,
+    /// Soft shadows: rays per pixel and light in each frame.
+    pub soft_spp: u32,
+    /// Seeds the soft-shadow samples, so successive frames draw fresh ones.
+    pub frame_index: u32,
 }
 
 impl RenderSettings {
@@ -47,7 +52,14 @@ impl RenderSettings {
             timestamps: false,
             camera: None,
             shadows: Vec::new(),
+            soft_spp: 8,
+            frame_index: 0,
         }
+    }
+
+    /// Whether any light's shadows are sampled stochastically (and so worth accumulating).
+    pub fn is_stochastic(&self, lights: usize) -> bool {
+        (0..lights).any(|i| self.shadow_method(i) == ShadowMethod::RayTracedSoft)
     }
 
     pub fn shadow_method(&self, light: usize) -> ShadowMethod {
@@ -58,9 +70,12 @@ impl RenderSettings {
 /// How a light's shadows are made.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
 pub enum ShadowMethod {
-    /// One any-hit ray per pixel through the BVH.
+    /// One any-hit ray per pixel toward the light's centre: a hard shadow.
     #[default]
     RayTraced,
+    /// `soft_spp` rays per pixel toward points spread over the light's extent (radius or
+    /// angular diameter): penumbrae that widen with distance from the occluder.
+    RayTracedSoft,
     /// Unshadowed: the light reaches every surface facing it.
     None,
 }
@@ -69,7 +84,17 @@ impl ShadowMethod {
     pub fn name(self) -> &'static str {
         match self {
             ShadowMethod::RayTraced => "ray traced (hard)",
+            ShadowMethod::RayTracedSoft => "ray traced (soft)",
             ShadowMethod::None => "none",
+        }
+    }
+
+    /// The next method in the viewer's cycle.
+    pub fn next(self) -> ShadowMethod {
+        match self {
+            ShadowMethod::RayTraced => ShadowMethod::RayTracedSoft,
+            ShadowMethod::RayTracedSoft => ShadowMethod::None,
+            ShadowMethod::None => ShadowMethod::RayTraced,
         }
     }
 }
@@ -221,6 +246,7 @@ pub struct Renderer {
     // Field order is drop order: everything on the device goes before the context.
     cache: TransientCache,
     readback: Option<Buffer>,
+    accumulator: accumulate::Accumulator,
     last_plan: Option<CompiledGraph>,
     pipelines: Pipelines,
     pub gpu_scene: SceneGpu,
@@ -258,6 +284,7 @@ impl Renderer {
         Ok(Renderer {
             cache: TransientCache::new(&ctx)?,
             readback: None,
+            accumulator: accumulate::Accumulator::default(),
             last_plan: None,
             pipelines: Pipelines::new(&ctx)?,
             gpu_scene: SceneGpu::upload(&ctx, &local, &bvh, origin)?,
@@ -270,13 +297,10 @@ impl Renderer {
         &self.scene
     }
 
-    fn build_graph<'a>(&'a self, settings: &RenderSettings, target: Target<'a>) -> RenderGraph<'a> {
-        build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, target)
-    }
 
     /// The compiled plan for `settings`, for printing and inspection.
     pub fn plan(&self, settings: &RenderSettings) -> CompiledGraph {
-        CompiledGraph::compile(&self.build_graph(settings, Target::Inspect))
+        CompiledGraph::compile(&build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, Target::Inspect, None))
     }
 
     pub fn pipelines(&self) -> &Pipelines {
@@ -284,16 +308,20 @@ impl Renderer {
     }
 
     /// Records one frame into `cmd` using `cache` (one per frame in flight); returns its plan.
+    /// With a history, the shaded frame is averaged into it (a still view converging).
     pub fn record(
         &self,
         cache: &mut TransientCache,
         cmd: vk::CommandBuffer,
         settings: &RenderSettings,
         target: Target<'_>,
+        history: Option<History<'_>>,
     ) -> GpuResult<CompiledGraph> {
-        record_frame(&self.pipelines, &self.gpu_scene, &self.scene, cache, cmd, settings, target)
+        let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, target, history);
+        execute(cache, graph, cmd, settings)
     }
-    /// Renders one frame and reads it back.
+    /// Renders one frame and reads it back. Successive calls with the same settings and
+    /// stochastic (soft) shadows return the running mean of all their frames.
     pub fn render(&mut self, settings: &RenderSettings) -> GpuResult<Frame> {
         let bytes8 = settings.output == OutputKind::Display && settings.debug_view.is_none();
         let texel = if bytes8 { 4 } else { 16 };
@@ -326,10 +354,13 @@ impl Renderer {
     }
 
     fn record_and_submit(&mut self, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
-        let Renderer { cache, ctx, pipelines, gpu_scene, scene, last_plan, .. } = self;
-        let plan = ctx.submit_and_wait(|cmd| {
-            record_frame(pipelines, gpu_scene, scene, cache, cmd, settings, Target::ReadBack(readback))
-        })?;
+        let Renderer { cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, .. } = self;
+        let mut settings = settings.clone();
+        let history = accumulator.prepare(ctx, &mut settings, scene.lights.len())?;
+        let accumulated = history.is_some();
+        let graph = build_graph(pipelines, gpu_scene, scene, &settings, Target::ReadBack(readback), history);
+        let plan = ctx.submit_and_wait(|cmd| execute(cache, graph, cmd, &settings))?;
+        accumulator.advance(accumulated);
         *last_plan = Some(plan);
         Ok(())
     }
@@ -344,16 +375,12 @@ impl Renderer {
         self.cache.read_timings()
     }
 }
-fn record_frame(
-    pipelines: &Pipelines,
-    gpu_scene: &SceneGpu,
-    scene: &Scene,
+fn execute(
     cache: &mut TransientCache,
+    graph: RenderGraph<'_>,
     cmd: vk::CommandBuffer,
     settings: &RenderSettings,
-    target: Target<'_>,
 ) -> GpuResult<CompiledGraph> {
-    let graph = build_graph(pipelines, gpu_scene, scene, settings, target);
     let plan = CompiledGraph::compile(&graph);
     log::debug!("{plan}");
     cache.execute(graph, &plan, cmd, settings.timestamps)?;
@@ -367,6 +394,7 @@ fn build_graph<'a>(
     scene: &Scene,
     settings: &RenderSettings,
     target: Target<'a>,
+    history: Option<History<'a>>,
 ) -> RenderGraph<'a> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let camera = CameraMatrices::new(
@@ -384,9 +412,8 @@ fn build_graph<'a>(
     // Shadow rays only where something can cast a shadow on a lit point, or where the
     // visibility view asks for them.
     let wants_visibility = settings.debug_view == Some(DebugView::Visibility);
-    let traced: Vec<bool> =
-        (0..s.light_count as usize).map(|i| settings.shadow_method(i) == ShadowMethod::RayTraced).collect();
-    let any_traced = traced.iter().any(|&t| t);
+    let methods: Vec<ShadowMethod> = (0..s.light_count as usize).map(|i| settings.shadow_method(i)).collect();
+    let any_traced = methods.iter().any(|&m| m != ShadowMethod::None);
     let visibility = (s.light_count > 0 && ((s.has_casters && any_traced) || wants_visibility)).then(|| {
         let nodes = g.import_buffer("bvh nodes", s.bvh_nodes.raw, s.bvh_nodes.size, Access::HostWrite);
         let tris = g.import_buffer("bvh triangles", s.bvh_triangles.raw, s.bvh_triangles.size, Access::HostWrite);
@@ -395,7 +422,9 @@ fn build_graph<'a>(
             light_count: s.light_count,
             bvh_nodes: &nodes,
             bvh_triangles: &tris,
-            traced: &traced,
+            methods: &methods,
+            soft_spp: settings.soft_spp,
+            frame_index: settings.frame_index,
         };
         shadow_trace::add(&mut g, &pipelines.shadow_trace, &gbuffer, inputs, extent)
     });
@@ -422,12 +451,20 @@ fn build_graph<'a>(
                 eye: camera.eye,
                 background: BACKGROUND,
             };
-            let radiance = compose::add(&mut g, pipelines, &gbuffer, inputs, extent);
-            if display {
+            let mut radiance = compose::add(&mut g, pipelines, &gbuffer, inputs, extent);
+            if let Some(h) = &history {
+                radiance = accumulate::add(&mut g, &pipelines.accumulate, &radiance, h, extent);
+            }
+            let result = if display {
                 tonemap::add(&mut g, &pipelines.tonemap, &radiance, settings.exposure_ev, extent)
             } else {
                 radiance
+            };
+            if history.is_some() {
+                // Left where the next frame's import expects it.
+                g.export(radiance, accumulate::HISTORY_ACCESS);
             }
+            result
         }
     };
     match target {

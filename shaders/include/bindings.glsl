@@ -35,4 +35,8 @@
 #define OVERLAY_GLYPHS 1
 #define OVERLAY_TEXT 2
 
+// accumulate.comp: progressive average of a still view
+#define ACCUM_CURRENT 0
+#define ACCUM_HISTORY 1
+
 #endif

@@ -1,6 +1,7 @@
 //! One file per pass. A pass is a free function from graph handles to graph handles: it declares
 //! what it reads and writes and records its draw or dispatch; the graph does the rest.
 
+pub mod accumulate;
 pub mod compose;
 pub mod debug_view;
 pub mod geometry;
@@ -44,6 +45,7 @@ pub struct Pipelines {
     pub compose_unshadowed: ComputePipeline,
     pub tonemap: ComputePipeline,
     pub debug_view: debug_view::DebugPipelines,
+    pub accumulate: ComputePipeline,
 }
 
 impl Pipelines {
@@ -55,6 +57,7 @@ impl Pipelines {
             compose_unshadowed: compose::pipeline(ctx, false)?,
             tonemap: tonemap::pipeline(ctx)?,
             debug_view: debug_view::pipelines(ctx)?,
+            accumulate: accumulate::pipeline(ctx)?,
         })
     }
 }

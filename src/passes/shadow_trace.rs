@@ -8,6 +8,7 @@ use glam::UVec4;
 
 use super::{sampled, storage, GBuffer, TILE};
 use crate::graph::{Access, Bound, BufferKind, Handle, RenderGraph};
+use crate::renderer::ShadowMethod;
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
 
@@ -24,7 +25,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
             storage(SHADOW_BVH_TRIANGLES),
             storage(SHADOW_VISIBILITY),
         ],
-        32,
+        64,
         TILE,
     )
 }
@@ -39,8 +40,12 @@ pub struct ShadowInputs<'h> {
     pub light_count: u32,
     pub bvh_nodes: &'h Handle<BufferKind>,
     pub bvh_triangles: &'h Handle<BufferKind>,
-    /// Per light: trace rays (true) or leave it unshadowed.
-    pub traced: &'h [bool],
+    /// Per light.
+    pub methods: &'h [ShadowMethod],
+    /// Rays per pixel for soft-shadowed lights.
+    pub soft_spp: u32,
+    /// Seeds the soft-shadow samples.
+    pub frame_index: u32,
 }
 
 pub fn add<'a>(
@@ -60,13 +65,24 @@ pub fn add<'a>(
         (SHADOW_BVH_TRIANGLES, Bound::Buffer(pass.read(inputs.bvh_triangles, Access::ComputeShaderReadStorageBuffer))),
         (SHADOW_VISIBILITY, Bound::Buffer(pass.write(&mut visibility, Access::ComputeShaderWrite))),
     ];
-    let mut mask = [0u32; 4];
-    for (i, _) in inputs.traced.iter().enumerate().filter(|(_, &t)| t) {
-        if i < 128 {
-            mask[i / 32] |= 1 << (i % 32);
+    // Bit i of `traced`: light i casts ray-traced shadows; of `soft`: they are soft. The
+    // shader traces lights past 128 hard.
+    let (mut traced, mut soft) = ([0u32; 4], [0u32; 4]);
+    for (i, m) in inputs.methods.iter().enumerate().take(128) {
+        let bit = 1 << (i % 32);
+        if *m != ShadowMethod::None {
+            traced[i / 32] |= bit;
+        }
+        if *m == ShadowMethod::RayTracedSoft {
+            soft[i / 32] |= bit;
         }
     }
-    let push = [UVec4::new(extent.width, extent.height, inputs.light_count, 0), UVec4::from_array(mask)];
+    let push = [
+        UVec4::new(extent.width, extent.height, inputs.light_count, inputs.soft_spp.clamp(1, 256)),
+        UVec4::from_array(traced),
+        UVec4::from_array(soft),
+        UVec4::new(inputs.frame_index, 0, 0, 0),
+    ];
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), extent.width, extent.height));
     visibility
 }

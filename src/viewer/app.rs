@@ -86,6 +86,7 @@ struct Running {
     timings: Vec<(&'static str, f64)>,
     screenshot_dir: PathBuf,
     screenshots: Vec<PathBuf>,
+    quit: bool,
 }
 
 impl ApplicationHandler for App {
@@ -132,6 +133,9 @@ impl ApplicationHandler for App {
         };
         if let Some(ev) = input {
             r.handle(ev);
+            if r.quit {
+                event_loop.exit();
+            }
         }
     }
 
@@ -202,6 +206,7 @@ impl App {
             timings: Vec::new(),
             screenshot_dir: o.screenshot_dir.clone(),
             screenshots: Vec::new(),
+            quit: false,
         })
     }
 
@@ -257,6 +262,7 @@ impl Running {
             InputEvent::Scroll(steps) => self.camera.scroll(steps),
             InputEvent::KeyDown(key) => match key {
                 Key::Home => self.camera.reset(&self.renderer.scene().camera),
+                Key::Escape => self.quit = true,
                 Key::F12 => {
                     if let Err(e) = self.screenshot(None) {
                         log::error!("screenshot failed: {e:#}");
@@ -307,6 +313,7 @@ impl Running {
                     return Ok(false);
                 }
                 ScriptStep::Quit => {
+                    self.quit = true;
                     event_loop.exit();
                     return Ok(false);
                 }
@@ -327,6 +334,9 @@ impl Running {
         let scene = self.renderer.scene();
         lines.push(format!("{} triangles, {} lights", scene.triangle_count(), scene.lights.len()));
         lines.extend(self.settings.describe(&scene.lights));
+        if self.presenter.accumulated_frames() > 0 {
+            lines.push(format!("accumulated {} frames (still camera)", self.presenter.accumulated_frames()));
+        }
         let total: f64 = self.timings.iter().map(|t| t.1).sum();
         for (name, ms) in &self.timings {
             lines.push(format!("  {name:<14} {ms:7.3} ms"));
@@ -334,7 +344,7 @@ impl Running {
         if !self.timings.is_empty() {
             lines.push(format!("  {:<14} {total:7.3} ms", "GPU total"));
         }
-        lines.push("F1 overlay  F12 shot  RMB look  WASD QE move  Home reset".into());
+        lines.push("F1 overlay  F12 shot  RMB look  WASD QE move  Home reset  Esc quit".into());
         lines
     }
 
@@ -376,6 +386,9 @@ fn map_key(code: KeyCode) -> Option<Key> {
         KeyCode::KeyV => Key::V,
         KeyCode::Equal | KeyCode::NumpadAdd => Key::Plus,
         KeyCode::Minus | KeyCode::NumpadSubtract => Key::Minus,
+        KeyCode::BracketLeft => Key::BracketLeft,
+        KeyCode::BracketRight => Key::BracketRight,
+        KeyCode::Escape => Key::Escape,
         _ => return None,
     })
 }

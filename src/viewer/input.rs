@@ -23,6 +23,10 @@ pub enum Key {
     V,
     Plus,
     Minus,
+    /// Halve / double the soft-shadow samples.
+    BracketLeft,
+    BracketRight,
+    Escape,
 }
 
 impl Key {
@@ -43,6 +47,9 @@ impl Key {
             "V" => Key::V,
             "PLUS" | "+" => Key::Plus,
             "MINUS" | "-" => Key::Minus,
+            "[" | "BRACKETLEFT" => Key::BracketLeft,
+            "]" | "BRACKETRIGHT" => Key::BracketRight,
+            "ESCAPE" | "ESC" => Key::Escape,
             _ => return None,
         })
     }

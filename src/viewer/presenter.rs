@@ -8,9 +8,12 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::TransientCache;
+use crate::passes::accumulate::Accumulator;
 use crate::passes::overlay::{self, OverlayInputs, OverlayText};
 use crate::renderer::{RenderSettings, Renderer, Target};
-use crate::vk::{Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
+use crate::vk::{
+    Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface,
+};
 
 const FRAMES_IN_FLIGHT: usize = 2;
 /// Characters the overlay's text buffer holds (columns x rows).
@@ -35,6 +38,8 @@ pub struct Presenter {
     surface: WindowSurface,
     size: (u32, u32),
     stale: bool,
+    /// Running mean of a still view with stochastic (soft) shadows.
+    accumulator: Accumulator,
     ctx: Arc<GpuContext>,
 }
 
@@ -85,6 +90,7 @@ impl Presenter {
             surface,
             size: (width, height),
             stale: true,
+            accumulator: Accumulator::default(),
             ctx,
         };
         presenter.recreate()?;
@@ -101,6 +107,11 @@ impl Presenter {
 
     pub fn extent(&self) -> Option<vk::Extent2D> {
         self.swapchain.as_ref().map(|s| s.extent)
+    }
+
+    /// Frames averaged into the history (0 when nothing accumulates).
+    pub fn accumulated_frames(&self) -> u32 {
+        self.accumulator.frames()
     }
 
     pub fn present_mode(&self) -> Option<vk::PresentModeKHR> {
@@ -122,6 +133,7 @@ impl Presenter {
         self.wait_idle()?;
         let new = Swapchain::new(&self.surface, self.size.0, self.size.1, self.swapchain.as_ref())?;
         self.swapchain = Some(new);
+        self.accumulator.reset();
         self.stale = false;
         Ok(())
     }
@@ -163,6 +175,8 @@ impl Presenter {
         let mut frame_settings = settings.clone();
         frame_settings.width = swapchain.extent.width;
         frame_settings.height = swapchain.extent.height;
+        let history = self.accumulator.prepare(&self.ctx, &mut frame_settings, renderer.scene().lights.len())?;
+        let accumulated = history.is_some();
         let overlay = overlay_lines.map(|lines| {
             let text = OverlayText::new(lines);
             let n = text.chars.len().min(OVERLAY_CAPACITY);
@@ -190,7 +204,7 @@ impl Presenter {
             let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
             device.begin_command_buffer(slot.cmd, &begin).vk("vkBeginCommandBuffer")?;
         }
-        renderer.record(&mut slot.cache, slot.cmd, &frame_settings, target)?;
+        renderer.record(&mut slot.cache, slot.cmd, &frame_settings, target, history)?;
         let waits = [vk::SemaphoreSubmitInfo::default()
             .semaphore(slot.acquired)
             .stage_mask(crate::graph::Access::AcquiredImage.info().stage)];
@@ -208,6 +222,7 @@ impl Presenter {
             device.queue_submit2(self.ctx.queue, &submit, slot.fence).vk("vkQueueSubmit2")?;
         }
         slot.used = true;
+        self.accumulator.advance(accumulated);
         if !swapchain.present(index)? {
             self.stale = true;
         }

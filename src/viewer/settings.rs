@@ -22,7 +22,11 @@ pub struct ViewerSettings {
     pub view: usize,
     pub overlay: bool,
     pub exposure_ev: f32,
+    /// Soft-shadow rays per pixel and light per frame.
+    pub soft_spp: u32,
 }
+
+pub const MAX_SPP: u32 = 64;
 
 impl ViewerSettings {
     pub fn new(lights: usize) -> ViewerSettings {
@@ -45,12 +49,11 @@ impl ViewerSettings {
             Key::L if !self.shadows.is_empty() => self.selected_light = (self.selected_light + 1) % self.shadows.len(),
             Key::T => {
                 if let Some(m) = self.shadows.get_mut(self.selected_light) {
-                    *m = match m {
-                        ShadowMethod::RayTraced => ShadowMethod::None,
-                        ShadowMethod::None => ShadowMethod::RayTraced,
-                    };
+                    *m = m.next();
                 }
             }
+            Key::BracketLeft => self.soft_spp = (self.soft_spp / 2).max(1),
+            Key::BracketRight => self.soft_spp = (self.soft_spp * 2).min(MAX_SPP),
             Key::V => self.view = (self.view + 1) % VIEWS.len(),
             Key::Plus => self.exposure_ev += 0.5,
             Key::Minus => self.exposure_ev -= 0.5,
@@ -66,6 +69,7 @@ impl ViewerSettings {
         s.timestamps = true;
         s.camera = Some(camera);
         s.shadows = self.shadows.clone();
+        s.soft_spp = self.soft_spp;
         s
     }
 
@@ -86,7 +90,10 @@ impl ViewerSettings {
             ));
         }
         let view = self.debug_view().map_or("shaded".to_string(), |v| format!("{v:?}").to_lowercase());
-        lines.push(format!("view {view}  exposure {:+.1} EV   [V] view [+/-] exposure", self.exposure_ev));
+        lines.push(format!(
+            "view {view}  exposure {:+.1} EV  soft {} spp/frame   [V] view [+/-] exposure [[/]] spp",
+            self.exposure_ev, self.soft_spp
+        ));
         lines
     }
 }
@@ -99,11 +106,23 @@ mod tests {
     fn keys_cycle_lights_methods_and_views() {
         let mut s = ViewerSettings::new(3);
         s.on_key(Key::T);
-        assert_eq!(s.shadows, vec![ShadowMethod::None, ShadowMethod::RayTraced, ShadowMethod::RayTraced]);
+        assert_eq!(s.shadows, vec![ShadowMethod::RayTracedSoft, ShadowMethod::RayTraced, ShadowMethod::RayTraced]);
+        s.on_key(Key::T);
+        assert_eq!(s.shadows[0], ShadowMethod::None);
+        s.on_key(Key::T);
+        assert_eq!(s.shadows[0], ShadowMethod::RayTraced, "the cycle closes");
         s.on_key(Key::L);
         s.on_key(Key::L);
         s.on_key(Key::T);
-        assert_eq!(s.shadows[2], ShadowMethod::None);
+        assert_eq!(s.shadows[2], ShadowMethod::RayTracedSoft);
+        for _ in 0..10 {
+            s.on_key(Key::BracketRight);
+        }
+        assert_eq!(s.soft_spp, MAX_SPP);
+        for _ in 0..10 {
+            s.on_key(Key::BracketLeft);
+        }
+        assert_eq!(s.soft_spp, 1);
         s.on_key(Key::L);
         assert_eq!(s.selected_light, 0, "selection wraps");
         for _ in 0..VIEWS.len() {

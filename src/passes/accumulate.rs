@@ -1,0 +1,125 @@
+//! Accumulate pass: while the view stands still, averages each new frame into a history image
+//! that lives outside the graph, so soft shadows converge progressively. Scheduled only when a
+//! light's shadows are stochastic.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::UVec4;
+
+use super::{sampled, storage_image, TILE};
+use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
+use crate::vk::bindings::*;
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image};
+
+/// How the history image is left at the end of each frame, and found at the start of the next.
+pub const HISTORY_ACCESS: Access = Access::ComputeShaderReadSampledImage;
+
+pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(
+        ctx,
+        "accumulate",
+        spirv::ACCUMULATE_COMP,
+        &[sampled(ACCUM_CURRENT), storage_image(ACCUM_HISTORY)],
+        16,
+        TILE,
+    )
+}
+
+/// A history image and how many frames it holds (0: start afresh).
+pub struct History<'a> {
+    pub image: &'a Image,
+    pub frames: u32,
+    /// Never used by any frame yet: no earlier frame can still be reading it.
+    pub fresh: bool,
+}
+
+/// Folds `radiance` into the history; returns the history, which now holds the mean.
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipeline: &'a ComputePipeline,
+    radiance: &Handle<ImageKind>,
+    history: &History<'_>,
+    extent: vk::Extent2D,
+) -> Handle<ImageKind> {
+    // A fresh image has no layout yet; a used one may still be read by the frame before.
+    let last = if history.fresh { Access::Nothing } else { HISTORY_ACCESS };
+    let mut mean = graph.import_image("history", history.image.desc, history.image.raw, history.image.view, last);
+    let mut pass = graph.add_pass("accumulate");
+    if history.frames > 0 {
+        pass.read(&mean, Access::ComputeShaderReadStorageImage);
+    }
+    let bound = [
+        (ACCUM_CURRENT, Bound::Image(pass.read(radiance, Access::ComputeShaderReadSampledImage))),
+        (ACCUM_HISTORY, Bound::Image(pass.write(&mut mean, Access::ComputeShaderWrite))),
+    ];
+    let push = UVec4::new(extent.width, extent.height, history.frames, 0);
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    mean
+}
+
+/// Owns a history image and decides, frame by frame, whether the view is still (same settings
+/// as last frame, so the mean goes on) or changed (start again). Used by the viewer and by
+/// multi-frame captures alike.
+#[derive(Default)]
+pub struct Accumulator {
+    image: Option<Image>,
+    frames: u32,
+    used: bool,
+    last: Option<crate::renderer::RenderSettings>,
+    next_seed: u32,
+}
+
+impl Accumulator {
+    /// Frames averaged so far.
+    pub fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    /// Seeds `settings.frame_index` and returns the history to fold this frame into, if the
+    /// frame is stochastic (soft shadows) and shaded. Call `advance` once it is recorded.
+    pub fn prepare(
+        &mut self,
+        ctx: &Arc<GpuContext>,
+        settings: &mut crate::renderer::RenderSettings,
+        lights: usize,
+    ) -> GpuResult<Option<History<'_>>> {
+        let mut key = settings.clone();
+        key.frame_index = 0;
+        key.timestamps = false;
+        let still = self.last.as_ref() == Some(&key);
+        self.last = Some(key);
+        settings.frame_index = self.next_seed;
+        self.next_seed = self.next_seed.wrapping_add(1);
+        if settings.debug_view.is_some() || !settings.is_stochastic(lights) {
+            self.frames = 0;
+            return Ok(None);
+        }
+        let desc = crate::vk::ImageDesc::new(super::RADIANCE_FORMAT, settings.width, settings.height);
+        if self.image.as_ref().is_none_or(|i| i.desc != desc) {
+            let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED;
+            self.image = Some(Image::new(ctx, "history", desc, usage)?);
+            self.used = false;
+        }
+        if !still {
+            self.frames = 0;
+        }
+        let image = self.image.as_ref().expect("made above");
+        Ok(Some(History { image, frames: self.frames, fresh: !self.used }))
+    }
+
+    /// The frame prepared last was recorded with its history.
+    pub fn advance(&mut self, accumulated: bool) {
+        if accumulated {
+            self.used = true;
+            self.frames = self.frames.saturating_add(1);
+        }
+    }
+
+    /// Drops the image (after the device is idle), e.g. when the swapchain is recreated.
+    pub fn reset(&mut self) {
+        self.image = None;
+        self.frames = 0;
+        self.used = false;
+    }
+}

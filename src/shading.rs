@@ -1,10 +1,11 @@
 //! CPU evaluation of the lights and the BRDF, mirroring shaders/include/{lights,brdf,tonemap}.glsl.
 //! It is the reference the shaded images are checked against, and the place the shading maths
 //! is unit-tested; keep each function in step with its GLSL twin of the same name.
+//! `pcg`, `hash_to_unit` and `random2` are the twins of shaders/include/random.glsl.
 
 use crate::scene::{Light, Material};
-use glam::Vec3;
-use std::f32::consts::PI;
+use glam::{UVec3, Vec2, Vec3};
+use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
 
 /// `GpuLight` kinds, stored in `position_kind.w` as small exact floats.
 pub const LIGHT_POINT: f32 = 0.0;
@@ -31,7 +32,7 @@ pub const BRDF_MIN_ALPHA: f32 = 1e-3;
 /// clamping (rather than returning black) keeps those pixels lit like their neighbours.
 pub const BRDF_MIN_N_DOT_V: f32 = 1e-4;
 
-/// One light as the GPU reads it (std430, 48 bytes), built by `gpu_lights`.
+/// One light as the GPU reads it (std430, 64 bytes: four vec4), built by `gpu_lights`.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct GpuLight {
@@ -42,6 +43,10 @@ pub struct GpuLight {
     /// xyz: intensity in W/sr (point, spot) or irradiance in W/m^2 (directional);
     /// w: cos(inner half-angle).
     pub intensity_cos_inner: [f32; 4],
+    /// The light's extent for soft shadows (`light_sample_point`); 0 in x means hard.
+    /// x: sphere radius in metres (point, spot) or tan(angular_diameter / 2), the tangent of the
+    /// angular *radius* (directional); y, z, w: 0 (reserved).
+    pub size: [f32; 4],
 }
 
 pub fn gpu_lights(lights: &[Light]) -> Vec<GpuLight> {
@@ -51,17 +56,19 @@ pub fn gpu_lights(lights: &[Light]) -> Vec<GpuLight> {
 fn gpu_light(light: &Light) -> GpuLight {
     let pack = |v: Vec3, w: f32| v.extend(w).to_array();
     match *light {
-        Light::Point { position, intensity } => GpuLight {
+        Light::Point { position, intensity, radius } => GpuLight {
             position_kind: pack(position, LIGHT_POINT),
             direction_cos_outer: pack(Vec3::ZERO, -1.0),
             intensity_cos_inner: pack(intensity, 1.0),
+            size: [radius.max(0.0), 0.0, 0.0, 0.0],
         },
-        Light::Directional { direction, irradiance } => GpuLight {
+        Light::Directional { direction, irradiance, angular_diameter_deg } => GpuLight {
             position_kind: pack(Vec3::ZERO, LIGHT_DIRECTIONAL),
             direction_cos_outer: pack(direction.normalize(), -1.0),
             intensity_cos_inner: pack(irradiance, 1.0),
+            size: [tan_angular_radius(angular_diameter_deg), 0.0, 0.0, 0.0],
         },
-        Light::Spot { position, direction, intensity, inner_deg, outer_deg } => {
+        Light::Spot { position, direction, intensity, inner_deg, outer_deg, radius } => {
             let outer = outer_deg.clamp(0.0, 180.0).to_radians();
             let inner = inner_deg.clamp(0.0, outer_deg.clamp(0.0, 180.0)).to_radians();
             let cos_inner = inner.cos();
@@ -70,9 +77,18 @@ fn gpu_light(light: &Light) -> GpuLight {
                 position_kind: pack(position, LIGHT_SPOT),
                 direction_cos_outer: pack(direction.normalize(), cos_outer),
                 intensity_cos_inner: pack(intensity, cos_inner),
+                size: [radius.max(0.0), 0.0, 0.0, 0.0],
             }
         }
     }
+}
+
+/// `GpuLight::size.x` of a directional light: tan of half its angular diameter, taken in f64.
+/// The scene file keeps the diameter below 90 degrees; it is clamped to [0, 179] here so that a
+/// hand-built `Light` still gives a finite value.
+fn tan_angular_radius(angular_diameter_deg: f32) -> f32 {
+    let diameter = f64::from(angular_diameter_deg).clamp(0.0, 179.0);
+    (diameter.to_radians() * 0.5).tan() as f32
 }
 
 /// What one light delivers to a point: see `light_sample`.
@@ -105,6 +121,107 @@ pub fn light_sample(light: &GpuLight, p: Vec3) -> LightSample {
         e_normal *= smoothstep(cos_outer, cos_inner, (-l).dot(axis));
     }
     LightSample { l, dist, e_normal }
+}
+
+/// Twin of `light_sample_point` in lights.glsl: where a soft shadow ray from `p` aims. Returns
+/// the unit direction from `p` toward a point on the light's extent chosen by `u` in [0, 1)^2,
+/// and the distance to that point (the shadow ray's tmax).
+///
+/// - Point and spot lights (`size.x` = radius R > 0): a point uniformly distributed over the disk
+///   of radius R centred on the light and perpendicular to the line from `p` to the centre: the
+///   sphere's silhouette seen from `p`. The true silhouette is a slightly smaller disk
+///   (radius R sqrt(1 - R^2/d^2)) slightly nearer `p`, and uniform area on the disk is not
+///   uniform solid angle, but both differences are O(R^2/d^2): under 1% for a light 10 radii
+///   away, far less than the penumbra it produces. In exchange it needs no trigonometry beyond
+///   the disk mapping, never samples the far side of the sphere (which an occluder could not
+///   shadow differently), and its distance is never 0 for p outside the light's centre.
+/// - Directional lights (`size.x` = tan(angular radius) > 0): a direction uniformly distributed
+///   over the solid angle of the cone of that half-angle around `-direction`; the distance is
+///   `DIRECTIONAL_LIGHT_DISTANCE`.
+///
+/// With size 0 (or `p` at a point or spot light's centre) it is `light_sample`'s `l` and `dist`,
+/// bit for bit. `u` goes through the concentric (Shirley-Chiu) disk mapping, so stratified or
+/// low-discrepancy `u` stay well spread over the light.
+pub fn light_sample_point(light: &GpuLight, p: Vec3, u: Vec2) -> (Vec3, f32) {
+    let kind = light.position_kind[3];
+    let size = light.size[0];
+    let hard = light_sample(light, p);
+    if !(size > 0.0) {
+        return (hard.l, hard.dist);
+    }
+    let disk = concentric_disk(u);
+    if kind == LIGHT_DIRECTIONAL {
+        // Uniform in solid angle: 1 - cos(theta) = r^2 (1 - cos(theta_max)), with r = |disk|
+        // area-uniform in [0, 1). 1 - cos(theta_max) = 1 - 1/sqrt(1 + t^2) is written without
+        // the cancellation, which would lose most of f32's digits for a sun-sized cone.
+        let axis = hard.l;
+        let root = (1.0 + size * size).sqrt();
+        let one_minus_cos_max = size * size / (root * (1.0 + root));
+        let r2 = disk.dot(disk);
+        let one_minus_cos = r2 * one_minus_cos_max;
+        let cos_theta = 1.0 - one_minus_cos;
+        let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
+        let (t, b) = orthonormal_basis(axis);
+        let r = r2.sqrt();
+        let (cx, cy) = if r > 0.0 { (disk.x / r, disk.y / r) } else { (1.0, 0.0) };
+        let l = (axis * cos_theta + (t * cx + b * cy) * sin_theta).normalize();
+        return (l, DIRECTIONAL_LIGHT_DISTANCE);
+    }
+    if !(hard.dist > 0.0) {
+        return (hard.l, hard.dist);
+    }
+    let centre = Vec3::from_slice(&light.position_kind[..3]);
+    let (t, b) = orthonormal_basis(hard.l);
+    let target = centre + (t * disk.x + b * disk.y) * size;
+    let to_target = target - p;
+    let dist = to_target.length();
+    (to_target / dist, dist)
+}
+
+/// Shirley and Chiu's concentric map from the unit square to the unit disk, in the form of
+/// Shirley's 2011 blog post (as in PBRT): area-uniform, and it keeps strata compact, unlike
+/// (sqrt(u), 2 pi v). Twin of `concentric_disk` in lights.glsl.
+pub fn concentric_disk(u: Vec2) -> Vec2 {
+    let a = 2.0 * u.x - 1.0;
+    let b = 2.0 * u.y - 1.0;
+    if a == 0.0 && b == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, phi) = if a.abs() > b.abs() { (a, FRAC_PI_4 * (b / a)) } else { (b, FRAC_PI_2 - FRAC_PI_4 * (a / b)) };
+    Vec2::new(r * phi.cos(), r * phi.sin())
+}
+
+/// Two unit vectors that make a right-handed orthonormal basis with unit `n` (Duff et al. 2017,
+/// "Building an Orthonormal Basis, Revisited"), branch on the sign of n.z written as in GLSL.
+/// Twin of `orthonormal_basis` in lights.glsl.
+pub fn orthonormal_basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = if n.z >= 0.0 { 1.0 } else { -1.0 };
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    let t = Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x);
+    let bt = Vec3::new(b, sign + n.y * n.y * a, -n.y);
+    (t, bt)
+}
+
+/// The PCG hash (Jarzynski and Olano 2020, "Hash Functions for GPU Rendering"): one round of
+/// PCG's LCG step and RXS-M-XS output. Twin of `pcg` in random.glsl.
+pub fn pcg(v: u32) -> u32 {
+    let state = v.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+    let word = ((state >> ((state >> 28) + 4)) ^ state).wrapping_mul(277_803_737);
+    (word >> 22) ^ word
+}
+
+/// The top 24 bits of `h` as a float in [0, 1): exact, and never 1.0. Twin of `hash_to_unit`.
+pub fn hash_to_unit(h: u32) -> f32 {
+    (h >> 8) as f32 * (1.0 / 16_777_216.0)
+}
+
+/// Two uniform numbers in [0, 1)^2 from `seed` = (pixel index, frame, sample), by nested hashing:
+/// h0 = pcg(x + pcg(y + pcg(z))), h1 = pcg(h0). Twin of `random2` in random.glsl.
+pub fn random2(seed: UVec3) -> Vec2 {
+    let h0 = pcg(seed.x.wrapping_add(pcg(seed.y.wrapping_add(pcg(seed.z)))));
+    let h1 = pcg(h0);
+    Vec2::new(hash_to_unit(h0), hash_to_unit(h1))
 }
 
 /// GLSL's smoothstep, spelled out so both sides share it (and `gpu_lights` guarantees e0 < e1).

@@ -163,6 +163,47 @@ fn out_of_range_values_name_the_field() {
             "lights[0]: need 0 <= inner_deg < outer_deg <= 90",
         ),
         ("[[lights]]\ntype = \"area\"\n", "unknown variant `area`"),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n             [[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nradius = -1\n",
+            "lights[1].radius: -1 must be finite and >= 0",
+        ),
+        (
+            "[[lights]]\ntype = \"spot\"\nposition = [0, 3, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n             inner_deg = 20\nouter_deg = 30\nradius = inf\n",
+            "lights[0].radius: inf must be finite and >= 0",
+        ),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nradius = 1e300\n",
+            "lights[0].radius: 1e300 must be finite and >= 0",
+        ),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nradius = nan\n",
+            "lights[0].radius: NaN must be finite and >= 0",
+        ),
+        (
+            "[[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\nangular_diameter_deg = 90\n",
+            "lights[0].angular_diameter_deg: 90 is outside [0, 90)",
+        ),
+        (
+            "[[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\nangular_diameter_deg = -0.5\n",
+            "lights[0].angular_diameter_deg: -0.5 is outside [0, 90)",
+        ),
+        (
+            "[[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\nangular_diameter_deg = nan\n",
+            "lights[0].angular_diameter_deg: NaN is outside [0, 90)",
+        ),
+        (
+            "[[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\nradius = 0.1\n",
+            "lights[0].radius: not used by a directional light (it takes `direction`, `irradiance`, optionally \
+             `angular_diameter_deg`)",
+        ),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nangular_diameter_deg = 1\n",
+            "lights[0].angular_diameter_deg: not used by a point light",
+        ),
+        (
+            "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nradius = \"big\"\n",
+            "lights[0].radius: invalid type: string \"big\", expected f64",
+        ),
         ("[image]\nwidth = 0\nheight = 240\n", "image.width: 0 is outside [1, 16384]"),
         ("[image]\nwidth = -5\nheight = 240\n", "image.width: invalid value: integer `-5`"),
     ];
@@ -335,6 +376,29 @@ fn empty_scene_is_valid() {
 }
 
 #[test]
+fn light_sizes_are_read_and_default_to_zero() {
+    let scene = parse(&with_camera(
+        "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nradius = 0.25\n\
+         [[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n\
+         [[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\nangular_diameter_deg = 0.53\n\
+         [[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\n\
+         [[lights]]\ntype = \"spot\"\nposition = [0, 3, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n\
+         inner_deg = 20\nouter_deg = 30\nradius = 0\n\
+         [[lights]]\ntype = \"spot\"\nposition = [0, 3, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n\
+         inner_deg = 20\nouter_deg = 30\nradius = 2\n",
+    ));
+    let sizes: Vec<f32> = scene
+        .lights
+        .iter()
+        .map(|l| match *l {
+            Light::Point { radius, .. } | Light::Spot { radius, .. } => radius,
+            Light::Directional { angular_diameter_deg, .. } => angular_diameter_deg,
+        })
+        .collect();
+    assert_eq!(sizes, [0.25, 0.0, 0.53, 0.0, 0.0, 2.0]);
+}
+
+#[test]
 fn default_scene_is_rich_enough_to_test_shadows() {
     let scene = Scene::default_scene();
     assert!(scene.lights.len() >= 2);
@@ -355,6 +419,14 @@ fn default_scene_is_rich_enough_to_test_shadows() {
     assert!(materials.iter().any(|m| m.metallic == 0.0 && m.roughness <= 0.3), "glossy dielectric");
     assert_eq!(scene.image_size, Some((320, 240)));
     assert!(scene.triangle_count() < 20_000);
+    // Every light has a size, so the soft shadow path has something to show.
+    for light in &scene.lights {
+        let size = match *light {
+            Light::Point { radius, .. } | Light::Spot { radius, .. } => radius,
+            Light::Directional { angular_diameter_deg, .. } => angular_diameter_deg,
+        };
+        assert!(size > 0.0 && size <= 3.0, "{light:?}");
+    }
 }
 
 #[test]
@@ -373,10 +445,16 @@ fn translated_moves_everything_by_the_offset() {
     assert_eq!(scene.camera.up, moved.camera.up);
     for (before, after) in scene.lights.iter().zip(&moved.lights) {
         match (before, after) {
-            (Light::Point { position: a, .. }, Light::Point { position: b, .. }) => check(*a, *b),
-            (Light::Spot { position: a, direction: da, .. }, Light::Spot { position: b, direction: db, .. }) => {
+            (Light::Point { position: a, radius: ra, .. }, Light::Point { position: b, radius: rb, .. }) => {
                 check(*a, *b);
-                assert_eq!(da, db);
+                assert_eq!(ra, rb);
+            }
+            (
+                Light::Spot { position: a, direction: da, radius: ra, .. },
+                Light::Spot { position: b, direction: db, radius: rb, .. },
+            ) => {
+                check(*a, *b);
+                assert_eq!((da, ra), (db, rb));
             }
             (a, b) => assert_eq!(a, b),
         }

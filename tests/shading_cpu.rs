@@ -1,7 +1,7 @@
 //! The CPU shading reference: known values of the BRDF terms and the lights, the tone map, and
 //! that the GLSL twins compile with the light layout the Rust struct promises.
 
-use glam::Vec3;
+use glam::{UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
 use std::process::Command;
 use umbra::scene::{Light, Material};
@@ -83,7 +83,7 @@ fn brdf_edge_cases_stay_finite() {
 
 #[test]
 fn point_light_falls_off_with_the_square_of_distance() {
-    let light = gpu_lights(&[Light::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0) }])[0];
+    let light = gpu_lights(&[Light::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0), radius: 0.0 }])[0];
     let s = light_sample(&light, Vec3::ZERO);
     assert_eq!((s.l, s.dist, s.e_normal), (Vec3::Y, 2.0, Vec3::splat(2.0)));
     let s = light_sample(&light, Vec3::new(0.0, -2.0, 0.0));
@@ -96,7 +96,7 @@ fn point_light_falls_off_with_the_square_of_distance() {
 #[test]
 fn directional_light_comes_from_against_its_travel() {
     let down = Vec3::new(0.0, -1.0, 0.0);
-    let light = gpu_lights(&[Light::Directional { direction: down, irradiance: Vec3::splat(3.0) }])[0];
+    let light = gpu_lights(&[Light::Directional { direction: down, irradiance: Vec3::splat(3.0), angular_diameter_deg: 0.0 }])[0];
     for p in [Vec3::ZERO, Vec3::splat(1e5)] {
         let s = light_sample(&light, p);
         assert_eq!((s.l, s.dist, s.e_normal), (Vec3::Y, DIRECTIONAL_LIGHT_DISTANCE, Vec3::splat(3.0)));
@@ -111,6 +111,7 @@ fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
         intensity: Vec3::ONE,
         inner_deg: 20.0,
         outer_deg: 30.0,
+        radius: 0.0,
     };
     let light = gpu_lights(&[spot])[0];
     // Points at unit distance, `deg` off the axis.
@@ -132,6 +133,7 @@ fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
         intensity: Vec3::ONE,
         inner_deg: 30.0,
         outer_deg: 30.0,
+        radius: 0.0,
     }]);
     assert!(hard[0].direction_cos_outer[3] < hard[0].intensity_cos_inner[3]);
 }
@@ -140,9 +142,9 @@ fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
 fn shade_point_sums_visible_lights() {
     let material = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0 };
     let lights = gpu_lights(&[
-        Light::Point { position: Vec3::new(0.0, 1.0, 0.0), intensity: Vec3::ONE },
-        Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE },
-        Light::Point { position: Vec3::new(0.0, -1.0, 0.0), intensity: Vec3::splat(100.0) },
+        Light::Point { position: Vec3::new(0.0, 1.0, 0.0), intensity: Vec3::ONE, radius: 0.0 },
+        Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE, angular_diameter_deg: 0.0 },
+        Light::Point { position: Vec3::new(0.0, -1.0, 0.0), intensity: Vec3::splat(100.0), radius: 0.0 },
     ]);
     let one = brdf_times_cos(Vec3::Y, Vec3::Y, Vec3::Y, Vec3::ONE, 1.0, 0.0);
     let asked = std::cell::RefCell::new(Vec::new());
@@ -234,4 +236,206 @@ fn glsl_constants_match() {
     assert!(lights.contains("LIGHT_POINT = 0.0;") && lights.contains("LIGHT_SPOT = 2.0;"));
     assert_eq!((BRDF_MIN_ALPHA, BRDF_MIN_N_DOT_V), (1e-3, 1e-4));
     assert!(brdf.contains("BRDF_MIN_ALPHA = 1e-3;") && brdf.contains("BRDF_MIN_N_DOT_V = 1e-4;"));
+}
+
+/// The soft shadow twins: light_sample_point, its disk mapping and basis, and the random numbers.
+#[test]
+fn light_sampling_glsl_compiles_with_the_rust_light_layout() {
+    let shader = "tests/shaders/light_sampling.comp";
+    compile_and_validate(shader);
+    let out = Command::new("glslangValidator")
+        .args(["-q", "--target-env", "vulkan1.3", "-Ishaders/include", shader])
+        .output()
+        .expect("glslangValidator must be installed");
+    let reflection = String::from_utf8(out.stdout).unwrap();
+    let stride = size_of::<GpuLight>();
+    assert_eq!(stride, 64, "four vec4: std430 adds no padding");
+    for (member, offset) in [
+        ("position_kind", std::mem::offset_of!(GpuLight, position_kind)),
+        ("direction_cos_outer", std::mem::offset_of!(GpuLight, direction_cos_outer)),
+        ("intensity_cos_inner", std::mem::offset_of!(GpuLight, intensity_cos_inner)),
+        ("size", std::mem::offset_of!(GpuLight, size)),
+    ] {
+        let line = format!("lights.{member}: offset {offset}, ");
+        let found = reflection.lines().find(|l| l.starts_with(&line));
+        let found = found.unwrap_or_else(|| panic!("{line} missing:\n{reflection}"));
+        assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
+    }
+}
+
+fn sized_lights(radius: f32, angular_diameter_deg: f32) -> Vec<GpuLight> {
+    gpu_lights(&[
+        Light::Point { position: Vec3::new(0.3, 2.0, -0.4), intensity: Vec3::splat(8.0), radius },
+        Light::Directional { direction: Vec3::new(0.55, -1.0, 0.45), irradiance: Vec3::ONE, angular_diameter_deg },
+        Light::Spot {
+            position: Vec3::new(-1.6, 3.2, 1.2),
+            direction: Vec3::new(0.05, -1.0, -0.35),
+            intensity: Vec3::ONE,
+            inner_deg: 16.0,
+            outer_deg: 26.0,
+            radius,
+        },
+    ])
+}
+
+fn test_points() -> Vec<Vec3> {
+    let mut points = vec![Vec3::ZERO, Vec3::new(5.0, -1.0, 3.0), Vec3::new(0.3, -7.0, -0.4), Vec3::new(0.3, 2.0, 5.0)];
+    // Points straight below and above each light, where the basis flips hemisphere.
+    points.extend([Vec3::new(0.3, 2.0, -3.0), Vec3::new(0.3, 2.0, 2.0), Vec3::new(-1.6, 3.2, -4.0)]);
+    points
+}
+
+fn us() -> impl Iterator<Item = Vec2> {
+    (0..2000u32).map(|i| random2(UVec3::new(i, 7, 3))).chain([Vec2::ZERO, Vec2::splat(0.5), Vec2::new(0.999_999, 0.0)])
+}
+
+#[test]
+fn size_zero_gives_the_hard_direction_and_distance_exactly() {
+    for light in sized_lights(0.0, 0.0) {
+        assert_eq!(light.size, [0.0; 4]);
+        for p in test_points() {
+            let hard = light_sample(&light, p);
+            for u in us().take(50) {
+                assert_eq!(light_sample_point(&light, p, u), (hard.l, hard.dist));
+            }
+        }
+    }
+}
+
+#[test]
+fn gpu_size_is_radius_or_tan_of_the_angular_radius() {
+    let lights = sized_lights(0.15, 2.5);
+    assert_eq!(lights[0].size, [0.15, 0.0, 0.0, 0.0]);
+    assert_eq!(lights[2].size, [0.15, 0.0, 0.0, 0.0]);
+    assert!(close(lights[1].size[0], 1.25f32.to_radians().tan(), 1e-6), "{:?}", lights[1].size);
+    // The sun: tan(0.265 deg).
+    let sun = sized_lights(0.0, 0.53)[1];
+    assert!(close(sun.size[0], 4.625e-3, 1e-3), "{:?}", sun.size);
+}
+
+#[test]
+fn sphere_samples_lie_on_the_silhouette_disk() {
+    let radius = 0.2;
+    let lights = sized_lights(radius, 2.5);
+    for light in [lights[0], lights[2]] {
+        let centre = Vec3::from_slice(&light.position_kind[..3]);
+        for p in test_points() {
+            let axis = (centre - p).normalize();
+            let mut farthest = 0.0f32;
+            for u in us() {
+                let (l, dist) = light_sample_point(&light, p, u);
+                assert!(close(l.length(), 1.0, 1e-5) && dist > 0.0 && dist.is_finite(), "{l} {dist}");
+                let target = p + l * dist;
+                let offset = target - centre;
+                // On the disk: within the radius, in the plane perpendicular to the axis.
+                assert!(offset.length() <= radius * (1.0 + 1e-4) + 1e-5, "{p}: {offset}");
+                assert!(offset.dot(axis).abs() <= 1e-5 * (1.0 + (centre - p).length()), "{p}: {offset} vs {axis}");
+                farthest = farthest.max(offset.length());
+            }
+            // And spread to its edge.
+            assert!(farthest > 0.97 * radius, "{p}: {farthest}");
+        }
+    }
+}
+
+#[test]
+fn sun_samples_lie_in_the_cone() {
+    for diameter in [0.53f32, 2.5, 30.0, 89.0] {
+        let light = sized_lights(0.0, diameter)[1];
+        let axis = -Vec3::from_slice(&light.direction_cos_outer[..3]);
+        let half = (diameter * 0.5).to_radians();
+        let mut widest = 0.0f32;
+        for u in us() {
+            let (l, dist) = light_sample_point(&light, Vec3::new(1.0, 2.0, 3.0), u);
+            assert_eq!(dist, DIRECTIONAL_LIGHT_DISTANCE);
+            assert!(close(l.length(), 1.0, 1e-6));
+            // The angle through atan2 of |cross| and dot, accurate for tiny angles too.
+            let angle = l.cross(axis).length().atan2(l.dot(axis));
+            assert!(angle <= half * (1.0 + 1e-3) + 1e-6, "{diameter}: {angle} > {half}");
+            widest = widest.max(angle);
+        }
+        assert!(widest > 0.97 * half, "{diameter}: {widest} of {half}");
+    }
+}
+
+#[test]
+fn sun_samples_are_uniform_in_solid_angle() {
+    // Within half the half-angle lies (1 - cos(h/2)) / (1 - cos h) of the cone's solid angle.
+    let diameter = 60.0f32;
+    let light = sized_lights(0.0, diameter)[1];
+    let axis = -Vec3::from_slice(&light.direction_cos_outer[..3]);
+    let half = (diameter * 0.5).to_radians();
+    let expected = (1.0 - (half * 0.5).cos()) / (1.0 - half.cos());
+    let n = 10_000u32;
+    let inside = (0..n)
+        .filter(|&i| {
+            let (l, _) = light_sample_point(&light, Vec3::ZERO, random2(UVec3::new(i, 0, 0)));
+            l.dot(axis) >= (half * 0.5).cos()
+        })
+        .count();
+    let fraction = inside as f32 / n as f32;
+    assert!((fraction - expected).abs() < 0.02, "{fraction} vs {expected}");
+}
+
+#[test]
+fn concentric_disk_is_area_uniform_and_inside() {
+    let n = 10_000u32;
+    let mut within_half = 0;
+    let mut quadrants = [0u32; 4];
+    for i in 0..n {
+        let d = concentric_disk(random2(UVec3::new(i, 1, 2)));
+        assert!(d.length() <= 1.0 + 1e-6, "{d}");
+        within_half += (d.length() < 0.5) as u32;
+        quadrants[(d.x >= 0.0) as usize * 2 + (d.y >= 0.0) as usize] += 1;
+    }
+    let fraction = within_half as f32 / n as f32;
+    assert!((fraction - 0.25).abs() < 0.02, "{fraction} of samples within r/2");
+    assert!(quadrants.iter().all(|&q| (q as f32 / n as f32 - 0.25).abs() < 0.02), "{quadrants:?}");
+    // The corners and the centre of the square.
+    assert_eq!(concentric_disk(Vec2::splat(0.5)), Vec2::ZERO);
+    assert!(close(concentric_disk(Vec2::ZERO).length(), 1.0, 1e-6));
+    assert!(close(concentric_disk(Vec2::new(0.0, 0.5)).x, -1.0, 1e-6));
+}
+
+#[test]
+fn orthonormal_basis_is_orthonormal_and_right_handed() {
+    for n in [Vec3::X, Vec3::Y, Vec3::Z, -Vec3::Z, Vec3::new(0.0, 0.0, -0.0), Vec3::new(1.0, -2.0, 0.5)] {
+        let n = n.normalize_or(Vec3::Z);
+        let (t, b) = orthonormal_basis(n);
+        assert!(close(t.length(), 1.0, 1e-6) && close(b.length(), 1.0, 1e-6), "{n}: {t} {b}");
+        assert!(t.dot(n).abs() < 1e-6 && b.dot(n).abs() < 1e-6 && t.dot(b).abs() < 1e-6, "{n}");
+        assert!(close3(t.cross(b), n, 1e-5), "{n}");
+    }
+}
+
+#[test]
+fn random_numbers_are_in_range_and_known() {
+    // Values worked out by hand from the PCG hash's definition (a Python one-liner), pinning
+    // the constants and the wrapping.
+    assert_eq!((pcg(0), pcg(1), pcg(0xdead_beef)), (129_708_002, 2_831_084_092, 1_730_779_506));
+    assert_eq!(hash_to_unit(u32::MAX), 16_777_215.0 / 16_777_216.0);
+    assert_eq!(hash_to_unit(0), 0.0);
+    let n = 10_000u32;
+    let mut sum = Vec2::ZERO;
+    for i in 0..n {
+        let u = random2(UVec3::new(i, 5, 1));
+        assert!(u.cmpge(Vec2::ZERO).all() && u.cmplt(Vec2::ONE).all(), "{u}");
+        sum += u;
+    }
+    let mean = sum / n as f32;
+    assert!((mean - Vec2::splat(0.5)).abs().max_element() < 0.01, "{mean}");
+    // Each seed component matters.
+    let base = random2(UVec3::new(1, 2, 3));
+    for other in [UVec3::new(2, 2, 3), UVec3::new(1, 3, 3), UVec3::new(1, 2, 4)] {
+        assert_ne!(random2(other), base);
+    }
+}
+
+/// The GLSL constants and the Rust twin of random.glsl agree with the file.
+#[test]
+fn random_glsl_constants_match() {
+    let random = std::fs::read_to_string("shaders/include/random.glsl").unwrap();
+    for constant in ["747796405u", "2891336453u", "277803737u", "(1.0 / 16777216.0)"] {
+        assert!(random.contains(constant), "{constant}");
+    }
 }

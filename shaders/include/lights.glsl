@@ -1,5 +1,6 @@
 // The scene's lights as the GPU reads them, and what one light delivers to a point.
-// Twin of src/shading.rs (GpuLight, gpu_lights, light_sample), which documents the constants.
+// Twin of src/shading.rs (GpuLight, gpu_lights, light_sample, light_sample_point), which
+// documents the constants and the sampling.
 // The includer declares the buffer, e.g. `readonly buffer Lights { GpuLight lights[]; };`.
 #ifndef UMBRA_LIGHTS_GLSL
 #define UMBRA_LIGHTS_GLSL
@@ -18,6 +19,8 @@ struct GpuLight {
     vec4 position_kind;        // xyz position (point, spot); w kind
     vec4 direction_cos_outer;  // xyz unit travel direction (directional, spot); w cos(outer)
     vec4 intensity_cos_inner;  // xyz W/sr (point, spot) or W/m^2 (directional); w cos(inner)
+    vec4 size;                 // x: radius in m (point, spot) or tan(angular_diameter / 2)
+                               // (directional), 0 = hard shadows; yzw 0 (reserved)
 };
 
 // Spelled out rather than the built-in: identical to the Rust twin, and defined for any input.
@@ -48,6 +51,78 @@ void light_sample(GpuLight l, vec3 p, out vec3 L, out float dist, out vec3 E_nor
         float cos_inner = l.intensity_cos_inner.w;
         E_normal *= light_smoothstep(cos_outer, cos_inner, dot(-L, axis));
     }
+}
+
+// Shirley and Chiu's concentric map from u in [0, 1)^2 to the unit disk (Shirley's 2011 form):
+// area-uniform and stratum-preserving.
+vec2 concentric_disk(vec2 u) {
+    float a = 2.0 * u.x - 1.0;
+    float b = 2.0 * u.y - 1.0;
+    if (a == 0.0 && b == 0.0) {
+        return vec2(0.0);
+    }
+    const float QUARTER_PI = 0.78539816339744831;
+    const float HALF_PI = 1.57079632679489662;
+    float r;
+    float phi;
+    if (abs(a) > abs(b)) {
+        r = a;
+        phi = QUARTER_PI * (b / a);
+    } else {
+        r = b;
+        phi = HALF_PI - QUARTER_PI * (a / b);
+    }
+    return r * vec2(cos(phi), sin(phi));
+}
+
+// t, b: with unit n, a right-handed orthonormal basis (Duff et al. 2017).
+void orthonormal_basis(vec3 n, out vec3 t, out vec3 b) {
+    float sign_z = n.z >= 0.0 ? 1.0 : -1.0;
+    float a = -1.0 / (sign_z + n.z);
+    float c = n.x * n.y * a;
+    t = vec3(1.0 + sign_z * n.x * n.x * a, sign_z * c, -sign_z * n.x);
+    b = vec3(c, sign_z + n.y * n.y * a, -n.y);
+}
+
+// Where a soft shadow ray from p aims: returns the unit direction from p toward a point on the
+// light's extent chosen by u in [0, 1)^2 (e.g. random2 in random.glsl), dist: the distance to
+// that point (the shadow ray's tmax). Point and spot lights: a point uniform over the disk of
+// radius size.x centred on the light and perpendicular to the line to p (the sphere's
+// silhouette, to O(radius^2 / dist^2)). Directional: a direction uniform in solid angle within
+// the cone of half-angle atan(size.x) around -direction, dist DIRECTIONAL_LIGHT_DISTANCE.
+// size.x == 0 (or p at the light's centre) gives light_sample's L and dist exactly.
+vec3 light_sample_point(GpuLight l, vec3 p, vec2 u, out float dist) {
+    float kind = l.position_kind.w;
+    float size = l.size.x;
+    vec3 L;
+    vec3 E_normal;
+    light_sample(l, p, L, dist, E_normal);
+    if (!(size > 0.0)) {
+        return L;
+    }
+    vec2 disk = concentric_disk(u);
+    vec3 t;
+    vec3 b;
+    orthonormal_basis(L, t, b);
+    if (kind == LIGHT_DIRECTIONAL) {
+        // 1 - cos(theta) = r^2 (1 - cos(theta_max)), 1 - cos(theta_max) without cancellation.
+        float root = sqrt(1.0 + size * size);
+        float one_minus_cos_max = size * size / (root * (1.0 + root));
+        float r2 = dot(disk, disk);
+        float one_minus_cos = r2 * one_minus_cos_max;
+        float cos_theta = 1.0 - one_minus_cos;
+        float sin_theta = sqrt(max(one_minus_cos * (2.0 - one_minus_cos), 0.0));
+        float r = sqrt(r2);
+        vec2 c = r > 0.0 ? disk / r : vec2(1.0, 0.0);
+        return normalize(L * cos_theta + (t * c.x + b * c.y) * sin_theta);
+    }
+    if (!(dist > 0.0)) {
+        return L;
+    }
+    vec3 target = l.position_kind.xyz + (t * disk.x + b * disk.y) * size;
+    vec3 to_target = target - p;
+    dist = length(to_target);
+    return to_target / dist;
 }
 
 #endif

@@ -60,6 +60,8 @@ struct LightDesc {
     irradiance: Option<[f64; 3]>,
     inner_deg: Option<f64>,
     outer_deg: Option<f64>,
+    radius: Option<f64>,
+    angular_diameter_deg: Option<f64>,
 }
 
 #[derive(Clone, Copy, Deserialize)]
@@ -130,6 +132,16 @@ const DEFAULT_SPHERE_SEGMENTS: u32 = 32;
 /// Built-in shapes default to filling the unit cube [-0.5, 0.5]^3.
 const DEFAULT_SIZE: f64 = 1.0;
 const DEFAULT_RADIUS: f64 = 0.5;
+
+/// `v` as written in a message: plain for everyday magnitudes (`-1`, `0.5`), exponent form for
+/// huge ones, so `1e300` does not print as 301 digits.
+fn short_number(v: f64) -> String {
+    if v.is_finite() && v.abs() >= 1e16 {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
 
 /// Parses and checks a scene. `source_name` names the file in errors; mesh paths are relative to
 /// `base_dir`.
@@ -240,10 +252,12 @@ impl Check<'_> {
     }
 
     fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {
-        let (name, needs): (&str, &[&str]) = match light.kind {
-            LightKind::Point => ("point", &["position", "intensity"]),
-            LightKind::Directional => ("directional", &["direction", "irradiance"]),
-            LightKind::Spot => ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"]),
+        let (name, needs, optional): (&str, &[&str], &[&str]) = match light.kind {
+            LightKind::Point => ("point", &["position", "intensity"], &["radius"]),
+            LightKind::Directional => ("directional", &["direction", "irradiance"], &["angular_diameter_deg"]),
+            LightKind::Spot => {
+                ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"], &["radius"])
+            }
         };
         let given = [
             ("position", light.position.is_some()),
@@ -252,11 +266,14 @@ impl Check<'_> {
             ("irradiance", light.irradiance.is_some()),
             ("inner_deg", light.inner_deg.is_some()),
             ("outer_deg", light.outer_deg.is_some()),
+            ("radius", light.radius.is_some()),
+            ("angular_diameter_deg", light.angular_diameter_deg.is_some()),
         ];
         for (key, present) in given {
-            if present && !needs.contains(&key) {
+            if present && !needs.contains(&key) && !optional.contains(&key) {
                 let expected = needs.join("`, `");
-                let message = format!("not used by a {name} light (it takes `{expected}`)");
+                let optional = optional.join("`, `");
+                let message = format!("not used by a {name} light (it takes `{expected}`, optionally `{optional}`)");
                 return Err(self.fail(&format!("{path}.{key}"), message));
             }
             if !present && needs.contains(&key) {
@@ -268,14 +285,35 @@ impl Check<'_> {
         let position = || self.point(&format!("{path}.position"), field(light.position));
         let direction = || self.direction(&format!("{path}.direction"), field(light.direction));
         let power = |key: &str, v| self.power(&format!("{path}.{key}"), field(v));
-        Ok(match light.kind {
-            LightKind::Point => {
-                Light::Point { position: position()?.as_vec3(), intensity: power("intensity", light.intensity)? }
+        // Absent sizes are 0: a point or a single direction, hard shadows as before.
+        let radius = || {
+            let v = light.radius.unwrap_or(0.0);
+            if !(v >= 0.0 && (v as f32).is_finite()) {
+                let message = format!("{} must be finite and >= 0", short_number(v));
+                return Err(self.fail(&format!("{path}.radius"), message));
             }
-            LightKind::Directional => Light::Directional {
-                direction: direction()?.as_vec3(),
-                irradiance: power("irradiance", light.irradiance)?,
+            Ok(v as f32)
+        };
+        Ok(match light.kind {
+            LightKind::Point => Light::Point {
+                position: position()?.as_vec3(),
+                intensity: power("intensity", light.intensity)?,
+                radius: radius()?,
             },
+            LightKind::Directional => {
+                // Below 90 degrees the cone is narrower than a hemisphere and tan(half-angle),
+                // what the GPU stores, stays finite.
+                let diameter = light.angular_diameter_deg.unwrap_or(0.0);
+                if !(0.0..90.0).contains(&diameter) {
+                    let key_path = format!("{path}.angular_diameter_deg");
+                    return Err(self.fail(&key_path, format!("{diameter} is outside [0, 90)")));
+                }
+                Light::Directional {
+                    direction: direction()?.as_vec3(),
+                    irradiance: power("irradiance", light.irradiance)?,
+                    angular_diameter_deg: diameter as f32,
+                }
+            }
             LightKind::Spot => {
                 let inner = light.inner_deg.unwrap_or_default();
                 let outer = light.outer_deg.unwrap_or_default();
@@ -289,6 +327,7 @@ impl Check<'_> {
                     intensity: power("intensity", light.intensity)?,
                     inner_deg: inner as f32,
                     outer_deg: outer as f32,
+                    radius: radius()?,
                 }
             }
         })

@@ -24,15 +24,20 @@ pub struct Camera {
 }
 
 /// Light sources. Directions are unit vectors; radiometric quantities are linear Rec.709 RGB.
+///
+/// `radius` and `angular_diameter_deg` give the light a size for soft shadows only: shadow rays
+/// aim at points spread over it (`shading::light_sample_point`). Shading still treats the light
+/// as a point or a single direction. 0 is a hard shadow.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
-    /// Radiant intensity in W/sr; E = I cos(theta) / d^2.
-    Point { position: Vec3, intensity: Vec3 },
+    /// Radiant intensity in W/sr; E = I cos(theta) / d^2. `radius`: sphere radius in metres.
+    Point { position: Vec3, intensity: Vec3, radius: f32 },
     /// `direction` is the direction the light travels; irradiance in W/m^2 on a surface facing it.
-    Directional { direction: Vec3, irradiance: Vec3 },
+    /// `angular_diameter_deg`: full apparent diameter of the disk in degrees (the sun: ~0.53).
+    Directional { direction: Vec3, irradiance: Vec3, angular_diameter_deg: f32 },
     /// Intensity on the axis in W/sr, smooth falloff between the inner and outer cone (degrees,
-    /// half-angles measured from the axis).
-    Spot { position: Vec3, direction: Vec3, intensity: Vec3, inner_deg: f32, outer_deg: f32 },
+    /// half-angles measured from the axis). `radius`: sphere radius in metres.
+    Spot { position: Vec3, direction: Vec3, intensity: Vec3, inner_deg: f32, outer_deg: f32, radius: f32 },
 }
 
 /// Metalness/roughness material; `base_color` is linear RGB.

@@ -8,8 +8,8 @@ use glam::{DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
-use crate::passes::debug_view::{self, DebugInputs, DebugView};
 use crate::passes::accumulate::{self, History};
+use crate::passes::debug_view::{self, DebugInputs, DebugView};
 use crate::passes::overlay::OverlayInputs;
 use crate::passes::{compose, geometry, overlay, present, readback, shadow_trace, tonemap, Pipelines};
 use crate::scene::bvh::ShadowBvh;
@@ -297,10 +297,16 @@ impl Renderer {
         &self.scene
     }
 
-
     /// The compiled plan for `settings`, for printing and inspection.
     pub fn plan(&self, settings: &RenderSettings) -> CompiledGraph {
-        CompiledGraph::compile(&build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, Target::Inspect, None))
+        CompiledGraph::compile(&build_graph(
+            &self.pipelines,
+            &self.gpu_scene,
+            &self.scene,
+            settings,
+            Target::Inspect,
+            None,
+        ))
     }
 
     pub fn pipelines(&self) -> &Pipelines {
@@ -430,6 +436,9 @@ fn build_graph<'a>(
     });
 
     let display = settings.output == OutputKind::Display;
+    // The history, when it is not itself the result, is exported after the result's consumer.
+    let mut history_out = None;
+    let mut result_is_history = false;
     let result = match settings.debug_view {
         Some(view) => {
             let inputs = DebugInputs {
@@ -455,21 +464,27 @@ fn build_graph<'a>(
             if let Some(h) = &history {
                 radiance = accumulate::add(&mut g, &pipelines.accumulate, &radiance, h, extent);
             }
-            let result = if display {
-                tonemap::add(&mut g, &pipelines.tonemap, &radiance, settings.exposure_ev, extent)
+            if display {
+                let toned = tonemap::add(&mut g, &pipelines.tonemap, &radiance, settings.exposure_ev, extent);
+                history_out = history.is_some().then_some(radiance);
+                toned
             } else {
+                result_is_history = history.is_some();
                 radiance
-            };
-            if history.is_some() {
-                // Left where the next frame's import expects it.
-                g.export(radiance, accumulate::HISTORY_ACCESS);
             }
-            result
         }
     };
+    // Histories are left in the access the next frame's import expects.
+    let history_access = accumulate::HISTORY_ACCESS;
     match target {
-        Target::ReadBack(buffer) => readback::add(&mut g, &result, buffer),
+        Target::ReadBack(buffer) => {
+            readback::add(&mut g, &result, buffer);
+            if result_is_history {
+                g.export(result, history_access);
+            }
+        }
         Target::Present { image, view, desc, overlay } => {
+            assert!(!result_is_history, "presented frames are display-referred");
             let mut canvas = result;
             if let Some(inputs) = overlay {
                 if settings.debug_view.is_some() {
@@ -483,7 +498,12 @@ fn build_graph<'a>(
             }
             present::add(&mut g, &canvas, (image, view, desc));
         }
-        Target::Inspect => g.export(result, Access::ComputeShaderReadSampledImage),
+        Target::Inspect => {
+            g.export(result, if result_is_history { history_access } else { Access::ComputeShaderReadSampledImage })
+        }
+    }
+    if let Some(h) = history_out {
+        g.export(h, history_access);
     }
     g
 }

@@ -83,7 +83,8 @@ fn brdf_edge_cases_stay_finite() {
 
 #[test]
 fn point_light_falls_off_with_the_square_of_distance() {
-    let light = gpu_lights(&[Light::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0), radius: 0.0 }])[0];
+    let light =
+        gpu_lights(&[Light::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0), radius: 0.0 }])[0];
     let s = light_sample(&light, Vec3::ZERO);
     assert_eq!((s.l, s.dist, s.e_normal), (Vec3::Y, 2.0, Vec3::splat(2.0)));
     let s = light_sample(&light, Vec3::new(0.0, -2.0, 0.0));
@@ -96,7 +97,9 @@ fn point_light_falls_off_with_the_square_of_distance() {
 #[test]
 fn directional_light_comes_from_against_its_travel() {
     let down = Vec3::new(0.0, -1.0, 0.0);
-    let light = gpu_lights(&[Light::Directional { direction: down, irradiance: Vec3::splat(3.0), angular_diameter_deg: 0.0 }])[0];
+    let light =
+        gpu_lights(&[Light::Directional { direction: down, irradiance: Vec3::splat(3.0), angular_diameter_deg: 0.0 }])
+            [0];
     for p in [Vec3::ZERO, Vec3::splat(1e5)] {
         let s = light_sample(&light, p);
         assert_eq!((s.l, s.dist, s.e_normal), (Vec3::Y, DIRECTIONAL_LIGHT_DISTANCE, Vec3::splat(3.0)));

@@ -255,9 +255,7 @@ impl Check<'_> {
         let (name, needs, optional): (&str, &[&str], &[&str]) = match light.kind {
             LightKind::Point => ("point", &["position", "intensity"], &["radius"]),
             LightKind::Directional => ("directional", &["direction", "irradiance"], &["angular_diameter_deg"]),
-            LightKind::Spot => {
-                ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"], &["radius"])
-            }
+            LightKind::Spot => ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"], &["radius"]),
         };
         let given = [
             ("position", light.position.is_some()),

@@ -11,9 +11,7 @@ use crate::graph::TransientCache;
 use crate::passes::accumulate::Accumulator;
 use crate::passes::overlay::{self, OverlayInputs, OverlayText};
 use crate::renderer::{RenderSettings, Renderer, Target};
-use crate::vk::{
-    Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface,
-};
+use crate::vk::{Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
 
 const FRAMES_IN_FLIGHT: usize = 2;
 /// Characters the overlay's text buffer holds (columns x rows).

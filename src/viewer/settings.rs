@@ -36,6 +36,7 @@ impl ViewerSettings {
             view: 0,
             overlay: true,
             exposure_ev: 0.0,
+            soft_spp: 4,
         }
     }
 

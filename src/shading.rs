@@ -142,6 +142,8 @@ pub fn light_sample(light: &GpuLight, p: Vec3) -> LightSample {
 /// With size 0 (or `p` at a point or spot light's centre) it is `light_sample`'s `l` and `dist`,
 /// bit for bit. `u` goes through the concentric (Shirley-Chiu) disk mapping, so stratified or
 /// low-discrepancy `u` stay well spread over the light.
+// `!(x > 0.0)` on purpose: NaN sizes and distances take the hard path, as in the GLSL twin.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
 pub fn light_sample_point(light: &GpuLight, p: Vec3, u: Vec2) -> (Vec3, f32) {
     let kind = light.position_kind[3];
     let size = light.size[0];

@@ -67,7 +67,6 @@ pub struct Accumulator {
     frames: u32,
     used: bool,
     last: Option<crate::renderer::RenderSettings>,
-    next_seed: u32,
 }
 
 impl Accumulator {
@@ -76,8 +75,10 @@ impl Accumulator {
         self.frames
     }
 
-    /// Seeds `settings.frame_index` and returns the history to fold this frame into, if the
-    /// frame is stochastic (soft shadows) and shaded. Call `advance` once it is recorded.
+    /// Returns the history to fold this frame into, if the frame is stochastic (soft shadows)
+    /// and shaded, and offsets `settings.frame_index` by the frames already averaged so each
+    /// one draws fresh samples (a frame that is not accumulated keeps its seed, so it is
+    /// reproducible). Call `advance` once it is recorded.
     pub fn prepare(
         &mut self,
         ctx: &Arc<GpuContext>,
@@ -89,21 +90,21 @@ impl Accumulator {
         key.timestamps = false;
         let still = self.last.as_ref() == Some(&key);
         self.last = Some(key);
-        settings.frame_index = self.next_seed;
-        self.next_seed = self.next_seed.wrapping_add(1);
         if settings.debug_view.is_some() || !settings.is_stochastic(lights) {
             self.frames = 0;
             return Ok(None);
         }
         let desc = crate::vk::ImageDesc::new(super::RADIANCE_FORMAT, settings.width, settings.height);
         if self.image.as_ref().is_none_or(|i| i.desc != desc) {
-            let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED;
+            // Storage for the running mean, sampled by the tone map, copied by a linear read-back.
+            let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_SRC;
             self.image = Some(Image::new(ctx, "history", desc, usage)?);
             self.used = false;
         }
         if !still {
             self.frames = 0;
         }
+        settings.frame_index = settings.frame_index.wrapping_add(self.frames);
         let image = self.image.as_ref().expect("made above");
         Ok(Some(History { image, frames: self.frames, fresh: !self.used }))
     }

@@ -410,9 +410,9 @@ fn build_graph<'a>(
         extent.height,
     );
     let mut g = RenderGraph::new();
-    let vertices = g.import_buffer("vertices", s.vertices.raw, s.vertices.size, Access::HostWrite);
-    let indices = g.import_buffer("indices", s.indices.raw, s.indices.size, Access::HostWrite);
-    let lights = g.import_buffer("lights", s.lights.raw, s.lights.size, Access::HostWrite);
+    let vertices = g.import_buffer("vertices", &s.vertices, Access::HostWrite);
+    let indices = g.import_buffer("indices", &s.indices, Access::HostWrite);
+    let lights = g.import_buffer("lights", &s.lights, Access::HostWrite);
     let gbuffer = geometry::add(&mut g, &pipelines.geometry, s, &vertices, &indices, camera, extent);
 
     // Shadow rays only where something can cast a shadow on a lit point, or where the
@@ -421,8 +421,8 @@ fn build_graph<'a>(
     let methods: Vec<ShadowMethod> = (0..s.light_count as usize).map(|i| settings.shadow_method(i)).collect();
     let any_traced = methods.iter().any(|&m| m != ShadowMethod::None);
     let visibility = (s.light_count > 0 && ((s.has_casters && any_traced) || wants_visibility)).then(|| {
-        let nodes = g.import_buffer("bvh nodes", s.bvh_nodes.raw, s.bvh_nodes.size, Access::HostWrite);
-        let tris = g.import_buffer("bvh triangles", s.bvh_triangles.raw, s.bvh_triangles.size, Access::HostWrite);
+        let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, Access::HostWrite);
+        let tris = g.import_buffer("bvh triangles", &s.bvh_triangles, Access::HostWrite);
         let inputs = shadow_trace::ShadowInputs {
             lights: &lights,
             light_count: s.light_count,

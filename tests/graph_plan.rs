@@ -236,7 +236,11 @@ fn transients_with_disjoint_lifetimes_share_a_slot() {
 #[test]
 fn imported_buffer_written_by_host_gets_a_barrier_before_its_first_gpu_read() {
     let mut g = RenderGraph::new();
-    let nodes = g.import_buffer("bvh nodes", vk::Buffer::null(), 1024, Access::HostWrite);
+    let nodes = g.import_raw_buffer(
+        "bvh nodes",
+        (vk::Buffer::null(), 1024, vk::BufferUsageFlags::STORAGE_BUFFER),
+        Access::HostWrite,
+    );
     let mut out = g.create_buffer("out", 64);
     let mut p = g.add_pass("trace");
     p.read(&nodes, Access::ComputeShaderReadStorageBuffer);
@@ -302,4 +306,19 @@ fn image_access_on_a_buffer_is_rejected() {
     let buf = g.create_buffer("x", 4);
     let mut p = g.add_pass("p");
     p.read(&buf, Access::ComputeShaderReadSampledImage);
+}
+
+#[test]
+#[should_panic(expected = "imported resource \"nodes\" is used as STORAGE_BUFFER, which it was not created with")]
+fn an_import_used_beyond_its_creation_usage_is_refused() {
+    let mut g = RenderGraph::new();
+    let nodes =
+        g.import_raw_buffer("nodes", (vk::Buffer::null(), 64, vk::BufferUsageFlags::TRANSFER_DST), Access::HostWrite);
+    let mut out = g.create_buffer("out", 64);
+    let mut p = g.add_pass("trace");
+    p.read(&nodes, Access::ComputeShaderReadStorageBuffer);
+    p.write(&mut out, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(out, Access::TransferRead);
+    CompiledGraph::compile(&g);
 }

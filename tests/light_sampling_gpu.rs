@@ -79,8 +79,8 @@ fn gpu_light_samples_match_the_rust_twin() {
             .unwrap();
     let mut cache = TransientCache::new(&ctx).unwrap();
     let mut g = RenderGraph::new();
-    let l = g.import_buffer("lights", light_buf.raw, light_buf.size, Access::HostWrite);
-    let q = g.import_buffer("queries", query_buf.raw, query_buf.size, Access::HostWrite);
+    let l = g.import_buffer("lights", &light_buf, Access::HostWrite);
+    let q = g.import_buffer("queries", &query_buf, Access::HostWrite);
     let mut results = g.create_buffer("results", size);
     {
         let mut pass = g.add_pass("light sampling");

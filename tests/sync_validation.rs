@@ -29,9 +29,9 @@ fn run(declare_the_read: bool) -> Vec<String> {
 
     let mut pool_to_free = None;
     let mut g = RenderGraph::new();
-    let mut ray_handle = g.import_buffer("rays", rays.raw, rays.size, Access::Nothing);
-    let n = g.import_buffer("nodes", nodes.raw, nodes.size, Access::HostWrite);
-    let t = g.import_buffer("tris", tris.raw, tris.size, Access::HostWrite);
+    let mut ray_handle = g.import_buffer("rays", &rays, Access::Nothing);
+    let n = g.import_buffer("nodes", &nodes, Access::HostWrite);
+    let t = g.import_buffer("tris", &tris, Access::HostWrite);
     // Pass 1: fill the rays with a transfer (declared).
     let mut p = g.add_pass("upload rays");
     let dst = p.write(&mut ray_handle, Access::TransferWrite);

@@ -165,6 +165,24 @@ fn derive_usage_and_lifetimes(graph: &RenderGraph<'_>, live: &[bool]) -> Vec<Res
     for e in &graph.exports {
         add(&mut plans[e.resource], e.access, graph.passes.len());
     }
+    // An imported resource must have been created for every use the graph makes of it.
+    for (plan, decl) in plans.iter().zip(&graph.resources) {
+        if decl.imported.is_none() {
+            continue;
+        }
+        let (needed, created) = match plan.desc {
+            ResourceDesc::Image(_) => (plan.image_usage.as_raw(), decl.created_usage),
+            ResourceDesc::Buffer(_) => (plan.buffer_usage.as_raw(), decl.created_usage),
+        };
+        let missing = needed & !created;
+        if missing != 0 {
+            let what = match plan.desc {
+                ResourceDesc::Image(_) => format!("{:?}", vk::ImageUsageFlags::from_raw(missing)),
+                ResourceDesc::Buffer(_) => format!("{:?}", vk::BufferUsageFlags::from_raw(missing)),
+            };
+            panic!("imported resource {:?} is used as {what}, which it was not created with", plan.name);
+        }
+    }
     plans
 }
 

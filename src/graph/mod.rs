@@ -77,6 +77,9 @@ pub(crate) struct ResourceDecl {
     pub desc: ResourceDesc,
     /// Imported resources: the object and the access it was last used with.
     pub imported: Option<(External, Access)>,
+    /// Imported resources: the usage flags they were created with (raw image or buffer flags),
+    /// which the graph checks its derived usage against.
+    pub created_usage: u32,
     pub version: u32,
 }
 
@@ -118,42 +121,65 @@ impl<'a> RenderGraph<'a> {
         name: &'static str,
         desc: ResourceDesc,
         imported: Option<(External, Access)>,
+        created_usage: u32,
     ) -> Handle<K> {
-        self.resources.push(ResourceDecl { name, desc, imported, version: 0 });
+        self.resources.push(ResourceDecl { name, desc, imported, created_usage, version: 0 });
         Handle { id: self.resources.len() - 1, version: 0, _kind: PhantomData }
     }
 
     /// A transient image: created (or taken from the cache) by the graph, usage derived.
     pub fn create_image(&mut self, name: &'static str, desc: ImageDesc) -> Handle<ImageKind> {
-        self.declare(name, ResourceDesc::Image(desc), None)
+        self.declare(name, ResourceDesc::Image(desc), None, 0)
     }
 
     pub fn create_buffer(&mut self, name: &'static str, size: u64) -> Handle<BufferKind> {
-        self.declare(name, ResourceDesc::Buffer(BufferDesc { size }), None)
+        self.declare(name, ResourceDesc::Buffer(BufferDesc { size }), None, 0)
     }
 
-    /// An image that lives outside the graph, last used with `access`.
+    /// An image that lives outside the graph, created with `usage`, last used with `access`.
+    /// Compilation fails loudly if the graph would use it in a way `usage` does not allow.
     pub fn import_image(
         &mut self,
         name: &'static str,
         desc: ImageDesc,
-        image: vk::Image,
-        view: vk::ImageView,
+        (image, view, usage): (vk::Image, vk::ImageView, vk::ImageUsageFlags),
         access: Access,
     ) -> Handle<ImageKind> {
         assert!(access.applies_to_image(), "{name}: {access:?} is not an image access");
-        self.declare(name, ResourceDesc::Image(desc), Some((External::Image { image, view }, access)))
+        let external = Some((External::Image { image, view }, access));
+        self.declare(name, ResourceDesc::Image(desc), external, usage.as_raw())
     }
 
-    pub fn import_buffer(
+    /// A buffer that lives outside the graph, created with `usage`, last used with `access`.
+    pub fn import_raw_buffer(
         &mut self,
         name: &'static str,
-        buffer: vk::Buffer,
-        size: u64,
+        (buffer, size, usage): (vk::Buffer, u64, vk::BufferUsageFlags),
         access: Access,
     ) -> Handle<BufferKind> {
         assert!(access.applies_to_buffer(), "{name}: {access:?} is not a buffer access");
-        self.declare(name, ResourceDesc::Buffer(BufferDesc { size }), Some((External::Buffer { buffer }, access)))
+        let external = Some((External::Buffer { buffer }, access));
+        self.declare(name, ResourceDesc::Buffer(BufferDesc { size }), external, usage.as_raw())
+    }
+
+    /// Imports one of umbra's own buffers (its handle, size and usage).
+    pub fn import_buffer(
+        &mut self,
+        name: &'static str,
+        buffer: &crate::vk::Buffer,
+        access: Access,
+    ) -> Handle<BufferKind> {
+        self.import_raw_buffer(name, (buffer.raw, buffer.size, buffer.usage), access)
+    }
+
+    /// Imports one of umbra's own images.
+    pub fn import_owned_image(
+        &mut self,
+        name: &'static str,
+        image: &crate::vk::Image,
+        access: Access,
+    ) -> Handle<ImageKind> {
+        self.import_image(name, image.desc, (image.raw, image.view, image.usage), access)
     }
 
     /// Marks a result as leaving the graph, to be used next with `access`: the passes that lead

@@ -44,7 +44,7 @@ pub fn add<'a>(
 ) -> Handle<ImageKind> {
     // A fresh image has no layout yet; a used one may still be read by the frame before.
     let last = if history.fresh { Access::Nothing } else { HISTORY_ACCESS };
-    let mut mean = graph.import_image("history", history.image.desc, history.image.raw, history.image.view, last);
+    let mut mean = graph.import_owned_image("history", history.image, last);
     let mut pass = graph.add_pass("accumulate");
     if history.frames > 0 {
         pass.read(&mean, Access::ComputeShaderReadStorageImage);

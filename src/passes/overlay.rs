@@ -68,9 +68,8 @@ pub fn add<'a>(
     canvas: &mut Handle<ImageKind>,
     extent: vk::Extent2D,
 ) {
-    let glyphs: Handle<BufferKind> =
-        graph.import_buffer("glyphs", inputs.glyphs.raw, inputs.glyphs.size, Access::HostWrite);
-    let text = graph.import_buffer("overlay text", inputs.text.raw, inputs.text.size, Access::HostWrite);
+    let glyphs: Handle<BufferKind> = graph.import_buffer("glyphs", inputs.glyphs, Access::HostWrite);
+    let text = graph.import_buffer("overlay text", inputs.text, Access::HostWrite);
     let mut pass = graph.add_pass("overlay");
     pass.read(canvas, Access::ComputeShaderReadStorageImage);
     let bound = [

@@ -5,12 +5,15 @@ use ash::vk;
 
 use crate::graph::{Access, Handle, ImageDesc, ImageKind, RenderGraph};
 
+/// What swapchain images are created for: they are only ever blitted into.
+pub const SWAPCHAIN_USAGE: vk::ImageUsageFlags = vk::ImageUsageFlags::TRANSFER_DST;
+
 pub fn add(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, swapchain: (vk::Image, vk::ImageView, ImageDesc)) {
     let (image, view, desc) = swapchain;
     let crate::graph::ResourceDesc::Image(src_desc) = graph.describe(source.id()).1 else {
         unreachable!("an image handle")
     };
-    let mut target = graph.import_image("swapchain image", desc, image, view, Access::AcquiredImage);
+    let mut target = graph.import_image("swapchain image", desc, (image, view, SWAPCHAIN_USAGE), Access::AcquiredImage);
     blit_named(graph, "present blit", source, &mut target, src_desc, desc);
     graph.export(target, Access::Present);
 }

@@ -79,9 +79,9 @@ pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResu
     )?;
     let mut cache = TransientCache::new(ctx)?;
     let mut g = RenderGraph::new();
-    let r = g.import_buffer("rays", ray_buf.raw, ray_buf.size, Access::HostWrite);
-    let n = g.import_buffer("bvh nodes", nodes.raw, nodes.size, Access::HostWrite);
-    let t = g.import_buffer("bvh triangles", tris.raw, tris.size, Access::HostWrite);
+    let r = g.import_buffer("rays", &ray_buf, Access::HostWrite);
+    let n = g.import_buffer("bvh nodes", &nodes, Access::HostWrite);
+    let t = g.import_buffer("bvh triangles", &tris, Access::HostWrite);
     let hits = add(&mut g, &pipeline, &r, &n, &t, count);
     super::readback::add_buffer(&mut g, &hits, &out);
     let plan = CompiledGraph::compile(&g);

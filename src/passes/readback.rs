@@ -9,7 +9,7 @@ use crate::vk::{Buffer, ImageDesc};
 pub fn add(graph: &mut RenderGraph<'_>, image: &Handle<ImageKind>, target: &Buffer) {
     let (_, desc) = graph.describe(image.id());
     let crate::graph::ResourceDesc::Image(desc) = desc else { unreachable!("an image handle") };
-    let mut buffer = graph.import_buffer("read-back", target.raw, target.size, Access::Nothing);
+    let mut buffer = graph.import_buffer("read-back", target, Access::Nothing);
     let mut pass = graph.add_pass("read-back");
     let src = pass.read(image, Access::TransferRead);
     let dst = pass.write(&mut buffer, Access::TransferWrite);
@@ -32,7 +32,7 @@ pub fn add(graph: &mut RenderGraph<'_>, image: &Handle<ImageKind>, target: &Buff
 
 /// Copies a graph buffer into `target`, exported for host reads.
 pub fn add_buffer(graph: &mut RenderGraph<'_>, source: &Handle<BufferKind>, target: &Buffer) {
-    let mut buffer = graph.import_buffer("read-back", target.raw, target.size, Access::Nothing);
+    let mut buffer = graph.import_buffer("read-back", target, Access::Nothing);
     let mut pass = graph.add_pass("read-back");
     let src = pass.read(source, Access::TransferRead);
     let dst = pass.write(&mut buffer, Access::TransferWrite);

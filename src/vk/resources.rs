@@ -12,6 +12,7 @@ use super::{GpuContext, GpuResult, VkContext};
 pub struct Buffer {
     pub raw: vk::Buffer,
     pub size: u64,
+    pub usage: vk::BufferUsageFlags,
     allocation: Option<Allocation>,
     ctx: Arc<GpuContext>,
 }
@@ -45,7 +46,7 @@ impl Buffer {
                 }
             };
             ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()).vk("vkBindBufferMemory")?;
-            Ok(Buffer { raw, size, allocation: Some(allocation), ctx: ctx.clone() })
+            Ok(Buffer { raw, size, usage, allocation: Some(allocation), ctx: ctx.clone() })
         }
     }
 
@@ -127,6 +128,7 @@ pub struct Image {
     pub raw: vk::Image,
     pub view: vk::ImageView,
     pub desc: ImageDesc,
+    pub usage: vk::ImageUsageFlags,
     allocation: Option<Allocation>,
     ctx: Arc<GpuContext>,
 }
@@ -174,7 +176,7 @@ impl Image {
             } else {
                 vk::ImageView::null()
             };
-            Ok(Image { raw, view, desc, allocation: Some(allocation), ctx: ctx.clone() })
+            Ok(Image { raw, view, desc, usage, allocation: Some(allocation), ctx: ctx.clone() })
         }
     }
 }

@@ -75,7 +75,7 @@ impl Swapchain {
         if caps.max_image_count > 0 {
             count = count.min(caps.max_image_count);
         }
-        let usage = vk::ImageUsageFlags::TRANSFER_DST;
+        let usage = crate::passes::present::SWAPCHAIN_USAGE;
         if !caps.supported_usage_flags.contains(usage) {
             return Err(GpuError::Unsupported("swapchain images cannot be transfer destinations".into()));
         }

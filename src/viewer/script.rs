@@ -2,22 +2,30 @@
 //! starts a comment.
 //!
 //! ```text
-//! frames 10            # draw 10 frames with the current input
-//! key down W           # hold a key (W A S D Q E shift home F1 F12 L T V plus minus)
+//! frames 10            # draw 10 frames with the current input (1..=1000000)
+//! key down W           # hold a key: W A S D Q E shift home F1 F12 L T V
+//!                      # plus minus [ ] esc (any case)
 //! key up W
 //! press T              # down and up
 //! mouse 120 -30        # look: raw motion with the right button held
 //! scroll 2             # wheel steps (speed x1.25 each)
-//! resize 640 480
+//! resize 640 480       # 1..=16384 each
 //! minimise             # and `restore`
 //! screenshot NAME      # NAME.png and NAME.exr beside the scene
-//! wait_ms 100
+//! wait_ms 100          # 0..=60000
 //! quit
 //! ```
 
+use std::ops::RangeInclusive;
 use std::time::Duration;
 
 use super::input::{InputEvent, Key};
+
+/// Bounds on script arguments: `frames N` takes 1..=MAX_FRAMES, `wait_ms` at most
+/// MAX_WAIT_MS, `resize` 1..=MAX_SIZE on each side.
+pub const MAX_FRAMES: u64 = 1_000_000;
+pub const MAX_WAIT_MS: u64 = 60_000;
+pub const MAX_SIZE: u64 = 16_384;
 
 #[derive(Clone, Debug, PartialEq)]
 pub enum ScriptStep {
@@ -46,19 +54,26 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
         }
         let fail = |message: String| ScriptError { file: file.to_owned(), line: i + 1, message };
         let words: Vec<&str> = line.split_whitespace().collect();
-        let number = |w: Option<&&str>, what: &str| -> Result<f64, ScriptError> {
+        let number = |w: Option<&&str>, what: &str| -> Result<f32, ScriptError> {
             let w = w.ok_or_else(|| fail(format!("`{}` needs {what}", words[0])))?;
-            w.parse::<f64>()
+            // Finite as the f32 the input path carries, so 1e300 cannot become infinity.
+            w.parse::<f32>()
                 .ok()
                 .filter(|v| v.is_finite())
-                .ok_or_else(|| fail(format!("{w:?} is not a number ({what})")))
+                .ok_or_else(|| fail(format!("{w:?} is not a finite number ({what})")))
         };
-        let count = |w: Option<&&str>, what: &str| -> Result<u64, ScriptError> {
-            let v = number(w, what)?;
-            if v < 0.0 || v.fract() != 0.0 {
-                return Err(fail(format!("{what} must be a whole number >= 0, not {v}")));
+        // Counts are parsed as integers (never through a float, which would saturate huge
+        // values to u64::MAX) and must lie in `range`.
+        let count = |w: Option<&&str>, what: &str, range: RangeInclusive<u64>| -> Result<u64, ScriptError> {
+            let w = w.ok_or_else(|| fail(format!("`{}` needs {what}", words[0])))?;
+            let out_of_range =
+                || fail(format!("{what} must be a whole number in {}..={}, not {w}", range.start(), range.end()));
+            let digits = w.strip_prefix('+').unwrap_or(w);
+            if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+                return Err(out_of_range());
             }
-            Ok(v as u64)
+            // All digits: the only parse failure left is overflow, which is out of range too.
+            digits.parse::<u64>().ok().filter(|v| range.contains(v)).ok_or_else(out_of_range)
         };
         let key = |w: Option<&&str>| -> Result<Key, ScriptError> {
             let w = w.ok_or_else(|| fail("a key name is missing".into()))?;
@@ -73,7 +88,7 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
         match words[0] {
             "frames" => {
                 expect_args(1)?;
-                steps.push(ScriptStep::Frames(count(words.get(1), "a frame count")?));
+                steps.push(ScriptStep::Frames(count(words.get(1), "a frame count", 1..=MAX_FRAMES)?));
             }
             "key" => {
                 expect_args(2)?;
@@ -91,7 +106,7 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
             }
             "mouse" => {
                 expect_args(2)?;
-                let (dx, dy) = (number(words.get(1), "dx")? as f32, number(words.get(2), "dy")? as f32);
+                let (dx, dy) = (number(words.get(1), "dx")?, number(words.get(2), "dy")?);
                 steps.extend([
                     ScriptStep::Input(InputEvent::RightButton(true)),
                     ScriptStep::Input(InputEvent::MouseMotion { dx, dy }),
@@ -100,14 +115,15 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
             }
             "scroll" => {
                 expect_args(1)?;
-                steps.push(ScriptStep::Input(InputEvent::Scroll(number(words.get(1), "wheel steps")? as f32)));
+                steps.push(ScriptStep::Input(InputEvent::Scroll(number(words.get(1), "wheel steps")?)));
             }
             "resize" => {
                 expect_args(2)?;
-                let (w, h) = (count(words.get(1), "a width")?, count(words.get(2), "a height")?);
-                if w == 0 || h == 0 || w > 16384 || h > 16384 {
-                    return Err(fail(format!("size {w}x{h} must be 1..=16384 each (use `minimise` for 0x0)")));
-                }
+                // 0x0 is what a minimised window reports: scripts say `minimise` for that.
+                let (w, h) = (
+                    count(words.get(1), "a width (use `minimise` for 0x0)", 1..=MAX_SIZE)?,
+                    count(words.get(2), "a height (use `minimise` for 0x0)", 1..=MAX_SIZE)?,
+                );
                 steps.push(ScriptStep::Input(InputEvent::Resize(w as u32, h as u32)));
             }
             "minimise" | "minimize" => {
@@ -128,7 +144,8 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
             }
             "wait_ms" => {
                 expect_args(1)?;
-                steps.push(ScriptStep::Wait(Duration::from_millis(count(words.get(1), "milliseconds")?)));
+                let ms = count(words.get(1), "milliseconds", 0..=MAX_WAIT_MS)?;
+                steps.push(ScriptStep::Wait(Duration::from_millis(ms)));
             }
             "quit" => {
                 expect_args(0)?;
@@ -168,5 +185,72 @@ mod tests {
         assert!(err("screenshot ../x").contains("letters"));
         assert!(err("key sideways W").contains("down or up"));
         assert!(err("mouse 1").contains("takes 2 argument"));
+    }
+
+    #[test]
+    fn counts_are_integers_within_bounds() {
+        let err = |t: &str| parse(t, "s").unwrap_err().to_string();
+        let ok = |t: &str| parse(t, "s").unwrap();
+        // Used to go through f64 and saturate to u64::MAX frames.
+        assert!(err("frames 1e30").contains("whole number"));
+        assert!(err("frames 18446744073709551616").contains("1..=1000000"), "u64 overflow");
+        assert!(err("frames 99999999999999999999999").contains("1..=1000000"));
+        assert!(err("frames 0").contains("1..=1000000"), "zero frames would be a no-op");
+        assert!(err("frames 1000001").contains("1..=1000000"));
+        assert!(err("frames 2.5").contains("whole number"));
+        assert!(err("frames 2.0").contains("whole number"));
+        assert!(err("frames inf").contains("whole number"));
+        assert!(err("frames NaN").contains("whole number"));
+        assert!(err("frames -0").contains("whole number"));
+        assert!(err("frames +").contains("whole number"));
+        assert_eq!(ok("frames 1"), vec![ScriptStep::Frames(1)]);
+        assert_eq!(ok("frames +7"), vec![ScriptStep::Frames(7)]);
+        assert_eq!(ok("frames 1000000"), vec![ScriptStep::Frames(MAX_FRAMES)]);
+
+        assert!(err("wait_ms 60001").contains("0..=60000"));
+        assert!(err("wait_ms 1e9").contains("whole number"));
+        assert!(err("wait_ms -5").contains("whole number"));
+        assert_eq!(ok("wait_ms 0"), vec![ScriptStep::Wait(Duration::ZERO)]);
+        assert_eq!(ok("wait_ms 60000"), vec![ScriptStep::Wait(Duration::from_secs(60))]);
+
+        assert!(err("resize 16385 10").contains("1..=16384"));
+        assert!(err("resize 10 4294967296").contains("1..=16384"), "would wrap to 0 as u32");
+        assert!(err("resize 64.0 48").contains("whole number"));
+        assert_eq!(ok("resize 16384 1"), vec![ScriptStep::Input(InputEvent::Resize(16384, 1))]);
+    }
+
+    #[test]
+    fn motion_and_wheel_must_be_finite() {
+        let err = |t: &str| parse(t, "s").unwrap_err().to_string();
+        assert!(err("mouse NaN 0").contains("finite"));
+        assert!(err("mouse 0 inf").contains("finite"));
+        assert!(err("mouse 1e300 0").contains("finite"), "overflows f32");
+        assert!(err("scroll -inf").contains("finite"));
+        assert!(err("scroll 1e39").contains("finite"));
+        assert!(err("scroll").contains("takes 1 argument"));
+        assert_eq!(parse("scroll -2.5", "s").unwrap(), vec![ScriptStep::Input(InputEvent::Scroll(-2.5))]);
+    }
+
+    #[test]
+    fn comments_blank_lines_and_key_names() {
+        let text = "\n   \n# only a comment\npress ] # double spp\npress [\npress esc\nkey up SHIFT\n";
+        let steps = parse(text, "s").unwrap();
+        assert_eq!(
+            steps,
+            vec![
+                ScriptStep::Input(InputEvent::KeyDown(Key::BracketRight)),
+                ScriptStep::Input(InputEvent::KeyUp(Key::BracketRight)),
+                ScriptStep::Input(InputEvent::KeyDown(Key::BracketLeft)),
+                ScriptStep::Input(InputEvent::KeyUp(Key::BracketLeft)),
+                ScriptStep::Input(InputEvent::KeyDown(Key::Escape)),
+                ScriptStep::Input(InputEvent::KeyUp(Key::Escape)),
+                ScriptStep::Input(InputEvent::KeyUp(Key::Shift)),
+            ]
+        );
+        let err = |t: &str| parse(t, "s").unwrap_err().to_string();
+        assert!(err("quit now").contains("takes 0 argument"));
+        assert!(err("frames 1 2").contains("takes 1 argument"));
+        assert!(err("screenshot .hidden").contains("letters"));
+        assert!(err("\n\nwait_ms 70000").starts_with("s:3: "));
     }
 }

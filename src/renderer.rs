@@ -103,8 +103,15 @@ impl ShadowMethod {
 pub enum Target<'a> {
     /// Copied into a host-visible buffer.
     ReadBack(&'a Buffer),
-    /// Blitted into an acquired swapchain image, with the overlay drawn first when given.
-    Present { image: vk::Image, view: vk::ImageView, desc: ImageDesc, overlay: Option<OverlayInputs<'a>> },
+    /// Blitted into an acquired swapchain image, with the overlay drawn first when given; with
+    /// `capture`, what is presented is also copied there.
+    Present {
+        image: vk::Image,
+        view: vk::ImageView,
+        desc: ImageDesc,
+        overlay: Option<OverlayInputs<'a>>,
+        capture: Option<&'a Buffer>,
+    },
     /// Left in the graph (for plans and tests).
     Inspect,
 }
@@ -483,7 +490,7 @@ fn build_graph<'a>(
                 g.export(result, history_access);
             }
         }
-        Target::Present { image, view, desc, overlay } => {
+        Target::Present { image, view, desc, overlay, capture } => {
             assert!(!result_is_history, "presented frames are display-referred");
             let mut canvas = result;
             if let Some(inputs) = overlay {
@@ -495,6 +502,9 @@ fn build_graph<'a>(
                     canvas = converted;
                 }
                 overlay::add(&mut g, &inputs, &mut canvas, extent);
+            }
+            if let Some(buffer) = capture {
+                readback::add(&mut g, &canvas, buffer);
             }
             present::add(&mut g, &canvas, (image, view, desc));
         }

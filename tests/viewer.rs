@@ -113,3 +113,39 @@ fn frames_closes_the_window_after_n_frames() {
     let out = view(&dir, 4, "", &["--frames", "5"]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("viewer: 5 frames presented"));
 }
+
+#[test]
+fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
+    let dir = scene_dir("overlay");
+    let script = "frames 2\ncapture shown\npress F1\nframes 2\ncapture plain\nscreenshot offline\nquit\n";
+    view(&dir, 5, script, &["--size", "640x480"]);
+    let shown = image::open(dir.join("shown.png")).unwrap().to_rgb8();
+    let plain = image::open(dir.join("plain.png")).unwrap().to_rgb8();
+    let offline = image::open(dir.join("offline.png")).unwrap().to_rgb8();
+    // Without the overlay the window shows exactly what `umbra render` makes of the same view.
+    assert_eq!(plain.dimensions(), offline.dimensions());
+    let max_diff =
+        plain.pixels().zip(offline.pixels()).flat_map(|(a, b)| (0..3).map(move |c| a.0[c].abs_diff(b.0[c]))).max();
+    assert!(max_diff <= Some(1), "window and capture differ by {max_diff:?}");
+    // The overlay: white glyphs on a darkened box in the top-left corner, nothing elsewhere.
+    let (w, h) = plain.dimensions();
+    let (mut changed, mut white, mut outside) = (0, 0, 0);
+    let (mut box_w, mut box_h) = (0, 0);
+    for (x, y, p) in shown.enumerate_pixels() {
+        if p != plain.get_pixel(x, y) {
+            changed += 1;
+            box_w = box_w.max(x + 1);
+            box_h = box_h.max(y + 1);
+            white += (p.0 == [255, 255, 255]) as u32;
+        }
+    }
+    for (x, y, p) in shown.enumerate_pixels() {
+        if (x >= box_w || y >= box_h) && p != plain.get_pixel(x, y) {
+            outside += 1;
+        }
+    }
+    assert!(white > 200, "only {white} glyph pixels");
+    assert!(changed > white * 2, "the backdrop should darken the box too");
+    assert!(box_w < w && box_h < h, "the overlay covers the whole window ({box_w}x{box_h})");
+    assert_eq!(outside, 0);
+}

@@ -86,6 +86,8 @@ struct Running {
     timings: Vec<(&'static str, f64)>,
     screenshot_dir: PathBuf,
     screenshots: Vec<PathBuf>,
+    /// A capture of the next presented frame, by name.
+    pending_capture: Option<String>,
     quit: bool,
 }
 
@@ -206,6 +208,7 @@ impl App {
             timings: Vec::new(),
             screenshot_dir: o.screenshot_dir.clone(),
             screenshots: Vec::new(),
+            pending_capture: None,
             quit: false,
         })
     }
@@ -223,16 +226,24 @@ impl App {
         r.camera.update(&r.input, dt);
         let settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
         let lines = r.settings.overlay.then(|| r.overlay_lines());
-        match r.presenter.draw(&r.renderer, &settings, lines.as_deref())? {
-            Drawn::Frame { timings } => {
+        let capture = r.pending_capture.take();
+        match r.presenter.draw(&r.renderer, &settings, lines.as_deref(), capture.is_some())? {
+            Drawn::Frame { timings, captured } => {
                 if !timings.is_empty() {
                     r.timings = timings;
+                }
+                if let (Some(name), Some(frame)) = (capture, captured) {
+                    let path = r.screenshot_dir.join(format!("{name}.png"));
+                    crate::output::write_image(&frame, &path)?;
+                    self.report.screenshots.push(path);
                 }
                 r.fps.tick(now);
                 self.report.frames += 1;
                 r.script_frames = r.script_frames.saturating_sub(1);
             }
             Drawn::Skipped => {
+                // Nothing was shown: a capture waits for the next frame that is.
+                r.pending_capture = r.pending_capture.take().or(capture);
                 self.report.skipped += 1;
                 r.script_frames = r.script_frames.saturating_sub(1);
             }
@@ -308,6 +319,11 @@ impl Running {
                 }
                 // Taken at this point of the script, before any later step changes the view.
                 ScriptStep::Screenshot(name) => self.screenshot(Some(name))?,
+                // Draws the frame it captures before the script goes on.
+                ScriptStep::Capture(name) => {
+                    self.pending_capture = Some(name);
+                    self.script_frames = 1;
+                }
                 ScriptStep::Wait(d) => {
                     self.script_wait_until = Some(Instant::now() + d);
                     return Ok(false);
@@ -324,27 +340,23 @@ impl Running {
 
     fn overlay_lines(&self) -> Vec<String> {
         let extent = self.presenter.extent().map_or((0, 0), |e| (e.width, e.height));
-        let mut lines = vec![format!(
-            "umbra  {:6.1} fps  {:6.2} ms  {}x{}",
-            self.fps.fps(),
-            self.fps.frame_ms(),
-            extent.0,
-            extent.1
-        )];
+        let mut lines =
+            vec![format!("umbra {:6.1} fps {:7.2} ms  {}x{}", self.fps.fps(), self.fps.frame_ms(), extent.0, extent.1)];
         let scene = self.renderer.scene();
-        lines.push(format!("{} triangles, {} lights", scene.triangle_count(), scene.lights.len()));
+        lines.push(format!("{} triangles  {} lights", scene.triangle_count(), scene.lights.len()));
         lines.extend(self.settings.describe(&scene.lights));
         if self.presenter.accumulated_frames() > 0 {
-            lines.push(format!("accumulated {} frames (still camera)", self.presenter.accumulated_frames()));
+            lines.push(format!("accumulated {} frames", self.presenter.accumulated_frames()));
         }
         let total: f64 = self.timings.iter().map(|t| t.1).sum();
         for (name, ms) in &self.timings {
-            lines.push(format!("  {name:<14} {ms:7.3} ms"));
+            lines.push(format!(" {name:<14} {ms:8.3} ms"));
         }
         if !self.timings.is_empty() {
-            lines.push(format!("  {:<14} {total:7.3} ms", "GPU total"));
+            lines.push(format!(" {:<14} {total:8.3} ms", "GPU total"));
         }
-        lines.push("F1 overlay  F12 shot  RMB look  WASD QE move  Home reset  Esc quit".into());
+        lines.push("L light  T shadows  V view  [ ] spp  +/- EV".into());
+        lines.push("F1 overlay  F12 shot  Home reset  Esc quit".into());
         lines
     }
 

@@ -10,7 +10,7 @@ use gpu_allocator::MemoryLocation;
 use crate::graph::TransientCache;
 use crate::passes::accumulate::Accumulator;
 use crate::passes::overlay::{self, OverlayInputs, OverlayText};
-use crate::renderer::{RenderSettings, Renderer, Target};
+use crate::renderer::{Frame, RenderSettings, Renderer, Target};
 use crate::vk::{Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
 
 const FRAMES_IN_FLIGHT: usize = 2;
@@ -38,13 +38,16 @@ pub struct Presenter {
     stale: bool,
     /// Running mean of a still view with stochastic (soft) shadows.
     accumulator: Accumulator,
+    /// Host-visible copy of a presented frame, made on request.
+    capture: Option<Buffer>,
     ctx: Arc<GpuContext>,
 }
 
 /// What one call to `draw` did.
 pub enum Drawn {
-    /// A frame was submitted; timings are those of the last frame this slot drew.
-    Frame { timings: Vec<(&'static str, f64)> },
+    /// A frame was submitted; timings are those of the last frame this slot drew. `captured`
+    /// holds the presented image when a capture was asked for.
+    Frame { timings: Vec<(&'static str, f64)>, captured: Option<Frame> },
     /// Nothing to draw into (minimised, or the swapchain was just recreated).
     Skipped,
 }
@@ -89,6 +92,7 @@ impl Presenter {
             size: (width, height),
             stale: true,
             accumulator: Accumulator::default(),
+            capture: None,
             ctx,
         };
         presenter.recreate()?;
@@ -141,12 +145,14 @@ impl Presenter {
         unsafe { self.ctx.device.device_wait_idle() }.vk("vkDeviceWaitIdle")
     }
 
-    /// Renders and presents one frame at the swapchain's size, with `overlay_lines` on top.
+    /// Renders and presents one frame at the swapchain's size, with `overlay_lines` on top;
+    /// with `capture`, also returns the presented image as the window shows it.
     pub fn draw(
         &mut self,
         renderer: &Renderer,
         settings: &RenderSettings,
         overlay_lines: Option<&[String]>,
+        capture: bool,
     ) -> GpuResult<Drawn> {
         if self.minimised() {
             return Ok(Drawn::Skipped);
@@ -189,11 +195,20 @@ impl Presenter {
                 scale: if swapchain.extent.height >= 720 { 2 } else { 1 },
             }
         });
+        // The presented canvas is 8-bit unless a float debug view goes out without an overlay.
+        let float_canvas = frame_settings.debug_view.is_some() && overlay.is_none();
+        let (width, height) = (swapchain.extent.width, swapchain.extent.height);
+        let bytes = u64::from(width) * u64::from(height) * if float_canvas { 16 } else { 4 };
+        if capture && self.capture.as_ref().is_none_or(|b| b.size != bytes) {
+            let usage = vk::BufferUsageFlags::TRANSFER_DST;
+            self.capture = Some(Buffer::new(&self.ctx, "capture", bytes, usage, MemoryLocation::GpuToCpu)?);
+        }
         let target = Target::Present {
             image: swapchain.images[index as usize],
             view: vk::ImageView::null(),
             desc: swapchain.desc(),
             overlay,
+            capture: self.capture.as_ref().filter(|_| capture),
         };
         // SAFETY: the slot's previous submission has completed (fence waited above).
         unsafe {
@@ -224,8 +239,21 @@ impl Presenter {
         if !swapchain.present(index)? {
             self.stale = true;
         }
+        let captured = match (&self.capture, capture) {
+            (Some(buffer), true) => {
+                // SAFETY: the fence of the submission just made.
+                unsafe { device.wait_for_fences(&[slot.fence], true, u64::MAX) }.vk("vkWaitForFences")?;
+                let data = buffer.mapped();
+                Some(if float_canvas {
+                    Frame::Rgba32F { width, height, pixels: bytemuck::pod_collect_to_vec(data) }
+                } else {
+                    Frame::Rgba8 { width, height, pixels: data.to_vec() }
+                })
+            }
+            _ => None,
+        };
         self.next = (self.next + 1) % FRAMES_IN_FLIGHT;
-        Ok(Drawn::Frame { timings })
+        Ok(Drawn::Frame { timings, captured })
     }
 }
 

@@ -12,6 +12,7 @@
 //! resize 640 480       # 1..=16384 each
 //! minimise             # and `restore`
 //! screenshot NAME      # NAME.png and NAME.exr beside the scene
+//! capture NAME         # NAME.png of exactly what the window shows next, overlay included
 //! wait_ms 100          # 0..=60000
 //! quit
 //! ```
@@ -33,6 +34,8 @@ pub enum ScriptStep {
     Input(InputEvent),
     Minimise(bool),
     Screenshot(String),
+    /// NAME.png of exactly what the window shows next (overlay included).
+    Capture(String),
     Wait(Duration),
     Quit,
 }
@@ -134,13 +137,17 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
                 expect_args(0)?;
                 steps.push(ScriptStep::Minimise(false));
             }
-            "screenshot" => {
+            "screenshot" | "capture" => {
                 expect_args(1)?;
                 let name = words[1];
                 if !name.chars().all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c)) || name.starts_with('.') {
-                    return Err(fail(format!("screenshot name {name:?} may hold only letters, digits, - _ .")));
+                    return Err(fail(format!("{} name {name:?} may hold only letters, digits, - _ .", words[0])));
                 }
-                steps.push(ScriptStep::Screenshot(name.to_owned()));
+                steps.push(if words[0] == "screenshot" {
+                    ScriptStep::Screenshot(name.to_owned())
+                } else {
+                    ScriptStep::Capture(name.to_owned())
+                });
             }
             "wait_ms" => {
                 expect_args(1)?;

@@ -84,17 +84,14 @@ impl ViewerSettings {
                 Light::Spot { .. } => "spot",
             };
             lines.push(format!(
-                "light {}/{} {kind}: shadows {}   [L] next [T] method",
+                "light {}/{} {kind}: {}",
                 self.selected_light + 1,
                 lights.len(),
                 self.shadows[self.selected_light].name()
             ));
         }
         let view = self.debug_view().map_or("shaded".to_string(), |v| format!("{v:?}").to_lowercase());
-        lines.push(format!(
-            "view {view}  exposure {:+.1} EV  soft {} spp/frame   [V] view [+/-] exposure [[/]] spp",
-            self.exposure_ev, self.soft_spp
-        ));
+        lines.push(format!("view {view}  {:+.1} EV  soft {} spp/frame", self.exposure_ev, self.soft_spp));
         lines
     }
 }

@@ -17,6 +17,9 @@ use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
 use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, ImageDesc};
 
+/// How the scene's buffers were last written: by their upload's transfer.
+const SCENE_ACCESS: Access = Access::TransferWrite;
+
 /// Radiance of pixels no surface covers, W/(m^2 sr): a dim, neutral backdrop.
 pub const BACKGROUND: Vec3 = Vec3::new(0.02, 0.022, 0.025);
 
@@ -188,25 +191,18 @@ impl SceneGpu {
             hi = Vec3::ZERO;
         }
         let lights = gpu_lights(&scene.lights);
-        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        // Uploaded once into device-local memory; imported each frame as last written by that
+        // transfer (SCENE_ACCESS), so the graph orders the copy before every use.
+        let upload = |name, bytes: &[u8], usage| Buffer::device_local_with_data(ctx, name, bytes, usage);
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(SceneGpu {
-            vertices: Buffer::with_data(
-                ctx,
-                "vertices",
-                bytemuck::cast_slice(&vertices),
-                vk::BufferUsageFlags::VERTEX_BUFFER,
-            )?,
-            indices: Buffer::with_data(
-                ctx,
-                "indices",
-                bytemuck::cast_slice(&indices),
-                vk::BufferUsageFlags::INDEX_BUFFER,
-            )?,
+            vertices: upload("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?,
+            indices: upload("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER)?,
             draws,
-            lights: Buffer::with_data(ctx, "lights", bytemuck::cast_slice(&lights), usage)?,
+            lights: upload("lights", bytemuck::cast_slice(&lights), storage)?,
             light_count: scene.lights.len() as u32,
-            bvh_nodes: Buffer::with_data(ctx, "bvh nodes", bytemuck::cast_slice(bvh.nodes()), usage)?,
-            bvh_triangles: Buffer::with_data(ctx, "bvh triangles", bytemuck::cast_slice(bvh.triangles()), usage)?,
+            bvh_nodes: upload("bvh nodes", bytemuck::cast_slice(bvh.nodes()), storage)?,
+            bvh_triangles: upload("bvh triangles", bytemuck::cast_slice(bvh.triangles()), storage)?,
             has_casters: !bvh.is_empty(),
             bounds: (lo, hi),
             origin,
@@ -417,9 +413,9 @@ fn build_graph<'a>(
         extent.height,
     );
     let mut g = RenderGraph::new();
-    let vertices = g.import_buffer("vertices", &s.vertices, Access::HostWrite);
-    let indices = g.import_buffer("indices", &s.indices, Access::HostWrite);
-    let lights = g.import_buffer("lights", &s.lights, Access::HostWrite);
+    let vertices = g.import_buffer("vertices", &s.vertices, SCENE_ACCESS);
+    let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
+    let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
     let gbuffer = geometry::add(&mut g, &pipelines.geometry, s, &vertices, &indices, camera, extent);
 
     // Shadow rays only where something can cast a shadow on a lit point, or where the
@@ -428,8 +424,8 @@ fn build_graph<'a>(
     let methods: Vec<ShadowMethod> = (0..s.light_count as usize).map(|i| settings.shadow_method(i)).collect();
     let any_traced = methods.iter().any(|&m| m != ShadowMethod::None);
     let visibility = (s.light_count > 0 && ((s.has_casters && any_traced) || wants_visibility)).then(|| {
-        let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, Access::HostWrite);
-        let tris = g.import_buffer("bvh triangles", &s.bvh_triangles, Access::HostWrite);
+        let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS);
+        let tris = g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS);
         let inputs = shadow_trace::ShadowInputs {
             lights: &lights,
             light_count: s.light_count,

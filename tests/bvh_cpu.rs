@@ -2,11 +2,12 @@
 //! own traversal, the edge cases a shadow pass meets, the shadow-ray origin offset, and that
 //! the GLSL include compiles with the layout the Rust structs promise.
 
+mod common;
+
 use glam::Vec3;
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::f32::consts::PI;
-use std::process::Command;
 use umbra::scene::bvh::{offset_ray_origin, GpuBvhNode, GpuTriangle, ShadowBvh, BVH_STACK_SIZE, RAY_OFFSET_MIN};
 use umbra::scene::{Camera, LoadStats, Material, Mesh, Scene};
 
@@ -271,43 +272,11 @@ fn offset_origin_clears_its_surface_at_any_distance() {
     assert_eq!(offset_ray_origin(Vec3::ZERO, Vec3::Y), Vec3::new(0.0, RAY_OFFSET_MIN, 0.0));
 }
 
-/// The std430 layout glslang assigns to the include's structs, read from its reflection.
-fn glsl_layout(shader: &str) -> String {
-    let out = Command::new("glslangValidator")
-        .args(["-q", "--target-env", "vulkan1.3", "-Ishaders/include", shader])
-        .output()
-        .expect("glslangValidator must be installed");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
-    String::from_utf8(out.stdout).unwrap()
-}
-
-/// Compiles a test compute shader to SPIR-V and validates it.
-fn compile_and_validate(shader: &str) {
-    let spv = std::env::temp_dir().join(format!(
-        "umbra-{}-{}.spv",
-        std::path::Path::new(shader).file_stem().unwrap().to_string_lossy(),
-        std::process::id()
-    ));
-    let out = Command::new("glslangValidator")
-        .args(["-V", "--target-env", "vulkan1.3", "-Ishaders/include", shader, "-o"])
-        .arg(&spv)
-        .output()
-        .expect("glslangValidator must be installed");
-    assert!(out.status.success(), "{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
-    let val = Command::new("spirv-val")
-        .args(["--target-env", "vulkan1.3"])
-        .arg(&spv)
-        .output()
-        .expect("spirv-val must be installed");
-    let _ = std::fs::remove_file(&spv);
-    assert!(val.status.success(), "{}", String::from_utf8_lossy(&val.stderr));
-}
-
 #[test]
 fn bvh_glsl_compiles_with_the_rust_layout() {
     let shader = "tests/shaders/bvh_include.comp";
-    compile_and_validate(shader);
-    let reflection = glsl_layout(shader);
+    common::compile_shader(shader);
+    let reflection = common::shader_reflection(shader);
     let expect = |member: &str, offset: usize, stride: usize| {
         let line = format!("{member}: offset {offset}, ");
         let found = reflection.lines().find(|l| l.starts_with(&line));

@@ -4,8 +4,6 @@
 
 mod common;
 
-use std::process::Command;
-
 use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
@@ -20,19 +18,6 @@ use umbra::vk::{Buffer, ComputePipeline, DescriptorKind};
 struct Query {
     position: Vec4,
     seed: UVec4,
-}
-
-fn compile(shader: &str) -> Vec<u8> {
-    let spv = std::env::temp_dir().join(format!("umbra-light-sampling-{}.spv", std::process::id()));
-    let out = Command::new("glslangValidator")
-        .args(["-V", "--target-env", "vulkan1.3", "-Ishaders/include", shader, "-o"])
-        .arg(&spv)
-        .output()
-        .expect("glslangValidator must be installed");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stdout));
-    let bytes = std::fs::read(&spv).unwrap();
-    let _ = std::fs::remove_file(&spv);
-    bytes
 }
 
 #[test]
@@ -64,7 +49,7 @@ fn gpu_light_samples_match_the_rust_twin() {
     let pipeline = ComputePipeline::new(
         &ctx,
         "light sampling",
-        &compile("tests/shaders/light_sampling.comp"),
+        &common::compile_shader("tests/shaders/light_sampling.comp"),
         &[(0, DescriptorKind::StorageBuffer), (1, DescriptorKind::StorageBuffer), (2, DescriptorKind::StorageBuffer)],
         0,
         [64, 1],

@@ -1,9 +1,10 @@
 //! The CPU shading reference: known values of the BRDF terms and the lights, the tone map, and
 //! that the GLSL twins compile with the light layout the Rust struct promises.
 
+mod common;
+
 use glam::{UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
-use std::process::Command;
 use umbra::scene::{Light, Material};
 use umbra::shading::*;
 
@@ -186,33 +187,11 @@ fn tonemap_and_srgb() {
     assert!(close(srgb_encode(0.003_130_8), 12.92 * 0.003_130_8, 1e-4));
 }
 
-fn compile_and_validate(shader: &str) {
-    let spv = std::env::temp_dir().join(format!("umbra-shading-{}.spv", std::process::id()));
-    let out = Command::new("glslangValidator")
-        .args(["-V", "--target-env", "vulkan1.3", "-Ishaders/include", shader, "-o"])
-        .arg(&spv)
-        .output()
-        .expect("glslangValidator must be installed");
-    let log = String::from_utf8_lossy(&out.stdout);
-    assert!(out.status.success(), "{log}");
-    let val = Command::new("spirv-val")
-        .args(["--target-env", "vulkan1.3"])
-        .arg(&spv)
-        .output()
-        .expect("spirv-val must be installed");
-    let _ = std::fs::remove_file(&spv);
-    assert!(val.status.success(), "{}", String::from_utf8_lossy(&val.stderr));
-}
-
 #[test]
 fn shading_glsl_compiles_with_the_rust_light_layout() {
     let shader = "tests/shaders/shading_include.comp";
-    compile_and_validate(shader);
-    let out = Command::new("glslangValidator")
-        .args(["-q", "--target-env", "vulkan1.3", "-Ishaders/include", shader])
-        .output()
-        .expect("glslangValidator must be installed");
-    let reflection = String::from_utf8(out.stdout).unwrap();
+    common::compile_shader(shader);
+    let reflection = common::shader_reflection(shader);
     let stride = size_of::<GpuLight>();
     for (member, offset) in [
         ("position_kind", std::mem::offset_of!(GpuLight, position_kind)),
@@ -245,12 +224,8 @@ fn glsl_constants_match() {
 #[test]
 fn light_sampling_glsl_compiles_with_the_rust_light_layout() {
     let shader = "tests/shaders/light_sampling.comp";
-    compile_and_validate(shader);
-    let out = Command::new("glslangValidator")
-        .args(["-q", "--target-env", "vulkan1.3", "-Ishaders/include", shader])
-        .output()
-        .expect("glslangValidator must be installed");
-    let reflection = String::from_utf8(out.stdout).unwrap();
+    common::compile_shader(shader);
+    let reflection = common::shader_reflection(shader);
     let stride = size_of::<GpuLight>();
     assert_eq!(stride, 64, "four vec4: std430 adds no padding");
     for (member, offset) in [

@@ -48,3 +48,56 @@ pub fn umbra() -> std::process::Command {
     lavapipe_env();
     std::process::Command::new(env!("CARGO_BIN_EXE_umbra"))
 }
+
+/// Compiles a GLSL shader (with `shaders/include` on the include path) to Vulkan 1.3 SPIR-V,
+/// validates it with spirv-val, and returns the SPIR-V bytes.
+pub fn compile_shader(path: &str) -> Vec<u8> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    static NEXT: AtomicUsize = AtomicUsize::new(0);
+    // The whole path (not just the stem) plus the process id and a counter: no two compiles,
+    // in this process or a parallel one, share a temp file.
+    let name: String = path.chars().map(|c| if c.is_ascii_alphanumeric() { c } else { '_' }).collect();
+    let spv = std::env::temp_dir().join(format!(
+        "umbra-{name}-{}-{}.spv",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ));
+    let out = std::process::Command::new("glslangValidator")
+        .args(["-V", "--target-env", "vulkan1.3", "-Ishaders/include", path, "-o"])
+        .arg(&spv)
+        .output()
+        .expect("glslangValidator must be installed");
+    if !out.status.success() {
+        let _ = std::fs::remove_file(&spv);
+        panic!("{path}: {}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    }
+    let val = std::process::Command::new("spirv-val")
+        .args(["--target-env", "vulkan1.3"])
+        .arg(&spv)
+        .output()
+        .expect("spirv-val must be installed");
+    let bytes = std::fs::read(&spv);
+    let _ = std::fs::remove_file(&spv);
+    assert!(
+        val.status.success(),
+        "{path}: {}{}",
+        String::from_utf8_lossy(&val.stdout),
+        String::from_utf8_lossy(&val.stderr)
+    );
+    bytes.unwrap_or_else(|e| panic!("{path}: reading the SPIR-V: {e}"))
+}
+
+/// glslang's reflection of a shader (`glslangValidator -q`): the offsets and strides it assigns.
+pub fn shader_reflection(path: &str) -> String {
+    let out = std::process::Command::new("glslangValidator")
+        .args(["-q", "--target-env", "vulkan1.3", "-Ishaders/include", path])
+        .output()
+        .expect("glslangValidator must be installed");
+    assert!(
+        out.status.success(),
+        "{path}: {}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).expect("reflection is UTF-8")
+}

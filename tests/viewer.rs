@@ -117,7 +117,7 @@ fn frames_closes_the_window_after_n_frames() {
 #[test]
 fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
     let dir = scene_dir("overlay");
-    let script = "frames 2\ncapture shown\npress F1\nframes 2\ncapture plain\nscreenshot offline\nquit\n";
+    let script = "frames 2\ncapture shown\npress F1\nframes 2\ncapture plain\nscreenshot offline\npress F12\nquit\n";
     view(&dir, 5, script, &["--size", "640x480"]);
     let shown = image::open(dir.join("shown.png")).unwrap().to_rgb8();
     let plain = image::open(dir.join("plain.png")).unwrap().to_rgb8();
@@ -148,4 +148,16 @@ fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
     assert!(changed > white * 2, "the backdrop should darken the box too");
     assert!(box_w < w && box_h < h, "the overlay covers the whole window ({box_w}x{box_h})");
     assert_eq!(outside, 0);
+    // F12 wrote a timestamped PNG and EXR pair beside the scene.
+    let names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    for ext in ["png", "exr"] {
+        assert!(
+            names.iter().any(|n| n.starts_with("umbra-20")
+                && n.ends_with(ext)
+                && n.len() == "umbra-YYYYMMDD-HHMMSS-mmm.".len() + 3),
+            "no F12 {ext} among {names:?}"
+        );
+    }
+    assert!(!names.iter().any(|n| n.ends_with(".tmp")), "temporary files left: {names:?}");
 }

@@ -41,6 +41,9 @@ struct ViewArgs {
     /// Close the window after this many frames.
     #[arg(long)]
     frames: Option<u64>,
+    /// Present with FIFO, paced to the display (default: mailbox where offered).
+    #[arg(long)]
+    vsync: bool,
     /// Replay camera moves and key presses from a file (see docs/viewer.md).
     #[arg(long)]
     script: Option<PathBuf>,
@@ -210,10 +213,14 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         validate: args.validate,
         device: args.device,
         frames: args.frames,
+        vsync: args.vsync,
         script,
     };
     let report = umbra::viewer::run(options)?;
     println!("viewer: {} frames presented, {} turns without a frame", report.frames, report.skipped);
+    if let Some(mode) = &report.present_mode {
+        println!("present mode: {mode}");
+    }
     for shot in &report.screenshots {
         println!("screenshot: {}", shot.display());
     }

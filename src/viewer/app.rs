@@ -32,6 +32,8 @@ pub struct ViewerOptions {
     pub size: (u32, u32),
     pub validate: bool,
     pub device: Option<String>,
+    /// Present with FIFO (paced to the display) instead of mailbox.
+    pub vsync: bool,
     /// Close after this many presented frames.
     /// (Script `frames N` counts turns of the loop, drawn or not, so it also runs while minimised.)
     pub frames: Option<u64>,
@@ -47,6 +49,8 @@ pub struct ViewerReport {
     pub skipped: u64,
     pub validation_messages: usize,
     pub screenshots: Vec<PathBuf>,
+    /// The swapchain's present mode, as Vulkan names it.
+    pub present_mode: Option<String>,
 }
 
 /// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
@@ -190,7 +194,7 @@ impl App {
         let (ctx, surface) = GpuContext::with_window(&gpu, display, handle)?;
         let renderer = Renderer::new(ctx.clone(), o.scene.clone()).context("preparing the scene")?;
         let size = window.inner_size();
-        let presenter = Presenter::new(surface, size.width, size.height)?;
+        let presenter = Presenter::new(surface, size.width, size.height, o.vsync)?;
         log::info!("viewer on {} ({:?})", ctx.device_name(), presenter.present_mode());
         Ok(Running {
             presenter,
@@ -229,6 +233,7 @@ impl App {
         let capture = r.pending_capture.take();
         match r.presenter.draw(&r.renderer, &settings, lines.as_deref(), capture.is_some())? {
             Drawn::Frame { timings, captured } => {
+                self.report.present_mode = r.presenter.present_mode().map(|m| format!("{m:?}"));
                 if !timings.is_empty() {
                     r.timings = timings;
                 }

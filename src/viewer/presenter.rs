@@ -35,6 +35,7 @@ pub struct Presenter {
     overlay_pipeline: ComputePipeline,
     surface: WindowSurface,
     size: (u32, u32),
+    vsync: bool,
     stale: bool,
     /// Running mean of a still view with stochastic (soft) shadows.
     accumulator: Accumulator,
@@ -53,7 +54,7 @@ pub enum Drawn {
 }
 
 impl Presenter {
-    pub fn new(surface: WindowSurface, width: u32, height: u32) -> GpuResult<Presenter> {
+    pub fn new(surface: WindowSurface, width: u32, height: u32, vsync: bool) -> GpuResult<Presenter> {
         let ctx = surface.ctx().clone();
         let cmds = ctx.allocate_command_buffers(FRAMES_IN_FLIGHT as u32)?;
         let mut slots = Vec::with_capacity(FRAMES_IN_FLIGHT);
@@ -90,6 +91,7 @@ impl Presenter {
             overlay_pipeline: overlay::pipeline(&ctx)?,
             surface,
             size: (width, height),
+            vsync,
             stale: true,
             accumulator: Accumulator::default(),
             capture: None,
@@ -133,7 +135,7 @@ impl Presenter {
             return Ok(());
         }
         self.wait_idle()?;
-        let new = Swapchain::new(&self.surface, self.size.0, self.size.1, self.swapchain.as_ref())?;
+        let new = Swapchain::new(&self.surface, self.size.0, self.size.1, self.vsync, self.swapchain.as_ref())?;
         self.swapchain = Some(new);
         self.accumulator.reset();
         self.stale = false;

@@ -29,8 +29,15 @@ pub enum Acquired {
 
 impl Swapchain {
     /// A swapchain for `surface` of about `width` x `height` (the surface may insist on its own
-    /// extent). `old` is retired if given.
-    pub fn new(surface: &WindowSurface, width: u32, height: u32, old: Option<&Swapchain>) -> GpuResult<Swapchain> {
+    /// extent). `old` is retired if given. With `vsync`, FIFO (paced to the display) even where
+    /// mailbox is offered.
+    pub fn new(
+        surface: &WindowSurface,
+        width: u32,
+        height: u32,
+        vsync: bool,
+        old: Option<&Swapchain>,
+    ) -> GpuResult<Swapchain> {
         let ctx = surface.ctx().clone();
         let surface_loader = ctx.surface_loader.as_ref().expect("a windowed context");
         let loader = ctx.swapchain_loader.as_ref().expect("a windowed context");
@@ -58,7 +65,8 @@ impl Swapchain {
             .or(formats.first())
             .copied()
             .ok_or_else(|| GpuError::Unsupported("the surface offers no formats".into()))?;
-        let present_mode = if modes.contains(&vk::PresentModeKHR::MAILBOX) {
+        // FIFO is the one mode every surface supports.
+        let present_mode = if !vsync && modes.contains(&vk::PresentModeKHR::MAILBOX) {
             vk::PresentModeKHR::MAILBOX
         } else {
             vk::PresentModeKHR::FIFO

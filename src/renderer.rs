@@ -17,8 +17,54 @@ use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
 use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, ImageDesc};
 
-/// How the scene's buffers were last written: by their upload's transfer.
-const SCENE_ACCESS: Access = Access::TransferWrite;
+/// How frames find the scene's buffers: uploaded once and made visible to any read, so no
+/// frame needs a barrier for them (and frames in flight do not wait on each other's copies).
+const SCENE_ACCESS: Access = Access::AnyRead;
+
+/// Copies each `(name, bytes, usage)` into a new device-local buffer through staging buffers,
+/// as one small graph: the upload pass writes them, and the export makes them visible to any
+/// later read. Waits for the copy.
+fn upload<const N: usize>(
+    ctx: &Arc<GpuContext>,
+    items: [(&'static str, &[u8], vk::BufferUsageFlags); N],
+) -> GpuResult<[Buffer; N]> {
+    let mut staging = Vec::with_capacity(N);
+    let mut targets = Vec::with_capacity(N);
+    for (name, bytes, usage) in &items {
+        staging.push(Buffer::with_data(ctx, "staging", bytes, vk::BufferUsageFlags::TRANSFER_SRC)?);
+        let usage = *usage | vk::BufferUsageFlags::TRANSFER_DST;
+        targets.push(Buffer::new(ctx, name, bytes.len() as u64, usage, MemoryLocation::GpuOnly)?);
+    }
+    let mut g = RenderGraph::new();
+    let mut pass_inputs = Vec::new();
+    let mut handles = Vec::new();
+    for ((name, bytes, _), (src, dst)) in items.iter().zip(staging.iter().zip(&targets)) {
+        if !bytes.is_empty() {
+            pass_inputs.push((g.import_buffer("staging", src, Access::HostWrite), bytes.len() as u64));
+            handles.push(g.import_buffer(name, dst, Access::Nothing));
+        }
+    }
+    let mut pass = g.add_pass("upload scene");
+    let mut copies = Vec::new();
+    for ((src, size), dst) in pass_inputs.iter().zip(handles.iter_mut()) {
+        copies.push((pass.read(src, Access::TransferRead), pass.write(dst, Access::TransferWrite), *size));
+    }
+    pass.render(move |pctx| {
+        for (src, dst, size) in &copies {
+            let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: *size };
+            // SAFETY: recording state; both buffers hold `size` bytes.
+            unsafe { pctx.device.cmd_copy_buffer(pctx.cmd, pctx.buffer(*src), pctx.buffer(*dst), &[region]) };
+        }
+        Ok(())
+    });
+    for h in handles {
+        g.export(h, SCENE_ACCESS);
+    }
+    let plan = CompiledGraph::compile(&g);
+    let mut cache = TransientCache::new(ctx)?;
+    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
+    Ok(targets.try_into().unwrap_or_else(|_| unreachable!("one target per item")))
+}
 
 /// Radiance of pixels no surface covers, W/(m^2 sr): a dim, neutral backdrop.
 pub const BACKGROUND: Vec3 = Vec3::new(0.02, 0.022, 0.025);
@@ -191,18 +237,25 @@ impl SceneGpu {
             hi = Vec3::ZERO;
         }
         let lights = gpu_lights(&scene.lights);
-        // Uploaded once into device-local memory; imported each frame as last written by that
-        // transfer (SCENE_ACCESS), so the graph orders the copy before every use.
-        let upload = |name, bytes: &[u8], usage| Buffer::device_local_with_data(ctx, name, bytes, usage);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
+            ctx,
+            [
+                ("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER),
+                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER),
+                ("lights", bytemuck::cast_slice(&lights), storage),
+                ("bvh nodes", bytemuck::cast_slice(bvh.nodes()), storage),
+                ("bvh triangles", bytemuck::cast_slice(bvh.triangles()), storage),
+            ],
+        )?;
         Ok(SceneGpu {
-            vertices: upload("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER)?,
-            indices: upload("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER)?,
+            vertices,
+            indices,
             draws,
-            lights: upload("lights", bytemuck::cast_slice(&lights), storage)?,
+            lights,
             light_count: scene.lights.len() as u32,
-            bvh_nodes: upload("bvh nodes", bytemuck::cast_slice(bvh.nodes()), storage)?,
-            bvh_triangles: upload("bvh triangles", bytemuck::cast_slice(bvh.triangles()), storage)?,
+            bvh_nodes,
+            bvh_triangles,
             has_casters: !bvh.is_empty(),
             bounds: (lo, hi),
             origin,

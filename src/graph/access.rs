@@ -27,6 +27,9 @@ pub enum Access {
     /// Depth test and write (the depth attachment of a geometry pass).
     DepthAttachmentWrite,
     TransferWrite,
+    /// Any later read, in any stage: what data uploaded once (scene buffers) is made visible
+    /// to, so frames read it with no barrier of their own.
+    AnyRead,
     /// Read back by a compute shader as a storage image (read-modify-write passes).
     ComputeShaderReadStorageImage,
     /// A swapchain image just acquired: contents undefined, usable once the acquire
@@ -164,6 +167,7 @@ impl Access {
                 B::TRANSFER_DST,
                 Applies::Both,
             ),
+            Access::AnyRead => (S::ALL_COMMANDS, A::MEMORY_READ, L::GENERAL, I::empty(), B::empty(), Applies::Buffer),
             Access::ComputeShaderReadStorageImage => {
                 (S::COMPUTE_SHADER, A::SHADER_STORAGE_READ, L::GENERAL, I::STORAGE, B::empty(), Applies::Image)
             }
@@ -203,6 +207,7 @@ mod tests {
         Access::ColorAttachmentWrite,
         Access::DepthAttachmentWrite,
         Access::TransferWrite,
+        Access::AnyRead,
         Access::ComputeShaderReadStorageImage,
         Access::AcquiredImage,
         Access::Present,

@@ -29,9 +29,14 @@ pub struct TransientCache {
     queries: Option<(vk::QueryPool, u32)>,
     /// Names of the passes timed in the last execution, in order.
     timed_passes: Vec<&'static str>,
+    /// Executions so far, and the last one that used each key: keys idle for EVICT_AFTER
+    /// executions are freed, so resizing a window does not pile up images of every old size.
+    executions: u64,
+    last_used: HashMap<SlotKey, u64>,
 }
 
 const POOL_SETS: u32 = 64;
+const EVICT_AFTER: u64 = 8;
 
 impl TransientCache {
     pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<TransientCache> {
@@ -51,6 +56,8 @@ impl TransientCache {
             descriptor_pool,
             queries: None,
             timed_passes: Vec::new(),
+            executions: 0,
+            last_used: HashMap::new(),
         })
     }
 
@@ -100,6 +107,20 @@ impl TransientCache {
             .collect())
     }
 
+    /// Frees objects whose key no plan has used for EVICT_AFTER executions. Safe because, as
+    /// for the descriptor pool, the caller has waited for this cache's previous submission.
+    fn evict_idle(&mut self, plan: &CompiledGraph) {
+        self.executions += 1;
+        for key in &plan.slots {
+            self.last_used.insert(*key, self.executions);
+        }
+        let now = self.executions;
+        self.last_used.retain(|_, used| now - *used < EVICT_AFTER);
+        let live = &self.last_used;
+        self.images.retain(|k, _| live.contains_key(k));
+        self.buffers.retain(|k, _| live.contains_key(k));
+    }
+
     fn slot(&mut self, key: SlotKey, index: usize, desc: ResourceDesc, name: &str) -> GpuResult<External> {
         match desc {
             ResourceDesc::Image(d) => {
@@ -132,6 +153,7 @@ impl TransientCache {
         // SAFETY: the previous submission that used these sets has completed.
         unsafe { self.ctx.device.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty()) }
             .vk("vkResetDescriptorPool")?;
+        self.evict_idle(plan);
         // Which occurrence of each slot key a slot is, so equal keys map to distinct objects.
         let mut seen: HashMap<SlotKey, usize> = HashMap::new();
         let slot_index: Vec<usize> = plan

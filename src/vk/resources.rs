@@ -57,34 +57,6 @@ impl Buffer {
         Ok(buffer)
     }
 
-    /// A device-local buffer filled with `data` through a staging copy (submitted and waited
-    /// for here). Its last access is a transfer write: import it with `Access::TransferWrite`
-    /// and the frame graph orders that copy before every use.
-    pub fn device_local_with_data(
-        ctx: &Arc<GpuContext>,
-        name: &str,
-        data: &[u8],
-        usage: vk::BufferUsageFlags,
-    ) -> GpuResult<Buffer> {
-        let buffer = Buffer::new(
-            ctx,
-            name,
-            data.len() as u64,
-            usage | vk::BufferUsageFlags::TRANSFER_DST,
-            MemoryLocation::GpuOnly,
-        )?;
-        if !data.is_empty() {
-            let staging = Buffer::with_data(ctx, "staging", data, vk::BufferUsageFlags::TRANSFER_SRC)?;
-            let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: data.len() as u64 };
-            ctx.submit_and_wait(|cmd| {
-                // SAFETY: both buffers hold `data.len()` bytes and outlive the wait.
-                unsafe { ctx.device.cmd_copy_buffer(cmd, staging.raw, buffer.raw, &[region]) };
-                Ok(())
-            })?;
-        }
-        Ok(buffer)
-    }
-
     /// The mapped bytes of a host-visible buffer.
     pub fn mapped(&self) -> &[u8] {
         let a = self.allocation.as_ref().expect("live buffer");

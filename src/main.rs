@@ -75,7 +75,7 @@ struct RenderArgs {
     #[arg(long, value_enum)]
     debug_view: Option<DebugView>,
     /// Exposure in stops for PNG output.
-    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_exposure)]
     exposure: f32,
     /// Shadow method for every light.
     #[arg(long, value_enum, default_value_t = ShadowMethod::RayTraced)]
@@ -97,6 +97,14 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
     match (parse(w), parse(h)) {
         (Some(w), Some(h)) => Ok((w, h)),
         _ => Err(format!("{text:?}: width and height must be integers from 1 to 16384")),
+    }
+}
+
+fn parse_exposure(text: &str) -> Result<f32, String> {
+    match text.trim().parse::<f32>() {
+        Ok(ev) if ev.is_finite() && ev.abs() <= 64.0 => Ok(ev),
+        Ok(_) => Err(format!("{text:?}: exposure must be finite, within ±64 stops")),
+        Err(e) => Err(format!("{text:?}: {e}")),
     }
 }
 
@@ -259,5 +267,7 @@ mod tests {
         assert_eq!(parse_size("640x480"), Ok((640, 480)));
         assert!(parse_size("640").unwrap_err().contains("WIDTHxHEIGHT"));
         assert!(parse_size("0x10").unwrap_err().contains("1 to 16384"));
+        assert_eq!(super::parse_exposure("-1.5"), Ok(-1.5));
+        assert!(super::parse_exposure("nan").is_err() && super::parse_exposure("inf").is_err());
     }
 }

@@ -379,6 +379,7 @@ impl Renderer {
         target: Target<'_>,
         history: Option<History<'_>>,
     ) -> GpuResult<CompiledGraph> {
+        check_limits(&self.ctx, &self.gpu_scene, settings)?;
         let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, target, history);
         execute(cache, graph, cmd, settings)
     }
@@ -417,6 +418,7 @@ impl Renderer {
 
     fn record_and_submit(&mut self, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
         let Renderer { cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, .. } = self;
+        check_limits(ctx, gpu_scene, settings)?;
         let mut settings = settings.clone();
         let history = accumulator.prepare(ctx, &mut settings, scene.lights.len())?;
         let accumulated = history.is_some();
@@ -425,6 +427,11 @@ impl Renderer {
         accumulator.advance(accumulated);
         *last_plan = Some(plan);
         Ok(())
+    }
+
+    /// Images and buffers the capture path's transient cache holds now.
+    pub fn transient_count(&self) -> usize {
+        self.cache.len()
     }
 
     /// The plan of the last rendered frame, read-back included.
@@ -437,6 +444,22 @@ impl Renderer {
         self.cache.read_timings()
     }
 }
+/// Refuses a frame whose visibility buffer (one f32 per pixel and light) would exceed what one
+/// storage-buffer binding may address on this device.
+fn check_limits(ctx: &GpuContext, s: &SceneGpu, settings: &RenderSettings) -> GpuResult<()> {
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    let bytes = shadow_trace::visibility_bytes(extent, s.light_count);
+    let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
+    if bytes > limit {
+        return Err(GpuError::Unsupported(format!(
+            "{}x{} with {} lights needs a {bytes}-byte visibility buffer; this device allows {limit} bytes per \
+             storage buffer (use a smaller --size or fewer lights)",
+            settings.width, settings.height, s.light_count
+        )));
+    }
+    Ok(())
+}
+
 fn execute(
     cache: &mut TransientCache,
     graph: RenderGraph<'_>,

@@ -18,13 +18,17 @@ fn scene_dir(name: &str) -> PathBuf {
     dir
 }
 
+/// One viewer at a time: `xvfb-run -a` picks a free display, but two started at once can pick
+/// the same one.
+static XVFB: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Runs `umbra view scene.toml --validate --script` under its own Xvfb server.
-fn view(dir: &Path, display: u32, script: &str, extra: &[&str]) -> Output {
+fn view(dir: &Path, script: &str, extra: &[&str]) -> Output {
     common::lavapipe_env();
     std::fs::write(dir.join("script.txt"), script).unwrap();
-    let server = 100 + (std::process::id() % 400) * 8 + display;
+    let _one_at_a_time = XVFB.lock().unwrap_or_else(|e| e.into_inner());
     let out = std::process::Command::new("xvfb-run")
-        .args(["-n", &server.to_string(), "-s", "-screen 0 1024x768x24", env!("CARGO_BIN_EXE_umbra"), "view"])
+        .args(["-a", "-s", "-screen 0 1024x768x24", env!("CARGO_BIN_EXE_umbra"), "view"])
         .arg(dir.join("scene.toml"))
         .args(["--validate", "--script"])
         .arg(dir.join("script.txt"))
@@ -61,7 +65,7 @@ fn shadow_centroid_x(path: &Path) -> f32 {
 #[test]
 fn turning_the_camera_moves_the_shadows_on_screen() {
     let dir = scene_dir("turn");
-    view(&dir, 1, "frames 2\nscreenshot before\nmouse 120 0\nframes 2\nscreenshot turned\nquit\n", &[]);
+    view(&dir, "frames 2\nscreenshot before\nmouse 120 0\nframes 2\nscreenshot turned\nquit\n", &[]);
     let (before, after) = (shadow_centroid_x(&dir.join("before.exr")), shadow_centroid_x(&dir.join("turned.exr")));
     // 120 counts turn the camera 0.3 rad to the right, so the scene slides left by ~100 px.
     assert!(after < before - 30.0, "shadow centroid x {before} -> {after}");
@@ -71,7 +75,7 @@ fn turning_the_camera_moves_the_shadows_on_screen() {
 #[test]
 fn switching_a_light_to_no_shadows_brightens_its_shadows_only() {
     let dir = scene_dir("none");
-    view(&dir, 2, "frames 2\nscreenshot hard\npress T\npress T\nframes 2\nscreenshot unshadowed\nquit\n", &[]);
+    view(&dir, "frames 2\nscreenshot hard\npress T\npress T\nframes 2\nscreenshot unshadowed\nquit\n", &[]);
     let (w, h, hard) = read_exr(&dir.join("hard.exr")).unwrap();
     let (w2, h2, none) = read_exr(&dir.join("unshadowed.exr")).unwrap();
     assert_eq!((w, h), (w2, h2));
@@ -89,21 +93,21 @@ fn switching_a_light_to_no_shadows_brightens_its_shadows_only() {
 
 #[test]
 fn resizing_and_minimising_stay_validation_clean() {
-    let text = resize_and_minimise("resize", 3, &[]);
+    let text = resize_and_minimise("resize", &[]);
     // Lavapipe under Xvfb offers mailbox, which the viewer prefers.
     assert!(text.contains("present mode: MAILBOX"), "{text}");
 }
 
 #[test]
 fn the_fifo_swapchain_resizes_and_minimises_cleanly_too() {
-    let text = resize_and_minimise("fifo", 6, &["--vsync"]);
+    let text = resize_and_minimise("fifo", &["--vsync"]);
     assert!(text.contains("present mode: FIFO"), "{text}");
 }
 
-fn resize_and_minimise(name: &str, display: u32, extra: &[&str]) -> String {
+fn resize_and_minimise(name: &str, extra: &[&str]) -> String {
     let dir = scene_dir(name);
     let script = "frames 2\nresize 200 150\nframes 3\nscreenshot small\nresize 480 360\nframes 3\nminimise\nframes 4\nrestore\nframes 3\nscreenshot big\nresize 320 240\nframes 2\nquit\n";
-    let out = view(&dir, display, script, extra);
+    let out = view(&dir, script, extra);
     let text = String::from_utf8_lossy(&out.stdout);
     let small = image::open(dir.join("small.png")).unwrap();
     let big = image::open(dir.join("big.png")).unwrap();
@@ -123,7 +127,7 @@ fn resize_and_minimise(name: &str, display: u32, extra: &[&str]) -> String {
 #[test]
 fn frames_closes_the_window_after_n_frames() {
     let dir = scene_dir("frames");
-    let out = view(&dir, 4, "", &["--frames", "5"]);
+    let out = view(&dir, "", &["--frames", "5"]);
     assert!(String::from_utf8_lossy(&out.stdout).contains("viewer: 5 frames presented"));
 }
 
@@ -131,7 +135,7 @@ fn frames_closes_the_window_after_n_frames() {
 fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
     let dir = scene_dir("overlay");
     let script = "frames 2\ncapture shown\npress F1\nframes 2\ncapture plain\nscreenshot offline\npress F12\nquit\n";
-    view(&dir, 5, script, &["--size", "640x480"]);
+    view(&dir, script, &["--size", "640x480"]);
     let shown = image::open(dir.join("shown.png")).unwrap().to_rgb8();
     let plain = image::open(dir.join("plain.png")).unwrap().to_rgb8();
     let offline = image::open(dir.join("offline.png")).unwrap().to_rgb8();
@@ -142,7 +146,7 @@ fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
     assert!(max_diff <= Some(1), "window and capture differ by {max_diff:?}");
     // The overlay: white glyphs on a darkened box in the top-left corner, nothing elsewhere.
     let (w, h) = plain.dimensions();
-    let (mut changed, mut white, mut outside) = (0, 0, 0);
+    let (mut changed, mut white) = (0, 0);
     let (mut box_w, mut box_h) = (0, 0);
     for (x, y, p) in shown.enumerate_pixels() {
         if p != plain.get_pixel(x, y) {
@@ -152,15 +156,12 @@ fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
             white += (p.0 == [255, 255, 255]) as u32;
         }
     }
-    for (x, y, p) in shown.enumerate_pixels() {
-        if (x >= box_w || y >= box_h) && p != plain.get_pixel(x, y) {
-            outside += 1;
-        }
-    }
     assert!(white > 200, "only {white} glyph pixels");
     assert!(changed > white * 2, "the backdrop should darken the box too");
-    assert!(box_w < w && box_h < h, "the overlay covers the whole window ({box_w}x{box_h})");
-    assert_eq!(outside, 0);
+    // A compact box in the corner: it leaves most of the window alone, and inside it the
+    // backdrop darkens nearly every pixel.
+    assert!(box_w < w * 3 / 4 && box_h < h / 2, "the overlay box is {box_w}x{box_h} of {w}x{h}");
+    assert!(changed as f64 > 0.8 * f64::from(box_w * box_h), "{changed} of {box_w}x{box_h} changed");
     // F12 wrote a timestamped PNG and EXR pair beside the scene.
     let names: Vec<String> =
         std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();

@@ -4,8 +4,11 @@
 #ifndef UMBRA_TONEMAP_GLSL
 #define UMBRA_TONEMAP_GLSL
 
+const float TONEMAP_MAX_INPUT = 1e4;
+
 vec3 tonemap(vec3 radiance, float exposure_ev) {
-    vec3 x = radiance * exp2(exposure_ev);
+    // The curve is flat (1) long before 1e4; clamping there keeps x*x finite (no inf/inf).
+    vec3 x = clamp(radiance * exp2(exposure_ev), 0.0, TONEMAP_MAX_INPUT);
     vec3 mapped = (x * (2.51 * x + 0.03)) / (x * (2.43 * x + 0.59) + 0.14);
     return clamp(mapped, 0.0, 1.0);
 }

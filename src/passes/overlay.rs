@@ -37,13 +37,18 @@ pub struct OverlayText {
     pub chars: Vec<u32>,
 }
 
+/// The largest grid the overlay draws; longer lines and further rows are cut.
+pub const MAX_COLUMNS: usize = 96;
+pub const MAX_ROWS: usize = 24;
+
 impl OverlayText {
     pub fn new(lines: &[String]) -> OverlayText {
-        let columns = lines.iter().map(|l| l.chars().count()).max().unwrap_or(0).max(1) as u32;
+        let lines = &lines[..lines.len().min(MAX_ROWS)];
+        let columns = lines.iter().map(|l| l.chars().count()).max().unwrap_or(0).clamp(1, MAX_COLUMNS) as u32;
         let rows = lines.len().max(1) as u32;
         let mut chars = vec![u32::from(b' '); (columns * rows) as usize];
         for (r, line) in lines.iter().enumerate() {
-            for (c, ch) in line.chars().enumerate() {
+            for (c, ch) in line.chars().take(MAX_COLUMNS).enumerate() {
                 chars[r * columns as usize + c] = if ch.is_ascii() { ch as u32 } else { u32::from(b'?') };
             }
         }
@@ -85,4 +90,19 @@ pub fn add<'a>(
     pass.render(move |ctx| {
         ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), w.min(extent.width), h.min(extent.height))
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn text_is_cut_to_the_grid() {
+        let long = vec!["x".repeat(500); 40];
+        let t = OverlayText::new(&long);
+        assert_eq!((t.columns as usize, t.rows as usize), (MAX_COLUMNS, MAX_ROWS));
+        assert_eq!(t.chars.len(), MAX_COLUMNS * MAX_ROWS);
+        let t = OverlayText::new(&["ab".into(), "é".into()]);
+        assert_eq!(t.chars, vec![97, 98, 63, 32]);
+    }
 }

@@ -14,8 +14,8 @@ use crate::renderer::{Frame, RenderSettings, Renderer, Target};
 use crate::vk::{Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
 
 const FRAMES_IN_FLIGHT: usize = 2;
-/// Characters the overlay's text buffer holds (columns x rows).
-const OVERLAY_CAPACITY: usize = 96 * 24;
+/// Characters the overlay's text buffer holds (the overlay's largest grid).
+const OVERLAY_CAPACITY: usize = overlay::MAX_COLUMNS * overlay::MAX_ROWS;
 
 struct FrameSlot {
     cmd: vk::CommandBuffer,
@@ -136,9 +136,10 @@ impl Presenter {
         }
         self.wait_idle()?;
         let new = Swapchain::new(&self.surface, self.size.0, self.size.1, self.vsync, self.swapchain.as_ref())?;
-        self.swapchain = Some(new);
+        // A surface that reports 0x0 is minimised whatever the window said: try again later.
+        self.stale = new.is_none();
+        self.swapchain = new;
         self.accumulator.reset();
-        self.stale = false;
         Ok(())
     }
 
@@ -161,6 +162,9 @@ impl Presenter {
         }
         if self.stale || self.swapchain.is_none() {
             self.recreate()?;
+            if self.swapchain.is_none() {
+                return Ok(Drawn::Skipped);
+            }
         }
         let device = &self.ctx.device;
         let slot = &mut self.slots[self.next];
@@ -214,7 +218,6 @@ impl Presenter {
         };
         // SAFETY: the slot's previous submission has completed (fence waited above).
         unsafe {
-            device.reset_fences(&[slot.fence]).vk("vkResetFences")?;
             device.reset_command_buffer(slot.cmd, vk::CommandBufferResetFlags::empty()).vk("vkResetCommandBuffer")?;
             let begin = vk::CommandBufferBeginInfo::default().flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT);
             device.begin_command_buffer(slot.cmd, &begin).vk("vkBeginCommandBuffer")?;
@@ -225,15 +228,18 @@ impl Presenter {
             .stage_mask(crate::graph::Access::AcquiredImage.info().stage)];
         let signals = [vk::SemaphoreSubmitInfo::default()
             .semaphore(swapchain.render_done[index as usize])
+            // Everything before presentation, the final layout transition included.
             .stage_mask(vk::PipelineStageFlags2::ALL_COMMANDS)];
         let cmds = [vk::CommandBufferSubmitInfo::default().command_buffer(slot.cmd)];
         let submit = [vk::SubmitInfo2::default()
             .wait_semaphore_infos(&waits)
             .command_buffer_infos(&cmds)
             .signal_semaphore_infos(&signals)];
-        // SAFETY: recorded above; the semaphores and fence belong to this frame.
+        // SAFETY: recorded above; the semaphores and fence belong to this frame. The fence is
+        // reset only now, so a failed recording never leaves it unsignalled for the next wait.
         unsafe {
             device.end_command_buffer(slot.cmd).vk("vkEndCommandBuffer")?;
+            device.reset_fences(&[slot.fence]).vk("vkResetFences")?;
             device.queue_submit2(self.ctx.queue, &submit, slot.fence).vk("vkQueueSubmit2")?;
         }
         slot.used = true;

@@ -30,14 +30,14 @@ pub enum Acquired {
 impl Swapchain {
     /// A swapchain for `surface` of about `width` x `height` (the surface may insist on its own
     /// extent). `old` is retired if given. With `vsync`, FIFO (paced to the display) even where
-    /// mailbox is offered.
+    /// mailbox is offered. None while the surface's extent is 0x0 (a minimised window).
     pub fn new(
         surface: &WindowSurface,
         width: u32,
         height: u32,
         vsync: bool,
         old: Option<&Swapchain>,
-    ) -> GpuResult<Swapchain> {
+    ) -> GpuResult<Option<Swapchain>> {
         let ctx = surface.ctx().clone();
         let surface_loader = ctx.surface_loader.as_ref().expect("a windowed context");
         let loader = ctx.swapchain_loader.as_ref().expect("a windowed context");
@@ -55,16 +55,27 @@ impl Swapchain {
                     .vk("vkGetPhysicalDeviceSurfacePresentModesKHR")?,
             )
         };
-        // UNORM formats: the tone-map pass writes sRGB-encoded values itself.
+        // 8-bit UNORM (the tone-map pass writes sRGB-encoded values itself; an _SRGB format
+        // would encode twice) that frames can be blitted into.
+        let blittable = |f: vk::Format| {
+            // SAFETY: a plain property query.
+            let props = unsafe { ctx.instance.get_physical_device_format_properties(ctx.physical, f) };
+            props.optimal_tiling_features.contains(vk::FormatFeatureFlags::BLIT_DST)
+        };
         let format = formats
             .iter()
             .find(|f| {
                 matches!(f.format, vk::Format::B8G8R8A8_UNORM | vk::Format::R8G8B8A8_UNORM)
                     && f.color_space == vk::ColorSpaceKHR::SRGB_NONLINEAR
+                    && blittable(f.format)
             })
-            .or(formats.first())
             .copied()
-            .ok_or_else(|| GpuError::Unsupported("the surface offers no formats".into()))?;
+            .ok_or_else(|| {
+                GpuError::Unsupported(format!(
+                    "the surface offers no 8-bit UNORM sRGB-nonlinear format that can be blitted to (offers {:?})",
+                    formats.iter().map(|f| f.format).collect::<Vec<_>>()
+                ))
+            })?;
         // FIFO is the one mode every surface supports.
         let present_mode = if !vsync && modes.contains(&vk::PresentModeKHR::MAILBOX) {
             vk::PresentModeKHR::MAILBOX
@@ -79,6 +90,9 @@ impl Swapchain {
                 height: height.clamp(caps.min_image_extent.height, caps.max_image_extent.height),
             }
         };
+        if extent.width == 0 || extent.height == 0 {
+            return Ok(None);
+        }
         let mut count = caps.min_image_count + 1;
         if caps.max_image_count > 0 {
             count = count.min(caps.max_image_count);
@@ -119,7 +133,7 @@ impl Swapchain {
                 present_mode,
                 images.len()
             );
-            Ok(Swapchain { raw, images, format: format.format, extent, present_mode, render_done, ctx })
+            Ok(Some(Swapchain { raw, images, format: format.format, extent, present_mode, render_done, ctx }))
         }
     }
 

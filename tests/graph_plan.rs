@@ -322,3 +322,71 @@ fn an_import_used_beyond_its_creation_usage_is_refused() {
     g.export(out, Access::TransferRead);
     CompiledGraph::compile(&g);
 }
+
+#[test]
+fn a_swapchain_image_is_ordered_after_its_acquire_and_handed_to_presentation() {
+    let mut g = RenderGraph::new();
+    let mut display = g.create_image("display", ImageDesc::new(vk::Format::R8G8B8A8_UNORM, 64, 32));
+    let swap_desc = ImageDesc::new(vk::Format::B8G8R8A8_UNORM, 64, 32);
+    let swap = (vk::Image::null(), vk::ImageView::null(), vk::ImageUsageFlags::TRANSFER_DST);
+    let mut target = g.import_image("swapchain image", swap_desc, swap, Access::AcquiredImage);
+    let mut p = g.add_pass("tonemap");
+    p.write(&mut display, Access::ComputeShaderWrite);
+    p.render(noop);
+    // The overlay reads and writes the same image in one pass: one barrier, one layout.
+    let mut p = g.add_pass("overlay");
+    p.read(&display, Access::ComputeShaderReadStorageImage);
+    p.write(&mut display, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("present blit");
+    p.read(&display, Access::TransferRead);
+    p.write(&mut target, Access::TransferWrite);
+    p.render(noop);
+    g.export(target, Access::Present);
+    let plan = CompiledGraph::compile(&g);
+    assert_eq!(plan.live_pass_names(), vec!["tonemap", "overlay", "present blit"], "{plan}");
+
+    let overlay = plan.barriers_before("overlay");
+    assert_eq!(overlay.len(), 1, "{plan}");
+    assert_eq!(overlay[0].layouts, Some((vk::ImageLayout::GENERAL, vk::ImageLayout::GENERAL)));
+    assert_eq!(overlay[0].src_access, vk::AccessFlags2::SHADER_STORAGE_WRITE);
+    assert_eq!(overlay[0].dst_access, vk::AccessFlags2::SHADER_STORAGE_READ | vk::AccessFlags2::SHADER_STORAGE_WRITE);
+
+    let blit = plan.barriers_before("present blit");
+    let acquire =
+        blit.iter().find(|b| plan.resources[b.resource].name == "swapchain image").expect("swapchain barrier");
+    // Contents are discarded, and the transition waits at the stage the acquire semaphore
+    // releases (so the two chain).
+    assert_eq!(acquire.layouts, Some((vk::ImageLayout::UNDEFINED, vk::ImageLayout::TRANSFER_DST_OPTIMAL)));
+    assert_eq!(acquire.src_stage, Access::AcquiredImage.info().stage);
+    assert_eq!(acquire.src_access, vk::AccessFlags2::NONE);
+
+    let present = &plan.export_barriers[0];
+    assert_eq!(present.layouts, Some((vk::ImageLayout::TRANSFER_DST_OPTIMAL, vk::ImageLayout::PRESENT_SRC_KHR)));
+    assert_eq!(present.src_access, vk::AccessFlags2::TRANSFER_WRITE);
+}
+
+#[test]
+fn a_history_read_and_rewritten_each_frame_waits_for_the_last_frame_s_reads() {
+    // Frame N left the history sampled (the tone map read it); frame N+1 folds into it.
+    let mut g = RenderGraph::new();
+    let desc = desc();
+    let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED;
+    let mut history = g.import_image(
+        "history",
+        desc,
+        (vk::Image::null(), vk::ImageView::null(), usage),
+        Access::ComputeShaderReadSampledImage,
+    );
+    let mut p = g.add_pass("accumulate");
+    p.read(&history, Access::ComputeShaderReadStorageImage);
+    p.write(&mut history, Access::ComputeShaderWrite);
+    p.render(noop);
+    g.export(history, Access::ComputeShaderReadSampledImage);
+    let plan = CompiledGraph::compile(&g);
+    let b = &plan.barriers_before("accumulate")[0];
+    assert_eq!(b.layouts, Some((vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL, vk::ImageLayout::GENERAL)));
+    assert_eq!(b.after, vec![Access::ComputeShaderReadSampledImage], "a write after reads waits for those reads");
+    let back = &plan.export_barriers[0];
+    assert_eq!(back.layouts, Some((vk::ImageLayout::GENERAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)));
+}

@@ -365,10 +365,6 @@ impl Renderer {
         ))
     }
 
-    pub fn pipelines(&self) -> &Pipelines {
-        &self.pipelines
-    }
-
     /// Records one frame into `cmd` using `cache` (one per frame in flight); returns its plan.
     /// With a history, the shaded frame is averaged into it (a still view converging).
     pub fn record(

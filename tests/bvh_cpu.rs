@@ -278,10 +278,7 @@ fn bvh_glsl_compiles_with_the_rust_layout() {
     common::compile_shader(shader);
     let reflection = common::shader_reflection(shader);
     let expect = |member: &str, offset: usize, stride: usize| {
-        let line = format!("{member}: offset {offset}, ");
-        let found = reflection.lines().find(|l| l.starts_with(&line));
-        let found = found.unwrap_or_else(|| panic!("{member} not at offset {offset}:\n{reflection}"));
-        assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
+        common::assert_member_offset(&reflection, member, offset, stride);
     };
     let node = size_of::<GpuBvhNode>();
     expect("bvh_nodes.aabb_min", std::mem::offset_of!(GpuBvhNode, aabb_min), node);

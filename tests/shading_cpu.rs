@@ -198,10 +198,7 @@ fn shading_glsl_compiles_with_the_rust_light_layout() {
         ("direction_cos_outer", std::mem::offset_of!(GpuLight, direction_cos_outer)),
         ("intensity_cos_inner", std::mem::offset_of!(GpuLight, intensity_cos_inner)),
     ] {
-        let line = format!("lights.{member}: offset {offset}, ");
-        let found = reflection.lines().find(|l| l.starts_with(&line));
-        let found = found.unwrap_or_else(|| panic!("{line} missing:\n{reflection}"));
-        assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
+        common::assert_member_offset(&reflection, &format!("lights.{member}"), offset, stride);
     }
 }
 
@@ -234,10 +231,7 @@ fn light_sampling_glsl_compiles_with_the_rust_light_layout() {
         ("intensity_cos_inner", std::mem::offset_of!(GpuLight, intensity_cos_inner)),
         ("size", std::mem::offset_of!(GpuLight, size)),
     ] {
-        let line = format!("lights.{member}: offset {offset}, ");
-        let found = reflection.lines().find(|l| l.starts_with(&line));
-        let found = found.unwrap_or_else(|| panic!("{line} missing:\n{reflection}"));
-        assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
+        common::assert_member_offset(&reflection, &format!("lights.{member}"), offset, stride);
     }
 }
 

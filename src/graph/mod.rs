@@ -198,8 +198,12 @@ impl<'a> RenderGraph<'a> {
         assert_eq!(handle.version, r.version, "{}: stale handle (version {} of {})", r.name, handle.version, r.version);
     }
 
-    pub fn describe(&self, id: usize) -> (&'static str, ResourceDesc) {
-        (self.resources[id].name, self.resources[id].desc)
+    /// What an image handle refers to (typed handles make this infallible).
+    pub fn image_desc(&self, handle: &Handle<ImageKind>) -> ImageDesc {
+        match self.resources[handle.id].desc {
+            ResourceDesc::Image(d) => d,
+            ResourceDesc::Buffer(_) => unreachable!("an image handle names an image"),
+        }
     }
 }
 

@@ -10,22 +10,14 @@ pub const SWAPCHAIN_USAGE: vk::ImageUsageFlags = vk::ImageUsageFlags::TRANSFER_D
 
 pub fn add(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, swapchain: (vk::Image, vk::ImageView, ImageDesc)) {
     let (image, view, desc) = swapchain;
-    let crate::graph::ResourceDesc::Image(src_desc) = graph.describe(source.id()).1 else {
-        unreachable!("an image handle")
-    };
     let mut target = graph.import_image("swapchain image", desc, (image, view, SWAPCHAIN_USAGE), Access::AcquiredImage);
-    blit_named(graph, "present blit", source, &mut target, src_desc, desc);
+    blit_named(graph, "present blit", source, &mut target);
     graph.export(target, Access::Present);
 }
 
 /// Copies `source` into `target`, converting format and scaling to fit.
 pub fn blit(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, target: &mut Handle<ImageKind>) {
-    let desc = |h: &Handle<ImageKind>, g: &RenderGraph<'_>| match g.describe(h.id()).1 {
-        crate::graph::ResourceDesc::Image(d) => d,
-        crate::graph::ResourceDesc::Buffer(_) => unreachable!("an image handle"),
-    };
-    let (s, d) = (desc(source, graph), desc(target, graph));
-    blit_named(graph, "blit", source, target, s, d);
+    blit_named(graph, "blit", source, target);
 }
 
 fn blit_named(
@@ -33,9 +25,8 @@ fn blit_named(
     name: &'static str,
     source: &Handle<ImageKind>,
     target: &mut Handle<ImageKind>,
-    src_desc: ImageDesc,
-    desc: ImageDesc,
 ) {
+    let (src_desc, desc) = (graph.image_desc(source), graph.image_desc(target));
     let mut pass = graph.add_pass(name);
     let src = pass.read(source, Access::TransferRead);
     let dst = pass.write(target, Access::TransferWrite);

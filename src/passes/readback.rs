@@ -3,44 +3,49 @@
 
 use ash::vk;
 
-use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
+use crate::graph::{Access, BufferKind, Handle, ImageKind, PassContext, Ref, RenderGraph};
 use crate::vk::{Buffer, ImageDesc};
 
 pub fn add(graph: &mut RenderGraph<'_>, image: &Handle<ImageKind>, target: &Buffer) {
-    let (_, desc) = graph.describe(image.id());
-    let crate::graph::ResourceDesc::Image(desc) = desc else { unreachable!("an image handle") };
-    let mut buffer = graph.import_buffer("read-back", target, Access::Nothing);
-    let mut pass = graph.add_pass("read-back");
-    let src = pass.read(image, Access::TransferRead);
-    let dst = pass.write(&mut buffer, Access::TransferWrite);
-    pass.render(move |ctx| {
-        let region = copy_region(&desc);
+    let desc = graph.image_desc(image);
+    copy_to_host(graph, image, target, move |ctx, src, dst| {
         // SAFETY: recording state; the buffer holds width*height texels of this format.
         unsafe {
             ctx.device.cmd_copy_image_to_buffer(
                 ctx.cmd,
                 ctx.image(src).0,
                 Access::TransferRead.info().layout,
-                ctx.buffer(dst),
-                &[region],
+                dst,
+                &[copy_region(&desc)],
             )
         };
-        Ok(())
     });
-    graph.export(buffer, Access::HostRead);
 }
 
 /// Copies a graph buffer into `target`, exported for host reads.
 pub fn add_buffer(graph: &mut RenderGraph<'_>, source: &Handle<BufferKind>, target: &Buffer) {
+    let size = target.size;
+    copy_to_host(graph, source, target, move |ctx, src, dst| {
+        let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size };
+        // SAFETY: recording state; both buffers hold at least `size` bytes.
+        unsafe { ctx.device.cmd_copy_buffer(ctx.cmd, ctx.buffer(src), dst, &[region]) };
+    });
+}
+
+/// The read-back pass around `copy`: reads `source` as a transfer source, writes the imported
+/// `target`, and exports it for host reads.
+fn copy_to_host<'a, K: 'a>(
+    graph: &mut RenderGraph<'a>,
+    source: &Handle<K>,
+    target: &Buffer,
+    copy: impl Fn(&PassContext, Ref<K>, vk::Buffer) + 'a,
+) {
     let mut buffer = graph.import_buffer("read-back", target, Access::Nothing);
     let mut pass = graph.add_pass("read-back");
     let src = pass.read(source, Access::TransferRead);
     let dst = pass.write(&mut buffer, Access::TransferWrite);
-    let size = target.size;
     pass.render(move |ctx| {
-        let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size };
-        // SAFETY: recording state; both buffers hold at least `size` bytes.
-        unsafe { ctx.device.cmd_copy_buffer(ctx.cmd, ctx.buffer(src), ctx.buffer(dst), &[region]) };
+        copy(ctx, src, ctx.buffer(dst));
         Ok(())
     });
     graph.export(buffer, Access::HostRead);

@@ -31,22 +31,14 @@ impl Buffer {
         unsafe {
             let raw = ctx.device.create_buffer(&info, None).vk("vkCreateBuffer")?;
             let requirements = ctx.device.get_buffer_memory_requirements(raw);
-            let allocation = ctx.allocator.lock().expect("allocator lock").allocate(&AllocationCreateDesc {
-                name,
-                requirements,
-                location,
-                linear: true,
-                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-            });
-            let allocation = match allocation {
-                Ok(a) => a,
+            let bind = |memory, offset| ctx.device.bind_buffer_memory(raw, memory, offset).vk("vkBindBufferMemory");
+            match allocate_and_bind(ctx, name, requirements, location, true, bind) {
+                Ok(allocation) => Ok(Buffer { raw, size, usage, allocation: Some(allocation), ctx: ctx.clone() }),
                 Err(e) => {
                     ctx.device.destroy_buffer(raw, None);
-                    return Err(e.into());
+                    Err(e)
                 }
-            };
-            ctx.device.bind_buffer_memory(raw, allocation.memory(), allocation.offset()).vk("vkBindBufferMemory")?;
-            Ok(Buffer { raw, size, usage, allocation: Some(allocation), ctx: ctx.clone() })
+            }
         }
     }
 
@@ -150,33 +142,50 @@ impl Image {
         unsafe {
             let raw = ctx.device.create_image(&info, None).vk("vkCreateImage")?;
             let requirements = ctx.device.get_image_memory_requirements(raw);
-            let allocation = ctx.allocator.lock().expect("allocator lock").allocate(&AllocationCreateDesc {
-                name,
-                requirements,
-                location: MemoryLocation::GpuOnly,
-                linear: false,
-                allocation_scheme: AllocationScheme::GpuAllocatorManaged,
-            });
-            let allocation = match allocation {
+            let bind = |memory, offset| ctx.device.bind_image_memory(raw, memory, offset).vk("vkBindImageMemory");
+            let allocation = match allocate_and_bind(ctx, name, requirements, MemoryLocation::GpuOnly, false, bind) {
                 Ok(a) => a,
                 Err(e) => {
                     ctx.device.destroy_image(raw, None);
-                    return Err(e.into());
+                    return Err(e);
                 }
             };
-            ctx.device.bind_image_memory(raw, allocation.memory(), allocation.offset()).vk("vkBindImageMemory")?;
+            // From here the Image owns raw and allocation, so an early return frees both.
+            let mut image =
+                Image { raw, view: vk::ImageView::null(), desc, usage, allocation: Some(allocation), ctx: ctx.clone() };
             // Images used only by transfers get no view (a view needs a shader or attachment use).
-            let view = if usage.intersects(!(vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)) {
+            if usage.intersects(!(vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)) {
                 let view_info = vk::ImageViewCreateInfo::default()
                     .image(raw)
                     .view_type(vk::ImageViewType::TYPE_2D)
                     .format(desc.format)
                     .subresource_range(subresource_range(desc.aspect()));
-                ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?
-            } else {
-                vk::ImageView::null()
-            };
-            Ok(Image { raw, view, desc, usage, allocation: Some(allocation), ctx: ctx.clone() })
+                image.view = ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?;
+            }
+            Ok(image)
+        }
+    }
+}
+
+/// Memory for one buffer or image, bound by `bind`; freed again if binding fails (the caller
+/// destroys the object itself).
+fn allocate_and_bind(
+    ctx: &GpuContext,
+    name: &str,
+    requirements: vk::MemoryRequirements,
+    location: MemoryLocation,
+    linear: bool,
+    bind: impl FnOnce(vk::DeviceMemory, u64) -> GpuResult<()>,
+) -> GpuResult<Allocation> {
+    let scheme = AllocationScheme::GpuAllocatorManaged;
+    let desc = AllocationCreateDesc { name, requirements, location, linear, allocation_scheme: scheme };
+    let allocation = ctx.allocator.lock().expect("allocator lock").allocate(&desc)?;
+    // SAFETY: the allocation is live and unbound.
+    match bind(unsafe { allocation.memory() }, allocation.offset()) {
+        Ok(()) => Ok(allocation),
+        Err(e) => {
+            let _ = ctx.allocator.lock().map(|mut a| a.free(allocation));
+            Err(e)
         }
     }
 }

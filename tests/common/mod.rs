@@ -101,3 +101,13 @@ pub fn shader_reflection(path: &str) -> String {
     );
     String::from_utf8(out.stdout).expect("reflection is UTF-8")
 }
+
+/// Asserts that glslang's reflection of `path` puts buffer member `member` (e.g.
+/// `lights.size`) at byte `offset` in an array of stride `stride`: the Rust struct and the GLSL
+/// struct agree.
+pub fn assert_member_offset(reflection: &str, member: &str, offset: usize, stride: usize) {
+    let line = format!("{member}: offset {offset}, ");
+    let found = reflection.lines().find(|l| l.starts_with(&line));
+    let found = found.unwrap_or_else(|| panic!("{member} not at offset {offset}:\n{reflection}"));
+    assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
+}

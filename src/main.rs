@@ -26,6 +26,8 @@ enum Command {
     Render(RenderArgs),
     /// Open a window: fly through the scene, switch shadow methods and views, see timings.
     View(ViewArgs),
+    /// List the Vulkan devices the loader finds, with the optional features umbra uses.
+    Devices,
 }
 
 #[derive(clap::Args)]
@@ -47,7 +49,7 @@ struct ViewArgs {
     /// Replay camera moves and key presses from a file (see docs/viewer.md).
     #[arg(long)]
     script: Option<PathBuf>,
-    /// Use the Vulkan device whose name contains this text.
+    /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
     #[arg(long)]
     device: Option<String>,
 }
@@ -83,7 +85,7 @@ struct RenderArgs {
     /// Soft shadows: rays per pixel and light.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=256))]
     spp: u32,
-    /// Use the Vulkan device whose name contains this text.
+    /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
     #[arg(long)]
     device: Option<String>,
     /// Print the compiled frame-graph plan.
@@ -119,6 +121,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::View(args) => view(args),
+        Command::Devices => devices(),
     };
     match result {
         Ok(code) => code,
@@ -236,6 +239,22 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         println!("validation: {} messages", report.validation_messages);
         if report.validation_messages > 0 {
             return Ok(ExitCode::FAILURE);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn devices() -> Result<ExitCode> {
+    let list = umbra::vk::list_devices()?;
+    if list.is_empty() {
+        println!("no Vulkan devices found; run tools/setup for lavapipe");
+        return Ok(ExitCode::FAILURE);
+    }
+    for d in &list {
+        println!("{}: {} ({}), driver {}, Vulkan {}", d.index, d.name, d.kind, d.driver, d.api_version);
+        match &d.unusable {
+            None => println!("   {}", d.capabilities.describe()),
+            Some(why) => println!("   not usable by umbra: {why}"),
         }
     }
     Ok(ExitCode::SUCCESS)

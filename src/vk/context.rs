@@ -1,6 +1,7 @@
 //! Instance, device selection and the one queue umbra uses. Required: Vulkan 1.3 with dynamic
 //! rendering, synchronization2 and maintenance4 (glslang's vulkan1.3 target emits LocalSizeId).
-//! Optional features (timestamps) are detected and reported, never assumed.
+//! Optional features (ray query, geometry shaders, depth clamp, timestamps) are detected and
+//! reported, never assumed; ray query is enabled wherever the device has it.
 
 use std::ffi::{c_char, CStr};
 use std::mem::ManuallyDrop;
@@ -10,6 +11,7 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 use raw_window_handle::{RawDisplayHandle, RawWindowHandle};
 
+use super::capabilities::{self, Capabilities, DeviceListing, RAY_QUERY_EXTENSIONS};
 use super::debug::{messenger_info, ValidationLog};
 use super::{GpuError, GpuResult, VkContext};
 
@@ -19,7 +21,8 @@ const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 pub struct GpuOptions {
     /// Khronos validation with synchronization validation; every message is counted.
     pub validate: bool,
-    /// Pick the device whose name contains this (case-insensitive); otherwise discrete first.
+    /// Pick the device at this index of `umbra devices` (a number), or whose name contains this
+    /// text (case-insensitive); otherwise discrete first.
     pub device_name: Option<String>,
 }
 
@@ -33,6 +36,12 @@ pub struct GpuContext {
     pub properties: vk::PhysicalDeviceProperties,
     /// Nanoseconds per timestamp tick, or None where the queue cannot write timestamps.
     pub timestamp_period_ns: Option<f32>,
+    /// Optional features found on the device (and enabled, where umbra uses them).
+    pub capabilities: Capabilities,
+    /// The driver's name and version, as it states them.
+    pub driver: String,
+    /// VK_KHR_acceleration_structure's functions, where `capabilities.ray_query`.
+    pub acceleration_structure: Option<ash::khr::acceleration_structure::Device>,
     pub(super) allocator: ManuallyDrop<Mutex<Allocator>>,
     /// Present only for contexts made `with_window`.
     pub surface_loader: Option<ash::khr::surface::Instance>,
@@ -116,20 +125,33 @@ impl GpuContext {
         };
         let timestamp_period_ns = (qprops.timestamp_valid_bits > 0 && properties.limits.timestamp_period > 0.0)
             .then_some(properties.limits.timestamp_period);
+        let caps = capabilities::detect(&instance, physical, Some(queue_family));
+        let driver = capabilities::driver_string(&instance, physical);
 
         let mut f13 = vk::PhysicalDeviceVulkan13Features::default()
             .dynamic_rendering(true)
             .synchronization2(true)
             .maintenance4(true);
+        // Ray query needs device addresses for acceleration-structure inputs and scratch.
+        let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(caps.ray_query);
+        let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
+        let mut ray_query = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
         let priorities = [1.0];
         let queue_info =
             [vk::DeviceQueueCreateInfo::default().queue_family_index(queue_family).queue_priorities(&priorities)];
-        let device_extensions: Vec<*const c_char> =
+        let mut device_extensions: Vec<*const c_char> =
             if window.is_some() { vec![ash::khr::swapchain::NAME.as_ptr()] } else { Vec::new() };
-        let device_info = vk::DeviceCreateInfo::default()
+        if caps.ray_query {
+            device_extensions.extend(RAY_QUERY_EXTENSIONS.iter().map(|n| n.as_ptr()));
+        }
+        let mut device_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
             .enabled_extension_names(&device_extensions)
-            .push_next(&mut f13);
+            .push_next(&mut f13)
+            .push_next(&mut f12);
+        if caps.ray_query {
+            device_info = device_info.push_next(&mut accel).push_next(&mut ray_query);
+        }
         // SAFETY: the features were checked in pick_device.
         let device = unsafe { instance.create_device(physical, &device_info, None) }.vk("vkCreateDevice")?;
         // SAFETY: queue 0 of the family we created.
@@ -139,7 +161,7 @@ impl GpuContext {
             device: device.clone(),
             physical_device: physical,
             debug_settings: Default::default(),
-            buffer_device_address: false,
+            buffer_device_address: caps.ray_query,
             allocation_sizes: Default::default(),
         })?;
         let pool_info = vk::CommandPoolCreateInfo::default()
@@ -148,6 +170,8 @@ impl GpuContext {
         // SAFETY: valid device.
         let command_pool = unsafe { device.create_command_pool(&pool_info, None) }.vk("vkCreateCommandPool")?;
         let swapchain_loader = window.map(|_| ash::khr::swapchain::Device::new(&instance, &device));
+        let acceleration_structure =
+            caps.ray_query.then(|| ash::khr::acceleration_structure::Device::new(&instance, &device));
         let ctx = GpuContext {
             surface_loader,
             swapchain_loader,
@@ -159,12 +183,21 @@ impl GpuContext {
             queue_family,
             properties,
             timestamp_period_ns,
+            capabilities: caps,
+            driver,
+            acceleration_structure,
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             command_pool,
             debug,
             validation,
         };
-        log::info!("device: {} (Vulkan {})", ctx.device_name(), version_string(properties.api_version));
+        log::info!(
+            "device: {} ({}, Vulkan {}); {}",
+            ctx.device_name(),
+            ctx.driver,
+            version_string(properties.api_version),
+            caps.describe()
+        );
         Ok((Arc::new(ctx), surface))
     }
 
@@ -306,6 +339,73 @@ fn create_instance(
     unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")
 }
 
+/// Every device the loader reports, with what umbra can use of it (`umbra devices`).
+pub fn list_devices() -> GpuResult<Vec<DeviceListing>> {
+    // SAFETY: loading the system Vulkan loader.
+    let entry = unsafe { ash::Entry::load()? };
+    let log = ValidationLog::default();
+    let instance = create_instance(&entry, false, &log, &[])?;
+    // SAFETY: enumeration and property queries on a valid instance.
+    let devices = unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices");
+    let listing = devices.map(|devices| {
+        devices
+            .into_iter()
+            .enumerate()
+            .map(|(index, pd)| {
+                let props = unsafe { instance.get_physical_device_properties(pd) };
+                let usable = usable_family(&instance, pd, None);
+                DeviceListing {
+                    index,
+                    name: device_name_of(&props),
+                    kind: capabilities::kind_name(props.device_type),
+                    driver: capabilities::driver_string(&instance, pd),
+                    api_version: version_string(props.api_version),
+                    capabilities: capabilities::detect(&instance, pd, usable.as_ref().ok().copied()),
+                    unusable: usable.err(),
+                }
+            })
+            .collect()
+    });
+    destroy_instance(&instance, &None);
+    listing
+}
+
+fn device_name_of(props: &vk::PhysicalDeviceProperties) -> String {
+    props.device_name_as_c_str().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default()
+}
+
+/// The queue family umbra would use on `pd`, or why the device does not qualify.
+fn usable_family(
+    instance: &ash::Instance,
+    pd: vk::PhysicalDevice,
+    present: Option<(&ash::khr::surface::Instance, vk::SurfaceKHR)>,
+) -> Result<u32, String> {
+    // SAFETY: property and feature queries on an enumerated device.
+    let props = unsafe { instance.get_physical_device_properties(pd) };
+    if vk::api_version_major(props.api_version) < 1
+        || (vk::api_version_major(props.api_version) == 1 && vk::api_version_minor(props.api_version) < 3)
+    {
+        return Err(format!("Vulkan {} < 1.3", version_string(props.api_version)));
+    }
+    let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
+    let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
+    unsafe { instance.get_physical_device_features2(pd, &mut f2) };
+    if f13.dynamic_rendering == 0 || f13.synchronization2 == 0 || f13.maintenance4 == 0 {
+        return Err("lacks dynamicRendering, synchronization2 or maintenance4".into());
+    }
+    let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
+    let presents = |family: usize| {
+        present.is_none_or(|(loader, surface)| {
+            // SAFETY: valid device, family index and surface.
+            unsafe { loader.get_physical_device_surface_support(pd, family as u32, surface) }.unwrap_or(false)
+        })
+    };
+    (0..families.len())
+        .find(|&i| families[i].queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE) && presents(i))
+        .map(|i| i as u32)
+        .ok_or_else(|| "no queue family with graphics and compute (and presentation)".into())
+}
+
 fn pick_device(
     instance: &ash::Instance,
     wanted: Option<&str>,
@@ -313,40 +413,27 @@ fn pick_device(
 ) -> GpuResult<(vk::PhysicalDevice, u32)> {
     // SAFETY: enumeration and property queries on a valid instance.
     let devices = unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+    let wanted_index = wanted.and_then(|w| w.trim().parse::<usize>().ok());
     let mut candidates = Vec::new();
     let mut names = Vec::new();
-    for pd in devices {
+    for (index, pd) in devices.into_iter().enumerate() {
         let props = unsafe { instance.get_physical_device_properties(pd) };
-        let name = props.device_name_as_c_str().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-        names.push(name.clone());
-        if let Some(w) = wanted {
-            if !name.to_lowercase().contains(&w.to_lowercase()) {
+        let name = device_name_of(&props);
+        names.push(format!("{index}: {name}"));
+        match (wanted_index, wanted) {
+            (Some(i), _) if i != index => continue,
+            (None, Some(w)) if !name.to_lowercase().contains(&w.to_lowercase()) => continue,
+            _ => {}
+        }
+        let family = match usable_family(instance, pd, present) {
+            Ok(f) => f,
+            Err(why) => {
+                log::info!("skipping {name}: {why}");
+                if wanted.is_some() {
+                    return Err(GpuError::Unsupported(format!("device {index} ({name}) cannot run umbra: {why}")));
+                }
                 continue;
             }
-        }
-        if vk::api_version_major(props.api_version) < 1 || vk::api_version_minor(props.api_version) < 3 {
-            log::info!("skipping {name}: Vulkan {} < 1.3", version_string(props.api_version));
-            continue;
-        }
-        let mut f13 = vk::PhysicalDeviceVulkan13Features::default();
-        let mut f2 = vk::PhysicalDeviceFeatures2::default().push_next(&mut f13);
-        unsafe { instance.get_physical_device_features2(pd, &mut f2) };
-        if f13.dynamic_rendering == 0 || f13.synchronization2 == 0 || f13.maintenance4 == 0 {
-            log::info!("skipping {name}: lacks dynamicRendering, synchronization2 or maintenance4");
-            continue;
-        }
-        let families = unsafe { instance.get_physical_device_queue_family_properties(pd) };
-        let presents = |family: usize| {
-            present.is_none_or(|(loader, surface)| {
-                // SAFETY: valid device, family index and surface.
-                unsafe { loader.get_physical_device_surface_support(pd, family as u32, surface) }.unwrap_or(false)
-            })
-        };
-        let Some(family) = (0..families.len()).find(|&i| {
-            families[i].queue_flags.contains(vk::QueueFlags::GRAPHICS | vk::QueueFlags::COMPUTE) && presents(i)
-        }) else {
-            log::info!("skipping {name}: no queue family with graphics and compute (and presentation)");
-            continue;
         };
         let rank = match props.device_type {
             vk::PhysicalDeviceType::DISCRETE_GPU => 0,
@@ -355,18 +442,19 @@ fn pick_device(
             vk::PhysicalDeviceType::CPU => 3,
             _ => 4,
         };
-        candidates.push((rank, pd, family as u32));
+        candidates.push((rank, pd, family));
     }
     candidates.sort_by_key(|c| c.0);
+    let present_list = || if names.is_empty() { "none".into() } else { names.join(", ") };
     match (candidates.first(), wanted) {
         (Some(&(_, pd, family)), _) => Ok((pd, family)),
         (None, Some(w)) => Err(GpuError::Unsupported(format!(
-            "no usable Vulkan 1.3 device matches --device {w:?}; devices present: {}",
-            if names.is_empty() { "none".into() } else { names.join(", ") }
+            "no Vulkan device matches --device {w:?} (an index or part of a name); devices present: {}",
+            present_list()
         ))),
         (None, None) => Err(GpuError::Unsupported(format!(
             "no Vulkan 1.3 device with dynamic rendering, synchronization2 and maintenance4; devices present: {}; run tools/setup for lavapipe",
-            if names.is_empty() { "none".into() } else { names.join(", ") }
+            present_list()
         ))),
     }
 }

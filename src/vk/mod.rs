@@ -1,13 +1,15 @@
 //! The Vulkan layer: instance and device (with validation when asked), memory, buffers, images,
 //! pipelines and one-shot submission. Everything above it speaks in frame-graph terms.
 
+mod capabilities;
 mod context;
 mod debug;
 mod pipeline;
 mod resources;
 mod swapchain;
 
-pub use context::{GpuContext, GpuOptions, WindowSurface};
+pub use capabilities::{Capabilities, DeviceListing};
+pub use context::{list_devices, GpuContext, GpuOptions, WindowSurface};
 pub use debug::ValidationLog;
 pub use pipeline::{ComputePipeline, DescriptorKind, GraphicsPipeline, GraphicsPipelineDesc, PipelineLayout};
 pub use resources::{subresource_range, Buffer, Image, ImageDesc};

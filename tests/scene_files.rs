@@ -135,7 +135,7 @@ fn out_of_range_values_name_the_field() {
         ("[[objects]]\nshape = \"cube\"\nmesh = \"x.obj\"\n", "objects[0]: give exactly one of `mesh` or `shape`"),
         ("[[objects]]\ncast_shadows = false\n", "objects[0]: give exactly one"),
         ("[[objects]]\nshape = \"cube\"\nradius = 1.0\n", "objects[0].radius"),
-        ("[[objects]]\nshape = \"sphere\"\nsegments = 2\n", "objects[0].segments: 2 is outside [3, 256]"),
+        ("[[objects]]\nshape = \"sphere\"\nsegments = 2\n", "objects[0].segments: 2 is outside [3, 2048]"),
         ("[[objects]]\nshape = \"cube\"\nsize = -1\n", "objects[0].size"),
         ("[[objects]]\nshape = \"cone\"\n", "unknown variant `cone`"),
         ("[[objects]]\nshape = \"cube\"\nscale = [1.0, 0.0, 1.0]\n", "objects[0].scale"),
@@ -251,6 +251,136 @@ fn damaged_scene_text_never_panics() {
             let message = clean_message(&error);
             assert!(message.starts_with("damaged.toml"), "{message}");
         }
+    }
+}
+
+// ---- built-in shapes ---------------------------------------------------------------------
+
+fn plane_scene(segments: Option<u32>) -> Scene {
+    let segments = segments.map_or(String::new(), |n| format!("segments = {n}\n"));
+    parse(&with_camera(&format!("[[objects]]\nshape = \"plane\"\nsize = 3.0\n{segments}")))
+}
+
+/// Smallest and largest corner of the box around `mesh`'s vertices.
+fn extent(mesh: &Mesh) -> (Vec3, Vec3) {
+    let lo = mesh.positions.iter().fold(Vec3::INFINITY, |e, p| e.min(*p));
+    let hi = mesh.positions.iter().fold(Vec3::NEG_INFINITY, |e, p| e.max(*p));
+    (lo, hi)
+}
+
+#[test]
+fn one_segment_plane_is_the_original_quad() {
+    // The plane before `segments` existed, vertex for vertex: what the renderer uploads, so
+    // shading cannot change.
+    let (h, up) = (1.5, Vec3::Y);
+    let quad = [Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, h), Vec3::new(h, 0.0, -h)];
+    for scene in [plane_scene(None), plane_scene(Some(1))] {
+        let plane = mesh_named(&scene, "plane");
+        assert_eq!(plane.positions, quad);
+        assert_eq!(plane.normals, [up; 4]);
+        assert_eq!(plane.indices, [0, 1, 2, 0, 2, 3]);
+    }
+}
+
+#[test]
+fn plane_segments_make_a_grid_over_the_same_square() {
+    let one = plane_scene(Some(1));
+    let square = extent(mesh_named(&one, "plane"));
+    for n in [2u32, 3, 17, 158] {
+        let scene = plane_scene(Some(n));
+        let plane = mesh_named(&scene, "plane");
+        assert_eq!(plane.triangle_count(), 2 * (n * n) as usize, "{n} segments");
+        assert_eq!(scene.triangle_count(), 2 * (n * n) as usize);
+        assert_eq!(plane.positions.len(), ((n + 1) * (n + 1)) as usize, "grid vertices are shared");
+        assert_eq!(extent(plane), square, "{n} segments");
+        assert_eq!(scene.stats.degenerate_triangles, 0);
+        // Flat, facing up, and every triangle wound counter-clockwise seen from above.
+        assert!(plane.normals.iter().all(|n| *n == Vec3::Y));
+        for tri in triangles(plane) {
+            assert_close(geometric_normal(plane, tri), Vec3::Y, 1e-6, "face normal");
+        }
+        // The triangles tile the square: their areas add up to 3 x 3.
+        let area: f32 = triangles(plane)
+            .map(|[a, b, c]| {
+                let p = &plane.positions;
+                0.5 * (p[b] - p[a]).cross(p[c] - p[a]).length()
+            })
+            .sum();
+        assert!((area - 9.0).abs() < 1e-3, "{n} segments: area {area}");
+    }
+}
+
+#[test]
+fn plane_segments_out_of_range_name_the_field() {
+    let cases = [
+        ("shape = \"plane\"\nsegments = 0\n", "inline.toml: objects[0].segments: 0 is outside [1, 2048]"),
+        ("shape = \"plane\"\nsegments = 2049\n", "inline.toml: objects[0].segments: 2049 is outside [1, 2048]"),
+        ("shape = \"plane\"\nsegments = -4\n", "objects[0].segments: invalid value: integer `-4`"),
+        ("shape = \"plane\"\nsegments = 1.5\n", "objects[0].segments: invalid type: floating point `1.5`"),
+        ("shape = \"cube\"\nsegments = 4\n", "inline.toml: objects[0].segments: only a sphere or a plane takes it"),
+        ("mesh = \"../meshes/tetra.obj\"\nsegments = 4\n", "objects[0].segments: only built-in shapes take it"),
+    ];
+    for (object, expected) in cases {
+        let message = parse_error(&with_camera(&format!("[[objects]]\n{object}")));
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+    }
+}
+
+#[test]
+fn sphere_takes_up_to_2048_segments() {
+    let started = std::time::Instant::now();
+    let scene = parse(&with_camera("[[objects]]\nshape = \"sphere\"\nradius = 2.0\nsegments = 2048\n"));
+    let elapsed = started.elapsed();
+    // 2 segments (segments / 2 - 1) triangles, none lost to the degenerate-triangle check even at
+    // the poles, where the cap triangles are 2048 times thinner than they are long.
+    assert_eq!(scene.triangle_count(), 2 * 2048 * 1023);
+    assert_eq!(scene.stats.degenerate_triangles + scene.stats.non_finite_triangles, 0);
+    let sphere = mesh_named(&scene, "sphere");
+    assert_eq!(sphere.positions.len(), 2048 * 1023 + 2, "smooth vertices are shared");
+    assert!(sphere.indices.iter().all(|&i| (i as usize) < sphere.positions.len()));
+    assert!(sphere.positions.iter().all(|p| (p.length() - 2.0).abs() < 1e-5));
+    // Linear work: ~4M triangles take well under a second in release. Quadratic work would take
+    // hours; the bound is loose enough for a debug build on a slow machine.
+    assert!(elapsed.as_secs_f64() < 60.0, "a 2048-segment sphere took {elapsed:?} to load");
+    eprintln!("2048-segment sphere: {} triangles loaded in {elapsed:?}", scene.triangle_count());
+
+    let message = parse_error(&with_camera("[[objects]]\nshape = \"sphere\"\nsegments = 2049\n"));
+    assert!(message.contains("inline.toml: objects[0].segments: 2049 is outside [3, 2048]"), "{message}");
+}
+
+/// Triangle count written with thousands separators, as the scene files' headers give it.
+fn with_commas(n: usize) -> String {
+    let digits = n.to_string();
+    let mut out = String::new();
+    for (i, c) in digits.chars().enumerate() {
+        if i > 0 && (digits.len() - i) % 3 == 0 {
+            out.push(',');
+        }
+        out.push(c);
+    }
+    out
+}
+
+#[test]
+fn bench_scenes_load_with_their_triangle_budgets() {
+    let bench = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/bench");
+    for (file, target, exact) in [("sphere-100k.toml", 100_000, 99_656), ("spheres-1m.toml", 1_000_000, 999_842)] {
+        let path = bench.join(file);
+        let scene = Scene::load(&path).unwrap_or_else(|e| panic!("{e}"));
+        let count = scene.triangle_count();
+        assert!(count.abs_diff(target) * 10 <= target, "{file}: {count} triangles, not within 10% of {target}");
+        assert_eq!(count, exact, "{file}: update the count in its header and here");
+        assert_eq!(scene.stats.degenerate_triangles + scene.stats.non_finite_triangles, 0, "{file}");
+        // The header states the count and the size the scene is meant for.
+        let text = std::fs::read_to_string(&path).expect("bench scene readable");
+        let header = text.lines().take(3).collect::<Vec<_>>().join(" ");
+        assert!(header.contains(&format!("{} triangles", with_commas(count))), "{file}: {header}");
+        assert!(header.contains("1920x1080"), "{file}: {header}");
+        assert_eq!(scene.image_size, Some((1920, 1080)), "{file}");
+        assert_eq!(scene.lights.len(), 1, "{file}");
+        assert!(matches!(scene.lights[0], Light::Point { .. }), "{file}");
+        assert!(scene.meshes.iter().all(|m| m.cast_shadows), "{file}");
+        assert!(scene.meshes.iter().any(|m| m.name == "plane") && scene.meshes.iter().any(|m| m.name == "sphere"));
     }
 }
 

@@ -126,9 +126,15 @@ impl<'de> Deserialize<'de> for Scale {
 
 /// Largest image edge accepted; beyond this the renderer's images would not fit most devices.
 const MAX_IMAGE_EDGE: u32 = 16384;
-/// Sphere tessellation limits: below 3 it is not a solid, above 256 it is ~130k triangles.
-const SPHERE_SEGMENTS: std::ops::RangeInclusive<u32> = 3..=256;
+/// Sphere tessellation limits: below 3 it is not a solid; 2048 is ~4.2M triangles (2 segments
+/// (segments / 2 - 1)) on ~2.1M vertices.
+const SPHERE_SEGMENTS: std::ops::RangeInclusive<u32> = 3..=2048;
 const DEFAULT_SPHERE_SEGMENTS: u32 = 32;
+/// Plane grid limits: 2048 x 2048 quads is ~8.4M triangles on 2049^2 (~4.2M) vertices, which
+/// keeps every index below 2^24 - 1, the least `maxDrawIndexedIndexValue` Vulkan guarantees
+/// without `fullDrawIndexUint32`. The default, one quad, is the plane as it always was.
+const PLANE_SEGMENTS: std::ops::RangeInclusive<u32> = 1..=2048;
+const DEFAULT_PLANE_SEGMENTS: u32 = 1;
 /// Built-in shapes default to filling the unit cube [-0.5, 0.5]^3.
 const DEFAULT_SIZE: f64 = 1.0;
 const DEFAULT_RADIUS: f64 = 0.5;
@@ -375,29 +381,24 @@ impl Check<'_> {
         shape: ShapeKind,
         object: &ObjectDesc,
     ) -> Result<(String, Vec<ObjectMesh>), SceneError> {
-        let is_sphere = matches!(shape, ShapeKind::Sphere);
-        let misplaced = if is_sphere {
-            object.size.is_some().then_some(("size", "a sphere takes `radius`"))
-        } else if object.radius.is_some() {
-            Some(("radius", "only a sphere takes it; use `size`"))
-        } else {
-            object.segments.is_some().then_some(("segments", "only a sphere takes it"))
+        let misplaced = match shape {
+            ShapeKind::Sphere => object.size.is_some().then_some(("size", "a sphere takes `radius`")),
+            _ if object.radius.is_some() => Some(("radius", "only a sphere takes it; use `size`")),
+            ShapeKind::Cube => object.segments.is_some().then_some(("segments", "only a sphere or a plane takes it")),
+            ShapeKind::Plane => None,
         };
         if let Some((key, message)) = misplaced {
             return Err(self.fail(&format!("{path}.{key}"), message));
         }
         let mesh = match shape {
-            ShapeKind::Plane => shapes::plane(self.length(path, "size", object.size, DEFAULT_SIZE)?),
+            ShapeKind::Plane => {
+                let size = self.length(path, "size", object.size, DEFAULT_SIZE)?;
+                shapes::plane(size, self.segments(path, object.segments, DEFAULT_PLANE_SEGMENTS, PLANE_SEGMENTS)?)
+            }
             ShapeKind::Cube => shapes::cube(self.length(path, "size", object.size, DEFAULT_SIZE)?),
             ShapeKind::Sphere => {
                 let radius = self.length(path, "radius", object.radius, DEFAULT_RADIUS)?;
-                let segments = object.segments.unwrap_or(DEFAULT_SPHERE_SEGMENTS);
-                if !SPHERE_SEGMENTS.contains(&segments) {
-                    let (lo, hi) = (SPHERE_SEGMENTS.start(), SPHERE_SEGMENTS.end());
-                    let message = format!("{segments} is outside [{lo}, {hi}]");
-                    return Err(self.fail(&format!("{path}.segments"), message));
-                }
-                shapes::sphere(radius, segments)
+                shapes::sphere(radius, self.segments(path, object.segments, DEFAULT_SPHERE_SEGMENTS, SPHERE_SEGMENTS)?)
             }
         };
         Ok((format!("shape {}", mesh.name), vec![mesh]))
@@ -491,6 +492,22 @@ impl Check<'_> {
             return Err(self.fail(path, format!("{:?} must be finite and >= 0", v.to_array())));
         }
         Ok(v.as_vec3())
+    }
+
+    /// A shape's `segments`: within `range`, `default` when absent.
+    fn segments(
+        &self,
+        path: &str,
+        v: Option<u32>,
+        default: u32,
+        range: std::ops::RangeInclusive<u32>,
+    ) -> Result<u32, SceneError> {
+        let v = v.unwrap_or(default);
+        if !range.contains(&v) {
+            let message = format!("{v} is outside [{}, {}]", range.start(), range.end());
+            return Err(self.fail(&format!("{path}.segments"), message));
+        }
+        Ok(v)
     }
 
     /// A shape's size or radius: positive and finite.

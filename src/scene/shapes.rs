@@ -7,16 +7,40 @@ use glam::Vec3;
 
 use super::mesh::ObjectMesh;
 
-/// Square of edge `size` in the XZ plane, facing +Y.
-pub(super) fn plane(size: f32) -> ObjectMesh {
+/// Square of edge `size` in the XZ plane, facing +Y, as a grid of `segments` x `segments` quads
+/// (2 segments^2 triangles), every quad split along its (-x, -z) to (+x, +z) diagonal. Vertices
+/// are shared between neighbouring quads and all have the normal +Y.
+///
+/// With one segment the triangles, and so the placed mesh (whose vertices come out in the order
+/// the triangles first use them), are exactly those of the single quad this shape used to be:
+/// corners (-h, -h), (-h, h), (h, h), (h, -h) in (x, z), triangles [0, 1, 2] and [0, 2, 3].
+pub(super) fn plane(size: f32, segments: u32) -> ObjectMesh {
+    let n = segments.max(1);
     let h = 0.5 * size;
-    ObjectMesh {
-        name: "plane".into(),
-        positions: vec![Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, h), Vec3::new(h, 0.0, -h)],
-        normals: Some(vec![Vec3::Y; 4]),
-        indices: vec![0, 1, 2, 0, 2, 3],
-        material: None,
+    let side = n as usize + 1;
+    // Grid vertex i along X, j along Z (each 0..=n), stored row by row. The scene file caps
+    // `segments` well below where the vertex count would leave u32.
+    let vertex_count = side * side;
+    assert!(u32::try_from(vertex_count).is_ok(), "plane vertex count {vertex_count} overflows u32");
+    // -h at 0, +h at n exactly, and mirror-symmetric: the integers and n are exact in f32.
+    let coordinate = |k: usize| h * (((2 * k) as f32 - n as f32) / n as f32);
+    let coordinates: Vec<f32> = (0..side).map(coordinate).collect();
+    let mut positions = Vec::with_capacity(vertex_count);
+    for &x in &coordinates {
+        for &z in &coordinates {
+            positions.push(Vec3::new(x, 0.0, z));
+        }
     }
+    let at = |i: usize, j: usize| (i * side + j) as u32;
+    let mut indices = Vec::with_capacity(6 * n as usize * n as usize);
+    for i in 0..n as usize {
+        for j in 0..n as usize {
+            // a = (-x, -z), b = (-x, +z), c = (+x, +z), d = (+x, -z): counter-clockwise from +Y.
+            let (a, b, c, d) = (at(i, j), at(i, j + 1), at(i + 1, j + 1), at(i + 1, j));
+            indices.extend([a, b, c, a, c, d]);
+        }
+    }
+    ObjectMesh { name: "plane".into(), positions, normals: Some(vec![Vec3::Y; vertex_count]), indices, material: None }
 }
 
 /// Cube of edge `size`; each face has its own four vertices so its normals stay sharp.
@@ -46,24 +70,36 @@ pub(super) fn cube(size: f32) -> ObjectMesh {
 }
 
 /// UV sphere with `segments` around the equator and `segments / 2` rings from pole to pole,
-/// smooth normals. A single vertex at each pole keeps the caps free of degenerate triangles.
+/// smooth normals: 2 segments (rings - 1) triangles. A single vertex at each pole keeps the
+/// caps free of degenerate triangles. Work and memory are linear in the triangle count: one sine
+/// and cosine per ring and per segment, and buffers allocated once at their final size.
 pub(super) fn sphere(radius: f32, segments: u32) -> ObjectMesh {
     let segments = segments.max(3);
     let rings = (segments / 2).max(2);
-    let mut normals = vec![Vec3::Y];
+    // Both poles plus (rings - 1) latitude rings of `segments` vertices. The scene file caps
+    // `segments` well below where this would leave u32.
+    let vertex_count = (rings as usize - 1) * segments as usize + 2;
+    assert!(u32::try_from(vertex_count).is_ok(), "sphere vertex count {vertex_count} overflows u32");
+    let triangle_count = 2 * segments as usize * (rings as usize - 1);
+
+    // (sin, cos) of each segment's longitude, shared by every ring.
+    let longitudes: Vec<(f32, f32)> =
+        (0..segments).map(|segment| (2.0 * PI * segment as f32 / segments as f32).sin_cos()).collect();
+    let mut normals = Vec::with_capacity(vertex_count);
+    normals.push(Vec3::Y);
     for ring in 1..rings {
-        let theta = PI * ring as f32 / rings as f32;
-        for segment in 0..segments {
-            let phi = 2.0 * PI * segment as f32 / segments as f32;
-            normals.push(Vec3::new(theta.sin() * phi.cos(), theta.cos(), -theta.sin() * phi.sin()));
+        let (sin_theta, cos_theta) = (PI * ring as f32 / rings as f32).sin_cos();
+        for &(sin_phi, cos_phi) in &longitudes {
+            normals.push(Vec3::new(sin_theta * cos_phi, cos_theta, -sin_theta * sin_phi));
         }
     }
     normals.push(Vec3::NEG_Y);
+    debug_assert_eq!(normals.len(), vertex_count);
     let south = normals.len() as u32 - 1;
     // Vertex of `segment` (wrapping) on latitude ring `ring` (1..rings).
     let at = |ring: u32, segment: u32| 1 + (ring - 1) * segments + segment % segments;
 
-    let mut indices = Vec::new();
+    let mut indices = Vec::with_capacity(3 * triangle_count);
     for s in 0..segments {
         indices.extend([0, at(1, s), at(1, s + 1)]);
         for ring in 1..rings - 1 {
@@ -73,6 +109,7 @@ pub(super) fn sphere(radius: f32, segments: u32) -> ObjectMesh {
         }
         indices.extend([at(rings - 1, s), south, at(rings - 1, s + 1)]);
     }
+    debug_assert_eq!(indices.len(), 3 * triangle_count);
     ObjectMesh {
         name: "sphere".into(),
         positions: normals.iter().map(|n| *n * radius).collect(),
@@ -92,7 +129,9 @@ mod tests {
         for tri in mesh.indices.chunks_exact(3) {
             let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
             let geometric = (b - a).cross(c - a);
-            assert!(geometric.length() > 1e-6, "{}: degenerate triangle {tri:?}", mesh.name);
+            // Relative to the edges, as fine spheres have tiny (but well-shaped) cap triangles.
+            let sine = geometric.length() / ((b - a).length() * (c - a).length());
+            assert!(sine > 1e-4, "{}: degenerate triangle {tri:?}", mesh.name);
             for &i in tri {
                 assert!(geometric.dot(normals[i as usize]) > 0.0, "{}: {tri:?}", mesh.name);
             }
@@ -101,19 +140,51 @@ mod tests {
 
     #[test]
     fn shapes_wind_outward() {
-        assert_outward_ccw(&plane(2.0));
+        assert_outward_ccw(&plane(2.0, 1));
+        assert_outward_ccw(&plane(2.0, 5));
         assert_outward_ccw(&cube(1.0));
         assert_outward_ccw(&sphere(0.5, 3));
         assert_outward_ccw(&sphere(0.5, 32));
+        assert_outward_ccw(&sphere(0.5, 2048));
     }
 
     #[test]
     fn shapes_have_the_asked_size() {
         let extent = |m: &ObjectMesh| m.positions.iter().fold(Vec3::ZERO, |e, p| e.max(p.abs()));
-        assert_eq!(extent(&plane(4.0)), Vec3::new(2.0, 0.0, 2.0));
+        assert_eq!(extent(&plane(4.0, 1)), Vec3::new(2.0, 0.0, 2.0));
+        assert_eq!(extent(&plane(4.0, 7)), Vec3::new(2.0, 0.0, 2.0));
         assert_eq!(extent(&cube(1.0)), Vec3::splat(0.5));
         let sphere = sphere(2.0, 16);
         assert!(sphere.positions.iter().all(|p| (p.length() - 2.0).abs() < 1e-5));
         assert_eq!(sphere.indices.len() / 3, 2 * 16 * (8 - 1));
+    }
+
+    #[test]
+    fn one_segment_plane_is_the_original_quad() {
+        let quad = plane(3.0, 1);
+        let h = 1.5;
+        // Stored row by row, (x, z) = (-, -), (-, +), (+, -), (+, +); the triangles visit them as
+        // (-, -), (-, +), (+, +), (+, -), the original quad's corner order.
+        let expected = [Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h)];
+        assert_eq!(quad.positions, expected);
+        assert_eq!(quad.indices, [0, 1, 3, 0, 3, 2]);
+        assert_eq!(quad.normals, Some(vec![Vec3::Y; 4]));
+    }
+
+    #[test]
+    fn triangle_counts_follow_the_segments() {
+        for n in [1, 2, 3, 16, 100] {
+            let grid = plane(1.0, n);
+            assert_eq!(grid.indices.len() / 3, 2 * (n * n) as usize);
+            assert_eq!(grid.positions.len(), ((n + 1) * (n + 1)) as usize);
+            assert!(grid.indices.iter().all(|&i| (i as usize) < grid.positions.len()));
+        }
+        for n in [3, 4, 5, 32, 255, 2048] {
+            let ball = sphere(1.0, n);
+            let rings = (n / 2).max(2);
+            assert_eq!(ball.indices.len() / 3, 2 * (n * (rings - 1)) as usize, "{n} segments");
+            assert_eq!(ball.positions.len(), (n * (rings - 1) + 2) as usize);
+            assert!(ball.indices.iter().all(|&i| (i as usize) < ball.positions.len()));
+        }
     }
 }

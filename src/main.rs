@@ -9,7 +9,7 @@ use clap::{Parser, Subcommand};
 
 use umbra::output::{write_image, ImageFormat};
 use umbra::passes::debug_view::DebugView;
-use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowMethod};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowBackend, ShadowMethod};
 use umbra::scene::Scene;
 use umbra::vk::{GpuContext, GpuOptions};
 
@@ -82,6 +82,11 @@ struct RenderArgs {
     /// Shadow method for every light.
     #[arg(long, value_enum, default_value_t = ShadowMethod::RayTraced)]
     shadows: ShadowMethod,
+    /// What shadow rays traverse: the BVH in a compute shader (any device), or the device's own
+    /// acceleration structures (VK_KHR_ray_query, where `umbra devices` says ray query: yes).
+    /// Default: the scene's `shadow_backend`, else compute.
+    #[arg(long, value_enum)]
+    shadow_backend: Option<ShadowBackend>,
     /// Soft shadows: rays per pixel and light.
     #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=256))]
     spp: u32,
@@ -155,6 +160,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         camera: None,
         shadows: vec![args.shadows; scene.lights.len()],
         soft_spp: args.spp,
+        shadow_backend: args.shadow_backend.unwrap_or_default(),
         frame_index: 0,
     };
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;

@@ -11,20 +11,21 @@ use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs, DebugView};
 use crate::passes::overlay::OverlayInputs;
+use crate::passes::accel::RayQueryScene;
 use crate::passes::{compose, geometry, overlay, present, readback, shadow_trace, tonemap, Pipelines};
-use crate::scene::bvh::ShadowBvh;
+use crate::scene::bvh::{caster_triangles, ShadowBvh};
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
 use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, ImageDesc};
 
 /// How frames find the scene's buffers: uploaded once and made visible to any read, so no
 /// frame needs a barrier for them (and frames in flight do not wait on each other's copies).
-const SCENE_ACCESS: Access = Access::AnyRead;
+pub(crate) const SCENE_ACCESS: Access = Access::AnyRead;
 
 /// Copies each `(name, bytes, usage)` into a new device-local buffer through staging buffers,
 /// as one small graph: the upload pass writes them, and the export makes them visible to any
 /// later read. Waits for the copy.
-fn upload<const N: usize>(
+pub(crate) fn upload<const N: usize>(
     ctx: &Arc<GpuContext>,
     items: [(&'static str, &[u8], vk::BufferUsageFlags); N],
 ) -> GpuResult<[Buffer; N]> {
@@ -85,6 +86,8 @@ pub struct RenderSettings {
     pub shadows: Vec<ShadowMethod>,
     /// Soft shadows: rays per pixel and light in each frame.
     pub soft_spp: u32,
+    /// What traced shadow rays traverse.
+    pub shadow_backend: ShadowBackend,
     /// Seeds the soft-shadow samples, so successive frames draw fresh ones.
     pub frame_index: u32,
 }
@@ -102,6 +105,7 @@ impl RenderSettings {
             camera: None,
             shadows: Vec::new(),
             soft_spp: 8,
+            shadow_backend: ShadowBackend::Compute,
             frame_index: 0,
         }
     }
@@ -113,6 +117,28 @@ impl RenderSettings {
 
     pub fn shadow_method(&self, light: usize) -> ShadowMethod {
         self.shadows.get(light).copied().unwrap_or_default()
+    }
+}
+
+/// What the traced shadow rays traverse. Both give the same visibility (up to rays that graze
+/// an edge): `compute` runs everywhere, `ray-query` is the driver's own traversal, the anchor
+/// the compute traversal is measured against.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ShadowBackend {
+    /// The CPU-built BVH (obvhs), traversed by a compute shader: any Vulkan 1.3 device.
+    #[default]
+    Compute,
+    /// The device's acceleration structures, queried with VK_KHR_ray_query.
+    RayQuery,
+}
+
+impl ShadowBackend {
+    pub fn name(self) -> &'static str {
+        match self {
+            ShadowBackend::Compute => "compute",
+            ShadowBackend::RayQuery => "ray-query",
+        }
     }
 }
 
@@ -301,6 +327,8 @@ impl CameraMatrices {
 pub struct Renderer {
     // Field order is drop order: everything on the device goes before the context.
     cache: TransientCache,
+    /// The ray-query backend's acceleration structures, made when a frame first asks for them.
+    ray_query: std::sync::OnceLock<RayQueryScene>,
     readback: Option<Buffer>,
     accumulator: accumulate::Accumulator,
     last_plan: Option<CompiledGraph>,
@@ -339,6 +367,7 @@ impl Renderer {
         }
         Ok(Renderer {
             cache: TransientCache::new(&ctx)?,
+            ray_query: std::sync::OnceLock::new(),
             readback: None,
             accumulator: accumulate::Accumulator::default(),
             last_plan: None,
@@ -354,15 +383,42 @@ impl Renderer {
     }
 
     /// The compiled plan for `settings`, for printing and inspection.
-    pub fn plan(&self, settings: &RenderSettings) -> CompiledGraph {
-        CompiledGraph::compile(&build_graph(
+    pub fn plan(&self, settings: &RenderSettings) -> GpuResult<CompiledGraph> {
+        let traversal = self.traversal(settings)?;
+        Ok(CompiledGraph::compile(&build_graph(
             &self.pipelines,
             &self.gpu_scene,
             &self.scene,
             settings,
+            traversal,
             Target::Inspect,
             None,
-        ))
+        )))
+    }
+
+    /// The ray-query scene and pipeline when `settings` trace with ray query (and there is
+    /// something to hit); made on first use.
+    fn traversal(&self, settings: &RenderSettings) -> GpuResult<Option<RayQueryTraversal<'_>>> {
+        if settings.shadow_backend != ShadowBackend::RayQuery {
+            return Ok(None);
+        }
+        if !self.ctx.capabilities.ray_query {
+            // Says which extensions the device lacks.
+            return Err(RayQueryScene::new(&self.ctx, &[]).err().expect("refused without ray query"));
+        }
+        if !self.gpu_scene.has_casters {
+            return Ok(None);
+        }
+        let pipeline = self.pipelines.shadow_trace_rq()?;
+        let scene = match self.ray_query.get() {
+            Some(s) => s,
+            None => {
+                let local = self.scene.translated(-self.gpu_scene.origin);
+                let made = RayQueryScene::new(&self.ctx, &caster_triangles(&local))?;
+                self.ray_query.get_or_init(|| made)
+            }
+        };
+        Ok(Some(RayQueryTraversal { scene, pipeline }))
     }
 
     /// Records one frame into `cmd` using `cache` (one per frame in flight); returns its plan.
@@ -376,8 +432,13 @@ impl Renderer {
         history: Option<History<'_>>,
     ) -> GpuResult<CompiledGraph> {
         check_limits(&self.ctx, &self.gpu_scene, settings)?;
-        let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, target, history);
-        execute(cache, graph, cmd, settings)
+        let traversal = self.traversal(settings)?;
+        let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, traversal, target, history);
+        let plan = execute(cache, graph, cmd, settings)?;
+        if let Some(t) = traversal {
+            t.scene.note_recorded(&plan);
+        }
+        Ok(plan)
     }
     /// Renders one frame and reads it back. Successive calls with the same settings and
     /// stochastic (soft) shadows return the running mean of all their frames.
@@ -413,13 +474,24 @@ impl Renderer {
     }
 
     fn record_and_submit(&mut self, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
-        let Renderer { cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, .. } = self;
-        check_limits(ctx, gpu_scene, settings)?;
+        check_limits(&self.ctx, &self.gpu_scene, settings)?;
+        // Made before the fields are borrowed apart below: it may create the structures.
+        self.traversal(settings)?;
+        let Renderer { cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, ray_query, .. } = self;
+        let traversal = match (settings.shadow_backend, ray_query.get()) {
+            (ShadowBackend::RayQuery, Some(scene)) => {
+                Some(RayQueryTraversal { scene, pipeline: pipelines.shadow_trace_rq()? })
+            }
+            _ => None,
+        };
         let mut settings = settings.clone();
         let history = accumulator.prepare(ctx, &mut settings, scene.lights.len())?;
         let accumulated = history.is_some();
-        let graph = build_graph(pipelines, gpu_scene, scene, &settings, Target::ReadBack(readback), history);
+        let graph = build_graph(pipelines, gpu_scene, scene, &settings, traversal, Target::ReadBack(readback), history);
         let plan = ctx.submit_and_wait(|cmd| execute(cache, graph, cmd, &settings))?;
+        if let Some(t) = traversal {
+            t.scene.note_recorded(&plan);
+        }
         accumulator.advance(accumulated);
         *last_plan = Some(plan);
         Ok(())
@@ -468,12 +540,20 @@ fn execute(
     Ok(plan)
 }
 
+/// The ray-query backend's part of a frame: its structures and the pipeline that queries them.
+#[derive(Clone, Copy)]
+struct RayQueryTraversal<'a> {
+    scene: &'a RayQueryScene,
+    pipeline: &'a crate::vk::ComputePipeline,
+}
+
 /// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
 fn build_graph<'a>(
     pipelines: &'a Pipelines,
     s: &'a SceneGpu,
     scene: &Scene,
     settings: &RenderSettings,
+    traversal: Option<RayQueryTraversal<'a>>,
     target: Target<'a>,
     history: Option<History<'a>>,
 ) -> RenderGraph<'a> {
@@ -496,18 +576,27 @@ fn build_graph<'a>(
     let methods: Vec<ShadowMethod> = (0..s.light_count as usize).map(|i| settings.shadow_method(i)).collect();
     let any_traced = methods.iter().any(|&m| m != ShadowMethod::None);
     let visibility = (s.light_count > 0 && ((s.has_casters && any_traced) || wants_visibility)).then(|| {
-        let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS);
-        let tris = g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS);
-        let inputs = shadow_trace::ShadowInputs {
+        let inputs = |casters| shadow_trace::ShadowInputs {
             lights: &lights,
             light_count: s.light_count,
-            bvh_nodes: &nodes,
-            bvh_triangles: &tris,
+            casters,
             methods: &methods,
             soft_spp: settings.soft_spp,
             frame_index: settings.frame_index,
         };
-        shadow_trace::add(&mut g, &pipelines.shadow_trace, &gbuffer, inputs, extent)
+        match traversal {
+            Some(t) => {
+                let handles = t.scene.add(&mut g);
+                let casters = shadow_trace::Casters::RayQuery(&handles);
+                shadow_trace::add(&mut g, t.pipeline, &gbuffer, inputs(casters), extent)
+            }
+            None => {
+                let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS);
+                let triangles = g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS);
+                let casters = shadow_trace::Casters::Bvh { nodes: &nodes, triangles: &triangles };
+                shadow_trace::add(&mut g, &pipelines.shadow_trace, &gbuffer, inputs(casters), extent)
+            }
+        }
     });
 
     let display = settings.output == OutputKind::Display;

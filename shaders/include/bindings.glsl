@@ -10,6 +10,8 @@
 #define SHADOW_BVH_NODES 3
 #define SHADOW_BVH_TRIANGLES 4
 #define SHADOW_VISIBILITY 5
+// shadow_trace_rq.comp: the same pass over the device's own acceleration structure
+#define SHADOW_TLAS 6
 
 // compose.comp
 #define COMPOSE_POSITION 0

@@ -38,6 +38,16 @@ pub enum Access {
     AcquiredImage,
     /// Handed to the presentation engine (swapchain images).
     Present,
+    /// Vertex or instance data read by an acceleration-structure build.
+    AccelerationStructureBuildInput,
+    /// Scratch memory of an acceleration-structure build (read and written by it).
+    AccelerationStructureBuildScratch,
+    /// The acceleration structure a build writes (its backing buffer).
+    AccelerationStructureBuildWrite,
+    /// A bottom level read by the build of a top level that instances it.
+    AccelerationStructureBuildRead,
+    /// Ray queries from a compute shader traversing the acceleration structure.
+    ComputeShaderReadAccelerationStructure,
 }
 
 /// Which kind of resource an access applies to.
@@ -68,6 +78,8 @@ impl Access {
                 | Access::DepthAttachmentWrite
                 | Access::TransferWrite
                 | Access::AcquiredImage
+                | Access::AccelerationStructureBuildScratch
+                | Access::AccelerationStructureBuildWrite
         )
     }
 
@@ -173,6 +185,47 @@ impl Access {
             }
             Access::AcquiredImage => (S::ALL_TRANSFER, A::NONE, L::UNDEFINED, I::empty(), B::empty(), Applies::Image),
             Access::Present => (S::NONE, A::NONE, L::PRESENT_SRC_KHR, I::empty(), B::empty(), Applies::Image),
+            // Build inputs are read through device addresses, as shader reads of the build stage.
+            Access::AccelerationStructureBuildInput => (
+                S::ACCELERATION_STRUCTURE_BUILD_KHR,
+                A::SHADER_READ,
+                L::UNDEFINED,
+                I::empty(),
+                B::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR | B::SHADER_DEVICE_ADDRESS,
+                Applies::Buffer,
+            ),
+            Access::AccelerationStructureBuildScratch => (
+                S::ACCELERATION_STRUCTURE_BUILD_KHR,
+                A::ACCELERATION_STRUCTURE_READ_KHR | A::ACCELERATION_STRUCTURE_WRITE_KHR,
+                L::UNDEFINED,
+                I::empty(),
+                B::STORAGE_BUFFER | B::SHADER_DEVICE_ADDRESS,
+                Applies::Buffer,
+            ),
+            Access::AccelerationStructureBuildWrite => (
+                S::ACCELERATION_STRUCTURE_BUILD_KHR,
+                A::ACCELERATION_STRUCTURE_WRITE_KHR,
+                L::UNDEFINED,
+                I::empty(),
+                B::ACCELERATION_STRUCTURE_STORAGE_KHR | B::SHADER_DEVICE_ADDRESS,
+                Applies::Buffer,
+            ),
+            Access::AccelerationStructureBuildRead => (
+                S::ACCELERATION_STRUCTURE_BUILD_KHR,
+                A::ACCELERATION_STRUCTURE_READ_KHR,
+                L::UNDEFINED,
+                I::empty(),
+                B::ACCELERATION_STRUCTURE_STORAGE_KHR | B::SHADER_DEVICE_ADDRESS,
+                Applies::Buffer,
+            ),
+            Access::ComputeShaderReadAccelerationStructure => (
+                S::COMPUTE_SHADER,
+                A::ACCELERATION_STRUCTURE_READ_KHR,
+                L::UNDEFINED,
+                I::empty(),
+                B::ACCELERATION_STRUCTURE_STORAGE_KHR,
+                Applies::Buffer,
+            ),
         };
         AccessInfo { stage, access, layout, image_usage, buffer_usage, applies }
     }
@@ -211,6 +264,11 @@ mod tests {
         Access::ComputeShaderReadStorageImage,
         Access::AcquiredImage,
         Access::Present,
+        Access::AccelerationStructureBuildInput,
+        Access::AccelerationStructureBuildScratch,
+        Access::AccelerationStructureBuildWrite,
+        Access::AccelerationStructureBuildRead,
+        Access::ComputeShaderReadAccelerationStructure,
     ];
 
     #[test]
@@ -219,7 +277,8 @@ mod tests {
             | vk::AccessFlags2::SHADER_STORAGE_WRITE
             | vk::AccessFlags2::COLOR_ATTACHMENT_WRITE
             | vk::AccessFlags2::DEPTH_STENCIL_ATTACHMENT_WRITE
-            | vk::AccessFlags2::TRANSFER_WRITE;
+            | vk::AccessFlags2::TRANSFER_WRITE
+            | vk::AccessFlags2::ACCELERATION_STRUCTURE_WRITE_KHR;
         for &a in ALL {
             // An acquired swapchain image is a write with no memory access of its own.
             let expected = a.info().access.intersects(write_bits) || a == Access::AcquiredImage;

@@ -17,6 +17,9 @@ use crate::vk::{Buffer, GpuContext, GpuResult, Image, PipelineLayout, VkContext}
 pub enum Bound {
     Image(Ref<ImageKind>),
     Buffer(Ref<BufferKind>),
+    /// An acceleration structure: the graph orders accesses on its backing buffer (the `Ref`),
+    /// the descriptor names the structure itself.
+    AccelerationStructure(Ref<BufferKind>, vk::AccelerationStructureKHR),
 }
 
 /// GPU state that outlives one frame's graph: transient images and buffers, the descriptor pool
@@ -40,12 +43,16 @@ const EVICT_AFTER: u64 = 8;
 
 impl TransientCache {
     pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<TransientCache> {
-        let sizes = [
+        let mut sizes = vec![
             vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: POOL_SETS * 4 },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: POOL_SETS * 2 },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: POOL_SETS * 6 },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: POOL_SETS * 2 },
         ];
+        if ctx.capabilities.ray_query {
+            let ty = vk::DescriptorType::ACCELERATION_STRUCTURE_KHR;
+            sizes.push(vk::DescriptorPoolSize { ty, descriptor_count: POOL_SETS });
+        }
         let info = vk::DescriptorPoolCreateInfo::default().max_sets(POOL_SETS).pool_sizes(&sizes);
         // SAFETY: valid device.
         let descriptor_pool = unsafe { ctx.device.create_descriptor_pool(&info, None) }.vk("vkCreateDescriptorPool")?;
@@ -311,6 +318,7 @@ impl PassContext<'_> {
         let set = unsafe { self.device.allocate_descriptor_sets(&alloc) }.vk("vkAllocateDescriptorSets")?[0];
         let mut image_infos = Vec::with_capacity(bound.len());
         let mut buffer_infos = Vec::with_capacity(bound.len());
+        let mut structures = Vec::with_capacity(bound.len());
         for &(_, b) in bound {
             match b {
                 Bound::Image(r) => image_infos.push(
@@ -318,8 +326,14 @@ impl PassContext<'_> {
                 ),
                 Bound::Buffer(r) => buffer_infos
                     .push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(0).range(vk::WHOLE_SIZE)),
+                Bound::AccelerationStructure(_, accel) => structures.push(accel),
             }
         }
+        let mut accel_writes: Vec<_> = structures
+            .iter()
+            .map(|a| vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(std::slice::from_ref(a)))
+            .collect();
+        let mut accel_writes = accel_writes.iter_mut();
         let (mut ii, mut bi) = (0, 0);
         let mut writes = Vec::with_capacity(bound.len());
         for &(binding, b) in bound {
@@ -334,6 +348,9 @@ impl PassContext<'_> {
                 Bound::Buffer(_) => {
                     bi += 1;
                     w.buffer_info(std::slice::from_ref(&buffer_infos[bi - 1]))
+                }
+                Bound::AccelerationStructure(..) => {
+                    w.descriptor_count(1).push_next(accel_writes.next().expect("one write per structure"))
                 }
             });
         }

@@ -1,6 +1,7 @@
 //! One file per pass. A pass is a free function from graph handles to graph handles: it declares
 //! what it reads and writes and records its draw or dispatch; the graph does the rest.
 
+pub mod accel;
 pub mod accumulate;
 pub mod compose;
 pub mod debug_view;
@@ -12,7 +13,7 @@ pub mod readback;
 pub mod shadow_trace;
 pub mod tonemap;
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use ash::vk;
 
@@ -46,6 +47,9 @@ pub struct Pipelines {
     pub tonemap: ComputePipeline,
     pub debug_view: debug_view::DebugPipelines,
     pub accumulate: ComputePipeline,
+    /// Made on first use, and only on devices with ray query.
+    shadow_trace_rq: OnceLock<ComputePipeline>,
+    ctx: Arc<GpuContext>,
 }
 
 impl Pipelines {
@@ -58,7 +62,18 @@ impl Pipelines {
             tonemap: tonemap::pipeline(ctx)?,
             debug_view: debug_view::pipelines(ctx)?,
             accumulate: accumulate::pipeline(ctx)?,
+            shadow_trace_rq: OnceLock::new(),
+            ctx: ctx.clone(),
         })
+    }
+
+    /// The ray-query shadow pipeline, compiled the first time a frame asks for it.
+    pub fn shadow_trace_rq(&self) -> GpuResult<&ComputePipeline> {
+        if let Some(p) = self.shadow_trace_rq.get() {
+            return Ok(p);
+        }
+        let made = shadow_trace::ray_query_pipeline(&self.ctx)?;
+        Ok(self.shadow_trace_rq.get_or_init(|| made))
     }
 }
 

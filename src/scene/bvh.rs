@@ -90,20 +90,26 @@ pub struct ShadowBvh {
     depth: usize,
 }
 
+/// The shadow casters of `scene` as the BVH (and the ray-query backend's acceleration
+/// structure) see them: the triangles of every mesh with `cast_shadows`, in mesh order, without
+/// those with non-finite vertices (they would poison the bounding boxes).
+pub fn caster_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
+    scene
+        .meshes
+        .iter()
+        .filter(|mesh| mesh.cast_shadows)
+        .flat_map(|mesh| {
+            mesh.indices.chunks_exact(3).map(|i| [i[0], i[1], i[2]].map(|index| mesh.positions[index as usize]))
+        })
+        .filter(|tri| tri.iter().all(|v| v.is_finite()))
+        .collect()
+}
+
 impl ShadowBvh {
     /// Builds over the world-space triangles of every mesh with `cast_shadows`. Triangles with
     /// non-finite vertices are skipped: they would poison the bounding boxes.
     pub fn build(scene: &Scene) -> ShadowBvh {
-        let tris: Vec<[Vec3; 3]> = scene
-            .meshes
-            .iter()
-            .filter(|mesh| mesh.cast_shadows)
-            .flat_map(|mesh| {
-                mesh.indices.chunks_exact(3).map(|i| [i[0], i[1], i[2]].map(|index| mesh.positions[index as usize]))
-            })
-            .filter(|tri| tri.iter().all(|v| v.is_finite()))
-            .collect();
-        ShadowBvh::from_triangles(&tris)
+        ShadowBvh::from_triangles(&caster_triangles(scene))
     }
 
     pub fn from_triangles(tris: &[[Vec3; 3]]) -> ShadowBvh {

@@ -17,6 +17,8 @@ pub enum DescriptorKind {
     /// A combined image sampler with the pipeline's nearest-filtering sampler (used with texelFetch).
     SampledImage,
     StorageImage,
+    /// A top-level acceleration structure for ray queries.
+    AccelerationStructure,
 }
 
 impl DescriptorKind {
@@ -26,6 +28,7 @@ impl DescriptorKind {
             DescriptorKind::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
             DescriptorKind::SampledImage => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
             DescriptorKind::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
+            DescriptorKind::AccelerationStructure => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
         }
     }
 }

@@ -49,6 +49,12 @@ impl Buffer {
         Ok(buffer)
     }
 
+    /// The buffer's device address (it must have been created with SHADER_DEVICE_ADDRESS).
+    pub fn device_address(&self) -> vk::DeviceAddress {
+        // SAFETY: valid buffer; buffer device address is enabled wherever umbra asks for one.
+        unsafe { self.ctx.device.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(self.raw)) }
+    }
+
     /// The mapped bytes of a host-visible buffer.
     pub fn mapped(&self) -> &[u8] {
         let a = self.allocation.as_ref().expect("live buffer");

@@ -1,0 +1,284 @@
+//! The ray-query backend's scene: the device's own acceleration structures over the same shadow
+//! casters the compute BVH holds (one bottom level, one top-level instance), and the graph
+//! passes that build them. Built once, by the first frame that traces with ray query, and
+//! never again for the same scene; later frames only read them.
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+use ash::vk;
+use glam::Vec3;
+use gpu_allocator::MemoryLocation;
+
+use crate::graph::{Access, BufferKind, CompiledGraph, Handle, RenderGraph};
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, VkContext};
+
+/// The pass names, so the renderer can tell from a plan whether the build ran.
+pub const BUILD_BOTTOM: &str = "build BLAS";
+pub const BUILD_TOP: &str = "build TLAS";
+
+/// One acceleration structure and the buffer that holds it.
+struct Structure {
+    buffer: Buffer,
+    raw: vk::AccelerationStructureKHR,
+    loader: ash::khr::acceleration_structure::Device,
+}
+
+impl Structure {
+    fn new(ctx: &Arc<GpuContext>, name: &str, ty: vk::AccelerationStructureTypeKHR, size: u64) -> GpuResult<Self> {
+        let loader = ctx.acceleration_structure.clone().expect("ray query is enabled");
+        let usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let buffer = Buffer::new(ctx, name, size, usage, MemoryLocation::GpuOnly)?;
+        let info = vk::AccelerationStructureCreateInfoKHR::default().buffer(buffer.raw).offset(0).size(size).ty(ty);
+        // SAFETY: the buffer is live, large enough, and outlives the structure (dropped after it).
+        let raw = unsafe { loader.create_acceleration_structure(&info, None) }.vk("vkCreateAccelerationStructureKHR")?;
+        Ok(Structure { buffer, raw, loader })
+    }
+
+    fn address(&self) -> vk::DeviceAddress {
+        let info = vk::AccelerationStructureDeviceAddressInfoKHR::default().acceleration_structure(self.raw);
+        // SAFETY: valid structure.
+        unsafe { self.loader.get_acceleration_structure_device_address(&info) }
+    }
+}
+
+impl Drop for Structure {
+    fn drop(&mut self) {
+        // SAFETY: the owner waits for the GPU before dropping the scene.
+        unsafe { self.loader.destroy_acceleration_structure(self.raw, None) };
+    }
+}
+
+/// The acceleration structures of one scene, with their build inputs.
+pub struct RayQueryScene {
+    // Structures first: they are destroyed before the buffers they live in and read from.
+    top: Structure,
+    bottom: Structure,
+    positions: Buffer,
+    instances: Buffer,
+    triangles: u32,
+    bottom_scratch: u64,
+    top_scratch: u64,
+    scratch_alignment: u64,
+    built: AtomicBool,
+}
+
+/// The graph handles a shadow pass reads: the top level it binds, and the bottom level its
+/// rays traverse through it.
+pub struct RayQueryHandles {
+    pub top: Handle<BufferKind>,
+    pub bottom: Handle<BufferKind>,
+    pub top_raw: vk::AccelerationStructureKHR,
+}
+
+impl RayQueryScene {
+    /// Creates (but does not build) the structures over `triangles`, which must not be empty.
+    pub fn new(ctx: &Arc<GpuContext>, triangles: &[[Vec3; 3]]) -> GpuResult<RayQueryScene> {
+        if !ctx.capabilities.ray_query {
+            return Err(GpuError::Unsupported(format!(
+                "the ray-query shadow backend needs VK_KHR_acceleration_structure and VK_KHR_ray_query, which {} \
+                 ({}) lacks; use --shadow-backend compute (umbra devices lists what each device has)",
+                ctx.device_name(),
+                ctx.driver
+            )));
+        }
+        assert!(!triangles.is_empty(), "no casters: nothing to build");
+        let loader = ctx.acceleration_structure.clone().expect("ray query is enabled");
+        let count = u32::try_from(triangles.len())
+            .map_err(|_| GpuError::Unsupported(format!("{} shadow casters exceed one BLAS", triangles.len())))?;
+        let flat: Vec<[f32; 3]> = triangles.iter().flatten().map(|v| v.to_array()).collect();
+        let input = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
+            | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let [positions] = crate::renderer::upload(ctx, [("caster positions", bytemuck::cast_slice(&flat), input)])?;
+        // The instance's reference is filled once the bottom level exists; a placeholder sizes
+        // the top level, whose size does not depend on it.
+        let geometry = [bottom_geometry(positions.device_address(), count)];
+        let bottom_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, &geometry, count);
+        let bottom =
+            Structure::new(ctx, "BLAS", vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, bottom_sizes.acceleration_structure_size)?;
+        let instance = vk::AccelerationStructureInstanceKHR {
+            transform: vk::TransformMatrixKHR { matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0] },
+            instance_custom_index_and_mask: vk::Packed24_8::new(0, 0xff),
+            instance_shader_binding_table_record_offset_and_flags: vk::Packed24_8::new(
+                0,
+                vk::GeometryInstanceFlagsKHR::TRIANGLE_FACING_CULL_DISABLE.as_raw() as u8,
+            ),
+            acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
+                device_handle: bottom.address(),
+            },
+        };
+        // SAFETY: the instance struct is plain data laid out as Vulkan specifies (64 bytes).
+        let instance_bytes = unsafe {
+            std::slice::from_raw_parts(
+                (&instance as *const vk::AccelerationStructureInstanceKHR).cast::<u8>(),
+                std::mem::size_of::<vk::AccelerationStructureInstanceKHR>(),
+            )
+        };
+        let [instances] = crate::renderer::upload(ctx, [("TLAS instances", instance_bytes, input)])?;
+        let top_geometry = [top_geometry(instances.device_address())];
+        let top_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &top_geometry, 1);
+        let top = Structure::new(ctx, "TLAS", vk::AccelerationStructureTypeKHR::TOP_LEVEL, top_sizes.acceleration_structure_size)?;
+        let mut accel_props = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
+        let mut props = vk::PhysicalDeviceProperties2::default().push_next(&mut accel_props);
+        // SAFETY: core query on the context's device.
+        unsafe { ctx.instance.get_physical_device_properties2(ctx.physical, &mut props) };
+        log::info!(
+            "ray query: BLAS {} B over {count} triangles, TLAS {} B, scratch {} B",
+            bottom_sizes.acceleration_structure_size,
+            top_sizes.acceleration_structure_size,
+            bottom_sizes.build_scratch_size.max(top_sizes.build_scratch_size)
+        );
+        Ok(RayQueryScene {
+            top,
+            bottom,
+            positions,
+            instances,
+            triangles: count,
+            bottom_scratch: bottom_sizes.build_scratch_size,
+            top_scratch: top_sizes.build_scratch_size,
+            scratch_alignment: u64::from(accel_props.min_acceleration_structure_scratch_offset_alignment).max(1),
+            built: AtomicBool::new(false),
+        })
+    }
+
+    /// GPU bytes the structures take (not counting their build inputs and scratch).
+    pub fn bytes(&self) -> u64 {
+        self.top.buffer.size + self.bottom.buffer.size
+    }
+
+    /// Imports the structures into `g`; on the first frame, adds the passes that build them.
+    pub fn add<'a>(&'a self, g: &mut RenderGraph<'a>) -> RayQueryHandles {
+        let read = Access::ComputeShaderReadAccelerationStructure;
+        if self.built.load(Ordering::Acquire) {
+            // Built by an earlier frame, whose shadow pass already made them visible to rays.
+            return RayQueryHandles {
+                top: g.import_buffer("TLAS", &self.top.buffer, read),
+                bottom: g.import_buffer("BLAS", &self.bottom.buffer, read),
+                top_raw: self.top.raw,
+            };
+        }
+        let positions = g.import_buffer("caster positions", &self.positions, crate::renderer::SCENE_ACCESS);
+        let instances = g.import_buffer("TLAS instances", &self.instances, crate::renderer::SCENE_ACCESS);
+        let mut bottom = g.import_buffer("BLAS", &self.bottom.buffer, Access::Nothing);
+        let mut top = g.import_buffer("TLAS", &self.top.buffer, Access::Nothing);
+        // One scratch buffer serves both builds; the graph orders the second after the first.
+        let scratch_size = self.bottom_scratch.max(self.top_scratch) + self.scratch_alignment;
+        let mut scratch = g.create_buffer("AS scratch", scratch_size);
+
+        let mut pass = g.add_pass(BUILD_BOTTOM);
+        let _ = pass.read(&positions, Access::AccelerationStructureBuildInput);
+        let scratch_ref = pass.write(&mut scratch, Access::AccelerationStructureBuildScratch);
+        let _ = pass.write(&mut bottom, Access::AccelerationStructureBuildWrite);
+        let (loader, align) = (self.bottom.loader.clone(), self.scratch_alignment);
+        let (positions_address, count, dst) = (self.positions.device_address(), self.triangles, self.bottom.raw);
+        pass.render(move |pctx| {
+            let scratch = align_up(buffer_address(pctx.device, pctx.buffer(scratch_ref)), align);
+            let geometry = [bottom_geometry(positions_address, count)];
+            record_build(pctx.cmd, &loader, vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, &geometry, count, dst, scratch);
+            Ok(())
+        });
+
+        let mut pass = g.add_pass(BUILD_TOP);
+        let _ = pass.read(&instances, Access::AccelerationStructureBuildInput);
+        let _ = pass.read(&bottom, Access::AccelerationStructureBuildRead);
+        let scratch_ref = pass.write(&mut scratch, Access::AccelerationStructureBuildScratch);
+        let _ = pass.write(&mut top, Access::AccelerationStructureBuildWrite);
+        let loader = self.top.loader.clone();
+        let (instances_address, dst) = (self.instances.device_address(), self.top.raw);
+        pass.render(move |pctx| {
+            let scratch = align_up(buffer_address(pctx.device, pctx.buffer(scratch_ref)), align);
+            let geometry = [top_geometry(instances_address)];
+            record_build(pctx.cmd, &loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &geometry, 1, dst, scratch);
+            Ok(())
+        });
+        RayQueryHandles { top, bottom, top_raw: self.top.raw }
+    }
+
+    /// After a frame from `add` was recorded: remembers whether it built the structures (its
+    /// build passes can be culled, when nothing in that frame traced rays).
+    pub fn note_recorded(&self, plan: &CompiledGraph) {
+        if plan.passes.iter().any(|p| p.name == BUILD_TOP && !p.culled) {
+            self.built.store(true, Ordering::Release);
+        }
+    }
+}
+
+fn align_up(address: u64, align: u64) -> u64 {
+    address.div_ceil(align) * align
+}
+
+fn buffer_address(device: &ash::Device, buffer: vk::Buffer) -> vk::DeviceAddress {
+    // SAFETY: the graph's transient buffer was created with SHADER_DEVICE_ADDRESS (derived from
+    // the scratch access).
+    unsafe { device.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(buffer)) }
+}
+
+fn bottom_geometry(positions: vk::DeviceAddress, count: u32) -> vk::AccelerationStructureGeometryKHR<'static> {
+    let triangles = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+        .vertex_format(vk::Format::R32G32B32_SFLOAT)
+        .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: positions })
+        .vertex_stride(12)
+        .max_vertex(count * 3 - 1)
+        .index_type(vk::IndexType::NONE_KHR);
+    vk::AccelerationStructureGeometryKHR::default()
+        .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+        .geometry(vk::AccelerationStructureGeometryDataKHR { triangles })
+        // Opaque: any hit ends the ray without a candidate reaching the shader.
+        .flags(vk::GeometryFlagsKHR::OPAQUE)
+}
+
+fn top_geometry(instances: vk::DeviceAddress) -> vk::AccelerationStructureGeometryKHR<'static> {
+    let instances = vk::AccelerationStructureGeometryInstancesDataKHR::default()
+        .array_of_pointers(false)
+        .data(vk::DeviceOrHostAddressConstKHR { device_address: instances });
+    vk::AccelerationStructureGeometryKHR::default()
+        .geometry_type(vk::GeometryTypeKHR::INSTANCES)
+        .geometry(vk::AccelerationStructureGeometryDataKHR { instances })
+}
+
+fn build_info<'g>(
+    ty: vk::AccelerationStructureTypeKHR,
+    geometry: &'g [vk::AccelerationStructureGeometryKHR<'g>],
+) -> vk::AccelerationStructureBuildGeometryInfoKHR<'g> {
+    vk::AccelerationStructureBuildGeometryInfoKHR::default()
+        .ty(ty)
+        .flags(vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE)
+        .mode(vk::BuildAccelerationStructureModeKHR::BUILD)
+        .geometries(geometry)
+}
+
+fn build_sizes(
+    loader: &ash::khr::acceleration_structure::Device,
+    ty: vk::AccelerationStructureTypeKHR,
+    geometry: &[vk::AccelerationStructureGeometryKHR<'_>],
+    primitives: u32,
+) -> vk::AccelerationStructureBuildSizesInfoKHR<'static> {
+    let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
+    // SAFETY: valid device; the geometry describes what the build will get.
+    unsafe {
+        loader.get_acceleration_structure_build_sizes(
+            vk::AccelerationStructureBuildTypeKHR::DEVICE,
+            &build_info(ty, geometry),
+            &[primitives],
+            &mut sizes,
+        )
+    };
+    sizes
+}
+
+fn record_build(
+    cmd: vk::CommandBuffer,
+    loader: &ash::khr::acceleration_structure::Device,
+    ty: vk::AccelerationStructureTypeKHR,
+    geometry: &[vk::AccelerationStructureGeometryKHR<'_>],
+    primitives: u32,
+    dst: vk::AccelerationStructureKHR,
+    scratch: vk::DeviceAddress,
+) {
+    let info = build_info(ty, geometry)
+        .dst_acceleration_structure(dst)
+        .scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch });
+    let range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(primitives)];
+    // SAFETY: recording state; inputs, destination and scratch are live and ordered by the graph.
+    unsafe { loader.cmd_build_acceleration_structures(cmd, &[info], &[&range]) };
+}

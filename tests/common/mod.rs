@@ -9,15 +9,21 @@ use umbra::vk::{GpuContext, GpuOptions};
 
 static ENV: Once = Once::new();
 
-/// Points the loader at lavapipe unless the caller chose a driver already (tools/test does).
+/// Points the loader at lavapipe unless the caller chose a driver already (tools/env.sh does):
+/// Mesa 25's copy under .deps/ where tools/setup unpacked one, else the system's.
 pub fn lavapipe_env() {
     ENV.call_once(|| {
         if std::env::var_os("VK_ICD_FILENAMES").is_none() {
-            let icd = std::fs::read_dir("/usr/share/vulkan/icd.d")
-                .expect("Vulkan ICD directory; run tools/setup")
-                .filter_map(|e| e.ok().map(|e| e.path()))
-                .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("lvp_icd")))
-                .expect("lavapipe ICD; run tools/setup");
+            let local = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join(".deps/mesa25/lvp_icd.json");
+            let icd = if local.is_file() {
+                local
+            } else {
+                std::fs::read_dir("/usr/share/vulkan/icd.d")
+                    .expect("Vulkan ICD directory; run tools/setup")
+                    .filter_map(|e| e.ok().map(|e| e.path()))
+                    .find(|p| p.file_name().is_some_and(|n| n.to_string_lossy().starts_with("lvp_icd")))
+                    .expect("lavapipe ICD; run tools/setup")
+            };
             std::env::set_var("VK_ICD_FILENAMES", &icd);
             std::env::set_var("VK_DRIVER_FILES", &icd);
         }

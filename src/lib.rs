@@ -1,6 +1,7 @@
 //! umbra: an explicit Vulkan renderer whose shadows are ray traced in a compute pass over a
 //! CPU-built BVH, so it runs on any Vulkan 1.3 device, software rasterisers included.
 
+pub mod config;
 pub mod graph;
 pub mod output;
 pub mod passes;

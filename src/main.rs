@@ -49,6 +49,10 @@ struct ViewArgs {
     /// Replay camera moves and key presses from a file (see docs/viewer.md).
     #[arg(long)]
     script: Option<PathBuf>,
+    /// What shadow rays traverse at start: compute or ray-query (B switches in the window).
+    /// Default: the scene's `[render] shadow_backend`, else compute.
+    #[arg(long, value_enum)]
+    shadow_backend: Option<ShadowBackend>,
     /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
     #[arg(long)]
     device: Option<String>,
@@ -160,7 +164,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         camera: None,
         shadows: vec![args.shadows; scene.lights.len()],
         soft_spp: args.spp,
-        shadow_backend: args.shadow_backend.unwrap_or_default(),
+        shadow_backend: args.shadow_backend.or(scene.shadow_backend).unwrap_or_default(),
         frame_index: 0,
     };
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
@@ -222,6 +226,7 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         Some(p) => format!("umbra - {}", p.display()),
         None => "umbra - default scene".into(),
     };
+    let scene_backend = scene.shadow_backend;
     let options = umbra::viewer::ViewerOptions {
         size: args.size.or(scene.image_size).unwrap_or((960, 540)),
         scene,
@@ -229,6 +234,7 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         title,
         validate: args.validate,
         device: args.device,
+        shadow_backend: args.shadow_backend.or(scene_backend).unwrap_or_default(),
         frames: args.frames,
         vsync: args.vsync,
         script,

@@ -177,6 +177,7 @@ fn scene_build_takes_only_shadow_casters() {
         lights: vec![],
         meshes: vec![mesh("caster", 1.0, true), mesh("receiver", 2.0, false)],
         stats: LoadStats::default(),
+        shadow_backend: None,
     };
     let bvh = ShadowBvh::build(&scene);
     assert_eq!(bvh.triangle_count(), 1);

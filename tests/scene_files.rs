@@ -610,3 +610,17 @@ fn translated_is_exact_when_the_sum_is_representable() {
     }
     assert_eq!(moved.camera.eye.as_dvec3() - offset, scene.camera.eye.as_dvec3());
 }
+
+#[test]
+fn render_table_chooses_the_shadow_backend() {
+    use umbra::config::ShadowBackend;
+    assert_eq!(parse(CAMERA).shadow_backend, None);
+    let scene = parse(&with_camera("[render]\nshadow_backend = \"ray-query\"\n"));
+    assert_eq!(scene.shadow_backend, Some(ShadowBackend::RayQuery));
+    let scene = parse(&with_camera("[render]\nshadow_backend = \"compute\"\n"));
+    assert_eq!(scene.shadow_backend, Some(ShadowBackend::Compute));
+    let message = parse_error(&with_camera("[render]\nshadow_backend = \"rtx\"\n"));
+    assert!(message.contains("render.shadow_backend") && message.contains("ray-query"), "{message}");
+    let message = parse_error(&with_camera("[render]\nbackend = \"compute\"\n"));
+    assert!(message.contains("render") && message.contains("backend"), "{message}");
+}

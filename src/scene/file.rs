@@ -9,6 +9,7 @@ use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 
 use super::error::SceneError;
+use crate::config::ShadowBackend;
 use super::mesh::{self, ObjectMesh};
 use super::{obj, shapes, Camera, Light, LoadStats, Material, Scene};
 
@@ -21,6 +22,14 @@ struct SceneFile {
     lights: Vec<LightDesc>,
     #[serde(default)]
     objects: Vec<ObjectDesc>,
+    render: Option<RenderDesc>,
+}
+
+/// `[render]`: how the scene asks to be rendered, where the command line says nothing.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RenderDesc {
+    shadow_backend: Option<ShadowBackend>,
 }
 
 #[derive(Deserialize)]
@@ -189,7 +198,8 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.degenerate_triangles += dropped.degenerate_triangles;
         stats.non_finite_triangles += dropped.non_finite_triangles;
     }
-    Ok(Scene { image_size, camera, lights, meshes, stats })
+    let shadow_backend = file.render.and_then(|r| r.shadow_backend);
+    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend })
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.

@@ -88,6 +88,8 @@ pub struct Scene {
     pub lights: Vec<Light>,
     pub meshes: Vec<Mesh>,
     pub stats: LoadStats,
+    /// `[render] shadow_backend`, if the file names one (the command line overrides it).
+    pub shadow_backend: Option<crate::config::ShadowBackend>,
 }
 
 /// The built-in scene: built-in shapes only, so it needs no file beside the binary.

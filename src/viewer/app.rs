@@ -32,6 +32,8 @@ pub struct ViewerOptions {
     pub size: (u32, u32),
     pub validate: bool,
     pub device: Option<String>,
+    /// What shadow rays traverse at start (B switches it).
+    pub shadow_backend: crate::config::ShadowBackend,
     /// Present with FIFO (paced to the display) instead of mailbox.
     pub vsync: bool,
     /// Close after this many presented frames.
@@ -192,6 +194,13 @@ impl App {
         let handle = window.window_handle().context("window handle")?.as_raw();
         let gpu = GpuOptions { validate: o.validate, device_name: o.device.clone() };
         let (ctx, surface) = GpuContext::with_window(&gpu, display, handle)?;
+        if o.shadow_backend == crate::config::ShadowBackend::RayQuery && !ctx.capabilities.ray_query {
+            anyhow::bail!(
+                "--shadow-backend ray-query: {} ({}) has no VK_KHR_ray_query; use compute (umbra devices lists what each device has)",
+                ctx.device_name(),
+                ctx.driver
+            );
+        }
         let renderer = Renderer::new(ctx.clone(), o.scene.clone()).context("preparing the scene")?;
         let size = window.inner_size();
         let presenter = Presenter::new(surface, size.width, size.height, o.vsync)?;
@@ -199,7 +208,7 @@ impl App {
         Ok(Running {
             presenter,
             camera: FlyCamera::from_scene(&o.scene.camera),
-            settings: ViewerSettings::new(o.scene.lights.len()),
+            settings: ViewerSettings { shadow_backend: o.shadow_backend, ..ViewerSettings::new(o.scene.lights.len()) },
             renderer,
             window,
             ctx,
@@ -283,6 +292,9 @@ impl Running {
                     if let Err(e) = self.screenshot(None) {
                         log::error!("screenshot failed: {e:#}");
                     }
+                }
+                Key::B if !self.ctx.capabilities.ray_query => {
+                    log::warn!("B: {} has no ray query; shadows stay on the compute BVH", self.ctx.device_name())
                 }
                 _ => self.settings.on_key(key),
             },
@@ -401,6 +413,7 @@ fn map_key(code: KeyCode) -> Option<Key> {
         KeyCode::KeyL => Key::L,
         KeyCode::KeyT => Key::T,
         KeyCode::KeyV => Key::V,
+        KeyCode::KeyB => Key::B,
         KeyCode::Equal | KeyCode::NumpadAdd => Key::Plus,
         KeyCode::Minus | KeyCode::NumpadSubtract => Key::Minus,
         KeyCode::BracketLeft => Key::BracketLeft,

@@ -21,6 +21,8 @@ pub enum Key {
     T,
     /// Cycle the debug view.
     V,
+    /// Switch the shadow backend (compute BVH / ray query).
+    B,
     Plus,
     Minus,
     /// Halve / double the soft-shadow samples.
@@ -45,6 +47,7 @@ impl Key {
             "L" => Key::L,
             "T" => Key::T,
             "V" => Key::V,
+            "B" => Key::B,
             "PLUS" | "+" => Key::Plus,
             "MINUS" | "-" => Key::Minus,
             "[" | "BRACKETLEFT" => Key::BracketLeft,

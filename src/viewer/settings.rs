@@ -3,6 +3,7 @@
 
 use super::input::Key;
 use crate::passes::debug_view::DebugView;
+use crate::config::ShadowBackend;
 use crate::renderer::{OutputKind, RenderSettings, ShadowMethod};
 use crate::scene::{Camera, Light};
 
@@ -24,6 +25,8 @@ pub struct ViewerSettings {
     pub exposure_ev: f32,
     /// Soft-shadow rays per pixel and light per frame.
     pub soft_spp: u32,
+    /// What shadow rays traverse (B switches it).
+    pub shadow_backend: ShadowBackend,
 }
 
 pub const MAX_SPP: u32 = 64;
@@ -37,6 +40,7 @@ impl ViewerSettings {
             overlay: true,
             exposure_ev: 0.0,
             soft_spp: 4,
+            shadow_backend: ShadowBackend::Compute,
         }
     }
 
@@ -56,6 +60,7 @@ impl ViewerSettings {
             Key::BracketLeft => self.soft_spp = (self.soft_spp / 2).max(1),
             Key::BracketRight => self.soft_spp = (self.soft_spp * 2).min(MAX_SPP),
             Key::V => self.view = (self.view + 1) % VIEWS.len(),
+            Key::B => self.shadow_backend = self.shadow_backend.next(),
             Key::Plus => self.exposure_ev += 0.5,
             Key::Minus => self.exposure_ev -= 0.5,
             _ => {}
@@ -71,6 +76,7 @@ impl ViewerSettings {
         s.camera = Some(camera);
         s.shadows = self.shadows.clone();
         s.soft_spp = self.soft_spp;
+        s.shadow_backend = self.shadow_backend;
         s
     }
 
@@ -91,7 +97,12 @@ impl ViewerSettings {
             ));
         }
         let view = self.debug_view().map_or("shaded".to_string(), |v| format!("{v:?}").to_lowercase());
-        lines.push(format!("view {view}  {:+.1} EV  soft {} spp/frame", self.exposure_ev, self.soft_spp));
+        lines.push(format!(
+            "view {view}  {:+.1} EV  soft {} spp/frame  rays: {}",
+            self.exposure_ev,
+            self.soft_spp,
+            self.shadow_backend.name()
+        ));
         lines
     }
 }
@@ -140,6 +151,11 @@ mod tests {
         );
         s.on_key(Key::F1);
         assert!(!s.overlay);
+        let cam = Camera { eye: glam::Vec3::Z, target: glam::Vec3::ZERO, up: glam::Vec3::Y, vfov_deg: 40.0 };
+        s.on_key(Key::B);
+        assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::RayQuery);
+        s.on_key(Key::B);
+        assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::Compute, "B toggles back");
     }
 
     #[test]

@@ -427,7 +427,7 @@ fn debug_views_schedule_only_what_they_need() {
     let live = |output: OutputKind, view: Option<DebugView>, renderer: &Renderer| {
         let mut settings = RenderSettings::new(WIDTH, HEIGHT, output);
         settings.debug_view = view;
-        renderer.plan(&settings).live_pass_names()
+        renderer.plan(&settings).expect("plan").live_pass_names()
     };
 
     for output in [OutputKind::Display, OutputKind::SceneLinear] {
@@ -463,7 +463,7 @@ fn debug_views_schedule_only_what_they_need() {
     // Every light unshadowed by the settings: nothing to trace.
     let mut settings = RenderSettings::new(WIDTH, HEIGHT, OutputKind::SceneLinear);
     settings.shadows = vec![ShadowMethod::None; 3];
-    let passes = renderer.plan(&settings).live_pass_names();
+    let passes = renderer.plan(&settings).expect("plan").live_pass_names();
     assert!(!passes.contains(&"shadow trace") && passes.contains(&"compose"), "{passes:?}");
     drop(renderer);
 

@@ -8,5 +8,6 @@ pub mod passes;
 pub mod renderer;
 pub mod scene;
 pub mod shading;
+pub mod timing;
 pub mod viewer;
 pub mod vk;

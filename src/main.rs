@@ -3,6 +3,7 @@
 
 use std::path::PathBuf;
 use std::process::ExitCode;
+use std::time::Instant;
 
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
@@ -11,6 +12,7 @@ use umbra::output::{write_image, ImageFormat};
 use umbra::passes::debug_view::DebugView;
 use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowBackend, ShadowMethod};
 use umbra::scene::Scene;
+use umbra::timing::{TimingCalibration, TimingLog};
 use umbra::vk::{GpuContext, GpuOptions};
 
 #[derive(Parser)]
@@ -74,7 +76,8 @@ struct RenderArgs {
     /// Frames to render (the last one is written); timings are medians over them.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: u32,
-    /// Print per-pass GPU times from timestamp queries (median over --frames).
+    /// Print per-pass and whole-frame GPU times (timestamps) and host time per frame, median and
+    /// interquartile range over --frames.
     #[arg(long)]
     timings: bool,
     /// Write a G-buffer channel or the first light's visibility instead of the shaded image.
@@ -100,6 +103,10 @@ struct RenderArgs {
     /// Print the compiled frame-graph plan.
     #[arg(long)]
     print_plan: bool,
+    /// Tests only: add a compute pass "busy" of this many loop iterations (256 dependent FMAs
+    /// each) after the geometry pass, a GPU cost of known size for checking timings.
+    #[arg(long, hide = true, value_parser = clap::value_parser!(u32).range(1..=65535))]
+    busy_pass: Option<u32>,
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
@@ -166,33 +173,33 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         soft_spp: args.spp,
         shadow_backend: args.shadow_backend.or(scene.shadow_backend).unwrap_or_default(),
         frame_index: 0,
+        busy_iterations: args.busy_pass,
     };
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();
     let mut renderer = Renderer::new(ctx.clone(), scene).context("preparing the scene")?;
-    let mut per_pass: Vec<(&'static str, Vec<f64>)> = Vec::new();
+    // Before the first frame, so its host time holds no calibration.
+    let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
+    let mut timings = TimingLog::default();
     let mut frame = None;
     for i in 0..args.frames {
+        let start = Instant::now();
         frame = Some(renderer.render(&settings)?);
+        let host_ms = start.elapsed().as_secs_f64() * 1e3;
         if i == 0 && args.print_plan {
             if let Some(plan) = renderer.last_plan() {
                 println!("{plan}");
             }
         }
         if args.timings {
-            for (i, (name, ms)) in renderer.last_timings()?.into_iter().enumerate() {
-                if per_pass.len() <= i {
-                    per_pass.push((name, Vec::new()));
-                }
-                per_pass[i].1.push(ms);
-            }
+            timings.record(renderer.last_gpu_timings()?.as_ref(), host_ms);
         }
     }
     let frame = frame.expect("at least one frame");
     write_image(&frame, &args.output)?;
     println!("wrote {} ({width}x{height}) on {device_name}", args.output.display());
-    if args.timings {
-        print_timings(&per_pass, args.frames, ctx.timestamp_period_ns.is_some());
+    if let Some(calibration) = &calibration {
+        print_timings(&timings, calibration);
     }
     drop(renderer);
     if args.validate {
@@ -272,21 +279,10 @@ fn devices() -> Result<ExitCode> {
     Ok(ExitCode::SUCCESS)
 }
 
-fn print_timings(per_pass: &[(&'static str, Vec<f64>)], frames: u32, supported: bool) {
-    if !supported {
-        println!("timings: this device's queue has no timestamp support");
-        return;
-    }
-    println!("GPU time per pass, median of {frames} frame(s):");
-    let mut total = 0.0;
-    for (name, samples) in per_pass {
-        let mut s = samples.clone();
-        s.sort_by(f64::total_cmp);
-        let median = s[s.len() / 2];
-        total += median;
-        println!("  {name:<16} {median:9.3} ms");
-    }
-    println!("  {:<16} {total:9.3} ms", "sum");
+/// Per pass and for the whole frame, median and IQR; a header says how the GPU figures were
+/// taken (the calibration's choice), or why there are none.
+fn print_timings(timings: &TimingLog, calibration: &TimingCalibration) {
+    print!("{}", timings.report(calibration));
 }
 
 #[cfg(test)]

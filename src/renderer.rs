@@ -7,16 +7,17 @@ use ash::vk;
 use glam::{DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
-use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
+use crate::graph::{Access, CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs, DebugView};
 use crate::passes::overlay::OverlayInputs;
 use crate::passes::accel::RayQueryScene;
-use crate::passes::{compose, geometry, overlay, present, readback, shadow_trace, tonemap, Pipelines};
+use crate::passes::{busy, compose, geometry, overlay, present, readback, shadow_trace, tonemap, Pipelines};
 use crate::scene::bvh::{caster_triangles, ShadowBvh};
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
-use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, ImageDesc};
+use crate::timing::TimingCalibration;
+use crate::vk::{Buffer, ComputePipeline, GpuContext, GpuError, GpuResult, ImageDesc};
 
 /// How frames find the scene's buffers: uploaded once and made visible to any read, so no
 /// frame needs a barrier for them (and frames in flight do not wait on each other's copies).
@@ -90,6 +91,9 @@ pub struct RenderSettings {
     pub shadow_backend: ShadowBackend,
     /// Seeds the soft-shadow samples, so successive frames draw fresh ones.
     pub frame_index: u32,
+    /// Tests only: adds the pass "busy" (`passes/busy.rs`, this many loop iterations) after
+    /// the geometry pass, a GPU cost of known size for checking timings.
+    pub busy_iterations: Option<u32>,
 }
 
 impl RenderSettings {
@@ -107,6 +111,7 @@ impl RenderSettings {
             soft_spp: 8,
             shadow_backend: ShadowBackend::Compute,
             frame_index: 0,
+            busy_iterations: None,
         }
     }
 
@@ -313,6 +318,10 @@ pub struct Renderer {
     accumulator: accumulate::Accumulator,
     last_plan: Option<CompiledGraph>,
     pipelines: Pipelines,
+    /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
+    busy: std::sync::OnceLock<ComputePipeline>,
+    /// How passes are timed on this device, found the first time timings are asked for.
+    timing: std::sync::OnceLock<TimingCalibration>,
     pub gpu_scene: SceneGpu,
     scene: Scene,
     pub ctx: Arc<GpuContext>,
@@ -352,6 +361,8 @@ impl Renderer {
             accumulator: accumulate::Accumulator::default(),
             last_plan: None,
             pipelines: Pipelines::new(&ctx)?,
+            busy: std::sync::OnceLock::new(),
+            timing: std::sync::OnceLock::new(),
             gpu_scene: SceneGpu::upload(&ctx, &local, &bvh, origin)?,
             scene,
             ctx,
@@ -365,8 +376,10 @@ impl Renderer {
     /// The compiled plan for `settings`, for printing and inspection.
     pub fn plan(&self, settings: &RenderSettings) -> GpuResult<CompiledGraph> {
         let traversal = self.traversal(settings)?;
+        let busy = settings.busy_iterations.map(|_| busy_pipeline(&self.busy, &self.ctx)).transpose()?;
         Ok(CompiledGraph::compile(&build_graph(
             &self.pipelines,
+            busy,
             &self.gpu_scene,
             &self.scene,
             settings,
@@ -413,12 +426,26 @@ impl Renderer {
     ) -> GpuResult<CompiledGraph> {
         check_limits(&self.ctx, &self.gpu_scene, settings)?;
         let traversal = self.traversal(settings)?;
-        let graph = build_graph(&self.pipelines, &self.gpu_scene, &self.scene, settings, traversal, target, history);
-        let plan = execute(cache, graph, cmd, settings)?;
+        let busy = settings.busy_iterations.map(|_| busy_pipeline(&self.busy, &self.ctx)).transpose()?;
+        let graph =
+            build_graph(&self.pipelines, busy, &self.gpu_scene, &self.scene, settings, traversal, target, history);
+        let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         if let Some(t) = traversal {
             t.scene.note_recorded(&plan);
         }
         Ok(plan)
+    }
+
+    /// How this device's passes can be timed: calibrated the first time it is asked (a few
+    /// hundred milliseconds, see `crate::timing`), then kept. Frames with `timestamps` use it;
+    /// before it is known they are timed the plain way.
+    pub fn calibrate_timings(&self) -> GpuResult<&TimingCalibration> {
+        if let Some(c) = self.timing.get() {
+            return Ok(c);
+        }
+        let found = crate::timing::calibrate(&self.ctx, busy_pipeline(&self.busy, &self.ctx)?)?;
+        log::info!("{}", found.summary());
+        Ok(self.timing.get_or_init(|| found))
     }
     /// Renders one frame and reads it back. Successive calls with the same settings and
     /// stochastic (soft) shadows return the running mean of all their frames.
@@ -434,6 +461,9 @@ impl Renderer {
                 vk::BufferUsageFlags::TRANSFER_DST,
                 MemoryLocation::GpuToCpu,
             )?);
+        }
+        if settings.timestamps {
+            self.calibrate_timings()?;
         }
         let readback = self.readback.take().expect("just made");
         let result = self.record_and_submit(settings, &readback);
@@ -457,7 +487,10 @@ impl Renderer {
         check_limits(&self.ctx, &self.gpu_scene, settings)?;
         // Made before the fields are borrowed apart below: it may create the structures.
         self.traversal(settings)?;
-        let Renderer { cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, ray_query, .. } = self;
+        let Renderer {
+            cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, ray_query, busy, timing, ..
+        } = self;
+        let busy = settings.busy_iterations.map(|_| busy_pipeline(busy, ctx)).transpose()?;
         let traversal = match (settings.shadow_backend, ray_query.get()) {
             (ShadowBackend::RayQuery, Some(scene)) => {
                 Some(RayQueryTraversal { scene, pipeline: pipelines.shadow_trace_rq()? })
@@ -467,8 +500,9 @@ impl Renderer {
         let mut settings = settings.clone();
         let history = accumulator.prepare(ctx, &mut settings, scene.lights.len())?;
         let accumulated = history.is_some();
-        let graph = build_graph(pipelines, gpu_scene, scene, &settings, traversal, Target::ReadBack(readback), history);
-        let plan = ctx.submit_and_wait(|cmd| execute(cache, graph, cmd, &settings))?;
+        let target = Target::ReadBack(readback);
+        let graph = build_graph(pipelines, busy, gpu_scene, scene, &settings, traversal, target, history);
+        let plan = ctx.submit_and_wait(|cmd| execute(cache, graph, cmd, timing_mode(timing, &settings)))?;
         if let Some(t) = traversal {
             t.scene.note_recorded(&plan);
         }
@@ -491,6 +525,32 @@ impl Renderer {
     pub fn last_timings(&self) -> GpuResult<Vec<(&'static str, f64)>> {
         self.cache.read_timings()
     }
+
+    /// Per-pass and whole-frame GPU times of the last frame (`None` when it was not timed).
+    pub fn last_gpu_timings(&self) -> GpuResult<Option<GpuTimings>> {
+        self.cache.read_gpu_timings()
+    }
+}
+
+/// The busy pass's pipeline, made on first use.
+fn busy_pipeline<'a>(
+    cell: &'a std::sync::OnceLock<ComputePipeline>,
+    ctx: &Arc<GpuContext>,
+) -> GpuResult<&'a ComputePipeline> {
+    if let Some(p) = cell.get() {
+        return Ok(p);
+    }
+    let made = busy::pipeline(ctx)?;
+    Ok(cell.get_or_init(|| made))
+}
+
+/// How a frame with `settings` is timed: not at all without `timestamps`; else as calibrated
+/// (not at all where the calibration found no way), or plain before any calibration.
+fn timing_mode(calibration: &std::sync::OnceLock<TimingCalibration>, settings: &RenderSettings) -> Option<TimingMode> {
+    if !settings.timestamps {
+        return None;
+    }
+    calibration.get().map_or(Some(TimingMode::Plain), |c| c.mode)
 }
 /// Refuses a frame whose visibility buffer (one f32 per pixel and light) would exceed what one
 /// storage-buffer binding may address on this device.
@@ -512,11 +572,11 @@ fn execute(
     cache: &mut TransientCache,
     graph: RenderGraph<'_>,
     cmd: vk::CommandBuffer,
-    settings: &RenderSettings,
+    timing: Option<TimingMode>,
 ) -> GpuResult<CompiledGraph> {
     let plan = CompiledGraph::compile(&graph);
     log::debug!("{plan}");
-    cache.execute(graph, &plan, cmd, settings.timestamps)?;
+    cache.execute_timed(graph, &plan, cmd, timing)?;
     Ok(plan)
 }
 
@@ -528,8 +588,10 @@ struct RayQueryTraversal<'a> {
 }
 
 /// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
+#[allow(clippy::too_many_arguments)] // `busy` is for tests only; the rest are what every frame needs.
 fn build_graph<'a>(
     pipelines: &'a Pipelines,
+    busy: Option<&'a ComputePipeline>,
     s: &'a SceneGpu,
     scene: &Scene,
     settings: &RenderSettings,
@@ -549,6 +611,11 @@ fn build_graph<'a>(
     let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
     let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
     let gbuffer = geometry::add(&mut g, &pipelines.geometry, s, &vertices, &indices, camera, extent);
+    // Tests only: a compute pass of known cost right after the rendering pass, kept by its export.
+    if let (Some(iterations), Some(pipeline)) = (settings.busy_iterations, busy) {
+        let result = busy::add(&mut g, pipeline, iterations);
+        g.export(result, Access::ComputeShaderReadStorageBuffer);
+    }
 
     // Shadow rays only where something can cast a shadow on a lit point, or where the
     // visibility view asks for them.

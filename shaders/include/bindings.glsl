@@ -41,4 +41,7 @@
 #define ACCUM_CURRENT 0
 #define ACCUM_HISTORY 1
 
+// busy.comp: a pass of known cost, for tests and the timing calibration
+#define BUSY_OUTPUT 0
+
 #endif

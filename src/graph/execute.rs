@@ -1,6 +1,7 @@
 //! Executing a compiled graph: resolve every resource to a Vulkan object (imported, or a
 //! transient from the cache keyed by description and usage), record each live pass behind its
-//! one batched barrier, and bracket passes with timestamps when asked.
+//! one batched barrier, and bracket passes with timestamps when asked, in one of two ways
+//! (`TimingMode`).
 
 use std::collections::HashMap;
 use std::sync::Arc;
@@ -20,6 +21,28 @@ pub enum Bound {
     /// An acceleration structure: the graph orders accesses on its backing buffer (the `Ref`),
     /// the descriptor names the structure itself.
     AccelerationStructure(Ref<BufferKind>, vk::AccelerationStructureKHR),
+}
+
+/// How passes are bracketed with timestamps (see `crate::timing` for how one is chosen).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TimingMode {
+    /// A TOP_OF_PIPE stamp before each pass and a BOTTOM_OF_PIPE stamp after it: the standard
+    /// way, with no effect on how passes overlap. Right where the device resolves each stamp
+    /// where it stands in the command stream.
+    Plain,
+    /// As `Plain`, with an execution barrier after every stamp, so a driver that defers
+    /// timestamps (lavapipe in Mesa 25 resolves them only when its pending rasteriser scene is
+    /// flushed) has to resolve each one at its place in the stream.
+    Flushed,
+}
+
+/// GPU times of one execution, in milliseconds.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GpuTimings {
+    /// Each timed pass, in execution order.
+    pub passes: Vec<(&'static str, f64)>,
+    /// The whole frame: the first pass's first stamp to the last pass's last stamp.
+    pub frame_ms: f64,
 }
 
 /// GPU state that outlives one frame's graph: transient images and buffers, the descriptor pool
@@ -94,10 +117,19 @@ impl TransientCache {
 
     /// Milliseconds per timed pass of the last execution, once its submission has completed.
     pub fn read_timings(&self) -> GpuResult<Vec<(&'static str, f64)>> {
+        Ok(self.read_gpu_timings()?.map(|t| t.passes).unwrap_or_default())
+    }
+
+    /// Per-pass and whole-frame GPU times of the last execution, once its submission has
+    /// completed; `None` if it was not timed.
+    pub fn read_gpu_timings(&self) -> GpuResult<Option<GpuTimings>> {
         let (Some((pool, _)), Some(period)) = (self.queries, self.ctx.timestamp_period_ns) else {
-            return Ok(Vec::new());
+            return Ok(None);
         };
         let n = self.timed_passes.len();
+        if n == 0 {
+            return Ok(None);
+        }
         let mut ticks = vec![0u64; n * 2];
         // SAFETY: the queries were written by the completed submission.
         unsafe {
@@ -106,12 +138,16 @@ impl TransientCache {
                 .get_query_pool_results(pool, 0, &mut ticks, vk::QueryResultFlags::TYPE_64 | vk::QueryResultFlags::WAIT)
                 .vk("vkGetQueryPoolResults")?
         };
-        Ok(self
-            .timed_passes
-            .iter()
-            .enumerate()
-            .map(|(i, name)| (*name, ticks[2 * i + 1].saturating_sub(ticks[2 * i]) as f64 * period as f64 * 1e-6))
-            .collect())
+        let ms = |from: u64, to: u64| to.saturating_sub(from) as f64 * f64::from(period) * 1e-6;
+        Ok(Some(GpuTimings {
+            passes: self
+                .timed_passes
+                .iter()
+                .enumerate()
+                .map(|(i, name)| (*name, ms(ticks[2 * i], ticks[2 * i + 1])))
+                .collect(),
+            frame_ms: ms(ticks[0], ticks[2 * n - 1]),
+        }))
     }
 
     /// Frees objects whose key no plan has used for EVICT_AFTER executions. Safe because, as
@@ -149,13 +185,26 @@ impl TransientCache {
         }
     }
 
-    /// Records `graph` (compiled as `plan`) into `cmd`. Culled passes are dropped unrun.
+    /// Records `graph` (compiled as `plan`) into `cmd`. Culled passes are dropped unrun. With
+    /// `timestamps`, passes are timed the plain way (`execute_timed` chooses).
     pub fn execute(
         &mut self,
         graph: RenderGraph<'_>,
         plan: &CompiledGraph,
         cmd: vk::CommandBuffer,
         timestamps: bool,
+    ) -> GpuResult<()> {
+        self.execute_timed(graph, plan, cmd, timestamps.then_some(TimingMode::Plain))
+    }
+
+    /// `execute`, with every live pass bracketed by timestamps written the way `timing` says
+    /// (none for `None`).
+    pub fn execute_timed(
+        &mut self,
+        graph: RenderGraph<'_>,
+        plan: &CompiledGraph,
+        cmd: vk::CommandBuffer,
+        timing: Option<TimingMode>,
     ) -> GpuResult<()> {
         // SAFETY: the previous submission that used these sets has completed.
         unsafe { self.ctx.device.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty()) }
@@ -181,7 +230,7 @@ impl TransientCache {
             });
         }
         let live = plan.passes.iter().filter(|p| !p.culled).count() as u32;
-        let queries = if timestamps && self.ctx.timestamp_period_ns.is_some() && live > 0 {
+        let queries = if timing.is_some() && self.ctx.timestamp_period_ns.is_some() && live > 0 {
             let pool = self.ensure_queries(live * 2)?;
             // SAFETY: recording state; resets before first use in this command buffer.
             unsafe { self.ctx.device.cmd_reset_query_pool(cmd, pool, 0, live * 2) };
@@ -200,6 +249,9 @@ impl TransientCache {
             if let Some(pool) = queries {
                 // SAFETY: recording state; the query was reset above.
                 unsafe { device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::TOP_OF_PIPE, pool, q) };
+                if timing == Some(TimingMode::Flushed) {
+                    flush_timestamp(&device, cmd);
+                }
             }
             let mut pctx =
                 PassContext { cmd, device: &device, resolved: &resolved, descriptor_pool: self.descriptor_pool };
@@ -209,6 +261,9 @@ impl TransientCache {
             if let Some(pool) = queries {
                 // SAFETY: as above.
                 unsafe { device.cmd_write_timestamp2(cmd, vk::PipelineStageFlags2::BOTTOM_OF_PIPE, pool, q + 1) };
+                if timing == Some(TimingMode::Flushed) {
+                    flush_timestamp(&device, cmd);
+                }
                 self.timed_passes.push(decl.name);
             }
         }
@@ -227,6 +282,22 @@ impl Drop for TransientCache {
             self.ctx.device.destroy_descriptor_pool(self.descriptor_pool, None);
         }
     }
+}
+
+/// `TimingMode::Flushed`: an execution dependency from all commands before to all commands after,
+/// with no memory access, recorded right after a timestamp. This is the only barrier umbra
+/// writes outside the graph's plan, and it exists only in this timing mode: synchronization is
+/// the plan's alone and needs none of it. On a driver that resolves timestamps only when its
+/// pending work is flushed (lavapipe flushes and waits at every pipeline barrier), it pins each
+/// stamp to its place in the stream. On a real GPU it drains the pipeline twice per pass, so
+/// passes no longer overlap and the frame runs slower than untimed, which is why `Plain` is
+/// preferred wherever the calibration finds it right.
+fn flush_timestamp(device: &ash::Device, cmd: vk::CommandBuffer) {
+    let all = vk::PipelineStageFlags2::ALL_COMMANDS;
+    let barrier = [vk::MemoryBarrier2::default().src_stage_mask(all).dst_stage_mask(all)];
+    let dep = vk::DependencyInfo::default().memory_barriers(&barrier);
+    // SAFETY: recording state, outside any rendering scope (passes end theirs before returning).
+    unsafe { device.cmd_pipeline_barrier2(cmd, &dep) };
 }
 
 fn record_barriers(

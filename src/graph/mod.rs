@@ -13,7 +13,7 @@ use ash::vk;
 pub use access::{Access, AccessInfo, Applies};
 pub use compile::{Barrier, CompiledGraph, CompiledPass, ResourcePlan, Storage};
 pub use compile::{ResourceDescKey, SlotKey};
-pub use execute::{Bound, PassContext, TransientCache};
+pub use execute::{Bound, GpuTimings, PassContext, TimingMode, TransientCache};
 
 pub use crate::vk::ImageDesc;
 

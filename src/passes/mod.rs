@@ -3,6 +3,7 @@
 
 pub mod accel;
 pub mod accumulate;
+pub mod busy;
 pub mod compose;
 pub mod debug_view;
 pub mod geometry;

@@ -202,6 +202,9 @@ impl App {
             );
         }
         let renderer = Renderer::new(ctx.clone(), o.scene.clone()).context("preparing the scene")?;
+        // The overlay shows pass times: find how this driver can time passes (a fraction of a
+        // second, once) so they are right rather than plain stamps that some drivers defer.
+        renderer.calibrate_timings().context("calibrating pass timings")?;
         let size = window.inner_size();
         let presenter = Presenter::new(surface, size.width, size.height, o.vsync)?;
         log::info!("viewer on {} ({:?})", ctx.device_name(), presenter.present_mode());

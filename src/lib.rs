@@ -8,6 +8,7 @@ pub mod passes;
 pub mod renderer;
 pub mod scene;
 pub mod shading;
+pub mod shadows;
 pub mod timing;
 pub mod viewer;
 pub mod vk;

@@ -12,7 +12,7 @@ use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs, DebugView};
 use crate::passes::overlay::OverlayInputs;
 use crate::passes::accel::RayQueryScene;
-use crate::passes::{busy, compose, geometry, overlay, present, readback, shadow_trace, tonemap, Pipelines};
+use crate::passes::{busy, compose, geometry, overlay, present, readback, shadow_trace, tonemap, visibility, Pipelines};
 use crate::scene::bvh::{caster_triangles, ShadowBvh};
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
@@ -552,20 +552,35 @@ fn timing_mode(calibration: &std::sync::OnceLock<TimingCalibration>, settings: &
     }
     calibration.get().map_or(Some(TimingMode::Plain), |c| c.mode)
 }
-/// Refuses a frame whose visibility buffer (one f32 per pixel and light) would exceed what one
-/// storage-buffer binding may address on this device.
+/// Refuses a frame whose visibility target this device cannot hold.
 fn check_limits(ctx: &GpuContext, s: &SceneGpu, settings: &RenderSettings) -> GpuResult<()> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
-    let bytes = shadow_trace::visibility_bytes(extent, s.light_count);
-    let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
-    if bytes > limit {
-        return Err(GpuError::Unsupported(format!(
-            "{}x{} with {} lights needs a {bytes}-byte visibility buffer; this device allows {limit} bytes per \
-             storage buffer (use a smaller --size or fewer lights)",
-            settings.width, settings.height, s.light_count
-        )));
-    }
-    Ok(())
+    let (plan, _) = light_work(s, settings);
+    visibility::check_limits(ctx, extent, s.light_count as usize, plan.count())
+}
+
+/// Which lights get shadow work this frame, their layers of the visibility target, and their
+/// rays: every light whose shadows are on, where something can cast a shadow; and the light the
+/// visibility view shows, whatever its method (it then shows where the light reaches).
+fn light_work(s: &SceneGpu, settings: &RenderSettings) -> (visibility::LayerPlan, Vec<shadow_trace::LightWork>) {
+    let viewed = (settings.debug_view == Some(DebugView::Visibility)).then_some(0usize);
+    let traced = |i: usize| s.has_casters && settings.shadow_method(i) != ShadowMethod::None;
+    let plan = visibility::LayerPlan::new(s.light_count as usize, |i| traced(i) || viewed == Some(i));
+    let work = plan
+        .layers
+        .iter()
+        .enumerate()
+        .filter_map(|(i, layer)| {
+            let rays = match settings.shadow_method(i) {
+                _ if !traced(i) => shadow_trace::Rays::None,
+                ShadowMethod::RayTraced => shadow_trace::Rays::Hard,
+                ShadowMethod::RayTracedSoft => shadow_trace::Rays::Soft(settings.soft_spp),
+                ShadowMethod::None => shadow_trace::Rays::None,
+            };
+            layer.map(|layer| shadow_trace::LightWork { light: i as u32, layer, rays })
+        })
+        .collect();
+    (plan, work)
 }
 
 fn execute(
@@ -617,33 +632,32 @@ fn build_graph<'a>(
         g.export(result, Access::ComputeShaderReadStorageBuffer);
     }
 
-    // Shadow rays only where something can cast a shadow on a lit point, or where the
-    // visibility view asks for them.
-    let wants_visibility = settings.debug_view == Some(DebugView::Visibility);
-    let methods: Vec<ShadowMethod> = (0..s.light_count as usize).map(|i| settings.shadow_method(i)).collect();
-    let any_traced = methods.iter().any(|&m| m != ShadowMethod::None);
-    let visibility = (s.light_count > 0 && ((s.has_casters && any_traced) || wants_visibility)).then(|| {
+    // Shadow work only for the lights that need it (see `light_work`); none at all, and no
+    // target, when no light does.
+    let (layers, work) = light_work(s, settings);
+    let visibility = (!work.is_empty()).then(|| {
+        let table = visibility::add_light_table(&mut g, &layers);
+        let mut target = visibility::create_target(&mut g, extent, layers.count());
         let inputs = |casters| shadow_trace::ShadowInputs {
             lights: &lights,
-            light_count: s.light_count,
             casters,
-            methods: &methods,
-            soft_spp: settings.soft_spp,
+            work: work.clone(),
             frame_index: settings.frame_index,
         };
         match traversal {
             Some(t) => {
                 let handles = t.scene.add(&mut g);
                 let casters = shadow_trace::Casters::RayQuery(&handles);
-                shadow_trace::add(&mut g, t.pipeline, &gbuffer, inputs(casters), extent)
+                shadow_trace::add(&mut g, t.pipeline, &gbuffer, inputs(casters), &mut target, extent)
             }
             None => {
                 let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS);
                 let triangles = g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS);
                 let casters = shadow_trace::Casters::Bvh { nodes: &nodes, triangles: &triangles };
-                shadow_trace::add(&mut g, &pipelines.shadow_trace, &gbuffer, inputs(casters), extent)
+                shadow_trace::add(&mut g, &pipelines.shadow_trace, &gbuffer, inputs(casters), &mut target, extent)
             }
         }
+        (target, table)
     });
 
     let display = settings.output == OutputKind::Display;
@@ -654,7 +668,7 @@ fn build_graph<'a>(
         Some(view) => {
             let inputs = DebugInputs {
                 view,
-                visibility: visibility.as_ref(),
+                visibility: visibility.as_ref().zip(layers.layers.first().copied().flatten()).map(|((v, _), l)| (v, l)),
                 eye: camera.eye,
                 origin: s.origin.as_vec3(),
                 far: camera.far,
@@ -667,7 +681,7 @@ fn build_graph<'a>(
             let inputs = compose::ComposeInputs {
                 lights: &lights,
                 light_count: s.light_count,
-                visibility: visibility.as_ref(),
+                visibility: visibility.as_ref().map(|(v, t)| (v, t)),
                 eye: camera.eye,
                 background: BACKGROUND,
             };

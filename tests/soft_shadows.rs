@@ -106,11 +106,15 @@ fn soft_visibility_matches_the_cpu_with_the_same_samples() {
         if expected > 0.0 && expected < 1.0 {
             penumbra += 1;
         }
-        if vis[i].x != expected {
+        // The visibility target stores 8-bit UNORM: the GPU value is the CPU's rounded to a
+        // multiple of 1/255. Half a step of tolerance (plus float slack) cannot hide one ray in
+        // disagreement, which moves the fraction by 1/SPP, far more than 1/255.
+        if (vis[i].x - expected).abs() > 0.5 / 255.0 + 1e-6 {
             wrong.push((i, vis[i].x, expected));
         }
     }
     eprintln!("{compared} pixels compared, {penumbra} in penumbra, {near_edge} skipped (a ray near an edge)");
+    const _: () = assert!(SPP < 255, "one ray's share must exceed the 8-bit step");
     assert!(penumbra > 200, "the test scene must have broad penumbrae, got {penumbra}");
     assert!(near_edge * 100 < compared, "{near_edge} near-edge pixels");
     assert!(wrong.is_empty(), "{} pixels differ, first: {:?}", wrong.len(), &wrong[..wrong.len().min(5)]);

@@ -20,6 +20,7 @@
 #define COMPOSE_LIGHTS 3
 #define COMPOSE_VISIBILITY 4
 #define COMPOSE_RADIANCE 5
+#define COMPOSE_LIGHT_LAYERS 6
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0

@@ -11,7 +11,10 @@ layout(set = 0, binding = COMPOSE_MATERIAL) uniform sampler2D gbuffer_material;
 layout(set = 0, binding = COMPOSE_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 layout(set = 0, binding = COMPOSE_RADIANCE, rgba32f) uniform writeonly image2D radiance;
 #ifdef WITH_VISIBILITY
-layout(set = 0, binding = COMPOSE_VISIBILITY, std430) readonly buffer Visibility { float visibility[]; };
+layout(set = 0, binding = COMPOSE_VISIBILITY) uniform sampler2DArray visibility;
+// Per light: its layer of the visibility target, or COMPOSE_UNSHADOWED.
+layout(set = 0, binding = COMPOSE_LIGHT_LAYERS, std430) readonly buffer LightLayers { uint layer_of[]; };
+const uint COMPOSE_UNSHADOWED = 0xffffffffu;
 #endif
 
 layout(push_constant) uniform Push {
@@ -32,7 +35,6 @@ void main() {
     vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
     vec3 n = normalize(normal_metallic.xyz);
     vec3 v = normalize(pc.eye.xyz - position.xyz);
-    uint pixel = px.y * pc.dims.x + px.x;
     vec3 sum = vec3(0.0);
     for (uint i = 0u; i < pc.dims.z; i++) {
         vec3 L;
@@ -40,7 +42,8 @@ void main() {
         vec3 e;
         light_sample(lights[i], position.xyz, L, dist, e);
 #ifdef WITH_VISIBILITY
-        float vis = visibility[i * pc.dims.x * pc.dims.y + pixel];
+        uint layer = layer_of[i];
+        float vis = layer == COMPOSE_UNSHADOWED ? 1.0 : texelFetch(visibility, ivec3(px, layer), 0).r;
 #else
         float vis = 1.0;
 #endif

@@ -1,4 +1,4 @@
-// Debug views (included by debug_view.comp and, with WITH_VISIBILITY, debug_visibility.comp): one G-buffer channel (or the first light's visibility) instead of the shaded
+// Debug views (included by debug_view.comp and, with WITH_VISIBILITY, debug_visibility.comp): one G-buffer channel (or one light's visibility) instead of the shaded
 // image. With `display` set, values are mapped to [0,1] for an 8-bit file.
 #include "bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
@@ -6,7 +6,7 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 layout(set = 0, binding = DISPLAY_INPUT) uniform sampler2D gbuffer_channel;
 layout(set = 0, binding = DISPLAY_OUTPUT, rgba32f) uniform writeonly image2D result;
 #ifdef WITH_VISIBILITY
-layout(set = 0, binding = DISPLAY_VISIBILITY, std430) readonly buffer Visibility { float visibility[]; };
+layout(set = 0, binding = DISPLAY_VISIBILITY) uniform sampler2DArray visibility;
 #endif
 
 #define VIEW_ALBEDO 0
@@ -19,6 +19,7 @@ layout(push_constant) uniform Push {
     vec4 eye;       // xyz eye (scene-local), w: 1/far distance used to display depth
     vec4 origin;    // xyz: world position of the scene-local origin
     uvec4 params;   // x: width, y: height, z: view, w: display (1) or raw (0)
+    uvec4 layer;    // x: the visibility view's layer
 } pc;
 
 float srgb_encode(float x) {
@@ -49,7 +50,7 @@ void main() {
         break;
     default: // VIEW_VISIBILITY; input is the position channel, to tell background apart.
 #ifdef WITH_VISIBILITY
-        v = vec3(texel.w > 0.0 ? visibility[p.y * pc.params.x + p.x] : 1.0);
+        v = vec3(texel.w > 0.0 ? texelFetch(visibility, ivec3(p, pc.layer.x), 0).r : 1.0);
 #else
         v = vec3(1.0); // no light: nothing to shadow
 #endif

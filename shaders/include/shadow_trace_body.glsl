@@ -15,60 +15,49 @@
 layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
-layout(set = 0, binding = SHADOW_VISIBILITY, std430) writeonly buffer Visibility { float visibility[]; };
+layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2DArray visibility;
 
+// One light per dispatch: its layer of the visibility target.
 layout(push_constant) uniform Push {
-    uvec4 dims;   // x: width, y: height, z: light count, w: rays per pixel for soft shadows
-    uvec4 traced; // bit i: light i casts ray-traced shadows (lights past 128 always do, hard)
-    uvec4 soft;   // bit i: light i's shadows are soft (sampled over its extent)
-    uvec4 frame;  // x: frame index, seeding the samples
+    uvec4 dims;  // x: width, y: height, z: the light, w: rays per pixel (0: none, facing only)
+    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer; z: 1 = soft
 } pc;
-
-bool bit(uvec4 mask, uint light) {
-    return ((mask[light / 32u] >> (light % 32u)) & 1u) != 0u;
-}
-
-// Fraction of `spp` rays toward points spread over the light that reach it.
-float soft_visibility(GpuLight l, uint light, uint pixel, vec3 origin) {
-    uint spp = max(pc.dims.w, 1u);
-    uint reached = 0u;
-    for (uint k = 0u; k < spp; k++) {
-        vec2 u = random2(uvec3(pixel, pc.frame.x, light * spp + k));
-        float dist;
-        vec3 L = light_sample_point(l, origin, u, dist);
-        if (!shadow_occluded(origin, L, dist * (1.0 - 1e-5))) reached++;
-    }
-    return float(reached) / float(spp);
-}
 
 void main() {
     uvec2 px = gl_GlobalInvocationID.xy;
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
     uint pixel = px.y * pc.dims.x + px.x;
-    uint stride = pc.dims.x * pc.dims.y;
+    uint light = pc.dims.z;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
     vec3 n = texelFetch(gbuffer_normal, ivec2(px), 0).xyz;
-    for (uint i = 0u; i < pc.dims.z; i++) {
-        float v = 1.0;
-        if (position.w > 0.0) {
-            vec3 L;
-            float dist;
-            vec3 e;
-            light_sample(lights[i], position.xyz, L, dist, e);
-            if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
-                v = 0.0;
-            } else if (i < 128u && !bit(pc.traced, i)) {
-                v = 1.0;
-            } else if (i < 128u && bit(pc.soft, i)) {
-                v = soft_visibility(lights[i], i, pixel, offset_ray_origin(position.xyz, n));
-            } else {
-                vec3 origin = offset_ray_origin(position.xyz, n);
-                // The light's own position is not an occluder: stop just short of it.
-                v = shadow_occluded(origin, L, dist * (1.0 - 1e-5)) ? 0.0 : 1.0;
+    float v = 1.0;
+    if (position.w > 0.0) {
+        GpuLight l = lights[light];
+        vec3 L;
+        float dist;
+        vec3 e;
+        light_sample(l, position.xyz, L, dist, e);
+        if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
+            v = 0.0;
+        } else if (pc.dims.w > 0u) {
+            vec3 origin = offset_ray_origin(position.xyz, n);
+            // Hard: one ray toward the centre. Soft: spp rays toward points over the light.
+            // The light's own position is not an occluder: rays stop just short of it.
+            uint spp = pc.dims.w;
+            uint reached = 0u;
+            for (uint k = 0u; k < spp; k++) {
+                vec3 dir = L;
+                float d = dist;
+                if (pc.frame.z != 0u) {
+                    vec2 u = random2(uvec3(pixel, pc.frame.x, light * spp + k));
+                    dir = light_sample_point(l, origin, u, d);
+                }
+                if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) reached++;
             }
+            v = float(reached) / float(spp);
         }
-        visibility[i * stride + pixel] = v;
     }
+    imageStore(visibility, ivec3(px, pc.frame.y), vec4(v));
 }
 
 #endif

@@ -63,7 +63,7 @@ pub struct SlotKey {
 /// `ResourceDesc` flattened to something orderable, for cache keys.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ResourceDescKey {
-    Image { format: i32, width: u32, height: u32 },
+    Image { format: i32, width: u32, height: u32, layers: u32, array: bool },
     Buffer { size: u64 },
 }
 
@@ -212,7 +212,13 @@ fn assign_transients(plans: &mut [ResourcePlan]) -> Vec<SlotKey> {
 fn slot_key(plan: &ResourcePlan) -> SlotKey {
     let desc = match plan.desc {
         ResourceDesc::Image(d) => {
-            ResourceDescKey::Image { format: d.format.as_raw(), width: d.width, height: d.height }
+            ResourceDescKey::Image {
+                format: d.format.as_raw(),
+                width: d.width,
+                height: d.height,
+                layers: d.layers,
+                array: d.array,
+            }
         }
         ResourceDesc::Buffer(b) => ResourceDescKey::Buffer { size: b.size },
     };
@@ -373,7 +379,11 @@ impl fmt::Display for CompiledGraph {
         for (i, r) in self.resources.iter().enumerate() {
             let what = match r.desc {
                 ResourceDesc::Image(d) => {
-                    format!("image {:?} {}x{} usage {:?}", d.format, d.width, d.height, r.image_usage)
+                    if d.array {
+                        format!("image {:?} {}x{}x{} layers usage {:?}", d.format, d.width, d.height, d.layers, r.image_usage)
+                    } else {
+                        format!("image {:?} {}x{} usage {:?}", d.format, d.width, d.height, r.image_usage)
+                    }
                 }
                 ResourceDesc::Buffer(b) => format!("buffer {} B usage {:?}", b.size, r.buffer_usage),
             };

@@ -328,7 +328,7 @@ fn record_barriers(
                         .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
                         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
                         .image(image)
-                        .subresource_range(crate::vk::subresource_range(desc.aspect())),
+                        .subresource_range(desc.subresource_range()),
                 );
             }
             Some(External::Buffer { buffer }) => buffers.push(

@@ -1,6 +1,8 @@
 //! Compose pass: for every light, Lambert plus GGX specular times irradiance and visibility,
-//! summed into scene-referred radiance (W/(m^2 sr)). Without shadow casters a variant that
-//! reads no visibility runs instead, so no shadow pass or buffer is needed.
+//! summed into scene-referred radiance (W/(m^2 sr)). Visibility comes from the visibility
+//! target, whatever technique wrote a light's layer; the light table says which layer is whose.
+//! Where no light has a layer, a variant that reads no visibility runs instead, so no shadow
+//! pass or target is needed.
 
 use std::sync::Arc;
 
@@ -29,7 +31,8 @@ pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipel
         storage_image(COMPOSE_RADIANCE),
     ];
     let (name, spv) = if shadowed {
-        bindings.push(storage(COMPOSE_VISIBILITY));
+        bindings.push(sampled(COMPOSE_VISIBILITY));
+        bindings.push(storage(COMPOSE_LIGHT_LAYERS));
         ("compose", spirv::COMPOSE_COMP)
     } else {
         ("compose (unshadowed)", spirv::COMPOSE_UNSHADOWED_COMP)
@@ -40,8 +43,9 @@ pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipel
 pub struct ComposeInputs<'h> {
     pub lights: &'h Handle<BufferKind>,
     pub light_count: u32,
-    /// None where no light can be shadowed (no casters or no lights).
-    pub visibility: Option<&'h Handle<BufferKind>>,
+    /// The visibility target and the light table (each light's layer), where any light has
+    /// a layer.
+    pub visibility: Option<(&'h Handle<ImageKind>, &'h Handle<BufferKind>)>,
     pub eye: glam::Vec3,
     pub background: glam::Vec3,
 }
@@ -63,8 +67,9 @@ pub fn add<'a>(
         (COMPOSE_RADIANCE, Bound::Image(pass.write(&mut radiance, Access::ComputeShaderWrite))),
     ];
     let pipeline = match inputs.visibility {
-        Some(v) => {
-            bound.push((COMPOSE_VISIBILITY, Bound::Buffer(pass.read(v, Access::ComputeShaderReadStorageBuffer))));
+        Some((v, table)) => {
+            bound.push((COMPOSE_VISIBILITY, Bound::Image(pass.read(v, Access::ComputeShaderReadSampledImage))));
+            bound.push((COMPOSE_LIGHT_LAYERS, Bound::Buffer(pass.read(table, Access::ComputeShaderReadStorageBuffer))));
             &pipelines.compose
         }
         None => &pipelines.compose_unshadowed,

@@ -1,4 +1,4 @@
-//! Debug-view pass: writes one G-buffer channel, or the first light's visibility, instead of
+//! Debug-view pass: writes one G-buffer channel, or one light's visibility, instead of
 //! the shaded image. Only the passes that view needs survive culling.
 
 use std::sync::Arc;
@@ -6,8 +6,8 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use super::{sampled, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
 
@@ -26,6 +26,7 @@ struct Push {
     eye: Vec4,
     origin: Vec4,
     params: UVec4,
+    layer: UVec4,
 }
 
 pub struct DebugPipelines {
@@ -37,7 +38,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
     let push = std::mem::size_of::<Push>() as u32;
     let common = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)];
     let mut with_vis = common.to_vec();
-    with_vis.push(storage(DISPLAY_VISIBILITY));
+    with_vis.push(sampled(DISPLAY_VISIBILITY));
     Ok(DebugPipelines {
         channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &common, push, TILE)?,
         visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, TILE)?,
@@ -46,8 +47,8 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
 
 pub struct DebugInputs<'h> {
     pub view: DebugView,
-    /// The first light's slice of the visibility buffer is its first W*H floats.
-    pub visibility: Option<&'h Handle<BufferKind>>,
+    /// The visibility target and the layer of the light the view shows.
+    pub visibility: Option<(&'h Handle<ImageKind>, u32)>,
     /// Scene-local eye.
     pub eye: glam::Vec3,
     /// World position of the scene-local origin: the position view reports world positions.
@@ -76,9 +77,11 @@ pub fn add<'a>(
         (DISPLAY_INPUT, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
         (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
     ];
+    let mut layer = 0;
     let pipeline = match inputs.visibility.filter(|_| inputs.view == DebugView::Visibility) {
-        Some(v) => {
-            bound.push((DISPLAY_VISIBILITY, Bound::Buffer(pass.read(v, Access::ComputeShaderReadStorageBuffer))));
+        Some((v, l)) => {
+            bound.push((DISPLAY_VISIBILITY, Bound::Image(pass.read(v, Access::ComputeShaderReadSampledImage))));
+            layer = l;
             &pipelines.visibility
         }
         None => &pipelines.channel,
@@ -87,6 +90,7 @@ pub fn add<'a>(
         eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
         origin: inputs.origin.extend(0.0),
         params: UVec4::new(extent.width, extent.height, inputs.view as u32, inputs.display as u32),
+        layer: UVec4::new(layer, 0, 0, 0),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     out

@@ -13,6 +13,7 @@ pub mod ray_batch;
 pub mod readback;
 pub mod shadow_trace;
 pub mod tonemap;
+pub mod visibility;
 
 use std::sync::{Arc, OnceLock};
 

@@ -9,9 +9,8 @@ use ash::vk;
 use glam::UVec4;
 
 use super::accel::RayQueryHandles;
-use super::{sampled, storage, DescriptorKind, GBuffer, TILE};
-use crate::graph::{Access, Bound, BufferKind, Handle, RenderGraph};
-use crate::renderer::ShadowMethod;
+use super::{sampled, storage, storage_image, DescriptorKind, GBuffer, TILE};
+use crate::graph::{Access, Bound, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
 
@@ -26,9 +25,9 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
             storage(SHADOW_LIGHTS),
             storage(SHADOW_BVH_NODES),
             storage(SHADOW_BVH_TRIANGLES),
-            storage(SHADOW_VISIBILITY),
+            storage_image(SHADOW_VISIBILITY),
         ],
-        64,
+        32,
         TILE,
     )
 }
@@ -44,9 +43,9 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
             sampled(SHADOW_NORMAL),
             storage(SHADOW_LIGHTS),
             (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
-            storage(SHADOW_VISIBILITY),
+            storage_image(SHADOW_VISIBILITY),
         ],
-        64,
+        32,
         TILE,
     )
 }
@@ -59,31 +58,43 @@ pub enum Casters<'h> {
     RayQuery(&'h RayQueryHandles),
 }
 
-/// Bytes of the visibility buffer: one f32 per pixel and light, light-major.
-pub fn visibility_bytes(extent: vk::Extent2D, lights: u32) -> u64 {
-    u64::from(extent.width) * u64::from(extent.height) * u64::from(lights) * 4
+/// The rays a light gets in one frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Rays {
+    /// None: only the facing test (a light viewed with shadows off, or nothing to hit).
+    None,
+    /// One ray toward the light's centre.
+    Hard,
+    /// This many rays toward points over the light's extent.
+    Soft(u32),
+}
+
+/// One light's share of the pass: which light, which layer of the target, which rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct LightWork {
+    pub light: u32,
+    pub layer: u32,
+    pub rays: Rays,
 }
 
 pub struct ShadowInputs<'h> {
     pub lights: &'h Handle<BufferKind>,
-    pub light_count: u32,
     pub casters: Casters<'h>,
-    /// Per light.
-    pub methods: &'h [ShadowMethod],
-    /// Rays per pixel for soft-shadowed lights.
-    pub soft_spp: u32,
+    pub work: Vec<LightWork>,
     /// Seeds the soft-shadow samples.
     pub frame_index: u32,
 }
 
+/// Writes each light's layer of `visibility`: one dispatch per light, so every dispatch runs
+/// one sample loop with no untaken branch for other lights' kinds of shadow.
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
     gbuffer: &GBuffer,
     inputs: ShadowInputs<'_>,
+    visibility: &mut Handle<ImageKind>,
     extent: vk::Extent2D,
-) -> Handle<BufferKind> {
-    let mut visibility = graph.create_buffer("visibility", visibility_bytes(extent, inputs.light_count));
+) {
     let mut pass = graph.add_pass("shadow trace");
     let mut bound = vec![
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
@@ -103,25 +114,19 @@ pub fn add<'a>(
             let _ = pass.read(&rq.bottom, read);
         }
     }
-    bound.push((SHADOW_VISIBILITY, Bound::Buffer(pass.write(&mut visibility, Access::ComputeShaderWrite))));
-    // Bit i of `traced`: light i casts ray-traced shadows; of `soft`: they are soft. The
-    // shader traces lights past 128 hard.
-    let (mut traced, mut soft) = ([0u32; 4], [0u32; 4]);
-    for (i, m) in inputs.methods.iter().enumerate().take(128) {
-        let bit = 1 << (i % 32);
-        if *m != ShadowMethod::None {
-            traced[i / 32] |= bit;
+    bound.push((SHADOW_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))));
+    let frame = inputs.frame_index;
+    let work = inputs.work;
+    pass.render(move |ctx| {
+        for w in &work {
+            let (spp, soft) = match w.rays {
+                Rays::None => (0, 0),
+                Rays::Hard => (1, 0),
+                Rays::Soft(spp) => (spp.clamp(1, 256), 1),
+            };
+            let push = [UVec4::new(extent.width, extent.height, w.light, spp), UVec4::new(frame, w.layer, soft, 0)];
+            ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), extent.width, extent.height)?;
         }
-        if *m == ShadowMethod::RayTracedSoft {
-            soft[i / 32] |= bit;
-        }
-    }
-    let push = [
-        UVec4::new(extent.width, extent.height, inputs.light_count, inputs.soft_spp.clamp(1, 256)),
-        UVec4::from_array(traced),
-        UVec4::from_array(soft),
-        UVec4::new(inputs.frame_index, 0, 0, 0),
-    ];
-    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), extent.width, extent.height));
-    visibility
+        Ok(())
+    });
 }

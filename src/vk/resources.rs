@@ -84,11 +84,26 @@ pub struct ImageDesc {
     pub format: vk::Format,
     pub width: u32,
     pub height: u32,
+    /// Array layers (1 for a plain image).
+    pub layers: u32,
+    /// Viewed as a 2D array (shaders declare `image2DArray` / `sampler2DArray`), even with one
+    /// layer.
+    pub array: bool,
 }
 
 impl ImageDesc {
     pub fn new(format: vk::Format, width: u32, height: u32) -> ImageDesc {
-        ImageDesc { format, width, height }
+        ImageDesc { format, width, height, layers: 1, array: false }
+    }
+
+    /// A 2D array image of `layers` layers, viewed as an array.
+    pub fn array(format: vk::Format, width: u32, height: u32, layers: u32) -> ImageDesc {
+        ImageDesc { format, width, height, layers: layers.max(1), array: true }
+    }
+
+    /// Every mip and layer of the image, for barriers and its view.
+    pub fn subresource_range(&self) -> vk::ImageSubresourceRange {
+        subresource_range(self.aspect()).layer_count(self.layers)
     }
 
     pub fn extent(&self) -> vk::Extent2D {
@@ -110,6 +125,7 @@ impl ImageDesc {
     /// Bytes per texel of the formats umbra reads back.
     pub fn texel_size(&self) -> u32 {
         match self.format {
+            vk::Format::R8_UNORM => 1,
             vk::Format::R8G8B8A8_UNORM
             | vk::Format::R8G8B8A8_SRGB
             | vk::Format::B8G8R8A8_UNORM
@@ -138,7 +154,7 @@ impl Image {
             .format(desc.format)
             .extent(vk::Extent3D { width: desc.width, height: desc.height, depth: 1 })
             .mip_levels(1)
-            .array_layers(1)
+            .array_layers(desc.layers)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)
             .usage(usage)
@@ -163,9 +179,9 @@ impl Image {
             if usage.intersects(!(vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)) {
                 let view_info = vk::ImageViewCreateInfo::default()
                     .image(raw)
-                    .view_type(vk::ImageViewType::TYPE_2D)
+                    .view_type(if desc.array { vk::ImageViewType::TYPE_2D_ARRAY } else { vk::ImageViewType::TYPE_2D })
                     .format(desc.format)
-                    .subresource_range(subresource_range(desc.aspect()));
+                    .subresource_range(desc.subresource_range());
                 image.view = ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?;
             }
             Ok(image)

@@ -1,0 +1,92 @@
+//! Many lights: the visibility target holds a layer per shadowed light, so 64 lights at
+//! 1920x1080 fit on lavapipe (a float buffer of 64 layers would pass its 128 MiB storage-buffer
+//! limit at about 724x724), every light's own method is honoured however many there are (the
+//! old pass traced lights past 128 hard whatever they asked for), and lights without shadow
+//! work get no layer.
+
+mod common;
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use glam::Vec4;
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowMethod};
+use umbra::scene::Scene;
+
+/// A cube on a floor under `n` narrow spots aimed at it from a ring, the last one with a size.
+fn ring_of_spots(n: usize) -> Scene {
+    let mut text = String::from(
+        "[camera]\neye = [0.0, 3.0, 6.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 45.0\n\
+         [[objects]]\nshape = \"plane\"\nsize = 12.0\n\
+         [[objects]]\nshape = \"cube\"\nsize = 1.0\ntranslate = [0.0, 0.5, 0.0]\n",
+    );
+    for i in 0..n {
+        let a = i as f64 / n as f64 * std::f64::consts::TAU;
+        let (x, z) = (4.0 * a.cos(), 4.0 * a.sin());
+        let radius = if i == n - 1 { 0.8 } else { 0.0 };
+        write!(
+            text,
+            "[[lights]]\ntype = \"spot\"\nposition = [{x}, 3.0, {z}]\ndirection = [{}, -3.0, {}]\n\
+             intensity = [0.5, 0.5, 0.5]\ninner_deg = 10.0\nouter_deg = 14.0\nradius = {radius}\n",
+            -x, -z
+        )
+        .unwrap();
+    }
+    Scene::parse(&text, "ring.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn pixels(frame: Frame) -> Vec<Vec4> {
+    match frame {
+        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
+        Frame::Rgba8 { .. } => panic!("expected float output"),
+    }
+}
+
+#[test]
+fn sixty_four_shadowed_lights_render_at_1080p() {
+    let ctx = common::gpu();
+    let mut renderer = Renderer::new(ctx.clone(), ring_of_spots(64)).expect("renderer");
+    let mut s = RenderSettings::new(1920, 1080, OutputKind::SceneLinear);
+    s.shadows = vec![ShadowMethod::RayTraced; 64];
+    let image = pixels(renderer.render(&s).expect("64 lights at 1920x1080"));
+    assert!(image.iter().all(|p| p.is_finite()));
+    let plan = renderer.last_plan().expect("plan").to_string();
+    assert!(plan.contains("visibility: image R8_UNORM 1920x1080x64 layers"), "{plan}");
+    // Half the lights off: half the layers.
+    for m in s.shadows.iter_mut().step_by(2) {
+        *m = ShadowMethod::None;
+    }
+    renderer.render(&s).expect("32 shadowed");
+    let plan = renderer.last_plan().expect("plan").to_string();
+    assert!(plan.contains("1920x1080x32 layers"), "{plan}");
+    drop(renderer);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn lights_past_128_keep_their_own_method() {
+    let ctx = common::gpu();
+    let n = 130;
+    let mut renderer = Renderer::new(ctx.clone(), ring_of_spots(n)).expect("renderer");
+    let mut s = RenderSettings::new(160, 90, OutputKind::SceneLinear);
+    s.soft_spp = 16;
+    let render = |r: &mut Renderer, s: &RenderSettings| pixels(r.render(s).expect("render"));
+    // Only the last light shadowed: hard, soft, then off.
+    s.shadows = vec![ShadowMethod::None; n];
+    s.shadows[n - 1] = ShadowMethod::RayTraced;
+    let hard = render(&mut renderer, &s);
+    let plan = renderer.last_plan().expect("plan").to_string();
+    assert!(plan.contains("160x90x1 layers"), "one layer for the one shadowed light:\n{plan}");
+    s.shadows[n - 1] = ShadowMethod::RayTracedSoft;
+    let soft = render(&mut renderer, &s);
+    s.shadows[n - 1] = ShadowMethod::None;
+    let none = render(&mut renderer, &s);
+    assert!(!renderer.last_plan().expect("plan").live_pass_names().contains(&"shadow trace"));
+    let differ = |a: &[Vec4], b: &[Vec4]| a.iter().zip(b).filter(|(x, y)| x != y).count();
+    assert!(differ(&hard, &none) > 20, "light {}'s hard shadow is missing", n - 1);
+    assert!(differ(&hard, &soft) > 5, "light {}'s soft shadow equals its hard one", n - 1);
+    // Removing a shadow only brightens.
+    assert!(hard.iter().zip(&none).all(|(h, u)| u.x >= h.x - 1e-6));
+    drop(renderer);
+    common::assert_clean(&ctx);
+}

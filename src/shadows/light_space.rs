@@ -130,7 +130,8 @@ pub const CUBE_FACES: [(Vec3, Vec3); 6] = [
 /// One face of a point light's cube map: a 90-degree frustum, depth over [near, far].
 pub fn cube_face_view_proj(position: Vec3, face: usize, near: f32, far: f32) -> Mat4 {
     let (dir, up) = CUBE_FACES[face];
-    perspective_reversed(std::f32::consts::FRAC_PI_2, 1.0, near, far) * glam::camera::rh::view::look_to_mat4(position, dir, up)
+    perspective_reversed(std::f32::consts::FRAC_PI_2, 1.0, near, far)
+        * glam::camera::rh::view::look_to_mat4(position, dir, up)
 }
 
 /// A directional light's orthographic view-projection fitted to what matters: across the
@@ -146,7 +147,8 @@ pub fn directional_view_proj(direction: Vec3, receivers: &Bounds, casters: &Boun
     let r = receivers.transformed(&view);
     let c = casters.transformed(&view);
     // Across the light: the receivers' footprint. Casters matter only where they overlap it.
-    let footprint = Bounds::new(Vec3::new(r.min.x, r.min.y, f32::NEG_INFINITY), Vec3::new(r.max.x, r.max.y, f32::INFINITY));
+    let footprint =
+        Bounds::new(Vec3::new(r.min.x, r.min.y, f32::NEG_INFINITY), Vec3::new(r.max.x, r.max.y, f32::INFINITY));
     if !footprint.overlaps(&c) {
         return None;
     }

@@ -4,3 +4,4 @@
 //! techniques share.
 
 pub mod light_space;
+pub mod volumes;

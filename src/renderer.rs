@@ -281,31 +281,47 @@ impl SceneGpu {
 }
 
 /// Camera matrices, camera-relative so that large world coordinates keep their precision.
+///
+/// Depth convention, for every pass that reads or writes depth: reversed Z with an infinite far
+/// plane. Depth is `near / distance along the view`: 1 at the near plane, falling toward 0 at
+/// infinity; tests are `GREATER`, clears are 0. Float depth then keeps about the same relative
+/// precision at every distance, nothing is ever clipped by a far plane (which z-fail shadow
+/// volumes need), and the near plane can sit close to the nearest geometry.
 #[derive(Clone, Copy, Debug)]
 pub struct CameraMatrices {
     pub eye: Vec3,
     pub view_proj_relative: Mat4,
+    pub near: f32,
+    /// Distance to the far side of the scene's bounds: not a clip plane, only what the depth
+    /// debug view shows as white.
     pub far: f32,
+}
+
+/// Vulkan clip space (+Y down), reversed depth, far plane at infinity.
+pub fn perspective_reversed_infinite(fov_y: f32, aspect: f32, near: f32) -> Mat4 {
+    let f = 1.0 / (fov_y * 0.5).tan();
+    Mat4::from_cols(
+        glam::Vec4::new(f / aspect, 0.0, 0.0, 0.0),
+        glam::Vec4::new(0.0, -f, 0.0, 0.0),
+        glam::Vec4::new(0.0, 0.0, 0.0, -1.0),
+        glam::Vec4::new(0.0, 0.0, near, 0.0),
+    )
 }
 
 impl CameraMatrices {
     pub fn new(cam: &Camera, bounds: (Vec3, Vec3), width: u32, height: u32) -> CameraMatrices {
-        // Near and far from the scene's extent: depth precision follows the scene's scale.
         let (lo, hi) = bounds;
         let centre = (lo + hi) * 0.5;
         let radius = (hi - lo).length() * 0.5;
         let far = ((centre - cam.eye).length() + radius).max(1.0) * 1.01;
-        let near = (far * 1e-5).max(1e-3);
+        // Near: half the distance to the scene's bounds (nothing nearer can be drawn), at
+        // least 1 mm; with reversed infinite depth this costs no precision far away.
+        let outside = (lo - cam.eye).max(cam.eye - hi).max(Vec3::ZERO).length();
+        let near = (outside * 0.5).max(1e-3);
         let view =
             glam::camera::rh::view::look_to_mat4(Vec3::ZERO, (cam.target - cam.eye).normalize(), cam.up.normalize());
-        // Vulkan's clip space: depth in [0, 1], +Y down.
-        let proj = glam::camera::rh::proj::vulkan::perspective(
-            cam.vfov_deg.to_radians(),
-            width as f32 / height as f32,
-            near,
-            far,
-        );
-        CameraMatrices { eye: cam.eye, view_proj_relative: proj * view, far }
+        let proj = perspective_reversed_infinite(cam.vfov_deg.to_radians(), width as f32 / height as f32, near);
+        CameraMatrices { eye: cam.eye, view_proj_relative: proj * view, near, far }
     }
 }
 

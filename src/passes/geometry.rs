@@ -85,7 +85,7 @@ pub fn add<'a>(
             .image_layout(Access::DepthAttachmentWrite.info().layout)
             .load_op(vk::AttachmentLoadOp::CLEAR)
             .store_op(vk::AttachmentStoreOp::STORE)
-            .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 1.0, stencil: 0 } });
+            .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
         let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
         let rendering = vk::RenderingInfo::default()
             .render_area(area)

@@ -231,7 +231,8 @@ impl GraphicsPipeline {
         let depth = vk::PipelineDepthStencilStateCreateInfo::default()
             .depth_test_enable(desc.depth_format.is_some())
             .depth_write_enable(desc.depth_format.is_some())
-            .depth_compare_op(vk::CompareOp::LESS);
+            // Reversed depth (see renderer::CameraMatrices): nearer is greater.
+            .depth_compare_op(vk::CompareOp::GREATER);
         let blend_attachments: Vec<_> = desc
             .color_formats
             .iter()

@@ -174,6 +174,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         shadow_backend: args.shadow_backend.or(scene.shadow_backend).unwrap_or_default(),
         frame_index: 0,
         busy_iterations: args.busy_pass,
+        map: Default::default(),
     };
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();

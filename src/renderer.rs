@@ -89,6 +89,8 @@ pub struct RenderSettings {
     pub soft_spp: u32,
     /// What traced shadow rays traverse.
     pub shadow_backend: ShadowBackend,
+    /// Parameters of the `map` method, for every light that uses it.
+    pub map: crate::shadows::map::MapParams,
     /// Seeds the soft-shadow samples, so successive frames draw fresh ones.
     pub frame_index: u32,
     /// Tests only: adds the pass "busy" (`passes/busy.rs`, this many loop iterations) after
@@ -110,6 +112,7 @@ impl RenderSettings {
             shadows: Vec::new(),
             soft_spp: 8,
             shadow_backend: ShadowBackend::Compute,
+            map: Default::default(),
             frame_index: 0,
             busy_iterations: None,
         }
@@ -138,6 +141,9 @@ pub enum ShadowMethod {
     RayTracedSoft,
     /// Unshadowed: the light reaches every surface facing it.
     None,
+    /// A shadow map with PCF (`RenderSettings::map`); spot lights so far, other kinds are
+    /// traced hard instead, with a notice.
+    Map,
 }
 
 impl ShadowMethod {
@@ -146,6 +152,7 @@ impl ShadowMethod {
             ShadowMethod::RayTraced => "ray traced (hard)",
             ShadowMethod::RayTracedSoft => "ray traced (soft)",
             ShadowMethod::None => "none",
+            ShadowMethod::Map => "shadow map",
         }
     }
 
@@ -154,7 +161,8 @@ impl ShadowMethod {
         match self {
             ShadowMethod::RayTraced => ShadowMethod::RayTracedSoft,
             ShadowMethod::RayTracedSoft => ShadowMethod::None,
-            ShadowMethod::None => ShadowMethod::RayTraced,
+            ShadowMethod::None => ShadowMethod::Map,
+            ShadowMethod::Map => ShadowMethod::RayTraced,
         }
     }
 }
@@ -203,6 +211,9 @@ pub struct Draw {
     pub index_count: u32,
     pub vertex_offset: i32,
     pub material: Material,
+    pub cast_shadows: bool,
+    /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
+    pub bounds: crate::shadows::light_space::Bounds,
 }
 
 /// The scene on the device: uploaded once, imported into every frame's graph.
@@ -212,6 +223,8 @@ pub struct SceneGpu {
     pub draws: Vec<Draw>,
     pub lights: Buffer,
     pub light_count: u32,
+    /// The lights in the scene-local frame (what the buffer holds, before packing).
+    pub local_lights: Vec<crate::scene::Light>,
     pub bvh_nodes: Buffer,
     pub bvh_triangles: Buffer,
     pub has_casters: bool,
@@ -230,11 +243,15 @@ impl SceneGpu {
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
+            let mut bounds = crate::shadows::light_space::Bounds::EMPTY;
+            mesh.positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
             draws.push(Draw {
                 first_index: indices.len() as u32,
                 index_count: mesh.indices.len() as u32,
                 vertex_offset: vertices.len() as i32,
                 material: mesh.material,
+                cast_shadows: mesh.cast_shadows,
+                bounds,
             });
             for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
                 lo = lo.min(*p);
@@ -265,6 +282,7 @@ impl SceneGpu {
             draws,
             lights,
             light_count: scene.lights.len() as u32,
+            local_lights: scene.lights.clone(),
             bvh_nodes,
             bvh_triangles,
             has_casters: !bvh.is_empty(),
@@ -336,6 +354,10 @@ pub struct Renderer {
     pipelines: Pipelines,
     /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
     busy: std::sync::OnceLock<ComputePipeline>,
+    /// The shadow-map pipelines, made the first time a light uses `map`.
+    map_pipelines: std::sync::OnceLock<crate::shadows::map::MapPipelines>,
+    /// Lights already told that `map` does not serve them (each is told once).
+    map_fallbacks_noted: std::sync::Mutex<std::collections::BTreeSet<usize>>,
     /// How passes are timed on this device, found the first time timings are asked for.
     timing: std::sync::OnceLock<TimingCalibration>,
     pub gpu_scene: SceneGpu,
@@ -378,6 +400,8 @@ impl Renderer {
             last_plan: None,
             pipelines: Pipelines::new(&ctx)?,
             busy: std::sync::OnceLock::new(),
+            map_pipelines: std::sync::OnceLock::new(),
+            map_fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
             gpu_scene: SceneGpu::upload(&ctx, &local, &bvh, origin)?,
             scene,
@@ -393,9 +417,11 @@ impl Renderer {
     pub fn plan(&self, settings: &RenderSettings) -> GpuResult<CompiledGraph> {
         let traversal = self.traversal(settings)?;
         let busy = settings.busy_iterations.map(|_| busy_pipeline(&self.busy, &self.ctx)).transpose()?;
+        let maps = map_pipelines(&self.map_pipelines, &self.ctx, &self.gpu_scene, settings)?;
         Ok(CompiledGraph::compile(&build_graph(
             &self.pipelines,
             busy,
+            maps,
             &self.gpu_scene,
             &self.scene,
             settings,
@@ -443,8 +469,19 @@ impl Renderer {
         check_limits(&self.ctx, &self.gpu_scene, settings)?;
         let traversal = self.traversal(settings)?;
         let busy = settings.busy_iterations.map(|_| busy_pipeline(&self.busy, &self.ctx)).transpose()?;
-        let graph =
-            build_graph(&self.pipelines, busy, &self.gpu_scene, &self.scene, settings, traversal, target, history);
+        let maps = map_pipelines(&self.map_pipelines, &self.ctx, &self.gpu_scene, settings)?;
+        note_map_fallbacks(&self.map_fallbacks_noted, &self.gpu_scene, settings);
+        let graph = build_graph(
+            &self.pipelines,
+            busy,
+            maps,
+            &self.gpu_scene,
+            &self.scene,
+            settings,
+            traversal,
+            target,
+            history,
+        );
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         if let Some(t) = traversal {
             t.scene.note_recorded(&plan);
@@ -504,9 +541,11 @@ impl Renderer {
         // Made before the fields are borrowed apart below: it may create the structures.
         self.traversal(settings)?;
         let Renderer {
-            cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, ray_query, busy, timing, ..
+            cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, ray_query, busy, timing, map_pipelines: mp, ..
         } = self;
         let busy = settings.busy_iterations.map(|_| busy_pipeline(busy, ctx)).transpose()?;
+        let maps = map_pipelines(mp, ctx, gpu_scene, settings)?;
+        note_map_fallbacks(&self.map_fallbacks_noted, gpu_scene, settings);
         let traversal = match (settings.shadow_backend, ray_query.get()) {
             (ShadowBackend::RayQuery, Some(scene)) => {
                 Some(RayQueryTraversal { scene, pipeline: pipelines.shadow_trace_rq()? })
@@ -517,7 +556,7 @@ impl Renderer {
         let history = accumulator.prepare(ctx, &mut settings, scene.lights.len())?;
         let accumulated = history.is_some();
         let target = Target::ReadBack(readback);
-        let graph = build_graph(pipelines, busy, gpu_scene, scene, &settings, traversal, target, history);
+        let graph = build_graph(pipelines, busy, maps, gpu_scene, scene, &settings, traversal, target, history);
         let plan = ctx.submit_and_wait(|cmd| execute(cache, graph, cmd, timing_mode(timing, &settings)))?;
         if let Some(t) = traversal {
             t.scene.note_recorded(&plan);
@@ -548,6 +587,57 @@ impl Renderer {
     }
 }
 
+/// The shadow maps of `map_lights` (light, layer), each resolved into its layer of `target`.
+#[allow(clippy::too_many_arguments)]
+fn add_shadow_maps<'a>(
+    g: &mut RenderGraph<'a>,
+    pipelines: &'a crate::shadows::map::MapPipelines,
+    s: &'a SceneGpu,
+    gbuffer: &crate::passes::GBuffer,
+    (lights, vertices, indices): (&crate::graph::Handle<crate::graph::BufferKind>, &crate::graph::Handle<crate::graph::BufferKind>, &crate::graph::Handle<crate::graph::BufferKind>),
+    map_lights: &[(u32, u32)],
+    settings: &RenderSettings,
+    target: &mut crate::graph::Handle<crate::graph::ImageKind>,
+) {
+    use crate::shadows::map;
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    let casters = s
+        .draws
+        .iter()
+        .filter(|d| d.cast_shadows)
+        .fold(crate::shadows::light_space::Bounds::EMPTY, |b, d| b.union(&d.bounds));
+    let inputs = map::MapInputs { lights, vertices, indices };
+    for &(light, layer) in map_lights {
+        let l = &s.local_lights[light as usize];
+        let Some(view_proj) = map::light_view_proj(l, &casters) else { continue };
+        let texel_at_unit_distance = match *l {
+            crate::scene::Light::Spot { outer_deg, .. } => {
+                2.0 * outer_deg.to_radians().tan() / settings.map.resolution as f32
+            }
+            _ => 0.0,
+        };
+        let work = map::MapLight { light, layer, view_proj, texel_at_unit_distance };
+        map::add(g, pipelines, s, gbuffer, &inputs, work, settings.map, target, extent);
+    }
+}
+
+/// The shadow-map pipelines when a light of this frame uses them, made on first use.
+fn map_pipelines<'a>(
+    cell: &'a std::sync::OnceLock<crate::shadows::map::MapPipelines>,
+    ctx: &Arc<GpuContext>,
+    s: &SceneGpu,
+    settings: &RenderSettings,
+) -> GpuResult<Option<&'a crate::shadows::map::MapPipelines>> {
+    if light_work(s, settings).maps.is_empty() {
+        return Ok(None);
+    }
+    if let Some(p) = cell.get() {
+        return Ok(Some(p));
+    }
+    let made = crate::shadows::map::pipelines(ctx)?;
+    Ok(Some(cell.get_or_init(|| made)))
+}
+
 /// The busy pass's pipeline, made on first use.
 fn busy_pipeline<'a>(
     cell: &'a std::sync::OnceLock<ComputePipeline>,
@@ -568,35 +658,58 @@ fn timing_mode(calibration: &std::sync::OnceLock<TimingCalibration>, settings: &
     }
     calibration.get().map_or(Some(TimingMode::Plain), |c| c.mode)
 }
+/// Says once per light when a light asks for `map` and gets traced shadows instead.
+fn note_map_fallbacks(noted: &std::sync::Mutex<std::collections::BTreeSet<usize>>, s: &SceneGpu, settings: &RenderSettings) {
+    for (i, light) in s.local_lights.iter().enumerate() {
+        if settings.shadow_method(i) == ShadowMethod::Map && !crate::shadows::map::serves(light) {
+            if let Ok(mut seen) = noted.lock() {
+                if seen.insert(i) {
+                    log::warn!("light {i}: `map` serves spot lights only so far; its shadows are traced");
+                }
+            }
+        }
+    }
+}
+
 /// Refuses a frame whose visibility target this device cannot hold.
 fn check_limits(ctx: &GpuContext, s: &SceneGpu, settings: &RenderSettings) -> GpuResult<()> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
-    let (plan, _) = light_work(s, settings);
-    visibility::check_limits(ctx, extent, s.light_count as usize, plan.count())
+    let work = light_work(s, settings);
+    visibility::check_limits(ctx, extent, s.light_count as usize, work.layers.count())
 }
 
-/// Which lights get shadow work this frame, their layers of the visibility target, and their
-/// rays: every light whose shadows are on, where something can cast a shadow; and the light the
-/// visibility view shows, whatever its method (it then shows where the light reaches).
-fn light_work(s: &SceneGpu, settings: &RenderSettings) -> (visibility::LayerPlan, Vec<shadow_trace::LightWork>) {
+/// A frame's shadow work: each light's layer, the lights the traced pass serves (with their
+/// rays), and the lights shadow maps serve.
+struct ShadowWork {
+    layers: visibility::LayerPlan,
+    traced: Vec<shadow_trace::LightWork>,
+    maps: Vec<(u32, u32)>,
+}
+
+/// Which lights get shadow work this frame: every light whose shadows are on, where something
+/// can cast a shadow; and the light the visibility view shows, whatever its method (it then
+/// shows where the light reaches). `map` serves the lights it can; the rest of its lights are
+/// traced hard.
+fn light_work(s: &SceneGpu, settings: &RenderSettings) -> ShadowWork {
     let viewed = (settings.debug_view == Some(DebugView::Visibility)).then_some(0usize);
-    let traced = |i: usize| s.has_casters && settings.shadow_method(i) != ShadowMethod::None;
-    let plan = visibility::LayerPlan::new(s.light_count as usize, |i| traced(i) || viewed == Some(i));
-    let work = plan
-        .layers
-        .iter()
-        .enumerate()
-        .filter_map(|(i, layer)| {
-            let rays = match settings.shadow_method(i) {
-                _ if !traced(i) => shadow_trace::Rays::None,
-                ShadowMethod::RayTraced => shadow_trace::Rays::Hard,
-                ShadowMethod::RayTracedSoft => shadow_trace::Rays::Soft(settings.soft_spp),
-                ShadowMethod::None => shadow_trace::Rays::None,
-            };
-            layer.map(|layer| shadow_trace::LightWork { light: i as u32, layer, rays })
-        })
-        .collect();
-    (plan, work)
+    let shadowed = |i: usize| s.has_casters && settings.shadow_method(i) != ShadowMethod::None;
+    let layers = visibility::LayerPlan::new(s.light_count as usize, |i| shadowed(i) || viewed == Some(i));
+    let (mut traced, mut maps) = (Vec::new(), Vec::new());
+    for (i, layer) in layers.layers.iter().enumerate() {
+        let Some(layer) = *layer else { continue };
+        let rays = match settings.shadow_method(i) {
+            _ if !shadowed(i) => shadow_trace::Rays::None,
+            ShadowMethod::Map if crate::shadows::map::serves(&s.local_lights[i]) => {
+                maps.push((i as u32, layer));
+                continue;
+            }
+            ShadowMethod::RayTraced | ShadowMethod::Map => shadow_trace::Rays::Hard,
+            ShadowMethod::RayTracedSoft => shadow_trace::Rays::Soft(settings.soft_spp),
+            ShadowMethod::None => shadow_trace::Rays::None,
+        };
+        traced.push(shadow_trace::LightWork { light: i as u32, layer, rays });
+    }
+    ShadowWork { layers, traced, maps }
 }
 
 fn execute(
@@ -623,6 +736,7 @@ struct RayQueryTraversal<'a> {
 fn build_graph<'a>(
     pipelines: &'a Pipelines,
     busy: Option<&'a ComputePipeline>,
+    maps: Option<&'a crate::shadows::map::MapPipelines>,
     s: &'a SceneGpu,
     scene: &Scene,
     settings: &RenderSettings,
@@ -650,17 +764,21 @@ fn build_graph<'a>(
 
     // Shadow work only for the lights that need it (see `light_work`); none at all, and no
     // target, when no light does.
-    let (layers, work) = light_work(s, settings);
-    let visibility = (!work.is_empty()).then(|| {
+    let ShadowWork { layers, traced, maps: map_lights } = light_work(s, settings);
+    let visibility = (layers.count() > 0).then(|| {
         let table = visibility::add_light_table(&mut g, &layers);
         let mut target = visibility::create_target(&mut g, extent, layers.count());
+        if let Some(pipelines) = maps.filter(|_| !map_lights.is_empty()) {
+            add_shadow_maps(&mut g, pipelines, s, &gbuffer, (&lights, &vertices, &indices), &map_lights, settings, &mut target);
+        }
         let inputs = |casters| shadow_trace::ShadowInputs {
             lights: &lights,
             casters,
-            work: work.clone(),
+            work: traced.clone(),
             frame_index: settings.frame_index,
         };
         match traversal {
+            _ if traced.is_empty() => {}
             Some(t) => {
                 let handles = t.scene.add(&mut g);
                 let casters = shadow_trace::Casters::RayQuery(&handles);

@@ -13,6 +13,13 @@
 // shadow_trace_rq.comp: the same pass over the device's own acceleration structure
 #define SHADOW_TLAS 6
 
+// shadow_map_resolve.comp: a light's visibility layer from its shadow map
+#define MAP_POSITION 0
+#define MAP_NORMAL 1
+#define MAP_LIGHTS 2
+#define MAP_DEPTH 3
+#define MAP_VISIBILITY 4
+
 // compose.comp
 #define COMPOSE_POSITION 0
 #define COMPOSE_NORMAL 1

@@ -28,6 +28,8 @@ pub struct Barrier {
 #[derive(Clone, Debug)]
 pub struct CompiledPass {
     pub name: &'static str,
+    /// What the pass says of its work (draw counts, say), printed after its name.
+    pub detail: Option<String>,
     pub culled: bool,
     pub barriers: Vec<Barrier>,
 }
@@ -87,7 +89,7 @@ impl CompiledGraph {
             .iter()
             .zip(barriers)
             .zip(&live)
-            .map(|((p, barriers), &live)| CompiledPass { name: p.name, culled: !live, barriers })
+            .map(|((p, barriers), &live)| CompiledPass { name: p.name, detail: p.detail.clone(), culled: !live, barriers })
             .collect();
         CompiledGraph { passes, resources, slots, export_barriers }
     }
@@ -400,7 +402,10 @@ impl fmt::Display for CompiledGraph {
                 writeln!(f, "  pass {i} {}: culled", p.name)?;
                 continue;
             }
-            writeln!(f, "  pass {i} {}", p.name)?;
+            match &p.detail {
+                Some(d) => writeln!(f, "  pass {i} {} ({d})", p.name)?,
+                None => writeln!(f, "  pass {i} {}", p.name)?,
+            }
             for b in &p.barriers {
                 writeln!(f, "    {}", self.describe_barrier(b))?;
             }

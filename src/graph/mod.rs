@@ -93,6 +93,7 @@ pub(crate) type PassFn<'a> = Box<dyn FnOnce(&mut PassContext) -> crate::vk::GpuR
 
 pub(crate) struct PassDecl<'a> {
     pub name: &'static str,
+    pub detail: Option<String>,
     pub accesses: Vec<PassAccess>,
     pub run: Option<PassFn<'a>>,
 }
@@ -190,7 +191,7 @@ impl<'a> RenderGraph<'a> {
     }
 
     pub fn add_pass<'g>(&'g mut self, name: &'static str) -> PassBuilder<'g, 'a> {
-        PassBuilder { graph: self, pass: PassDecl { name, accesses: Vec::new(), run: None } }
+        PassBuilder { graph: self, pass: PassDecl { name, detail: None, accesses: Vec::new(), run: None } }
     }
 
     fn check_version<K>(&self, handle: &Handle<K>) {
@@ -242,6 +243,11 @@ impl<'a> PassBuilder<'_, 'a> {
         r.version += 1;
         handle.version = r.version;
         Ref { id: handle.id, access, _kind: PhantomData }
+    }
+
+    /// A note on the pass's work for the printed plan (for example how many draws it makes).
+    pub fn detail(&mut self, text: String) {
+        self.pass.detail = Some(text);
     }
 
     /// Records the pass's commands when the graph executes (skipped if the pass is culled).

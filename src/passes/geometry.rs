@@ -32,7 +32,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<GraphicsPipeline> {
         &GraphicsPipelineDesc {
             name: "geometry",
             vertex: spirv::GEOMETRY_VERT,
-            fragment: spirv::GEOMETRY_FRAG,
+            fragment: Some(spirv::GEOMETRY_FRAG),
             vertex_stride: std::mem::size_of::<Vertex>() as u32,
             attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0), (1, vk::Format::R32G32B32_SFLOAT, 12)],
             color_formats: &[POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT],
@@ -40,6 +40,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<GraphicsPipeline> {
             bindings: &[],
             push_bytes: std::mem::size_of::<Push>() as u32,
             cull_back_faces: true,
+            dynamic_depth_bias: false,
         },
     )
 }

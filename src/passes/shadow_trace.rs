@@ -114,6 +114,7 @@ pub fn add<'a>(
             let _ = pass.read(&rq.bottom, read);
         }
     }
+    super::visibility::keep_other_layers(&mut pass, visibility);
     bound.push((SHADOW_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))));
     let frame = inputs.frame_index;
     let work = inputs.work;

@@ -87,6 +87,13 @@ pub fn check_limits(ctx: &GpuContext, extent: vk::Extent2D, lights: usize, layer
     Ok(())
 }
 
+/// Declares that `pass` writes some layers of `target` and keeps the others: a read of what
+/// earlier techniques wrote, so the graph keeps those passes and orders this one after them
+/// (the graph tracks whole images, not layers).
+pub fn keep_other_layers(pass: &mut crate::graph::PassBuilder<'_, '_>, target: &Handle<ImageKind>) {
+    pass.read(target, Access::ComputeShaderReadStorageImage);
+}
+
 /// The frame's visibility target, `layers` layers (at least one).
 pub fn create_target(graph: &mut RenderGraph<'_>, extent: vk::Extent2D, layers: u32) -> Handle<ImageKind> {
     graph.create_image("visibility", ImageDesc::array(VISIBILITY_FORMAT, extent.width, extent.height, layers))

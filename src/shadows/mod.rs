@@ -4,4 +4,5 @@
 //! techniques share.
 
 pub mod light_space;
+pub mod map;
 pub mod volumes;

@@ -119,6 +119,8 @@ mod tests {
         s.on_key(Key::T);
         assert_eq!(s.shadows[0], ShadowMethod::None);
         s.on_key(Key::T);
+        assert_eq!(s.shadows[0], ShadowMethod::Map);
+        s.on_key(Key::T);
         assert_eq!(s.shadows[0], ShadowMethod::RayTraced, "the cycle closes");
         s.on_key(Key::L);
         s.on_key(Key::L);

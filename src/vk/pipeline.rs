@@ -174,7 +174,8 @@ impl Drop for ComputePipeline {
 pub struct GraphicsPipelineDesc<'a> {
     pub name: &'static str,
     pub vertex: &'a [u8],
-    pub fragment: &'a [u8],
+    /// None: depth only (shadow maps).
+    pub fragment: Option<&'a [u8]>,
     pub vertex_stride: u32,
     /// (location, format, offset) of each vertex attribute in binding 0.
     pub attributes: &'a [(u32, vk::Format, u32)],
@@ -183,6 +184,8 @@ pub struct GraphicsPipelineDesc<'a> {
     pub bindings: &'a [(u32, DescriptorKind)],
     pub push_bytes: u32,
     pub cull_back_faces: bool,
+    /// Depth bias (constant and slope-scaled) set per draw with `cmd_set_depth_bias`.
+    pub dynamic_depth_bias: bool,
 }
 
 pub struct GraphicsPipeline {
@@ -195,11 +198,24 @@ impl GraphicsPipeline {
     pub fn new(ctx: &Arc<GpuContext>, desc: &GraphicsPipelineDesc<'_>) -> GpuResult<GraphicsPipeline> {
         let layout = PipelineLayout::new(ctx, desc.bindings, vk::ShaderStageFlags::ALL_GRAPHICS, desc.push_bytes)?;
         let vs = shader_module(ctx, desc.vertex)?;
-        let fs = shader_module(ctx, desc.fragment)?;
-        let stages = [
-            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vs).name(c"main"),
-            vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(fs).name(c"main"),
-        ];
+        let fs = match desc.fragment {
+            Some(code) => match shader_module(ctx, code) {
+                Ok(m) => Some(m),
+                Err(e) => {
+                    // SAFETY: the vertex module is unused.
+                    unsafe { ctx.device.destroy_shader_module(vs, None) };
+                    return Err(e);
+                }
+            },
+            None => None,
+        };
+        let mut stages =
+            vec![vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::VERTEX).module(vs).name(c"main")];
+        if let Some(fs) = fs {
+            stages.push(
+                vk::PipelineShaderStageCreateInfo::default().stage(vk::ShaderStageFlags::FRAGMENT).module(fs).name(c"main"),
+            );
+        }
         let vb = [vk::VertexInputBindingDescription {
             binding: 0,
             stride: desc.vertex_stride,
@@ -225,6 +241,7 @@ impl GraphicsPipeline {
             .polygon_mode(vk::PolygonMode::FILL)
             .cull_mode(if desc.cull_back_faces { vk::CullModeFlags::BACK } else { vk::CullModeFlags::NONE })
             .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
+            .depth_bias_enable(desc.dynamic_depth_bias)
             .line_width(1.0);
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
@@ -239,7 +256,10 @@ impl GraphicsPipeline {
             .map(|_| vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA))
             .collect();
         let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
-        let dynamic_states = [vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        let mut dynamic_states = vec![vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
+        if desc.dynamic_depth_bias {
+            dynamic_states.push(vk::DynamicState::DEPTH_BIAS);
+        }
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
         let mut rendering = vk::PipelineRenderingCreateInfo::default()
             .color_attachment_formats(desc.color_formats)
@@ -260,7 +280,9 @@ impl GraphicsPipeline {
         let pipeline = unsafe {
             let p = ctx.device.create_graphics_pipelines(vk::PipelineCache::null(), &info, None);
             ctx.device.destroy_shader_module(vs, None);
-            ctx.device.destroy_shader_module(fs, None);
+            if let Some(fs) = fs {
+                ctx.device.destroy_shader_module(fs, None);
+            }
             p.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0]
         };
         Ok(GraphicsPipeline { name: desc.name, pipeline, layout })

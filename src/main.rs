@@ -8,7 +8,7 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
-use umbra::output::{write_image, ImageFormat};
+use umbra::output::{check_output, write_image_with, ImageFormat, WriteOptions};
 use umbra::passes::debug_view::DebugView;
 use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowBackend, ShadowMethod};
 use umbra::scene::Scene;
@@ -103,6 +103,9 @@ struct RenderArgs {
     /// Print the compiled frame-graph plan.
     #[arg(long)]
     print_plan: bool,
+    /// Replace the output file even if it is read-only (its mode is kept).
+    #[arg(long)]
+    force: bool,
     /// Tests only: add a compute pass "busy" of this many loop iterations (256 dependent FMAs
     /// each) after the geometry pass, a GPU cost of known size for checking timings.
     #[arg(long, hide = true, value_parser = clap::value_parser!(u32).range(1..=65535))]
@@ -127,6 +130,13 @@ fn parse_exposure(text: &str) -> Result<f32, String> {
 }
 
 fn main() -> ExitCode {
+    // A closed stdout (`umbra render ... | head`) ends the program quietly, as it does other
+    // Unix tools, instead of making println! panic on EPIPE: Rust ignores SIGPIPE by default.
+    #[cfg(unix)]
+    // SAFETY: nothing else runs yet; SIG_DFL is a valid disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
         .format(|buf, record| {
             use std::io::Write;
@@ -156,10 +166,14 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
             bail!("{}: the directory {} does not exist", args.output.display(), dir.display());
         }
     }
+    check_output(&args.output, &WriteOptions { force: args.force, inputs: args.scene.iter().cloned().collect() })?;
     let scene = match &args.scene {
         Some(path) => Scene::load(path)?,
         None => Scene::default_scene(),
     };
+    // The output must not be a file the scene was read from, nor read-only without --force.
+    let write_options = WriteOptions { force: args.force, inputs: scene.sources.clone() };
+    check_output(&args.output, &write_options)?;
     let (width, height) = args.size.or(scene.image_size).unwrap_or((320, 240));
     let settings = RenderSettings {
         width,
@@ -197,7 +211,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         }
     }
     let frame = frame.expect("at least one frame");
-    write_image(&frame, &args.output)?;
+    write_image_with(&frame, &args.output, &write_options)?;
     println!("wrote {} ({width}x{height}) on {device_name}", args.output.display());
     if let Some(calibration) = &calibration {
         print_timings(&timings, calibration);

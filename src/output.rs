@@ -1,9 +1,18 @@
 //! Writing frames to disk: PNG (display-referred, 8-bit sRGB) or EXR (scene-referred linear
 //! float32). Files are written under a temporary name beside the target and renamed into place,
 //! so a failed run never leaves a half-written image.
+//!
+//! The temporary file is created exclusively under a random name (`tempfile`), so no other user
+//! can plant a file or a symlink there for the write to follow, and it is removed if the write
+//! fails, the program panics, or SIGINT or SIGTERM arrive while it exists. An existing output
+//! keeps its mode; a read-only one is replaced only when asked (`--force`), and an output that
+//! is one of the render's own inputs (the scene file, a mesh, a material library) never is.
 
 use std::fs;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+
+use tempfile::NamedTempFile;
 
 use crate::renderer::Frame;
 
@@ -13,6 +22,19 @@ pub enum OutputError {
     Extension { path: PathBuf },
     #[error("{path}: {message}")]
     Write { path: PathBuf, message: String },
+    #[error("{path}: the file exists and is read-only; pass --force to replace it")]
+    ReadOnly { path: PathBuf },
+    #[error("{path}: is an input of this render ({input}); choose another output file")]
+    IsInput { path: PathBuf, input: PathBuf },
+}
+
+/// How `write_image_with` may treat an existing file.
+#[derive(Clone, Debug, Default)]
+pub struct WriteOptions {
+    /// Replace an existing read-only file (its mode is kept, as for any replaced file).
+    pub force: bool,
+    /// Files the render read (`Scene::sources`): the output must be none of them.
+    pub inputs: Vec<PathBuf>,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -31,28 +53,85 @@ impl ImageFormat {
     }
 }
 
-/// Writes `frame` to `path` atomically. 8-bit frames go to PNG as they are; float frames go to
-/// EXR as they are, or to PNG clamped to [0,1] (debug views already mapped for display).
-pub fn write_image(frame: &Frame, path: &Path) -> Result<(), OutputError> {
-    let format = ImageFormat::from_path(path)?;
-    let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
-    let tmp = path.with_file_name(format!(".{file_name}.{}.tmp", std::process::id()));
-    let fail = |message: String| OutputError::Write { path: path.to_owned(), message };
-    let result = match format {
-        ImageFormat::Png => write_png(frame, &tmp),
-        ImageFormat::Exr => write_exr(frame, &tmp),
-    };
-    if let Err(message) = result {
-        let _ = fs::remove_file(&tmp);
-        return Err(fail(message));
-    }
-    fs::rename(&tmp, path).map_err(|e| {
-        let _ = fs::remove_file(&tmp);
-        fail(format!("cannot move the finished image into place: {e}"))
-    })
+/// Refuses an output that could never be written as asked: an unknown extension, a read-only
+/// existing file without `force`, or one of `options.inputs` (the same file, however named:
+/// compared by device and inode, so links and `./` spellings are caught).
+/// `write_image_with` checks again; calling this before rendering fails fast.
+pub fn check_output(path: &Path, options: &WriteOptions) -> Result<(), OutputError> {
+    existing_output(path, options).map(drop)
 }
 
-fn write_png(frame: &Frame, tmp: &Path) -> Result<(), String> {
+/// `check_output`, returning the existing file's permissions, if there is one.
+fn existing_output(path: &Path, options: &WriteOptions) -> Result<Option<fs::Permissions>, OutputError> {
+    ImageFormat::from_path(path)?;
+    let Ok(existing) = fs::metadata(path) else {
+        return Ok(None); // nothing there (or nothing we can see): nothing to protect
+    };
+    for input in &options.inputs {
+        if fs::metadata(input).is_ok_and(|m| same_file(&m, &existing)) {
+            return Err(OutputError::IsInput { path: path.to_owned(), input: input.clone() });
+        }
+    }
+    if existing.permissions().readonly() && !options.force {
+        return Err(OutputError::ReadOnly { path: path.to_owned() });
+    }
+    let permissions = existing.permissions();
+    // The replacement takes the file's read/write/execute bits, never set-id bits.
+    #[cfg(unix)]
+    let permissions = {
+        use std::os::unix::fs::PermissionsExt;
+        fs::Permissions::from_mode(permissions.mode() & 0o777)
+    };
+    Ok(Some(permissions))
+}
+
+#[cfg(unix)]
+fn same_file(a: &fs::Metadata, b: &fs::Metadata) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    a.dev() == b.dev() && a.ino() == b.ino()
+}
+
+#[cfg(not(unix))]
+fn same_file(_: &fs::Metadata, _: &fs::Metadata) -> bool {
+    false
+}
+
+/// Writes `frame` to `path` atomically, refusing a read-only existing file.
+pub fn write_image(frame: &Frame, path: &Path) -> Result<(), OutputError> {
+    write_image_with(frame, path, &WriteOptions::default())
+}
+
+/// Writes `frame` to `path` atomically. 8-bit frames go to PNG as they are; float frames go to
+/// EXR as they are, or to PNG clamped to [0,1] (debug views already mapped for display).
+/// `options` says what may be replaced (see `check_output`).
+pub fn write_image_with(frame: &Frame, path: &Path, options: &WriteOptions) -> Result<(), OutputError> {
+    let format = ImageFormat::from_path(path)?;
+    let existing_mode = existing_output(path, options)?;
+    let fail = |message: String| OutputError::Write { path: path.to_owned(), message };
+    let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    let tmp = cleanup::create(dir, &file_name).map_err(|e| fail(format!("cannot create a temporary file: {e}")))?;
+    let written = match format {
+        ImageFormat::Png => write_png(frame, &tmp),
+        ImageFormat::Exr => write_exr(frame, &tmp),
+    }
+    .and_then(|()| {
+        if let Some(mode) = existing_mode {
+            tmp.as_file().set_permissions(mode).map_err(|e| format!("cannot keep the file's mode: {e}"))?;
+        }
+        tmp.as_file().sync_all().map_err(|e| e.to_string())
+    });
+    if let Err(message) = written {
+        cleanup::discard(tmp);
+        return Err(fail(message));
+    }
+    cleanup::persist(tmp, path).map_err(|e| fail(format!("cannot move the finished image into place: {e}")))
+}
+
+fn write_png(frame: &Frame, tmp: &NamedTempFile) -> Result<(), String> {
     let (width, height, bytes) = match frame {
         Frame::Rgba8 { width, height, pixels } => (*width, *height, pixels.clone()),
         Frame::Rgba32F { width, height, pixels } => {
@@ -63,22 +142,28 @@ fn write_png(frame: &Frame, tmp: &Path) -> Result<(), String> {
     for p in img.pixels_mut() {
         p.0[3] = 255;
     }
+    let mut out = BufWriter::new(tmp.as_file());
     image::DynamicImage::ImageRgba8(img)
         .to_rgb8()
-        .save_with_format(tmp, image::ImageFormat::Png)
-        .map_err(|e| e.to_string())
+        .write_to(&mut out, image::ImageFormat::Png)
+        .map_err(|e| e.to_string())?;
+    out.flush().map_err(|e| e.to_string())
 }
 
-fn write_exr(frame: &Frame, tmp: &Path) -> Result<(), String> {
+fn write_exr(frame: &Frame, tmp: &NamedTempFile) -> Result<(), String> {
+    use exr::prelude::*;
     let Frame::Rgba32F { width, height, pixels } = frame else {
         return Err("EXR needs a linear float frame".into());
     };
     let w = *width as usize;
-    exr::prelude::write_rgb_file(tmp, w, *height as usize, |x, y| {
+    let channels = SpecificChannels::rgb(|Vec2(x, y)| {
         let i = (y * w + x) * 4;
         (pixels[i], pixels[i + 1], pixels[i + 2])
-    })
-    .map_err(|e| e.to_string())
+    });
+    Image::from_channels((w, *height as usize), channels)
+        .write()
+        .to_buffered(BufWriter::new(tmp.as_file()))
+        .map_err(|e| e.to_string())
 }
 
 /// Reads an RGB EXR as linear float RGBA rows (alpha 1); used by tests and tools.
@@ -95,4 +180,90 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<f32>), String> {
     .map_err(|e| format!("{}: {e}", path.display()))?;
     let size = image.layer_data.size;
     Ok((size.width() as u32, size.height() as u32, image.layer_data.channel_data.pixels.1))
+}
+
+/// Temporary files that exist right now, removed by a signal thread on SIGINT or SIGTERM
+/// before the process ends as the signal's default action would end it.
+///
+/// The list's lock is held from creating a file until it is listed, and from renaming it until
+/// it is struck off, so the signal thread never misses a file nor removes a finished image.
+mod cleanup {
+    use std::io;
+    use std::path::{Path, PathBuf};
+    use std::sync::{Mutex, MutexGuard, Once};
+
+    use tempfile::NamedTempFile;
+
+    static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+    static HANDLER: Once = Once::new();
+
+    fn pending() -> MutexGuard<'static, Vec<PathBuf>> {
+        PENDING.lock().unwrap_or_else(|poisoned| poisoned.into_inner())
+    }
+
+    /// Starts the signal thread, once per process.
+    fn install_handler() {
+        HANDLER.call_once(|| {
+            use signal_hook::consts::{SIGINT, SIGTERM};
+            let mut signals = match signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) {
+                Ok(signals) => signals,
+                Err(e) => {
+                    log::warn!(
+                        "cannot watch for SIGINT/SIGTERM ({e}): an interrupted write may leave a temporary file"
+                    );
+                    return;
+                }
+            };
+            let spawned = std::thread::Builder::new().name("umbra-signals".into()).spawn(move || {
+                if let Some(signal) = signals.forever().next() {
+                    for path in pending().drain(..) {
+                        let _ = std::fs::remove_file(path);
+                    }
+                    // Ends the process as the signal would have (killed by it), or exits with
+                    // the shell's code for it if that fails.
+                    let _ = signal_hook::low_level::emulate_default_handler(signal);
+                    std::process::exit(128 + signal);
+                }
+            });
+            if let Err(e) = spawned {
+                log::warn!("cannot watch for SIGINT/SIGTERM ({e}): an interrupted write may leave a temporary file");
+            }
+        });
+    }
+
+    /// A new empty file `.<name>.XXXXXX.tmp` in `dir`, created exclusively (never through an
+    /// existing name or link), with the mode a new file gets (0666 less the umask), and listed.
+    pub(super) fn create(dir: &Path, name: &str) -> io::Result<NamedTempFile> {
+        install_handler();
+        let prefix = format!(".{name}.");
+        let mut builder = tempfile::Builder::new();
+        builder.prefix(&prefix).suffix(".tmp");
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt;
+            builder.permissions(std::fs::Permissions::from_mode(0o666));
+        }
+        let mut pending = pending();
+        let tmp = builder.tempfile_in(dir)?;
+        pending.push(tmp.path().to_owned());
+        Ok(tmp)
+    }
+
+    /// Removes a temporary file that will not be used.
+    pub(super) fn discard(tmp: NamedTempFile) {
+        let mut pending = pending();
+        let path = tmp.path().to_owned();
+        drop(tmp); // removes the file
+        pending.retain(|p| *p != path);
+    }
+
+    /// Renames the temporary file to `target` (replacing a file or link there, never writing
+    /// through a link), or removes it if that fails.
+    pub(super) fn persist(tmp: NamedTempFile, target: &Path) -> io::Result<()> {
+        let mut pending = pending();
+        let path = tmp.path().to_owned();
+        let result = tmp.persist(target).map(drop).map_err(|e| e.error); // on error the file is dropped: removed
+        pending.retain(|p| *p != path);
+        result
+    }
 }

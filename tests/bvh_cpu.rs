@@ -178,6 +178,7 @@ fn scene_build_takes_only_shadow_casters() {
         meshes: vec![mesh("caster", 1.0, true), mesh("receiver", 2.0, false)],
         stats: LoadStats::default(),
         shadow_backend: None,
+        sources: vec![],
     };
     let bvh = ShadowBvh::build(&scene);
     assert_eq!(bvh.triangle_count(), 1);
@@ -232,6 +233,146 @@ fn depth_fits_the_shader_stack() {
     assert!(bvh.depth() >= 10 && bvh.depth() <= BVH_STACK_SIZE);
     let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
     assert!(glsl.contains(&format!("#define BVH_STACK_SIZE {BVH_STACK_SIZE}\n")));
+}
+
+/// Runs `build` on its own thread and fails the test, instead of hanging it, when it takes
+/// longer than `limit`: a quadratic build of these inputs takes minutes to hours.
+fn within<T: Send + 'static>(limit: std::time::Duration, what: &str, build: impl FnOnce() -> T + Send + 'static) -> T {
+    let (send, receive) = std::sync::mpsc::channel();
+    let start = std::time::Instant::now();
+    std::thread::spawn(move || {
+        let _ = send.send(build());
+    });
+    let result = receive.recv_timeout(limit).unwrap_or_else(|_| panic!("{what}: not built within {limit:?}"));
+    println!("{what}: {:?}", start.elapsed());
+    result
+}
+
+/// log2(n) rounded up: the depth of a balanced binary tree over n leaves.
+fn log2_ceil(n: usize) -> usize {
+    (usize::BITS - (n.max(1) - 1).leading_zeros()) as usize
+}
+
+/// obvhs's own build of `tris` (its "medium" preset, reordered as `ShadowBvh` does), as the
+/// GPU would receive it.
+fn obvhs_gpu_nodes(tris: &[[Vec3; 3]]) -> Vec<GpuBvhNode> {
+    use obvhs::bvh2::builder::build_bvh2_from_tris;
+    let tris: Vec<obvhs::triangle::Triangle> =
+        tris.iter().map(|&[a, b, c]| obvhs::triangle::Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
+    let params = obvhs::BvhBuildParams::medium_build();
+    let mut bvh = build_bvh2_from_tris(&tris, params, &mut std::time::Duration::default());
+    bvh.reorder_in_stack_traversal_order();
+    bvh.nodes
+        .iter()
+        .map(|n| GpuBvhNode {
+            aabb_min: n.aabb.min.into(),
+            first: n.first_index,
+            aabb_max: n.aabb.max.into(),
+            count: n.prim_count,
+        })
+        .collect()
+}
+
+/// The guarded build is obvhs's PLOC build, node for node, wherever the clustering does not
+/// stall: on the default scene, the bench-like grid and sphere, and a random soup. The grid is
+/// over 250,000 triangles, where obvhs sorts by radix rather than by std's sort.
+#[test]
+fn ordinary_scenes_keep_obvhs_tree_exactly() {
+    let mut rng = StdRng::seed_from_u64(0x0B5);
+    let shapes = |text: &str| {
+        let scene = Scene::parse(
+            &format!("[camera]\neye = [0, 1, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n{text}"),
+            "inline.toml",
+            std::path::Path::new("."),
+        )
+        .unwrap_or_else(|e| panic!("{e}"));
+        umbra::scene::bvh::caster_triangles(&scene)
+    };
+    let inputs = [
+        ("default scene", umbra::scene::bvh::caster_triangles(&Scene::default_scene())),
+        ("bumpy sphere and soup", bumpy_sphere_and_soup(&mut rng)),
+        ("plane, 400 segments", shapes("[[objects]]\nshape = \"plane\"\nsegments = 400\nrotate_deg = [10, 20, 30]\n")),
+        ("sphere, 300 segments", shapes("[[objects]]\nshape = \"sphere\"\nsegments = 300\n")),
+    ];
+    for (what, tris) in inputs {
+        let ours = ShadowBvh::from_triangles(&tris);
+        let reference = obvhs_gpu_nodes(&tris);
+        assert_eq!(ours.nodes().len(), reference.len(), "{what}: node count");
+        let first_difference = ours.nodes().iter().zip(&reference).position(|(a, b)| a != b);
+        assert_eq!(first_difference, None, "{what}: nodes differ from obvhs's");
+        println!("{what}: {} triangles, depth {}, same tree as obvhs", tris.len(), ours.depth());
+    }
+}
+
+/// A million copies of one triangle: every PLOC pass merged one pair of them (quadratic time,
+/// a tree a million levels deep before the median-split fallback). The guarded build must be
+/// fast and close to balanced, and still find the triangle.
+#[test]
+fn a_million_coincident_triangles_build_a_shallow_tree_quickly() {
+    let n = 1_000_000;
+    let tri = [Vec3::new(-1.0, -1.0, 1.0), Vec3::new(0.0, 1.0, 1.0), Vec3::new(1.0, -1.0, 1.0)];
+    let bvh = within(std::time::Duration::from_secs(60), "1M coincident triangles", move || {
+        ShadowBvh::from_triangles(&vec![tri; n])
+    });
+    let bound = 2 * log2_ceil(n) + 4;
+    println!("depth {}, {} nodes (bound {bound})", bvh.depth(), bvh.node_count());
+    assert_eq!(bvh.triangle_count(), n);
+    assert!(bvh.depth() <= bound && bvh.depth() <= BVH_STACK_SIZE, "depth {} over {bound}", bvh.depth());
+    assert!(bvh.occluded_gpu_layout(Vec3::ZERO, Vec3::Z, 2.0));
+    assert!(bvh.occluded_obvhs(Vec3::ZERO, Vec3::Z, 2.0));
+    assert!(!bvh.occluded_gpu_layout(Vec3::new(3.0, 0.0, 0.0), Vec3::Z, 2.0));
+    // Every copy is in the tree exactly once.
+    let mut leaves = vec![0u32; 1];
+    let mut in_leaves = 0usize;
+    while let Some(i) = leaves.pop() {
+        let node = bvh.nodes()[i as usize];
+        if node.count > 0 {
+            in_leaves += node.count as usize;
+        } else {
+            leaves.extend([node.first, node.first + 1]);
+        }
+    }
+    assert_eq!(in_leaves, n);
+}
+
+/// One OBJ face with 100,000 corners, fan-triangulated: 99,998 triangles that all share a
+/// corner, so each one's box holds its neighbours' (PLOC stalled on it for ~50 s). Loading it
+/// and building its BVH must be quick, and the tree within the bound.
+#[test]
+fn a_100k_corner_polygon_loads_and_builds_quickly() {
+    use std::fmt::Write;
+    let corners = 100_000;
+    let dir = tempfile::tempdir().unwrap();
+    let mut obj = String::new();
+    for i in 0..corners {
+        let a = i as f64 / corners as f64 * std::f64::consts::TAU;
+        writeln!(obj, "v {} 0 {}", a.cos(), -a.sin()).unwrap();
+    }
+    obj.push('f');
+    for i in 1..=corners {
+        write!(obj, " {i}").unwrap();
+    }
+    obj.push('\n');
+    std::fs::write(dir.path().join("disc.obj"), obj).unwrap();
+    let scene_path = dir.path().join("disc.toml");
+    std::fs::write(
+        &scene_path,
+        "[camera]\neye = [0, 3, 0.1]\ntarget = [0, 0, 0]\nvfov_deg = 40\n[[objects]]\nmesh = \"disc.obj\"\n",
+    )
+    .unwrap();
+    let (triangles, bvh) = within(std::time::Duration::from_secs(20), "100k-corner polygon", move || {
+        let scene = Scene::load(&scene_path).unwrap_or_else(|e| panic!("{e}"));
+        (scene.triangle_count(), ShadowBvh::build(&scene))
+    });
+    // A few slivers beside the shared corner round to collinear in f32 and are dropped.
+    assert!(triangles > corners - 2 - 16, "{triangles} triangles");
+    assert_eq!(bvh.triangle_count(), triangles);
+    let bound = 2 * log2_ceil(corners) + 4;
+    println!("depth {}, {} nodes (bound {bound})", bvh.depth(), bvh.node_count());
+    assert!(bvh.depth() <= bound && bvh.depth() <= BVH_STACK_SIZE, "depth {} over {bound}", bvh.depth());
+    // The disc (y = 0, radius 1) shadows what is under it, not what is beside it.
+    assert!(bvh.occluded_gpu_layout(Vec3::new(0.3, -1.0, 0.2), Vec3::Y, 2.0));
+    assert!(!bvh.occluded_gpu_layout(Vec3::new(1.5, -1.0, 0.0), Vec3::Y, 2.0));
 }
 
 /// Random points on large random triangles near the origin and 100 km out: the pushed origin

@@ -169,3 +169,278 @@ fn meshes_with_nan_and_degenerate_triangles_render_and_say_what_was_dropped() {
     assert!(stdout(&o).contains("validation: 0 messages"));
     assert!(out.exists());
 }
+
+/// Runs umbra with `args` (and `envs`), failing the test instead of hanging when it does not
+/// finish within `limit`.
+fn run_within(limit: std::time::Duration, args: &[&str], envs: &[(&str, &str)]) -> Output {
+    use std::process::Stdio;
+    let child = umbra()
+        .args(args)
+        .envs(envs.iter().copied())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run umbra");
+    let pid = child.id() as libc::pid_t;
+    let (send, receive) = std::sync::mpsc::channel();
+    std::thread::spawn(move || {
+        let _ = send.send(child.wait_with_output());
+    });
+    match receive.recv_timeout(limit) {
+        Ok(output) => output.expect("wait for umbra"),
+        Err(_) => {
+            // SAFETY: kill(2) on the child we started, which has not been waited for yet.
+            unsafe { libc::kill(pid, libc::SIGKILL) };
+            panic!("umbra {args:?} did not finish within {limit:?}");
+        }
+    }
+}
+
+const PROMPTLY: std::time::Duration = std::time::Duration::from_secs(30);
+
+fn scene_with_mesh(dir: &Path, mesh: &str) -> PathBuf {
+    let scene = dir.join("scene.toml");
+    let text = format!(
+        "[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n[[objects]]\nmesh = \"{mesh}\"\n"
+    );
+    std::fs::write(&scene, text).unwrap();
+    scene
+}
+
+#[test]
+fn devices_and_fifos_are_refused_promptly() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("never.png");
+    let o = out.to_str().unwrap();
+    let zero = run_within(PROMPTLY, &["render", "/dev/zero", "-o", o], &[]);
+    assert_clear_error(&zero, &["/dev/zero: cannot read scene file: not a regular file (a character device)"]);
+
+    let fifo = dir.path().join("pipe.obj");
+    assert!(std::process::Command::new("mkfifo").arg(&fifo).status().expect("mkfifo").success());
+    let scene = scene_with_mesh(dir.path(), "pipe.obj");
+    let mesh = run_within(PROMPTLY, &["render", scene.to_str().unwrap(), "-o", o], &[]);
+    assert_clear_error(&mesh, &["scene.toml: objects[0].mesh: cannot read \"pipe.obj\": not a regular file (a FIFO)"]);
+    let as_scene = run_within(PROMPTLY, &["render", fifo.to_str().unwrap(), "-o", o], &[]);
+    assert_clear_error(&as_scene, &["pipe.obj: cannot read scene file: not a regular file (a FIFO)"]);
+    assert!(!out.exists());
+}
+
+#[test]
+fn inputs_over_the_size_limit_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("never.png");
+    let o = out.to_str().unwrap();
+    std::fs::copy(Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/meshes/tetra.obj"), dir.path().join("t.obj"))
+        .unwrap();
+    let scene = scene_with_mesh(dir.path(), "t.obj");
+    let s = scene.to_str().unwrap();
+    let mesh_size = std::fs::metadata(dir.path().join("t.obj")).unwrap().len();
+    let scene_size = std::fs::metadata(&scene).unwrap().len();
+    assert!(scene_size < mesh_size, "the limit must fall between the two");
+    let limit = scene_size.to_string();
+    let too_big = run_within(PROMPTLY, &["render", s, "-o", o], &[("UMBRA_MAX_INPUT_BYTES", &limit)]);
+    let expected = format!(
+        "scene.toml: objects[0].mesh: cannot read \"t.obj\": {mesh_size} bytes is over the input limit of {scene_size} bytes \
+         (set UMBRA_MAX_INPUT_BYTES to change it)"
+    );
+    assert_clear_error(&too_big, &[&expected]);
+    let scene_too_big = run_within(PROMPTLY, &["render", s, "-o", o], &[("UMBRA_MAX_INPUT_BYTES", "10")]);
+    assert_clear_error(&scene_too_big, &["scene.toml: cannot read scene file: ", "over the input limit of 10 bytes"]);
+    let bad_limit = run_within(PROMPTLY, &["render", s, "-o", o], &[("UMBRA_MAX_INPUT_BYTES", "4G")]);
+    assert_clear_error(
+        &bad_limit,
+        &["scene.toml: cannot read scene file: UMBRA_MAX_INPUT_BYTES=\"4G\" is not a whole number"],
+    );
+    assert!(!out.exists());
+}
+
+#[test]
+fn short_faces_and_empty_meshes_are_warned_about() {
+    let dir = out_dir("short");
+    let out = dir.join("s.png");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/scenes/short_faces.toml");
+    let o = run(&["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap(), "--size", "32x24"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    let warning = |needle: &str| {
+        err.lines().any(|l| l.starts_with("warn: ") && l.contains("short_faces.toml") && l.contains(needle))
+    };
+    assert!(warning("objects[0] (../meshes/short_faces.obj): dropped 3 faces with fewer than 3 corners"), "{err}");
+    assert!(warning("objects[1] (../meshes/empty.obj): no triangles to draw"), "{err}");
+}
+
+#[test]
+fn an_output_that_is_an_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("tri.obj"), "mtllib looks.png\nusemtl a\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(d.join("looks.png"), "newmtl a\nKd 1 0 0\n").unwrap();
+    let scene = scene_with_mesh(d, "tri.obj");
+    std::fs::copy(&scene, d.join("scene.png")).unwrap();
+    std::os::unix::fs::symlink("tri.obj", d.join("mesh-link.png")).unwrap();
+    let before: Vec<(PathBuf, Vec<u8>)> = ["scene.png", "scene.toml", "tri.obj", "looks.png"]
+        .iter()
+        .map(|n| (d.join(n), std::fs::read(d.join(n)).unwrap()))
+        .collect();
+    let s = scene.to_str().unwrap().to_owned();
+    let path = |n: &str| d.join(n).to_str().unwrap().to_owned();
+    let cases = [
+        // The scene file itself, even as a valid scene under another spelling of its path.
+        (
+            vec!["render".to_owned(), path("scene.png"), "-o".into(), format!("{}/./scene.png", d.display())],
+            "scene.png",
+        ),
+        // A material library the mesh names.
+        (vec!["render".to_owned(), s.clone(), "-o".into(), path("looks.png")], "looks.png"),
+        // A link to the mesh.
+        (vec!["render".to_owned(), s.clone(), "-o".into(), path("mesh-link.png")], "tri.obj"),
+    ];
+    for (args, input) in cases {
+        let args: Vec<&str> = args.iter().map(String::as_str).collect();
+        let o = run_within(PROMPTLY, &args, &[]);
+        assert_clear_error(&o, &["is an input of this render", input, "choose another output file"]);
+        let o = run_within(PROMPTLY, &[&args[..], &["--force"]].concat(), &[]);
+        assert_clear_error(&o, &["is an input of this render"]);
+    }
+    for (path, bytes) in before {
+        assert_eq!(std::fs::read(&path).unwrap(), bytes, "{} changed", path.display());
+    }
+    assert!(std::fs::symlink_metadata(d.join("mesh-link.png")).unwrap().file_type().is_symlink());
+}
+
+#[test]
+fn read_only_outputs_need_force_and_replaced_files_keep_their_mode() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+    let out = dir.path().join("locked.png");
+    std::fs::write(&out, b"keep me").unwrap();
+    std::fs::set_permissions(&out, std::fs::Permissions::from_mode(0o444)).unwrap();
+    let o = out.to_str().unwrap();
+    let refused = run(&["render", "-o", o, "--size", "32x24"]);
+    assert_clear_error(&refused, &["locked.png: the file exists and is read-only; pass --force to replace it"]);
+    assert_eq!(std::fs::read(&out).unwrap(), b"keep me");
+    let forced = run(&["render", "-o", o, "--size", "32x24", "--force"]);
+    assert!(forced.status.success(), "{}", stderr(&forced));
+    assert_eq!(image::open(&out).expect("a PNG").to_rgb8().dimensions(), (32, 24));
+    assert_eq!(mode(&out), 0o444, "a forced replacement keeps the mode");
+
+    let shared = dir.path().join("shared.exr");
+    std::fs::write(&shared, b"old").unwrap();
+    std::fs::set_permissions(&shared, std::fs::Permissions::from_mode(0o640)).unwrap();
+    let replaced = run(&["render", "-o", shared.to_str().unwrap(), "--size", "32x24"]);
+    assert!(replaced.status.success(), "{}", stderr(&replaced));
+    assert_eq!(mode(&shared), 0o640);
+
+    // A new file gets the mode any new file gets here (0666 less the umask), not 0600.
+    let fresh = dir.path().join("fresh.png");
+    let reference = dir.path().join("reference");
+    std::fs::File::create(&reference).unwrap();
+    let made = run(&["render", "-o", fresh.to_str().unwrap(), "--size", "32x24"]);
+    assert!(made.status.success(), "{}", stderr(&made));
+    assert_eq!(mode(&fresh), mode(&reference));
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left.len(), 4, "no temporary file may remain: {left:?}");
+}
+
+/// The temporary file used to be `.<name>.<pid>.tmp`, opened following links: anyone who can
+/// write the directory could point it at another file, which the render then overwrote.
+#[test]
+fn a_planted_link_at_the_old_temporary_name_is_not_followed() {
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().unwrap();
+    let victim = dir.path().join("victim.txt");
+    std::fs::write(&victim, b"precious").unwrap();
+    let out = dir.path().join("out.png");
+    let child = umbra()
+        .args(["render", "-o", out.to_str().unwrap(), "--size", "64x48"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // Rendering takes far longer than planting the link.
+    std::os::unix::fs::symlink(&victim, dir.path().join(format!(".out.png.{}.tmp", child.id()))).unwrap();
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(std::fs::read(&victim).unwrap(), b"precious");
+    assert_eq!(image::open(&out).expect("a PNG").to_rgb8().dimensions(), (64, 48));
+}
+
+/// SIGTERM or SIGINT while the image is being written removes the temporary file. The write of
+/// a 2048x2048 PNG lasts ~0.1 s: the test waits for the temporary file to appear, then signals.
+#[test]
+fn a_signal_during_the_write_leaves_no_temporary_file() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let temporaries = |dir: &Path| -> Vec<String> {
+        std::fs::read_dir(dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.ends_with(".tmp"))
+            .collect()
+    };
+    for signal in [libc::SIGTERM, libc::SIGINT] {
+        let mut caught = false;
+        for _attempt in 0..4 {
+            let dir = tempfile::tempdir().unwrap();
+            let out = dir.path().join("out.png");
+            let mut child = umbra()
+                .args(["render", "-o", out.to_str().unwrap(), "--size", "2048x2048", "--shadows", "none"])
+                .stdout(Stdio::null())
+                .stderr(Stdio::null())
+                .spawn()
+                .unwrap();
+            let start = std::time::Instant::now();
+            let mut seen = false;
+            while start.elapsed() < std::time::Duration::from_secs(120) {
+                if !temporaries(dir.path()).is_empty() {
+                    seen = true;
+                    break;
+                }
+                if child.try_wait().unwrap().is_some() {
+                    break;
+                }
+                std::thread::sleep(std::time::Duration::from_micros(200));
+            }
+            if !seen {
+                let _ = child.kill();
+                let _ = child.wait();
+                continue;
+            }
+            // SAFETY: kill(2) on the child we started, which has not been waited for yet.
+            unsafe { libc::kill(child.id() as libc::pid_t, signal) };
+            let status = child.wait().unwrap();
+            if status.success() {
+                continue; // the write finished before the signal arrived: try again
+            }
+            assert_eq!(status.signal(), Some(signal), "{status:?}");
+            assert_eq!(temporaries(dir.path()), Vec::<String>::new(), "after signal {signal}");
+            assert!(!out.exists());
+            caught = true;
+            break;
+        }
+        assert!(caught, "never caught a write in progress for signal {signal}");
+    }
+}
+
+/// `umbra render ... --print-plan | true`: a closed stdout used to make println! panic
+/// ("failed printing to stdout: Broken pipe", exit 101). It ends the program quietly.
+#[test]
+fn a_closed_stdout_ends_quietly() {
+    use std::os::unix::process::ExitStatusExt;
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("p.png");
+    let mut child = umbra()
+        .args(["render", "-o", out.to_str().unwrap(), "--size", "32x24", "--print-plan"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take()); // the reader goes away before anything is printed
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert!(!err.contains("panicked") && !err.contains("Broken pipe"), "{err}");
+    assert_ne!(o.status.code(), Some(101), "{err}");
+    assert!(o.status.success() || o.status.signal() == Some(libc::SIGPIPE), "{:?}: {err}", o.status);
+}

@@ -21,8 +21,12 @@ fn load_error(scene: &str) -> String {
 }
 
 fn parse_error(text: &str) -> String {
-    match Scene::parse(text, "inline.toml", &data("scenes")) {
-        Ok(_) => panic!("scene parsed but should not:\n{text}"),
+    parse_error_in(text, &data("scenes"))
+}
+
+fn parse_error_in(text: &str, base_dir: &Path) -> String {
+    match Scene::parse(text, "inline.toml", base_dir) {
+        Ok(_) => panic!("scene parsed but should not:\n{}", text.chars().take(500).collect::<String>()),
         Err(error) => clean_message(&error),
     }
 }
@@ -227,6 +231,171 @@ fn bad_cameras_are_rejected() {
     }
 }
 
+/// The camera is checked on the f32 values the renderer gets: points that differ only in f64
+/// are one point there, and a view direction that is only off the up axis in f64 lies on it.
+#[test]
+fn cameras_are_checked_in_single_precision() {
+    let cases = [
+        // 2.2000001 and 2.2 round to the same f32: no view direction at all.
+        (
+            "eye = [0, 2.2, 5.2]\ntarget = [0, 2.2000001, 5.2]\nvfov_deg = 40\n",
+            "camera.target: must differ from camera.eye",
+        ),
+        // 1000.000002 rounds to 1000 in f32: the view is straight up, along `up`.
+        (
+            "eye = [1000, 0, 0]\ntarget = [1000.000002, 1, 0]\nvfov_deg = 40\n",
+            "camera.up: is parallel to the view direction",
+        ),
+    ];
+    for (camera, expected) in cases {
+        let message = parse_error(&format!("[camera]\n{camera}"));
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+    }
+    // Points that stay distinct in f32 are still fine.
+    let scene = parse("[camera]\neye = [0, 2.2, 5.2]\ntarget = [0, 2.2, 5.2000003]\nvfov_deg = 40\n");
+    assert_ne!(scene.camera.eye, scene.camera.target);
+}
+
+/// serde's fixed-size arrays read their first N elements and drop the rest: every array key
+/// must have exactly its length, with the key path in the message.
+#[test]
+fn arrays_of_the_wrong_length_are_refused() {
+    let object = |rest: &str| format!("{CAMERA}[[objects]]\nshape = \"cube\"\n{rest}\n");
+    let light = |rest: &str| {
+        format!("{CAMERA}[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n{rest}\n")
+    };
+    let cases = [
+        (
+            "[camera]\neye = [0, 2.2, 5.2, \"junk\"]\ntarget = [0, 0, 0]\nvfov_deg = 40\n".to_owned(),
+            "inline.toml:2:7: camera.eye: invalid length 4, expected an array of length 3",
+        ),
+        (
+            "[camera]\neye = [0, 2.2, 5.2]\ntarget = [0, 0, 0, 0]\nvfov_deg = 40\n".to_owned(),
+            "camera.target: invalid length 4",
+        ),
+        (
+            "[camera]\neye = [0, 2.2]\ntarget = [0, 0, 0]\nvfov_deg = 40\n".to_owned(),
+            "camera.eye: invalid length 2, expected an array of length 3",
+        ),
+        (
+            "[camera]\neye = [0, 2, 5]\ntarget = [0, 0, 0]\nup = [0, 1, 0, 0]\nvfov_deg = 40\n".to_owned(),
+            "camera.up: invalid length 4",
+        ),
+        (
+            object("transform = [[1,0,0,0,0],[0,1,0,0,0],[0,0,1,0,0],[0,0,0,1,0],[0,0,0,0,1]]"),
+            "objects[0].transform: invalid length 5, expected an array of length 4",
+        ),
+        (
+            object("transform = [[1,0,0,0],[0,1,0,0],[0,0,1,0],[0,0,0,1],[0,0,0,1]]"),
+            "objects[0].transform: invalid length 5",
+        ),
+        (object("transform = [[1,0,0,0],[0,1,0,0],[0,0,1,0]]"), "objects[0].transform: invalid length 3"),
+        (
+            object("material = { base_color = [0.5, 0.5, 0.5, 1.0] }"),
+            "objects[0].material.base_color: invalid length 4, expected an array of length 3",
+        ),
+        (object("translate = [1, 2, 3, 4]"), "objects[0].translate: invalid length 4"),
+        (object("rotate_deg = [1, 2, 3, 4]"), "objects[0].rotate_deg: invalid length 4"),
+        (object("scale = [1, 2, 3, 4]"), "objects[0].scale: invalid length 4, expected an array of length 3"),
+        (
+            light("radius = 0.1\n[[lights]]\ntype = \"point\"\nposition = [0, 1, 0, 9]\nintensity = [1, 1, 1]"),
+            "lights[1].position: invalid length 4",
+        ),
+        (
+            light("").replace("intensity = [1, 1, 1]", "intensity = [1, 1, 1, 1]"),
+            "lights[0].intensity: invalid length 4",
+        ),
+    ];
+    for (text, expected) in cases {
+        let message = parse_error(&text);
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+    }
+    // Right-length arrays, including the nested 4x4, still load.
+    let scene = parse(&object(
+        "transform = [[2,0,0,0],[0,2,0,0],[0,0,2,0],[0,0,0,1]]\nmaterial = { base_color = [0.1, 0.2, 0.3] }",
+    ));
+    assert_eq!(scene.meshes[0].material.base_color, Vec3::new(0.1, 0.2, 0.3));
+}
+
+/// Numbers in messages are written compactly, whatever their magnitude: no 300-digit 1e300.
+#[test]
+fn huge_and_tiny_numbers_print_compactly() {
+    let light =
+        |rest: &str| format!("[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n{rest}\n");
+    let cases = [
+        ("[[objects]]\nshape = \"cube\"\nmaterial = { roughness = 1e300 }\n".to_owned(), "objects[0].material.roughness: 1e300 is outside [0, 1]"),
+        ("[[objects]]\nshape = \"cube\"\nmaterial = { metallic = -1e-300 }\n".to_owned(), "objects[0].material.metallic: -1e-300 is outside [0, 1]"),
+        ("[[objects]]\nshape = \"cube\"\nsize = 1e300\n".to_owned(), "objects[0].size: 1e300 must be positive and finite"),
+        ("[[objects]]\nshape = \"sphere\"\nradius = 1e-300\n".to_owned(), "objects[0].radius: 1e-300 must be positive and finite"),
+        ("[[objects]]\nshape = \"cube\"\ntranslate = [1e300, 0, 0]\n".to_owned(), "objects[0].translate: [1e300, 0, 0] is not finite"),
+        (light("").replace("intensity = [1, 1, 1]", "intensity = [1e300, 1, 1]"), "lights[0].intensity: [1e300, 1, 1] must be finite and >= 0"),
+        (
+            "[[lights]]\ntype = \"directional\"\ndirection = [0, -1, 0]\nirradiance = [1, 1, 1]\nangular_diameter_deg = 1e300\n".to_owned(),
+            "lights[0].angular_diameter_deg: 1e300 is outside [0, 90)",
+        ),
+        (
+            "[[lights]]\ntype = \"spot\"\nposition = [0, 3, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\ninner_deg = 1e300\nouter_deg = 20\n".to_owned(),
+            "lights[0]: need 0 <= inner_deg < outer_deg <= 90, got 1e300 and 20",
+        ),
+        (light("radius = 1e300"), "lights[0].radius: 1e300 must be finite and >= 0"),
+        (
+            "[[objects]]\nshape = \"sphere\"\nsegments = 1e300\n".to_owned(),
+            "objects[0].segments: invalid type: floating point `1e300`, expected u32",
+        ),
+    ];
+    for (rest, expected) in cases {
+        let message = parse_error(&with_camera(&rest));
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+        assert!(message.len() < 160, "{} bytes: {message}", message.len());
+    }
+    let message = parse_error("[camera]\neye = [0, 1, 5]\ntarget = [0, 0, 0]\nvfov_deg = 1e300\n");
+    assert!(message.contains("camera.vfov_deg: 1e300 is outside (0, 180)"), "{message}");
+}
+
+/// A transform made from `scale` that overflows or underflows names `scale`, the key the file
+/// has, not a `transform` it never wrote.
+#[test]
+fn a_degenerate_scale_names_the_scale() {
+    let cases = [
+        ("scale = 1e300", "objects[1].scale: 1e300 scales volumes by inf"),
+        ("scale = 1e-200", "objects[1].scale: 1e-200 scales volumes by 0"),
+        ("scale = [1e200, 1e200, 1]", "objects[1].scale: [1e200, 1e200, 1] scales volumes by inf"),
+        ("scale = 1e300\nrotate_deg = [0, 45, 0]", "objects[1].scale: 1e300"),
+    ];
+    for (placement, expected) in cases {
+        let message = parse_error(&with_camera(&format!(
+            "[[objects]]\nshape = \"cube\"\n[[objects]]\nshape = \"cube\"\n{placement}\n"
+        )));
+        assert!(message.contains(expected), "expected {expected:?} in {message:?}");
+        assert!(!message.contains("transform"), "{message}");
+        assert!(message.len() < 160, "{message}");
+    }
+}
+
+/// A key path of 100,000 parts used to take seconds to locate and gave a 200 KB "line": it is
+/// found quickly and shortened, and so is a message quoting a huge key.
+#[test]
+fn huge_key_paths_give_short_messages_quickly() {
+    let parts = vec!["a"; 100_000].join(".");
+    let texts = [
+        format!("{CAMERA}[{parts}]\nx = 1\n"),
+        format!("{CAMERA}[[objects]]\nshape = \"cube\"\n[objects.{parts}]\nx = 1\n"),
+        format!("{CAMERA}{parts} = 1\n"),
+        format!("{CAMERA}{} = 1\n", "k".repeat(200_000)),
+        format!("{CAMERA}[[objects]]\nshape = \"cube\"\nmaterial = {{ {} = 1 }}\n", "m".repeat(200_000)),
+    ];
+    for text in texts {
+        let start = std::time::Instant::now();
+        let message = parse_error(&text);
+        let elapsed = start.elapsed();
+        assert!(elapsed < std::time::Duration::from_secs(3), "{elapsed:?}: {message}");
+        assert!(message.len() < 800, "{} bytes: {}…", message.len(), message.chars().take(200).collect::<String>());
+        assert!(message.starts_with("inline.toml:"), "{message}");
+    }
+    let message = parse_error(&format!("{CAMERA}[{parts}]\nx = 1\n"));
+    assert!(message.contains("a.a.a.a.a.a.a.a.…(100000 keys)….a.a.a"), "{message}");
+}
+
 /// Random damage to a valid scene must give a clean one-line error or a scene, never a panic.
 #[test]
 fn damaged_scene_text_never_panics() {
@@ -398,6 +567,77 @@ fn non_finite_and_degenerate_triangles_are_dropped_and_counted() {
     for mesh in &scene.meshes {
         assert!(mesh.positions.iter().all(|p| p.is_finite()), "{}", mesh.name);
     }
+}
+
+/// OBJ faces with one or two corners (points, lines) have no triangle: they are counted (and
+/// warned about, see tests/cli.rs), like dropped triangles; an OBJ without faces gives no mesh.
+#[test]
+fn short_faces_are_counted_and_an_empty_obj_gives_no_mesh() {
+    let scene = Scene::load(&data("scenes/short_faces.toml")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.stats.short_faces, 3);
+    assert_eq!(scene.meshes.len(), 1);
+    assert_eq!(mesh_named(&scene, "short_faces.obj/short").triangle_count(), 1);
+}
+
+/// Only OBJ meshes load; another extension (a glTF file, say) is refused by name, whatever
+/// its contents, and `.OBJ` is as good as `.obj`.
+#[test]
+fn meshes_must_be_obj_files() {
+    for mesh in ["model.glb", "model.gltf", "model", "model.obj.txt", "../meshes/tetra.stl"] {
+        let message = parse_error(&with_camera(&format!("[[objects]]\nmesh = \"{mesh}\"\n")));
+        let expected = format!("inline.toml: objects[0].mesh: \"{mesh}\" is not an OBJ file");
+        assert!(message.contains(&expected), "expected {expected:?} in {message:?}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(data("meshes/tetra.obj"), dir.path().join("TETRA.OBJ")).unwrap();
+    let scene = Scene::parse(&with_camera("[[objects]]\nmesh = \"TETRA.OBJ\"\n"), "inline.toml", dir.path())
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.triangle_count(), 4);
+}
+
+/// A scene, mesh or material library that is a device or a FIFO is refused (never read without
+/// end, never waited on); a refused MTL costs only the materials, as a missing one does.
+#[test]
+fn inputs_must_be_regular_files() {
+    let message = load_error("/dev/zero");
+    assert_eq!(message, "/dev/zero: cannot read scene file: not a regular file (a character device)");
+    let message = parse_error(&with_camera("[[objects]]\nmesh = \"/dev/urandom\"\n"));
+    assert!(message.contains("objects[0].mesh: \"/dev/urandom\" is not an OBJ file"), "{message}");
+
+    let dir = tempfile::tempdir().unwrap();
+    std::os::unix::fs::symlink("/dev/urandom", dir.path().join("random.obj")).unwrap();
+    let message = parse_error_in(&with_camera("[[objects]]\nmesh = \"random.obj\"\n"), dir.path());
+    assert!(message.ends_with("cannot read \"random.obj\": not a regular file (a character device)"), "{message}");
+    std::fs::write(dir.path().join("m.obj"), "mtllib /dev/zero\nusemtl x\nv 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n")
+        .unwrap();
+    let start = std::time::Instant::now();
+    let scene = Scene::parse(&with_camera("[[objects]]\nmesh = \"m.obj\"\n"), "inline.toml", dir.path())
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert!(start.elapsed() < std::time::Duration::from_secs(5));
+    assert_eq!(scene.meshes[0].material, umbra::scene::Material::default());
+
+    let fifo = dir.path().join("fifo.obj");
+    let made = std::process::Command::new("mkfifo").arg(&fifo).status().expect("mkfifo");
+    assert!(made.success());
+    let message = parse_error_in(&with_camera("[[objects]]\nmesh = \"fifo.obj\"\n"), dir.path());
+    assert!(message.ends_with("objects[0].mesh: cannot read \"fifo.obj\": not a regular file (a FIFO)"), "{message}");
+    let message = match Scene::load(&fifo) {
+        Ok(_) => panic!("a FIFO loaded as a scene"),
+        Err(e) => clean_message(&e),
+    };
+    assert!(message.ends_with("fifo.obj: cannot read scene file: not a regular file (a FIFO)"), "{message}");
+}
+
+/// `Scene::sources` lists every file read: the scene file, then each mesh and the material
+/// libraries it names, so the renderer can refuse to write its output over any of them.
+#[test]
+fn sources_list_every_file_read() {
+    let scene = Scene::load(&data("scenes/meshes.toml")).unwrap_or_else(|e| panic!("{e}"));
+    let names: Vec<String> =
+        scene.sources.iter().map(|p| p.file_name().unwrap().to_string_lossy().into_owned()).collect();
+    assert_eq!(names, ["meshes.toml", "nan.obj", "degenerate.obj", "tetra.obj", "smooth.obj", "smooth.mtl"]);
+    assert!(scene.sources.iter().all(|p| p.is_file()), "{:?}", scene.sources);
+    assert!(Scene::default_scene().sources.is_empty());
 }
 
 #[test]

@@ -19,14 +19,13 @@
 
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
-use obvhs::bvh2::{builder::build_bvh2_from_tris, node::Bvh2Node, Bvh2};
+use obvhs::bvh2::{node::Bvh2Node, Bvh2};
 use obvhs::ray::Ray;
 use obvhs::triangle::Triangle;
-use obvhs::BvhBuildParams;
-use std::time::Duration;
 
 use super::Scene;
 
+mod ploc;
 mod ray_offset;
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};
 
@@ -115,9 +114,18 @@ impl ShadowBvh {
     pub fn from_triangles(tris: &[[Vec3; 3]]) -> ShadowBvh {
         ShadowBvh::with_builder(tris, |reference_triangles| {
             // PLOC with a medium search radius, reinsertion before and after leaf collapse:
-            // the "medium" preset. Spatial pre-splits stay off so each triangle is in one leaf.
-            let mut bvh =
-                build_bvh2_from_tris(reference_triangles, BvhBuildParams::medium_build(), &mut Duration::default());
+            // obvhs's "medium" preset, with a guard that stops the clustering where it stalls
+            // (coincident or nested triangles) and joins what it built by a median split.
+            // Spatial pre-splits stay off so each triangle is in one leaf.
+            let (mut bvh, report) = ploc::build(reference_triangles);
+            if report.stopped_with > 0 {
+                log::info!(
+                    "shadow BVH: clustering stalled after {} passes with {} nodes left; \
+                     joined them by a median split",
+                    report.passes,
+                    report.stopped_with
+                );
+            }
             // Depth-first order: parents before children, siblings together, for GPU caches.
             bvh.reorder_in_stack_traversal_order();
             let depth = bvh.depth(0);

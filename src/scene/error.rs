@@ -61,11 +61,76 @@ impl SceneError {
     pub(super) fn from_toml(file: &str, text: &str, error: &toml::de::Error) -> SceneError {
         // toml's messages can span lines ("invalid inline table\nexpected `}`"): keep one line.
         let message = error.message().lines().map(str::trim).filter(|l| !l.is_empty());
-        let message = message.collect::<Vec<_>>().join("; ");
+        let message = compact_floats(&message.collect::<Vec<_>>().join("; "));
+        let message = shorten(&message, MAX_MESSAGE_CHARS);
         let offset = error.span().map_or(0, |span| span.start);
         let (line, column) = line_column(text, offset);
         SceneError::Toml { file: file.to_owned(), line, column, key_path: key_path_at(text, offset), message }
     }
+}
+
+/// `v` as written in a message: plain for everyday magnitudes (`-1`, `0.5`), exponent form for
+/// huge and tiny ones, so `1e300` does not print as 301 digits nor `1e-300` as 300 zeros.
+pub(super) fn short_number(v: f64) -> String {
+    if v.is_finite() && v != 0.0 && !(1e-6..1e16).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
+/// serde writes an unexpected float in full (``floating point `1000…000` ``, 301 digits for
+/// 1e300): rewrite each such number as `short_number` does.
+fn compact_floats(message: &str) -> String {
+    const MARK: &str = "floating point `";
+    let mut out = String::with_capacity(message.len());
+    let mut rest = message;
+    while let Some(at) = rest.find(MARK) {
+        let (before, after) = rest.split_at(at + MARK.len());
+        out.push_str(before);
+        let end = after.find('`').unwrap_or(after.len());
+        match after[..end].parse::<f64>() {
+            Ok(v) => out.push_str(&short_number(v)),
+            Err(_) => out.push_str(&after[..end]),
+        }
+        rest = &after[end..];
+    }
+    out.push_str(rest);
+    out
+}
+
+/// The most characters of a message (or of text quoted in one) that an error shows.
+pub(super) const MAX_MESSAGE_CHARS: usize = 300;
+/// The most characters of a key path that an error shows.
+const MAX_KEY_PATH_CHARS: usize = 160;
+/// A key path of more parts shows its first and last few, and how many there are.
+const MAX_KEY_PATH_PARTS: usize = 12;
+/// Array-of-tables headers (`[[a.b]]`) are counted, for `a.b[n]`, up to this many parts deep.
+const MAX_ARRAY_HEADER_PARTS: usize = 16;
+
+/// `text` cut to at most `max` characters, keeping its start and end around a `…`.
+pub(super) fn shorten(text: &str, max: usize) -> String {
+    let count = text.chars().count();
+    if count <= max {
+        return text.to_owned();
+    }
+    let head = max * 2 / 3;
+    let tail = max.saturating_sub(head + 1);
+    let start: String = text.chars().take(head).collect();
+    let end: String = text.chars().skip(count - tail).collect();
+    format!("{start}…{end}")
+}
+
+/// A dotted key path for a message: its first 8 and last 3 parts around `…(N keys)…` when it
+/// has more than `MAX_KEY_PATH_PARTS`, and at most `MAX_KEY_PATH_CHARS` characters.
+fn key_path_text(parts: &[String]) -> String {
+    let joined = if parts.len() > MAX_KEY_PATH_PARTS {
+        let (head, tail) = (&parts[..8], &parts[parts.len() - 3..]);
+        format!("{}.…({} keys)….{}", head.join("."), parts.len(), tail.join("."))
+    } else {
+        parts.join(".")
+    };
+    shorten(&joined, MAX_KEY_PATH_CHARS)
 }
 
 /// 1-based line and column (in characters) of a byte offset; offsets past the end or inside a
@@ -164,7 +229,7 @@ pub(super) fn key_path_at(text: &str, offset: usize) -> String {
     let mut path = table;
     path.extend(inline.into_iter().flatten());
     path.extend(key);
-    path.join(".")
+    key_path_text(&path)
 }
 
 /// Index just past the string literal starting at `start` (basic, literal, or either multi-line
@@ -196,22 +261,30 @@ fn split_key(raw: &str) -> Vec<String> {
 
 /// The path a `[table]` or `[[array]]` header opens, counting array entries so the n-th
 /// `[[objects]]` becomes `objects[n-1]`, and `[objects.material]` after it
-/// `objects[n-1].material`.
+/// `objects[n-1].material`. Linear in the header's length: only the first
+/// `MAX_ARRAY_HEADER_PARTS` parts are looked up as arrays.
 fn header_path(line: &str, array_counts: &mut HashMap<String, usize>) -> Vec<String> {
     let is_array = line.starts_with("[[");
     let inner = line.trim_start_matches('[');
     let inner = inner.split(']').next().unwrap_or("");
     let parts: Vec<String> = inner.split('.').map(|p| p.trim().trim_matches(['"', '\'']).to_owned()).collect();
-    if is_array {
+    if is_array && parts.len() <= MAX_ARRAY_HEADER_PARTS {
         *array_counts.entry(parts.join(".")).or_insert(0) += 1;
     }
     let mut path = Vec::with_capacity(parts.len());
+    let mut prefix = String::new();
     for (n, part) in parts.iter().enumerate() {
-        let prefix = parts[..=n].join(".");
-        match array_counts.get(&prefix) {
-            Some(count) => path.push(format!("{part}[{}]", count.saturating_sub(1))),
-            None => path.push(part.clone()),
+        if n < MAX_ARRAY_HEADER_PARTS {
+            if n > 0 {
+                prefix.push('.');
+            }
+            prefix.push_str(part);
+            if let Some(count) = array_counts.get(&prefix) {
+                path.push(format!("{part}[{}]", count.saturating_sub(1)));
+                continue;
+            }
         }
+        path.push(part.clone());
     }
     path
 }
@@ -246,6 +319,35 @@ mod tests {
         assert_eq!(path_before(text, "X4"), "lights[0].position");
         assert_eq!(path_before(text, "[camera]"), "camera");
         assert_eq!(key_path_at(text, 0), "camera");
+    }
+
+    #[test]
+    fn long_key_paths_are_shortened_quickly() {
+        let parts = vec!["a"; 100_000].join(".");
+        let text = format!("[camera]\nvfov_deg = 1\n[{parts}]\nx = X1\n");
+        let start = std::time::Instant::now();
+        let path = path_before(&text, "X1");
+        assert!(start.elapsed() < std::time::Duration::from_secs(2), "{:?}", start.elapsed());
+        assert_eq!(path, "a.a.a.a.a.a.a.a.…(100001 keys)….a.a.x");
+        let long_part = "b".repeat(10_000);
+        let path = path_before(&format!("[{long_part}]\nx = X1\n"), "X1");
+        assert!(path.chars().count() <= MAX_KEY_PATH_CHARS && path.ends_with("bbb.x"), "{path}");
+    }
+
+    #[test]
+    fn floats_in_serde_messages_are_compacted() {
+        let huge = format!("invalid type: floating point `1{}.0`, expected u32", "0".repeat(300));
+        assert_eq!(compact_floats(&huge), "invalid type: floating point `1e300`, expected u32");
+        let plain = "invalid type: floating point `2.5`, expected u32";
+        assert_eq!(compact_floats(plain), plain);
+        assert_eq!(compact_floats("floating point `"), "floating point `");
+    }
+
+    #[test]
+    fn shorten_keeps_both_ends() {
+        assert_eq!(shorten("abcdef", 6), "abcdef");
+        assert_eq!(shorten("abcdefghij", 7), "abcd…ij");
+        assert_eq!(shorten(&"é".repeat(1000), 10).chars().count(), 10);
     }
 
     #[test]

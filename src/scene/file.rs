@@ -2,16 +2,16 @@
 //! them into a `Scene`. Every check names its key path, so a message alone says what to fix.
 
 use std::fmt;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3, Vec3};
 use serde::de::{self, Deserializer, SeqAccess, Visitor};
 use serde::Deserialize;
 
-use super::error::SceneError;
-use crate::config::ShadowBackend;
+use super::error::{short_number, shorten, SceneError, MAX_MESSAGE_CHARS};
 use super::mesh::{self, ObjectMesh};
 use super::{obj, shapes, Camera, Light, LoadStats, Material, Scene};
+use crate::config::ShadowBackend;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -42,9 +42,9 @@ struct ImageDesc {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct CameraDesc {
-    eye: [f64; 3],
-    target: [f64; 3],
-    up: Option<[f64; 3]>,
+    eye: Xyz,
+    target: Xyz,
+    up: Option<Xyz>,
     vfov_deg: f64,
 }
 
@@ -63,10 +63,10 @@ enum LightKind {
 struct LightDesc {
     #[serde(rename = "type")]
     kind: LightKind,
-    position: Option<[f64; 3]>,
-    direction: Option<[f64; 3]>,
-    intensity: Option<[f64; 3]>,
-    irradiance: Option<[f64; 3]>,
+    position: Option<Xyz>,
+    direction: Option<Xyz>,
+    intensity: Option<Xyz>,
+    irradiance: Option<Xyz>,
     inner_deg: Option<f64>,
     outer_deg: Option<f64>,
     radius: Option<f64>,
@@ -89,9 +89,9 @@ struct ObjectDesc {
     size: Option<f64>,
     radius: Option<f64>,
     segments: Option<u32>,
-    transform: Option<[[f64; 4]; 4]>,
-    translate: Option<[f64; 3]>,
-    rotate_deg: Option<[f64; 3]>,
+    transform: Option<Exact<Exact<f64, 4>, 4>>,
+    translate: Option<Xyz>,
+    rotate_deg: Option<Xyz>,
     scale: Option<Scale>,
     material: Option<MaterialDesc>,
     cast_shadows: Option<bool>,
@@ -100,9 +100,50 @@ struct ObjectDesc {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct MaterialDesc {
-    base_color: Option<[f64; 3]>,
+    base_color: Option<Xyz>,
     roughness: Option<f64>,
     metallic: Option<f64>,
+}
+
+/// A TOML array of exactly `N` values. serde's own `[T; N]` stops reading after `N` and drops
+/// the rest without a word, so `eye = [0, 1, 5, 7]` would pass as `[0, 1, 5]`.
+struct Exact<T, const N: usize>([T; N]);
+
+/// `[x, y, z]`.
+type Xyz = Exact<f64, 3>;
+
+impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct ExactVisitor<T, const N: usize>(std::marker::PhantomData<T>);
+        impl<'de, T: Deserialize<'de>, const N: usize> Visitor<'de> for ExactVisitor<T, N> {
+            type Value = Exact<T, N>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                write!(f, "an array of length {N}")
+            }
+            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Exact<T, N>, A::Error> {
+                let mut items = Vec::with_capacity(N);
+                while items.len() < N {
+                    match seq.next_element::<T>()? {
+                        Some(item) => items.push(item),
+                        None => return Err(de::Error::invalid_length(items.len(), &self)),
+                    }
+                }
+                // Extra elements of any type count towards the length in the message.
+                let mut len = N;
+                while seq.next_element::<de::IgnoredAny>()?.is_some() {
+                    len += 1;
+                }
+                if len != N {
+                    return Err(de::Error::invalid_length(len, &self));
+                }
+                match items.try_into() {
+                    Ok(array) => Ok(Exact(array)),
+                    Err(_) => Err(de::Error::invalid_length(len, &self)), // N items: unreachable
+                }
+            }
+        }
+        deserializer.deserialize_seq(ExactVisitor(std::marker::PhantomData))
+    }
 }
 
 /// `scale = s` or `scale = [sx, sy, sz]`.
@@ -126,7 +167,7 @@ impl<'de> Deserialize<'de> for Scale {
                 Ok(Scale([s as f64; 3]))
             }
             fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Scale, A::Error> {
-                <[f64; 3]>::deserialize(de::value::SeqAccessDeserializer::new(seq)).map(Scale)
+                Xyz::deserialize(de::value::SeqAccessDeserializer::new(seq)).map(|xyz| Scale(xyz.0))
             }
         }
         deserializer.deserialize_any(ScaleVisitor)
@@ -148,14 +189,10 @@ const DEFAULT_PLANE_SEGMENTS: u32 = 1;
 const DEFAULT_SIZE: f64 = 1.0;
 const DEFAULT_RADIUS: f64 = 0.5;
 
-/// `v` as written in a message: plain for everyday magnitudes (`-1`, `0.5`), exponent form for
-/// huge ones, so `1e300` does not print as 301 digits.
-fn short_number(v: f64) -> String {
-    if v.is_finite() && v.abs() >= 1e16 {
-        format!("{v:e}")
-    } else {
-        format!("{v}")
-    }
+/// `[1, 2.5, 1e300]`: numbers as `short_number` writes them.
+fn short_numbers(values: &[f64]) -> String {
+    let parts: Vec<String> = values.iter().map(|&v| short_number(v)).collect();
+    format!("[{}]", parts.join(", "))
 }
 
 /// Parses and checks a scene. `source_name` names the file in errors; mesh paths are relative to
@@ -178,28 +215,40 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
 
     let mut meshes = Vec::new();
     let mut stats = LoadStats::default();
+    let mut sources = Vec::new();
     for (i, object) in file.objects.iter().enumerate() {
         let path = format!("objects[{i}]");
         let placed = check.object(&path, object, base_dir)?;
+        sources.extend(placed.files.iter().cloned());
         let mut dropped = LoadStats::default();
+        let meshes_before = meshes.len();
         for local in &placed.meshes {
             let material = placed.material.apply(local.material.unwrap_or_default());
             let cast_shadows = object.cast_shadows.unwrap_or(true);
             meshes.extend(mesh::place(local, &placed.transform, material, cast_shadows, &mut dropped));
         }
-        if dropped != LoadStats::default() {
+        let source = &placed.source;
+        if dropped.degenerate_triangles + dropped.non_finite_triangles > 0 {
             log::warn!(
-                "{source_name}: {path} ({}): dropped {} degenerate and {} non-finite triangles",
-                placed.source,
+                "{source_name}: {path} ({source}): dropped {} degenerate and {} non-finite triangles",
                 dropped.degenerate_triangles,
                 dropped.non_finite_triangles
             );
         }
+        if placed.short_faces > 0 {
+            let n = placed.short_faces;
+            let faces = if n == 1 { "face" } else { "faces" };
+            log::warn!("{source_name}: {path} ({source}): dropped {n} {faces} with fewer than 3 corners");
+        }
+        if meshes.len() == meshes_before {
+            log::warn!("{source_name}: {path} ({source}): no triangles to draw; the object is skipped");
+        }
         stats.degenerate_triangles += dropped.degenerate_triangles;
         stats.non_finite_triangles += dropped.non_finite_triangles;
+        stats.short_faces += placed.short_faces;
     }
     let shadow_backend = file.render.and_then(|r| r.shadow_backend);
-    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend })
+    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend, sources })
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.
@@ -207,6 +256,10 @@ struct PlacedObject {
     /// What the object is made from, for messages: the mesh path or the shape name.
     source: String,
     meshes: Vec<ObjectMesh>,
+    /// The files read for it: the OBJ file and the material libraries it names.
+    files: Vec<PathBuf>,
+    /// OBJ faces with one or two corners, left out.
+    short_faces: usize,
     transform: DMat4,
     material: MaterialOverride,
 }
@@ -235,7 +288,9 @@ struct Check<'a> {
 
 impl Check<'_> {
     fn fail(&self, key_path: &str, message: impl Into<String>) -> SceneError {
-        SceneError::Invalid { file: self.file.to_owned(), key_path: key_path.to_owned(), message: message.into() }
+        // Messages quote what the file says (a mesh path, say): keep them to one short line.
+        let message = shorten(&message.into(), MAX_MESSAGE_CHARS);
+        SceneError::Invalid { file: self.file.to_owned(), key_path: key_path.to_owned(), message }
     }
 
     fn image(&self, image: &ImageDesc) -> Result<(u32, u32), SceneError> {
@@ -248,12 +303,15 @@ impl Check<'_> {
     }
 
     fn camera(&self, camera: &CameraDesc) -> Result<Camera, SceneError> {
-        let eye = self.point("camera.eye", camera.eye)?;
-        let target = self.point("camera.target", camera.target)?;
-        let up = match camera.up {
-            Some(up) => self.direction("camera.up", up)?,
+        let eye = self.point("camera.eye", camera.eye.0)?;
+        let target = self.point("camera.target", camera.target.0)?;
+        let up = match &camera.up {
+            Some(up) => self.direction("camera.up", up.0)?,
             None => DVec3::Y,
         };
+        // Judged on the f32 values the renderer gets: `target = eye + 1e-7` differs in f64 but
+        // is the same point in f32, which would leave the view direction undefined.
+        let (eye, target, up) = (eye.as_vec3(), target.as_vec3(), up.as_vec3());
         let Some(view) = (target - eye).try_normalize() else {
             return Err(self.fail("camera.target", "must differ from camera.eye"));
         };
@@ -262,9 +320,9 @@ impl Check<'_> {
         }
         let vfov = camera.vfov_deg;
         if !(vfov > 0.0 && vfov < 180.0) {
-            return Err(self.fail("camera.vfov_deg", format!("{vfov} is outside (0, 180)")));
+            return Err(self.fail("camera.vfov_deg", format!("{} is outside (0, 180)", short_number(vfov))));
         }
-        Ok(Camera { eye: eye.as_vec3(), target: target.as_vec3(), up: up.as_vec3(), vfov_deg: vfov as f32 })
+        Ok(Camera { eye, target, up, vfov_deg: vfov as f32 })
     }
 
     fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {
@@ -295,9 +353,9 @@ impl Check<'_> {
             }
         }
         // Presence is checked above; these defaults are never used.
-        let field = |v: Option<[f64; 3]>| v.unwrap_or_default();
-        let position = || self.point(&format!("{path}.position"), field(light.position));
-        let direction = || self.direction(&format!("{path}.direction"), field(light.direction));
+        let field = |v: &Option<Xyz>| v.as_ref().map_or([0.0; 3], |v| v.0);
+        let position = || self.point(&format!("{path}.position"), field(&light.position));
+        let direction = || self.direction(&format!("{path}.direction"), field(&light.direction));
         let power = |key: &str, v| self.power(&format!("{path}.{key}"), field(v));
         // Absent sizes are 0: a point or a single direction, hard shadows as before.
         let radius = || {
@@ -311,7 +369,7 @@ impl Check<'_> {
         Ok(match light.kind {
             LightKind::Point => Light::Point {
                 position: position()?.as_vec3(),
-                intensity: power("intensity", light.intensity)?,
+                intensity: power("intensity", &light.intensity)?,
                 radius: radius()?,
             },
             LightKind::Directional => {
@@ -320,11 +378,11 @@ impl Check<'_> {
                 let diameter = light.angular_diameter_deg.unwrap_or(0.0);
                 if !(0.0..90.0).contains(&diameter) {
                     let key_path = format!("{path}.angular_diameter_deg");
-                    return Err(self.fail(&key_path, format!("{diameter} is outside [0, 90)")));
+                    return Err(self.fail(&key_path, format!("{} is outside [0, 90)", short_number(diameter))));
                 }
                 Light::Directional {
                     direction: direction()?.as_vec3(),
-                    irradiance: power("irradiance", light.irradiance)?,
+                    irradiance: power("irradiance", &light.irradiance)?,
                     angular_diameter_deg: diameter as f32,
                 }
             }
@@ -332,13 +390,14 @@ impl Check<'_> {
                 let inner = light.inner_deg.unwrap_or_default();
                 let outer = light.outer_deg.unwrap_or_default();
                 if !(0.0 <= inner && inner < outer && outer <= 90.0) {
+                    let (inner, outer) = (short_number(inner), short_number(outer));
                     let message = format!("need 0 <= inner_deg < outer_deg <= 90, got {inner} and {outer}");
                     return Err(self.fail(path, message));
                 }
                 Light::Spot {
                     position: position()?.as_vec3(),
                     direction: direction()?.as_vec3(),
-                    intensity: power("intensity", light.intensity)?,
+                    intensity: power("intensity", &light.intensity)?,
                     inner_deg: inner as f32,
                     outer_deg: outer as f32,
                     radius: radius()?,
@@ -348,7 +407,7 @@ impl Check<'_> {
     }
 
     fn object(&self, path: &str, object: &ObjectDesc, base_dir: &Path) -> Result<PlacedObject, SceneError> {
-        let (source, meshes) = match (&object.mesh, object.shape) {
+        let (source, loaded) = match (&object.mesh, object.shape) {
             (Some(_), Some(_)) | (None, None) => {
                 return Err(self.fail(path, "give exactly one of `mesh` or `shape`"));
             }
@@ -363,19 +422,35 @@ impl Check<'_> {
                 }
                 (mesh.clone(), self.mesh_file(path, mesh, base_dir)?)
             }
-            (None, Some(shape)) => self.shape(path, shape, object)?,
+            (None, Some(shape)) => {
+                let (source, meshes) = self.shape(path, shape, object)?;
+                (source, obj::LoadedObj { meshes, short_faces: 0, material_files: Vec::new() })
+            }
         };
+        let mut files = Vec::new();
+        if let Some(mesh) = &object.mesh {
+            files.push(base_dir.join(mesh));
+        }
+        files.extend(loaded.material_files);
         Ok(PlacedObject {
             source,
-            meshes,
+            meshes: loaded.meshes,
+            files,
+            short_faces: loaded.short_faces,
             transform: self.transform(path, object)?,
             material: self.material(&format!("{path}.material"), object.material.as_ref())?,
         })
     }
 
-    fn mesh_file(&self, path: &str, mesh: &str, base_dir: &Path) -> Result<Vec<ObjectMesh>, SceneError> {
+    fn mesh_file(&self, path: &str, mesh: &str, base_dir: &Path) -> Result<obj::LoadedObj, SceneError> {
         let key_path = format!("{path}.mesh");
-        obj::load(&base_dir.join(mesh)).map_err(|error| match error {
+        let file = base_dir.join(mesh);
+        let mesh = &shorten(mesh, MAX_MESSAGE_CHARS);
+        if !file.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
+            let message = format!("{mesh:?} is not an OBJ file: only .obj meshes can be loaded");
+            return Err(self.fail(&key_path, message));
+        }
+        obj::load(&file).map_err(|error| match error {
             obj::ObjError::Read(error) => {
                 SceneError::MeshRead { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), error }
             }
@@ -419,11 +494,12 @@ impl Check<'_> {
     fn transform(&self, path: &str, object: &ObjectDesc) -> Result<DMat4, SceneError> {
         let parts = object.translate.is_some() || object.rotate_deg.is_some() || object.scale.is_some();
         let key_path = format!("{path}.transform");
-        let matrix = match object.transform {
+        let matrix = match &object.transform {
             Some(_) if parts => {
                 return Err(self.fail(&key_path, "give either `transform` or translate/rotate_deg/scale, not both"));
             }
             Some(rows) => {
+                let rows = [0, 1, 2, 3].map(|r| rows.0[r].0);
                 if rows.iter().flatten().any(|v| !v.is_finite()) {
                     return Err(self.fail(&key_path, "has a non-finite entry"));
                 }
@@ -434,11 +510,25 @@ impl Check<'_> {
                 DMat4::from_cols_array_2d(&rows).transpose()
             }
             None => {
-                let translate = self.point(&format!("{path}.translate"), object.translate.unwrap_or_default())?;
-                let rotate = self.point(&format!("{path}.rotate_deg"), object.rotate_deg.unwrap_or_default())?;
+                let xyz = |v: &Option<Xyz>| v.as_ref().map_or([0.0; 3], |v| v.0);
+                let translate = self.point(&format!("{path}.translate"), xyz(&object.translate))?;
+                let rotate = self.point(&format!("{path}.rotate_deg"), xyz(&object.rotate_deg))?;
                 let scale = DVec3::from(object.scale.as_ref().map_or([1.0; 3], |s| s.0));
+                let scale_path = format!("{path}.scale");
                 if !scale.is_finite() || scale.cmpeq(DVec3::ZERO).any() {
-                    return Err(self.fail(&format!("{path}.scale"), "must be finite and non-zero"));
+                    return Err(self.fail(&scale_path, "must be finite and non-zero"));
+                }
+                // Rotations and translations keep volumes; only the scale can make M singular.
+                let det = scale.x * scale.y * scale.z;
+                if det == 0.0 || !det.is_finite() {
+                    let scale = if scale.x == scale.y && scale.y == scale.z {
+                        short_number(scale.x)
+                    } else {
+                        short_numbers(&scale.to_array())
+                    };
+                    let message =
+                        format!("{scale} scales volumes by {}; that must be finite and non-zero", short_number(det));
+                    return Err(self.fail(&scale_path, message));
                 }
                 let rotate = rotate * (std::f64::consts::PI / 180.0);
                 DMat4::from_translation(translate)
@@ -450,7 +540,14 @@ impl Check<'_> {
         };
         let det = matrix.determinant();
         if det == 0.0 || !det.is_finite() {
-            return Err(self.fail(&key_path, "is singular (determinant 0); it would flatten the mesh"));
+            // Name the key the file has: `transform`, or else the `scale` that set the volume.
+            let key_path = if object.transform.is_some() { key_path } else { format!("{path}.scale") };
+            let message = if det == 0.0 {
+                "is singular (determinant 0); it would flatten the mesh".to_owned()
+            } else {
+                format!("makes the determinant {}; it must be finite", short_number(det))
+            };
+            return Err(self.fail(&key_path, message));
         }
         Ok(matrix)
     }
@@ -463,10 +560,10 @@ impl Check<'_> {
             if (0.0..=1.0).contains(&v) {
                 Ok(v as f32)
             } else {
-                Err(self.fail(&format!("{path}.{key}"), format!("{v} is outside [0, 1]")))
+                Err(self.fail(&format!("{path}.{key}"), format!("{} is outside [0, 1]", short_number(v))))
             }
         };
-        let base_color = match m.base_color {
+        let base_color = match m.base_color.as_ref().map(|c| c.0) {
             Some(c) => {
                 let c = [unit("base_color", c[0])?, unit("base_color", c[1])?, unit("base_color", c[2])?];
                 Some(Vec3::from(c))
@@ -484,7 +581,9 @@ impl Check<'_> {
     fn point(&self, path: &str, v: [f64; 3]) -> Result<DVec3, SceneError> {
         let v = DVec3::from(v);
         if !v.as_vec3().is_finite() {
-            return Err(self.fail(path, format!("{:?} is not finite", v.to_array())));
+            let message =
+                format!("{} is not finite (in single precision, at most 3.4e38)", short_numbers(&v.to_array()));
+            return Err(self.fail(path, message));
         }
         Ok(v)
     }
@@ -499,7 +598,7 @@ impl Check<'_> {
     fn power(&self, path: &str, v: [f64; 3]) -> Result<Vec3, SceneError> {
         let v = DVec3::from(v);
         if !(v.as_vec3().is_finite() && v.min_element() >= 0.0) {
-            return Err(self.fail(path, format!("{:?} must be finite and >= 0", v.to_array())));
+            return Err(self.fail(path, format!("{} must be finite and >= 0", short_numbers(&v.to_array()))));
         }
         Ok(v.as_vec3())
     }
@@ -523,8 +622,10 @@ impl Check<'_> {
     /// A shape's size or radius: positive and finite.
     fn length(&self, path: &str, key: &str, v: Option<f64>, default: f64) -> Result<f32, SceneError> {
         let v = v.unwrap_or(default);
-        if !(v > 0.0 && (v as f32).is_finite()) {
-            return Err(self.fail(&format!("{path}.{key}"), format!("{v} must be positive and finite")));
+        // Also in f32, where 1e-300 is 0 and 1e300 is infinite.
+        if !(v > 0.0 && (v as f32).is_finite() && v as f32 > 0.0) {
+            let message = format!("{} must be positive and finite", short_number(v));
+            return Err(self.fail(&format!("{path}.{key}"), message));
         }
         Ok(v as f32)
     }

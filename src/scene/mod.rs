@@ -4,15 +4,17 @@
 pub mod bvh;
 mod error;
 mod file;
+mod input;
 mod mesh;
 mod obj;
 mod shapes;
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 
 pub use error::SceneError;
+pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 
 /// Pinhole camera. `vfov_deg` is the full vertical field of view.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -78,6 +80,8 @@ impl Mesh {
 pub struct LoadStats {
     pub degenerate_triangles: usize,
     pub non_finite_triangles: usize,
+    /// OBJ faces with one or two corners (points and lines), which have no triangle.
+    pub short_faces: usize,
 }
 
 #[derive(Clone, Debug)]
@@ -90,6 +94,10 @@ pub struct Scene {
     pub stats: LoadStats,
     /// `[render] shadow_backend`, if the file names one (the command line overrides it).
     pub shadow_backend: Option<crate::config::ShadowBackend>,
+    /// Every file the scene was read from: the scene file (when loaded from one), then each
+    /// object's OBJ file and the MTL libraries it names, as paths to open (so that an output
+    /// file is never one of them). Empty for the built-in scene.
+    pub sources: Vec<PathBuf>,
 }
 
 /// The built-in scene: built-in shapes only, so it needs no file beside the binary.
@@ -102,9 +110,14 @@ impl Scene {
 
     /// Reads a scene file; mesh paths in it are relative to its directory.
     pub fn load(path: &Path) -> Result<Scene, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|error| SceneError::Read { path: path.to_owned(), error })?;
+        let read_error = |error| SceneError::Read { path: path.to_owned(), error };
+        let bytes = input::read(path).map_err(read_error)?;
+        let text = String::from_utf8(bytes)
+            .map_err(|_| read_error(std::io::Error::other("not UTF-8 text (a scene file is TOML)")))?;
         let base_dir = path.parent().unwrap_or(Path::new(""));
-        Scene::parse(&text, &path.display().to_string(), base_dir)
+        let mut scene = Scene::parse(&text, &path.display().to_string(), base_dir)?;
+        scene.sources.insert(0, path.to_owned());
+        Ok(scene)
     }
 
     /// Parses scene text. `source_name` names it in errors; mesh paths resolve against

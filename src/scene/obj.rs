@@ -2,11 +2,13 @@
 //! renderer's metalness/roughness model. Files are read here, not by tobj, so errors keep the
 //! io reason and the line they happened on.
 
+use std::cell::RefCell;
 use std::io::{self, BufRead, Read};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 
+use super::input;
 use super::mesh::ObjectMesh;
 use super::Material;
 
@@ -17,14 +19,30 @@ pub(super) enum ObjError {
     Parse(String),
 }
 
+/// An OBJ file as loaded: one mesh per model, what was dropped on the way, and the MTL files it
+/// named.
+pub(super) struct LoadedObj {
+    pub meshes: Vec<ObjectMesh>,
+    /// `f` lines with one or two corners: points and lines, which tobj leaves out.
+    pub short_faces: usize,
+    /// Every material library the file names, as looked up (read or not).
+    pub material_files: Vec<PathBuf>,
+}
+
 /// Loads every model of the OBJ file at `path` (one `ObjectMesh` per model), with the materials
 /// of its MTL libraries looked up next to it. A missing or broken MTL only costs the materials.
-pub(super) fn load(path: &Path) -> Result<Vec<ObjectMesh>, ObjError> {
-    let bytes = std::fs::read(path).map_err(ObjError::Read)?;
+pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
+    let bytes = input::read(path).map_err(ObjError::Read)?;
+    let short_faces = count_short_faces(&bytes);
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let dir = path.parent().unwrap_or(Path::new(""));
+    let material_files = RefCell::new(Vec::new());
     let mut reader = LineCounter::new(&bytes);
-    let loaded = tobj::load_obj_buf(&mut reader, &options, |mtl| load_mtl(path, &dir.join(mtl)));
+    let loaded = tobj::load_obj_buf(&mut reader, &options, |mtl| {
+        let mtl = dir.join(mtl);
+        material_files.borrow_mut().push(mtl.clone());
+        load_mtl(path, &mtl)
+    });
     let (models, materials) = loaded.map_err(|e| ObjError::Parse(located(e, reader.lines)))?;
     let materials = materials.unwrap_or_else(|e| {
         log::warn!("{}: material library unusable ({e}); using default materials", path.display());
@@ -48,7 +66,19 @@ pub(super) fn load(path: &Path) -> Result<Vec<ObjectMesh>, ObjError> {
             }
         })
         .collect();
-    Ok(meshes)
+    Ok(LoadedObj { meshes, short_faces, material_files: material_files.into_inner() })
+}
+
+/// `f` lines with one or two vertex references, which tobj parses as points and lines and, with
+/// `ignore_points` and `ignore_lines`, leaves out without a word.
+fn count_short_faces(bytes: &[u8]) -> usize {
+    bytes
+        .split(|&b| b == b'\n')
+        .filter(|line| {
+            let mut words = line.split(|b| b.is_ascii_whitespace()).filter(|w| !w.is_empty());
+            words.next() == Some(b"f") && matches!(words.count(), 1 | 2)
+        })
+        .count()
 }
 
 fn to_vec3(flat: &[f32]) -> Vec<Vec3> {
@@ -76,7 +106,7 @@ fn located(error: tobj::LoadError, lines_read: usize) -> String {
 /// Reads an MTL library for tobj, refusing the lines tobj would panic on (a colour with fewer
 /// than three numbers).
 fn load_mtl(obj: &Path, mtl: &Path) -> tobj::MTLLoadResult {
-    let bytes = std::fs::read(mtl).map_err(|e| {
+    let bytes = input::read(mtl).map_err(|e| {
         log::warn!("{}: cannot read material library {}: {e}", obj.display(), mtl.display());
         tobj::LoadError::OpenFileFailed
     })?;
@@ -174,6 +204,13 @@ mod tests {
         mtl.unknown_param.insert("Pm".into(), "1.5".into());
         let m = convert_material(&mtl);
         assert_eq!(m, Material { base_color: Vec3::new(1.0, 0.5, 0.0), roughness: 0.25, metallic: 1.0 });
+    }
+
+    #[test]
+    fn faces_with_one_or_two_corners_are_counted() {
+        let obj = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1\nf 1 2\n  f   2 3\r\nf 1 2 3\nl 1 2\nfo 1\n# f 1\nf 1 2";
+        assert_eq!(count_short_faces(obj), 4);
+        assert_eq!(count_short_faces(b""), 0);
     }
 
     #[test]

@@ -1,0 +1,291 @@
+//! obvhs's PLOC build with a progress guard (obvhs is MIT OR Apache-2.0, as umbra is; this file
+//! follows its code closely, see below).
+//!
+//! This is `obvhs::bvh2::builder::build_bvh2_from_tris` with `BvhBuildParams::medium_build()`
+//! (obvhs 0.4.0, without its `parallel` feature), ported line for line: the same Morton sort,
+//! the same nearest-neighbour search (radius 14, radius 1 for the first 3 passes), the same
+//! merges into the same node slots, then obvhs's own reinsertion and leaf collapse. On ordinary
+//! input it builds exactly obvhs's tree (`tests/bvh_cpu.rs` compares them node for node).
+//!
+//! What it adds: obvhs merges only the pairs of nodes that choose each other, and when many
+//! nodes tie (coincident triangles: every pair costs the same) or nest (a triangle fan: every box
+//! contains its neighbour's) a pass merges only a pair or two. Passes then number in the
+//! thousands, each over every remaining node: quadratic time (40,000 coincident triangles took
+//! 31 s), and a tree as deep as the input is long. Here a pass over `GUARD_MIN_COUNT` or more
+//! nodes that merges fewer than 1/`GUARD_DIVISOR` of them is *slow*; once slow passes have
+//! searched `SLOW_WORK_BUDGET` times as many nodes as there are triangles, the clustering stops
+//! and the subtrees built so far are joined by a balanced median split (by position where
+//! centroids coincide). Every other pass removes 1/16 of its nodes, so all passes together
+//! search O(n) nodes (at most (16 + 4) n, plus a tail under 256 nodes), and the median split
+//! costs O(m log m) over the m subtrees left: O(n log n) on any input.
+//!
+//! Ordinary scenes never get there: the bench scenes' slow passes (the last, small passes over
+//! regular grids) search 0.04 n to 0.12 n nodes, so they keep obvhs's tree exactly.
+
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::leaf_collapser::collapse;
+use obvhs::bvh2::node::Bvh2Node;
+use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
+use obvhs::bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH};
+use obvhs::ploc::morton::morton_encode_u64_unorm;
+use obvhs::triangle::Triangle;
+use rdst::{RadixKey, RadixSort};
+
+/// `PlocSearchDistance::Medium`.
+const SEARCH_DISTANCE: usize = 14;
+/// `medium_build().search_depth_threshold`: passes before it search only the next node.
+const SEARCH_DEPTH_THRESHOLD: usize = 3;
+/// `medium_build()`'s reinsertion and collapse settings.
+const REINSERTION_BATCH_RATIO: f32 = 0.05;
+const POST_COLLAPSE_REINSERTION_MULTIPLIER: f32 = 2.0;
+const MAX_PRIMS_PER_LEAF: u32 = 8;
+const COLLAPSE_TRAVERSAL_COST: f32 = 3.0;
+
+/// A pass over at least `GUARD_MIN_COUNT` nodes that merges fewer than 1/`GUARD_DIVISOR` of
+/// them is slow. Below `GUARD_MIN_COUNT` nodes a slow tail costs little, so it is not counted.
+const GUARD_MIN_COUNT: usize = 256;
+const GUARD_DIVISOR: usize = 16;
+/// Slow passes may search this many times the triangle count in all before the clustering stops.
+const SLOW_WORK_BUDGET: usize = 4;
+
+/// How a build went, for tests and the log.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct PlocReport {
+    /// Clustering passes run.
+    pub passes: usize,
+    /// Nodes left when the guard stopped the clustering (0: it ran to the root).
+    pub stopped_with: usize,
+}
+
+/// Builds a Bvh2 over `triangles` as obvhs's medium preset does, guarded as the module docs say.
+pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
+    let mut bvh = Bvh2::zeroed(triangles.len());
+    let report = build_ploc(&mut bvh, triangles);
+    bvh.uses_spatial_splits = false;
+    let mut reinsertion = ReinsertionOptimizer::default();
+    reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO, None);
+    collapse(&mut bvh, MAX_PRIMS_PER_LEAF, COLLAPSE_TRAVERSAL_COST);
+    reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO * POST_COLLAPSE_REINSERTION_MULTIPLIER, None);
+    (bvh, report)
+}
+
+/// `PlocBuilder::build_ploc::<14>` followed by `build_ploc_from_leaves::<14, false>`.
+fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
+    let prim_count = triangles.len();
+    bvh.reset_for_reuse(prim_count, Some((0..prim_count as u32).collect()));
+    if prim_count == 0 {
+        return PlocReport::default();
+    }
+
+    let mut total_aabb = Aabb::empty();
+    let mut current_nodes: Vec<Bvh2Node> = triangles
+        .iter()
+        .zip(&bvh.primitive_indices)
+        .map(|(tri, &prim_index)| {
+            let aabb = tri.aabb();
+            total_aabb.extend(aabb.min);
+            total_aabb.extend(aabb.max);
+            Bvh2Node::new(aabb, 1, prim_index)
+        })
+        .collect();
+    let mut next_nodes = vec![Bvh2Node::default(); prim_count];
+
+    let nodes_count = 2 * prim_count - 1;
+    bvh.nodes.resize(nodes_count, Bvh2Node::default());
+    let mut insert_index = nodes_count;
+
+    let scale = 1.0 / total_aabb.diagonal().as_dvec3();
+    let offset = -total_aabb.min.as_dvec3() * scale;
+    sort_by_morton(&current_nodes, &mut next_nodes, scale, offset);
+    std::mem::swap(&mut current_nodes, &mut next_nodes);
+
+    let mut merge = vec![0i8; prim_count];
+    let mut cache = SearchCache::default();
+    let mut report = PlocReport::default();
+    let mut depth = 0usize;
+    let mut next_nodes_idx = 0;
+    let mut count = prim_count;
+    // Nodes searched in slow passes (those that merge under 1/GUARD_DIVISOR of their nodes).
+    let mut slow_work = 0usize;
+    while count > 1 {
+        let merge = &mut merge[..count];
+        if depth < SEARCH_DEPTH_THRESHOLD {
+            let mut last_cost = f32::INFINITY;
+            for i in 0..count - 1 {
+                let cost = current_nodes[i].aabb().union(current_nodes[i + 1].aabb()).half_area();
+                merge[i] = if last_cost < cost { -1 } else { 1 };
+                last_cost = cost;
+            }
+            merge[count - 1] = -1;
+        } else {
+            for (index, best) in merge.iter_mut().enumerate() {
+                *best = cache.find_best_node(index, &current_nodes[..count]);
+            }
+        }
+
+        let mut index = 0;
+        while index < count {
+            let best_index = (index as i64 + merge[index] as i64) as usize;
+            // Two nodes merge when each chose the other; the rest go on to the next pass.
+            if best_index as i64 + merge[best_index] as i64 != index as i64 {
+                next_nodes[next_nodes_idx] = current_nodes[index];
+                next_nodes_idx += 1;
+                index += 1;
+                continue;
+            }
+            // Merge each pair once, from its higher index.
+            if best_index > index {
+                index += 1;
+                continue;
+            }
+            let left = current_nodes[index];
+            let right = current_nodes[best_index];
+            insert_index -= 2;
+            bvh.nodes[insert_index] = left;
+            bvh.nodes[insert_index + 1] = right;
+            next_nodes[next_nodes_idx] = Bvh2Node::new(left.aabb().union(right.aabb()), 0, insert_index as u32);
+            next_nodes_idx += 1;
+            index += 1;
+        }
+
+        let merged = count - next_nodes_idx;
+        std::mem::swap(&mut next_nodes, &mut current_nodes);
+        count = next_nodes_idx;
+        next_nodes_idx = 0;
+        depth += 1;
+        let before = count + merged;
+        if count > 1 && before >= GUARD_MIN_COUNT && merged * GUARD_DIVISOR < before {
+            slow_work += before;
+            if slow_work > SLOW_WORK_BUDGET * prim_count {
+                report.stopped_with = count;
+                break;
+            }
+        }
+    }
+    report.passes = depth;
+
+    if count > 1 {
+        // Join the subtrees left by a stopped clustering: slots [1, insert_index) are free,
+        // exactly 2 * count - 2 of them, and lie below every subtree's nodes, so parents still
+        // precede their children.
+        debug_assert_eq!(insert_index, 2 * count - 1);
+        let mut next_free = 1;
+        let levels = median_split(&mut current_nodes[..count], 0, &mut next_free, &mut bvh.nodes);
+        debug_assert_eq!(next_free, insert_index);
+        depth += levels;
+    } else {
+        debug_assert_eq!(insert_index, 1);
+        bvh.nodes[0] = current_nodes[0];
+    }
+    bvh.max_depth = DEFAULT_MAX_STACK_DEPTH.max(depth + 1);
+    bvh.children_are_ordered_after_parents = true;
+    report
+}
+
+/// Writes a balanced tree over `roots` with its root at `nodes[slot]`, taking child pairs from
+/// `*next_free` upwards. Each split halves the roots by position at the median centroid along
+/// the widest axis of their centroids. Returns the levels added above the roots.
+fn median_split(roots: &mut [Bvh2Node], slot: usize, next_free: &mut usize, nodes: &mut [Bvh2Node]) -> usize {
+    if roots.len() == 1 {
+        nodes[slot] = roots[0];
+        return 0;
+    }
+    let mut aabb = Aabb::empty();
+    let mut centroids = Aabb::empty();
+    for root in roots.iter() {
+        aabb = aabb.union(root.aabb());
+        centroids.extend(root.aabb().center());
+    }
+    let axis = centroids.largest_axis();
+    let mid = roots.len() / 2;
+    roots.select_nth_unstable_by(mid, |a, b| a.aabb().center()[axis].total_cmp(&b.aabb().center()[axis]));
+    let children = *next_free;
+    *next_free += 2;
+    nodes[slot] = Bvh2Node::new(aabb, 0, children as u32);
+    let (left, right) = roots.split_at_mut(mid);
+    let left_levels = median_split(left, children, next_free, nodes);
+    let right_levels = median_split(right, children + 1, next_free, nodes);
+    1 + left_levels.max(right_levels)
+}
+
+/// obvhs's `Morton64`: the code and the node's index, sorted by code alone.
+#[derive(Clone, Copy)]
+#[repr(C)]
+struct Morton64 {
+    code: u64,
+    index: u64,
+}
+
+impl RadixKey for Morton64 {
+    const LEVELS: usize = 8;
+
+    #[inline(always)]
+    fn get_level(&self, level: usize) -> u8 {
+        self.code.get_level(level)
+    }
+}
+
+/// `sort_nodes_by_morton::<Morton64>` without the `parallel` feature: std's unstable sort up
+/// to 250,000 nodes, rdst's radix sort above.
+fn sort_by_morton(nodes: &[Bvh2Node], sorted: &mut [Bvh2Node], scale: glam::DVec3, offset: glam::DVec3) {
+    let mut mortons: Vec<Morton64> = nodes
+        .iter()
+        .enumerate()
+        .map(|(index, leaf)| {
+            let center = leaf.aabb().center().as_dvec3() * scale + offset;
+            Morton64 { code: morton_encode_u64_unorm(center), index: index as u64 }
+        })
+        .collect();
+    match nodes.len() {
+        0..=250_000 => mortons.sort_unstable_by_key(|m| m.code),
+        _ => mortons.radix_sort_unstable(),
+    }
+    for (node, m) in sorted.iter_mut().zip(&mortons) {
+        *node = nodes[m.index as usize];
+    }
+}
+
+/// obvhs's `SearchCache<14>`: the cost of each pair within the search radius, computed once.
+struct SearchCache([[f32; SEARCH_DISTANCE]; SEARCH_DISTANCE]);
+
+impl Default for SearchCache {
+    fn default() -> Self {
+        SearchCache([[0.0; SEARCH_DISTANCE]; SEARCH_DISTANCE])
+    }
+}
+
+impl SearchCache {
+    fn back(&self, index: usize, other: usize) -> f32 {
+        self.0[other % SEARCH_DISTANCE][index % SEARCH_DISTANCE]
+    }
+
+    fn front(&mut self, index: usize, other: usize) -> &mut f32 {
+        &mut self.0[index % SEARCH_DISTANCE][other % SEARCH_DISTANCE]
+    }
+
+    /// Offset of the node within the radius whose union with `nodes[index]` has the least
+    /// half area; ties go to the last one.
+    fn find_best_node(&mut self, index: usize, nodes: &[Bvh2Node]) -> i8 {
+        let mut best_node = index;
+        let mut best_cost = f32::INFINITY;
+        let begin = index - SEARCH_DISTANCE.min(index);
+        let end = (index + SEARCH_DISTANCE + 1).min(nodes.len());
+        for other in begin..index {
+            let area = self.back(index, other);
+            if area <= best_cost {
+                best_node = other;
+                best_cost = area;
+            }
+        }
+        let our_aabb = nodes[index].aabb();
+        for (other, node) in nodes.iter().enumerate().take(end).skip(index + 1) {
+            let cost = our_aabb.union(node.aabb()).half_area();
+            *self.front(index, other) = cost;
+            if cost <= best_cost {
+                best_node = other;
+                best_cost = cost;
+            }
+        }
+        (best_node as i64 - index as i64) as i8
+    }
+}

@@ -415,20 +415,24 @@ impl Renderer {
 
     /// The compiled plan for `settings`, for printing and inspection.
     pub fn plan(&self, settings: &RenderSettings) -> GpuResult<CompiledGraph> {
+        let (graph, _) = self.graph(settings, Target::Inspect, None)?;
+        Ok(CompiledGraph::compile(&graph))
+    }
+
+    /// The frame's graph for `settings` (making the pipelines and structures it needs first),
+    /// with the ray-query scene it traces, if any.
+    fn graph<'a>(
+        &'a self,
+        settings: &RenderSettings,
+        target: Target<'a>,
+        history: Option<History<'a>>,
+    ) -> GpuResult<(RenderGraph<'a>, Option<RayQueryTraversal<'a>>)> {
         let traversal = self.traversal(settings)?;
         let busy = settings.busy_iterations.map(|_| busy_pipeline(&self.busy, &self.ctx)).transpose()?;
         let maps = map_pipelines(&self.map_pipelines, &self.ctx, &self.gpu_scene, settings)?;
-        Ok(CompiledGraph::compile(&build_graph(
-            &self.pipelines,
-            busy,
-            maps,
-            &self.gpu_scene,
-            &self.scene,
-            settings,
-            traversal,
-            Target::Inspect,
-            None,
-        )))
+        note_map_fallbacks(&self.map_fallbacks_noted, &self.gpu_scene, settings);
+        let (s, scene, p) = (&self.gpu_scene, &self.scene, &self.pipelines);
+        Ok((build_graph(p, busy, maps, s, scene, settings, traversal, target, history), traversal))
     }
 
     /// The ray-query scene and pipeline when `settings` trace with ray query (and there is
@@ -467,21 +471,7 @@ impl Renderer {
         history: Option<History<'_>>,
     ) -> GpuResult<CompiledGraph> {
         check_limits(&self.ctx, &self.gpu_scene, settings)?;
-        let traversal = self.traversal(settings)?;
-        let busy = settings.busy_iterations.map(|_| busy_pipeline(&self.busy, &self.ctx)).transpose()?;
-        let maps = map_pipelines(&self.map_pipelines, &self.ctx, &self.gpu_scene, settings)?;
-        note_map_fallbacks(&self.map_fallbacks_noted, &self.gpu_scene, settings);
-        let graph = build_graph(
-            &self.pipelines,
-            busy,
-            maps,
-            &self.gpu_scene,
-            &self.scene,
-            settings,
-            traversal,
-            target,
-            history,
-        );
+        let (graph, traversal) = self.graph(settings, target, history)?;
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         if let Some(t) = traversal {
             t.scene.note_recorded(&plan);

@@ -86,9 +86,11 @@ struct RenderArgs {
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_exposure)]
     exposure: f32,
-    /// Shadow method for every light.
-    #[arg(long, value_enum, default_value_t = ShadowMethod::RayTraced)]
-    shadows: ShadowMethod,
+    /// Shadow method for every light (traced, traced-soft, map, none; ray-traced and
+    /// ray-traced-soft are aliases), or per light counting from 0: `0=map,2=none`. Default:
+    /// each light's `shadows` in the scene file, else traced.
+    #[arg(long, value_parser = parse_shadows)]
+    shadows: Option<ShadowsArg>,
     /// What shadow rays traverse: the BVH in a compute shader (any device), or the device's own
     /// acceleration structures (VK_KHR_ray_query, where `umbra devices` says ray query: yes).
     /// Default: the scene's `shadow_backend`, else compute.
@@ -110,6 +112,48 @@ struct RenderArgs {
     /// each) after the geometry pass, a GPU cost of known size for checking timings.
     #[arg(long, hide = true, value_parser = clap::value_parser!(u32).range(1..=65535))]
     busy_pass: Option<u32>,
+}
+
+/// `--shadows`: one method for every light (`map`), or per light, counting from 0
+/// (`0=map,2=none`); lights it does not name keep the scene's choice.
+#[derive(Clone, Debug)]
+struct ShadowsArg(Vec<(Option<usize>, ShadowMethod)>);
+
+fn parse_shadows(text: &str) -> Result<ShadowsArg, String> {
+    use clap::ValueEnum;
+    let ids = || ShadowMethod::value_variants().iter().map(|m| m.id()).collect::<Vec<_>>().join(", ");
+    let method = |s: &str| {
+        ShadowMethod::from_str(s.trim(), true).map_err(|_| format!("{:?} is not a shadow method ({})", s.trim(), ids()))
+    };
+    let mut out = Vec::new();
+    for part in text.split(',') {
+        match part.split_once('=') {
+            Some((light, m)) => {
+                let i = light.trim().parse::<usize>().map_err(|_| format!("{:?}: a light is a number from 0", light.trim()))?;
+                out.push((Some(i), method(m)?));
+            }
+            None if text.contains(',') || text.contains('=') => {
+                return Err(format!("{part:?}: write LIGHT=METHOD for each light, e.g. 0=map,2=none"))
+            }
+            None => out.push((None, method(part)?)),
+        }
+    }
+    Ok(ShadowsArg(out))
+}
+
+/// Each light's method: the scene's `shadows` (else traced), then the command line's.
+fn light_methods(scene: &Scene, arg: Option<&ShadowsArg>) -> Result<Vec<ShadowMethod>> {
+    let n = scene.lights.len();
+    let mut methods: Vec<ShadowMethod> =
+        (0..n).map(|i| scene.light_shadows.get(i).copied().flatten().unwrap_or_default()).collect();
+    for &(light, m) in arg.map_or(&[][..], |a| &a.0[..]) {
+        match light {
+            None => methods.iter_mut().for_each(|x| *x = m),
+            Some(i) if i < n => methods[i] = m,
+            Some(i) => bail!("--shadows {i}={}: the scene has {n} light(s), counted from 0", m.id()),
+        }
+    }
+    Ok(methods)
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
@@ -183,7 +227,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         output: if format == ImageFormat::Png { OutputKind::Display } else { OutputKind::SceneLinear },
         timestamps: args.timings,
         camera: None,
-        shadows: vec![args.shadows; scene.lights.len()],
+        shadows: light_methods(&scene, args.shadows.as_ref())?,
         soft_spp: args.spp,
         shadow_backend: args.shadow_backend.or(scene.shadow_backend).unwrap_or_default(),
         frame_index: 0,

@@ -130,42 +130,7 @@ impl RenderSettings {
 
 pub use crate::config::ShadowBackend;
 
-/// How a light's shadows are made.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
-pub enum ShadowMethod {
-    /// One any-hit ray per pixel toward the light's centre: a hard shadow.
-    #[default]
-    RayTraced,
-    /// `soft_spp` rays per pixel toward points spread over the light's extent (radius or
-    /// angular diameter): penumbrae that widen with distance from the occluder.
-    RayTracedSoft,
-    /// Unshadowed: the light reaches every surface facing it.
-    None,
-    /// A shadow map with PCF (`RenderSettings::map`); spot lights so far, other kinds are
-    /// traced hard instead, with a notice.
-    Map,
-}
-
-impl ShadowMethod {
-    pub fn name(self) -> &'static str {
-        match self {
-            ShadowMethod::RayTraced => "ray traced (hard)",
-            ShadowMethod::RayTracedSoft => "ray traced (soft)",
-            ShadowMethod::None => "none",
-            ShadowMethod::Map => "shadow map",
-        }
-    }
-
-    /// The next method in the viewer's cycle.
-    pub fn next(self) -> ShadowMethod {
-        match self {
-            ShadowMethod::RayTraced => ShadowMethod::RayTracedSoft,
-            ShadowMethod::RayTracedSoft => ShadowMethod::None,
-            ShadowMethod::None => ShadowMethod::Map,
-            ShadowMethod::Map => ShadowMethod::RayTraced,
-        }
-    }
-}
+pub use crate::config::ShadowMethod;
 
 /// Where a frame's result goes.
 pub enum Target<'a> {

@@ -178,6 +178,7 @@ fn scene_build_takes_only_shadow_casters() {
         meshes: vec![mesh("caster", 1.0, true), mesh("receiver", 2.0, false)],
         stats: LoadStats::default(),
         shadow_backend: None,
+        light_shadows: vec![],
         sources: vec![],
     };
     let bvh = ShadowBvh::build(&scene);

@@ -864,3 +864,25 @@ fn render_table_chooses_the_shadow_backend() {
     let message = parse_error(&with_camera("[render]\nbackend = \"compute\"\n"));
     assert!(message.contains("render") && message.contains("backend"), "{message}");
 }
+
+#[test]
+fn lights_choose_their_shadow_method_by_id() {
+    use umbra::config::ShadowMethod;
+    let light = |shadows: &str| {
+        format!("[[lights]]\ntype = \"point\"\nposition = [0.0, 2.0, 0.0]\nintensity = [1.0, 1.0, 1.0]\n{shadows}")
+    };
+    let text = with_camera(&format!(
+        "{}{}{}{}",
+        light("shadows = \"map\"\n"),
+        light(""),
+        light("shadows = \"ray-traced-soft\"\n"),
+        light("shadows = \"none\"\n")
+    ));
+    let scene = parse(&text);
+    assert_eq!(
+        scene.light_shadows,
+        vec![Some(ShadowMethod::Map), None, Some(ShadowMethod::RayTracedSoft), Some(ShadowMethod::None)]
+    );
+    let message = parse_error(&with_camera(&format!("{}{}", light(""), light("shadows = \"shadowmap\"\n"))));
+    assert!(message.contains("lights[1].shadows") && message.contains("traced"), "{message}");
+}

@@ -71,6 +71,7 @@ struct LightDesc {
     outer_deg: Option<f64>,
     radius: Option<f64>,
     angular_diameter_deg: Option<f64>,
+    shadows: Option<crate::config::ShadowMethod>,
 }
 
 #[derive(Clone, Copy, Deserialize)]
@@ -248,7 +249,8 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.short_faces += placed.short_faces;
     }
     let shadow_backend = file.render.and_then(|r| r.shadow_backend);
-    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend, sources })
+    let light_shadows = file.lights.iter().map(|l| l.shadows).collect();
+    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend, sources, light_shadows })
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.

@@ -94,6 +94,8 @@ pub struct Scene {
     pub stats: LoadStats,
     /// `[render] shadow_backend`, if the file names one (the command line overrides it).
     pub shadow_backend: Option<crate::config::ShadowBackend>,
+    /// Each light's `shadows` method, where the file gives one (in light order).
+    pub light_shadows: Vec<Option<crate::config::ShadowMethod>>,
     /// Every file the scene was read from: the scene file (when loaded from one), then each
     /// object's OBJ file and the MTL libraries it names, as paths to open (so that an output
     /// file is never one of them). Empty for the built-in scene.

@@ -211,7 +211,13 @@ impl App {
         Ok(Running {
             presenter,
             camera: FlyCamera::from_scene(&o.scene.camera),
-            settings: ViewerSettings { shadow_backend: o.shadow_backend, ..ViewerSettings::new(o.scene.lights.len()) },
+            settings: ViewerSettings {
+                shadow_backend: o.shadow_backend,
+                shadows: (0..o.scene.lights.len())
+                    .map(|i| o.scene.light_shadows.get(i).copied().flatten().unwrap_or_default())
+                    .collect(),
+                ..ViewerSettings::new(o.scene.lights.len())
+            },
             renderer,
             window,
             ctx,

@@ -8,11 +8,13 @@ use glam::{DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
+use crate::passes::accel::RayQueryScene;
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs, DebugView};
 use crate::passes::overlay::OverlayInputs;
-use crate::passes::accel::RayQueryScene;
-use crate::passes::{busy, compose, geometry, overlay, present, readback, shadow_trace, tonemap, visibility, Pipelines};
+use crate::passes::{
+    busy, compose, geometry, overlay, present, readback, shadow_trace, tonemap, visibility, Pipelines,
+};
 use crate::scene::bvh::{caster_triangles, ShadowBvh};
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
@@ -308,14 +310,20 @@ impl CameraMatrices {
     }
 }
 
-pub struct Renderer {
-    // Field order is drop order: everything on the device goes before the context.
+/// What the capture path (`Renderer::render`) keeps between frames.
+struct Capture {
     cache: TransientCache,
-    /// The ray-query backend's acceleration structures, made when a frame first asks for them.
-    ray_query: std::sync::OnceLock<RayQueryScene>,
     readback: Option<Buffer>,
     accumulator: accumulate::Accumulator,
     last_plan: Option<CompiledGraph>,
+}
+
+pub struct Renderer {
+    // Field order is drop order: everything on the device goes before the context.
+    /// Taken out while a capture records (so `record` can borrow the rest); always there between.
+    capture: Option<Capture>,
+    /// The ray-query backend's acceleration structures, made when a frame first asks for them.
+    ray_query: std::sync::OnceLock<RayQueryScene>,
     pipelines: Pipelines,
     /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
     busy: std::sync::OnceLock<ComputePipeline>,
@@ -358,11 +366,13 @@ impl Renderer {
             }
         }
         Ok(Renderer {
-            cache: TransientCache::new(&ctx)?,
+            capture: Some(Capture {
+                cache: TransientCache::new(&ctx)?,
+                readback: None,
+                accumulator: accumulate::Accumulator::default(),
+                last_plan: None,
+            }),
             ray_query: std::sync::OnceLock::new(),
-            readback: None,
-            accumulator: accumulate::Accumulator::default(),
-            last_plan: None,
             pipelines: Pipelines::new(&ctx)?,
             busy: std::sync::OnceLock::new(),
             map_pipelines: std::sync::OnceLock::new(),
@@ -392,12 +402,34 @@ impl Renderer {
         target: Target<'a>,
         history: Option<History<'a>>,
     ) -> GpuResult<(RenderGraph<'a>, Option<RayQueryTraversal<'a>>)> {
+        let work = light_work(&self.gpu_scene, settings);
+        let extent = vk::Extent2D { width: settings.width, height: settings.height };
+        visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, work.layers.count())?;
         let traversal = self.traversal(settings)?;
-        let busy = settings.busy_iterations.map(|_| busy_pipeline(&self.busy, &self.ctx)).transpose()?;
-        let maps = map_pipelines(&self.map_pipelines, &self.ctx, &self.gpu_scene, settings)?;
-        note_map_fallbacks(&self.map_fallbacks_noted, &self.gpu_scene, settings);
+        let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
+        let maps = match work.maps.is_empty() {
+            true => None,
+            false => Some(crate::vk::get_or_make(&self.map_pipelines, || crate::shadows::map::pipelines(&self.ctx))?),
+        };
+        self.note_map_fallbacks(settings);
         let (s, scene, p) = (&self.gpu_scene, &self.scene, &self.pipelines);
-        Ok((build_graph(p, busy, maps, s, scene, settings, traversal, target, history), traversal))
+        Ok((build_graph(p, busy, maps, s, scene, settings, work, traversal, target, history), traversal))
+    }
+
+    /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
+    fn busy_pipeline(&self) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.busy, || busy::pipeline(&self.ctx))
+    }
+
+    /// Tells once per light when it asks for `map` and gets traced shadows instead.
+    fn note_map_fallbacks(&self, settings: &RenderSettings) {
+        for (i, light) in self.gpu_scene.local_lights.iter().enumerate() {
+            if settings.shadow_method(i) == ShadowMethod::Map && !crate::shadows::map::serves(light) {
+                if self.map_fallbacks_noted.lock().is_ok_and(|mut seen| seen.insert(i)) {
+                    log::warn!("light {i}: `map` serves spot lights only so far; its shadows are traced");
+                }
+            }
+        }
     }
 
     /// The ray-query scene and pipeline when `settings` trace with ray query (and there is
@@ -414,14 +446,10 @@ impl Renderer {
             return Ok(None);
         }
         let pipeline = self.pipelines.shadow_trace_rq()?;
-        let scene = match self.ray_query.get() {
-            Some(s) => s,
-            None => {
-                let local = self.scene.translated(-self.gpu_scene.origin);
-                let made = RayQueryScene::new(&self.ctx, &caster_triangles(&local))?;
-                self.ray_query.get_or_init(|| made)
-            }
-        };
+        let scene = crate::vk::get_or_make(&self.ray_query, || {
+            let local = self.scene.translated(-self.gpu_scene.origin);
+            RayQueryScene::new(&self.ctx, &caster_triangles(&local))
+        })?;
         Ok(Some(RayQueryTraversal { scene, pipeline }))
     }
 
@@ -435,7 +463,6 @@ impl Renderer {
         target: Target<'_>,
         history: Option<History<'_>>,
     ) -> GpuResult<CompiledGraph> {
-        check_limits(&self.ctx, &self.gpu_scene, settings)?;
         let (graph, traversal) = self.graph(settings, target, history)?;
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         if let Some(t) = traversal {
@@ -448,12 +475,11 @@ impl Renderer {
     /// hundred milliseconds, see `crate::timing`), then kept. Frames with `timestamps` use it;
     /// before it is known they are timed the plain way.
     pub fn calibrate_timings(&self) -> GpuResult<&TimingCalibration> {
-        if let Some(c) = self.timing.get() {
-            return Ok(c);
-        }
-        let found = crate::timing::calibrate(&self.ctx, busy_pipeline(&self.busy, &self.ctx)?)?;
-        log::info!("{}", found.summary());
-        Ok(self.timing.get_or_init(|| found))
+        crate::vk::get_or_make(&self.timing, || {
+            let found = crate::timing::calibrate(&self.ctx, self.busy_pipeline()?)?;
+            log::info!("{}", found.summary());
+            Ok(found)
+        })
     }
     /// Renders one frame and reads it back. Successive calls with the same settings and
     /// stochastic (soft) shadows return the running mean of all their frames.
@@ -461,8 +487,9 @@ impl Renderer {
         let bytes8 = settings.output == OutputKind::Display && settings.debug_view.is_none();
         let texel = if bytes8 { 4 } else { 16 };
         let bytes = u64::from(settings.width) * u64::from(settings.height) * texel;
-        if self.readback.as_ref().is_none_or(|b| b.size != bytes) {
-            self.readback = Some(Buffer::new(
+        let capture = self.capture.as_mut().expect("capture state between frames");
+        if capture.readback.as_ref().is_none_or(|b| b.size != bytes) {
+            capture.readback = Some(Buffer::new(
                 &self.ctx,
                 "read-back",
                 bytes,
@@ -473,8 +500,9 @@ impl Renderer {
         if settings.timestamps {
             self.calibrate_timings()?;
         }
-        let readback = self.readback.take().expect("just made");
-        let result = self.record_and_submit(settings, &readback);
+        let mut capture = self.capture.take().expect("capture state between frames");
+        let readback = capture.readback.take().expect("just made");
+        let result = self.record_and_submit(&mut capture, settings, &readback);
         let frame = result.map(|_| {
             let data = readback.mapped();
             if bytes8 {
@@ -487,58 +515,43 @@ impl Renderer {
                 }
             }
         });
-        self.readback = Some(readback);
+        capture.readback = Some(readback);
+        self.capture = Some(capture);
         frame
     }
 
-    fn record_and_submit(&mut self, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
-        check_limits(&self.ctx, &self.gpu_scene, settings)?;
-        // Made before the fields are borrowed apart below: it may create the structures.
-        self.traversal(settings)?;
-        let Renderer {
-            cache, ctx, pipelines, gpu_scene, scene, last_plan, accumulator, ray_query, busy, timing, map_pipelines: mp, ..
-        } = self;
-        let busy = settings.busy_iterations.map(|_| busy_pipeline(busy, ctx)).transpose()?;
-        let maps = map_pipelines(mp, ctx, gpu_scene, settings)?;
-        note_map_fallbacks(&self.map_fallbacks_noted, gpu_scene, settings);
-        let traversal = match (settings.shadow_backend, ray_query.get()) {
-            (ShadowBackend::RayQuery, Some(scene)) => {
-                Some(RayQueryTraversal { scene, pipeline: pipelines.shadow_trace_rq()? })
-            }
-            _ => None,
-        };
+    /// One capture frame: the same recording as `record`, into the capture path's cache, with
+    /// its accumulation history.
+    fn record_and_submit(&self, capture: &mut Capture, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
         let mut settings = settings.clone();
-        let history = accumulator.prepare(ctx, &mut settings, scene.lights.len())?;
+        let history = capture.accumulator.prepare(&self.ctx, &mut settings, self.scene.lights.len())?;
         let accumulated = history.is_some();
-        let target = Target::ReadBack(readback);
-        let graph = build_graph(pipelines, busy, maps, gpu_scene, scene, &settings, traversal, target, history);
-        let plan = ctx.submit_and_wait(|cmd| execute(cache, graph, cmd, timing_mode(timing, &settings)))?;
-        if let Some(t) = traversal {
-            t.scene.note_recorded(&plan);
-        }
-        accumulator.advance(accumulated);
-        *last_plan = Some(plan);
+        let cache = &mut capture.cache;
+        let plan =
+            self.ctx.submit_and_wait(|cmd| self.record(cache, cmd, &settings, Target::ReadBack(readback), history))?;
+        capture.accumulator.advance(accumulated);
+        capture.last_plan = Some(plan);
         Ok(())
     }
 
     /// Images and buffers the capture path's transient cache holds now.
     pub fn transient_count(&self) -> usize {
-        self.cache.len()
+        self.capture.as_ref().map_or(0, |c| c.cache.len())
     }
 
     /// The plan of the last rendered frame, read-back included.
     pub fn last_plan(&self) -> Option<&CompiledGraph> {
-        self.last_plan.as_ref()
+        self.capture.as_ref().and_then(|c| c.last_plan.as_ref())
     }
 
     /// Per-pass GPU milliseconds of the last frame (empty without timestamp support).
     pub fn last_timings(&self) -> GpuResult<Vec<(&'static str, f64)>> {
-        self.cache.read_timings()
+        self.capture.as_ref().map_or(Ok(Vec::new()), |c| c.cache.read_timings())
     }
 
     /// Per-pass and whole-frame GPU times of the last frame (`None` when it was not timed).
     pub fn last_gpu_timings(&self) -> GpuResult<Option<GpuTimings>> {
-        self.cache.read_gpu_timings()
+        self.capture.as_ref().map_or(Ok(None), |c| c.cache.read_gpu_timings())
     }
 }
 
@@ -549,7 +562,11 @@ fn add_shadow_maps<'a>(
     pipelines: &'a crate::shadows::map::MapPipelines,
     s: &'a SceneGpu,
     gbuffer: &crate::passes::GBuffer,
-    (lights, vertices, indices): (&crate::graph::Handle<crate::graph::BufferKind>, &crate::graph::Handle<crate::graph::BufferKind>, &crate::graph::Handle<crate::graph::BufferKind>),
+    (lights, vertices, indices): (
+        &crate::graph::Handle<crate::graph::BufferKind>,
+        &crate::graph::Handle<crate::graph::BufferKind>,
+        &crate::graph::Handle<crate::graph::BufferKind>,
+    ),
     map_lights: &[(u32, u32)],
     settings: &RenderSettings,
     target: &mut crate::graph::Handle<crate::graph::ImageKind>,
@@ -576,35 +593,6 @@ fn add_shadow_maps<'a>(
     }
 }
 
-/// The shadow-map pipelines when a light of this frame uses them, made on first use.
-fn map_pipelines<'a>(
-    cell: &'a std::sync::OnceLock<crate::shadows::map::MapPipelines>,
-    ctx: &Arc<GpuContext>,
-    s: &SceneGpu,
-    settings: &RenderSettings,
-) -> GpuResult<Option<&'a crate::shadows::map::MapPipelines>> {
-    if light_work(s, settings).maps.is_empty() {
-        return Ok(None);
-    }
-    if let Some(p) = cell.get() {
-        return Ok(Some(p));
-    }
-    let made = crate::shadows::map::pipelines(ctx)?;
-    Ok(Some(cell.get_or_init(|| made)))
-}
-
-/// The busy pass's pipeline, made on first use.
-fn busy_pipeline<'a>(
-    cell: &'a std::sync::OnceLock<ComputePipeline>,
-    ctx: &Arc<GpuContext>,
-) -> GpuResult<&'a ComputePipeline> {
-    if let Some(p) = cell.get() {
-        return Ok(p);
-    }
-    let made = busy::pipeline(ctx)?;
-    Ok(cell.get_or_init(|| made))
-}
-
 /// How a frame with `settings` is timed: not at all without `timestamps`; else as calibrated
 /// (not at all where the calibration found no way), or plain before any calibration.
 fn timing_mode(calibration: &std::sync::OnceLock<TimingCalibration>, settings: &RenderSettings) -> Option<TimingMode> {
@@ -613,26 +601,6 @@ fn timing_mode(calibration: &std::sync::OnceLock<TimingCalibration>, settings: &
     }
     calibration.get().map_or(Some(TimingMode::Plain), |c| c.mode)
 }
-/// Says once per light when a light asks for `map` and gets traced shadows instead.
-fn note_map_fallbacks(noted: &std::sync::Mutex<std::collections::BTreeSet<usize>>, s: &SceneGpu, settings: &RenderSettings) {
-    for (i, light) in s.local_lights.iter().enumerate() {
-        if settings.shadow_method(i) == ShadowMethod::Map && !crate::shadows::map::serves(light) {
-            if let Ok(mut seen) = noted.lock() {
-                if seen.insert(i) {
-                    log::warn!("light {i}: `map` serves spot lights only so far; its shadows are traced");
-                }
-            }
-        }
-    }
-}
-
-/// Refuses a frame whose visibility target this device cannot hold.
-fn check_limits(ctx: &GpuContext, s: &SceneGpu, settings: &RenderSettings) -> GpuResult<()> {
-    let extent = vk::Extent2D { width: settings.width, height: settings.height };
-    let work = light_work(s, settings);
-    visibility::check_limits(ctx, extent, s.light_count as usize, work.layers.count())
-}
-
 /// A frame's shadow work: each light's layer, the lights the traced pass serves (with their
 /// rays), and the lights shadow maps serve.
 struct ShadowWork {
@@ -695,6 +663,7 @@ fn build_graph<'a>(
     s: &'a SceneGpu,
     scene: &Scene,
     settings: &RenderSettings,
+    work: ShadowWork,
     traversal: Option<RayQueryTraversal<'a>>,
     target: Target<'a>,
     history: Option<History<'a>>,
@@ -719,12 +688,21 @@ fn build_graph<'a>(
 
     // Shadow work only for the lights that need it (see `light_work`); none at all, and no
     // target, when no light does.
-    let ShadowWork { layers, traced, maps: map_lights } = light_work(s, settings);
+    let ShadowWork { layers, traced, maps: map_lights } = work;
     let visibility = (layers.count() > 0).then(|| {
         let table = visibility::add_light_table(&mut g, &layers);
         let mut target = visibility::create_target(&mut g, extent, layers.count());
         if let Some(pipelines) = maps.filter(|_| !map_lights.is_empty()) {
-            add_shadow_maps(&mut g, pipelines, s, &gbuffer, (&lights, &vertices, &indices), &map_lights, settings, &mut target);
+            add_shadow_maps(
+                &mut g,
+                pipelines,
+                s,
+                &gbuffer,
+                (&lights, &vertices, &indices),
+                &map_lights,
+                settings,
+                &mut target,
+            );
         }
         let inputs = |casters| shadow_trace::ShadowInputs {
             lights: &lights,

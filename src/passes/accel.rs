@@ -27,11 +27,13 @@ struct Structure {
 impl Structure {
     fn new(ctx: &Arc<GpuContext>, name: &str, ty: vk::AccelerationStructureTypeKHR, size: u64) -> GpuResult<Self> {
         let loader = ctx.acceleration_structure.clone().expect("ray query is enabled");
-        let usage = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+        let usage =
+            vk::BufferUsageFlags::ACCELERATION_STRUCTURE_STORAGE_KHR | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let buffer = Buffer::new(ctx, name, size, usage, MemoryLocation::GpuOnly)?;
         let info = vk::AccelerationStructureCreateInfoKHR::default().buffer(buffer.raw).offset(0).size(size).ty(ty);
         // SAFETY: the buffer is live, large enough, and outlives the structure (dropped after it).
-        let raw = unsafe { loader.create_acceleration_structure(&info, None) }.vk("vkCreateAccelerationStructureKHR")?;
+        let raw =
+            unsafe { loader.create_acceleration_structure(&info, None) }.vk("vkCreateAccelerationStructureKHR")?;
         Ok(Structure { buffer, raw, loader })
     }
 
@@ -94,8 +96,12 @@ impl RayQueryScene {
         // the top level, whose size does not depend on it.
         let geometry = [bottom_geometry(positions.device_address(), count)];
         let bottom_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, &geometry, count);
-        let bottom =
-            Structure::new(ctx, "BLAS", vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, bottom_sizes.acceleration_structure_size)?;
+        let bottom = Structure::new(
+            ctx,
+            "BLAS",
+            vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
+            bottom_sizes.acceleration_structure_size,
+        )?;
         let instance = vk::AccelerationStructureInstanceKHR {
             transform: vk::TransformMatrixKHR { matrix: [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0] },
             instance_custom_index_and_mask: vk::Packed24_8::new(0, 0xff),
@@ -103,9 +109,7 @@ impl RayQueryScene {
                 0,
                 vk::GeometryInstanceFlagsKHR::TRIANGLE_FACING_CULL_DISABLE.as_raw() as u8,
             ),
-            acceleration_structure_reference: vk::AccelerationStructureReferenceKHR {
-                device_handle: bottom.address(),
-            },
+            acceleration_structure_reference: vk::AccelerationStructureReferenceKHR { device_handle: bottom.address() },
         };
         // SAFETY: the instance struct is plain data laid out as Vulkan specifies (64 bytes).
         let instance_bytes = unsafe {
@@ -117,7 +121,12 @@ impl RayQueryScene {
         let [instances] = crate::renderer::upload(ctx, [("TLAS instances", instance_bytes, input)])?;
         let top_geometry = [top_geometry(instances.device_address())];
         let top_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &top_geometry, 1);
-        let top = Structure::new(ctx, "TLAS", vk::AccelerationStructureTypeKHR::TOP_LEVEL, top_sizes.acceleration_structure_size)?;
+        let top = Structure::new(
+            ctx,
+            "TLAS",
+            vk::AccelerationStructureTypeKHR::TOP_LEVEL,
+            top_sizes.acceleration_structure_size,
+        )?;
         let mut accel_props = vk::PhysicalDeviceAccelerationStructurePropertiesKHR::default();
         let mut props = vk::PhysicalDeviceProperties2::default().push_next(&mut accel_props);
         // SAFETY: core query on the context's device.
@@ -174,7 +183,15 @@ impl RayQueryScene {
         pass.render(move |pctx| {
             let scratch = align_up(buffer_address(pctx.device, pctx.buffer(scratch_ref)), align);
             let geometry = [bottom_geometry(positions_address, count)];
-            record_build(pctx.cmd, &loader, vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, &geometry, count, dst, scratch);
+            record_build(
+                pctx.cmd,
+                &loader,
+                vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
+                &geometry,
+                count,
+                dst,
+                scratch,
+            );
             Ok(())
         });
 

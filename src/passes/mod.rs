@@ -71,11 +71,7 @@ impl Pipelines {
 
     /// The ray-query shadow pipeline, compiled the first time a frame asks for it.
     pub fn shadow_trace_rq(&self) -> GpuResult<&ComputePipeline> {
-        if let Some(p) = self.shadow_trace_rq.get() {
-            return Ok(p);
-        }
-        let made = shadow_trace::ray_query_pipeline(&self.ctx)?;
-        Ok(self.shadow_trace_rq.get_or_init(|| made))
+        crate::vk::get_or_make(&self.shadow_trace_rq, || shadow_trace::ray_query_pipeline(&self.ctx))
     }
 }
 

@@ -40,6 +40,16 @@ pub enum GpuError {
 
 pub type GpuResult<T> = Result<T, GpuError>;
 
+/// The value in `cell`, made by `make` the first time it is asked for: pipelines, structures
+/// and calibrations that only some frames need are built on first use, and only once.
+pub(crate) fn get_or_make<T>(cell: &std::sync::OnceLock<T>, make: impl FnOnce() -> GpuResult<T>) -> GpuResult<&T> {
+    if let Some(v) = cell.get() {
+        return Ok(v);
+    }
+    let made = make()?;
+    Ok(cell.get_or_init(|| made))
+}
+
 /// Attaches the failing call's name to a raw `vk::Result`.
 pub(crate) trait VkContext<T> {
     fn vk(self, call: &'static str) -> GpuResult<T>;

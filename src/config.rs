@@ -1,6 +1,14 @@
 //! Settings that every layer may name (scene file, command line, viewer, renderer), kept below
 //! all of them so imports point down the data path only.
 
+use serde::{Deserialize, Serialize};
+
+use crate::scene::Camera;
+pub use crate::shadows::cascades::params::CascadeParams;
+pub use crate::shadows::map::params::MapParams;
+pub use crate::shadows::traced::params::TracedParams;
+pub use crate::shadows::volumes::params::VolumeParams;
+
 /// What the traced shadow rays traverse. Both give the same visibility (up to rays that graze
 /// an edge): `compute` runs everywhere, `ray-query` is the driver's own traversal, the anchor
 /// the compute traversal is measured against.
@@ -32,62 +40,357 @@ impl ShadowBackend {
     }
 }
 
-/// How a light's shadows are made.
-///
-/// One list of ids for the command line, the scene file (`[[lights]] shadows = "..."`), the
-/// viewer and logs: `traced` (alias `ray-traced`), `traced-soft` (alias `ray-traced-soft`),
-/// `map` and `none`.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum, serde::Deserialize)]
+/// How a light's shadows are made: one list of ids for the command line, the scene file
+/// (`[[lights]] shadows = "..."`), the viewer, CSV output and logs.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
 pub enum ShadowMethod {
-    /// One any-hit ray per pixel toward the light's centre: a hard shadow.
+    /// Shadow rays through the casters (`traced`): hard, or soft for lights with a size.
     #[default]
-    #[value(name = "traced", alias = "ray-traced")]
-    #[serde(rename = "traced", alias = "ray-traced")]
-    RayTraced,
-    /// `soft_spp` rays per pixel toward points spread over the light's extent (radius or
-    /// angular diameter): penumbrae that widen with distance from the occluder.
-    #[value(name = "traced-soft", alias = "ray-traced-soft")]
-    #[serde(rename = "traced-soft", alias = "ray-traced-soft")]
-    RayTracedSoft,
-    /// Unshadowed: the light reaches every surface facing it.
-    #[value(name = "none")]
-    #[serde(rename = "none")]
-    None,
-    /// A shadow map with PCF (`RenderSettings::map`); spot lights so far, other kinds are
-    /// traced hard instead, with a notice.
-    #[value(name = "map")]
-    #[serde(rename = "map")]
+    Traced,
+    /// A shadow map with percentage-closer filtering (PCSS for lights with a size): spot
+    /// (perspective), directional (orthographic, fitted) and point lights (cube).
     Map,
+    /// Cascaded shadow maps: directional lights (other kinds fall back to `traced`).
+    Cascades,
+    /// Stencil shadow volumes: closed 2-manifold casters only (else `traced`).
+    Volumes,
+    /// Unshadowed: the light reaches every surface facing it.
+    None,
 }
 
 impl ShadowMethod {
-    /// The stable id (what the command line and the scene file take).
+    pub const ALL: [ShadowMethod; 5] =
+        [ShadowMethod::Traced, ShadowMethod::Map, ShadowMethod::Cascades, ShadowMethod::Volumes, ShadowMethod::None];
+
+    /// The stable id.
     pub fn id(self) -> &'static str {
         match self {
-            ShadowMethod::RayTraced => "traced",
-            ShadowMethod::RayTracedSoft => "traced-soft",
-            ShadowMethod::None => "none",
+            ShadowMethod::Traced => "traced",
             ShadowMethod::Map => "map",
+            ShadowMethod::Cascades => "cascades",
+            ShadowMethod::Volumes => "volumes",
+            ShadowMethod::None => "none",
         }
     }
 
-    pub fn name(self) -> &'static str {
-        match self {
-            ShadowMethod::RayTraced => "ray traced (hard)",
-            ShadowMethod::RayTracedSoft => "ray traced (soft)",
-            ShadowMethod::None => "none",
-            ShadowMethod::Map => "shadow map",
+    /// The method an id names, and the softness the id implies: `ray-traced` is `traced`;
+    /// `traced-soft` and `ray-traced-soft` are `traced` with soft sampling.
+    pub fn parse(id: &str) -> Result<(ShadowMethod, Option<bool>), String> {
+        match id {
+            "ray-traced" => return Ok((ShadowMethod::Traced, None)),
+            "traced-soft" | "ray-traced-soft" => return Ok((ShadowMethod::Traced, Some(true))),
+            _ => {}
         }
+        ShadowMethod::ALL.into_iter().find(|m| m.id() == id).map(|m| (m, None)).ok_or_else(|| {
+            let ids: Vec<_> = ShadowMethod::ALL.iter().map(|m| m.id()).collect();
+            format!(
+                "unknown shadow method {id:?}: use one of {} (ray-traced and ray-traced-soft are aliases of traced)",
+                ids.join(", ")
+            )
+        })
     }
 
     /// The next method in the viewer's cycle.
     pub fn next(self) -> ShadowMethod {
+        let i = ShadowMethod::ALL.iter().position(|&m| m == self).unwrap_or(0);
+        ShadowMethod::ALL[(i + 1) % ShadowMethod::ALL.len()]
+    }
+}
+
+impl std::fmt::Display for ShadowMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.id())
+    }
+}
+
+impl Serialize for ShadowMethod {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.id())
+    }
+}
+
+/// One light's shadows: the method and every technique's parameters (only the chosen
+/// method's are used; keeping all of them lets the viewer and the bench switch methods
+/// without losing what the scene file set).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ShadowChoice {
+    #[serde(skip)]
+    pub method: ShadowMethod,
+    pub traced: TracedParams,
+    pub map: MapParams,
+    pub cascades: CascadeParams,
+    pub volumes: VolumeParams,
+}
+
+impl ShadowChoice {
+    pub fn of(method: ShadowMethod) -> ShadowChoice {
+        ShadowChoice { method, ..Default::default() }
+    }
+
+    /// Hard `traced` shadows (what most tests pin).
+    pub fn hard() -> ShadowChoice {
+        ShadowChoice { traced: TracedParams { soft: Some(false), ..Default::default() }, ..Default::default() }
+    }
+
+    /// Soft `traced` shadows with `spp` rays per pixel and frame.
+    pub fn soft(spp: u32) -> ShadowChoice {
+        ShadowChoice { traced: TracedParams { soft: Some(true), spp }, ..Default::default() }
+    }
+
+    /// Sets one parameter by its key (`map.resolution`, `traced.spp`, `cascades.count`, ...)
+    /// from its text, through the same checks as the scene file.
+    pub fn set(&mut self, key: &str, value: &str) -> Result<(), String> {
+        let (technique, field) = key
+            .split_once('.')
+            .ok_or_else(|| format!("{key:?}: parameter keys are TECHNIQUE.FIELD, e.g. map.resolution"))?;
+        let mut table = toml::Value::try_from(*self).map_err(|e| e.to_string())?;
+        let section = table
+            .get_mut(technique)
+            .and_then(|t| t.as_table_mut())
+            .ok_or_else(|| format!("{key:?}: no technique {technique:?} (traced, map, cascades, volumes)"))?;
+        let parsed = parse_value(value);
+        section.insert(field.to_string(), parsed);
+        let mut next: ShadowChoice = table.try_into().map_err(|e: toml::de::Error| {
+            let msg = e.message().to_string();
+            format!("{key}={value}: {msg}")
+        })?;
+        next.method = self.method;
+        next.check().map_err(|e| format!("{key}={value}: {e}"))?;
+        *self = next;
+        Ok(())
+    }
+
+    /// Every parameter in range.
+    pub fn check(&self) -> Result<(), String> {
+        self.traced.check()?;
+        self.map.check()?;
+        self.cascades.check()?;
+        Ok(())
+    }
+
+    /// The chosen method's parameters as `key=value` pairs (logs, CSV rows, the overlay).
+    pub fn describe(&self) -> String {
+        let table = toml::Value::try_from(*self).ok();
+        let section = table.as_ref().and_then(|t| t.get(self.method.id())).and_then(|s| s.as_table());
+        let mut parts = vec![self.method.id().to_string()];
+        if let Some(section) = section {
+            parts.extend(section.iter().map(|(k, v)| format!("{k}={v}")));
+        }
+        parts.join(" ")
+    }
+}
+
+/// A command-line value as TOML: numbers and booleans as themselves, anything else a string.
+fn parse_value(text: &str) -> toml::Value {
+    text.parse::<toml::Value>()
+        .ok()
+        .or_else(|| format!("v = {text}").parse::<toml::Table>().ok().and_then(|t| t.get("v").cloned()))
+        .unwrap_or_else(|| toml::Value::String(text.to_string()))
+}
+
+/// What a debug view shows instead of the shaded image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum DebugView {
+    Albedo,
+    Normal,
+    Depth,
+    Position,
+    /// Light N's visibility (lights count from 0 in file order).
+    Visibility(u32),
+}
+
+impl DebugView {
+    /// The views the viewer cycles through (visibility of the selected light).
+    pub const NAMES: &'static str = "albedo, normal, depth, position, visibility[:N]";
+
+    /// The light whose shadow work the view needs, if any.
+    pub fn light(self) -> Option<usize> {
         match self {
-            ShadowMethod::RayTraced => ShadowMethod::RayTracedSoft,
-            ShadowMethod::RayTracedSoft => ShadowMethod::None,
-            ShadowMethod::None => ShadowMethod::Map,
-            ShadowMethod::Map => ShadowMethod::RayTraced,
+            DebugView::Visibility(n) => Some(n as usize),
+            _ => None,
         }
     }
 }
 
+impl std::str::FromStr for DebugView {
+    type Err = String;
+    fn from_str(text: &str) -> Result<DebugView, String> {
+        let (name, arg) = match text.split_once(':') {
+            Some((n, a)) => (n, Some(a)),
+            None => (text, None),
+        };
+        let light = |a: Option<&str>| -> Result<u32, String> {
+            a.map_or(Ok(0), |a| a.parse().map_err(|_| format!("{text:?}: the light is a number counted from 0")))
+        };
+        let plain = |v: DebugView| match arg {
+            None => Ok(v),
+            Some(_) => Err(format!("{text:?}: the {name} view takes no argument")),
+        };
+        match name {
+            "albedo" => plain(DebugView::Albedo),
+            "normal" => plain(DebugView::Normal),
+            "depth" => plain(DebugView::Depth),
+            "position" => plain(DebugView::Position),
+            "visibility" => Ok(DebugView::Visibility(light(arg)?)),
+            _ => Err(format!("unknown debug view {text:?}: use one of {}", DebugView::NAMES)),
+        }
+    }
+}
+
+impl std::fmt::Display for DebugView {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DebugView::Albedo => f.write_str("albedo"),
+            DebugView::Normal => f.write_str("normal"),
+            DebugView::Depth => f.write_str("depth"),
+            DebugView::Position => f.write_str("position"),
+            DebugView::Visibility(n) => write!(f, "visibility:{n}"),
+        }
+    }
+}
+
+/// What to render. Filled by the CLI (and later the viewer and the bench).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    pub width: u32,
+    pub height: u32,
+    /// Exposure in stops applied before tone mapping (display output only).
+    pub exposure_ev: f32,
+    pub debug_view: Option<DebugView>,
+    pub output: OutputKind,
+    pub timestamps: bool,
+    /// Overrides the scene's camera (the viewer's fly camera).
+    pub camera: Option<Camera>,
+    /// Shadows per light, in scene order; lights past the end get the default (`traced`).
+    pub shadows: Vec<ShadowChoice>,
+    /// What traced shadow rays traverse.
+    pub shadow_backend: ShadowBackend,
+    /// Seeds the soft-shadow samples, so successive frames draw fresh ones.
+    pub frame_index: u32,
+    /// Tests only: adds the pass "busy" (`passes/busy.rs`, this many loop iterations) after
+    /// the geometry pass, a GPU cost of known size for checking timings.
+    pub busy_iterations: Option<u32>,
+}
+
+impl RenderSettings {
+    /// Settings for a `width` x `height` capture of the scene as authored.
+    pub fn new(width: u32, height: u32, output: OutputKind) -> RenderSettings {
+        RenderSettings {
+            width,
+            height,
+            exposure_ev: 0.0,
+            debug_view: None,
+            output,
+            timestamps: false,
+            camera: None,
+            shadows: Vec::new(),
+            shadow_backend: ShadowBackend::Compute,
+            frame_index: 0,
+            busy_iterations: None,
+        }
+    }
+
+    /// Whether any light's shadows are sampled stochastically (and so worth accumulating).
+    pub fn is_stochastic(&self, lights: &[crate::scene::Light]) -> bool {
+        lights.iter().enumerate().any(|(i, l)| {
+            let c = self.shadow(i);
+            c.method == ShadowMethod::Traced && c.traced.is_soft(l.has_size())
+        })
+    }
+
+    /// Light `light`'s shadows.
+    pub fn shadow(&self, light: usize) -> ShadowChoice {
+        self.shadows.get(light).copied().unwrap_or_default()
+    }
+
+    pub fn shadow_method(&self, light: usize) -> ShadowMethod {
+        self.shadow(light).method
+    }
+
+    /// Every light's shadows set to `choice` (tests and `--shadows METHOD`).
+    pub fn all_lights(mut self, lights: usize, choice: ShadowChoice) -> RenderSettings {
+        self.shadows = vec![choice; lights];
+        self
+    }
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum OutputKind {
+    /// 8-bit sRGB, tone-mapped (PNG).
+    Display,
+    /// Linear float RGBA: radiance in W/(m^2 sr), or raw debug values (EXR).
+    SceneLinear,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn method_ids_and_aliases() {
+        for m in ShadowMethod::ALL {
+            assert_eq!(ShadowMethod::parse(m.id()), Ok((m, None)));
+        }
+        assert_eq!(ShadowMethod::parse("ray-traced"), Ok((ShadowMethod::Traced, None)));
+        assert_eq!(ShadowMethod::parse("ray-traced-soft"), Ok((ShadowMethod::Traced, Some(true))));
+        assert_eq!(ShadowMethod::parse("traced-soft"), Ok((ShadowMethod::Traced, Some(true))));
+        let err = ShadowMethod::parse("shadowmap").unwrap_err();
+        assert!(err.contains("traced, map, cascades, volumes, none"), "{err}");
+        let mut m = ShadowMethod::Traced;
+        for _ in 0..ShadowMethod::ALL.len() {
+            m = m.next();
+        }
+        assert_eq!(m, ShadowMethod::Traced, "the cycle visits every method once");
+    }
+
+    #[test]
+    fn parameters_are_set_by_key_through_the_scene_file_checks() {
+        let mut c = ShadowChoice::of(ShadowMethod::Map);
+        c.set("map.resolution", "1024").unwrap();
+        c.set("map.slope_bias", "3.5").unwrap();
+        c.set("map.pcss", "true").unwrap();
+        c.set("cascades.count", "6").unwrap();
+        c.set("volumes.zpass", "true").unwrap();
+        c.set("traced.spp", "16").unwrap();
+        assert_eq!((c.map.resolution, c.map.slope_bias, c.map.pcss), (1024, 3.5, Some(true)));
+        assert_eq!((c.cascades.count, c.volumes.zpass, c.traced.spp), (6, true, 16));
+        assert_eq!(c.method, ShadowMethod::Map, "setting parameters keeps the method");
+        let before = c;
+        for (key, value, says) in [
+            ("map.resolution", "7", "16 to 8192"),
+            ("map.resolution", "big", "resolution"),
+            ("map.colour", "1", "colour"),
+            ("mapresolution", "1", "TECHNIQUE.FIELD"),
+            ("shadowmap.resolution", "1", "no technique"),
+            ("cascades.count", "9", "1 to 8"),
+            ("traced.spp", "0", "1 to 256"),
+        ] {
+            let err = c.set(key, value).unwrap_err();
+            assert!(err.contains(says), "{key}={value}: {err}");
+        }
+        assert_eq!(c, before, "a refused value changes nothing");
+        assert!(c.describe().starts_with("map ") && c.describe().contains("resolution=1024"), "{}", c.describe());
+    }
+
+    #[test]
+    fn softness_follows_the_light_unless_pinned() {
+        let c = ShadowChoice::default();
+        assert!(c.traced.is_soft(true) && !c.traced.is_soft(false));
+        assert!(!ShadowChoice::hard().traced.is_soft(true));
+        assert!(ShadowChoice::soft(4).traced.is_soft(false));
+    }
+
+    #[test]
+    fn debug_views_parse_with_a_light() {
+        assert_eq!("visibility".parse(), Ok(DebugView::Visibility(0)));
+        assert_eq!("visibility:2".parse(), Ok(DebugView::Visibility(2)));
+        assert_eq!("depth".parse(), Ok(DebugView::Depth));
+        assert!("depth:1".parse::<DebugView>().unwrap_err().contains("takes no argument"));
+        assert!("visibility:x".parse::<DebugView>().unwrap_err().contains("counted from 0"));
+        assert!("shadows".parse::<DebugView>().unwrap_err().contains("albedo"));
+        for v in [DebugView::Albedo, DebugView::Visibility(3)] {
+            assert_eq!(v.to_string().parse(), Ok(v));
+        }
+    }
+}

@@ -1,7 +1,10 @@
 //! umbra: an explicit Vulkan renderer whose shadows are ray traced in a compute pass over a
 //! CPU-built BVH, so it runs on any Vulkan 1.3 device, software rasterisers included.
 
+pub mod bench;
 pub mod config;
+pub mod frame;
+pub mod gpu_scene;
 pub mod graph;
 pub mod output;
 pub mod passes;

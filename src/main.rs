@@ -8,9 +8,9 @@ use std::time::Instant;
 use anyhow::{bail, Context, Result};
 use clap::{Parser, Subcommand};
 
+use umbra::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
 use umbra::output::{check_output, write_image_with, ImageFormat, WriteOptions};
-use umbra::passes::debug_view::DebugView;
-use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowBackend, ShadowMethod};
+use umbra::renderer::Renderer;
 use umbra::scene::Scene;
 use umbra::timing::{TimingCalibration, TimingLog};
 use umbra::vk::{GpuContext, GpuOptions};
@@ -58,6 +58,9 @@ struct ViewArgs {
     /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
     #[arg(long)]
     device: Option<String>,
+    /// Start with hard traced shadows for every light, even those with a size (H toggles).
+    #[arg(long)]
+    hard: bool,
 }
 
 #[derive(clap::Args)]
@@ -73,32 +76,43 @@ struct RenderArgs {
     /// Khronos validation with synchronization validation; exits non-zero on any message.
     #[arg(long)]
     validate: bool,
-    /// Frames to render (the last one is written); timings are medians over them.
-    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=100_000))]
-    frames: u32,
+    /// Frames to render (the last one is written; soft shadows accumulate over them); timings
+    /// are medians over them. Default: 1, or enough for 64 soft-shadow samples per pixel in
+    /// all when a light's shadows are soft.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
+    frames: Option<u32>,
     /// Print per-pass and whole-frame GPU times (timestamps) and host time per frame, median and
     /// interquartile range over --frames.
     #[arg(long)]
     timings: bool,
-    /// Write a G-buffer channel or the first light's visibility instead of the shaded image.
-    #[arg(long, value_enum)]
+    /// Write a debug view instead of the shaded image: albedo, normal, depth, position, or
+    /// visibility[:N] (light N's visibility, lights counted from 0; plain `visibility` is light 0).
+    #[arg(long, value_parser = clap::builder::ValueParser::new(|s: &str| s.parse::<DebugView>()))]
     debug_view: Option<DebugView>,
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_exposure)]
     exposure: f32,
-    /// Shadow method for every light (traced, traced-soft, map, none; ray-traced and
-    /// ray-traced-soft are aliases), or per light counting from 0: `0=map,2=none`. Default:
-    /// each light's `shadows` in the scene file, else traced.
+    /// Shadow method for every light (traced, map, cascades, volumes, none; ray-traced is an
+    /// alias of traced, traced-soft and ray-traced-soft of soft traced), or per light counting
+    /// from 0: `0=map,2=none`. Default: each light's `shadows` in the scene file, else traced.
     #[arg(long, value_parser = parse_shadows)]
     shadows: Option<ShadowsArg>,
+    /// Shadow parameters, `KEY=VALUE` with the keys of the scene file's technique tables
+    /// (map.resolution=1024, map.pcf_radius=2, traced.spp=16, cascades.count=4, volumes.zpass=true),
+    /// for every light, or `N:KEY=VALUE` for light N; repeatable.
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    params: Vec<String>,
+    /// Hard traced shadows for every light, even those with a size.
+    #[arg(long)]
+    hard: bool,
     /// What shadow rays traverse: the BVH in a compute shader (any device), or the device's own
     /// acceleration structures (VK_KHR_ray_query, where `umbra devices` says ray query: yes).
     /// Default: the scene's `shadow_backend`, else compute.
     #[arg(long, value_enum)]
     shadow_backend: Option<ShadowBackend>,
-    /// Soft shadows: rays per pixel and light.
-    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=256))]
-    spp: u32,
+    /// Soft shadows: rays per pixel and light in each frame (default: each light's traced.spp, 8).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=256))]
+    spp: Option<u32>,
     /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
     #[arg(long)]
     device: Option<String>,
@@ -115,45 +129,98 @@ struct RenderArgs {
 }
 
 /// `--shadows`: one method for every light (`map`), or per light, counting from 0
-/// (`0=map,2=none`); lights it does not name keep the scene's choice.
+/// (`0=map,2=none`); lights it does not name keep the scene's choice. With each method, the
+/// softness its id implies (`traced-soft`).
 #[derive(Clone, Debug)]
-struct ShadowsArg(Vec<(Option<usize>, ShadowMethod)>);
+struct ShadowsArg(Vec<(Option<usize>, ShadowMethod, Option<bool>)>);
 
 fn parse_shadows(text: &str) -> Result<ShadowsArg, String> {
-    use clap::ValueEnum;
-    let ids = || ShadowMethod::value_variants().iter().map(|m| m.id()).collect::<Vec<_>>().join(", ");
-    let method = |s: &str| {
-        ShadowMethod::from_str(s.trim(), true).map_err(|_| format!("{:?} is not a shadow method ({})", s.trim(), ids()))
-    };
     let mut out = Vec::new();
     for part in text.split(',') {
         match part.split_once('=') {
             Some((light, m)) => {
-                let i = light.trim().parse::<usize>().map_err(|_| format!("{:?}: a light is a number from 0", light.trim()))?;
-                out.push((Some(i), method(m)?));
+                let i = light
+                    .trim()
+                    .parse::<usize>()
+                    .map_err(|_| format!("{:?}: a light is a number from 0", light.trim()))?;
+                let (method, soft) = ShadowMethod::parse(m.trim())?;
+                out.push((Some(i), method, soft));
             }
             None if text.contains(',') || text.contains('=') => {
                 return Err(format!("{part:?}: write LIGHT=METHOD for each light, e.g. 0=map,2=none"))
             }
-            None => out.push((None, method(part)?)),
+            None => {
+                let (method, soft) = ShadowMethod::parse(part.trim())?;
+                out.push((None, method, soft));
+            }
         }
     }
     Ok(ShadowsArg(out))
 }
 
-/// Each light's method: the scene's `shadows` (else traced), then the command line's.
-fn light_methods(scene: &Scene, arg: Option<&ShadowsArg>) -> Result<Vec<ShadowMethod>> {
+/// Each light's shadows: the scene's (else traced), then the command line's method, `--param`
+/// values, `--hard` and `--spp`.
+fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> {
     let n = scene.lights.len();
-    let mut methods: Vec<ShadowMethod> =
-        (0..n).map(|i| scene.light_shadows.get(i).copied().flatten().unwrap_or_default()).collect();
-    for &(light, m) in arg.map_or(&[][..], |a| &a.0[..]) {
+    let mut choices: Vec<ShadowChoice> =
+        (0..n).map(|i| scene.light_shadows.get(i).copied().unwrap_or_default()).collect();
+    let pick = |light: Option<usize>, what: &str| -> Result<std::ops::Range<usize>> {
         match light {
-            None => methods.iter_mut().for_each(|x| *x = m),
-            Some(i) if i < n => methods[i] = m,
-            Some(i) => bail!("--shadows {i}={}: the scene has {n} light(s), counted from 0", m.id()),
+            None => Ok(0..n),
+            Some(i) if i < n => Ok(i..i + 1),
+            Some(i) => bail!("{what}: light {i} does not exist; the scene has {n} light(s), counted from 0"),
+        }
+    };
+    for &(light, method, soft) in args.shadows.as_ref().map_or(&[][..], |a| &a.0[..]) {
+        for c in &mut choices[pick(light, &format!("--shadows {}", method.id()))?] {
+            c.method = method;
+            if soft.is_some() {
+                c.traced.soft = soft;
+            }
         }
     }
-    Ok(methods)
+    for param in &args.params {
+        let (light, assignment) = match param.split_once(':') {
+            Some((l, rest)) => {
+                let i = l
+                    .trim()
+                    .parse::<usize>()
+                    .map_err(|_| anyhow::anyhow!("--param {param}: {l:?} is not a light number"))?;
+                (Some(i), rest)
+            }
+            None => (None, param.as_str()),
+        };
+        let (key, value) = assignment
+            .split_once('=')
+            .ok_or_else(|| anyhow::anyhow!("--param {param}: write KEY=VALUE, e.g. map.resolution=1024"))?;
+        for c in &mut choices[pick(light, &format!("--param {param}"))?] {
+            c.set(key.trim(), value.trim()).map_err(|e| anyhow::anyhow!("--param {param}: {e}"))?;
+        }
+    }
+    for c in &mut choices {
+        if args.hard {
+            c.traced.soft = Some(false);
+        }
+        if let Some(spp) = args.spp {
+            c.traced.spp = spp;
+        }
+    }
+    Ok(choices)
+}
+
+/// Samples per pixel a default render gathers for soft shadows, over accumulated frames.
+const CONVERGED_SPP: u32 = 64;
+
+/// One frame, or with soft shadows enough accumulated frames for `CONVERGED_SPP` samples per
+/// pixel of the light with the fewest samples per frame.
+fn default_frames(settings: &RenderSettings, lights: &[umbra::scene::Light]) -> u32 {
+    let soft_spp = (0..lights.len())
+        .map(|i| settings.shadow(i))
+        .zip(lights)
+        .filter(|(c, l)| c.method == ShadowMethod::Traced && c.traced.is_soft(l.has_size()))
+        .map(|(c, _)| c.traced.spp.max(1))
+        .min();
+    soft_spp.map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
@@ -227,13 +294,12 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         output: if format == ImageFormat::Png { OutputKind::Display } else { OutputKind::SceneLinear },
         timestamps: args.timings,
         camera: None,
-        shadows: light_methods(&scene, args.shadows.as_ref())?,
-        soft_spp: args.spp,
+        shadows: light_shadows(&scene, &args)?,
         shadow_backend: args.shadow_backend.or(scene.shadow_backend).unwrap_or_default(),
         frame_index: 0,
         busy_iterations: args.busy_pass,
-        map: Default::default(),
     };
+    let frames = args.frames.unwrap_or_else(|| default_frames(&settings, &scene.lights));
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();
     let mut renderer = Renderer::new(ctx.clone(), scene).context("preparing the scene")?;
@@ -241,7 +307,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
     let mut timings = TimingLog::default();
     let mut frame = None;
-    for i in 0..args.frames {
+    for i in 0..frames {
         let start = Instant::now();
         frame = Some(renderer.render(&settings)?);
         let host_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -293,6 +359,10 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         None => "umbra - default scene".into(),
     };
     let scene_backend = scene.shadow_backend;
+    let mut scene = scene;
+    if args.hard {
+        scene.light_shadows.iter_mut().for_each(|c| c.traced.soft = Some(false));
+    }
     let options = umbra::viewer::ViewerOptions {
         size: args.size.or(scene.image_size).unwrap_or((960, 540)),
         scene,

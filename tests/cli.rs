@@ -98,6 +98,7 @@ fn timings_and_debug_views_work_from_the_command_line() {
         "--timings",
         "--debug-view",
         "visibility",
+        "--hard",
         "--validate",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));

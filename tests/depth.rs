@@ -8,7 +8,7 @@ mod common;
 use std::path::Path;
 
 use glam::{Vec3, Vec4};
-use umbra::passes::debug_view::DebugView;
+use umbra::config::DebugView;
 use umbra::renderer::{perspective_reversed_infinite, Frame, OutputKind, RenderSettings, Renderer};
 use umbra::scene::Scene;
 

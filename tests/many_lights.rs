@@ -10,7 +10,7 @@ use std::fmt::Write as _;
 use std::path::Path;
 
 use glam::Vec4;
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowMethod};
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice, ShadowMethod};
 use umbra::scene::Scene;
 
 /// A cube on a floor under `n` narrow spots aimed at it from a ring, the last one with a size.
@@ -47,14 +47,14 @@ fn sixty_four_shadowed_lights_render_at_1080p() {
     let ctx = common::gpu();
     let mut renderer = Renderer::new(ctx.clone(), ring_of_spots(64)).expect("renderer");
     let mut s = RenderSettings::new(1920, 1080, OutputKind::SceneLinear);
-    s.shadows = vec![ShadowMethod::RayTraced; 64];
+    s.shadows = vec![ShadowChoice::hard(); 64];
     let image = pixels(renderer.render(&s).expect("64 lights at 1920x1080"));
     assert!(image.iter().all(|p| p.is_finite()));
     let plan = renderer.last_plan().expect("plan").to_string();
     assert!(plan.contains("visibility: image R8_UNORM 1920x1080x64 layers"), "{plan}");
     // Half the lights off: half the layers.
     for m in s.shadows.iter_mut().step_by(2) {
-        *m = ShadowMethod::None;
+        *m = ShadowChoice::of(ShadowMethod::None);
     }
     renderer.render(&s).expect("32 shadowed");
     let plan = renderer.last_plan().expect("plan").to_string();
@@ -69,17 +69,16 @@ fn lights_past_128_keep_their_own_method() {
     let n = 130;
     let mut renderer = Renderer::new(ctx.clone(), ring_of_spots(n)).expect("renderer");
     let mut s = RenderSettings::new(160, 90, OutputKind::SceneLinear);
-    s.soft_spp = 16;
     let render = |r: &mut Renderer, s: &RenderSettings| pixels(r.render(s).expect("render"));
     // Only the last light shadowed: hard, soft, then off.
-    s.shadows = vec![ShadowMethod::None; n];
-    s.shadows[n - 1] = ShadowMethod::RayTraced;
+    s.shadows = vec![ShadowChoice::of(ShadowMethod::None); n];
+    s.shadows[n - 1] = ShadowChoice::hard();
     let hard = render(&mut renderer, &s);
     let plan = renderer.last_plan().expect("plan").to_string();
     assert!(plan.contains("160x90x1 layers"), "one layer for the one shadowed light:\n{plan}");
-    s.shadows[n - 1] = ShadowMethod::RayTracedSoft;
+    s.shadows[n - 1] = ShadowChoice::soft(16);
     let soft = render(&mut renderer, &s);
-    s.shadows[n - 1] = ShadowMethod::None;
+    s.shadows[n - 1] = ShadowChoice::of(ShadowMethod::None);
     let none = render(&mut renderer, &s);
     assert!(!renderer.last_plan().expect("plan").live_pass_names().contains(&"shadow trace"));
     let differ = |a: &[Vec4], b: &[Vec4]| a.iter().zip(b).filter(|(x, y)| x != y).count();

@@ -8,12 +8,12 @@ mod common;
 use std::path::Path;
 
 use glam::{Vec3, Vec4};
-use umbra::passes::accel::{BUILD_BOTTOM, BUILD_TOP};
-use umbra::passes::debug_view::DebugView;
+use umbra::config::DebugView;
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowBackend};
 use umbra::scene::bvh::{offset_ray_origin, ShadowBvh};
 use umbra::scene::Scene;
 use umbra::shading::{gpu_lights, light_sample};
+use umbra::shadows::traced::accel::{BUILD_BOTTOM, BUILD_TOP};
 
 /// `ShadowBvh::ray_near_edge` tolerance, as in render_accuracy.rs: about 8 ulps of the
 /// largest coordinate of these scenes.
@@ -54,7 +54,7 @@ fn compare_backends(name: &str, scene: Scene, w: u32, h: u32) {
     let bvh = ShadowBvh::build(&scene);
     let light = gpu_lights(&scene.lights)[0];
     let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
-    let vis = |r: &mut Renderer, b| frame(r, &settings(w, h, b, Some(DebugView::Visibility)));
+    let vis = |r: &mut Renderer, b| frame(r, &settings(w, h, b, Some(DebugView::Visibility(0))));
     let compute = vis(&mut renderer, ShadowBackend::Compute);
     let query = vis(&mut renderer, ShadowBackend::RayQuery);
     let shaded_compute = frame(&mut renderer, &settings(w, h, ShadowBackend::Compute, None));
@@ -138,9 +138,9 @@ fn structures_are_built_by_the_first_frame_only() {
     assert!(!second.contains("barrier TLAS") && !second.contains("barrier BLAS"), "{second}");
     assert!(second.contains("TLAS") && second.contains("shadow trace"), "{second}");
     // The image of a frame that read structures built earlier equals a fresh build's.
-    let again = frame(&mut renderer, &settings(64, 48, ShadowBackend::RayQuery, Some(DebugView::Visibility)));
+    let again = frame(&mut renderer, &settings(64, 48, ShadowBackend::RayQuery, Some(DebugView::Visibility(0))));
     let mut fresh = Renderer::new(ctx.clone(), Scene::default_scene()).expect("renderer");
-    let built_now = frame(&mut fresh, &settings(64, 48, ShadowBackend::RayQuery, Some(DebugView::Visibility)));
+    let built_now = frame(&mut fresh, &settings(64, 48, ShadowBackend::RayQuery, Some(DebugView::Visibility(0))));
     assert_eq!(again, built_now);
     drop((renderer, fresh));
     common::assert_clean(&ctx);

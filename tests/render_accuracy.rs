@@ -12,8 +12,8 @@ mod common;
 use std::path::Path;
 
 use glam::{DVec3, Vec3, Vec4};
-use umbra::passes::debug_view::DebugView;
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowMethod, BACKGROUND};
+use umbra::config::DebugView;
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice, ShadowMethod, BACKGROUND};
 use umbra::scene::bvh::{offset_ray_origin, ShadowBvh};
 use umbra::scene::{Material, Scene};
 use umbra::shading::{gpu_lights, light_sample, shade_point, GpuLight};
@@ -35,7 +35,10 @@ fn floor_cube() -> Scene {
 
 /// One raw float RGBA frame (SceneLinear), as one `Vec4` per pixel, row-major from the top.
 fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
-    let mut settings = RenderSettings::new(WIDTH, HEIGHT, OutputKind::SceneLinear);
+    // Hard shadows, as the CPU twin traces them.
+    let lights = renderer.scene().lights.len();
+    let mut settings =
+        RenderSettings::new(WIDTH, HEIGHT, OutputKind::SceneLinear).all_lights(lights, ShadowChoice::hard());
     settings.debug_view = view;
     match renderer.render(&settings).unwrap_or_else(|e| panic!("render {view:?}: {e}")) {
         Frame::Rgba32F { width, height, pixels } => {
@@ -257,7 +260,7 @@ fn shaded_pixels_match_the_cpu_evaluation() {
 
 /// The first light's visibility view of `renderer`'s scene, one value per pixel.
 fn visibility_view(renderer: &mut Renderer) -> Vec<f32> {
-    render(renderer, Some(DebugView::Visibility)).iter().map(|v| v.x).collect()
+    render(renderer, Some(DebugView::Visibility(0))).iter().map(|v| v.x).collect()
 }
 
 /// The first light's visibility traced on the CPU for every covered pixel (1 for background,
@@ -438,7 +441,7 @@ fn debug_views_schedule_only_what_they_need() {
                 assert!(!passes.contains(&absent), "{view:?} ({output:?}) schedules {absent}: {passes:?}");
             }
         }
-        let passes = live(output, Some(DebugView::Visibility), &renderer);
+        let passes = live(output, Some(DebugView::Visibility(0)), &renderer);
         assert!(passes.contains(&"shadow trace") && passes.contains(&"debug view"), "{passes:?}");
         assert!(!passes.contains(&"compose") && !passes.contains(&"tonemap"), "{passes:?}");
     }
@@ -462,7 +465,7 @@ fn debug_views_schedule_only_what_they_need() {
 
     // Every light unshadowed by the settings: nothing to trace.
     let mut settings = RenderSettings::new(WIDTH, HEIGHT, OutputKind::SceneLinear);
-    settings.shadows = vec![ShadowMethod::None; 3];
+    settings.shadows = vec![ShadowChoice::of(ShadowMethod::None); 3];
     let passes = renderer.plan(&settings).expect("plan").live_pass_names();
     assert!(!passes.contains(&"shadow trace") && passes.contains(&"compose"), "{passes:?}");
     drop(renderer);

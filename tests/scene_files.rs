@@ -879,9 +879,15 @@ fn lights_choose_their_shadow_method_by_id() {
         light("shadows = \"none\"\n")
     ));
     let scene = parse(&text);
+    let methods: Vec<_> = scene.light_shadows.iter().map(|c| (c.method, c.traced.soft)).collect();
     assert_eq!(
-        scene.light_shadows,
-        vec![Some(ShadowMethod::Map), None, Some(ShadowMethod::RayTracedSoft), Some(ShadowMethod::None)]
+        methods,
+        vec![
+            (ShadowMethod::Map, None),
+            (ShadowMethod::Traced, None),
+            (ShadowMethod::Traced, Some(true)),
+            (ShadowMethod::None, None)
+        ]
     );
     let message = parse_error(&with_camera(&format!("{}{}", light(""), light("shadows = \"shadowmap\"\n"))));
     assert!(message.contains("lights[1].shadows") && message.contains("traced"), "{message}");

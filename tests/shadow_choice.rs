@@ -64,13 +64,18 @@ fn the_command_line_overrides_the_scene_light_by_light() {
     let out = render(&dir, SCENE, "map", &[]);
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("light 1: `map` serves spot lights only so far; its shadows are traced"), "{err}");
+    assert!(
+        err.contains(
+            "light 1: `map` serves spot lights only so far; this is a point light; its shadows are traced instead"
+        ),
+        "{err}"
+    );
     // None for all: no shadow work at all.
     let p = plan("none");
     assert!(!p.contains("visibility") && !p.contains("shadow trace") && !p.contains("shadow map"), "{p}");
     for (bad, says) in [
-        ("2=map", "the scene has 2 light(s), counted from 0"),
-        ("0=shadowmap", "\"shadowmap\" is not a shadow method (traced, traced-soft, none, map)"),
+        ("2=map", "light 2 does not exist; the scene has 2 light(s), counted from 0"),
+        ("0=shadowmap", "unknown shadow method \"shadowmap\": use one of traced, map, cascades, volumes, none"),
         ("map,none", "write LIGHT=METHOD for each light"),
     ] {
         let out = render(&dir, SCENE, bad, &[]);
@@ -78,5 +83,43 @@ fn the_command_line_overrides_the_scene_light_by_light() {
         assert!(!out.status.success() && err.contains(says), "--shadows {bad}: {err}");
         assert!(!dir.join("out.exr").exists());
     }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
+fn parameters_come_from_the_scene_file_then_the_command_line() {
+    let dir = std::env::temp_dir().join(format!("umbra-shadow-params-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene =
+        SCENE.replace("shadows = \"none\"", "shadows = \"map\"\n[lights.map]\nresolution = 512\npcf_radius = 2");
+    let run = |extra: &[&str]| {
+        let out = render(&dir, &scene, "1=traced", extra);
+        let text = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+        (out.status.success(), text)
+    };
+    let (ok, text) = run(&[]);
+    assert!(ok && text.contains("shadow map (light 0, 512x512"), "the scene's resolution:\n{text}");
+    let (ok, text) = run(&["--param", "0:map.resolution=256"]);
+    assert!(ok && text.contains("shadow map (light 0, 256x256"), "--param for light 0:\n{text}");
+    let (ok, text) = run(&["--param", "map.resolution=1024", "--param", "traced.spp=4"]);
+    assert!(ok && text.contains("shadow map (light 0, 1024x1024"), "--param for all lights:\n{text}");
+    for (bad, says) in [
+        (&["--param", "map.resolution=7"][..], "map.resolution is 7: it takes 16 to 8192 texels"),
+        (&["--param", "5:map.resolution=512"][..], "light 5 does not exist"),
+        (&["--param", "map.resolution"][..], "write KEY=VALUE"),
+        (&["--param", "map.size=1"][..], "unknown field `size`"),
+    ] {
+        let (ok, text) = run(bad);
+        assert!(!ok && text.contains(says), "{bad:?}: {text}");
+    }
+    // The scene file's own checks, naming the light's table.
+    let bad = scene.replace("resolution = 512", "resolution = 100000");
+    let out = render(&dir, &bad, "1=traced", &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("lights[0].map") && err.contains("16 to 8192"), "{err}");
+    let bad = scene.replace("pcf_radius = 2", "pcf = 2");
+    let out = render(&dir, &bad, "1=traced", &[]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("pcf"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }

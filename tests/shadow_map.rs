@@ -7,8 +7,8 @@ mod common;
 
 use std::path::Path;
 
-use umbra::passes::debug_view::DebugView;
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowMethod};
+use umbra::config::DebugView;
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice, ShadowMethod};
 use umbra::scene::Scene;
 use umbra::shadows::map::MapParams;
 
@@ -41,9 +41,8 @@ translate = [0.0, 0.5, 0.0]
 
 fn visibility(r: &mut Renderer, method: ShadowMethod, map: MapParams) -> Vec<f32> {
     let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear);
-    s.debug_view = Some(DebugView::Visibility);
-    s.shadows = vec![method];
-    s.map = map;
+    s.debug_view = Some(DebugView::Visibility(0));
+    s.shadows = vec![ShadowChoice { method, map, ..ShadowChoice::hard() }];
     let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
     pixels.chunks_exact(4).map(|p| p[0]).collect()
 }
@@ -87,7 +86,7 @@ fn setup() -> (std::sync::Arc<umbra::vk::GpuContext>, Renderer) {
 #[test]
 fn a_spot_shadow_map_agrees_with_traced_visibility_away_from_edges() {
     let (ctx, mut r) = setup();
-    let traced = visibility(&mut r, ShadowMethod::RayTraced, MapParams::default());
+    let traced = visibility(&mut r, ShadowMethod::Traced, MapParams::default());
     let map = visibility(&mut r, ShadowMethod::Map, MapParams::default());
     let plan = r.last_plan().expect("plan").to_string();
     assert!(plan.contains("shadow map (light 0, 2048x2048, 2 of 2 draws)"), "{plan}");
@@ -109,7 +108,7 @@ fn a_spot_shadow_map_agrees_with_traced_visibility_away_from_edges() {
 #[test]
 fn zero_bias_shows_acne_and_slope_scaled_bias_removes_it() {
     let (ctx, mut r) = setup();
-    let traced = visibility(&mut r, ShadowMethod::RayTraced, MapParams::default());
+    let traced = visibility(&mut r, ShadowMethod::Traced, MapParams::default());
     let bare =
         MapParams { constant_bias: 0.0, slope_bias: 0.0, normal_offset: 0.0, pcf_radius: 0, ..Default::default() };
     let acne = compare(&traced, &visibility(&mut r, ShadowMethod::Map, bare));

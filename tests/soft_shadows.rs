@@ -7,8 +7,8 @@ mod common;
 use std::path::Path;
 
 use glam::{UVec3, Vec3, Vec4};
-use umbra::passes::debug_view::DebugView;
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowMethod};
+use umbra::config::DebugView;
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
 use umbra::scene::bvh::{offset_ray_origin, ShadowBvh};
 use umbra::scene::Scene;
 use umbra::shading::{gpu_lights, light_sample, light_sample_point, random2};
@@ -53,10 +53,9 @@ fn floats(frame: Frame) -> Vec<Vec4> {
     }
 }
 
-fn settings(method: ShadowMethod, view: Option<DebugView>) -> RenderSettings {
+fn settings(choice: ShadowChoice, view: Option<DebugView>) -> RenderSettings {
     let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear);
-    s.shadows = vec![method; 2];
-    s.soft_spp = SPP;
+    s.shadows = vec![choice; 2];
     s.debug_view = view;
     s
 }
@@ -66,10 +65,10 @@ fn soft_visibility_matches_the_cpu_with_the_same_samples() {
     let ctx = common::gpu();
     let scene = scene();
     let mut r = Renderer::new(ctx.clone(), scene.clone()).unwrap();
-    let vis = floats(r.render(&settings(ShadowMethod::RayTracedSoft, Some(DebugView::Visibility))).unwrap());
-    let pos = floats(r.render(&settings(ShadowMethod::RayTracedSoft, Some(DebugView::Position))).unwrap());
-    let nrm = floats(r.render(&settings(ShadowMethod::RayTracedSoft, Some(DebugView::Normal))).unwrap());
-    let depth = floats(r.render(&settings(ShadowMethod::RayTracedSoft, Some(DebugView::Depth))).unwrap());
+    let vis = floats(r.render(&settings(ShadowChoice::soft(SPP), Some(DebugView::Visibility(0)))).unwrap());
+    let pos = floats(r.render(&settings(ShadowChoice::soft(SPP), Some(DebugView::Position))).unwrap());
+    let nrm = floats(r.render(&settings(ShadowChoice::soft(SPP), Some(DebugView::Normal))).unwrap());
+    let depth = floats(r.render(&settings(ShadowChoice::soft(SPP), Some(DebugView::Depth))).unwrap());
     drop(r);
     common::assert_clean(&ctx);
 
@@ -131,8 +130,8 @@ fn lights_without_size_give_soft_shadows_equal_to_hard_ones() {
         }
     }
     let mut r = Renderer::new(ctx.clone(), scene).unwrap();
-    let hard = floats(r.render(&settings(ShadowMethod::RayTraced, None)).unwrap());
-    let soft = floats(r.render(&settings(ShadowMethod::RayTracedSoft, None)).unwrap());
+    let hard = floats(r.render(&settings(ShadowChoice::hard(), None)).unwrap());
+    let soft = floats(r.render(&settings(ShadowChoice::soft(SPP), None)).unwrap());
     assert_eq!(hard, soft);
     drop(r);
     common::assert_clean(&ctx);
@@ -150,8 +149,8 @@ fn a_still_view_accumulates_toward_the_converged_image() {
     let scene = scene();
     // Reference: 16 frames of 64 rays (1024 per pixel and light).
     let mut r = Renderer::new(ctx.clone(), scene.clone()).unwrap();
-    let mut reference_settings = settings(ShadowMethod::RayTracedSoft, None);
-    reference_settings.soft_spp = 64;
+    let mut reference_settings = settings(ShadowChoice::soft(SPP), None);
+    reference_settings.shadows = vec![ShadowChoice::soft(64); 2];
     reference_settings.frame_index = 1000; // samples independent of the runs below
     let mut reference = Vec::new();
     for _ in 0..16 {
@@ -160,7 +159,7 @@ fn a_still_view_accumulates_toward_the_converged_image() {
     drop(r);
 
     let mut r = Renderer::new(ctx.clone(), scene).unwrap();
-    let s = settings(ShadowMethod::RayTracedSoft, None);
+    let s = settings(ShadowChoice::soft(SPP), None);
     let one = floats(r.render(&s).unwrap());
     let mut mean = one.clone();
     for _ in 1..16 {

@@ -75,7 +75,10 @@ fn turning_the_camera_moves_the_shadows_on_screen() {
 #[test]
 fn switching_a_light_to_no_shadows_brightens_its_shadows_only() {
     let dir = scene_dir("none");
-    view(&dir, "frames 2\nscreenshot hard\npress T\npress T\nframes 2\nscreenshot unshadowed\nquit\n", &[]);
+    // T cycles traced -> map -> cascades -> volumes -> none.
+    let script =
+        "frames 2\nscreenshot hard\npress T\npress T\npress T\npress T\nframes 2\nscreenshot unshadowed\nquit\n";
+    view(&dir, script, &["--hard"]);
     let (w, h, hard) = read_exr(&dir.join("hard.exr")).unwrap();
     let (w2, h2, none) = read_exr(&dir.join("unshadowed.exr")).unwrap();
     assert_eq!((w, h), (w2, h2));
@@ -135,7 +138,7 @@ fn frames_closes_the_window_after_n_frames() {
 fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
     let dir = scene_dir("overlay");
     let script = "frames 2\ncapture shown\npress F1\nframes 2\ncapture plain\nscreenshot offline\npress F12\nquit\n";
-    view(&dir, script, &["--size", "640x480"]);
+    view(&dir, script, &["--size", "640x480", "--hard"]);
     let shown = image::open(dir.join("shown.png")).unwrap().to_rgb8();
     let plain = image::open(dir.join("plain.png")).unwrap().to_rgb8();
     let offline = image::open(dir.join("offline.png")).unwrap().to_rgb8();

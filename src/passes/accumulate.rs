@@ -66,7 +66,7 @@ pub struct Accumulator {
     image: Option<Image>,
     frames: u32,
     used: bool,
-    last: Option<crate::renderer::RenderSettings>,
+    last: Option<crate::config::RenderSettings>,
 }
 
 impl Accumulator {
@@ -82,8 +82,8 @@ impl Accumulator {
     pub fn prepare(
         &mut self,
         ctx: &Arc<GpuContext>,
-        settings: &mut crate::renderer::RenderSettings,
-        lights: usize,
+        settings: &mut crate::config::RenderSettings,
+        lights: &[crate::scene::Light],
     ) -> GpuResult<Option<History<'_>>> {
         let mut key = settings.clone();
         key.frame_index = 0;

@@ -11,14 +11,7 @@ use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
 
-#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
-pub enum DebugView {
-    Albedo,
-    Normal,
-    Depth,
-    Position,
-    Visibility,
-}
+pub use crate::config::DebugView;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -59,6 +52,17 @@ pub struct DebugInputs<'h> {
     pub display: bool,
 }
 
+/// The view's number in shaders/include/debug_view_body.glsl.
+fn shader_view(view: DebugView) -> u32 {
+    match view {
+        DebugView::Albedo => 0,
+        DebugView::Normal => 1,
+        DebugView::Depth => 2,
+        DebugView::Position => 3,
+        DebugView::Visibility(_) => 4,
+    }
+}
+
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipelines: &'a DebugPipelines,
@@ -70,7 +74,7 @@ pub fn add<'a>(
     let source = match inputs.view {
         DebugView::Albedo => &gbuffer.material,
         DebugView::Normal => &gbuffer.normal,
-        DebugView::Depth | DebugView::Position | DebugView::Visibility => &gbuffer.position,
+        DebugView::Depth | DebugView::Position | DebugView::Visibility(_) => &gbuffer.position,
     };
     let mut pass = graph.add_pass("debug view");
     let mut bound = vec![
@@ -78,7 +82,7 @@ pub fn add<'a>(
         (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
     ];
     let mut layer = 0;
-    let pipeline = match inputs.visibility.filter(|_| inputs.view == DebugView::Visibility) {
+    let pipeline = match inputs.visibility.filter(|_| matches!(inputs.view, DebugView::Visibility(_))) {
         Some((v, l)) => {
             bound.push((DISPLAY_VISIBILITY, Bound::Image(pass.read(v, Access::ComputeShaderReadSampledImage))));
             layer = l;
@@ -89,7 +93,7 @@ pub fn add<'a>(
     let push = Push {
         eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
         origin: inputs.origin.extend(0.0),
-        params: UVec4::new(extent.width, extent.height, inputs.view as u32, inputs.display as u32),
+        params: UVec4::new(extent.width, extent.height, shader_view(inputs.view), inputs.display as u32),
         layer: UVec4::new(layer, 0, 0, 0),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));

@@ -6,8 +6,8 @@ use ash::vk;
 use glam::{Mat4, Vec4};
 
 use super::{GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT};
+use crate::gpu_scene::{CameraMatrices, SceneGpu, Vertex};
 use crate::graph::{Access, BufferKind, Handle, ImageDesc, RenderGraph};
-use crate::renderer::{CameraMatrices, SceneGpu, Vertex};
 use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
 
 // The colour attachments below are listed in the order gbuffer.glsl gives their locations.

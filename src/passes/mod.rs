@@ -1,7 +1,6 @@
 //! One file per pass. A pass is a free function from graph handles to graph handles: it declares
 //! what it reads and writes and records its draw or dispatch; the graph does the rest.
 
-pub mod accel;
 pub mod accumulate;
 pub mod busy;
 pub mod compose;
@@ -11,11 +10,10 @@ pub mod overlay;
 pub mod present;
 pub mod ray_batch;
 pub mod readback;
-pub mod shadow_trace;
 pub mod tonemap;
 pub mod visibility;
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use ash::vk;
 
@@ -43,35 +41,23 @@ pub struct GBuffer {
 /// Every pipeline, built once per device and shared by all frames.
 pub struct Pipelines {
     pub geometry: GraphicsPipeline,
-    pub shadow_trace: ComputePipeline,
     pub compose: ComputePipeline,
     pub compose_unshadowed: ComputePipeline,
     pub tonemap: ComputePipeline,
     pub debug_view: debug_view::DebugPipelines,
     pub accumulate: ComputePipeline,
-    /// Made on first use, and only on devices with ray query.
-    shadow_trace_rq: OnceLock<ComputePipeline>,
-    ctx: Arc<GpuContext>,
 }
 
 impl Pipelines {
     pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
         Ok(Pipelines {
             geometry: geometry::pipeline(ctx)?,
-            shadow_trace: shadow_trace::pipeline(ctx)?,
             compose: compose::pipeline(ctx, true)?,
             compose_unshadowed: compose::pipeline(ctx, false)?,
             tonemap: tonemap::pipeline(ctx)?,
             debug_view: debug_view::pipelines(ctx)?,
             accumulate: accumulate::pipeline(ctx)?,
-            shadow_trace_rq: OnceLock::new(),
-            ctx: ctx.clone(),
         })
-    }
-
-    /// The ray-query shadow pipeline, compiled the first time a frame asks for it.
-    pub fn shadow_trace_rq(&self) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.shadow_trace_rq, || shadow_trace::ray_query_pipeline(&self.ctx))
     }
 }
 

@@ -5,8 +5,7 @@ use ash::vk;
 
 use crate::graph::{Access, Handle, ImageDesc, ImageKind, RenderGraph};
 
-/// What swapchain images are created for: they are only ever blitted into.
-pub const SWAPCHAIN_USAGE: vk::ImageUsageFlags = vk::ImageUsageFlags::TRANSFER_DST;
+pub use crate::vk::SWAPCHAIN_USAGE;
 
 pub fn add(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, swapchain: (vk::Image, vk::ImageView, ImageDesc)) {
     let (image, view, desc) = swapchain;

@@ -22,7 +22,7 @@ pub const UNSHADOWED: u32 = u32::MAX;
 pub const MAX_LIGHTS: usize = 65536 / 4;
 
 /// Which light gets which layer: `layers[i]` is light i's layer, if it has shadow work.
-#[derive(Clone, Debug, PartialEq, Eq)]
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct LayerPlan {
     pub layers: Vec<Option<u32>>,
 }

@@ -71,7 +71,14 @@ struct LightDesc {
     outer_deg: Option<f64>,
     radius: Option<f64>,
     angular_diameter_deg: Option<f64>,
-    shadows: Option<crate::config::ShadowMethod>,
+    /// The shadow method's id (`crate::config::ShadowMethod::parse`).
+    shadows: Option<String>,
+    /// Soft or hard traced shadows; unset: soft when the light has a size.
+    soft: Option<bool>,
+    traced: Option<crate::config::TracedParams>,
+    map: Option<crate::config::MapParams>,
+    cascades: Option<crate::config::CascadeParams>,
+    volumes: Option<crate::config::VolumeParams>,
 }
 
 #[derive(Clone, Copy, Deserialize)]
@@ -249,7 +256,12 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.short_faces += placed.short_faces;
     }
     let shadow_backend = file.render.and_then(|r| r.shadow_backend);
-    let light_shadows = file.lights.iter().map(|l| l.shadows).collect();
+    let light_shadows = file
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(i, light)| check.shadows(&format!("lights[{i}]"), light))
+        .collect::<Result<Vec<_>, _>>()?;
     Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend, sources, light_shadows })
 }
 
@@ -325,6 +337,41 @@ impl Check<'_> {
             return Err(self.fail("camera.vfov_deg", format!("{} is outside (0, 180)", short_number(vfov))));
         }
         Ok(Camera { eye, target, up, vfov_deg: vfov as f32 })
+    }
+
+    /// The light's shadow method and parameters (`shadows`, `soft` and the technique tables).
+    fn shadows(&self, path: &str, light: &LightDesc) -> Result<crate::config::ShadowChoice, SceneError> {
+        use crate::config::{ShadowChoice, ShadowMethod};
+        let (method, soft) = match &light.shadows {
+            Some(id) => ShadowMethod::parse(id).map_err(|e| self.fail(&format!("{path}.shadows"), e))?,
+            None => (ShadowMethod::default(), None),
+        };
+        if let (Some(implied), Some(given)) = (soft, light.soft) {
+            if implied != given {
+                let message =
+                    format!("{:?} asks for soft shadows but `soft = false`", light.shadows.as_deref().unwrap_or(""));
+                return Err(self.fail(&format!("{path}.soft"), message));
+            }
+        }
+        let mut choice = ShadowChoice {
+            method,
+            traced: light.traced.unwrap_or_default(),
+            map: light.map.unwrap_or_default(),
+            cascades: light.cascades.unwrap_or_default(),
+            volumes: light.volumes.unwrap_or_default(),
+        };
+        if light.traced.is_some_and(|t| t.soft.is_some()) {
+            return Err(self.fail(&format!("{path}.traced.soft"), "write `soft` on the light itself"));
+        }
+        choice.traced.soft = light.soft.or(soft);
+        let checks: [(&str, Result<(), String>); 3] =
+            [("traced", choice.traced.check()), ("map", choice.map.check()), ("cascades", choice.cascades.check())];
+        for (table, result) in checks {
+            if let Err(e) = result {
+                return Err(self.fail(&format!("{path}.{table}"), e));
+            }
+        }
+        Ok(choice)
     }
 
     fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {

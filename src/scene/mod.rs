@@ -42,6 +42,26 @@ pub enum Light {
     Spot { position: Vec3, direction: Vec3, intensity: Vec3, inner_deg: f32, outer_deg: f32, radius: f32 },
 }
 
+impl Light {
+    /// Whether the light has a size (a radius or an angular diameter above zero), so that its
+    /// shadows have penumbrae.
+    pub fn has_size(&self) -> bool {
+        match *self {
+            Light::Point { radius, .. } | Light::Spot { radius, .. } => radius > 0.0,
+            Light::Directional { angular_diameter_deg, .. } => angular_diameter_deg > 0.0,
+        }
+    }
+
+    /// The light's kind as the scene file names it.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Light::Point { .. } => "point",
+            Light::Directional { .. } => "directional",
+            Light::Spot { .. } => "spot",
+        }
+    }
+}
+
 /// Metalness/roughness material; `base_color` is linear RGB.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
@@ -94,8 +114,8 @@ pub struct Scene {
     pub stats: LoadStats,
     /// `[render] shadow_backend`, if the file names one (the command line overrides it).
     pub shadow_backend: Option<crate::config::ShadowBackend>,
-    /// Each light's `shadows` method, where the file gives one (in light order).
-    pub light_shadows: Vec<Option<crate::config::ShadowMethod>>,
+    /// Each light's shadows (method and parameters) as the file gives them, in light order.
+    pub light_shadows: Vec<crate::config::ShadowChoice>,
     /// Every file the scene was read from: the scene file (when loaded from one), then each
     /// object's OBJ file and the MTL libraries it names, as paths to open (so that an output
     /// file is never one of them). Empty for the built-in scene.

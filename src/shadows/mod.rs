@@ -1,8 +1,186 @@
-//! Shadow techniques. Each writes its lights' layers of the visibility target from the
-//! G-buffer, the scene on the device and its parameters; compose reads the target and never
-//! asks which technique wrote a layer. `light_space` holds the device-free maths the raster
-//! techniques share.
+//! Shadow techniques, one folder each (`traced/`, `map/`, `cascades/`, `volumes/`): its
+//! parameters (`params.rs`), its passes and, under `shaders/shadows/`, its shaders.
+//!
+//! The contract every technique keeps: from the G-buffer, the scene on the device, the lights it
+//! serves and their parameters (`FrameInputs` and `Served`), it writes those lights' layers of the
+//! visibility target, and nothing else of it. Compose, the debug views and the bench read the
+//! target and never ask which technique wrote a layer. Each technique also says whether it can
+//! serve a light on this device and scene (`serves`); `plan` gives the lights it cannot to
+//! `traced`, with the reason, which the renderer prints once.
+//!
+//! `light_space` holds the device-free maths the raster techniques share.
 
+pub mod cascades;
 pub mod light_space;
 pub mod map;
+pub mod traced;
 pub mod volumes;
+
+use ash::vk;
+
+use crate::config::{DebugView, RenderSettings, ShadowChoice, ShadowMethod};
+use crate::gpu_scene::{CameraMatrices, SceneGpu};
+use crate::graph::{BufferKind, Handle};
+use crate::passes::visibility::LayerPlan;
+use crate::passes::GBuffer;
+use crate::scene::Light;
+use crate::vk::Capabilities;
+
+/// What every technique may read: the frame's G-buffer, scene buffers, camera and size.
+pub struct FrameInputs<'h, 'a> {
+    pub scene: &'a SceneGpu,
+    pub gbuffer: &'h GBuffer,
+    pub vertices: &'h Handle<BufferKind>,
+    pub indices: &'h Handle<BufferKind>,
+    pub lights: &'h Handle<BufferKind>,
+    pub camera: &'h CameraMatrices,
+    pub extent: vk::Extent2D,
+    /// Seeds stochastic samples, so successive frames draw fresh ones.
+    pub frame_index: u32,
+}
+
+/// One light a technique serves this frame: which light, its layer of the target, its
+/// parameters.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Served {
+    pub light: u32,
+    pub layer: u32,
+    pub choice: ShadowChoice,
+    /// Shadows off for this light (it has a layer only because a debug view shows it): the
+    /// layer holds where the light reaches, unshadowed.
+    pub unshadowed: bool,
+}
+
+/// A frame's shadow work: each light's layer, and the lights each technique serves.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct ShadowPlan {
+    pub layers: LayerPlan,
+    pub traced: Vec<Served>,
+    pub map: Vec<Served>,
+    pub cascades: Vec<Served>,
+    pub volumes: Vec<Served>,
+    /// Lights whose method cannot serve them, given to `traced` instead: (light, method, why).
+    pub fallbacks: Vec<(usize, ShadowMethod, String)>,
+}
+
+impl ShadowPlan {
+    pub fn served(&self, method: ShadowMethod) -> &[Served] {
+        match method {
+            ShadowMethod::Traced => &self.traced,
+            ShadowMethod::Map => &self.map,
+            ShadowMethod::Cascades => &self.cascades,
+            ShadowMethod::Volumes => &self.volumes,
+            ShadowMethod::None => &[],
+        }
+    }
+}
+
+/// Whether `method` can serve `light` on this device and scene; the reason when it cannot.
+pub fn serves(method: ShadowMethod, light: &Light, caps: &Capabilities, scene: &SceneGpu) -> Result<(), String> {
+    match method {
+        ShadowMethod::Traced | ShadowMethod::None => Ok(()),
+        ShadowMethod::Map => map::serves(light),
+        ShadowMethod::Cascades => cascades::serves(light),
+        ShadowMethod::Volumes => volumes::serves(light, caps, scene),
+    }
+}
+
+/// Which lights get shadow work this frame, and from which technique: every light whose
+/// shadows are on, where something can cast a shadow; and the light the visibility view
+/// shows, whatever its method (it then shows where the light reaches).
+pub fn plan(scene: &SceneGpu, caps: &Capabilities, settings: &RenderSettings) -> ShadowPlan {
+    let viewed = settings.debug_view.and_then(DebugView::light);
+    let shadowed = |i: usize| scene.has_casters && settings.shadow_method(i) != ShadowMethod::None;
+    let layers = LayerPlan::new(scene.light_count as usize, |i| shadowed(i) || viewed == Some(i));
+    let mut plan = ShadowPlan { layers: layers.clone(), ..Default::default() };
+    for (i, layer) in layers.layers.iter().enumerate() {
+        let Some(layer) = *layer else { continue };
+        let choice = settings.shadow(i);
+        let served = Served { light: i as u32, layer, choice, unshadowed: !shadowed(i) };
+        let method = match choice.method {
+            _ if served.unshadowed => ShadowMethod::Traced,
+            m => match serves(m, &scene.local_lights[i], caps, scene) {
+                Ok(()) => m,
+                Err(why) => {
+                    plan.fallbacks.push((i, m, why));
+                    ShadowMethod::Traced
+                }
+            },
+        };
+        match method {
+            ShadowMethod::Map => plan.map.push(served),
+            ShadowMethod::Cascades => plan.cascades.push(served),
+            ShadowMethod::Volumes => plan.volumes.push(served),
+            ShadowMethod::Traced | ShadowMethod::None => plan.traced.push(served),
+        }
+    }
+    plan
+}
+
+/// Each technique's pipelines, made the first time a frame uses the technique.
+#[derive(Default)]
+pub struct Pipelines {
+    pub traced: traced::Pipelines,
+    map: std::sync::OnceLock<map::MapPipelines>,
+}
+
+/// What one frame's techniques draw and trace with, made before its graph is built.
+#[derive(Clone, Copy, Default)]
+pub struct Prepared<'a> {
+    /// The traced pipeline, and the ray-query scene when the rays use the driver's traversal.
+    pub traced: Option<(&'a crate::vk::ComputePipeline, Option<&'a traced::accel::RayQueryScene>)>,
+    pub map: Option<&'a map::MapPipelines>,
+}
+
+impl Pipelines {
+    /// The pipelines `plan` needs, except the traced ones (which depend on the backend, see
+    /// `Renderer`), made now if they were not.
+    pub fn prepare<'a>(
+        &'a self,
+        ctx: &std::sync::Arc<crate::vk::GpuContext>,
+        plan: &ShadowPlan,
+    ) -> crate::vk::GpuResult<Prepared<'a>> {
+        let map = match plan.map.is_empty() {
+            true => None,
+            false => Some(crate::vk::get_or_make(&self.map, || map::pipelines(ctx))?),
+        };
+        Ok(Prepared { traced: None, map })
+    }
+}
+
+/// The visibility stage: the light table and the target, then each technique's passes for
+/// the lights it serves. Nothing at all when no light has shadow work.
+pub fn add<'a>(
+    g: &mut crate::graph::RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    plan: &ShadowPlan,
+    prepared: Prepared<'a>,
+) -> Option<(Handle<crate::graph::ImageKind>, Handle<BufferKind>)> {
+    use crate::gpu_scene::SCENE_ACCESS;
+    use crate::passes::visibility;
+    if plan.layers.count() == 0 {
+        return None;
+    }
+    let table = visibility::add_light_table(g, &plan.layers);
+    let mut target = visibility::create_target(g, frame.extent, plan.layers.count());
+    if let Some(pipelines) = prepared.map.filter(|_| !plan.map.is_empty()) {
+        map::add(g, frame, pipelines, &plan.map, &mut target);
+    }
+    if let Some((pipeline, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
+        match ray_query {
+            Some(rq) => {
+                let handles = rq.add(g);
+                let casters = traced::Casters::RayQuery(&handles);
+                traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
+            }
+            None => {
+                let s = frame.scene;
+                let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS);
+                let triangles = g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS);
+                let casters = traced::Casters::Bvh { nodes: &nodes, triangles: &triangles };
+                traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
+            }
+        }
+    }
+    Some((target, table))
+}

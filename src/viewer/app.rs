@@ -214,7 +214,7 @@ impl App {
             settings: ViewerSettings {
                 shadow_backend: o.shadow_backend,
                 shadows: (0..o.scene.lights.len())
-                    .map(|i| o.scene.light_shadows.get(i).copied().flatten().unwrap_or_default())
+                    .map(|i| o.scene.light_shadows.get(i).copied().unwrap_or_default())
                     .collect(),
                 ..ViewerSettings::new(o.scene.lights.len())
             },
@@ -423,6 +423,11 @@ fn map_key(code: KeyCode) -> Option<Key> {
         KeyCode::KeyT => Key::T,
         KeyCode::KeyV => Key::V,
         KeyCode::KeyB => Key::B,
+        KeyCode::KeyH => Key::H,
+        KeyCode::KeyR => Key::R,
+        KeyCode::KeyP => Key::P,
+        KeyCode::KeyG => Key::G,
+        KeyCode::KeyC => Key::C,
         KeyCode::Equal | KeyCode::NumpadAdd => Key::Plus,
         KeyCode::Minus | KeyCode::NumpadSubtract => Key::Minus,
         KeyCode::BracketLeft => Key::BracketLeft,

@@ -23,6 +23,16 @@ pub enum Key {
     V,
     /// Switch the shadow backend (compute BVH / ray query).
     B,
+    /// Toggle the selected light's traced shadows between soft and hard.
+    H,
+    /// Cycle the selected light's shadow-map resolution (256 .. 8192).
+    R,
+    /// Cycle the selected light's PCF radius (0 .. 4).
+    P,
+    /// Cycle the selected light's depth bias (constant and slope: 0, 1, 2, 4, 8, 16).
+    G,
+    /// Cycle the selected light's cascade count (1 .. 8).
+    C,
     Plus,
     Minus,
     /// Halve / double the soft-shadow samples.
@@ -48,6 +58,11 @@ impl Key {
             "T" => Key::T,
             "V" => Key::V,
             "B" => Key::B,
+            "H" => Key::H,
+            "R" => Key::R,
+            "P" => Key::P,
+            "G" => Key::G,
+            "C" => Key::C,
             "PLUS" | "+" => Key::Plus,
             "MINUS" | "-" => Key::Minus,
             "[" | "BRACKETLEFT" => Key::BracketLeft,

@@ -2,9 +2,9 @@
 //! view and the overlay. Keys change this; each frame turns it into `RenderSettings`.
 
 use super::input::Key;
-use crate::passes::debug_view::DebugView;
+use crate::config::DebugView;
 use crate::config::ShadowBackend;
-use crate::renderer::{OutputKind, RenderSettings, ShadowMethod};
+use crate::config::{OutputKind, RenderSettings, ShadowChoice, ShadowMethod, TracedParams};
 use crate::scene::{Camera, Light};
 
 const VIEWS: [Option<DebugView>; 6] = [
@@ -13,17 +13,18 @@ const VIEWS: [Option<DebugView>; 6] = [
     Some(DebugView::Normal),
     Some(DebugView::Depth),
     Some(DebugView::Position),
-    Some(DebugView::Visibility),
+    Some(DebugView::Visibility(0)),
 ];
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewerSettings {
     pub selected_light: usize,
-    pub shadows: Vec<ShadowMethod>,
+    pub shadows: Vec<ShadowChoice>,
     pub view: usize,
     pub overlay: bool,
     pub exposure_ev: f32,
-    /// Soft-shadow rays per pixel and light per frame.
+    /// Soft-shadow rays per pixel and light per frame, for every light (the view converges
+    /// over frames while it is still).
     pub soft_spp: u32,
     /// What shadow rays traverse (B switches it).
     pub shadow_backend: ShadowBackend,
@@ -35,7 +36,7 @@ impl ViewerSettings {
     pub fn new(lights: usize) -> ViewerSettings {
         ViewerSettings {
             selected_light: 0,
-            shadows: vec![ShadowMethod::RayTraced; lights],
+            shadows: vec![ShadowChoice::default(); lights],
             view: 0,
             overlay: true,
             exposure_ev: 0.0,
@@ -44,19 +45,27 @@ impl ViewerSettings {
         }
     }
 
+    /// The debug view; the visibility view shows the selected light.
     pub fn debug_view(&self) -> Option<DebugView> {
-        VIEWS[self.view]
+        match VIEWS[self.view] {
+            Some(DebugView::Visibility(_)) => Some(DebugView::Visibility(self.selected_light as u32)),
+            v => v,
+        }
     }
 
     pub fn on_key(&mut self, key: Key) {
         match key {
             Key::F1 => self.overlay = !self.overlay,
             Key::L if !self.shadows.is_empty() => self.selected_light = (self.selected_light + 1) % self.shadows.len(),
-            Key::T => {
-                if let Some(m) = self.shadows.get_mut(self.selected_light) {
-                    *m = m.next();
-                }
-            }
+            Key::T => self.change(|c| c.method = c.method.next()),
+            Key::H => self.change(|c| c.traced.soft = Some(!c.traced.soft.unwrap_or(true))),
+            Key::R => self.change(|c| c.map.resolution = cycle(c.map.resolution, &[256, 512, 1024, 2048, 4096, 8192])),
+            Key::P => self.change(|c| c.map.pcf_radius = (c.map.pcf_radius + 1) % 5),
+            Key::G => self.change(|c| {
+                let bias = cycle(c.map.slope_bias as u32, &[0, 1, 2, 4, 8, 16]) as f32;
+                (c.map.constant_bias, c.map.slope_bias) = (bias, bias);
+            }),
+            Key::C => self.change(|c| c.cascades.count = c.cascades.count % 8 + 1),
             Key::BracketLeft => self.soft_spp = (self.soft_spp / 2).max(1),
             Key::BracketRight => self.soft_spp = (self.soft_spp * 2).min(MAX_SPP),
             Key::V => self.view = (self.view + 1) % VIEWS.len(),
@@ -67,6 +76,13 @@ impl ViewerSettings {
         }
     }
 
+    /// Applies `f` to the selected light's shadows.
+    fn change(&mut self, f: impl FnOnce(&mut ShadowChoice)) {
+        if let Some(c) = self.shadows.get_mut(self.selected_light) {
+            f(c);
+        }
+    }
+
     /// Settings for one presented frame (the presenter fills in the swapchain's size).
     pub fn render_settings(&self, camera: Camera) -> RenderSettings {
         let mut s = RenderSettings::new(1, 1, OutputKind::Display);
@@ -74,8 +90,11 @@ impl ViewerSettings {
         s.debug_view = self.debug_view();
         s.timestamps = true;
         s.camera = Some(camera);
-        s.shadows = self.shadows.clone();
-        s.soft_spp = self.soft_spp;
+        s.shadows = self
+            .shadows
+            .iter()
+            .map(|c| ShadowChoice { traced: TracedParams { spp: self.soft_spp, ..c.traced }, ..*c })
+            .collect();
         s.shadow_backend = self.shadow_backend;
         s
     }
@@ -84,16 +103,12 @@ impl ViewerSettings {
     pub fn describe(&self, lights: &[Light]) -> Vec<String> {
         let mut lines = Vec::new();
         if let Some(light) = lights.get(self.selected_light) {
-            let kind = match light {
-                Light::Point { .. } => "point",
-                Light::Directional { .. } => "directional",
-                Light::Spot { .. } => "spot",
-            };
             lines.push(format!(
-                "light {}/{} {kind}: {}",
-                self.selected_light + 1,
+                "light {}/{} {}: {}",
+                self.selected_light,
                 lights.len(),
-                self.shadows[self.selected_light].name()
+                light.kind(),
+                describe_choice(&self.shadows[self.selected_light], light)
             ));
         }
         let view = self.debug_view().map_or("shaded".to_string(), |v| format!("{v:?}").to_lowercase());
@@ -107,6 +122,35 @@ impl ViewerSettings {
     }
 }
 
+/// The next value after `v` in `values`, wrapping (the first when `v` is not among them).
+fn cycle(v: u32, values: &[u32]) -> u32 {
+    values.iter().position(|&x| x == v).map_or(values[0], |i| values[(i + 1) % values.len()])
+}
+
+/// One light's technique and the parameters that matter to it, for the overlay.
+fn describe_choice(c: &ShadowChoice, light: &Light) -> String {
+    let m = &c.map;
+    match c.method {
+        ShadowMethod::Traced => {
+            let soft = if c.traced.is_soft(light.has_size()) { "soft" } else { "hard" };
+            format!("traced {soft}")
+        }
+        ShadowMethod::Map => format!(
+            "map {0}x{0} pcf {1} bias {2}/{3}{4}",
+            m.resolution,
+            m.pcf_radius,
+            m.constant_bias,
+            m.slope_bias,
+            if m.uses_pcss(light.has_size()) { " pcss" } else { "" }
+        ),
+        ShadowMethod::Cascades => {
+            format!("cascades {} of {1}x{1} pcf {2}", c.cascades.count, m.resolution, m.pcf_radius)
+        }
+        ShadowMethod::Volumes => format!("volumes {}", if c.volumes.zpass { "z-pass" } else { "z-fail" }),
+        ShadowMethod::None => "none".into(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -114,18 +158,30 @@ mod tests {
     #[test]
     fn keys_cycle_lights_methods_and_views() {
         let mut s = ViewerSettings::new(3);
+        let methods = |s: &ViewerSettings| s.shadows.iter().map(|c| c.method).collect::<Vec<_>>();
         s.on_key(Key::T);
-        assert_eq!(s.shadows, vec![ShadowMethod::RayTracedSoft, ShadowMethod::RayTraced, ShadowMethod::RayTraced]);
-        s.on_key(Key::T);
-        assert_eq!(s.shadows[0], ShadowMethod::None);
-        s.on_key(Key::T);
-        assert_eq!(s.shadows[0], ShadowMethod::Map);
-        s.on_key(Key::T);
-        assert_eq!(s.shadows[0], ShadowMethod::RayTraced, "the cycle closes");
+        assert_eq!(methods(&s), vec![ShadowMethod::Map, ShadowMethod::Traced, ShadowMethod::Traced]);
+        for next in [ShadowMethod::Cascades, ShadowMethod::Volumes, ShadowMethod::None, ShadowMethod::Traced] {
+            s.on_key(Key::T);
+            assert_eq!(s.shadows[0].method, next);
+        }
+        s.on_key(Key::H);
+        assert_eq!(s.shadows[0].traced.soft, Some(false), "H: hard");
+        s.on_key(Key::H);
+        assert_eq!(s.shadows[0].traced.soft, Some(true), "H again: soft");
+        s.on_key(Key::R);
+        assert_eq!(s.shadows[0].map.resolution, 4096);
+        s.on_key(Key::P);
+        assert_eq!(s.shadows[0].map.pcf_radius, 2);
+        s.on_key(Key::G);
+        assert_eq!((s.shadows[0].map.constant_bias, s.shadows[0].map.slope_bias), (4.0, 4.0));
+        s.on_key(Key::C);
+        assert_eq!(s.shadows[0].cascades.count, 5);
         s.on_key(Key::L);
         s.on_key(Key::L);
         s.on_key(Key::T);
-        assert_eq!(s.shadows[2], ShadowMethod::RayTracedSoft);
+        assert_eq!(s.shadows[2].method, ShadowMethod::Map);
+        assert_eq!(s.shadows[1], ShadowChoice::default(), "keys change the selected light only");
         for _ in 0..10 {
             s.on_key(Key::BracketRight);
         }

@@ -13,7 +13,7 @@ pub use context::{list_devices, GpuContext, GpuOptions, WindowSurface};
 pub use debug::ValidationLog;
 pub use pipeline::{ComputePipeline, DescriptorKind, GraphicsPipeline, GraphicsPipelineDesc, PipelineLayout};
 pub use resources::{subresource_range, Buffer, Image, ImageDesc};
-pub use swapchain::{Acquired, Swapchain};
+pub use swapchain::{Acquired, Swapchain, SWAPCHAIN_USAGE};
 
 /// SPIR-V produced by build.rs from `shaders/`.
 pub mod spirv {

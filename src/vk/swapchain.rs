@@ -8,6 +8,9 @@ use ash::vk;
 
 use super::{GpuContext, GpuError, GpuResult, ImageDesc, VkContext, WindowSurface};
 
+/// What swapchain images are created for: they are only ever blitted into (`passes::present`).
+pub const SWAPCHAIN_USAGE: vk::ImageUsageFlags = vk::ImageUsageFlags::TRANSFER_DST;
+
 pub struct Swapchain {
     pub raw: vk::SwapchainKHR,
     /// Written only by blits, so the images need no views.
@@ -97,7 +100,7 @@ impl Swapchain {
         if caps.max_image_count > 0 {
             count = count.min(caps.max_image_count);
         }
-        let usage = crate::passes::present::SWAPCHAIN_USAGE;
+        let usage = SWAPCHAIN_USAGE;
         if !caps.supported_usage_flags.contains(usage) {
             return Err(GpuError::Unsupported("swapchain images cannot be transfer destinations".into()));
         }

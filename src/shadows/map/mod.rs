@@ -9,34 +9,17 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
+pub mod params;
+
+pub use self::params::MapParams;
 use super::light_space::{spot_view_proj, Bounds};
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use super::{FrameInputs, Served};
+use crate::gpu_scene::{SceneGpu, Vertex};
+use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, GBuffer, DEPTH_FORMAT, TILE};
-use crate::renderer::{SceneGpu, Vertex};
 use crate::scene::Light;
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
-
-/// Parameters of `map`, shared by every light that uses it.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct MapParams {
-    /// Texels along each side of the map.
-    pub resolution: u32,
-    /// Hardware depth bias in units of the smallest resolvable depth difference.
-    pub constant_bias: f32,
-    /// Hardware depth bias per unit of the triangle's depth slope.
-    pub slope_bias: f32,
-    /// How far the lookup point moves along its normal, in map texels at its distance.
-    pub normal_offset: f32,
-    /// PCF kernel radius in texels: (2r+1)^2 taps; 0 is a single hard comparison.
-    pub pcf_radius: u32,
-}
-
-impl Default for MapParams {
-    fn default() -> Self {
-        MapParams { resolution: 2048, constant_bias: 2.0, slope_bias: 2.0, normal_offset: 1.0, pcf_radius: 1 }
-    }
-}
 
 pub struct MapPipelines {
     depth: GraphicsPipeline,
@@ -56,7 +39,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
         ctx,
         &GraphicsPipelineDesc {
             name: "shadow map",
-            vertex: spirv::SHADOW_MAP_VERT,
+            vertex: spirv::SHADOWS_MAP_DEPTH_VERT,
             fragment: None,
             vertex_stride: std::mem::size_of::<Vertex>() as u32,
             attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
@@ -72,7 +55,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
     let resolve = ComputePipeline::new(
         ctx,
         "shadow map resolve",
-        spirv::SHADOW_MAP_RESOLVE_COMP,
+        spirv::SHADOWS_MAP_RESOLVE_COMP,
         &[
             sampled(MAP_POSITION),
             sampled(MAP_NORMAL),
@@ -86,9 +69,35 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
     Ok(MapPipelines { depth, resolve })
 }
 
-/// Whether `map` can serve `light` (else the renderer traces it).
-pub fn serves(light: &Light) -> bool {
-    matches!(light, Light::Spot { .. })
+/// Whether `map` can serve `light` (else the renderer traces it), and why not.
+pub fn serves(light: &Light) -> Result<(), String> {
+    match light {
+        Light::Spot { .. } => Ok(()),
+        _ => Err(format!("`map` serves spot lights only so far; this is a {} light", light.kind())),
+    }
+}
+
+/// Writes the visibility layer of each light in `served`: its map, then the resolve.
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    pipelines: &'a MapPipelines,
+    served: &[Served],
+    target: &mut Handle<ImageKind>,
+) {
+    let s = frame.scene;
+    let casters = s.draws.iter().filter(|d| d.cast_shadows).fold(Bounds::EMPTY, |b, d| b.union(&d.bounds));
+    for served in served {
+        let l = &s.local_lights[served.light as usize];
+        let Some(view_proj) = light_view_proj(l, &casters) else { continue };
+        let params = served.choice.map;
+        let texel_at_unit_distance = match *l {
+            Light::Spot { outer_deg, .. } => 2.0 * outer_deg.to_radians().tan() / params.resolution as f32,
+            _ => 0.0,
+        };
+        let light = MapLight { light: served.light, layer: served.layer, view_proj, texel_at_unit_distance };
+        add_light(graph, frame, pipelines, light, params, target);
+    }
 }
 
 /// The light's view-projection in the scene-local frame, fitted to the casters' bounds.
@@ -123,25 +132,16 @@ pub struct MapLight {
     pub texel_at_unit_distance: f32,
 }
 
-pub struct MapInputs<'h> {
-    pub lights: &'h Handle<BufferKind>,
-    pub vertices: &'h Handle<BufferKind>,
-    pub indices: &'h Handle<BufferKind>,
-}
-
 /// Renders `light`'s map from the casters inside its frustum and resolves it into its layer.
-#[allow(clippy::too_many_arguments)]
-pub fn add<'a>(
+fn add_light<'a>(
     graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
     pipelines: &'a MapPipelines,
-    scene: &'a SceneGpu,
-    gbuffer: &GBuffer,
-    inputs: &MapInputs<'_>,
     light: MapLight,
     params: MapParams,
     visibility: &mut Handle<ImageKind>,
-    extent: vk::Extent2D,
 ) {
+    let (scene, gbuffer, extent): (&'a SceneGpu, &GBuffer, _) = (frame.scene, frame.gbuffer, frame.extent);
     let res = params.resolution;
     let mut map = graph.create_image("shadow map", ImageDesc::new(DEPTH_FORMAT, res, res));
     let draws: Vec<usize> = (0..scene.draws.len())
@@ -154,8 +154,8 @@ pub fn add<'a>(
         draws.len(),
         scene.draws.iter().filter(|d| d.cast_shadows).count()
     ));
-    let vb = pass.read(inputs.vertices, Access::VertexBuffer);
-    let ib = pass.read(inputs.indices, Access::IndexBuffer);
+    let vb = pass.read(frame.vertices, Access::VertexBuffer);
+    let ib = pass.read(frame.indices, Access::IndexBuffer);
     let depth = pass.write(&mut map, Access::DepthAttachmentWrite);
     let view_proj = light.view_proj;
     pass.render(move |ctx| {
@@ -204,7 +204,7 @@ pub fn add<'a>(
     let bound = [
         (MAP_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (MAP_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
-        (MAP_LIGHTS, Bound::Buffer(pass.read(inputs.lights, Access::ComputeShaderReadStorageBuffer))),
+        (MAP_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
         (MAP_DEPTH, Bound::Image(pass.read(&map, read))),
         (MAP_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))),
     ];

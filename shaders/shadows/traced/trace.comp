@@ -13,4 +13,4 @@ bool shadow_occluded(vec3 origin, vec3 dir, float tmax) {
     return bvh_occluded(origin, dir, tmax);
 }
 
-#include "shadow_trace_body.glsl"
+#include "trace_body.glsl"

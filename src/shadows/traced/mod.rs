@@ -1,24 +1,46 @@
-//! Shadow trace pass: from every drawn surface point toward every light, any-hit rays through
+//! `traced`: from every drawn surface point toward each light it serves, any-hit rays through
 //! the shadow casters: the CPU-built BVH traversed by the shader (`compute`, any device), or the
 //! driver's own acceleration structure through VK_KHR_ray_query (`ray-query`), with the same
-//! rays. Writes one visibility value per pixel and light (1 lit, 0 shadowed).
+//! rays. Hard shadows are one ray toward the light's centre; soft ones `spp` rays over its
+//! extent per frame. Writes each served light's visibility layer (1 lit, 0 shadowed).
 
-use std::sync::Arc;
+pub mod accel;
+pub mod params;
 
-use ash::vk;
+use std::sync::{Arc, OnceLock};
+
 use glam::UVec4;
 
-use super::accel::RayQueryHandles;
-use super::{sampled, storage, storage_image, DescriptorKind, GBuffer, TILE};
+use self::accel::RayQueryHandles;
+use super::{FrameInputs, Served};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageKind, RenderGraph};
+use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
+
+/// The two traversals' pipelines, each made the first time a frame uses it.
+#[derive(Default)]
+pub struct Pipelines {
+    compute: OnceLock<ComputePipeline>,
+    ray_query: OnceLock<ComputePipeline>,
+}
+
+impl Pipelines {
+    pub fn compute(&self, ctx: &Arc<GpuContext>) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.compute, || pipeline(ctx))
+    }
+
+    /// Only on devices with ray query.
+    pub fn ray_query(&self, ctx: &Arc<GpuContext>) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.ray_query, || ray_query_pipeline(ctx))
+    }
+}
 
 pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
     ComputePipeline::new(
         ctx,
         "shadow trace",
-        spirv::SHADOW_TRACE_COMP,
+        spirv::SHADOWS_TRACED_TRACE_COMP,
         &[
             sampled(SHADOW_POSITION),
             sampled(SHADOW_NORMAL),
@@ -37,7 +59,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
     ComputePipeline::new(
         ctx,
         "shadow trace (ray query)",
-        spirv::SHADOW_TRACE_RQ_COMP,
+        spirv::SHADOWS_TRACED_TRACE_RQ_COMP,
         &[
             sampled(SHADOW_POSITION),
             sampled(SHADOW_NORMAL),
@@ -69,39 +91,36 @@ pub enum Rays {
     Soft(u32),
 }
 
-/// One light's share of the pass: which light, which layer of the target, which rays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct LightWork {
-    pub light: u32,
-    pub layer: u32,
-    pub rays: Rays,
-}
-
-pub struct ShadowInputs<'h> {
-    pub lights: &'h Handle<BufferKind>,
-    pub casters: Casters<'h>,
-    pub work: Vec<LightWork>,
-    /// Seeds the soft-shadow samples.
-    pub frame_index: u32,
+/// The rays `served` gets: soft for lights with a size unless its parameters say hard.
+pub fn rays(served: &Served, light: &crate::scene::Light) -> Rays {
+    let t = served.choice.traced;
+    match () {
+        _ if served.unshadowed => Rays::None,
+        _ if t.is_soft(light.has_size()) => Rays::Soft(t.spp.clamp(1, params::MAX_SPP)),
+        _ => Rays::Hard,
+    }
 }
 
 /// Writes each light's layer of `visibility`: one dispatch per light, so every dispatch runs
 /// one sample loop with no untaken branch for other lights' kinds of shadow.
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
     pipeline: &'a ComputePipeline,
-    gbuffer: &GBuffer,
-    inputs: ShadowInputs<'_>,
+    casters: Casters<'_>,
+    served: &[Served],
     visibility: &mut Handle<ImageKind>,
-    extent: vk::Extent2D,
 ) {
+    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
     let mut pass = graph.add_pass("shadow trace");
+    let lights: Vec<String> = served.iter().map(|s| s.light.to_string()).collect();
+    pass.detail(format!("light {}", lights.join(", ")));
     let mut bound = vec![
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
-        (SHADOW_LIGHTS, Bound::Buffer(pass.read(inputs.lights, Access::ComputeShaderReadStorageBuffer))),
+        (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
-    match inputs.casters {
+    match casters {
         Casters::Bvh { nodes, triangles } => {
             let read = Access::ComputeShaderReadStorageBuffer;
             bound.push((SHADOW_BVH_NODES, Bound::Buffer(pass.read(nodes, read))));
@@ -114,18 +133,19 @@ pub fn add<'a>(
             let _ = pass.read(&rq.bottom, read);
         }
     }
-    super::visibility::keep_other_layers(&mut pass, visibility);
+    crate::passes::visibility::keep_other_layers(&mut pass, visibility);
     bound.push((SHADOW_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))));
-    let frame = inputs.frame_index;
-    let work = inputs.work;
+    let frame_index = frame.frame_index;
+    let work: Vec<(u32, u32, Rays)> =
+        served.iter().map(|s| (s.light, s.layer, rays(s, &frame.scene.local_lights[s.light as usize]))).collect();
     pass.render(move |ctx| {
-        for w in &work {
-            let (spp, soft) = match w.rays {
+        for &(light, layer, rays) in &work {
+            let (spp, soft) = match rays {
                 Rays::None => (0, 0),
                 Rays::Hard => (1, 0),
-                Rays::Soft(spp) => (spp.clamp(1, 256), 1),
+                Rays::Soft(spp) => (spp, 1),
             };
-            let push = [UVec4::new(extent.width, extent.height, w.light, spp), UVec4::new(frame, w.layer, soft, 0)];
+            let push = [UVec4::new(extent.width, extent.height, light, spp), UVec4::new(frame_index, layer, soft, 0)];
             ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), extent.width, extent.height)?;
         }
         Ok(())

@@ -91,7 +91,7 @@ impl RayQueryScene {
         let flat: Vec<[f32; 3]> = triangles.iter().flatten().map(|v| v.to_array()).collect();
         let input = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let [positions] = crate::renderer::upload(ctx, [("caster positions", bytemuck::cast_slice(&flat), input)])?;
+        let [positions] = crate::gpu_scene::upload(ctx, [("caster positions", bytemuck::cast_slice(&flat), input)])?;
         // The instance's reference is filled once the bottom level exists; a placeholder sizes
         // the top level, whose size does not depend on it.
         let geometry = [bottom_geometry(positions.device_address(), count)];
@@ -118,7 +118,7 @@ impl RayQueryScene {
                 std::mem::size_of::<vk::AccelerationStructureInstanceKHR>(),
             )
         };
-        let [instances] = crate::renderer::upload(ctx, [("TLAS instances", instance_bytes, input)])?;
+        let [instances] = crate::gpu_scene::upload(ctx, [("TLAS instances", instance_bytes, input)])?;
         let top_geometry = [top_geometry(instances.device_address())];
         let top_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &top_geometry, 1);
         let top = Structure::new(
@@ -166,8 +166,8 @@ impl RayQueryScene {
                 top_raw: self.top.raw,
             };
         }
-        let positions = g.import_buffer("caster positions", &self.positions, crate::renderer::SCENE_ACCESS);
-        let instances = g.import_buffer("TLAS instances", &self.instances, crate::renderer::SCENE_ACCESS);
+        let positions = g.import_buffer("caster positions", &self.positions, crate::gpu_scene::SCENE_ACCESS);
+        let instances = g.import_buffer("TLAS instances", &self.instances, crate::gpu_scene::SCENE_ACCESS);
         let mut bottom = g.import_buffer("BLAS", &self.bottom.buffer, Access::Nothing);
         let mut top = g.import_buffer("TLAS", &self.top.buffer, Access::Nothing);
         // One scratch buffer serves both builds; the graph orders the second after the first.

@@ -22,4 +22,4 @@ bool shadow_occluded(vec3 origin, vec3 dir, float tmax) {
     return rayQueryGetIntersectionTypeEXT(query, true) != gl_RayQueryCommittedIntersectionNoneEXT;
 }
 
-#include "shadow_trace_body.glsl"
+#include "trace_body.glsl"

@@ -1,0 +1,1 @@
+//! Error metrics of a visibility or image against its reference (being written).

@@ -1,0 +1,225 @@
+//! One frame's graph, in stages: G-buffer -> visibility (each shadow technique) -> lighting
+//! (compose or a debug view, with accumulation) -> post (tone map) -> target (read-back,
+//! present, or left for inspection). Each stage is a small function of the one before.
+
+use ash::vk;
+use glam::Vec3;
+
+use crate::config::{OutputKind, RenderSettings};
+use crate::gpu_scene::{CameraMatrices, SceneGpu, SCENE_ACCESS};
+use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
+use crate::passes::accumulate::{self, History};
+use crate::passes::debug_view::{self, DebugInputs};
+use crate::passes::overlay::OverlayInputs;
+use crate::passes::{busy, compose, geometry, overlay, present, readback, tonemap, GBuffer, Pipelines};
+use crate::scene::Scene;
+use crate::shadows::{self, Prepared, ShadowPlan};
+use crate::vk::{Buffer, ComputePipeline, ImageDesc};
+
+/// Radiance of pixels no surface covers, W/(m^2 sr): a dim, neutral backdrop.
+pub const BACKGROUND: Vec3 = Vec3::new(0.02, 0.022, 0.025);
+
+/// Where a frame's result goes.
+pub enum Target<'a> {
+    /// Copied into a host-visible buffer.
+    ReadBack(&'a Buffer),
+    /// Blitted into an acquired swapchain image, with the overlay drawn first when given; with
+    /// `capture`, what is presented is also copied there.
+    Present {
+        image: vk::Image,
+        view: vk::ImageView,
+        desc: ImageDesc,
+        overlay: Option<OverlayInputs<'a>>,
+        capture: Option<&'a Buffer>,
+    },
+    /// Left in the graph (for plans and tests).
+    Inspect,
+}
+
+/// Everything a frame's graph is built from.
+pub struct FrameParts<'a> {
+    pub pipelines: &'a Pipelines,
+    /// Tests only: the busy pass's pipeline.
+    pub busy: Option<&'a ComputePipeline>,
+    pub scene_gpu: &'a SceneGpu,
+    pub scene: &'a Scene,
+    pub settings: &'a RenderSettings,
+    pub shadows: ShadowPlan,
+    pub prepared: Prepared<'a>,
+}
+
+/// The scene's buffers as this frame's graph sees them.
+struct SceneHandles {
+    vertices: Handle<BufferKind>,
+    indices: Handle<BufferKind>,
+    lights: Handle<BufferKind>,
+}
+
+/// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
+pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<History<'a>>) -> RenderGraph<'a> {
+    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared } = parts;
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    let camera = CameraMatrices::new(
+        &s.to_local(&settings.camera.unwrap_or(scene.camera)),
+        s.bounds,
+        extent.width,
+        extent.height,
+    );
+    let mut g = RenderGraph::new();
+    let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, extent);
+    // Tests only: a compute pass of known cost right after the rendering pass, kept by its export.
+    if let (Some(iterations), Some(pipeline)) = (settings.busy_iterations, busy) {
+        let result = busy::add(&mut g, pipeline, iterations);
+        g.export(result, Access::ComputeShaderReadStorageBuffer);
+    }
+    let inputs = shadows::FrameInputs {
+        scene: s,
+        gbuffer: &gbuffer,
+        vertices: &handles.vertices,
+        indices: &handles.indices,
+        lights: &handles.lights,
+        camera: &camera,
+        extent,
+        frame_index: settings.frame_index,
+    };
+    let visibility = shadows::add(&mut g, &inputs, &plan, prepared);
+    let lit = lighting_stage(&mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history);
+    let result = post_stage(&mut g, pipelines, settings, lit);
+    target_stage(&mut g, settings, result, target);
+    g
+}
+
+fn gbuffer_stage<'a>(
+    g: &mut RenderGraph<'a>,
+    pipelines: &'a Pipelines,
+    s: &'a SceneGpu,
+    camera: &CameraMatrices,
+    extent: vk::Extent2D,
+) -> (SceneHandles, GBuffer) {
+    let vertices = g.import_buffer("vertices", &s.vertices, SCENE_ACCESS);
+    let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
+    let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
+    let gbuffer = geometry::add(g, &pipelines.geometry, s, &vertices, &indices, *camera, extent);
+    (SceneHandles { vertices, indices, lights }, gbuffer)
+}
+
+/// What the lighting stage hands on: the image, and what happens to the history.
+struct Lit<'a> {
+    image: Handle<ImageKind>,
+    /// The frame is a debug view (float values already mapped for display, or raw).
+    debug: bool,
+    history: Option<History<'a>>,
+}
+
+/// Compose (with accumulation when a history is given), or the debug view.
+#[allow(clippy::too_many_arguments)]
+fn lighting_stage<'a>(
+    g: &mut RenderGraph<'a>,
+    pipelines: &'a Pipelines,
+    s: &'a SceneGpu,
+    settings: &RenderSettings,
+    plan: &ShadowPlan,
+    gbuffer: &GBuffer,
+    handles: &SceneHandles,
+    visibility: Option<(Handle<ImageKind>, Handle<BufferKind>)>,
+    camera: &CameraMatrices,
+    history: Option<History<'a>>,
+) -> Lit<'a> {
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    let display = settings.output == OutputKind::Display;
+    if let Some(view) = settings.debug_view {
+        let layer = view.light().and_then(|l| plan.layers.layers.get(l).copied().flatten());
+        let inputs = DebugInputs {
+            view,
+            visibility: visibility.as_ref().zip(layer).map(|((v, _), l)| (v, l)),
+            eye: camera.eye,
+            origin: s.origin.as_vec3(),
+            far: camera.far,
+            display,
+        };
+        // Float even for PNG: the shader already mapped values to [0,1] for display.
+        let image = debug_view::add(g, &pipelines.debug_view, gbuffer, inputs, extent);
+        return Lit { image, debug: true, history: None };
+    }
+    let inputs = compose::ComposeInputs {
+        lights: &handles.lights,
+        light_count: s.light_count,
+        visibility: visibility.as_ref().map(|(v, t)| (v, t)),
+        eye: camera.eye,
+        background: BACKGROUND,
+    };
+    let mut image = compose::add(g, pipelines, gbuffer, inputs, extent);
+    if let Some(h) = &history {
+        image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);
+    }
+    Lit { image, debug: false, history }
+}
+
+/// What the post stage hands on: the frame's result, and the history to export after it.
+struct Result {
+    image: Handle<ImageKind>,
+    debug: bool,
+    /// The result is itself the history (linear output of an accumulated frame).
+    is_history: bool,
+    /// The history, when it is not the result: exported after the result's consumer.
+    history_out: Option<Handle<ImageKind>>,
+}
+
+/// Tone mapping for display output of shaded frames.
+fn post_stage<'a>(
+    g: &mut RenderGraph<'a>,
+    pipelines: &'a Pipelines,
+    settings: &RenderSettings,
+    lit: Lit<'a>,
+) -> Result {
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    let accumulated = lit.history.is_some();
+    match () {
+        _ if lit.debug => Result { image: lit.image, debug: true, is_history: false, history_out: None },
+        _ if settings.output == OutputKind::Display => {
+            let toned = tonemap::add(g, &pipelines.tonemap, &lit.image, settings.exposure_ev, extent);
+            Result { image: toned, debug: false, is_history: false, history_out: accumulated.then_some(lit.image) }
+        }
+        _ => Result { image: lit.image, debug: false, is_history: accumulated, history_out: None },
+    }
+}
+
+/// Sends the result where `target` says, and leaves histories in the access the next frame's
+/// import expects.
+fn target_stage<'a>(g: &mut RenderGraph<'a>, settings: &RenderSettings, result: Result, target: Target<'a>) {
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    let history_access = accumulate::HISTORY_ACCESS;
+    let Result { image, debug, is_history, history_out } = result;
+    match target {
+        Target::ReadBack(buffer) => {
+            readback::add(g, &image, buffer);
+            if is_history {
+                g.export(image, history_access);
+            }
+        }
+        Target::Present { image: swap, view, desc, overlay, capture } => {
+            assert!(!is_history, "presented frames are display-referred");
+            let mut canvas = image;
+            if let Some(inputs) = overlay {
+                if debug {
+                    // Debug views are float; the overlay draws on 8-bit display values.
+                    let display = ImageDesc::new(crate::passes::DISPLAY_FORMAT, extent.width, extent.height);
+                    let mut converted = g.create_image("overlay canvas", display);
+                    present::blit(g, &canvas, &mut converted);
+                    canvas = converted;
+                }
+                overlay::add(g, &inputs, &mut canvas, extent);
+            }
+            if let Some(buffer) = capture {
+                readback::add(g, &canvas, buffer);
+            }
+            present::add(g, &canvas, (swap, view, desc));
+        }
+        Target::Inspect => {
+            g.export(image, if is_history { history_access } else { Access::ComputeShaderReadSampledImage })
+        }
+    }
+    if let Some(h) = history_out {
+        g.export(h, history_access);
+    }
+}

@@ -1,0 +1,225 @@
+//! The scene on the device: vertex layout, draws (with their caster flag and bounds), the
+//! buffers every frame imports, the camera matrices and the depth convention. Below the passes,
+//! the shadow techniques and the renderer, which all read it.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::{DVec3, Mat4, Vec3};
+use gpu_allocator::MemoryLocation;
+
+use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
+use crate::scene::bvh::ShadowBvh;
+use crate::scene::{Camera, Material, Scene};
+use crate::shading::gpu_lights;
+use crate::shadows::light_space::Bounds;
+use crate::vk::{Buffer, GpuContext, GpuResult};
+
+/// How frames find the scene's buffers: uploaded once and made visible to any read, so no
+/// frame needs a barrier for them (and frames in flight do not wait on each other's copies).
+pub const SCENE_ACCESS: Access = Access::AnyRead;
+
+/// Copies each `(name, bytes, usage)` into a new device-local buffer through staging buffers,
+/// as one small graph: the upload pass writes them, and the export makes them visible to any
+/// later read. Waits for the copy.
+pub fn upload<const N: usize>(
+    ctx: &Arc<GpuContext>,
+    items: [(&'static str, &[u8], vk::BufferUsageFlags); N],
+) -> GpuResult<[Buffer; N]> {
+    let mut staging = Vec::with_capacity(N);
+    let mut targets = Vec::with_capacity(N);
+    for (name, bytes, usage) in &items {
+        staging.push(Buffer::with_data(ctx, "staging", bytes, vk::BufferUsageFlags::TRANSFER_SRC)?);
+        let usage = *usage | vk::BufferUsageFlags::TRANSFER_DST;
+        targets.push(Buffer::new(ctx, name, bytes.len() as u64, usage, MemoryLocation::GpuOnly)?);
+    }
+    let mut g = RenderGraph::new();
+    let mut pass_inputs = Vec::new();
+    let mut handles = Vec::new();
+    for ((name, bytes, _), (src, dst)) in items.iter().zip(staging.iter().zip(&targets)) {
+        if !bytes.is_empty() {
+            pass_inputs.push((g.import_buffer("staging", src, Access::HostWrite), bytes.len() as u64));
+            handles.push(g.import_buffer(name, dst, Access::Nothing));
+        }
+    }
+    let mut pass = g.add_pass("upload scene");
+    let mut copies = Vec::new();
+    for ((src, size), dst) in pass_inputs.iter().zip(handles.iter_mut()) {
+        copies.push((pass.read(src, Access::TransferRead), pass.write(dst, Access::TransferWrite), *size));
+    }
+    pass.render(move |pctx| {
+        for (src, dst, size) in &copies {
+            let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: *size };
+            // SAFETY: recording state; both buffers hold `size` bytes.
+            unsafe { pctx.device.cmd_copy_buffer(pctx.cmd, pctx.buffer(*src), pctx.buffer(*dst), &[region]) };
+        }
+        Ok(())
+    });
+    for h in handles {
+        g.export(h, SCENE_ACCESS);
+    }
+    let plan = CompiledGraph::compile(&g);
+    let mut cache = TransientCache::new(ctx)?;
+    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
+    Ok(targets.try_into().unwrap_or_else(|_| unreachable!("one target per item")))
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+/// One mesh's slice of the shared vertex and index buffers.
+pub struct Draw {
+    pub first_index: u32,
+    pub index_count: u32,
+    pub vertex_offset: i32,
+    pub material: Material,
+    pub cast_shadows: bool,
+    /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
+    pub bounds: Bounds,
+}
+
+/// The scene on the device: uploaded once, imported into every frame's graph.
+pub struct SceneGpu {
+    pub vertices: Buffer,
+    pub indices: Buffer,
+    pub draws: Vec<Draw>,
+    pub lights: Buffer,
+    pub light_count: u32,
+    /// The lights in the scene-local frame (what the buffer holds, before packing).
+    pub local_lights: Vec<crate::scene::Light>,
+    pub bvh_nodes: Buffer,
+    pub bvh_triangles: Buffer,
+    pub has_casters: bool,
+    /// Bounds of the geometry in the scene-local frame.
+    pub bounds: (Vec3, Vec3),
+    /// World position of the scene-local frame's origin (see `Renderer::new`).
+    pub origin: DVec3,
+}
+
+impl SceneGpu {
+    /// Uploads `scene`, already moved into the local frame whose origin is `origin`.
+    pub fn upload(ctx: &Arc<GpuContext>, scene: &Scene, bvh: &ShadowBvh, origin: DVec3) -> GpuResult<SceneGpu> {
+        let mut vertices = Vec::new();
+        let mut indices = Vec::new();
+        let mut draws = Vec::new();
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
+            let mut bounds = Bounds::EMPTY;
+            mesh.positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
+            draws.push(Draw {
+                first_index: indices.len() as u32,
+                index_count: mesh.indices.len() as u32,
+                vertex_offset: vertices.len() as i32,
+                material: mesh.material,
+                cast_shadows: mesh.cast_shadows,
+                bounds,
+            });
+            for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+                vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
+            }
+            indices.extend_from_slice(&mesh.indices);
+        }
+        if draws.is_empty() {
+            lo = Vec3::ZERO;
+            hi = Vec3::ZERO;
+        }
+        let lights = gpu_lights(&scene.lights);
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
+            ctx,
+            [
+                ("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER),
+                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER),
+                ("lights", bytemuck::cast_slice(&lights), storage),
+                ("bvh nodes", bytemuck::cast_slice(bvh.nodes()), storage),
+                ("bvh triangles", bytemuck::cast_slice(bvh.triangles()), storage),
+            ],
+        )?;
+        Ok(SceneGpu {
+            vertices,
+            indices,
+            draws,
+            lights,
+            light_count: scene.lights.len() as u32,
+            local_lights: scene.lights.clone(),
+            bvh_nodes,
+            bvh_triangles,
+            has_casters: !bvh.is_empty(),
+            bounds: (lo, hi),
+            origin,
+        })
+    }
+
+    /// A world-space camera in the scene-local frame.
+    pub fn to_local(&self, cam: &Camera) -> Camera {
+        let shift = |p: Vec3| (p.as_dvec3() - self.origin).as_vec3();
+        Camera { eye: shift(cam.eye), target: shift(cam.target), ..*cam }
+    }
+}
+
+/// Camera matrices, camera-relative so that large world coordinates keep their precision.
+///
+/// Depth convention, for every pass that reads or writes depth: reversed Z with an infinite far
+/// plane. Depth is `near / distance along the view`: 1 at the near plane, falling toward 0 at
+/// infinity; tests are `GREATER`, clears are 0. Float depth then keeps about the same relative
+/// precision at every distance, nothing is ever clipped by a far plane (which z-fail shadow
+/// volumes need), and the near plane can sit close to the nearest geometry.
+#[derive(Clone, Copy, Debug)]
+pub struct CameraMatrices {
+    pub eye: Vec3,
+    pub view_proj_relative: Mat4,
+    pub near: f32,
+    /// Distance to the far side of the scene's bounds: not a clip plane, only what the depth
+    /// debug view shows as white.
+    pub far: f32,
+}
+
+/// Vulkan clip space (+Y down), reversed depth, far plane at infinity.
+pub fn perspective_reversed_infinite(fov_y: f32, aspect: f32, near: f32) -> Mat4 {
+    let f = 1.0 / (fov_y * 0.5).tan();
+    Mat4::from_cols(
+        glam::Vec4::new(f / aspect, 0.0, 0.0, 0.0),
+        glam::Vec4::new(0.0, -f, 0.0, 0.0),
+        glam::Vec4::new(0.0, 0.0, 0.0, -1.0),
+        glam::Vec4::new(0.0, 0.0, near, 0.0),
+    )
+}
+
+impl CameraMatrices {
+    pub fn new(cam: &Camera, bounds: (Vec3, Vec3), width: u32, height: u32) -> CameraMatrices {
+        let (lo, hi) = bounds;
+        let centre = (lo + hi) * 0.5;
+        let radius = (hi - lo).length() * 0.5;
+        let far = ((centre - cam.eye).length() + radius).max(1.0) * 1.01;
+        // Near: half the distance to the scene's bounds (nothing nearer can be drawn), at
+        // least 1 mm; with reversed infinite depth this costs no precision far away.
+        let outside = (lo - cam.eye).max(cam.eye - hi).max(Vec3::ZERO).length();
+        let near = (outside * 0.5).max(1e-3);
+        let view =
+            glam::camera::rh::view::look_to_mat4(Vec3::ZERO, (cam.target - cam.eye).normalize(), cam.up.normalize());
+        let proj = perspective_reversed_infinite(cam.vfov_deg.to_radians(), width as f32 / height as f32, near);
+        CameraMatrices { eye: cam.eye, view_proj_relative: proj * view, near, far }
+    }
+}
+
+/// Centre of the geometry's bounds in world space (f64), or the origin for an empty scene.
+pub fn geometry_centre(scene: &Scene) -> DVec3 {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for p in scene.meshes.iter().flat_map(|m| &m.positions) {
+        lo = lo.min(p.as_dvec3());
+        hi = hi.max(p.as_dvec3());
+    }
+    if lo.x.is_finite() {
+        (lo + hi) * 0.5
+    } else {
+        DVec3::ZERO
+    }
+}

@@ -38,6 +38,8 @@ pub struct Renderer {
     // Field order is drop order: everything on the device goes before the context.
     /// Taken out while a capture records (so `record` can borrow the rest); always there between.
     capture: Option<Capture>,
+    /// The casters' adjacency for shadow volumes, made when a light first asks for `volumes`.
+    volume_scene: std::sync::OnceLock<crate::shadows::volumes::VolumeScene>,
     /// The ray-query backend's acceleration structures, made when a frame first asks for them.
     ray_query: std::sync::OnceLock<RayQueryScene>,
     pipelines: Pipelines,
@@ -89,6 +91,7 @@ impl Renderer {
                 last_plan: None,
             }),
             ray_query: std::sync::OnceLock::new(),
+            volume_scene: std::sync::OnceLock::new(),
             pipelines: Pipelines::new(&ctx)?,
             busy: std::sync::OnceLock::new(),
             shadow_pipelines: Default::default(),
@@ -121,11 +124,18 @@ impl Renderer {
         for choice in &settings.shadows {
             choice.check().map_err(GpuError::Unsupported)?;
         }
-        let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings);
+        let volume_scene = match crate::shadows::asks_for(&self.gpu_scene, settings, ShadowMethod::Volumes) {
+            true => Some(crate::vk::get_or_make(&self.volume_scene, || {
+                let local = self.scene.translated(-self.gpu_scene.origin);
+                crate::shadows::volumes::VolumeScene::new(&self.ctx, &local)
+            })?),
+            false => None,
+        };
+        let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings, volume_scene);
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
         visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())?;
         self.note_fallbacks(&plan);
-        let mut prepared = self.shadow_pipelines.prepare(&self.ctx, &plan)?;
+        let mut prepared = self.shadow_pipelines.prepare(&self.ctx, &plan, volume_scene)?;
         let ray_query = self.ray_query_scene(settings)?;
         if !plan.traced.is_empty() {
             let traced = &self.shadow_pipelines.traced;

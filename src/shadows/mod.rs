@@ -76,19 +76,35 @@ impl ShadowPlan {
 }
 
 /// Whether `method` can serve `light` on this device and scene; the reason when it cannot.
-pub fn serves(method: ShadowMethod, light: &Light, caps: &Capabilities, scene: &SceneGpu) -> Result<(), String> {
+/// `volumes` is the scene's adjacency, when a light uses volumes.
+pub fn serves(
+    method: ShadowMethod,
+    light: &Light,
+    caps: &Capabilities,
+    volumes: Option<&volumes::VolumeScene>,
+) -> Result<(), String> {
     match method {
         ShadowMethod::Traced | ShadowMethod::None => Ok(()),
         ShadowMethod::Map => map::serves(light),
         ShadowMethod::Cascades => cascades::serves(light),
-        ShadowMethod::Volumes => volumes::serves(light, caps, scene),
+        ShadowMethod::Volumes => volumes::serves(light, caps, volumes),
     }
+}
+
+/// Whether any light with shadows asks for `method`.
+pub fn asks_for(scene: &SceneGpu, settings: &RenderSettings, method: ShadowMethod) -> bool {
+    scene.has_casters && (0..scene.light_count as usize).any(|i| settings.shadow_method(i) == method)
 }
 
 /// Which lights get shadow work this frame, and from which technique: every light whose
 /// shadows are on, where something can cast a shadow; and the light the visibility view
 /// shows, whatever its method (it then shows where the light reaches).
-pub fn plan(scene: &SceneGpu, caps: &Capabilities, settings: &RenderSettings) -> ShadowPlan {
+pub fn plan(
+    scene: &SceneGpu,
+    caps: &Capabilities,
+    settings: &RenderSettings,
+    volumes: Option<&volumes::VolumeScene>,
+) -> ShadowPlan {
     let viewed = settings.debug_view.and_then(DebugView::light);
     let shadowed = |i: usize| scene.has_casters && settings.shadow_method(i) != ShadowMethod::None;
     let layers = LayerPlan::new(scene.light_count as usize, |i| shadowed(i) || viewed == Some(i));
@@ -99,7 +115,7 @@ pub fn plan(scene: &SceneGpu, caps: &Capabilities, settings: &RenderSettings) ->
         let served = Served { light: i as u32, layer, choice, unshadowed: !shadowed(i) };
         let method = match choice.method {
             _ if served.unshadowed => ShadowMethod::Traced,
-            m => match serves(m, &scene.local_lights[i], caps, scene) {
+            m => match serves(m, &scene.local_lights[i], caps, volumes) {
                 Ok(()) => m,
                 Err(why) => {
                     plan.fallbacks.push((i, m, why));
@@ -122,6 +138,7 @@ pub fn plan(scene: &SceneGpu, caps: &Capabilities, settings: &RenderSettings) ->
 pub struct Pipelines {
     pub traced: traced::Pipelines,
     map: std::sync::OnceLock<map::MapPipelines>,
+    volumes: std::sync::OnceLock<volumes::Pipelines>,
 }
 
 /// What one frame's techniques draw and trace with, made before its graph is built.
@@ -130,6 +147,8 @@ pub struct Prepared<'a> {
     /// The traced pipeline, and the ray-query scene when the rays use the driver's traversal.
     pub traced: Option<(&'a crate::vk::ComputePipeline, Option<&'a traced::accel::RayQueryScene>)>,
     pub map: Option<&'a map::MapPipelines>,
+    /// The volume pipelines and the casters' adjacency.
+    pub volumes: Option<(&'a volumes::Pipelines, &'a volumes::VolumeScene)>,
 }
 
 impl Pipelines {
@@ -139,12 +158,17 @@ impl Pipelines {
         &'a self,
         ctx: &std::sync::Arc<crate::vk::GpuContext>,
         plan: &ShadowPlan,
+        volume_scene: Option<&'a volumes::VolumeScene>,
     ) -> crate::vk::GpuResult<Prepared<'a>> {
-        let map = match plan.map.is_empty() {
+        let map = match plan.map.is_empty() && plan.cascades.is_empty() {
             true => None,
             false => Some(crate::vk::get_or_make(&self.map, || map::pipelines(ctx))?),
         };
-        Ok(Prepared { traced: None, map })
+        let volumes = match (plan.volumes.is_empty(), volume_scene) {
+            (false, Some(scene)) => Some((crate::vk::get_or_make(&self.volumes, || volumes::pipelines(ctx))?, scene)),
+            _ => None,
+        };
+        Ok(Prepared { traced: None, map, volumes })
     }
 }
 
@@ -165,6 +189,9 @@ pub fn add<'a>(
     let mut target = visibility::create_target(g, frame.extent, plan.layers.count());
     if let Some(pipelines) = prepared.map.filter(|_| !plan.map.is_empty()) {
         map::add(g, frame, pipelines, &plan.map, &mut target);
+    }
+    if let Some((pipelines, scene)) = prepared.volumes.filter(|_| !plan.volumes.is_empty()) {
+        volumes::add(g, frame, pipelines, scene, &plan.volumes, &mut target);
     }
     if let Some((pipeline, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
         match ray_query {

@@ -134,6 +134,13 @@ impl GpuContext {
             .maintenance4(true);
         // Ray query needs device addresses for acceleration-structure inputs and scratch.
         let mut f12 = vk::PhysicalDeviceVulkan12Features::default().buffer_device_address(caps.ray_query);
+        // Multiview (core since 1.1, required there): a light's layered shadow map (cube faces,
+        // cascades) in one rendering pass.
+        let mut f11 = vk::PhysicalDeviceVulkan11Features::default().multiview(true);
+        // Shadow volumes extrude silhouettes in a geometry shader; depth clamp where offered.
+        let core = vk::PhysicalDeviceFeatures::default()
+            .geometry_shader(caps.geometry_shader)
+            .depth_clamp(caps.depth_clamp);
         let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut ray_query = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
         let priorities = [1.0];
@@ -147,8 +154,10 @@ impl GpuContext {
         let mut device_info = vk::DeviceCreateInfo::default()
             .queue_create_infos(&queue_info)
             .enabled_extension_names(&device_extensions)
+            .enabled_features(&core)
             .push_next(&mut f13)
-            .push_next(&mut f12);
+            .push_next(&mut f12)
+            .push_next(&mut f11);
         if caps.ray_query {
             device_info = device_info.push_next(&mut accel).push_next(&mut ray_query);
         }

@@ -196,6 +196,17 @@ pub struct GraphicsPipeline {
 
 impl GraphicsPipeline {
     pub fn new(ctx: &Arc<GpuContext>, desc: &GraphicsPipelineDesc<'_>) -> GpuResult<GraphicsPipeline> {
+        GraphicsPipeline::multiview(ctx, desc, 0)
+    }
+
+    /// A pipeline for dynamic rendering with `view_mask` (multiview: each draw is rendered
+    /// once per set bit, into that layer of the attachments, with `gl_ViewIndex` telling the
+    /// shaders which); 0 is plain rendering.
+    pub fn multiview(
+        ctx: &Arc<GpuContext>,
+        desc: &GraphicsPipelineDesc<'_>,
+        view_mask: u32,
+    ) -> GpuResult<GraphicsPipeline> {
         let layout = PipelineLayout::new(ctx, desc.bindings, vk::ShaderStageFlags::ALL_GRAPHICS, desc.push_bytes)?;
         let vs = shader_module(ctx, desc.vertex)?;
         let fs = match desc.fragment {
@@ -267,6 +278,7 @@ impl GraphicsPipeline {
         }
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
         let mut rendering = vk::PipelineRenderingCreateInfo::default()
+            .view_mask(view_mask)
             .color_attachment_formats(desc.color_formats)
             .depth_attachment_format(desc.depth_format.unwrap_or(vk::Format::UNDEFINED));
         let info = [vk::GraphicsPipelineCreateInfo::default()

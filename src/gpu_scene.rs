@@ -177,8 +177,14 @@ pub struct CameraMatrices {
     pub view_proj_relative: Mat4,
     pub near: f32,
     /// Distance to the far side of the scene's bounds: not a clip plane, only what the depth
-    /// debug view shows as white.
+    /// debug view shows as white (and where cascades end by default).
     pub far: f32,
+    /// Unit view direction and up, vertical field of view (radians) and aspect: the frustum
+    /// that cascades split.
+    pub forward: Vec3,
+    pub up: Vec3,
+    pub fov_y: f32,
+    pub aspect: f32,
 }
 
 /// Vulkan clip space (+Y down), reversed depth, far plane at infinity.
@@ -202,10 +208,20 @@ impl CameraMatrices {
         // least 1 mm; with reversed infinite depth this costs no precision far away.
         let outside = (lo - cam.eye).max(cam.eye - hi).max(Vec3::ZERO).length();
         let near = (outside * 0.5).max(1e-3);
-        let view =
-            glam::camera::rh::view::look_to_mat4(Vec3::ZERO, (cam.target - cam.eye).normalize(), cam.up.normalize());
-        let proj = perspective_reversed_infinite(cam.vfov_deg.to_radians(), width as f32 / height as f32, near);
-        CameraMatrices { eye: cam.eye, view_proj_relative: proj * view, near, far }
+        let forward = (cam.target - cam.eye).normalize();
+        let view = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward, cam.up.normalize());
+        let (fov_y, aspect) = (cam.vfov_deg.to_radians(), width as f32 / height as f32);
+        let proj = perspective_reversed_infinite(fov_y, aspect, near);
+        CameraMatrices {
+            eye: cam.eye,
+            view_proj_relative: proj * view,
+            near,
+            far,
+            forward,
+            up: cam.up.normalize(),
+            fov_y,
+            aspect,
+        }
     }
 }
 

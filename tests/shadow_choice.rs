@@ -60,16 +60,16 @@ fn the_command_line_overrides_the_scene_light_by_light() {
     // Light 0 on a map, light 1 traced.
     let p = plan("0=map");
     assert!(p.contains("x2 layers") && p.contains("shadow map (light 0") && p.contains("shadow trace"), "{p}");
-    // One method for all: the point light cannot use a map and is traced, saying so.
-    let out = render(&dir, SCENE, "map", &[]);
+    // One method for all: the point light gets a cube map.
+    let p = plan("map");
+    assert!(p.contains("shadow map (light 1, cube, 6 x 2048x2048") && !p.contains("shadow trace"), "{p}");
+    // Cascades serve directional lights only: the others are traced, saying so.
+    let out = render(&dir, SCENE, "cascades", &[]);
     assert!(out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains(
-            "light 1: `map` serves spot lights only so far; this is a point light; its shadows are traced instead"
-        ),
-        "{err}"
-    );
+    let says =
+        "light 1: `cascades` serves directional lights only; this is a point light; its shadows are traced instead";
+    assert!(err.contains(says), "{err}");
     // None for all: no shadow work at all.
     let p = plan("none");
     assert!(!p.contains("visibility") && !p.contains("shadow trace") && !p.contains("shadow map"), "{p}");
@@ -98,11 +98,11 @@ fn parameters_come_from_the_scene_file_then_the_command_line() {
         (out.status.success(), text)
     };
     let (ok, text) = run(&[]);
-    assert!(ok && text.contains("shadow map (light 0, 512x512"), "the scene's resolution:\n{text}");
+    assert!(ok && text.contains("shadow map (light 0, spot, 512x512"), "the scene's resolution:\n{text}");
     let (ok, text) = run(&["--param", "0:map.resolution=256"]);
-    assert!(ok && text.contains("shadow map (light 0, 256x256"), "--param for light 0:\n{text}");
+    assert!(ok && text.contains("shadow map (light 0, spot, 256x256"), "--param for light 0:\n{text}");
     let (ok, text) = run(&["--param", "map.resolution=1024", "--param", "traced.spp=4"]);
-    assert!(ok && text.contains("shadow map (light 0, 1024x1024"), "--param for all lights:\n{text}");
+    assert!(ok && text.contains("shadow map (light 0, spot, 1024x1024"), "--param for all lights:\n{text}");
     for (bad, says) in [
         (&["--param", "map.resolution=7"][..], "map.resolution is 7: it takes 16 to 8192 texels"),
         (&["--param", "5:map.resolution=512"][..], "light 5 does not exist"),

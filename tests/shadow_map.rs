@@ -89,7 +89,7 @@ fn a_spot_shadow_map_agrees_with_traced_visibility_away_from_edges() {
     let traced = visibility(&mut r, ShadowMethod::Traced, MapParams::default());
     let map = visibility(&mut r, ShadowMethod::Map, MapParams::default());
     let plan = r.last_plan().expect("plan").to_string();
-    assert!(plan.contains("shadow map (light 0, 2048x2048, 2 of 2 draws)"), "{plan}");
+    assert!(plan.contains("shadow map (light 0, spot, 2048x2048, 2 of 2 draws)"), "{plan}");
     assert!(!plan.contains("shadow trace"), "a light on `map` gets no rays:\n{plan}");
     let c = compare(&traced, &map);
     let occluded = traced.iter().filter(|&&v| v == 0.0).count();

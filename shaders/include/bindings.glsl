@@ -19,6 +19,12 @@
 #define MAP_LIGHTS 2
 #define MAP_DEPTH 3
 #define MAP_VISIBILITY 4
+#define MAP_LAYERS 5
+// shadows/map/depth.vert: the light's layers (view-projections), one per multiview view
+#define MAP_DEPTH_LAYERS 0
+// shadows/map/debug.comp: one layer of a light's map, remapped for display
+#define MAP_DEBUG_DEPTH 0
+#define MAP_DEBUG_OUTPUT 1
 
 // compose.comp
 #define COMPOSE_POSITION 0

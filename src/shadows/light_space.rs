@@ -93,7 +93,7 @@ pub fn orthographic_reversed(l: f32, r: f32, b: f32, t: f32, near: f32, far: f32
 }
 
 /// Near and far distances along `dir` from `eye` that enclose `bounds`, with a floor on near.
-fn depth_range(eye: Vec3, dir: Vec3, bounds: &Bounds, min_near: f32) -> (f32, f32) {
+pub fn depth_range(eye: Vec3, dir: Vec3, bounds: &Bounds, min_near: f32) -> (f32, f32) {
     let d = dir.normalize();
     let (mut lo, mut hi) = (f32::INFINITY, f32::NEG_INFINITY);
     for c in bounds.corners() {

@@ -157,12 +157,23 @@ impl Pipelines {
     pub fn prepare<'a>(
         &'a self,
         ctx: &std::sync::Arc<crate::vk::GpuContext>,
+        scene: &SceneGpu,
         plan: &ShadowPlan,
         volume_scene: Option<&'a volumes::VolumeScene>,
     ) -> crate::vk::GpuResult<Prepared<'a>> {
         let map = match plan.map.is_empty() && plan.cascades.is_empty() {
             true => None,
-            false => Some(crate::vk::get_or_make(&self.map, || map::pipelines(ctx))?),
+            false => {
+                let pipelines = crate::vk::get_or_make(&self.map, || map::pipelines(ctx))?;
+                for s in &plan.map {
+                    let cube = matches!(scene.local_lights[s.light as usize], Light::Point { .. });
+                    pipelines.prepare_depth(if cube { 6 } else { 1 })?;
+                }
+                for s in &plan.cascades {
+                    pipelines.prepare_depth(s.choice.cascades.count as usize)?;
+                }
+                Some(pipelines)
+            }
         };
         let volumes = match (plan.volumes.is_empty(), volume_scene) {
             (false, Some(scene)) => Some((crate::vk::get_or_make(&self.volumes, || volumes::pipelines(ctx))?, scene)),
@@ -187,8 +198,9 @@ pub fn add<'a>(
     }
     let table = visibility::add_light_table(g, &plan.layers);
     let mut target = visibility::create_target(g, frame.extent, plan.layers.count());
-    if let Some(pipelines) = prepared.map.filter(|_| !plan.map.is_empty()) {
+    if let Some(pipelines) = prepared.map {
         map::add(g, frame, pipelines, &plan.map, &mut target);
+        cascades::add(g, frame, pipelines, &plan.cascades, &mut target);
     }
     if let Some((pipelines, scene)) = prepared.volumes.filter(|_| !plan.volumes.is_empty()) {
         volumes::add(g, frame, pipelines, scene, &plan.volumes, &mut target);

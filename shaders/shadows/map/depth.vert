@@ -1,12 +1,15 @@
 #version 460
-// Shadow map: casters' depth as seen from a light (reversed depth, like the camera). Depth only:
-// no fragment stage.
+#extension GL_GOOGLE_include_directive : require
+#extension GL_EXT_multiview : require
+// Shadow map: casters' depth as seen from a light (reversed depth, like the camera), into one
+// layer per multiview view (a spot or a sun: one; a point light's cube: six; cascades: one
+// each). Depth only: no fragment stage.
+#include "bindings.glsl"
+#define MAP_LAYERS_BINDING MAP_DEPTH_LAYERS
+#include "map_layers.glsl"
+
 layout(location = 0) in vec3 in_position;
 
-layout(push_constant) uniform Push {
-    mat4 view_proj; // the light's, in the scene-local frame
-} pc;
-
 void main() {
-    gl_Position = pc.view_proj * vec4(in_position, 1.0);
+    gl_Position = layers[gl_ViewIndex].view_proj * vec4(in_position, 1.0);
 }

@@ -1,27 +1,107 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// Shadow map resolve: one light's layer of the visibility target from its depth map, by
-// percentage-closer filtering done by hand (lavapipe cannot filter depth formats): the share
-// of the (2r+1)^2 map texels around the point's projection that do not occlude it. The point is
-// first pushed along its normal by `normal_offset` texels of the map at its distance, and a
-// texel occludes only when it is nearer the light by more than `bias` (reversed depth: nearer is
-// greater). The same facing and cone tests as the traced pass decide where the light reaches.
+// Shadow map resolve: one light's layer of the visibility target from its layered depth map.
+// The point picks its layer (the one map; the cube face it lies in; the cascade its view
+// distance falls in, blended into the next near a seam), is pushed along its normal by
+// `normal_offset` texels of that layer at its depth, and is then filtered by hand (lavapipe
+// cannot filter depth formats): percentage-closer filtering over (2r+1)^2 texels, or PCSS for
+// lights with a size (a blocker search, then a kernel as wide as the penumbra the light's size
+// predicts from the blockers' mean depth). A texel occludes only when it is nearer the light than
+// the point (reversed depth: nearer is greater); the hardware depth bias was applied when the
+// map was drawn. The same facing and cone tests as the traced pass decide where the light reaches.
 #include "bindings.glsl"
 #include "lights.glsl"
+#define MAP_LAYERS_BINDING MAP_LAYERS
+#include "map_layers.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = MAP_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = MAP_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = MAP_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
-layout(set = 0, binding = MAP_DEPTH) uniform sampler2D shadow_map;
+layout(set = 0, binding = MAP_DEPTH) uniform sampler2DArray shadow_map;
 layout(set = 0, binding = MAP_VISIBILITY, r8) uniform writeonly image2DArray visibility;
 
 layout(push_constant) uniform Push {
-    mat4 view_proj;  // the light's
-    uvec4 dims;      // x: width, y: height, z: light, w: layer
-    vec4 params;     // x: constant bias (depth units), y: normal offset (texels), z: PCF radius
-                     // (texels), w: world size of one texel at unit distance from the light
+    uvec4 dims;    // x: width, y: height, z: light, w: visibility layer
+    uvec4 map;     // x: layers, y: mode (MAP_SINGLE, MAP_CUBE, MAP_CASCADES), z: PCF radius, w: PCSS on
+    vec4 params;   // x: normal offset (texels), y: PCSS largest radius (texels), z: cascade blend
+                   // share, w: the light's size (radius in m, or tan of half its angular diameter)
+    vec4 eye;      // xyz: camera (cascades measure distance along the view from it)
+    vec4 forward;  // xyz: unit view direction
 } pc;
+
+// Share of the taps around `uv` on `layer` that do not occlude depth `z` (reversed: a tap
+// occludes when it is greater), `taps` per axis spread over +-`radius` texels.
+float pcf(uint layer, vec2 uv, float z, float radius, int taps) {
+    vec2 size = vec2(textureSize(shadow_map, 0).xy);
+    ivec2 last = ivec2(size) - 1;
+    float lit = 0.0;
+    int half_taps = taps / 2;
+    float step_texels = half_taps > 0 ? radius / float(half_taps) : 0.0;
+    for (int dy = -half_taps; dy <= half_taps; dy++) {
+        for (int dx = -half_taps; dx <= half_taps; dx++) {
+            vec2 t = uv * size + vec2(dx, dy) * step_texels;
+            ivec2 texel = clamp(ivec2(floor(t)), ivec2(0), last);
+            float occluder = texelFetch(shadow_map, ivec3(texel, layer), 0).r;
+            lit += z >= occluder ? 1.0 : 0.0;
+        }
+    }
+    return lit / float((2 * half_taps + 1) * (2 * half_taps + 1));
+}
+
+// Mean linear depth of the blockers within +-`radius` texels, and how many there are.
+vec2 blockers(uint layer, vec2 uv, float z, float radius) {
+    vec2 size = vec2(textureSize(shadow_map, 0).xy);
+    ivec2 last = ivec2(size) - 1;
+    const int HALF = 3;
+    float sum = 0.0;
+    float count = 0.0;
+    for (int dy = -HALF; dy <= HALF; dy++) {
+        for (int dx = -HALF; dx <= HALF; dx++) {
+            vec2 t = uv * size + vec2(dx, dy) * (radius / float(HALF));
+            ivec2 texel = clamp(ivec2(floor(t)), ivec2(0), last);
+            float d = texelFetch(shadow_map, ivec3(texel, layer), 0).r;
+            if (d > z) {
+                sum += map_linear_depth(layers[layer], d);
+                count += 1.0;
+            }
+        }
+    }
+    return vec2(count > 0.0 ? sum / count : 0.0, count);
+}
+
+// Visibility of `p` (normal `n`) in one layer; outside the layer (nothing drawn there) is lit.
+float layer_visibility(uint layer, vec3 p, vec3 n, float light_size, bool perspective_light) {
+    MapLayer m = layers[layer];
+    // The point's depth from the light first, to size the normal offset in texels there.
+    vec4 clip = m.view_proj * vec4(p, 1.0);
+    if (clip.w <= 0.0) return 1.0;
+    float z_lin = map_linear_depth(m, clip.z / clip.w);
+    float texel = map_texel(m, z_lin);
+    clip = m.view_proj * vec4(p + n * (pc.params.x * texel), 1.0);
+    vec3 ndc = clip.xyz / clip.w;
+    vec2 uv = ndc.xy * 0.5 + 0.5;
+    if (clip.w <= 0.0 || any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(uv, vec2(1.0)))) return 1.0;
+    float z = ndc.z;
+    int r = int(pc.map.z);
+    if (pc.map.w == 0u || light_size <= 0.0) {
+        return pcf(layer, uv, z, float(r), 2 * r + 1);
+    }
+    // PCSS. The light's extent, in texels at the receiver: a sphere of radius R seen from the
+    // receiver (perspective lights), or a cone of half-angle atan(size) (directional).
+    float receiver = map_linear_depth(m, z);
+    float max_radius = pc.params.y;
+    float light_texels = perspective_light ? light_size / map_texel(m, receiver) * (receiver - m.texel_near_far.y) / receiver
+                                           : light_size * (receiver - m.texel_near_far.y) / map_texel(m, receiver);
+    float search = clamp(light_texels, 1.0, max_radius);
+    vec2 b = blockers(layer, uv, z, search);
+    if (b.y == 0.0) return 1.0;
+    // Penumbra half-width at the receiver, from similar triangles (Fernando 2005).
+    float penumbra = perspective_light ? light_size * (receiver - b.x) / max(b.x, 1e-6)
+                                       : light_size * (receiver - b.x);
+    float radius = clamp(penumbra / map_texel(m, receiver), 1.0, max_radius);
+    return pcf(layer, uv, z, radius, 7);
+}
 
 void main() {
     uvec2 px = gl_GlobalInvocationID.xy;
@@ -35,29 +115,36 @@ void main() {
         float dist;
         vec3 e;
         light_sample(l, position.xyz, L, dist, e);
+        bool perspective_light = l.position_kind.w != LIGHT_DIRECTIONAL;
+        float size = l.size.x;
         if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
             v = 0.0;
-        } else {
-            float texel = pc.params.w * dist;
-            vec3 p = position.xyz + n * (pc.params.y * texel);
-            vec4 clip = pc.view_proj * vec4(p, 1.0);
-            vec3 ndc = clip.xyz / clip.w;
-            ivec2 size = textureSize(shadow_map, 0);
-            vec2 uv = ndc.xy * 0.5 + 0.5;
-            ivec2 centre = ivec2(floor(uv * vec2(size)));
-            int r = int(pc.params.z);
-            float lit = 0.0;
-            for (int dy = -r; dy <= r; dy++) {
-                for (int dx = -r; dx <= r; dx++) {
-                    ivec2 t = clamp(centre + ivec2(dx, dy), ivec2(0), size - 1);
-                    float occluder = texelFetch(shadow_map, t, 0).r;
-                    lit += ndc.z + pc.params.x >= occluder ? 1.0 : 0.0;
+        } else if (pc.map.y == MAP_CUBE) {
+            vec3 d = position.xyz - l.position_kind.xyz;
+            vec3 a = abs(d);
+            uint face = a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
+                      : a.y >= a.z ? (d.y >= 0.0 ? 2u : 3u)
+                                   : (d.z >= 0.0 ? 4u : 5u);
+            v = layer_visibility(face, position.xyz, n, size, true);
+        } else if (pc.map.y == MAP_CASCADES) {
+            float along = dot(position.xyz - pc.eye.xyz, pc.forward.xyz);
+            uint count = pc.map.x;
+            uint c = 0u;
+            while (c + 1u < count && along > layers[c].split.x) c++;
+            if (along > layers[count - 1u].split.x) {
+                v = 1.0; // beyond the shadow distance
+            } else {
+                v = layer_visibility(c, position.xyz, n, size, false);
+                // Near the far end of a cascade, blend into the next so the seam does not show.
+                float end = layers[c].split.x;
+                float width = (end - layers[c].split.y) * pc.params.z;
+                if (c + 1u < count && width > 0.0 && along > end - width) {
+                    float t = (along - (end - width)) / width;
+                    v = mix(v, layer_visibility(c + 1u, position.xyz, n, size, false), t);
                 }
             }
-            float taps = float((2 * r + 1) * (2 * r + 1));
-            // Outside the map (behind the light, beyond its frustum): nothing was drawn there.
-            bool inside = clip.w > 0.0 && all(greaterThanEqual(uv, vec2(0.0))) && all(lessThan(uv, vec2(1.0)));
-            v = inside ? lit / taps : 1.0;
+        } else {
+            v = layer_visibility(0u, position.xyz, n, size, perspective_light);
         }
     }
     imageStore(visibility, ivec3(px, pc.dims.w), vec4(v));

@@ -1,57 +1,107 @@
-//! Shadow maps (`map`): for each light it serves, the casters' depth from the light (only the
-//! draws whose bounds reach the light's frustum), then a compute resolve that writes the light's
-//! visibility layer by percentage-closer filtering done by hand, with constant and
-//! slope-scaled depth bias at rasterisation and a normal offset at lookup. Spot lights so far;
-//! the renderer traces the other kinds instead and says so.
+//! Shadow maps (`map`, and the layers of `cascades`): for each light it serves, the casters'
+//! depth from the light into a layered depth image, every layer in one multiview pass (a spot
+//! light: one perspective layer; a directional light: one orthographic layer fitted to the
+//! casters that can shadow the visible receivers; a point light: the six faces of a cube; a
+//! directional light's cascades: one layer each), drawn only from the casters inside some layer's
+//! frustum, with constant and slope-scaled depth bias as dynamic state. A compute resolve then
+//! writes the light's visibility layer: the point picks its layer, moves along its normal by
+//! `normal_offset` texels, and is filtered by hand (PCF, or PCSS for lights with a size).
 
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use ash::vk;
-use glam::{Mat4, UVec4, Vec4};
+use glam::{Mat4, UVec4, Vec3, Vec4};
 
 pub mod params;
 
 pub use self::params::MapParams;
-use super::light_space::{spot_view_proj, Bounds};
+use super::light_space::{cube_face_view_proj, depth_range, directional_view_proj, spot_view_proj, Bounds};
 use super::{FrameInputs, Served};
 use crate::gpu_scene::{SceneGpu, Vertex};
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, GBuffer, DEPTH_FORMAT, TILE};
+use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, TILE};
 use crate::scene::Light;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
+use crate::vk::{
+    spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc,
+};
+
+/// Most layers one light's map has (cube faces, cascades); `MAP_MAX_LAYERS` in map_layers.glsl.
+pub const MAX_LAYERS: usize = 8;
+
+/// One layer of a light's map, as the shaders read it (std140; twin of `MapLayer` in
+/// shaders/shadows/map/map_layers.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MapLayer {
+    pub view_proj: Mat4,
+    /// x: world size of a texel (at unit distance for perspective layers); y, z: near and far;
+    /// w: 1 perspective, 0 orthographic.
+    pub texel_near_far: Vec4,
+    /// x: where the cascade ends along the view; y: where it starts.
+    pub split: Vec4,
+}
+
+impl MapLayer {
+    /// A perspective layer over [near, far] with a square field of view `fov` at `resolution`.
+    pub fn perspective(view_proj: Mat4, fov: f32, near: f32, far: f32, resolution: u32) -> MapLayer {
+        let texel = 2.0 * (fov * 0.5).tan() / resolution as f32;
+        MapLayer { view_proj, texel_near_far: Vec4::new(texel, near, far, 1.0), split: Vec4::ZERO }
+    }
+
+    /// An orthographic layer made by `light_space` (a rotation about the origin, then the
+    /// projection): its texel size and depth range read back from the matrix.
+    pub fn orthographic(view_proj: Mat4, resolution: u32) -> MapLayer {
+        let row = |i: usize| view_proj.row(i).truncate().length();
+        let texel = 2.0 / (row(0) * resolution as f32);
+        let range = 1.0 / row(2);
+        let far = view_proj.w_axis.z * range;
+        MapLayer { view_proj, texel_near_far: Vec4::new(texel, far - range, far, 0.0), split: Vec4::ZERO }
+    }
+}
+
+/// How the resolve picks a layer (`MAP_SINGLE`, `MAP_CUBE`, `MAP_CASCADES` in the shader).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Single = 0,
+    Cube = 1,
+    Cascades = 2,
+}
+
+/// One light's map for this frame: its layers and how to read them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightMap {
+    pub light: u32,
+    /// The light's layer of the visibility target.
+    pub layer: u32,
+    pub mode: Mode,
+    pub layers: Vec<MapLayer>,
+    pub params: MapParams,
+    pub pcss: bool,
+    /// `cascades`: the share of each cascade blended into the next.
+    pub blend: f32,
+    /// What the plan says about it ("spot", "cube", "4 cascades").
+    pub what: String,
+}
 
 pub struct MapPipelines {
-    depth: GraphicsPipeline,
+    /// The depth pass for 1..=MAX_LAYERS layers (multiview masks), each made on first use.
+    depth: [OnceLock<GraphicsPipeline>; MAX_LAYERS],
     resolve: ComputePipeline,
+    ctx: Arc<GpuContext>,
 }
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct ResolvePush {
-    view_proj: Mat4,
     dims: UVec4,
+    map: UVec4,
     params: Vec4,
+    eye: Vec4,
+    forward: Vec4,
 }
 
 pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
-    let depth = GraphicsPipeline::new(
-        ctx,
-        &GraphicsPipelineDesc {
-            name: "shadow map",
-            vertex: spirv::SHADOWS_MAP_DEPTH_VERT,
-            fragment: None,
-            vertex_stride: std::mem::size_of::<Vertex>() as u32,
-            attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
-            color_formats: &[],
-            depth_format: Some(DEPTH_FORMAT),
-            bindings: &[],
-            push_bytes: std::mem::size_of::<Mat4>() as u32,
-            // Both faces: thin and open casters shadow from either side, as traced rays see them.
-            cull_back_faces: false,
-            dynamic_depth_bias: true,
-        },
-    )?;
     let resolve = ComputePipeline::new(
         ctx,
         "shadow map resolve",
@@ -62,19 +112,97 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
             storage(MAP_LIGHTS),
             sampled(MAP_DEPTH),
             storage_image(MAP_VISIBILITY),
+            (MAP_LAYERS, DescriptorKind::UniformBuffer),
         ],
         std::mem::size_of::<ResolvePush>() as u32,
         TILE,
     )?;
-    Ok(MapPipelines { depth, resolve })
+    Ok(MapPipelines { depth: Default::default(), resolve, ctx: ctx.clone() })
+}
+
+impl MapPipelines {
+    /// The depth pipeline that renders `layers` layers at once, made now if it was not.
+    pub fn prepare_depth(&self, layers: usize) -> GpuResult<&GraphicsPipeline> {
+        assert!((1..=MAX_LAYERS).contains(&layers), "1..={MAX_LAYERS} layers");
+        crate::vk::get_or_make(&self.depth[layers - 1], || {
+            let desc = GraphicsPipelineDesc {
+                name: "shadow map",
+                vertex: spirv::SHADOWS_MAP_DEPTH_VERT,
+                fragment: None,
+                vertex_stride: std::mem::size_of::<Vertex>() as u32,
+                attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
+                color_formats: &[],
+                depth_format: Some(DEPTH_FORMAT),
+                bindings: &[(MAP_DEPTH_LAYERS, DescriptorKind::UniformBuffer)],
+                push_bytes: 0,
+                // Both faces: thin and open casters shadow from either side, as traced rays see them.
+                cull_back_faces: false,
+                dynamic_depth_bias: true,
+            };
+            GraphicsPipeline::multiview(&self.ctx, &desc, (1u32 << layers) - 1)
+        })
+    }
+
+    fn depth(&self, layers: usize) -> &GraphicsPipeline {
+        self.depth[layers - 1].get().expect("made by prepare_depth")
+    }
 }
 
 /// Whether `map` can serve `light` (else the renderer traces it), and why not.
-pub fn serves(light: &Light) -> Result<(), String> {
-    match light {
-        Light::Spot { .. } => Ok(()),
-        _ => Err(format!("`map` serves spot lights only so far; this is a {} light", light.kind())),
-    }
+pub fn serves(_light: &Light) -> Result<(), String> {
+    Ok(())
+}
+
+/// Bounds of the shadow casters (scene-local frame).
+pub fn caster_bounds(scene: &SceneGpu) -> Bounds {
+    scene.draws.iter().filter(|d| d.cast_shadows).fold(Bounds::EMPTY, |b, d| b.union(&d.bounds))
+}
+
+/// Bounds of what the camera may see: every draw whose bounds reach its frustum.
+pub fn visible_bounds(frame: &FrameInputs<'_, '_>) -> Bounds {
+    let vp = frame.camera.view_proj_relative;
+    let eye = frame.camera.eye;
+    frame
+        .scene
+        .draws
+        .iter()
+        .filter(|d| {
+            let shifted = Bounds::new(d.bounds.min - eye, d.bounds.max - eye);
+            !d.bounds.is_empty() && box_in_frustum(&vp, &shifted)
+        })
+        .fold(Bounds::EMPTY, |b, d| b.union(&d.bounds))
+}
+
+/// `served`'s map this frame, or None when nothing can shadow what the camera sees.
+pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &Bounds) -> Option<LightMap> {
+    let params = served.choice.map;
+    let res = params.resolution;
+    let extent = (casters.max - casters.min).length().max(1e-3);
+    let (mode, layers, what) = match *light {
+        Light::Spot { position, direction, outer_deg, .. } => {
+            let vp = spot_view_proj(position, direction, outer_deg, casters);
+            let (near, far) = depth_range(position, direction, casters, extent * 1e-4);
+            let fov = (2.0 * outer_deg).to_radians().clamp(1e-3, 179f32.to_radians());
+            (Mode::Single, vec![MapLayer::perspective(vp, fov, near, far, res)], "spot".to_string())
+        }
+        Light::Directional { direction, .. } => {
+            let vp = directional_view_proj(direction, receivers, casters)?;
+            (Mode::Single, vec![MapLayer::orthographic(vp, res)], "directional".to_string())
+        }
+        Light::Point { position, .. } => {
+            let far = casters.corners().iter().map(|c| (*c - position).length()).fold(0.0, f32::max) * 1.01;
+            if far <= 0.0 {
+                return None;
+            }
+            let near = (far * 1e-4).max(1e-4);
+            let fov = std::f32::consts::FRAC_PI_2;
+            let layers =
+                (0..6).map(|f| MapLayer::perspective(cube_face_view_proj(position, f, near, far), fov, near, far, res));
+            (Mode::Cube, layers.collect(), "cube".to_string())
+        }
+    };
+    let pcss = params.uses_pcss(light.has_size());
+    Some(LightMap { light: served.light, layer: served.layer, mode, layers, params, pcss, blend: 0.0, what })
 }
 
 /// Writes the visibility layer of each light in `served`: its map, then the resolve.
@@ -85,28 +213,29 @@ pub fn add<'a>(
     served: &[Served],
     target: &mut Handle<ImageKind>,
 ) {
-    let s = frame.scene;
-    let casters = s.draws.iter().filter(|d| d.cast_shadows).fold(Bounds::EMPTY, |b, d| b.union(&d.bounds));
-    for served in served {
-        let l = &s.local_lights[served.light as usize];
-        let Some(view_proj) = light_view_proj(l, &casters) else { continue };
-        let params = served.choice.map;
-        let texel_at_unit_distance = match *l {
-            Light::Spot { outer_deg, .. } => 2.0 * outer_deg.to_radians().tan() / params.resolution as f32,
-            _ => 0.0,
-        };
-        let light = MapLight { light: served.light, layer: served.layer, view_proj, texel_at_unit_distance };
-        add_light(graph, frame, pipelines, light, params, target);
-    }
-}
-
-/// The light's view-projection in the scene-local frame, fitted to the casters' bounds.
-pub fn light_view_proj(light: &Light, casters: &Bounds) -> Option<Mat4> {
-    match *light {
-        Light::Spot { position, direction, outer_deg, .. } => {
-            Some(spot_view_proj(position, direction, outer_deg, casters))
+    let casters = caster_bounds(frame.scene);
+    let receivers = visible_bounds(frame);
+    for s in served {
+        let light = &frame.scene.local_lights[s.light as usize];
+        match light_map(s, light, &casters, &receivers) {
+            Some(map) => {
+                add_light(graph, frame, pipelines, &map, target);
+            }
+            // Nothing casts onto what is seen: the light's layer is the unshadowed facing test.
+            None => {
+                let map = LightMap {
+                    light: s.light,
+                    layer: s.layer,
+                    mode: Mode::Single,
+                    layers: vec![MapLayer::default()],
+                    params: MapParams { resolution: 16, ..s.choice.map },
+                    pcss: false,
+                    blend: 0.0,
+                    what: "nothing to cast".into(),
+                };
+                add_light(graph, frame, pipelines, &map, target);
+            }
         }
-        _ => None,
     }
 }
 
@@ -123,41 +252,63 @@ pub fn box_in_frustum(view_proj: &Mat4, b: &Bounds) -> bool {
         || outside(&|c| c.z > c.w))
 }
 
-/// One light served by `map`.
-pub struct MapLight {
-    pub light: u32,
-    pub layer: u32,
-    pub view_proj: Mat4,
-    /// World size of one map texel at unit distance from the light.
-    pub texel_at_unit_distance: f32,
+/// The draws that cast into some layer of `map`.
+pub fn culled_draws(scene: &SceneGpu, map: &LightMap) -> Vec<usize> {
+    if map.layers.iter().all(|l| l.view_proj == Mat4::ZERO) {
+        return Vec::new();
+    }
+    (0..scene.draws.len())
+        .filter(|&i| {
+            let d = &scene.draws[i];
+            d.cast_shadows && map.layers.iter().any(|l| box_in_frustum(&l.view_proj, &d.bounds))
+        })
+        .collect()
 }
 
-/// Renders `light`'s map from the casters inside its frustum and resolves it into its layer.
-fn add_light<'a>(
+/// The uniform block of `map`'s layers, written at the start of the frame.
+fn add_layer_table(graph: &mut RenderGraph<'_>, map: &LightMap) -> Handle<BufferKind> {
+    let mut block = [MapLayer::default(); MAX_LAYERS];
+    block[..map.layers.len()].copy_from_slice(&map.layers);
+    let mut buffer = graph.create_buffer("shadow map layers", std::mem::size_of_val(&block) as u64);
+    let mut pass = graph.add_pass("shadow map layers");
+    let dst = pass.write(&mut buffer, Access::TransferWrite);
+    pass.render(move |ctx| {
+        // SAFETY: recording state; the block is under 64 KiB and a multiple of 4 bytes.
+        unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), 0, bytemuck::cast_slice(&block)) };
+        Ok(())
+    });
+    buffer
+}
+
+/// Renders `map` from the casters inside its layers' frusta and resolves it into its layer.
+pub fn add_light<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     pipelines: &'a MapPipelines,
-    light: MapLight,
-    params: MapParams,
+    map: &LightMap,
     visibility: &mut Handle<ImageKind>,
-) {
-    let (scene, gbuffer, extent): (&'a SceneGpu, &GBuffer, _) = (frame.scene, frame.gbuffer, frame.extent);
-    let res = params.resolution;
-    let mut map = graph.create_image("shadow map", ImageDesc::new(DEPTH_FORMAT, res, res));
-    let draws: Vec<usize> = (0..scene.draws.len())
-        .filter(|&i| scene.draws[i].cast_shadows && box_in_frustum(&light.view_proj, &scene.draws[i].bounds))
-        .collect();
+) -> Handle<ImageKind> {
+    let (scene, gbuffer, extent) = (frame.scene, frame.gbuffer, frame.extent);
+    let res = map.params.resolution;
+    let count = map.layers.len();
+    let table = add_layer_table(graph, map);
+    let mut depth_image = graph.create_image("shadow map", ImageDesc::array(DEPTH_FORMAT, res, res, count as u32));
+    let draws = culled_draws(scene, map);
     let mut pass = graph.add_pass("shadow map");
+    let size = if count == 1 { format!("{res}x{res}") } else { format!("{count} x {res}x{res}") };
     pass.detail(format!(
-        "light {}, {res}x{res}, {} of {} draws",
-        light.light,
+        "light {}, {}, {size}, {} of {} draws",
+        map.light,
+        map.what,
         draws.len(),
         scene.draws.iter().filter(|d| d.cast_shadows).count()
     ));
     let vb = pass.read(frame.vertices, Access::VertexBuffer);
     let ib = pass.read(frame.indices, Access::IndexBuffer);
-    let depth = pass.write(&mut map, Access::DepthAttachmentWrite);
-    let view_proj = light.view_proj;
+    let layers_read = pass.read(&table, Access::VertexShaderReadUniformBuffer);
+    let depth = pass.write(&mut depth_image, Access::DepthAttachmentWrite);
+    let pipeline = pipelines.depth(count);
+    let params = map.params;
     pass.render(move |ctx| {
         let attachment = vk::RenderingAttachmentInfo::default()
             .image_view(ctx.image(depth).1)
@@ -166,25 +317,27 @@ fn add_light<'a>(
             .store_op(vk::AttachmentStoreOp::STORE)
             .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
         let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: res, height: res } };
-        let rendering = vk::RenderingInfo::default().render_area(area).layer_count(1).depth_attachment(&attachment);
-        let (d, p) = (ctx.device, &pipelines.depth);
+        let rendering = vk::RenderingInfo::default()
+            .render_area(area)
+            .layer_count(1)
+            .view_mask((1u32 << count) - 1)
+            .depth_attachment(&attachment);
+        ctx.bind_set(
+            vk::PipelineBindPoint::GRAPHICS,
+            &pipeline.layout,
+            &[(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))],
+        )?;
+        let d = ctx.device;
         // SAFETY: recording state; every object is resolved for this frame and outlives it.
         unsafe {
             d.cmd_begin_rendering(ctx.cmd, &rendering);
-            d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, p.pipeline);
+            d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
             let viewport =
                 vk::Viewport { x: 0.0, y: 0.0, width: res as f32, height: res as f32, min_depth: 0.0, max_depth: 1.0 };
             d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
             d.cmd_set_scissor(ctx.cmd, 0, &[area]);
             // Reversed depth: away from the light is smaller, so the bias is negative.
             d.cmd_set_depth_bias(ctx.cmd, -params.constant_bias, 0.0, -params.slope_bias);
-            d.cmd_push_constants(
-                ctx.cmd,
-                p.layout.layout,
-                vk::ShaderStageFlags::ALL_GRAPHICS,
-                0,
-                bytemuck::bytes_of(&view_proj),
-            );
             if !draws.is_empty() {
                 d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
                 d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
@@ -205,22 +358,32 @@ fn add_light<'a>(
         (MAP_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (MAP_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (MAP_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
-        (MAP_DEPTH, Bound::Image(pass.read(&map, read))),
+        (MAP_DEPTH, Bound::Image(pass.read(&depth_image, read))),
         (MAP_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))),
+        (MAP_LAYERS, Bound::Buffer(pass.read(&table, Access::ComputeShaderReadUniformBuffer))),
     ];
+    let forward = view_forward(frame);
     let push = ResolvePush {
-        view_proj,
-        dims: UVec4::new(extent.width, extent.height, light.light, light.layer),
-        params: Vec4::new(0.0, params.normal_offset, params.pcf_radius as f32, light.texel_at_unit_distance),
+        dims: UVec4::new(extent.width, extent.height, map.light, map.layer),
+        map: UVec4::new(count as u32, map.mode as u32, params.pcf_radius, map.pcss as u32),
+        params: Vec4::new(params.normal_offset, params.pcss_max_radius as f32, map.blend, 0.0),
+        eye: frame.camera.eye.extend(0.0),
+        forward: forward.extend(0.0),
     };
-    let pipeline = &pipelines.resolve;
-    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    let resolve = &pipelines.resolve;
+    pass.render(move |ctx| ctx.dispatch(resolve, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    depth_image
+}
+
+/// The camera's unit view direction (scene-local frame).
+pub fn view_forward(frame: &FrameInputs<'_, '_>) -> Vec3 {
+    frame.camera.forward
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::Vec3;
+    use crate::shadows::light_space::{orthographic_reversed, perspective_reversed};
 
     #[test]
     fn boxes_outside_a_spot_frustum_are_culled() {
@@ -233,5 +396,51 @@ mod tests {
         assert!(!box_in_frustum(&vp, &behind), "behind the light");
         let straddling = Bounds::new(Vec3::new(-30.0, -1.0, -30.0), Vec3::new(30.0, 0.0, 30.0));
         assert!(box_in_frustum(&vp, &straddling), "a floor under the cone");
+    }
+
+    /// The shader's linear depth, on the CPU (map_linear_depth in map_layers.glsl).
+    fn linear_depth(m: &MapLayer, d: f32) -> f32 {
+        let (near, far) = (m.texel_near_far.y, m.texel_near_far.z);
+        if m.texel_near_far.w > 0.5 {
+            near * far / (d * (far - near) + near)
+        } else {
+            far - d * (far - near)
+        }
+    }
+
+    #[test]
+    fn layers_give_back_the_distance_they_stored() {
+        let view = crate::shadows::light_space::look_along(Vec3::ZERO, Vec3::new(0.3, -1.0, 0.2));
+        let ortho = orthographic_reversed(-3.0, 5.0, -2.0, 2.0, 1.5, 9.0) * view;
+        let layer = MapLayer::orthographic(ortho, 512);
+        assert!((layer.texel_near_far.x - 8.0 / 512.0).abs() < 1e-6, "{layer:?}");
+        assert!((layer.texel_near_far.y - 1.5).abs() < 1e-4 && (layer.texel_near_far.z - 9.0).abs() < 1e-4);
+        let dir = Vec3::new(0.3, -1.0, 0.2).normalize();
+        for dist in [1.5f32, 4.0, 9.0] {
+            let clip = ortho * (dir * dist).extend(1.0);
+            assert!((linear_depth(&layer, clip.z / clip.w) - dist).abs() < 1e-3, "ortho at {dist}");
+        }
+        let persp = perspective_reversed(1.0, 1.0, 0.5, 20.0);
+        let layer = MapLayer::perspective(persp, 1.0, 0.5, 20.0, 256);
+        for dist in [0.5f32, 3.0, 20.0] {
+            let clip = persp * Vec4::new(0.0, 0.0, -dist, 1.0);
+            assert!((linear_depth(&layer, clip.z / clip.w) - dist).abs() < 1e-3 * dist, "perspective at {dist}");
+        }
+    }
+
+    #[test]
+    fn every_kind_of_light_gets_a_map_with_its_layers() {
+        let casters = Bounds::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 1.0, 1.0));
+        let receivers = Bounds::new(Vec3::new(-5.0, 0.0, -5.0), Vec3::new(5.0, 1.0, 5.0));
+        let served = Served { light: 0, layer: 0, choice: Default::default(), unshadowed: false };
+        let point = Light::Point { position: Vec3::new(0.0, 4.0, 0.0), intensity: Vec3::ONE, radius: 0.0 };
+        let m = light_map(&served, &point, &casters, &receivers).expect("point");
+        assert_eq!((m.mode, m.layers.len()), (Mode::Cube, 6));
+        let sun = Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE, angular_diameter_deg: 0.5 };
+        let m = light_map(&served, &sun, &casters, &receivers).expect("sun");
+        assert_eq!((m.mode, m.layers.len()), (Mode::Single, 1));
+        assert!(m.pcss, "a sun with a size gets PCSS by default");
+        let far_away = Bounds::new(Vec3::splat(100.0), Vec3::splat(101.0));
+        assert!(light_map(&served, &sun, &casters, &far_away).is_none(), "nothing to shadow");
     }
 }

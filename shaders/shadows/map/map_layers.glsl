@@ -1,0 +1,40 @@
+// A light's shadow-map layers, shared by the depth pass (one multiview view per layer) and the
+// resolve. Twin of `MapLayer` in src/shadows/map/mod.rs.
+#ifndef UMBRA_MAP_LAYERS_GLSL
+#define UMBRA_MAP_LAYERS_GLSL
+
+#define MAP_MAX_LAYERS 8
+
+// How the resolve picks a layer for a point.
+#define MAP_SINGLE 0u   // one layer: spot (perspective) or directional (orthographic)
+#define MAP_CUBE 1u     // six faces of a point light, by the major axis of the point from it
+#define MAP_CASCADES 2u // by the point's distance along the view, blended across seams
+
+struct MapLayer {
+    mat4 view_proj;
+    // x: world size of one texel: at unit distance (perspective) or anywhere (orthographic)
+    // y: near, z: far (the depth range, for linear depth), w: perspective (1) or not (0)
+    vec4 texel_near_far;
+    // x: where this cascade ends along the view; y: where it starts
+    vec4 split;
+};
+
+layout(set = 0, binding = MAP_LAYERS_BINDING, std140) uniform Layers { MapLayer layers[MAP_MAX_LAYERS]; };
+
+// Distance from the light's plane (perspective: along the face's axis; orthographic: from its
+// near plane plus near) of a stored reversed depth.
+float map_linear_depth(MapLayer m, float d) {
+    float near = m.texel_near_far.y;
+    float far = m.texel_near_far.z;
+    if (m.texel_near_far.w > 0.5) {
+        return near * far / (d * (far - near) + near);
+    }
+    return far - d * (far - near);
+}
+
+// World size of one texel at linear depth `z`.
+float map_texel(MapLayer m, float z) {
+    return m.texel_near_far.w > 0.5 ? m.texel_near_far.x * z : m.texel_near_far.x;
+}
+
+#endif

@@ -1,0 +1,270 @@
+//! Shadow maps for every kind of light, and cascades, against `traced` visibility: a box on a
+//! floor under a sun (orthographic map fitted to what is seen) and a point light (cube map),
+//! pixel by pixel away from shadow edges; PCSS against converged traced soft shadows; and
+//! perspective aliasing on a large ground plane seen from near it, which cascades cut. All with
+//! validation and synchronization validation.
+
+mod common;
+
+use std::path::Path;
+
+use umbra::config::{DebugView, ShadowChoice, ShadowMethod};
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
+use umbra::scene::Scene;
+
+const W: u32 = 240;
+const H: u32 = 180;
+
+fn scene(lights: &str) -> String {
+    format!(
+        r#"
+[camera]
+eye = [0.0, 3.5, 6.0]
+target = [0.0, 0.3, 0.0]
+vfov_deg = 45.0
+{lights}
+[[objects]]
+shape = "plane"
+size = 10.0
+[[objects]]
+shape = "cube"
+size = 1.0
+translate = [0.0, 0.5, 0.0]
+[[objects]]
+shape = "sphere"
+radius = 0.4
+translate = [1.4, 0.4, 0.6]
+"#
+    )
+}
+
+const SUN: &str = r#"
+[[lights]]
+type = "directional"
+direction = [0.5, -1.0, 0.3]
+irradiance = [2.0, 2.0, 2.0]
+"#;
+
+const POINT: &str = r#"
+[[lights]]
+type = "point"
+position = [1.2, 3.0, 1.5]
+intensity = [30.0, 30.0, 30.0]
+"#;
+
+fn renderer(text: &str) -> (std::sync::Arc<umbra::vk::GpuContext>, Renderer) {
+    let ctx = common::gpu();
+    let scene = Scene::parse(text, "kinds.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    let r = Renderer::new(ctx.clone(), scene).expect("renderer");
+    (ctx, r)
+}
+
+fn visibility(r: &mut Renderer, choice: ShadowChoice, w: u32, h: u32) -> Vec<f32> {
+    let mut s = RenderSettings::new(w, h, OutputKind::SceneLinear);
+    s.debug_view = Some(DebugView::Visibility(0));
+    s.shadows = vec![choice];
+    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
+    let v: Vec<f32> = pixels.chunks_exact(4).map(|p| p[0]).collect();
+    assert!(v.iter().all(|x| x.is_finite()), "no NaN");
+    v
+}
+
+fn with(method: ShadowMethod, set: &[(&str, &str)]) -> ShadowChoice {
+    let mut c = ShadowChoice { method, ..ShadowChoice::hard() };
+    for (k, v) in set {
+        c.set(k, v).unwrap();
+    }
+    c
+}
+
+/// Pixels more than `r` pixels from any change of the reference.
+fn away_from_edges(reference: &[f32], w: u32, h: u32, r: i64) -> Vec<usize> {
+    let (w, h) = (w as i64, h as i64);
+    (0..reference.len())
+        .filter(|&i| {
+            let (x, y) = (i as i64 % w, i as i64 / w);
+            (-r..=r).all(|dy| {
+                (-r..=r).all(|dx| {
+                    let (nx, ny) = (x + dx, y + dy);
+                    !(0..w).contains(&nx) || !(0..h).contains(&ny) || reference[(ny * w + nx) as usize] == reference[i]
+                })
+            })
+        })
+        .collect()
+}
+
+/// (disagreeing pixels away from edges, compared pixels, occluded pixels of the reference).
+fn disagreement(traced: &[f32], test: &[f32], w: u32, h: u32) -> (usize, usize, usize) {
+    let pixels = away_from_edges(traced, w, h, 3);
+    let bad = pixels.iter().filter(|&&i| (traced[i] >= 0.5) != (test[i] >= 0.5)).count();
+    (bad, pixels.len(), traced.iter().filter(|&&v| v == 0.0).count())
+}
+
+fn agrees_with_traced(lights: &str, method: ShadowMethod, what: &str, expect_in_plan: &str) {
+    let (ctx, mut r) = renderer(&scene(lights));
+    let traced = visibility(&mut r, ShadowChoice::hard(), W, H);
+    let test = visibility(&mut r, with(method, &[]), W, H);
+    let plan = r.last_plan().expect("plan").to_string();
+    assert!(plan.contains(expect_in_plan), "{plan}");
+    assert!(!plan.contains("shadow trace"), "no rays for a light on {method}:\n{plan}");
+    let (bad, compared, occluded) = disagreement(&traced, &test, W, H);
+    println!("{what} vs traced: {bad} of {compared} pixels away from edges disagree; {occluded} occluded");
+    assert!(occluded > 500 && compared > (W * H) as usize / 2, "the view must show a shadow");
+    assert!(bad * 1000 <= compared, "{what}: {bad} of {compared} disagree (over 0.1 %)");
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn a_sun_map_fitted_to_the_view_agrees_with_traced() {
+    agrees_with_traced(SUN, ShadowMethod::Map, "sun map", "shadow map (light 0, directional, 2048x2048, 3 of 3 draws)");
+}
+
+#[test]
+fn a_point_light_cube_map_agrees_with_traced() {
+    agrees_with_traced(POINT, ShadowMethod::Map, "cube map", "shadow map (light 0, cube, 6 x 2048x2048, 3 of 3 draws)");
+}
+
+#[test]
+fn sun_cascades_agree_with_traced() {
+    agrees_with_traced(SUN, ShadowMethod::Cascades, "4 cascades", "4 cascades to");
+}
+
+#[test]
+fn pcss_approaches_converged_traced_soft_shadows() {
+    // A sun 10 degrees wide: penumbrae a few pixels wide at the box's far side.
+    let sized = SUN.replace("irradiance", "angular_diameter_deg = 10.0\nirradiance");
+    let (ctx, mut r) = renderer(&scene(&sized));
+    let (w, h) = (160, 120);
+    // Reference: 4 accumulated frames of 64 rays per pixel.
+    let mut reference = Vec::new();
+    for _ in 0..4 {
+        reference = visibility(&mut r, ShadowChoice::soft(64), w, h);
+    }
+    let rmse = |v: &[f32]| {
+        (v.iter().zip(&reference).map(|(a, b)| ((a - b) as f64).powi(2)).sum::<f64>() / v.len() as f64).sqrt()
+    };
+    let pcss = visibility(&mut r, with(ShadowMethod::Map, &[("map.pcss", "true")]), w, h);
+    let hard_map = visibility(&mut r, with(ShadowMethod::Map, &[("map.pcss", "false"), ("map.pcf_radius", "0")]), w, h);
+    let hard = visibility(&mut r, ShadowChoice::hard(), w, h);
+    let (e_pcss, e_map, e_hard) = (rmse(&pcss), rmse(&hard_map), rmse(&hard));
+    println!(
+        "visibility RMSE against converged traced soft: PCSS {e_pcss:.4}, hard map {e_map:.4}, hard traced {e_hard:.4}"
+    );
+    assert!(pcss.iter().any(|&v| v > 0.05 && v < 0.95), "PCSS makes penumbrae");
+    assert!(e_pcss < 0.06, "PCSS within 0.06 visibility RMSE of converged traced soft shadows");
+    assert!(e_pcss < 0.8 * e_hard, "PCSS nearer the soft reference than hard traced shadows are");
+    assert!(e_pcss < e_map, "PCSS nearer the soft reference than the same map unfiltered");
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
+/// Thin poles over a 400 m ground plane under a low sun, seen from 1.6 m above it looking along it.
+const FIELD: &str = r#"
+[camera]
+eye = [0.0, 1.6, 0.0]
+target = [0.0, 1.0, -10.0]
+vfov_deg = 50.0
+[[lights]]
+type = "directional"
+direction = [0.6, -0.55, 0.3]
+irradiance = [2.0, 2.0, 2.0]
+[[objects]]
+shape = "plane"
+size = 400.0
+segments = 4
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [-1.0, 1.5, -4.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [1.0, 1.5, -6.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [-2.0, 1.5, -9.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [2.0, 1.5, -12.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [-3.0, 1.5, -16.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [3.0, 1.5, -20.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [-4.0, 1.5, -25.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [0.5, 1.5, -30.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [4.0, 1.5, -35.0]
+[[objects]]
+shape = "cube"
+size = 0.1
+scale = [1.0, 30.0, 1.0]
+translate = [-1.5, 1.5, -40.0]
+"#;
+
+#[test]
+fn cascades_cut_the_perspective_aliasing_of_one_map_over_a_large_ground() {
+    let (ctx, mut r) = renderer(FIELD);
+    let (w, h) = (240, 160);
+    let traced = visibility(&mut r, ShadowChoice::hard(), w, h);
+    let one = visibility(&mut r, with(ShadowMethod::Map, &[("map.resolution", "512"), ("map.pcf_radius", "0")]), w, h);
+    let four = visibility(
+        &mut r,
+        with(ShadowMethod::Cascades, &[("map.resolution", "512"), ("map.pcf_radius", "0"), ("cascades.count", "4")]),
+        w,
+        h,
+    );
+    let wrong = |v: &[f32]| traced.iter().zip(v).filter(|(a, b)| (**a >= 0.5) != (**b >= 0.5)).count();
+    let (e_one, e_four) = (wrong(&one), wrong(&four));
+    let occluded = traced.iter().filter(|&&v| v == 0.0).count();
+    println!(
+        "pixels whose shadow differs from traced: one 512^2 map {e_one}, 4 cascades of 512^2 {e_four} \
+         ({:.1}x fewer); {occluded} occluded",
+        e_one as f64 / e_four.max(1) as f64
+    );
+    assert!(occluded > 500, "the poles' shadows are in view");
+    assert!(e_one > 4 * e_four.max(1), "4 cascades cut the error of one map by more than 4x");
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn cascades_are_drawn_in_one_pass_from_the_casters_they_reach() {
+    let (ctx, r) = renderer(FIELD);
+    let mut s = RenderSettings::new(120, 80, OutputKind::SceneLinear);
+    s.shadows = vec![with(ShadowMethod::Cascades, &[("cascades.count", "3"), ("map.resolution", "256")])];
+    let plan = r.plan(&s).expect("plan").to_string();
+    let line = plan.lines().find(|l| l.contains("shadow map (light 0")).unwrap_or_else(|| panic!("{plan}"));
+    assert!(line.contains("3 cascades") && line.contains("3 x 256x256"), "{line}");
+    // The visibility layer is written by the resolve, after the map.
+    let order: Vec<_> = ["shadow map layers", "shadow map (", "shadow map resolve", "compose"]
+        .iter()
+        .map(|p| plan.find(p).unwrap_or_else(|| panic!("{p} missing:\n{plan}")))
+        .collect();
+    assert!(order.windows(2).all(|w| w[0] < w[1]), "{plan}");
+    drop(r);
+    common::assert_clean(&ctx);
+}

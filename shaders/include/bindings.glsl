@@ -25,6 +25,9 @@
 // shadows/map/debug.comp: one layer of a light's map, remapped for display
 #define MAP_DEBUG_DEPTH 0
 #define MAP_DEBUG_OUTPUT 1
+#define MAP_DEBUG_POSITION 2
+#define MAP_DEBUG_VISIBILITY 3
+#define MAP_DEBUG_LAYERS 4
 
 // compose.comp
 #define COMPOSE_POSITION 0
@@ -57,5 +60,14 @@
 
 // busy.comp: a pass of known cost, for tests and the timing calibration
 #define BUSY_OUTPUT 0
+
+// shadows/volumes/depth.frag: the G-buffer's depth copied into the volumes' depth-stencil image
+#define VOLUMES_DEPTH 0
+// shadows/volumes/resolve.comp: a light's visibility layer from its stencil count
+#define VOLUMES_POSITION 0
+#define VOLUMES_NORMAL 1
+#define VOLUMES_LIGHTS 2
+#define VOLUMES_STENCIL 3
+#define VOLUMES_VISIBILITY 4
 
 #endif

@@ -26,12 +26,23 @@ pub enum Access {
     ColorAttachmentWrite,
     /// Depth test and write (the depth attachment of a geometry pass).
     DepthAttachmentWrite,
+    /// Depth and stencil both attached and written (a combined depth-stencil image being filled).
+    DepthStencilAttachmentWrite,
+    /// Depth tested but not written, stencil tested and written (stencil shadow volumes counting
+    /// against a depth buffer filled before).
+    DepthReadStencilWrite,
+    /// The depth a `DepthReadStencilWrite` pass tests against, declared by the same pass beside
+    /// it (same layout), so the pass that wrote that depth is kept and ordered before it.
+    DepthTestRead,
     TransferWrite,
     /// Any later read, in any stage: what data uploaded once (scene buffers) is made visible
     /// to, so frames read it with no barrier of their own.
     AnyRead,
     /// Read back by a compute shader as a storage image (read-modify-write passes).
     ComputeShaderReadStorageImage,
+    /// The stencil aspect of a depth-stencil image sampled by a compute shader (a `usampler2D`):
+    /// the graph binds the image's stencil-aspect view.
+    ComputeShaderReadStencil,
     /// A swapchain image just acquired: contents undefined, usable once the acquire
     /// semaphore's wait (at the transfer stage, where umbra first writes it) has completed. Counted
     /// as a write so the first use orders itself after that stage.
@@ -76,6 +87,8 @@ impl Access {
                 | Access::ComputeShaderWrite
                 | Access::ColorAttachmentWrite
                 | Access::DepthAttachmentWrite
+                | Access::DepthStencilAttachmentWrite
+                | Access::DepthReadStencilWrite
                 | Access::TransferWrite
                 | Access::AcquiredImage
                 | Access::AccelerationStructureBuildScratch
@@ -171,6 +184,30 @@ impl Access {
                 B::empty(),
                 Applies::Image,
             ),
+            Access::DepthStencilAttachmentWrite => (
+                S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS,
+                A::DEPTH_STENCIL_ATTACHMENT_READ | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                L::DEPTH_STENCIL_ATTACHMENT_OPTIMAL,
+                I::DEPTH_STENCIL_ATTACHMENT,
+                B::empty(),
+                Applies::Image,
+            ),
+            Access::DepthReadStencilWrite => (
+                S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS,
+                A::DEPTH_STENCIL_ATTACHMENT_READ | A::DEPTH_STENCIL_ATTACHMENT_WRITE,
+                L::DEPTH_READ_ONLY_STENCIL_ATTACHMENT_OPTIMAL,
+                I::DEPTH_STENCIL_ATTACHMENT,
+                B::empty(),
+                Applies::Image,
+            ),
+            Access::DepthTestRead => (
+                S::EARLY_FRAGMENT_TESTS | S::LATE_FRAGMENT_TESTS,
+                A::DEPTH_STENCIL_ATTACHMENT_READ,
+                L::DEPTH_READ_ONLY_STENCIL_ATTACHMENT_OPTIMAL,
+                I::DEPTH_STENCIL_ATTACHMENT,
+                B::empty(),
+                Applies::Image,
+            ),
             Access::TransferWrite => (
                 S::ALL_TRANSFER,
                 A::TRANSFER_WRITE,
@@ -183,6 +220,14 @@ impl Access {
             Access::ComputeShaderReadStorageImage => {
                 (S::COMPUTE_SHADER, A::SHADER_STORAGE_READ, L::GENERAL, I::STORAGE, B::empty(), Applies::Image)
             }
+            Access::ComputeShaderReadStencil => (
+                S::COMPUTE_SHADER,
+                A::SHADER_SAMPLED_READ,
+                L::DEPTH_STENCIL_READ_ONLY_OPTIMAL,
+                I::SAMPLED,
+                B::empty(),
+                Applies::Image,
+            ),
             Access::AcquiredImage => (S::ALL_TRANSFER, A::NONE, L::UNDEFINED, I::empty(), B::empty(), Applies::Image),
             Access::Present => (S::NONE, A::NONE, L::PRESENT_SRC_KHR, I::empty(), B::empty(), Applies::Image),
             // Build inputs are read through device addresses, as shader reads of the build stage.
@@ -230,6 +275,12 @@ impl Access {
         AccessInfo { stage, access, layout, image_usage, buffer_usage, applies }
     }
 
+    /// Whether a descriptor for this access views the stencil aspect of a depth-stencil image
+    /// (a sampled descriptor may view one aspect only).
+    pub fn views_stencil(self) -> bool {
+        self == Access::ComputeShaderReadStencil
+    }
+
     pub fn applies_to_image(self) -> bool {
         self.info().applies != Applies::Buffer
     }
@@ -259,9 +310,13 @@ mod tests {
         Access::ComputeShaderWrite,
         Access::ColorAttachmentWrite,
         Access::DepthAttachmentWrite,
+        Access::DepthStencilAttachmentWrite,
+        Access::DepthReadStencilWrite,
+        Access::DepthTestRead,
         Access::TransferWrite,
         Access::AnyRead,
         Access::ComputeShaderReadStorageImage,
+        Access::ComputeShaderReadStencil,
         Access::AcquiredImage,
         Access::Present,
         Access::AccelerationStructureBuildInput,

@@ -172,7 +172,8 @@ impl TransientCache {
                     let usage = vk::ImageUsageFlags::from_raw(key.image_usage);
                     list.push(Image::new(&self.ctx, name, d, usage)?);
                 }
-                Ok(External::Image { image: list[index].raw, view: list[index].view })
+                let image = &list[index];
+                Ok(External::Image { image: image.raw, view: image.view, stencil: image.stencil_view })
             }
             ResourceDesc::Buffer(b) => {
                 let list = self.buffers.entry(key).or_default();
@@ -363,7 +364,20 @@ pub struct PassContext<'e> {
 impl PassContext<'_> {
     pub fn image(&self, r: Ref<ImageKind>) -> (vk::Image, vk::ImageView) {
         match self.resolved[r.id] {
-            Some(External::Image { image, view }) => (image, view),
+            Some(External::Image { image, view, .. }) => (image, view),
+            _ => unreachable!("image handle resolves to an image"),
+        }
+    }
+
+    /// The view a descriptor for `r` names: the stencil-aspect view for accesses that sample
+    /// stencil, else the image's view.
+    pub fn descriptor_view(&self, r: Ref<ImageKind>) -> vk::ImageView {
+        match self.resolved[r.id] {
+            Some(External::Image { stencil, .. }) if r.access.views_stencil() => {
+                assert_ne!(stencil, vk::ImageView::null(), "a stencil read of an image without a stencil view");
+                stencil
+            }
+            Some(External::Image { view, .. }) => view,
             _ => unreachable!("image handle resolves to an image"),
         }
     }
@@ -393,7 +407,9 @@ impl PassContext<'_> {
         for &(_, b) in bound {
             match b {
                 Bound::Image(r) => image_infos.push(
-                    vk::DescriptorImageInfo::default().image_view(self.image(r).1).image_layout(r.access.info().layout),
+                    vk::DescriptorImageInfo::default()
+                        .image_view(self.descriptor_view(r))
+                        .image_layout(r.access.info().layout),
                 ),
                 Bound::Buffer(r) => buffer_infos
                     .push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(0).range(vk::WHOLE_SIZE)),

@@ -64,10 +64,11 @@ impl<K> Handle<K> {
     }
 }
 
-/// A Vulkan object that lives outside the graph.
+/// A Vulkan object that lives outside the graph. An image's `stencil` is a view of its stencil
+/// aspect alone (what accesses that `Access::views_stencil` bind), or null.
 #[derive(Clone, Copy, Debug)]
 pub enum External {
-    Image { image: vk::Image, view: vk::ImageView },
+    Image { image: vk::Image, view: vk::ImageView, stencil: vk::ImageView },
     Buffer { buffer: vk::Buffer },
 }
 
@@ -147,7 +148,7 @@ impl<'a> RenderGraph<'a> {
         access: Access,
     ) -> Handle<ImageKind> {
         assert!(access.applies_to_image(), "{name}: {access:?} is not an image access");
-        let external = Some((External::Image { image, view }, access));
+        let external = Some((External::Image { image, view, stencil: vk::ImageView::null() }, access));
         self.declare(name, ResourceDesc::Image(desc), external, usage.as_raw())
     }
 
@@ -180,7 +181,11 @@ impl<'a> RenderGraph<'a> {
         image: &crate::vk::Image,
         access: Access,
     ) -> Handle<ImageKind> {
-        self.import_image(name, image.desc, (image.raw, image.view, image.usage), access)
+        let handle = self.import_image(name, image.desc, (image.raw, image.view, image.usage), access);
+        if let Some((External::Image { stencil, .. }, _)) = &mut self.resources[handle.id].imported {
+            *stencil = image.stencil_view;
+        }
+        handle
     }
 
     /// Marks a result as leaving the graph, to be used next with `access`: the passes that lead

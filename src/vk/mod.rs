@@ -11,7 +11,10 @@ mod swapchain;
 pub use capabilities::{Capabilities, DeviceListing};
 pub use context::{list_devices, GpuContext, GpuOptions, WindowSurface};
 pub use debug::ValidationLog;
-pub use pipeline::{ComputePipeline, DescriptorKind, GraphicsPipeline, GraphicsPipelineDesc, PipelineLayout};
+pub use pipeline::{
+    ComputePipeline, DepthState, DescriptorKind, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc,
+    PipelineLayout, StencilState,
+};
 pub use resources::{subresource_range, Buffer, Image, ImageDesc};
 pub use swapchain::{Acquired, Swapchain, SWAPCHAIN_USAGE};
 

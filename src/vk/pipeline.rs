@@ -188,6 +188,48 @@ pub struct GraphicsPipelineDesc<'a> {
     pub dynamic_depth_bias: bool,
 }
 
+/// Depth test and write of a graphics pipeline.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DepthState {
+    pub test: bool,
+    pub write: bool,
+    pub compare: vk::CompareOp,
+}
+
+/// A two-sided stencil test: the ops of front- and back-facing primitives (compare op, masks
+/// and reference are each face's `vk::StencilOpState`).
+#[derive(Clone, Copy, Debug)]
+pub struct StencilState {
+    pub front: vk::StencilOpState,
+    pub back: vk::StencilOpState,
+}
+
+/// The rest of a graphics pipeline's state, for the pipelines that need more than
+/// `GraphicsPipelineDesc` says (shadow volumes: a geometry stage with adjacency, a two-sided
+/// stencil test, depth tested but not written). `Default` is what `GraphicsPipeline::new` builds.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct GraphicsExtras<'a> {
+    /// A geometry stage between the vertex and fragment stages (device feature
+    /// `geometry_shader`, see `Capabilities`).
+    pub geometry: Option<&'a [u8]>,
+    /// None: TRIANGLE_LIST.
+    pub topology: Option<vk::PrimitiveTopology>,
+    /// None: test and write when there is a depth format, `GREATER` (reversed depth).
+    pub depth: Option<DepthState>,
+    /// The stencil attachment's format (the depth-stencil format itself when both are one
+    /// image); None: no stencil attachment.
+    pub stencil_format: Option<vk::Format>,
+    /// None: no stencil test.
+    pub stencil: Option<StencilState>,
+    /// Clamp depth instead of clipping at the near plane (device feature `depth_clamp`).
+    pub depth_clamp: bool,
+    /// Colour attachments keep their contents (a write mask of nothing).
+    pub no_color_writes: bool,
+    /// Multiview: each draw is rendered once per set bit, into that layer of the attachments
+    /// (`gl_ViewIndex` tells the shaders which); 0 is plain rendering.
+    pub view_mask: u32,
+}
+
 pub struct GraphicsPipeline {
     pub name: &'static str,
     pub pipeline: vk::Pipeline,
@@ -196,7 +238,7 @@ pub struct GraphicsPipeline {
 
 impl GraphicsPipeline {
     pub fn new(ctx: &Arc<GpuContext>, desc: &GraphicsPipelineDesc<'_>) -> GpuResult<GraphicsPipeline> {
-        GraphicsPipeline::multiview(ctx, desc, 0)
+        GraphicsPipeline::with_extras(ctx, desc, &GraphicsExtras::default())
     }
 
     /// A pipeline for dynamic rendering with `view_mask` (multiview: each draw is rendered
@@ -207,31 +249,46 @@ impl GraphicsPipeline {
         desc: &GraphicsPipelineDesc<'_>,
         view_mask: u32,
     ) -> GpuResult<GraphicsPipeline> {
+        GraphicsPipeline::with_extras(ctx, desc, &GraphicsExtras { view_mask, ..Default::default() })
+    }
+
+    /// A pipeline with the state of `desc` and `extras`. A `desc` with no attributes has no
+    /// vertex input at all (shaders that make their vertices from `gl_VertexIndex`).
+    pub fn with_extras(
+        ctx: &Arc<GpuContext>,
+        desc: &GraphicsPipelineDesc<'_>,
+        extras: &GraphicsExtras<'_>,
+    ) -> GpuResult<GraphicsPipeline> {
         let layout = PipelineLayout::new(ctx, desc.bindings, vk::ShaderStageFlags::ALL_GRAPHICS, desc.push_bytes)?;
-        let vs = shader_module(ctx, desc.vertex)?;
-        let fs = match desc.fragment {
-            Some(code) => match shader_module(ctx, code) {
-                Ok(m) => Some(m),
+        // Every module made so far, destroyed whether or not creation succeeds.
+        let mut modules: Vec<(vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
+        let destroy = |modules: &[(vk::ShaderStageFlags, vk::ShaderModule)]| {
+            for &(_, m) in modules {
+                // SAFETY: no pipeline creation is in flight with these modules.
+                unsafe { ctx.device.destroy_shader_module(m, None) };
+            }
+        };
+        let code = [
+            (vk::ShaderStageFlags::VERTEX, Some(desc.vertex)),
+            (vk::ShaderStageFlags::GEOMETRY, extras.geometry),
+            (vk::ShaderStageFlags::FRAGMENT, desc.fragment),
+        ];
+        for (stage, code) in code {
+            let Some(code) = code else { continue };
+            match shader_module(ctx, code) {
+                Ok(m) => modules.push((stage, m)),
                 Err(e) => {
-                    // SAFETY: the vertex module is unused.
-                    unsafe { ctx.device.destroy_shader_module(vs, None) };
+                    destroy(&modules);
                     return Err(e);
                 }
-            },
-            None => None,
-        };
-        let mut stages = vec![vk::PipelineShaderStageCreateInfo::default()
-            .stage(vk::ShaderStageFlags::VERTEX)
-            .module(vs)
-            .name(c"main")];
-        if let Some(fs) = fs {
-            stages.push(
-                vk::PipelineShaderStageCreateInfo::default()
-                    .stage(vk::ShaderStageFlags::FRAGMENT)
-                    .module(fs)
-                    .name(c"main"),
-            );
+            }
         }
+        let stages: Vec<_> = modules
+            .iter()
+            .map(|&(stage, module)| {
+                vk::PipelineShaderStageCreateInfo::default().stage(stage).module(module).name(c"main")
+            })
+            .collect();
         let vb = [vk::VertexInputBindingDescription {
             binding: 0,
             stride: desc.vertex_stride,
@@ -247,29 +304,41 @@ impl GraphicsPipeline {
                 offset,
             })
             .collect();
+        let bindings: &[_] = if attrs.is_empty() { &[] } else { &vb };
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
-            .vertex_binding_descriptions(&vb)
+            .vertex_binding_descriptions(bindings)
             .vertex_attribute_descriptions(&attrs);
-        let assembly =
-            vk::PipelineInputAssemblyStateCreateInfo::default().topology(vk::PrimitiveTopology::TRIANGLE_LIST);
+        let assembly = vk::PipelineInputAssemblyStateCreateInfo::default()
+            .topology(extras.topology.unwrap_or(vk::PrimitiveTopology::TRIANGLE_LIST));
         let viewport = vk::PipelineViewportStateCreateInfo::default().viewport_count(1).scissor_count(1);
         let raster = vk::PipelineRasterizationStateCreateInfo::default()
             .polygon_mode(vk::PolygonMode::FILL)
             .cull_mode(if desc.cull_back_faces { vk::CullModeFlags::BACK } else { vk::CullModeFlags::NONE })
             .front_face(vk::FrontFace::COUNTER_CLOCKWISE)
             .depth_bias_enable(desc.dynamic_depth_bias)
+            .depth_clamp_enable(extras.depth_clamp)
             .line_width(1.0);
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        let depth = vk::PipelineDepthStencilStateCreateInfo::default()
-            .depth_test_enable(desc.depth_format.is_some())
-            .depth_write_enable(desc.depth_format.is_some())
-            // Reversed depth (see renderer::CameraMatrices): nearer is greater.
-            .depth_compare_op(vk::CompareOp::GREATER);
+        // Reversed depth (see gpu_scene::CameraMatrices): nearer is greater.
+        let has_depth = desc.depth_format.is_some();
+        let depth_state =
+            extras.depth.unwrap_or(DepthState { test: has_depth, write: has_depth, compare: vk::CompareOp::GREATER });
+        let mut depth = vk::PipelineDepthStencilStateCreateInfo::default()
+            .depth_test_enable(depth_state.test)
+            .depth_write_enable(depth_state.write)
+            .depth_compare_op(depth_state.compare);
+        if let Some(stencil) = extras.stencil {
+            depth = depth.stencil_test_enable(true).front(stencil.front).back(stencil.back);
+        }
+        let write_mask = match extras.no_color_writes {
+            true => vk::ColorComponentFlags::empty(),
+            false => vk::ColorComponentFlags::RGBA,
+        };
         let blend_attachments: Vec<_> = desc
             .color_formats
             .iter()
-            .map(|_| vk::PipelineColorBlendAttachmentState::default().color_write_mask(vk::ColorComponentFlags::RGBA))
+            .map(|_| vk::PipelineColorBlendAttachmentState::default().color_write_mask(write_mask))
             .collect();
         let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
         let mut dynamic_states = vec![vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];
@@ -278,9 +347,10 @@ impl GraphicsPipeline {
         }
         let dynamic = vk::PipelineDynamicStateCreateInfo::default().dynamic_states(&dynamic_states);
         let mut rendering = vk::PipelineRenderingCreateInfo::default()
-            .view_mask(view_mask)
+            .view_mask(extras.view_mask)
             .color_attachment_formats(desc.color_formats)
-            .depth_attachment_format(desc.depth_format.unwrap_or(vk::Format::UNDEFINED));
+            .depth_attachment_format(desc.depth_format.unwrap_or(vk::Format::UNDEFINED))
+            .stencil_attachment_format(extras.stencil_format.unwrap_or(vk::Format::UNDEFINED));
         let info = [vk::GraphicsPipelineCreateInfo::default()
             .stages(&stages)
             .vertex_input_state(&vertex_input)
@@ -294,14 +364,9 @@ impl GraphicsPipeline {
             .layout(layout.layout)
             .push_next(&mut rendering)];
         // SAFETY: every pointer in `info` outlives the call; modules are destroyed after it.
-        let pipeline = unsafe {
-            let p = ctx.device.create_graphics_pipelines(vk::PipelineCache::null(), &info, None);
-            ctx.device.destroy_shader_module(vs, None);
-            if let Some(fs) = fs {
-                ctx.device.destroy_shader_module(fs, None);
-            }
-            p.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0]
-        };
+        let pipeline = unsafe { ctx.device.create_graphics_pipelines(vk::PipelineCache::null(), &info, None) };
+        destroy(&modules);
+        let pipeline = pipeline.map_err(|(_, e)| e).vk("vkCreateGraphicsPipelines")?[0];
         Ok(GraphicsPipeline { name: desc.name, pipeline, layout })
     }
 }

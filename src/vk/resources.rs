@@ -141,6 +141,9 @@ impl ImageDesc {
 pub struct Image {
     pub raw: vk::Image,
     pub view: vk::ImageView,
+    /// A view of the stencil aspect alone, for images with stencil that shaders sample (a
+    /// sampled descriptor may view one aspect only); null otherwise.
+    pub stencil_view: vk::ImageView,
     pub desc: ImageDesc,
     pub usage: vk::ImageUsageFlags,
     allocation: Option<Allocation>,
@@ -173,8 +176,15 @@ impl Image {
                 }
             };
             // From here the Image owns raw and allocation, so an early return frees both.
-            let mut image =
-                Image { raw, view: vk::ImageView::null(), desc, usage, allocation: Some(allocation), ctx: ctx.clone() };
+            let mut image = Image {
+                raw,
+                view: vk::ImageView::null(),
+                stencil_view: vk::ImageView::null(),
+                desc,
+                usage,
+                allocation: Some(allocation),
+                ctx: ctx.clone(),
+            };
             // Images used only by transfers get no view (a view needs a shader or attachment use).
             if usage.intersects(!(vk::ImageUsageFlags::TRANSFER_SRC | vk::ImageUsageFlags::TRANSFER_DST)) {
                 let view_info = vk::ImageViewCreateInfo::default()
@@ -183,6 +193,13 @@ impl Image {
                     .format(desc.format)
                     .subresource_range(desc.subresource_range());
                 image.view = ctx.device.create_image_view(&view_info, None).vk("vkCreateImageView")?;
+                if desc.aspect().contains(vk::ImageAspectFlags::STENCIL) && usage.contains(vk::ImageUsageFlags::SAMPLED)
+                {
+                    let stencil_range = subresource_range(vk::ImageAspectFlags::STENCIL).layer_count(desc.layers);
+                    let stencil_info = view_info.subresource_range(stencil_range);
+                    image.stencil_view =
+                        ctx.device.create_image_view(&stencil_info, None).vk("vkCreateImageView (stencil)")?;
+                }
             }
             Ok(image)
         }
@@ -216,8 +233,10 @@ impl Drop for Image {
     fn drop(&mut self) {
         // SAFETY: callers wait for the GPU before dropping resources it may still use.
         unsafe {
-            if self.view != vk::ImageView::null() {
-                self.ctx.device.destroy_image_view(self.view, None);
+            for view in [self.view, self.stencil_view] {
+                if view != vk::ImageView::null() {
+                    self.ctx.device.destroy_image_view(view, None);
+                }
             }
             self.ctx.device.destroy_image(self.raw, None);
         }

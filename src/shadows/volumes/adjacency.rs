@@ -132,7 +132,7 @@ impl Adjacency {
     /// triangle that faces the light is on their left. Each is (from, to) over `positions`.
     pub fn silhouette(&self, light: Vec3) -> Vec<(u32, u32)> {
         let p = |i: u32| self.positions[i as usize];
-        let faces = |a: u32, b: u32, c: u32| (p(b) - p(a)).cross(p(c) - p(a)).dot(light - p(a)) > 0.0;
+        let faces = |a: u32, b: u32, c: u32| super::extrude::faces_light(p(a), p(b), p(c), light.extend(1.0));
         let mut edges = Vec::new();
         for (t, tri) in self.triangles.iter().enumerate() {
             if !faces(tri[0], tri[1], tri[2]) {

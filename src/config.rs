@@ -198,16 +198,24 @@ pub enum DebugView {
     Position,
     /// Light N's visibility (lights count from 0 in file order).
     Visibility(u32),
+    /// Layer (cube face, cascade) C of light N's shadow map, as closeness to the light.
+    ShadowMap {
+        light: u32,
+        layer: u32,
+    },
+    /// Light N's cascades: each pixel tinted by the cascade that shades it.
+    Cascades(u32),
 }
 
 impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
-    pub const NAMES: &'static str = "albedo, normal, depth, position, visibility[:N]";
+    pub const NAMES: &'static str = "albedo, normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N]";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
         match self {
-            DebugView::Visibility(n) => Some(n as usize),
+            DebugView::Visibility(n) | DebugView::Cascades(n) => Some(n as usize),
+            DebugView::ShadowMap { light, .. } => Some(light as usize),
             _ => None,
         }
     }
@@ -233,6 +241,17 @@ impl std::str::FromStr for DebugView {
             "depth" => plain(DebugView::Depth),
             "position" => plain(DebugView::Position),
             "visibility" => Ok(DebugView::Visibility(light(arg)?)),
+            "cascades" => Ok(DebugView::Cascades(light(arg)?)),
+            "shadow-map" => {
+                let (n, c) = match arg.map(|a| a.split_once(':')) {
+                    Some(Some((n, c))) => (Some(n), Some(c)),
+                    _ => (arg, None),
+                };
+                let layer = c.map_or(Ok(0), |c| {
+                    c.parse().map_err(|_| format!("{text:?}: the layer (cube face, cascade) is a number from 0"))
+                })?;
+                Ok(DebugView::ShadowMap { light: light(n)?, layer })
+            }
             _ => Err(format!("unknown debug view {text:?}: use one of {}", DebugView::NAMES)),
         }
     }
@@ -246,6 +265,8 @@ impl std::fmt::Display for DebugView {
             DebugView::Depth => f.write_str("depth"),
             DebugView::Position => f.write_str("position"),
             DebugView::Visibility(n) => write!(f, "visibility:{n}"),
+            DebugView::ShadowMap { light, layer } => write!(f, "shadow-map:{light}:{layer}"),
+            DebugView::Cascades(n) => write!(f, "cascades:{n}"),
         }
     }
 }
@@ -389,7 +410,16 @@ mod tests {
         assert!("depth:1".parse::<DebugView>().unwrap_err().contains("takes no argument"));
         assert!("visibility:x".parse::<DebugView>().unwrap_err().contains("counted from 0"));
         assert!("shadows".parse::<DebugView>().unwrap_err().contains("albedo"));
-        for v in [DebugView::Albedo, DebugView::Visibility(3)] {
+        assert_eq!("shadow-map".parse(), Ok(DebugView::ShadowMap { light: 0, layer: 0 }));
+        assert_eq!("shadow-map:2:5".parse(), Ok(DebugView::ShadowMap { light: 2, layer: 5 }));
+        assert_eq!("cascades:1".parse(), Ok(DebugView::Cascades(1)));
+        assert!("shadow-map:1:x".parse::<DebugView>().unwrap_err().contains("layer"));
+        for v in [
+            DebugView::Albedo,
+            DebugView::Visibility(3),
+            DebugView::ShadowMap { light: 1, layer: 2 },
+            DebugView::Cascades(0),
+        ] {
             assert_eq!(v.to_string().parse(), Ok(v));
         }
     }

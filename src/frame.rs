@@ -81,6 +81,7 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         camera: &camera,
         extent,
         frame_index: settings.frame_index,
+        debug_view: settings.debug_view,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan, prepared);
     let lit = lighting_stage(&mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history);
@@ -121,12 +122,20 @@ fn lighting_stage<'a>(
     plan: &ShadowPlan,
     gbuffer: &GBuffer,
     handles: &SceneHandles,
-    visibility: Option<(Handle<ImageKind>, Handle<BufferKind>)>,
+    visibility: Option<shadows::Visibility>,
     camera: &CameraMatrices,
     history: Option<History<'a>>,
 ) -> Lit<'a> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let display = settings.output == OutputKind::Display;
+    // A technique's own view (checked by the renderer before the graph was built).
+    let (visibility, technique_view) = match visibility {
+        Some(v) => (Some((v.target, v.table)), v.debug),
+        None => (None, None),
+    };
+    if let Some(image) = technique_view {
+        return Lit { image, debug: true, history: None };
+    }
     if let Some(view) = settings.debug_view {
         let layer = view.light().and_then(|l| plan.layers.layers.get(l).copied().flatten());
         let inputs = DebugInputs {

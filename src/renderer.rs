@@ -132,6 +132,9 @@ impl Renderer {
             false => None,
         };
         let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings, volume_scene);
+        if let Some(view) = settings.debug_view {
+            crate::shadows::check_debug_view(view, &plan, &self.gpu_scene).map_err(GpuError::Unsupported)?;
+        }
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
         visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())?;
         self.note_fallbacks(&plan);

@@ -122,7 +122,27 @@ fn a_sun_map_fitted_to_the_view_agrees_with_traced() {
 
 #[test]
 fn a_point_light_cube_map_agrees_with_traced() {
-    agrees_with_traced(POINT, ShadowMethod::Map, "cube map", "shadow map (light 0, cube, 6 x 2048x2048, 3 of 3 draws)");
+    agrees_with_traced(POINT, ShadowMethod::Map, "cube map", "shadow map (light 0, cube, 6 x 2048x2048, ");
+}
+
+/// Each cube face holds what lies in its direction: the floor fills the face below the light
+/// (-Y, layer 3) and is absent from the face above (+Y, layer 2); draws are culled per face.
+#[test]
+fn cube_faces_hold_what_lies_in_their_direction() {
+    let (ctx, mut r) = renderer(&scene(POINT));
+    let face = |r: &mut Renderer, layer: u32| {
+        let mut s = RenderSettings::new(64, 48, OutputKind::SceneLinear);
+        s.debug_view = Some(DebugView::ShadowMap { light: 0, layer });
+        s.shadows = vec![with(ShadowMethod::Map, &[("map.resolution", "256")])];
+        let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
+        pixels.chunks_exact(4).filter(|p| p[0] > 0.0).count()
+    };
+    let (below, above) = (face(&mut r, 3), face(&mut r, 2));
+    assert_eq!((below, above), (64 * 48, 0), "texels drawn: -Y face {below}, +Y face {above}");
+    let plan = r.last_plan().expect("plan").to_string();
+    assert!(plan.contains("cube, 6 x 256x256, 1+1+0+3+1+2 of 3 draws"), "{plan}");
+    drop(r);
+    common::assert_clean(&ctx);
 }
 
 #[test]
@@ -265,6 +285,37 @@ fn cascades_are_drawn_in_one_pass_from_the_casters_they_reach() {
         .map(|p| plan.find(p).unwrap_or_else(|| panic!("{p} missing:\n{plan}")))
         .collect();
     assert!(order.windows(2).all(|w| w[0] < w[1]), "{plan}");
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn the_cascades_view_tints_by_cascade_and_views_of_missing_maps_are_refused() {
+    let (ctx, mut r) = renderer(FIELD);
+    let mut s = RenderSettings::new(120, 80, OutputKind::SceneLinear);
+    s.shadows = vec![with(ShadowMethod::Cascades, &[("map.resolution", "256")])];
+    s.debug_view = Some(DebugView::Cascades(0));
+    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("cascades view") else { panic!("float frame") };
+    let mut tints: Vec<[u32; 3]> = pixels
+        .chunks_exact(4)
+        .filter(|p| p[0] + p[1] + p[2] > 0.5)
+        .map(|p| {
+            let m = p[0].max(p[1]).max(p[2]);
+            [(p[0] / m * 4.0).round() as u32, (p[1] / m * 4.0).round() as u32, (p[2] / m * 4.0).round() as u32]
+        })
+        .collect();
+    tints.sort();
+    tints.dedup();
+    assert!(tints.len() >= 3, "the ground in view spans several cascades: {tints:?}");
+    // A light without a map, or a layer it does not have: a clear refusal, no frame.
+    s.shadows = vec![ShadowChoice::hard()];
+    s.debug_view = Some(DebugView::ShadowMap { light: 0, layer: 0 });
+    let err = r.render(&s).err().expect("refused").to_string();
+    assert!(err.contains("light 0 has no shadow map"), "{err}");
+    s.shadows = vec![with(ShadowMethod::Map, &[])];
+    s.debug_view = Some(DebugView::ShadowMap { light: 0, layer: 1 });
+    let err = r.render(&s).err().expect("refused").to_string();
+    assert!(err.contains("has 1 layer(s)"), "{err}");
     drop(r);
     common::assert_clean(&ctx);
 }

@@ -60,6 +60,8 @@ fn shader_view(view: DebugView) -> u32 {
         DebugView::Depth => 2,
         DebugView::Position => 3,
         DebugView::Visibility(_) => 4,
+        // Written by the technique itself (`shadows::add`), never by this pass.
+        DebugView::ShadowMap { .. } | DebugView::Cascades(_) => unreachable!("a technique's own view"),
     }
 }
 
@@ -74,7 +76,7 @@ pub fn add<'a>(
     let source = match inputs.view {
         DebugView::Albedo => &gbuffer.material,
         DebugView::Normal => &gbuffer.normal,
-        DebugView::Depth | DebugView::Position | DebugView::Visibility(_) => &gbuffer.position,
+        _ => &gbuffer.position,
     };
     let mut pass = graph.add_pass("debug view");
     let mut bound = vec![

@@ -37,6 +37,44 @@ pub struct FrameInputs<'h, 'a> {
     pub extent: vk::Extent2D,
     /// Seeds stochastic samples, so successive frames draw fresh ones.
     pub frame_index: u32,
+    /// The frame's debug view: a technique draws its own (`shadow-map`, `cascades`).
+    pub debug_view: Option<DebugView>,
+}
+
+/// What the visibility stage hands on: the target and its light table, and a technique's own
+/// debug view when the frame shows one.
+pub struct Visibility {
+    pub target: Handle<crate::graph::ImageKind>,
+    pub table: Handle<BufferKind>,
+    pub debug: Option<Handle<crate::graph::ImageKind>>,
+}
+
+/// Whether `view` is drawn by a technique, and that technique serves its light this frame;
+/// the reason it cannot be shown otherwise.
+pub fn check_debug_view(view: DebugView, plan: &ShadowPlan, scene: &SceneGpu) -> Result<(), String> {
+    let find = |light: u32, list: &[Served]| list.iter().any(|s| s.light == light);
+    match view {
+        DebugView::ShadowMap { light, layer } => {
+            let layers = if find(light, &plan.map) {
+                match scene.local_lights.get(light as usize) {
+                    Some(Light::Point { .. }) => 6,
+                    _ => 1,
+                }
+            } else if let Some(s) = plan.cascades.iter().find(|s| s.light == light) {
+                s.choice.cascades.count
+            } else {
+                return Err(format!("--debug-view {view}: light {light} has no shadow map this frame (its method is not map or cascades, or it cannot use one)"));
+            };
+            if layer >= layers {
+                return Err(format!("--debug-view {view}: light {light}'s map has {layers} layer(s), counted from 0"));
+            }
+            Ok(())
+        }
+        DebugView::Cascades(light) if !find(light, &plan.cascades) => {
+            Err(format!("--debug-view {view}: light {light} does not use cascades this frame"))
+        }
+        _ => Ok(()),
+    }
 }
 
 /// One light a technique serves this frame: which light, its layer of the target, its
@@ -190,7 +228,7 @@ pub fn add<'a>(
     frame: &FrameInputs<'_, 'a>,
     plan: &ShadowPlan,
     prepared: Prepared<'a>,
-) -> Option<(Handle<crate::graph::ImageKind>, Handle<BufferKind>)> {
+) -> Option<Visibility> {
     use crate::gpu_scene::SCENE_ACCESS;
     use crate::passes::visibility;
     if plan.layers.count() == 0 {
@@ -198,9 +236,10 @@ pub fn add<'a>(
     }
     let table = visibility::add_light_table(g, &plan.layers);
     let mut target = visibility::create_target(g, frame.extent, plan.layers.count());
+    let mut debug = None;
     if let Some(pipelines) = prepared.map {
-        map::add(g, frame, pipelines, &plan.map, &mut target);
-        cascades::add(g, frame, pipelines, &plan.cascades, &mut target);
+        debug = debug.or(map::add(g, frame, pipelines, &plan.map, &mut target));
+        debug = debug.or(cascades::add(g, frame, pipelines, &plan.cascades, &mut target));
     }
     if let Some((pipelines, scene)) = prepared.volumes.filter(|_| !plan.volumes.is_empty()) {
         volumes::add(g, frame, pipelines, scene, &plan.volumes, &mut target);
@@ -221,5 +260,5 @@ pub fn add<'a>(
             }
         }
     }
-    Some((target, table))
+    Some(Visibility { target, table, debug })
 }

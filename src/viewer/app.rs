@@ -216,6 +216,12 @@ impl App {
                 shadows: (0..o.scene.lights.len())
                     .map(|i| o.scene.light_shadows.get(i).copied().unwrap_or_default())
                     .collect(),
+                directional: o
+                    .scene
+                    .lights
+                    .iter()
+                    .map(|l| matches!(l, crate::scene::Light::Directional { .. }))
+                    .collect(),
                 ..ViewerSettings::new(o.scene.lights.len())
             },
             renderer,

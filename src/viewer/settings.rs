@@ -7,19 +7,25 @@ use crate::config::ShadowBackend;
 use crate::config::{OutputKind, RenderSettings, ShadowChoice, ShadowMethod, TracedParams};
 use crate::scene::{Camera, Light};
 
-const VIEWS: [Option<DebugView>; 6] = [
+/// The views V cycles through; the light-specific ones show the selected light, and are
+/// skipped where its technique has nothing to show.
+const VIEWS: [Option<DebugView>; 8] = [
     None,
     Some(DebugView::Albedo),
     Some(DebugView::Normal),
     Some(DebugView::Depth),
     Some(DebugView::Position),
     Some(DebugView::Visibility(0)),
+    Some(DebugView::ShadowMap { light: 0, layer: 0 }),
+    Some(DebugView::Cascades(0)),
 ];
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct ViewerSettings {
     pub selected_light: usize,
     pub shadows: Vec<ShadowChoice>,
+    /// Which lights are directional (cascades serve only those).
+    pub directional: Vec<bool>,
     pub view: usize,
     pub overlay: bool,
     pub exposure_ev: f32,
@@ -37,6 +43,7 @@ impl ViewerSettings {
         ViewerSettings {
             selected_light: 0,
             shadows: vec![ShadowChoice::default(); lights],
+            directional: vec![false; lights],
             view: 0,
             overlay: true,
             exposure_ev: 0.0,
@@ -47,10 +54,31 @@ impl ViewerSettings {
 
     /// The debug view; the visibility view shows the selected light.
     pub fn debug_view(&self) -> Option<DebugView> {
-        match VIEWS[self.view] {
-            Some(DebugView::Visibility(_)) => Some(DebugView::Visibility(self.selected_light as u32)),
+        self.view_at(self.view)
+    }
+
+    /// View `i` of `VIEWS` for the selected light, or None where it has nothing to show.
+    fn view_at(&self, i: usize) -> Option<DebugView> {
+        let light = self.selected_light as u32;
+        let method = self.shadows.get(self.selected_light).map(|c| c.method);
+        let directional = self.directional.get(self.selected_light).copied().unwrap_or(false);
+        let cascades = method == Some(ShadowMethod::Cascades) && directional;
+        match VIEWS[i] {
+            Some(DebugView::Visibility(_)) => Some(DebugView::Visibility(light)),
+            Some(DebugView::ShadowMap { .. }) => {
+                (method == Some(ShadowMethod::Map) || cascades).then_some(DebugView::ShadowMap { light, layer: 0 })
+            }
+            Some(DebugView::Cascades(_)) => cascades.then_some(DebugView::Cascades(light)),
             v => v,
         }
+    }
+
+    /// The next view with something to show (the shaded image always has).
+    fn next_view(&mut self) {
+        self.view = (1..=VIEWS.len())
+            .map(|k| (self.view + k) % VIEWS.len())
+            .find(|&i| i == 0 || self.view_at(i).is_some())
+            .unwrap_or(0);
     }
 
     pub fn on_key(&mut self, key: Key) {
@@ -68,7 +96,7 @@ impl ViewerSettings {
             Key::C => self.change(|c| c.cascades.count = c.cascades.count % 8 + 1),
             Key::BracketLeft => self.soft_spp = (self.soft_spp / 2).max(1),
             Key::BracketRight => self.soft_spp = (self.soft_spp * 2).min(MAX_SPP),
-            Key::V => self.view = (self.view + 1) % VIEWS.len(),
+            Key::V => self.next_view(),
             Key::B => self.shadow_backend = self.shadow_backend.next(),
             Key::Plus => self.exposure_ev += 0.5,
             Key::Minus => self.exposure_ev -= 0.5,
@@ -192,7 +220,8 @@ mod tests {
         assert_eq!(s.soft_spp, 1);
         s.on_key(Key::L);
         assert_eq!(s.selected_light, 0, "selection wraps");
-        for _ in 0..VIEWS.len() {
+        // Traced lights: the map and cascade views are skipped.
+        for _ in 0..VIEWS.len() - 2 {
             s.on_key(Key::V);
         }
         assert_eq!(s.debug_view(), None, "views wrap back to shaded");
@@ -214,6 +243,34 @@ mod tests {
         assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::RayQuery);
         s.on_key(Key::B);
         assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::Compute, "B toggles back");
+    }
+
+    #[test]
+    fn map_views_follow_the_selected_light() {
+        let mut s = ViewerSettings::new(2);
+        s.directional = vec![true, false];
+        s.shadows[0].method = ShadowMethod::Cascades;
+        let mut seen = Vec::new();
+        for _ in 0..VIEWS.len() {
+            s.on_key(Key::V);
+            seen.push(s.debug_view());
+        }
+        assert!(seen.contains(&Some(DebugView::ShadowMap { light: 0, layer: 0 })));
+        assert!(seen.contains(&Some(DebugView::Cascades(0))));
+        // Light 1 is a point light on cascades (it falls back to traced): no map views.
+        s.selected_light = 1;
+        s.shadows[1].method = ShadowMethod::Cascades;
+        for _ in 0..VIEWS.len() {
+            s.on_key(Key::V);
+            assert!(!matches!(s.debug_view(), Some(DebugView::ShadowMap { .. } | DebugView::Cascades(_))));
+        }
+        // A view chosen for one light is dropped when the light switches to a method without it.
+        s.selected_light = 0;
+        while s.debug_view() != Some(DebugView::Cascades(0)) {
+            s.on_key(Key::V);
+        }
+        s.on_key(Key::T);
+        assert_eq!(s.debug_view(), None, "volumes has no cascades view");
     }
 
     #[test]

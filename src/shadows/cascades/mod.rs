@@ -69,11 +69,13 @@ pub fn add<'a>(
     pipelines: &'a MapPipelines,
     served: &[Served],
     target: &mut Handle<ImageKind>,
-) {
+) -> Option<Handle<ImageKind>> {
     let casters = map::caster_bounds(frame.scene);
+    let mut debug = None;
     for s in served {
         let light = &frame.scene.local_lights[s.light as usize];
         let m = light_map(s, light, frame.camera, &casters);
-        map::add_light(graph, frame, pipelines, &m, target);
+        debug = debug.or(map::add_light(graph, frame, pipelines, &m, target));
     }
+    debug
 }

@@ -88,7 +88,18 @@ pub struct MapPipelines {
     /// The depth pass for 1..=MAX_LAYERS layers (multiview masks), each made on first use.
     depth: [OnceLock<GraphicsPipeline>; MAX_LAYERS],
     resolve: ComputePipeline,
+    /// The `shadow-map` and `cascades` debug views.
+    debug: ComputePipeline,
     ctx: Arc<GpuContext>,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct DebugPush {
+    dims: UVec4,
+    vis: UVec4,
+    eye: Vec4,
+    forward: Vec4,
 }
 
 #[repr(C)]
@@ -117,14 +128,37 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
         std::mem::size_of::<ResolvePush>() as u32,
         TILE,
     )?;
-    Ok(MapPipelines { depth: Default::default(), resolve, ctx: ctx.clone() })
+    let debug = ComputePipeline::new(
+        ctx,
+        "shadow map view",
+        spirv::SHADOWS_MAP_DEBUG_COMP,
+        &[
+            sampled(MAP_DEBUG_DEPTH),
+            storage_image(MAP_DEBUG_OUTPUT),
+            sampled(MAP_DEBUG_POSITION),
+            sampled(MAP_DEBUG_VISIBILITY),
+            (MAP_DEBUG_LAYERS, DescriptorKind::UniformBuffer),
+        ],
+        std::mem::size_of::<DebugPush>() as u32,
+        TILE,
+    )?;
+    Ok(MapPipelines { depth: Default::default(), resolve, debug, ctx: ctx.clone() })
 }
 
 impl MapPipelines {
-    /// The depth pipeline that renders `layers` layers at once, made now if it was not.
-    pub fn prepare_depth(&self, layers: usize) -> GpuResult<&GraphicsPipeline> {
+    /// The depth pipelines for layers 0..`layers`, made now if they were not.
+    pub fn prepare_depth(&self, layers: usize) -> GpuResult<()> {
         assert!((1..=MAX_LAYERS).contains(&layers), "1..={MAX_LAYERS} layers");
-        crate::vk::get_or_make(&self.depth[layers - 1], || {
+        (0..layers).try_for_each(|k| self.prepare_layer(k).map(|_| ()))
+    }
+
+    /// The depth pipeline for layer `k`: multiview with the one view `k`, so each layer is its
+    /// own rendering pass into its own view index. (All layers in one multiview pass would draw
+    /// each caster once; but llvmpipe (measured on Mesa 25.0.7) sends every primitive it has to
+    /// clip to view 0, so a floor larger than a cube face lands in the wrong face; and one pass
+    /// per layer culls draws per layer.)
+    fn prepare_layer(&self, k: usize) -> GpuResult<&GraphicsPipeline> {
+        crate::vk::get_or_make(&self.depth[k], || {
             let desc = GraphicsPipelineDesc {
                 name: "shadow map",
                 vertex: spirv::SHADOWS_MAP_DEPTH_VERT,
@@ -139,12 +173,12 @@ impl MapPipelines {
                 cull_back_faces: false,
                 dynamic_depth_bias: true,
             };
-            GraphicsPipeline::multiview(&self.ctx, &desc, (1u32 << layers) - 1)
+            GraphicsPipeline::multiview(&self.ctx, &desc, 1u32 << k)
         })
     }
 
-    fn depth(&self, layers: usize) -> &GraphicsPipeline {
-        self.depth[layers - 1].get().expect("made by prepare_depth")
+    fn depth(&self, layer: usize) -> &GraphicsPipeline {
+        self.depth[layer].get().expect("made by prepare_depth")
     }
 }
 
@@ -212,14 +246,15 @@ pub fn add<'a>(
     pipelines: &'a MapPipelines,
     served: &[Served],
     target: &mut Handle<ImageKind>,
-) {
+) -> Option<Handle<ImageKind>> {
     let casters = caster_bounds(frame.scene);
     let receivers = visible_bounds(frame);
+    let mut debug = None;
     for s in served {
         let light = &frame.scene.local_lights[s.light as usize];
         match light_map(s, light, &casters, &receivers) {
             Some(map) => {
-                add_light(graph, frame, pipelines, &map, target);
+                debug = debug.or(add_light(graph, frame, pipelines, &map, target));
             }
             // Nothing casts onto what is seen: the light's layer is the unshadowed facing test.
             None => {
@@ -233,10 +268,11 @@ pub fn add<'a>(
                     blend: 0.0,
                     what: "nothing to cast".into(),
                 };
-                add_light(graph, frame, pipelines, &map, target);
+                debug = debug.or(add_light(graph, frame, pipelines, &map, target));
             }
         }
     }
+    debug
 }
 
 /// Whether a box can touch the frustum of `view_proj` (reversed depth, clip z in [0, w]): false
@@ -252,15 +288,15 @@ pub fn box_in_frustum(view_proj: &Mat4, b: &Bounds) -> bool {
         || outside(&|c| c.z > c.w))
 }
 
-/// The draws that cast into some layer of `map`.
-pub fn culled_draws(scene: &SceneGpu, map: &LightMap) -> Vec<usize> {
-    if map.layers.iter().all(|l| l.view_proj == Mat4::ZERO) {
-        return Vec::new();
-    }
-    (0..scene.draws.len())
-        .filter(|&i| {
-            let d = &scene.draws[i];
-            d.cast_shadows && map.layers.iter().any(|l| box_in_frustum(&l.view_proj, &d.bounds))
+/// For each layer of `map`, the draws that cast into it.
+pub fn culled_draws(scene: &SceneGpu, map: &LightMap) -> Vec<Vec<usize>> {
+    map.layers
+        .iter()
+        .map(|l| match l.view_proj == Mat4::ZERO {
+            true => Vec::new(),
+            false => (0..scene.draws.len())
+                .filter(|&i| scene.draws[i].cast_shadows && box_in_frustum(&l.view_proj, &scene.draws[i].bounds))
+                .collect(),
         })
         .collect()
 }
@@ -280,14 +316,15 @@ fn add_layer_table(graph: &mut RenderGraph<'_>, map: &LightMap) -> Handle<Buffer
     buffer
 }
 
-/// Renders `map` from the casters inside its layers' frusta and resolves it into its layer.
+/// Renders `map` from the casters inside its layers' frusta and resolves it into its layer;
+/// returns the frame's debug image when the frame shows this map (`shadow-map`, `cascades`).
 pub fn add_light<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     pipelines: &'a MapPipelines,
     map: &LightMap,
     visibility: &mut Handle<ImageKind>,
-) -> Handle<ImageKind> {
+) -> Option<Handle<ImageKind>> {
     let (scene, gbuffer, extent) = (frame.scene, frame.gbuffer, frame.extent);
     let res = map.params.resolution;
     let count = map.layers.len();
@@ -296,57 +333,66 @@ pub fn add_light<'a>(
     let draws = culled_draws(scene, map);
     let mut pass = graph.add_pass("shadow map");
     let size = if count == 1 { format!("{res}x{res}") } else { format!("{count} x {res}x{res}") };
+    let per_layer: Vec<String> = draws.iter().map(|d| d.len().to_string()).collect();
     pass.detail(format!(
         "light {}, {}, {size}, {} of {} draws",
         map.light,
         map.what,
-        draws.len(),
+        per_layer.join("+"),
         scene.draws.iter().filter(|d| d.cast_shadows).count()
     ));
     let vb = pass.read(frame.vertices, Access::VertexBuffer);
     let ib = pass.read(frame.indices, Access::IndexBuffer);
     let layers_read = pass.read(&table, Access::VertexShaderReadUniformBuffer);
     let depth = pass.write(&mut depth_image, Access::DepthAttachmentWrite);
-    let pipeline = pipelines.depth(count);
     let params = map.params;
     pass.render(move |ctx| {
-        let attachment = vk::RenderingAttachmentInfo::default()
-            .image_view(ctx.image(depth).1)
-            .image_layout(Access::DepthAttachmentWrite.info().layout)
-            .load_op(vk::AttachmentLoadOp::CLEAR)
-            .store_op(vk::AttachmentStoreOp::STORE)
-            .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
-        let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: res, height: res } };
-        let rendering = vk::RenderingInfo::default()
-            .render_area(area)
-            .layer_count(1)
-            .view_mask((1u32 << count) - 1)
-            .depth_attachment(&attachment);
-        ctx.bind_set(
-            vk::PipelineBindPoint::GRAPHICS,
-            &pipeline.layout,
-            &[(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))],
-        )?;
-        let d = ctx.device;
-        // SAFETY: recording state; every object is resolved for this frame and outlives it.
-        unsafe {
-            d.cmd_begin_rendering(ctx.cmd, &rendering);
-            d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
-            let viewport =
-                vk::Viewport { x: 0.0, y: 0.0, width: res as f32, height: res as f32, min_depth: 0.0, max_depth: 1.0 };
-            d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
-            d.cmd_set_scissor(ctx.cmd, 0, &[area]);
-            // Reversed depth: away from the light is smaller, so the bias is negative.
-            d.cmd_set_depth_bias(ctx.cmd, -params.constant_bias, 0.0, -params.slope_bias);
-            if !draws.is_empty() {
-                d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
-                d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
+        for (k, draws) in draws.iter().enumerate() {
+            let pipeline = pipelines.depth(k);
+            let attachment = vk::RenderingAttachmentInfo::default()
+                .image_view(ctx.image(depth).1)
+                .image_layout(Access::DepthAttachmentWrite.info().layout)
+                .load_op(vk::AttachmentLoadOp::CLEAR)
+                .store_op(vk::AttachmentStoreOp::STORE)
+                .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
+            let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: res, height: res } };
+            let rendering = vk::RenderingInfo::default()
+                .render_area(area)
+                .layer_count(1)
+                .view_mask(1u32 << k)
+                .depth_attachment(&attachment);
+            ctx.bind_set(
+                vk::PipelineBindPoint::GRAPHICS,
+                &pipeline.layout,
+                &[(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))],
+            )?;
+            let d = ctx.device;
+            // SAFETY: recording state; every object is resolved for this frame and outlives it.
+            unsafe {
+                d.cmd_begin_rendering(ctx.cmd, &rendering);
+                d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
+                let viewport = vk::Viewport {
+                    x: 0.0,
+                    y: 0.0,
+                    width: res as f32,
+                    height: res as f32,
+                    min_depth: 0.0,
+                    max_depth: 1.0,
+                };
+                d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
+                d.cmd_set_scissor(ctx.cmd, 0, &[area]);
+                // Reversed depth: away from the light is smaller, so the bias is negative.
+                d.cmd_set_depth_bias(ctx.cmd, -params.constant_bias, 0.0, -params.slope_bias);
+                if !draws.is_empty() {
+                    d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
+                    d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
+                }
+                for &i in draws {
+                    let draw = &scene.draws[i];
+                    d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, 0);
+                }
+                d.cmd_end_rendering(ctx.cmd);
             }
-            for &i in &draws {
-                let draw = &scene.draws[i];
-                d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, 0);
-            }
-            d.cmd_end_rendering(ctx.cmd);
         }
         Ok(())
     });
@@ -372,7 +418,46 @@ pub fn add_light<'a>(
     };
     let resolve = &pipelines.resolve;
     pass.render(move |ctx| ctx.dispatch(resolve, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    depth_image
+    add_debug_view(graph, frame, pipelines, map, &depth_image, &table, visibility)
+}
+
+/// The `shadow-map:N:C` or `cascades:N` view of `map`, when the frame shows it.
+fn add_debug_view<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    pipelines: &'a MapPipelines,
+    map: &LightMap,
+    depth: &Handle<ImageKind>,
+    table: &Handle<BufferKind>,
+    visibility: &Handle<ImageKind>,
+) -> Option<Handle<ImageKind>> {
+    use crate::config::DebugView;
+    let (mode, arg) = match frame.debug_view? {
+        DebugView::ShadowMap { light, layer } if light == map.light => (0, layer),
+        DebugView::Cascades(light) if light == map.light && map.mode == Mode::Cascades => (1, map.layers.len() as u32),
+        _ => return None,
+    };
+    let extent = frame.extent;
+    let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
+    let mut out = graph.create_image("debug view", desc);
+    let mut pass = graph.add_pass("shadow map view");
+    let read = Access::ComputeShaderReadSampledImage;
+    let bound = [
+        (MAP_DEBUG_DEPTH, Bound::Image(pass.read(depth, read))),
+        (MAP_DEBUG_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
+        (MAP_DEBUG_POSITION, Bound::Image(pass.read(&frame.gbuffer.position, read))),
+        (MAP_DEBUG_VISIBILITY, Bound::Image(pass.read(visibility, read))),
+        (MAP_DEBUG_LAYERS, Bound::Buffer(pass.read(table, Access::ComputeShaderReadUniformBuffer))),
+    ];
+    let push = DebugPush {
+        dims: UVec4::new(extent.width, extent.height, mode, arg),
+        vis: UVec4::new(map.layer, 0, 0, 0),
+        eye: frame.camera.eye.extend(0.0),
+        forward: frame.camera.forward.extend(0.0),
+    };
+    let pipeline = &pipelines.debug;
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    Some(out)
 }
 
 /// The camera's unit view direction (scene-local frame).

@@ -205,16 +205,19 @@ pub enum DebugView {
     },
     /// Light N's cascades: each pixel tinted by the cascade that shades it.
     Cascades(u32),
+    /// Light N's shadow-volume stencil counts.
+    Stencil(u32),
 }
 
 impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
-    pub const NAMES: &'static str = "albedo, normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N]";
+    pub const NAMES: &'static str =
+        "albedo, normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N]";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
         match self {
-            DebugView::Visibility(n) | DebugView::Cascades(n) => Some(n as usize),
+            DebugView::Visibility(n) | DebugView::Cascades(n) | DebugView::Stencil(n) => Some(n as usize),
             DebugView::ShadowMap { light, .. } => Some(light as usize),
             _ => None,
         }
@@ -242,6 +245,7 @@ impl std::str::FromStr for DebugView {
             "position" => plain(DebugView::Position),
             "visibility" => Ok(DebugView::Visibility(light(arg)?)),
             "cascades" => Ok(DebugView::Cascades(light(arg)?)),
+            "stencil" => Ok(DebugView::Stencil(light(arg)?)),
             "shadow-map" => {
                 let (n, c) = match arg.map(|a| a.split_once(':')) {
                     Some(Some((n, c))) => (Some(n), Some(c)),
@@ -267,6 +271,7 @@ impl std::fmt::Display for DebugView {
             DebugView::Visibility(n) => write!(f, "visibility:{n}"),
             DebugView::ShadowMap { light, layer } => write!(f, "shadow-map:{light}:{layer}"),
             DebugView::Cascades(n) => write!(f, "cascades:{n}"),
+            DebugView::Stencil(n) => write!(f, "stencil:{n}"),
         }
     }
 }

@@ -124,13 +124,7 @@ impl Renderer {
         for choice in &settings.shadows {
             choice.check().map_err(GpuError::Unsupported)?;
         }
-        let volume_scene = match crate::shadows::asks_for(&self.gpu_scene, settings, ShadowMethod::Volumes) {
-            true => Some(crate::vk::get_or_make(&self.volume_scene, || {
-                let local = self.scene.translated(-self.gpu_scene.origin);
-                crate::shadows::volumes::VolumeScene::new(&self.ctx, &local)
-            })?),
-            false => None,
-        };
+        let volume_scene = self.volume_scene(settings)?;
         let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings, volume_scene);
         if let Some(view) = settings.debug_view {
             crate::shadows::check_debug_view(view, &plan, &self.gpu_scene).map_err(GpuError::Unsupported)?;
@@ -164,6 +158,27 @@ impl Renderer {
     /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
     fn busy_pipeline(&self) -> GpuResult<&ComputePipeline> {
         crate::vk::get_or_make(&self.busy, || busy::pipeline(&self.ctx))
+    }
+
+    /// Whether the frame `settings` describe can show its debug view (a technique's own view
+    /// needs the light to be served by that technique); why not.
+    pub fn check_debug_view(&self, settings: &RenderSettings) -> Result<(), String> {
+        let Some(view) = settings.debug_view else { return Ok(()) };
+        let volume_scene = self.volume_scene(settings).map_err(|e| e.to_string())?;
+        let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings, volume_scene);
+        crate::shadows::check_debug_view(view, &plan, &self.gpu_scene)
+    }
+
+    /// The casters' adjacency when a light asks for `volumes`; made on first use.
+    fn volume_scene(&self, settings: &RenderSettings) -> GpuResult<Option<&crate::shadows::volumes::VolumeScene>> {
+        if !crate::shadows::asks_for(&self.gpu_scene, settings, ShadowMethod::Volumes) {
+            return Ok(None);
+        }
+        let scene = crate::vk::get_or_make(&self.volume_scene, || {
+            let local = self.scene.translated(-self.gpu_scene.origin);
+            crate::shadows::volumes::VolumeScene::new(&self.ctx, &local)
+        })?;
+        Ok(Some(scene))
     }
 
     /// Tells once per light and method when the method cannot serve the light, and why.

@@ -348,3 +348,25 @@ fn the_plan_copies_depth_then_writes_and_reads_the_stencil_per_light() {
     drop(r);
     common::assert_clean(&ctx);
 }
+
+#[test]
+fn the_stencil_view_shows_counts_where_traced_shows_shadow() {
+    let (ctx, mut r) = setup(load(BOX_SCENE));
+    let traced = visibility(&mut r, 3, 1, choice(ShadowMethod::Traced, false));
+    let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear);
+    s.shadows = vec![choice(ShadowMethod::Volumes, false); 3];
+    s.debug_view = Some(DebugView::Stencil(1));
+    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("stencil view") else { panic!("float frame") };
+    let counted: Vec<bool> = pixels.chunks_exact(4).map(|p| p[0] + p[1] + p[2] > 0.0).collect();
+    // Every pixel traced sees in the sun's cast shadow on the floor has a count; lit ones none.
+    let lit_with_count = (0..traced.len()).filter(|&i| traced[i] == 1.0 && counted[i]).count();
+    let counted_total = counted.iter().filter(|&&c| c).count();
+    println!("stencil view: {counted_total} pixels with a count; {lit_with_count} of them lit in traced");
+    assert!(counted_total > 500 && lit_with_count == 0, "{counted_total} counted, {lit_with_count} lit");
+    // A light that is not on volumes has no stencil to show.
+    s.shadows[1] = ShadowChoice::hard();
+    let err = r.render(&s).err().expect("refused").to_string();
+    assert!(err.contains("light 1 does not use shadow volumes"), "{err}");
+    drop(r);
+    common::assert_clean(&ctx);
+}

@@ -69,5 +69,7 @@
 #define VOLUMES_LIGHTS 2
 #define VOLUMES_STENCIL 3
 #define VOLUMES_VISIBILITY 4
+// shadows/volumes/stencil_view.comp: the stencil:N debug view (reads VOLUMES_STENCIL)
+#define VOLUMES_VIEW_OUTPUT 5
 
 #endif

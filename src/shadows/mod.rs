@@ -70,6 +70,9 @@ pub fn check_debug_view(view: DebugView, plan: &ShadowPlan, scene: &SceneGpu) ->
             }
             Ok(())
         }
+        DebugView::Stencil(light) if !find(light, &plan.volumes) => {
+            Err(format!("--debug-view {view}: light {light} does not use shadow volumes this frame"))
+        }
         DebugView::Cascades(light) if !find(light, &plan.cascades) => {
             Err(format!("--debug-view {view}: light {light} does not use cascades this frame"))
         }
@@ -242,7 +245,7 @@ pub fn add<'a>(
         debug = debug.or(cascades::add(g, frame, pipelines, &plan.cascades, &mut target));
     }
     if let Some((pipelines, scene)) = prepared.volumes.filter(|_| !plan.volumes.is_empty()) {
-        volumes::add(g, frame, pipelines, scene, &plan.volumes, &mut target);
+        debug = debug.or(volumes::add(g, frame, pipelines, scene, &plan.volumes, &mut target));
     }
     if let Some((pipeline, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
         match ray_query {

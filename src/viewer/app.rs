@@ -252,7 +252,12 @@ impl App {
         let dt = (now - r.last_frame).as_secs_f32().min(0.25);
         r.last_frame = now;
         r.camera.update(&r.input, dt);
-        let settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
+        let mut settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
+        // A technique's view of a light it cannot serve (volumes on an open caster, say)
+        // shows the shaded frame instead.
+        if r.renderer.check_debug_view(&settings).is_err() {
+            settings.debug_view = None;
+        }
         let lines = r.settings.overlay.then(|| r.overlay_lines());
         let capture = r.pending_capture.take();
         match r.presenter.draw(&r.renderer, &settings, lines.as_deref(), capture.is_some())? {
@@ -401,6 +406,9 @@ impl Running {
         settings.width = extent.width;
         settings.height = extent.height;
         settings.timestamps = false;
+        if self.renderer.check_debug_view(&settings).is_err() {
+            settings.debug_view = None;
+        }
         for (ext, output) in [("png", OutputKind::Display), ("exr", OutputKind::SceneLinear)] {
             settings.output = output;
             let frame = self.renderer.render(&settings)?;

@@ -9,7 +9,7 @@ use crate::scene::{Camera, Light};
 
 /// The views V cycles through; the light-specific ones show the selected light, and are
 /// skipped where its technique has nothing to show.
-const VIEWS: [Option<DebugView>; 8] = [
+const VIEWS: [Option<DebugView>; 9] = [
     None,
     Some(DebugView::Albedo),
     Some(DebugView::Normal),
@@ -18,6 +18,7 @@ const VIEWS: [Option<DebugView>; 8] = [
     Some(DebugView::Visibility(0)),
     Some(DebugView::ShadowMap { light: 0, layer: 0 }),
     Some(DebugView::Cascades(0)),
+    Some(DebugView::Stencil(0)),
 ];
 
 #[derive(Clone, Debug, PartialEq)]
@@ -69,6 +70,9 @@ impl ViewerSettings {
                 (method == Some(ShadowMethod::Map) || cascades).then_some(DebugView::ShadowMap { light, layer: 0 })
             }
             Some(DebugView::Cascades(_)) => cascades.then_some(DebugView::Cascades(light)),
+            // Volumes can still fall back (open casters): the renderer then refuses the view,
+            // so the viewer offers it only for what it can check here.
+            Some(DebugView::Stencil(_)) => (method == Some(ShadowMethod::Volumes)).then_some(DebugView::Stencil(light)),
             v => v,
         }
     }
@@ -221,7 +225,7 @@ mod tests {
         s.on_key(Key::L);
         assert_eq!(s.selected_light, 0, "selection wraps");
         // Traced lights: the map and cascade views are skipped.
-        for _ in 0..VIEWS.len() - 2 {
+        for _ in 0..VIEWS.len() - 3 {
             s.on_key(Key::V);
         }
         assert_eq!(s.debug_view(), None, "views wrap back to shaded");

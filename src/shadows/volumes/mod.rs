@@ -160,6 +160,8 @@ pub struct Pipelines {
     zfail: GraphicsPipeline,
     zpass: GraphicsPipeline,
     resolve: ComputePipeline,
+    /// The `stencil:N` debug view.
+    stencil_view: ComputePipeline,
 }
 
 /// `extrude.geom`'s push constants.
@@ -239,6 +241,14 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
     // faces are wound with their outside counter-clockwise, so entering a volume is a front face.
     let zfail = extrude("shadow volumes z-fail", StencilState { front: face(keep, decr), back: face(keep, incr) })?;
     let zpass = extrude("shadow volumes z-pass", StencilState { front: face(incr, keep), back: face(decr, keep) })?;
+    let stencil_view = ComputePipeline::new(
+        ctx,
+        "shadow volumes stencil view",
+        spirv::SHADOWS_VOLUMES_STENCIL_VIEW_COMP,
+        &[sampled(VOLUMES_STENCIL), storage_image(VOLUMES_VIEW_OUTPUT)],
+        std::mem::size_of::<UVec4>() as u32,
+        TILE,
+    )?;
     let resolve = ComputePipeline::new(
         ctx,
         "shadow volumes resolve",
@@ -253,7 +263,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
         std::mem::size_of::<UVec4>() as u32,
         TILE,
     )?;
-    Ok(Pipelines { format, depth, zfail, zpass, resolve })
+    Ok(Pipelines { format, depth, zfail, zpass, resolve, stencil_view })
 }
 
 /// Whether `volumes` can serve `light` on this device and scene, and why not. Every kind of
@@ -279,8 +289,9 @@ pub fn add<'a>(
     scene: &'a VolumeScene,
     served: &[Served],
     target: &mut Handle<ImageKind>,
-) {
-    let Some(casters) = scene.casters.as_ref().filter(|_| !served.is_empty()) else { return };
+) -> Option<Handle<ImageKind>> {
+    let casters = scene.casters.as_ref().filter(|_| !served.is_empty())?;
+    let mut debug = None;
     let extent = frame.extent;
     let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
     let viewport = vk::Viewport {
@@ -402,7 +413,22 @@ pub fn add<'a>(
         let push = UVec4::new(extent.width, extent.height, served.light, served.layer);
         let pipeline = &pipelines.resolve;
         pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+        if frame.debug_view == Some(crate::config::DebugView::Stencil(served.light)) {
+            let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
+            let mut out = graph.create_image("debug view", desc);
+            let mut pass = graph.add_pass("shadow volumes stencil view");
+            let bound = [
+                (VOLUMES_STENCIL, Bound::Image(pass.read(&depth_stencil, Access::ComputeShaderReadStencil))),
+                (VOLUMES_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
+            ];
+            let pipeline = &pipelines.stencil_view;
+            pass.render(move |ctx| {
+                ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height)
+            });
+            debug = Some(out);
+        }
     }
+    debug
 }
 
 #[cfg(test)]

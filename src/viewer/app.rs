@@ -392,7 +392,8 @@ impl Running {
         if !self.timings.is_empty() {
             lines.push(format!(" {:<14} {total:8.3} ms", "GPU total"));
         }
-        lines.push("L light T method H soft R res P pcf G bias C casc V view [ ] spp +/- EV".into());
+        lines.push("L light  T method  H soft  V view  [ ] spp  +/- EV".into());
+        lines.push("maps: R resolution  P pcf  G bias  C cascades".into());
         lines.push("F1 overlay  F12 shot  Home reset  Esc quit".into());
         lines
     }

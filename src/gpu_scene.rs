@@ -98,6 +98,8 @@ pub struct SceneGpu {
     pub bounds: (Vec3, Vec3),
     /// World position of the scene-local frame's origin (see `Renderer::new`).
     pub origin: DVec3,
+    /// The scene's own camera, in the scene-local frame.
+    pub camera: Camera,
 }
 
 impl SceneGpu {
@@ -135,8 +137,8 @@ impl SceneGpu {
         let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
             ctx,
             [
-                ("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER),
-                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER),
+                ("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER | storage),
+                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | storage),
                 ("lights", bytemuck::cast_slice(&lights), storage),
                 ("bvh nodes", bytemuck::cast_slice(bvh.nodes()), storage),
                 ("bvh triangles", bytemuck::cast_slice(bvh.triangles()), storage),
@@ -154,6 +156,7 @@ impl SceneGpu {
             has_casters: !bvh.is_empty(),
             bounds: (lo, hi),
             origin,
+            camera: scene.camera,
         })
     }
 

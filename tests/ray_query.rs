@@ -10,9 +10,9 @@ use std::path::Path;
 use glam::{Vec3, Vec4};
 use umbra::config::DebugView;
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowBackend};
-use umbra::scene::bvh::{offset_ray_origin, ShadowBvh};
+use umbra::scene::bvh::ShadowBvh;
 use umbra::scene::Scene;
-use umbra::shading::{gpu_lights, light_sample};
+use umbra::shading::{gpu_lights, light_sample, Surfaces};
 use umbra::shadows::traced::accel::{BUILD_BOTTOM, BUILD_TOP};
 
 /// `ShadowBvh::ray_near_edge` tolerance, as in render_accuracy.rs: about 8 ulps of the
@@ -52,6 +52,8 @@ fn compare_backends(name: &str, scene: Scene, w: u32, h: u32) {
         return;
     }
     let bvh = ShadowBvh::build(&scene);
+    let surfaces = Surfaces::new(&scene);
+    let eye = scene.camera.eye;
     let light = gpu_lights(&scene.lights)[0];
     let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
     let vis = |r: &mut Renderer, b| frame(r, &settings(w, h, b, Some(DebugView::Visibility(0))));
@@ -65,13 +67,14 @@ fn compare_backends(name: &str, scene: Scene, w: u32, h: u32) {
     let occluded = compute.iter().filter(|v| v.x == 0.0).count();
     // The G-buffer of the same view, for the rays of the pixels that differ.
     let position = frame(&mut renderer, &settings(w, h, ShadowBackend::Compute, Some(DebugView::Position)));
-    let normal = frame(&mut renderer, &settings(w, h, ShadowBackend::Compute, Some(DebugView::Normal)));
     let not_near_edge: Vec<String> = differing
         .iter()
         .filter(|&&i| {
-            let (p, n) = (position[i].truncate(), normal[i].truncate());
+            let p = position[i].truncate();
             let s = light_sample(&light, p);
-            let origin = offset_ray_origin(p, n);
+            // Where the traced pass starts its rays (the geometry pass's surface channel, by its twin).
+            let tolerance = (p.abs().max_element() * 64.0 * f32::EPSILON).max(1e-4);
+            let origin = surfaces.at(p, eye, tolerance).expect("a triangle under the pixel").ray_origin(p);
             !bvh.ray_near_edge(origin, s.l, s.dist * (1.0 - 1e-5), EDGE_EPS)
         })
         .map(|&i| format!("({}, {}): compute {} ray query {}", i as u32 % w, i as u32 / w, compute[i].x, query[i].x))

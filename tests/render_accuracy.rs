@@ -5,7 +5,9 @@
 //!
 //! The CPU side starts from what the GPU's later passes start from: the G-buffer position and
 //! normal read back through the raw (EXR) debug views, so the comparison checks the shadow trace
-//! and compose passes exactly rather than the rasteriser's interpolation.
+//! and compose passes exactly rather than the rasteriser's interpolation. Shadow rays start where
+//! the traced pass starts them: the geometry pass's surface channel (terminator offset and
+//! geometric normal) comes from its CPU twin, `shading::Surfaces`, at each read-back position.
 
 mod common;
 
@@ -14,9 +16,9 @@ use std::path::Path;
 use glam::{DVec3, Vec3, Vec4};
 use umbra::config::DebugView;
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice, ShadowMethod, BACKGROUND};
-use umbra::scene::bvh::{offset_ray_origin, ShadowBvh};
+use umbra::scene::bvh::ShadowBvh;
 use umbra::scene::{Material, Scene};
-use umbra::shading::{gpu_lights, light_sample, shade_point, GpuLight};
+use umbra::shading::{gpu_lights, light_sample, shade_point, GpuLight, SurfaceSample, Surfaces};
 
 /// Floor and floating cube under a point light, a sun and a spot (see the file).
 const FLOOR_CUBE: &str = include_str!("data/scenes/accuracy_floor_cube.toml");
@@ -24,6 +26,11 @@ const WIDTH: u32 = 160;
 const HEIGHT: u32 = 120;
 /// `ShadowBvh::ray_near_edge` tolerance: about 8 ulps of the largest coordinate.
 const EDGE_EPS: f64 = 1e-6;
+/// How far a read-back position may be from the triangle it was drawn from: 0.1 mm, or 64 ulps
+/// of its largest coordinate (the world position view adds the scene-local origin in f32).
+fn surface_tolerance(p: Vec3) -> f32 {
+    (p.abs().max_element() * 64.0 * f32::EPSILON).max(1e-4)
+}
 
 fn parse(text: &str, name: &str) -> Scene {
     Scene::parse(text, name, Path::new("tests/data/scenes")).unwrap_or_else(|e| panic!("{e}"))
@@ -56,6 +63,9 @@ struct GBuffer {
     position: Vec<Vec3>,
     /// As stored (RGBA16F), not renormalised: what the shadow pass reads.
     normal: Vec<Vec3>,
+    /// The surface channel (terminator offset, geometric normal) by the geometry pass's CPU twin;
+    /// None for background.
+    surface: Vec<Option<SurfaceSample>>,
 }
 
 impl GBuffer {
@@ -63,11 +73,18 @@ impl GBuffer {
         let depth = render(renderer, Some(DebugView::Depth));
         let position = render(renderer, Some(DebugView::Position));
         let normal = render(renderer, Some(DebugView::Normal));
-        GBuffer {
-            covered: depth.iter().map(|d| d.x > 0.0).collect(),
-            position: position.iter().map(|p| p.truncate()).collect(),
-            normal: normal.iter().map(|n| n.truncate()).collect(),
-        }
+        let covered: Vec<bool> = depth.iter().map(|d| d.x > 0.0).collect();
+        let position: Vec<Vec3> = position.iter().map(|p| p.truncate()).collect();
+        let surfaces = Surfaces::new(renderer.scene());
+        let eye = renderer.scene().camera.eye;
+        let surface = (0..covered.len())
+            .map(|i| {
+                let at = surfaces.at(position[i], eye, surface_tolerance(position[i]));
+                assert!(!covered[i] || at.is_some(), "pixel {i}: no triangle at {}", position[i]);
+                at.filter(|_| covered[i])
+            })
+            .collect();
+        GBuffer { covered, position, normal: normal.iter().map(|n| n.truncate()).collect(), surface }
     }
 }
 
@@ -79,14 +96,21 @@ struct ShadowRay {
     tmax: f32,
 }
 
-/// Visibility of `light` at `p` (stored normal `n`) by shadow_trace.comp's rules, with the ray
-/// it traced (None where no ray is cast: facing away or no irradiance, visibility 0).
-fn cpu_visibility(bvh: &ShadowBvh, light: &GpuLight, p: Vec3, n: Vec3) -> (f32, Option<ShadowRay>) {
+/// Visibility of `light` at `p` (stored normal `n`, surface channel `surface`) by
+/// shadow_trace.comp's rules, with the ray it traced (None where no ray is cast: facing away or
+/// no irradiance, visibility 0).
+fn cpu_visibility(
+    bvh: &ShadowBvh,
+    light: &GpuLight,
+    p: Vec3,
+    n: Vec3,
+    surface: &SurfaceSample,
+) -> (f32, Option<ShadowRay>) {
     let sample = light_sample(light, p);
     if n.dot(sample.l) <= 0.0 || sample.e_normal.max_element() <= 0.0 {
         return (0.0, None);
     }
-    let ray = ShadowRay { origin: offset_ray_origin(p, n), dir: sample.l, tmax: sample.dist * (1.0 - 1e-5) };
+    let ray = ShadowRay { origin: surface.ray_origin(p), dir: sample.l, tmax: sample.dist * (1.0 - 1e-5) };
     let visible = !bvh.occluded_obvhs(ray.origin, ray.dir, ray.tmax);
     (if visible { 1.0 } else { 0.0 }, Some(ray))
 }
@@ -187,7 +211,8 @@ fn shaded_pixels_match_the_cpu_evaluation() {
         let (p, n) = (g.position[i], g.normal[i]);
         let mut ambiguous = false;
         for (l, light) in lights.iter().enumerate() {
-            let (v, ray) = cpu_visibility(&bvh, light, p, n);
+            let surface = g.surface[i].expect("a covered pixel's surface");
+            let (v, ray) = cpu_visibility(&bvh, light, p, n, &surface);
             visibility[i][l] = v;
             if let Some(ray) = ray {
                 ambiguous |= near_edge(&bvh, &ray);
@@ -269,7 +294,10 @@ fn cpu_visibility_view(scene: &Scene, g: &GBuffer) -> (Vec<f32>, Vec<Option<Shad
     let bvh = ShadowBvh::build(scene);
     let light = gpu_lights(&scene.lights)[0];
     (0..g.covered.len())
-        .map(|i| if g.covered[i] { cpu_visibility(&bvh, &light, g.position[i], g.normal[i]) } else { (1.0, None) })
+        .map(|i| match &g.surface[i] {
+            Some(surface) => cpu_visibility(&bvh, &light, g.position[i], g.normal[i], surface),
+            None => (1.0, None),
+        })
         .unzip()
 }
 

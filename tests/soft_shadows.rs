@@ -9,9 +9,9 @@ use std::path::Path;
 use glam::{UVec3, Vec3, Vec4};
 use umbra::config::DebugView;
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
-use umbra::scene::bvh::{offset_ray_origin, ShadowBvh};
+use umbra::scene::bvh::ShadowBvh;
 use umbra::scene::Scene;
-use umbra::shading::{gpu_lights, light_sample, light_sample_point, random2};
+use umbra::shading::{gpu_lights, light_sample, light_sample_point, random2, Surfaces};
 
 const W: u32 = 128;
 const H: u32 = 96;
@@ -73,6 +73,7 @@ fn soft_visibility_matches_the_cpu_with_the_same_samples() {
     common::assert_clean(&ctx);
 
     let bvh = ShadowBvh::build(&scene);
+    let surfaces = Surfaces::new(&scene);
     let light = gpu_lights(&scene.lights)[0];
     let (mut compared, mut near_edge, mut penumbra) = (0, 0, 0);
     let mut wrong = Vec::new();
@@ -85,7 +86,8 @@ fn soft_visibility_matches_the_cpu_with_the_same_samples() {
         let expected = if n.dot(centre.l) <= 0.0 || centre.e_normal.max_element() <= 0.0 {
             0.0
         } else {
-            let origin = offset_ray_origin(p, n);
+            // Where the traced pass starts its rays (the geometry pass's surface channel, by its twin).
+            let origin = surfaces.at(p, scene.camera.eye, 1e-4).expect("a triangle under the pixel").ray_origin(p);
             let mut reached = 0;
             let mut edge = false;
             for k in 0..SPP {

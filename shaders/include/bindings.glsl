@@ -72,4 +72,11 @@
 // shadows/volumes/stencil_view.comp: the stencil:N debug view (reads VOLUMES_STENCIL)
 #define VOLUMES_VIEW_OUTPUT 5
 
+// shadow_trace.comp and shadow_trace_rq.comp: the G-buffer's surface channel (terminator offset
+// and geometric normal, see gbuffer.glsl)
+#define SHADOW_SURFACE 7
+// geometry.frag: the scene's vertices and indices, for the triangle under each fragment
+#define GEOMETRY_VERTICES 0
+#define GEOMETRY_INDICES 1
+
 #endif

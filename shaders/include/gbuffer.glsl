@@ -2,11 +2,56 @@
 //   position: RGBA32F  world-space position, w = 1 where a surface was drawn, 0 for background
 //   normal:   RGBA16F  world-space unit shading normal (front-facing), w = metallic
 //   material: RGBA16F  linear base colour, w = roughness
+//   surface:  RGBA16UI what shadow rays leave the surface with (decode with the functions below):
+//             xyz  the shadow-terminator offset (f16 bits): where a ray toward a light should
+//                  start instead of the position, relative to it, from the triangle's vertex
+//                  normals (Hanika, "Hacking the shadow terminator", Ray Tracing Gems II ch. 4);
+//                  0 on flat-shaded surfaces
+//             w    the unit geometric (face) normal, front-facing like the shading normal,
+//                  octahedral, 8 bits per axis (254 steps: axes exact, all within 1 degree)
 // Position is stored rather than rebuilt from depth so that scenes far from the origin keep
-// every bit the rasteriser gives them.
+// every bit the rasteriser gives them. CPU twin of the surface channel: src/shading.rs
+// (`Surfaces`).
 #ifndef GBUFFER_GLSL
 #define GBUFFER_GLSL
 #define GBUFFER_POSITION_LOCATION 0
 #define GBUFFER_NORMAL_LOCATION 1
 #define GBUFFER_MATERIAL_LOCATION 2
+#define GBUFFER_SURFACE_LOCATION 3
+
+// Octahedral map of a unit vector (Meyer et al. 2010; Cigolle et al. 2014) into [0,1]^2.
+vec2 gbuffer_oct_encode(vec3 n) {
+    vec2 p = n.xy / (abs(n.x) + abs(n.y) + abs(n.z));
+    if (n.z < 0.0) {
+        p = (1.0 - abs(p.yx)) * vec2(p.x >= 0.0 ? 1.0 : -1.0, p.y >= 0.0 ? 1.0 : -1.0);
+    }
+    return p * 0.5 + 0.5;
+}
+
+vec3 gbuffer_oct_decode(vec2 e) {
+    vec2 f = e * 2.0 - 1.0;
+    vec3 n = vec3(f, 1.0 - abs(f.x) - abs(f.y));
+    float t = max(-n.z, 0.0);
+    n.xy -= vec2(n.x >= 0.0 ? t : -t, n.y >= 0.0 ? t : -t);
+    return normalize(n);
+}
+
+// Components below f16's smallest normal (2^-14 m, 61 um: invisible beside the ray offset's
+// 0.1 mm) are stored as 0, whatever the device does with f16 subnormals, so the CPU twin
+// (`shading::surface_quantised`) rounds the same way.
+uvec4 gbuffer_surface_encode(vec3 terminator_offset, vec3 geometric_normal) {
+    vec3 o = clamp(terminator_offset, vec3(-65504.0), vec3(65504.0));
+    o = mix(o, vec3(0.0), lessThan(abs(o), vec3(6.103515625e-5)));
+    uvec2 xy = uvec2(packHalf2x16(o.xy), packHalf2x16(vec2(o.z, 0.0)));
+    uvec2 oct = uvec2(round(clamp(gbuffer_oct_encode(geometric_normal), 0.0, 1.0) * 254.0));
+    return uvec4(xy.x & 0xffffu, xy.x >> 16, xy.y & 0xffffu, oct.x | (oct.y << 8));
+}
+
+vec3 gbuffer_terminator_offset(uvec4 s) {
+    return vec3(unpackHalf2x16(s.x | (s.y << 16)), unpackHalf2x16(s.z).x);
+}
+
+vec3 gbuffer_geometric_normal(uvec4 s) {
+    return gbuffer_oct_decode(vec2(s.w & 0xffu, s.w >> 8) / 254.0);
+}
 #endif

@@ -1,7 +1,8 @@
-// Push constants of the geometry pass (112 bytes, within the guaranteed 128).
+// Push constants of the geometry pass (128 bytes, the guaranteed maximum).
 layout(push_constant) uniform GeometryPush {
     mat4 view_proj;           // camera-relative: applied to (world position - eye)
     vec4 eye;                 // xyz: camera position in world space
     vec4 base_color_roughness;
     vec4 metallic;            // x: metallic
+    uvec4 draw;               // x: the draw's first index, y: its vertex offset (int bits)
 } pc;

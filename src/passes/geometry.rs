@@ -1,13 +1,19 @@
 //! Geometry pass: rasterises every mesh with dynamic rendering into the G-buffer.
+//!
+//! Beside position, shading normal and material it stores, per pixel, what shadow rays leave
+//! the surface with (gbuffer.glsl's `surface`, 8 bytes): the geometric normal, and the
+//! shadow-terminator offset of the triangle under the pixel, computed here once from the
+//! triangle's corners and vertex normals (read from the scene's buffers by `gl_PrimitiveID`),
+//! rather than by every shadow pass for every light from a triangle id.
 
 use std::sync::Arc;
 
 use ash::vk;
-use glam::{Mat4, Vec4};
+use glam::{Mat4, UVec4, Vec4};
 
-use super::{GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT};
+use super::{storage, GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
 use crate::gpu_scene::{CameraMatrices, SceneGpu, Vertex};
-use crate::graph::{Access, BufferKind, Handle, ImageDesc, RenderGraph};
+use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
 use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
 
 // The colour attachments below are listed in the order gbuffer.glsl gives their locations.
@@ -15,6 +21,7 @@ const _: () = assert!(
     bindings::GBUFFER_POSITION_LOCATION == 0
         && bindings::GBUFFER_NORMAL_LOCATION == 1
         && bindings::GBUFFER_MATERIAL_LOCATION == 2
+        && bindings::GBUFFER_SURFACE_LOCATION == 3
 );
 
 #[repr(C)]
@@ -24,30 +31,57 @@ struct Push {
     eye: Vec4,
     base_color_roughness: Vec4,
     metallic: Vec4,
+    /// x: the draw's first index, y: its vertex offset (as u32 bits).
+    draw: UVec4,
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<GraphicsPipeline> {
-    GraphicsPipeline::new(
-        ctx,
-        &GraphicsPipelineDesc {
-            name: "geometry",
-            vertex: spirv::GEOMETRY_VERT,
-            fragment: Some(spirv::GEOMETRY_FRAG),
-            vertex_stride: std::mem::size_of::<Vertex>() as u32,
-            attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0), (1, vk::Format::R32G32B32_SFLOAT, 12)],
-            color_formats: &[POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT],
-            depth_format: Some(DEPTH_FORMAT),
-            bindings: &[],
-            push_bytes: std::mem::size_of::<Push>() as u32,
-            cull_back_faces: true,
-            dynamic_depth_bias: false,
-        },
-    )
+/// The geometry pass's pipelines: `triangles` reads each fragment's triangle for the terminator
+/// offset and the geometric normal (needs the device's geometryShader feature, for
+/// `gl_PrimitiveID` in a fragment shader); `plain` stores no offset and takes the geometric
+/// normal from screen derivatives, for devices without the feature and scenes whose vertex and
+/// index buffers a shader cannot read.
+pub struct GeometryPipelines {
+    triangles: Option<GraphicsPipeline>,
+    plain: GraphicsPipeline,
+}
+
+impl GeometryPipelines {
+    /// The pipeline that draws `scene`, and whether it reads the scene's buffers.
+    fn for_scene(&self, scene: &SceneGpu) -> (&GraphicsPipeline, bool) {
+        let readable = |b: &crate::vk::Buffer| b.usage.contains(vk::BufferUsageFlags::STORAGE_BUFFER);
+        match &self.triangles {
+            Some(p) if readable(&scene.vertices) && readable(&scene.indices) => (p, true),
+            _ => (&self.plain, false),
+        }
+    }
+}
+
+pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
+    let desc = |name, fragment, bindings| GraphicsPipelineDesc {
+        name,
+        vertex: spirv::GEOMETRY_VERT,
+        fragment: Some(fragment),
+        vertex_stride: std::mem::size_of::<Vertex>() as u32,
+        attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0), (1, vk::Format::R32G32B32_SFLOAT, 12)],
+        color_formats: &[POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT],
+        depth_format: Some(DEPTH_FORMAT),
+        bindings,
+        push_bytes: std::mem::size_of::<Push>() as u32,
+        cull_back_faces: true,
+        dynamic_depth_bias: false,
+    };
+    let buffers = [storage(bindings::GEOMETRY_VERTICES), storage(bindings::GEOMETRY_INDICES)];
+    let triangles = match ctx.capabilities.geometry_shader {
+        true => Some(GraphicsPipeline::new(ctx, &desc("geometry", spirv::GEOMETRY_FRAG, &buffers))?),
+        false => None,
+    };
+    let plain = GraphicsPipeline::new(ctx, &desc("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG, &[]))?;
+    Ok(GeometryPipelines { triangles, plain })
 }
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a GraphicsPipeline,
+    pipelines: &'a GeometryPipelines,
     scene: &'a SceneGpu,
     vertices: &Handle<BufferKind>,
     indices: &Handle<BufferKind>,
@@ -60,15 +94,25 @@ pub fn add<'a>(
         position: graph.create_image("gbuffer position", image(POSITION_FORMAT)),
         normal: graph.create_image("gbuffer normal", image(NORMAL_FORMAT)),
         material: graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
+        surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
     };
+    let (pipeline, reads_triangles) = pipelines.for_scene(scene);
     let mut pass = graph.add_pass("geometry");
     let vb = pass.read(vertices, Access::VertexBuffer);
     let ib = pass.read(indices, Access::IndexBuffer);
+    let bound = match reads_triangles && !scene.draws.is_empty() {
+        true => vec![
+            (bindings::GEOMETRY_VERTICES, Bound::Buffer(pass.read(vertices, Access::FragmentShaderReadStorageBuffer))),
+            (bindings::GEOMETRY_INDICES, Bound::Buffer(pass.read(indices, Access::FragmentShaderReadStorageBuffer))),
+        ],
+        false => Vec::new(),
+    };
     let depth = pass.write(&mut gbuffer.depth, Access::DepthAttachmentWrite);
     let colors = [
         pass.write(&mut gbuffer.position, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.normal, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.material, Access::ColorAttachmentWrite),
+        pass.write(&mut gbuffer.surface, Access::ColorAttachmentWrite),
     ];
     pass.render(move |ctx| {
         let attachment = |view, clear| {
@@ -79,6 +123,7 @@ pub fn add<'a>(
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .clear_value(clear)
         };
+        // Zero for every attachment (the surface's integer zero too: both are all bits clear).
         let zero = vk::ClearValue { color: vk::ClearColorValue { float32: [0.0; 4] } };
         let color_attachments: Vec<_> = colors.iter().map(|&c| attachment(ctx.image(c).1, zero)).collect();
         let depth_attachment = vk::RenderingAttachmentInfo::default()
@@ -94,6 +139,9 @@ pub fn add<'a>(
             .color_attachments(&color_attachments)
             .depth_attachment(&depth_attachment);
         let d = ctx.device;
+        if !bound.is_empty() {
+            ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &pipeline.layout, &bound)?;
+        }
         // SAFETY: recording state; every object is resolved for this frame and outlives it.
         unsafe {
             d.cmd_begin_rendering(ctx.cmd, &rendering);
@@ -119,6 +167,7 @@ pub fn add<'a>(
                     eye: camera.eye.extend(0.0),
                     base_color_roughness: m.base_color.extend(m.roughness),
                     metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
+                    draw: UVec4::new(draw.first_index, draw.vertex_offset as u32, 0, 0),
                 };
                 d.cmd_push_constants(
                     ctx.cmd,

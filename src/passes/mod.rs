@@ -18,7 +18,7 @@ use std::sync::Arc;
 use ash::vk;
 
 use crate::graph::{Handle, ImageKind};
-use crate::vk::{ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsPipeline};
+use crate::vk::{ComputePipeline, DescriptorKind, GpuContext, GpuResult};
 
 /// Workgroup size of every full-screen compute pass (specialisation constants 0 and 1).
 pub const TILE: [u32; 2] = [8, 8];
@@ -26,6 +26,8 @@ pub const TILE: [u32; 2] = [8, 8];
 pub const POSITION_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const NORMAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 pub const MATERIAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+/// The terminator offset (three f16) and the octahedral geometric normal (two u8), as integers.
+pub const SURFACE_FORMAT: vk::Format = vk::Format::R16G16B16A16_UINT;
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 pub const RADIANCE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const DISPLAY_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
@@ -36,11 +38,15 @@ pub struct GBuffer {
     pub position: Handle<ImageKind>,
     pub normal: Handle<ImageKind>,
     pub material: Handle<ImageKind>,
+    /// What shadow rays leave the surface with: the shadow-terminator offset and the geometric
+    /// normal (an unsigned-integer image: read it with a `usampler2D` and gbuffer.glsl's
+    /// `gbuffer_terminator_offset` and `gbuffer_geometric_normal`).
+    pub surface: Handle<ImageKind>,
 }
 
 /// Every pipeline, built once per device and shared by all frames.
 pub struct Pipelines {
-    pub geometry: GraphicsPipeline,
+    pub geometry: geometry::GeometryPipelines,
     pub compose: ComputePipeline,
     pub compose_unshadowed: ComputePipeline,
     pub tonemap: ComputePipeline,
@@ -51,7 +57,7 @@ pub struct Pipelines {
 impl Pipelines {
     pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
         Ok(Pipelines {
-            geometry: geometry::pipeline(ctx)?,
+            geometry: geometry::pipelines(ctx)?,
             compose: compose::pipeline(ctx, true)?,
             compose_unshadowed: compose::pipeline(ctx, false)?,
             tonemap: tonemap::pipeline(ctx)?,

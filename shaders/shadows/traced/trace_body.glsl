@@ -8,12 +8,14 @@
 #ifndef UMBRA_SHADOW_TRACE_BODY_GLSL
 #define UMBRA_SHADOW_TRACE_BODY_GLSL
 
+#include "gbuffer.glsl"
 #include "lights.glsl"
 #include "random.glsl"
 #include "ray_offset.glsl"
 
 layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
+layout(set = 0, binding = SHADOW_SURFACE) uniform usampler2D gbuffer_surface;
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2DArray visibility;
 
@@ -40,7 +42,12 @@ void main() {
         if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
             v = 0.0;
         } else if (pc.dims.w > 0u) {
-            vec3 origin = offset_ray_origin(position.xyz, n);
+            // Off the facet onto the smooth surface its vertex normals describe, then off that
+            // along the geometric normal (the facing test above is the shading normal's, as
+            // shading's is).
+            uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);
+            vec3 start = position.xyz + gbuffer_terminator_offset(surface);
+            vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
             // Hard: one ray toward the centre. Soft: spp rays toward points over the light.
             // The light's own position is not an occluder: rays stop just short of it.
             uint spp = pc.dims.w;

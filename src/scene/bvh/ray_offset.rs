@@ -1,5 +1,7 @@
-//! Where a shadow ray starts: the G-buffer position pushed off its surface along the normal, by
-//! a distance that scales with the position's magnitude. Twin of shaders/include/ray_offset.glsl.
+//! Where a shadow ray starts: the G-buffer position pushed off its surface along the geometric
+//! normal, by a distance that scales with the position's magnitude. Twin of
+//! shaders/include/ray_offset.glsl. (The traced pass first moves the position by the geometry
+//! pass's shadow-terminator offset; `crate::shading::SurfaceSample::ray_origin` is that twin.)
 //!
 //! Positions come from a rasteriser interpolating world-space positions in f32, so each
 //! component is off by a few ulps of the vertices' magnitude. Wächter & Binder (Ray Tracing Gems,

@@ -44,6 +44,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
         &[
             sampled(SHADOW_POSITION),
             sampled(SHADOW_NORMAL),
+            sampled(SHADOW_SURFACE),
             storage(SHADOW_LIGHTS),
             storage(SHADOW_BVH_NODES),
             storage(SHADOW_BVH_TRIANGLES),
@@ -63,6 +64,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
         &[
             sampled(SHADOW_POSITION),
             sampled(SHADOW_NORMAL),
+            sampled(SHADOW_SURFACE),
             storage(SHADOW_LIGHTS),
             (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
             storage_image(SHADOW_VISIBILITY),
@@ -118,6 +120,7 @@ pub fn add<'a>(
     let mut bound = vec![
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
+        (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, Access::ComputeShaderReadSampledImage))),
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
     match casters {

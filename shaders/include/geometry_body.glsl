@@ -1,0 +1,63 @@
+// Geometry pass fragment shader body: fills the G-buffer (see gbuffer.glsl). geometry.frag
+// defines GEOMETRY_TRIANGLES: it reads the triangle under the fragment (gl_PrimitiveID, which
+// needs the device's geometryShader feature) from the scene's vertex and index buffers for the
+// geometric normal and the shadow-terminator offset. geometry_plain.frag, for devices without
+// that feature, takes the geometric normal from the position's screen derivatives and stores no
+// terminator offset.
+#include "gbuffer.glsl"
+#include "geometry_push.glsl"
+#include "ray_offset.glsl"
+
+layout(location = 0) in vec3 in_position;
+layout(location = 1) in vec3 in_normal;
+
+layout(location = GBUFFER_POSITION_LOCATION) out vec4 out_position;
+layout(location = GBUFFER_NORMAL_LOCATION) out vec4 out_normal;
+layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
+layout(location = GBUFFER_SURFACE_LOCATION) out uvec4 out_surface;
+
+#ifdef GEOMETRY_TRIANGLES
+// gpu_scene::Vertex: position, then normal, 24 bytes.
+struct GeometryVertex {
+    float position[3];
+    float normal[3];
+};
+layout(set = 0, binding = GEOMETRY_VERTICES, std430) readonly buffer Vertices { GeometryVertex vertices[]; };
+layout(set = 0, binding = GEOMETRY_INDICES, std430) readonly buffer Indices { uint indices[]; };
+#endif
+
+void main() {
+    vec3 p = in_position;
+    vec3 n = normalize(in_normal);
+    vec3 offset = vec3(0.0);
+    vec3 geometric;
+#ifdef GEOMETRY_TRIANGLES
+    // The draw's triangles start at its first index; each vertex index counts from its offset.
+    uint first = pc.draw.x + 3u * uint(gl_PrimitiveID);
+    int base = int(pc.draw.y);
+    vec3 corner[3];
+    vec3 corner_normal[3];
+    for (int k = 0; k < 3; k++) {
+        GeometryVertex v = vertices[int(indices[first + uint(k)]) + base];
+        corner[k] = vec3(v.position[0], v.position[1], v.position[2]);
+        corner_normal[k] = normalize(vec3(v.normal[0], v.normal[1], v.normal[2]));
+    }
+    vec3 e1 = corner[1] - corner[0];
+    vec3 e2 = corner[2] - corner[0];
+    // Counter-clockwise is front: the winding's normal faces the eye on a front face.
+    geometric = normalize(cross(e1, e2));
+    if (!gl_FrontFacing) geometric = -geometric;
+    offset = terminator_offset(p, corner, corner_normal, triangle_barycentrics(p, corner[0], e1, e2));
+    // A degenerate triangle rasterises nothing, but a sliver may lose its barycentrics.
+    if (any(isnan(offset)) || any(isinf(offset))) offset = vec3(0.0);
+#else
+    geometric = normalize(cross(dFdx(p), dFdy(p)));
+    if (dot(geometric, pc.eye.xyz - p) < 0.0) geometric = -geometric;
+#endif
+    // Back faces are culled, but a smooth normal can still lean away from the eye at grazing
+    // angles; it is kept as is, and shading clamps n.v.
+    out_position = vec4(p, 1.0);
+    out_normal = vec4(n, pc.metallic.x);
+    out_material = pc.base_color_roughness;
+    out_surface = gbuffer_surface_encode(offset, geometric);
+}

@@ -123,3 +123,30 @@ fn parameters_come_from_the_scene_file_then_the_command_line() {
     assert!(!out.status.success() && err.contains("pcf"), "{err}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+#[test]
+fn a_light_that_reaches_nothing_in_view_gets_no_shadow_work() {
+    let dir = std::env::temp_dir().join(format!("umbra-unseen-light-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let run = |scene: &str| {
+        let out = render(&dir, scene, "traced", &[]);
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    // Light 0 (the spot) points straight up, away from everything; light 1 (a point) is kept.
+    let up = SCENE
+        .replace("shadows = \"none\"\n", "")
+        .replace("direction = [0.0, -1.0, 0.0]", "direction = [0.0, 1.0, 0.0]");
+    let p = run(&up);
+    assert!(p.contains("x1 layers") && p.contains("shadow trace (light 1)"), "only the point light:\n{p}");
+    // Pointing down at the objects, it gets its layer again.
+    let down = SCENE.replace("shadows = \"none\"\n", "");
+    let p = run(&down);
+    assert!(p.contains("x2 layers") && p.contains("shadow trace (light 0, 1)"), "{p}");
+    // A spot far beside the scene, its cone on nothing there is (the test is per scene bounds
+    // in view, so a cone on an unseen part of a large visible floor still gets its work).
+    let aside = down.replace("position = [0.0, 4.0, 0.0]", "position = [40.0, 4.0, 0.0]");
+    let p = run(&aside);
+    assert!(p.contains("x1 layers"), "{p}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

@@ -137,6 +137,29 @@ pub fn asks_for(scene: &SceneGpu, settings: &RenderSettings, method: ShadowMetho
     scene.has_casters && (0..scene.light_count as usize).any(|i| settings.shadow_method(i) == method)
 }
 
+/// Whether `light` can reach any of `seen` (the bounds of what the camera sees): false only for
+/// a spot light whose cone misses them.
+pub fn reaches_view(light: &Light, seen: &light_space::Bounds) -> bool {
+    match *light {
+        _ if seen.is_empty() => false,
+        Light::Spot { position, direction, outer_deg, .. } => {
+            // Behind the light's plane, or (the box's bounding sphere) farther from the cone's
+            // surface than its radius: out of reach. Both tests are conservative.
+            if seen.corners().iter().all(|c| (*c - position).dot(direction) <= 0.0) {
+                return false; // all behind the light
+            }
+            let centre = (seen.min + seen.max) * 0.5;
+            let radius = (seen.max - seen.min).length() * 0.5;
+            let v = centre - position;
+            let along = v.dot(direction.normalize());
+            let across = (v - direction.normalize() * along).length();
+            let (sin, cos) = outer_deg.to_radians().min(std::f32::consts::FRAC_PI_2).sin_cos();
+            along > -radius && across * cos - along * sin <= radius
+        }
+        Light::Point { .. } | Light::Directional { .. } => true,
+    }
+}
+
 /// Which lights get shadow work this frame, and from which technique: every light whose
 /// shadows are on, where something can cast a shadow; and the light the visibility view
 /// shows, whatever its method (it then shows where the light reaches).
@@ -147,7 +170,13 @@ pub fn plan(
     volumes: Option<&volumes::VolumeScene>,
 ) -> ShadowPlan {
     let viewed = settings.debug_view.and_then(DebugView::light);
-    let shadowed = |i: usize| scene.has_casters && settings.shadow_method(i) != ShadowMethod::None;
+    let camera = settings.camera.map_or(scene.camera, |c| scene.to_local(&c));
+    let camera = CameraMatrices::new(&camera, scene.bounds, settings.width.max(1), settings.height.max(1));
+    let seen = map::visible_receivers(scene, &camera);
+    // A light that reaches nothing the camera can see needs no shadow work: its contribution
+    // is zero wherever its shadow would fall.
+    let reaches = |i: usize| reaches_view(&scene.local_lights[i], &seen);
+    let shadowed = |i: usize| scene.has_casters && settings.shadow_method(i) != ShadowMethod::None && reaches(i);
     let layers = LayerPlan::new(scene.light_count as usize, |i| shadowed(i) || viewed == Some(i));
     let mut plan = ShadowPlan { layers: layers.clone(), ..Default::default() };
     for (i, layer) in layers.layers.iter().enumerate() {

@@ -194,10 +194,14 @@ pub fn caster_bounds(scene: &SceneGpu) -> Bounds {
 
 /// Bounds of what the camera may see: every draw whose bounds reach its frustum.
 pub fn visible_bounds(frame: &FrameInputs<'_, '_>) -> Bounds {
-    let vp = frame.camera.view_proj_relative;
-    let eye = frame.camera.eye;
-    frame
-        .scene
+    visible_receivers(frame.scene, frame.camera)
+}
+
+/// Bounds of the draws whose bounds reach `camera`'s frustum.
+pub fn visible_receivers(scene: &SceneGpu, camera: &crate::gpu_scene::CameraMatrices) -> Bounds {
+    let vp = camera.view_proj_relative;
+    let eye = camera.eye;
+    scene
         .draws
         .iter()
         .filter(|d| {

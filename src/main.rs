@@ -30,6 +30,54 @@ enum Command {
     View(ViewArgs),
     /// List the Vulkan devices the loader finds, with the optional features umbra uses.
     Devices,
+    /// Measure shadow methods: time, error against a traced reference, memory.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Sweep shadow methods and their parameters over scenes; write results.csv, results.json
+    /// and a time-against-error chart per scene (SVG and PNG) into DIR.
+    Shadows(BenchShadowsArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchShadowsArgs {
+    /// Scene files (TOML); the built-in default scene if none.
+    scenes: Vec<PathBuf>,
+    /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, none.
+    #[arg(long, default_value = umbra::bench::sweep::DEFAULT_METHODS)]
+    methods: String,
+    /// A sweep axis, KEY=V1,V2,... with the keys of --param (keys joined by + move together:
+    /// map.constant_bias+map.slope_bias=0,2); repeatable, axes are swept one at a time. Replaces
+    /// the default sweeps: methods no axis names are measured at their defaults.
+    #[arg(long = "sweep", value_name = "KEY=V1,V2,..")]
+    sweeps: Vec<String>,
+    /// A parameter for every light before the sweep, KEY=VALUE (map.normal_offset=0.5); repeatable.
+    #[arg(long = "param", value_name = "KEY=VALUE")]
+    params: Vec<String>,
+    /// Image size as WIDTHxHEIGHT (default: 320x240 with --quick, else the scene's [image], else 320x240).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Timed frames per point, after the warm-up frames (default 5; 3 with --quick).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    frames: Option<u32>,
+    /// A tiny sweep (two map resolutions, every other method at its defaults), 3 frames at 320x240.
+    #[arg(long)]
+    quick: bool,
+    /// Directory for the results (made if missing).
+    #[arg(short, long, value_name = "DIR")]
+    output: PathBuf,
+    /// Replace result files already in DIR.
+    #[arg(long)]
+    force: bool,
+    /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
+    #[arg(long)]
+    device: Option<String>,
+    /// Khronos validation with synchronization validation; exits non-zero on any message.
+    #[arg(long)]
+    validate: bool,
 }
 
 #[derive(clap::Args)]
@@ -259,6 +307,7 @@ fn main() -> ExitCode {
         Command::Render(args) => render(args),
         Command::View(args) => view(args),
         Command::Devices => devices(),
+        Command::Bench(BenchCommand::Shadows(args)) => bench_shadows(args),
     };
     match result {
         Ok(code) => code,
@@ -386,6 +435,60 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
     if args.validate {
         println!("validation: {} messages", report.validation_messages);
         if report.validation_messages > 0 {
+            return Ok(ExitCode::FAILURE);
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
+    use umbra::bench::{shadows, sweep};
+    let start = Instant::now();
+    let methods = sweep::parse_methods(&args.methods).map_err(anyhow::Error::msg)?;
+    let axes = match args.sweeps.is_empty() {
+        true => None,
+        false => Some(
+            args.sweeps
+                .iter()
+                .map(|s| sweep::parse_axis(s))
+                .collect::<Result<Vec<_>, _>>()
+                .map_err(anyhow::Error::msg)?,
+        ),
+    };
+    let params = args
+        .params
+        .iter()
+        .map(|p| {
+            let (k, v) = p
+                .split_once('=')
+                .ok_or_else(|| anyhow::anyhow!("--param {p}: write KEY=VALUE, e.g. map.resolution=1024"))?;
+            Ok((k.trim().to_string(), v.trim().to_string()))
+        })
+        .collect::<Result<Vec<_>>>()?;
+    let options = shadows::Options {
+        scenes: args.scenes,
+        methods,
+        axes,
+        params,
+        size: args.size,
+        frames: args.frames,
+        quick: args.quick,
+        out_dir: args.output,
+        force: args.force,
+        device: args.device,
+        validate: args.validate,
+    };
+    let outcome = shadows::run(&options)?;
+    print!("{}", outcome.summary);
+    println!(
+        "wrote {} rows to {} in {:.1} s",
+        outcome.rows.len(),
+        options.out_dir.display(),
+        start.elapsed().as_secs_f64()
+    );
+    if args.validate {
+        println!("validation: {} messages", outcome.validation_messages);
+        if outcome.validation_messages > 0 {
             return Ok(ExitCode::FAILURE);
         }
     }

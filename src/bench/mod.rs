@@ -1,3 +1,15 @@
 //! `umbra bench`: sweeps of shadow methods, scored against a traced reference.
+//!
+//! - `metrics`: the error metrics (visibility RMSE, leak, false shadow, FLIP) and the Pareto front;
+//! - `sweep`: methods and the points of their sweeps;
+//! - `reference`: the traced reference per light and frame, and its cache;
+//! - `shadows`: the run itself (`umbra bench shadows`);
+//! - `report`: rows as CSV and JSON, the summary table;
+//! - `chart`: time against error per scene, SVG and PNG.
 
+pub mod chart;
 pub mod metrics;
+pub mod reference;
+pub mod report;
+pub mod shadows;
+pub mod sweep;

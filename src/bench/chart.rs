@@ -1,0 +1,314 @@
+//! Per-scene charts of time against error, as SVG and PNG, with plotters.
+//!
+//! No system font is needed: the SVG names a generic `sans-serif` family for the viewer to
+//! draw, and the PNG's text is drawn with the public-domain font8x8 glyphs (the viewer's
+//! overlay font) through [`GlyphBitmap`], a bitmap backend whose only change is text.
+
+use std::io::Write as _;
+use std::path::Path;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+pub use self::glyphs::GlyphBitmap;
+
+/// One line of the chart: a method's sweep along one axis.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Series {
+    pub label: String,
+    /// Which method (picks the colour): the index in the run's method list.
+    pub colour: usize,
+    /// (time ms, error), in sweep order.
+    pub points: Vec<(f64, f64)>,
+}
+
+/// What one chart shows.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Chart {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    /// The Pareto front, in time order.
+    pub front: Vec<(f64, f64)>,
+}
+
+const SIZE: (u32, u32) = (900, 600);
+
+fn colour(i: usize) -> RGBColor {
+    const PALETTE: [RGBColor; 8] = [
+        RGBColor(31, 119, 180),
+        RGBColor(255, 127, 14),
+        RGBColor(44, 160, 44),
+        RGBColor(214, 39, 40),
+        RGBColor(148, 103, 189),
+        RGBColor(140, 86, 75),
+        RGBColor(227, 119, 194),
+        RGBColor(127, 127, 127),
+    ];
+    PALETTE[i % PALETTE.len()]
+}
+
+/// A time tick: whole milliseconds from 10 up, else three significant digits or so.
+fn tick(v: f64) -> String {
+    match v {
+        v if v >= 10.0 => format!("{v:.0}"),
+        v if v >= 1.0 => format!("{v:.1}"),
+        v if v >= 0.1 => format!("{v:.2}"),
+        v => format!("{v:.3}"),
+    }
+}
+
+type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
+
+impl Chart {
+    /// The x range (log scale): every positive time with some margin. Points at 0 ms (a method
+    /// with no shadow work) are drawn at its left end.
+    fn x_range(&self) -> (f64, f64) {
+        let times = self.series.iter().flat_map(|s| s.points.iter().map(|p| p.0)).filter(|&t| t > 0.0 && t.is_finite());
+        let (lo, hi) = times.fold((f64::INFINITY, 0.0f64), |(lo, hi), t| (lo.min(t), hi.max(t)));
+        if !lo.is_finite() {
+            return (0.01, 1.0);
+        }
+        (lo / 2.0, (hi * 2.0).max(lo * 4.0))
+    }
+
+    fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> DrawResult<DB> {
+        root.fill(&WHITE)?;
+        let (x0, x1) = self.x_range();
+        let y_max =
+            self.series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).filter(|e| e.is_finite()).fold(0.0, f64::max);
+        let y1 = if y_max > 0.0 { y_max * 1.1 } else { 0.01 };
+        let clamp = |(t, e): (f64, f64)| (t.max(x0), e);
+        let mut chart = ChartBuilder::on(&root)
+            .caption(&self.title, ("sans-serif", 20))
+            .margin(16)
+            .x_label_area_size(44)
+            .y_label_area_size(72)
+            .build_cartesian_2d((x0..x1).log_scale(), 0.0..y1)?;
+        chart
+            .configure_mesh()
+            .x_desc(&self.x_label)
+            .y_desc(&self.y_label)
+            .x_label_formatter(&|v| tick(*v))
+            .y_label_formatter(&|v| format!("{v:.3}"))
+            .label_style(("sans-serif", 14))
+            .draw()?;
+        for s in &self.series {
+            let c = colour(s.colour);
+            let points: Vec<(f64, f64)> = s.points.iter().copied().map(clamp).collect();
+            chart
+                .draw_series(LineSeries::new(points.clone(), c.stroke_width(2)))?
+                .label(&s.label)
+                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+            chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, c.filled())))?;
+        }
+        let front: Vec<(f64, f64)> = self.front.iter().copied().map(clamp).collect();
+        chart
+            .draw_series(LineSeries::new(front.clone(), BLACK.stroke_width(1)))?
+            .label("Pareto front")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
+        chart.draw_series(front.iter().map(|&p| Circle::new(p, 8, BLACK.stroke_width(2))))?;
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .label_font(("sans-serif", 14))
+            .background_style(WHITE.mix(0.85))
+            .border_style(BLACK)
+            .draw()?;
+        root.present()?;
+        Ok(())
+    }
+
+    /// The chart as SVG text.
+    pub fn svg(&self) -> Result<String, String> {
+        let mut text = String::new();
+        {
+            let root = SVGBackend::with_string(&mut text, SIZE).into_drawing_area();
+            self.draw(root).map_err(|e| format!("drawing the SVG chart: {e}"))?;
+        }
+        Ok(text)
+    }
+
+    /// The chart as PNG bytes.
+    pub fn png(&self) -> Result<Vec<u8>, String> {
+        let (w, h) = SIZE;
+        let mut rgb = vec![0u8; (w * h * 3) as usize];
+        {
+            let backend = GlyphBitmap(BitMapBackend::with_buffer(&mut rgb, SIZE));
+            self.draw(backend.into_drawing_area()).map_err(|e| format!("drawing the PNG chart: {e}"))?;
+        }
+        let mut png = Vec::new();
+        image::codecs::png::PngEncoder::new(&mut png)
+            .write_image(&rgb, w, h, image::ExtendedColorType::Rgb8)
+            .map_err(|e| format!("encoding the PNG chart: {e}"))?;
+        Ok(png)
+    }
+
+    /// Writes `stem.svg` and `stem.png` beside each other, each atomically.
+    pub fn write(&self, dir: &Path, stem: &str) -> Result<(), String> {
+        write_atomic(&dir.join(format!("{stem}.svg")), self.svg()?.as_bytes())?;
+        write_atomic(&dir.join(format!("{stem}.png")), &self.png()?)
+    }
+}
+
+use image::ImageEncoder as _;
+
+/// Writes `bytes` to a temporary file beside `path`, then renames it to `path`.
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
+    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
+    let fail = |e: std::io::Error| format!("{}: {e}", path.display());
+    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(fail)?;
+    tmp.write_all(bytes).map_err(fail)?;
+    tmp.persist(path).map_err(|e| fail(e.error))?;
+    Ok(())
+}
+
+mod glyphs {
+    use plotters::prelude::*;
+    use plotters_backend::text_anchor::{HPos, VPos};
+    use plotters_backend::{
+        BackendColor, BackendCoord, BackendStyle, BackendTextStyle, DrawingErrorKind, FontTransform,
+    };
+
+    /// A bitmap backend that draws text with the 8x8 glyphs of font8x8, scaled by whole pixels
+    /// (`size / 12`, at least 1): everything else is the bitmap backend's own.
+    pub struct GlyphBitmap<'a>(pub BitMapBackend<'a>);
+
+    /// Glyph scale for a font size in pixels.
+    fn glyph_scale(size: f64) -> i32 {
+        ((size / 12.0).round() as i32).max(1)
+    }
+
+    /// The glyph of `c` (printable ASCII; anything else is `?`).
+    fn glyph(c: char) -> [u8; 8] {
+        let i = if c.is_ascii() && !c.is_ascii_control() { c as usize } else { '?' as usize };
+        font8x8::legacy::BASIC_LEGACY[i]
+    }
+
+    impl DrawingBackend for GlyphBitmap<'_> {
+        type ErrorType = <BitMapBackend<'static> as DrawingBackend>::ErrorType;
+
+        fn get_size(&self) -> (u32, u32) {
+            self.0.get_size()
+        }
+        fn ensure_prepared(&mut self) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.ensure_prepared()
+        }
+        fn present(&mut self) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.present()
+        }
+        fn draw_pixel(
+            &mut self,
+            point: BackendCoord,
+            color: BackendColor,
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.draw_pixel(point, color)
+        }
+        fn draw_line<S: BackendStyle>(
+            &mut self,
+            from: BackendCoord,
+            to: BackendCoord,
+            style: &S,
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.draw_line(from, to, style)
+        }
+        fn draw_rect<S: BackendStyle>(
+            &mut self,
+            upper_left: BackendCoord,
+            bottom_right: BackendCoord,
+            style: &S,
+            fill: bool,
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.draw_rect(upper_left, bottom_right, style, fill)
+        }
+        fn draw_path<S: BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+            &mut self,
+            path: I,
+            style: &S,
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.draw_path(path, style)
+        }
+        fn draw_circle<S: BackendStyle>(
+            &mut self,
+            center: BackendCoord,
+            radius: u32,
+            style: &S,
+            fill: bool,
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.draw_circle(center, radius, style, fill)
+        }
+        fn fill_polygon<S: BackendStyle, I: IntoIterator<Item = BackendCoord>>(
+            &mut self,
+            vert: I,
+            style: &S,
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.fill_polygon(vert, style)
+        }
+        fn blit_bitmap(
+            &mut self,
+            pos: BackendCoord,
+            size: (u32, u32),
+            src: &[u8],
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            self.0.blit_bitmap(pos, size, src)
+        }
+
+        fn estimate_text_size<TStyle: BackendTextStyle>(
+            &self,
+            text: &str,
+            style: &TStyle,
+        ) -> Result<(u32, u32), DrawingErrorKind<Self::ErrorType>> {
+            let s = glyph_scale(style.size()) as u32;
+            Ok((8 * s * text.chars().count() as u32, 8 * s))
+        }
+
+        fn draw_text<TStyle: BackendTextStyle>(
+            &mut self,
+            text: &str,
+            style: &TStyle,
+            pos: BackendCoord,
+        ) -> Result<(), DrawingErrorKind<Self::ErrorType>> {
+            let color = style.color();
+            if color.alpha == 0.0 {
+                return Ok(());
+            }
+            let s = glyph_scale(style.size());
+            let (width, height) = (8 * s * text.chars().count() as i32, 8 * s);
+            let dx = match style.anchor().h_pos {
+                HPos::Left => 0,
+                HPos::Right => -width,
+                HPos::Center => -width / 2,
+            };
+            let dy = match style.anchor().v_pos {
+                VPos::Top => 0,
+                VPos::Center => -height / 2,
+                VPos::Bottom => -height,
+            };
+            let transform = style.transform();
+            let (w, h) = self.get_size();
+            for (k, c) in text.chars().enumerate() {
+                for (row, bits) in glyph(c).iter().enumerate() {
+                    for col in 0..8 {
+                        if bits & (1 << col) == 0 {
+                            continue;
+                        }
+                        for (sx, sy) in (0..s).flat_map(|a| (0..s).map(move |b| (a, b))) {
+                            let x = k as i32 * 8 * s + col * s + sx + dx;
+                            let y = row as i32 * s + sy + dy;
+                            let (x, y) = match &transform {
+                                FontTransform::None => (x, y),
+                                t => t.transform(x, y),
+                            };
+                            let (x, y) = (pos.0 + x, pos.1 + y);
+                            if x >= 0 && y >= 0 && x < w as i32 && y < h as i32 {
+                                self.0.draw_pixel((x, y), color)?;
+                            }
+                        }
+                    }
+                }
+            }
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,327 @@
+//! The reference each method is scored against: traced visibility of the same frame, per light,
+//! and the traced frame itself, cached on disk.
+//!
+//! - **Mask** of each light: the pixels that count. A pixel counts for light `n` when a surface
+//!   covers it (the raw depth view is above 0) and light `n` reaches it unshadowed (the
+//!   visibility view of light `n` with its shadows off is 1: the surface faces the light, and a
+//!   spot's cone holds it). Background and surfaces the light cannot reach are left out: every
+//!   method, and the reference, gives them the same value, so they would only dilute the shares.
+//! - **Hard lights** (`Light::has_size` false): one ray per pixel toward the light's centre
+//!   (`ShadowChoice::hard()`), exact.
+//! - **Lights with a size**: `FRAMES` frames of `SPP` rays per pixel (256 in all) toward points
+//!   over the light, averaged, with seeds (`frame_index` from `SEED`) that no measured frame
+//!   uses, so a method's own samples are independent of the reference's. Its own error is
+//!   estimated from two independent halves A (frames 0, 1) and B (frames 2, 3) of 128 samples
+//!   each: per pixel, the variance of the 256-sample mean is a quarter of the variance of A - B
+//!   (Var(A - B) = 2 s²/128, Var(mean) = s²/256), so the reference's RMSE is estimated as
+//!   `RMSE(A - B) / 2` over the mask. Hard lights' error is 0.
+//! - **Frame**: the shaded, tone-mapped frame (RGBA8 sRGB) with every light so traced (soft
+//!   lights accumulated over `FRAMES` frames), for FLIP.
+//!
+//! The reference is traced with the compute BVH (`ShadowBackend::Compute`) at the bench's size.
+//! It is cached under the user's cache directory (`$XDG_CACHE_HOME/umbra/references`, else
+//! `~/.cache/umbra/references`), in a file named by a SHA-256 over what it depends on (see
+//! [`cache_key`]), written to a temporary file beside it and renamed, so a re-run only
+//! measures and a changed scene never reuses a stale reference.
+
+use std::io::Write as _;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
+use crate::renderer::{Frame, Renderer};
+use crate::scene::Scene;
+
+/// Soft lights: rays per pixel in each reference frame...
+pub const SPP: u32 = 64;
+/// ...and frames averaged (two halves of two).
+pub const FRAMES: u32 = 4;
+/// The first reference frame's `frame_index`; measured frames start at 0.
+pub const SEED: u32 = 0x4000_0000;
+/// Bumped whenever what a reference holds or how it is made changes.
+const FORMAT_VERSION: u32 = 1;
+const MAGIC: &[u8; 8] = b"UMBRAREF";
+
+/// One light's reference.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LightReference {
+    /// Traced visibility per pixel, row-major (1 lit, 0 shadowed).
+    pub visibility: Vec<f32>,
+    /// The pixels that count (covered, reached by the light unshadowed).
+    pub mask: Vec<bool>,
+    /// Whether the light has a size (soft reference) or not (hard, exact).
+    pub soft: bool,
+    /// Rays per pixel in all (1 for hard lights).
+    pub samples: u32,
+    /// The reference's own RMSE over the mask, estimated from its halves (0 for hard lights).
+    pub error: f64,
+}
+
+impl LightReference {
+    /// Pixels the mask lets through.
+    pub fn pixels(&self) -> usize {
+        self.mask.iter().filter(|&&m| m).count()
+    }
+
+    /// Masked pixels the reference has shadowed (visibility below 0.5, as `metrics` binarises).
+    pub fn shadowed(&self) -> usize {
+        // NaN counts as shadowed, as in `metrics`.
+        let lit = |v: f32| v >= super::metrics::LIT_THRESHOLD;
+        self.visibility.iter().zip(&self.mask).filter(|(&v, &m)| m && !lit(v)).count()
+    }
+
+    /// Share of the masked pixels the reference has shadowed: exactly what an unshadowed method
+    /// leaks.
+    pub fn shadowed_share(&self) -> f64 {
+        let shadowed = self.shadowed();
+        let pixels = self.pixels();
+        if pixels == 0 {
+            0.0
+        } else {
+            shadowed as f64 / pixels as f64
+        }
+    }
+}
+
+/// A scene's reference at one size.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Reference {
+    pub width: u32,
+    pub height: u32,
+    pub lights: Vec<LightReference>,
+    /// The traced frame, RGBA8 sRGB.
+    pub display: Vec<u8>,
+}
+
+/// The hex SHA-256 that names a reference: the bench's reference format and umbra's version;
+/// the device and driver (references from another device may differ on grazing rays); the size;
+/// the contents of every file the scene was read from (scene file, OBJ, MTL); and the resolved
+/// scene itself: camera, every light, every mesh's vertices, normals, indices and caster flag.
+pub fn cache_key(scene: &Scene, width: u32, height: u32, device: &str) -> Result<String, String> {
+    let mut h = Sha256::new();
+    let mut field = |name: &str, bytes: &[u8]| {
+        h.update((name.len() as u64).to_le_bytes());
+        h.update(name.as_bytes());
+        h.update((bytes.len() as u64).to_le_bytes());
+        h.update(bytes);
+    };
+    field("format", &FORMAT_VERSION.to_le_bytes());
+    field("umbra", env!("CARGO_PKG_VERSION").as_bytes());
+    field("reference", format!("spp {SPP} frames {FRAMES} seed {SEED}").as_bytes());
+    field("device", device.as_bytes());
+    field("size", format!("{width}x{height}").as_bytes());
+    for source in &scene.sources {
+        let bytes = std::fs::read(source).map_err(|e| format!("{}: {e}", source.display()))?;
+        field("source", &bytes);
+    }
+    field("camera", format!("{:?}", scene.camera).as_bytes());
+    for light in &scene.lights {
+        field("light", format!("{light:?}").as_bytes());
+    }
+    for mesh in &scene.meshes {
+        field("mesh", &[u8::from(mesh.cast_shadows)]);
+        field("positions", bytemuck::cast_slice(&mesh.positions));
+        field("normals", bytemuck::cast_slice(&mesh.normals));
+        field("indices", bytemuck::cast_slice(&mesh.indices));
+    }
+    Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
+}
+
+/// Where references are cached: `$XDG_CACHE_HOME/umbra/references`, else
+/// `~/.cache/umbra/references` (the platform's cache directory elsewhere).
+pub fn cache_dir() -> Option<PathBuf> {
+    dirs::cache_dir().map(|d| d.join("umbra").join("references"))
+}
+
+/// The header of a cached reference; the arrays follow it.
+#[derive(Serialize, Deserialize)]
+struct Header {
+    key: String,
+    width: u32,
+    height: u32,
+    lights: Vec<LightHeader>,
+}
+
+#[derive(Serialize, Deserialize)]
+struct LightHeader {
+    soft: bool,
+    samples: u32,
+    error: f64,
+}
+
+impl Reference {
+    /// The file layout: `UMBRAREF`, the format version (u32 LE), the header's length (u64 LE)
+    /// and the header (JSON); then per light the mask (one byte per pixel) and the visibility
+    /// (f32 LE per pixel); then the frame (RGBA8).
+    pub fn to_bytes(&self, key: &str) -> Vec<u8> {
+        let header = Header {
+            key: key.to_string(),
+            width: self.width,
+            height: self.height,
+            lights: self
+                .lights
+                .iter()
+                .map(|l| LightHeader { soft: l.soft, samples: l.samples, error: l.error })
+                .collect(),
+        };
+        let header = serde_json::to_vec(&header).expect("the header serialises");
+        let mut out = Vec::new();
+        out.extend_from_slice(MAGIC);
+        out.extend_from_slice(&FORMAT_VERSION.to_le_bytes());
+        out.extend_from_slice(&(header.len() as u64).to_le_bytes());
+        out.extend_from_slice(&header);
+        for l in &self.lights {
+            out.extend(l.mask.iter().map(|&m| u8::from(m)));
+            out.extend_from_slice(bytemuck::cast_slice(&l.visibility));
+        }
+        out.extend_from_slice(&self.display);
+        out
+    }
+
+    /// Reads what `to_bytes` wrote, for `key`; `None` when the bytes are not such a reference.
+    pub fn from_bytes(bytes: &[u8], key: &str) -> Option<Reference> {
+        let rest = bytes.strip_prefix(MAGIC)?;
+        let (version, rest) = rest.split_at_checked(4)?;
+        if u32::from_le_bytes(version.try_into().ok()?) != FORMAT_VERSION {
+            return None;
+        }
+        let (len, rest) = rest.split_at_checked(8)?;
+        let len = usize::try_from(u64::from_le_bytes(len.try_into().ok()?)).ok()?;
+        let (header, mut rest) = rest.split_at_checked(len)?;
+        let header: Header = serde_json::from_slice(header).ok()?;
+        if header.key != key {
+            return None;
+        }
+        let pixels = (header.width as usize).checked_mul(header.height as usize)?;
+        let mut lights = Vec::new();
+        for l in header.lights {
+            let (mask, after) = rest.split_at_checked(pixels)?;
+            let (vis, after) = after.split_at_checked(pixels.checked_mul(4)?)?;
+            rest = after;
+            let visibility = vis.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect();
+            let mask = mask.iter().map(|&m| m != 0).collect();
+            lights.push(LightReference { visibility, mask, soft: l.soft, samples: l.samples, error: l.error });
+        }
+        if rest.len() != pixels.checked_mul(4)? {
+            return None;
+        }
+        Some(Reference { width: header.width, height: header.height, lights, display: rest.to_vec() })
+    }
+
+    /// Loads the reference cached in `dir` under `key`, if there is a valid one.
+    pub fn load(dir: &Path, key: &str) -> Option<Reference> {
+        let bytes = std::fs::read(dir.join(format!("{key}.ref"))).ok()?;
+        Reference::from_bytes(&bytes, key)
+    }
+
+    /// Writes it to `dir` under `key` atomically (a temporary file beside it, then renamed);
+    /// returns the path.
+    pub fn save(&self, dir: &Path, key: &str) -> std::io::Result<PathBuf> {
+        std::fs::create_dir_all(dir)?;
+        let path = dir.join(format!("{key}.ref"));
+        let mut tmp = tempfile::NamedTempFile::new_in(dir)?;
+        tmp.write_all(&self.to_bytes(key))?;
+        tmp.as_file().sync_all()?;
+        tmp.persist(&path).map_err(|e| e.error)?;
+        Ok(path)
+    }
+}
+
+/// Settings of a capture at the bench's size: compute BVH, seeds from `frame_index`.
+pub fn settings(width: u32, height: u32, output: OutputKind, shadows: Vec<ShadowChoice>) -> RenderSettings {
+    RenderSettings { shadows, shadow_backend: ShadowBackend::Compute, ..RenderSettings::new(width, height, output) }
+}
+
+/// The red channel of a linear frame (a debug view: visibility, or depth).
+pub fn red_channel(frame: &Frame) -> Vec<f32> {
+    match frame {
+        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(|p| p[0]).collect(),
+        Frame::Rgba8 { pixels, .. } => pixels.chunks_exact(4).map(|p| f32::from(p[0]) / 255.0).collect(),
+    }
+}
+
+/// The bytes of a display frame (RGBA8).
+pub fn display_bytes(frame: Frame) -> Vec<u8> {
+    match frame {
+        Frame::Rgba8 { pixels, .. } => pixels,
+        Frame::Rgba32F { pixels, .. } => pixels.iter().map(|&v| (v.clamp(0.0, 1.0) * 255.0).round() as u8).collect(),
+    }
+}
+
+/// Light `n`'s visibility view with `choice` for it and every other light's shadows off (they
+/// do not change light `n`'s layer, and cost nothing that way).
+pub fn light_visibility(
+    renderer: &mut Renderer,
+    width: u32,
+    height: u32,
+    n: usize,
+    choice: ShadowChoice,
+    frame_index: u32,
+) -> crate::vk::GpuResult<Vec<f32>> {
+    let lights = renderer.scene().lights.len();
+    let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); lights];
+    shadows[n] = choice;
+    let mut s = settings(width, height, OutputKind::SceneLinear, shadows);
+    s.debug_view = Some(DebugView::Visibility(n as u32));
+    s.frame_index = frame_index;
+    Ok(red_channel(&renderer.render(&s)?))
+}
+
+/// RMSE of `a - b` over `mask`.
+fn masked_rmse(a: &[f32], b: &[f32], mask: &[bool]) -> f64 {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for ((&x, &y), &m) in a.iter().zip(b).zip(mask) {
+        if m {
+            let d = f64::from(x) - f64::from(y);
+            sum += d * d;
+            n += 1;
+        }
+    }
+    if n == 0 {
+        0.0
+    } else {
+        (sum / n as f64).sqrt()
+    }
+}
+
+/// Traces the reference of the renderer's scene at `width` x `height` (see the module's notes).
+pub fn compute(renderer: &mut Renderer, width: u32, height: u32) -> crate::vk::GpuResult<Reference> {
+    let lights: Vec<crate::scene::Light> = renderer.scene().lights.clone();
+    let mut depth =
+        settings(width, height, OutputKind::SceneLinear, vec![ShadowChoice::of(ShadowMethod::None); lights.len()]);
+    depth.debug_view = Some(DebugView::Depth);
+    let covered: Vec<bool> = red_channel(&renderer.render(&depth)?).iter().map(|&d| d > 0.0).collect();
+    let mut out = Vec::new();
+    for (n, light) in lights.iter().enumerate() {
+        let reach = light_visibility(renderer, width, height, n, ShadowChoice::of(ShadowMethod::None), 0)?;
+        let mask: Vec<bool> = covered.iter().zip(&reach).map(|(&c, &r)| c && r >= 0.5).collect();
+        if !light.has_size() {
+            let visibility = light_visibility(renderer, width, height, n, ShadowChoice::hard(), 0)?;
+            out.push(LightReference { visibility, mask, soft: false, samples: 1, error: 0.0 });
+            continue;
+        }
+        let frames: Vec<Vec<f32>> = (0..FRAMES)
+            .map(|k| light_visibility(renderer, width, height, n, ShadowChoice::soft(SPP), SEED + k))
+            .collect::<Result<_, _>>()?;
+        let mean = |fs: &[Vec<f32>]| -> Vec<f32> {
+            (0..fs[0].len()).map(|i| fs.iter().map(|f| f[i]).sum::<f32>() / fs.len() as f32).collect()
+        };
+        let half = (FRAMES / 2) as usize;
+        let (a, b) = (mean(&frames[..half]), mean(&frames[half..]));
+        let error = masked_rmse(&a, &b, &mask) / 2.0;
+        out.push(LightReference { visibility: mean(&frames), mask, soft: true, samples: SPP * FRAMES, error });
+    }
+    let shadows: Vec<ShadowChoice> =
+        lights.iter().map(|l| if l.has_size() { ShadowChoice::soft(SPP) } else { ShadowChoice::hard() }).collect();
+    let mut shaded = settings(width, height, OutputKind::Display, shadows);
+    shaded.frame_index = SEED;
+    let stochastic = shaded.is_stochastic(&lights);
+    let mut display = Vec::new();
+    // Successive renders with equal settings accumulate: FRAMES x SPP samples for soft lights.
+    for _ in 0..if stochastic { FRAMES } else { 1 } {
+        display = display_bytes(renderer.render(&shaded)?);
+    }
+    Ok(Reference { width, height, lights: out, display })
+}

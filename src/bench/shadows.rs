@@ -1,0 +1,577 @@
+//! `umbra bench shadows`: for each scene, method and sweep point, renders the frame, times its
+//! shadow work, scores each light's visibility and the tone-mapped frame against the traced
+//! reference (`reference`), and writes `results.csv`, `results.json` and a chart per scene.
+//!
+//! Per point: `warm-up` frames (not counted: pipelines, maps and acceleration structures are
+//! made there), then `frames` timed frames of the shaded image (GPU time per pass from
+//! timestamps after `Renderer::calibrate_timings`, host time per render), then each light's
+//! visibility view with the point's settings for that light (other lights' shadows off), and,
+//! when the frame is stochastic, one more shaded frame on its own (the timed ones accumulate):
+//! every score is of one frame's worth of samples, the cost the times measure.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{bail, Context as _, Result};
+use ash::vk;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use serde_json::json;
+
+use super::chart::{write_atomic, Chart, Series};
+use super::metrics::{flip_mean, visibility_error, VisibilityError};
+use super::reference::{self, LightReference, Reference};
+use super::report::{self, Row};
+use super::sweep::{self, Axis, MethodSpec, Point};
+use crate::config::{OutputKind, ShadowChoice, ShadowMethod};
+use crate::graph::{CompiledGraph, ResourceDesc, Storage};
+use crate::renderer::Renderer;
+use crate::scene::{Light, Scene};
+use crate::timing::{Spread, TimingCalibration};
+use crate::vk::{GpuContext, GpuOptions};
+
+/// What to run (`umbra bench shadows` arguments).
+#[derive(Clone, Debug, Default)]
+pub struct Options {
+    /// Scene files; none: the built-in default scene.
+    pub scenes: Vec<PathBuf>,
+    pub methods: Vec<MethodSpec>,
+    /// `--sweep` axes; `None`: each method's default sweep (`sweep::default_axes`).
+    pub axes: Option<Vec<Axis>>,
+    /// `--param KEY=VALUE`: set for every light before the sweep.
+    pub params: Vec<(String, String)>,
+    /// Image size; default: 320x240 with `quick`, else the scene's `[image]`, else 320x240.
+    pub size: Option<(u32, u32)>,
+    /// Timed frames per point; default 5, 3 with `quick`.
+    pub frames: Option<u32>,
+    pub quick: bool,
+    pub out_dir: PathBuf,
+    pub force: bool,
+    pub device: Option<String>,
+    pub validate: bool,
+}
+
+/// What a run produced.
+pub struct Outcome {
+    pub rows: Vec<Row>,
+    /// The table to print.
+    pub summary: String,
+    /// Files written.
+    pub files: Vec<PathBuf>,
+    pub validation_messages: usize,
+}
+
+/// Timed frames per point by default, and with `--quick`.
+const FRAMES: u32 = 5;
+const QUICK_FRAMES: u32 = 3;
+/// Frames rendered before timing, not counted.
+const WARMUP: u32 = 2;
+const QUICK_WARMUP: u32 = 1;
+
+/// Whether a pass is shadow work: every technique's passes are named `shadow ...`; the
+/// ray-query structures' builds ("build BLAS", "build TLAS") run in the first frame only,
+/// which is a warm-up frame.
+pub fn is_shadow_pass(name: &str) -> bool {
+    use crate::shadows::traced::accel::{BUILD_BOTTOM, BUILD_TOP};
+    name.starts_with("shadow") || name == BUILD_BOTTOM || name == BUILD_TOP
+}
+
+/// Bytes per texel of the formats frame graphs use (4 for any other).
+fn texel_bytes(format: vk::Format) -> u64 {
+    match format {
+        vk::Format::R8_UNORM | vk::Format::R8_UINT | vk::Format::S8_UINT => 1,
+        vk::Format::R16_SFLOAT | vk::Format::R16_UNORM | vk::Format::D16_UNORM => 2,
+        vk::Format::D32_SFLOAT_S8_UINT
+        | vk::Format::R32G32_SFLOAT
+        | vk::Format::R16G16B16A16_SFLOAT
+        | vk::Format::R16G16B16A16_UNORM => 8,
+        vk::Format::R32G32B32A32_SFLOAT | vk::Format::R32G32B32A32_UINT => 16,
+        _ => 4,
+    }
+}
+
+/// Bytes of the transient images and buffers the plan's shadow passes bring in (first used by
+/// one), the shared visibility target left out; resources sharing a transient slot count once.
+pub fn shadow_bytes(plan: &CompiledGraph) -> u64 {
+    let mut slots: Vec<usize> = Vec::new();
+    for r in &plan.resources {
+        let (Storage::Transient(slot), Some((first, _))) = (r.storage, r.lifetime) else { continue };
+        let by_shadow = plan.passes.get(first).is_some_and(|p| is_shadow_pass(p.name));
+        if by_shadow && r.name != "visibility" && !slots.contains(&slot) {
+            slots.push(slot);
+        }
+    }
+    let by_desc = |slot: usize| {
+        plan.resources.iter().find(|r| r.storage == Storage::Transient(slot)).map_or(0, |r| match r.desc {
+            ResourceDesc::Image(d) => {
+                u64::from(d.width) * u64::from(d.height) * u64::from(d.layers.max(1)) * texel_bytes(d.format)
+            }
+            ResourceDesc::Buffer(b) => b.size,
+        })
+    };
+    slots.into_iter().map(by_desc).sum()
+}
+
+/// The pooled error of several lights: their buffers stacked one under another, with a masked
+/// row between them so no shadow edge joins two lights.
+fn pooled_error(parts: &[(&[f32], &[f32], &[bool])], width: usize, height: usize) -> VisibilityError {
+    if parts.is_empty() {
+        return VisibilityError::default();
+    }
+    let rows = parts.len() * (height + 1) - 1;
+    let (mut r, mut t, mut m) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, (rv, tv, mv)) in parts.iter().enumerate() {
+        if i > 0 {
+            r.extend(std::iter::repeat_n(0.0, width));
+            t.extend(std::iter::repeat_n(0.0, width));
+            m.extend(std::iter::repeat_n(false, width));
+        }
+        r.extend_from_slice(rv);
+        t.extend_from_slice(tv);
+        m.extend_from_slice(mv);
+    }
+    visibility_error(&r, &t, width, rows, Some(&m))
+}
+
+/// Which technique serves each light at a point, and why not the one asked for.
+fn served(
+    renderer: &Renderer,
+    ctx: &GpuContext,
+    settings: &crate::config::RenderSettings,
+    volumes: Option<&crate::shadows::volumes::VolumeScene>,
+) -> Vec<(ShadowMethod, Option<String>)> {
+    let plan = crate::shadows::plan(&renderer.gpu_scene, &ctx.capabilities, settings, volumes);
+    (0..renderer.scene().lights.len())
+        .map(|i| {
+            let method = [ShadowMethod::Traced, ShadowMethod::Map, ShadowMethod::Cascades, ShadowMethod::Volumes]
+                .into_iter()
+                .find(|&m| plan.served(m).iter().any(|s| s.light as usize == i))
+                .unwrap_or(ShadowMethod::None);
+            let why = plan.fallbacks.iter().find(|f| f.0 == i).map(|f| format!("{}: {}", f.1, f.2));
+            (method, why)
+        })
+        .collect()
+}
+
+/// Map texels a light's shadows touch per frame, from its parameters.
+fn map_texels(served_by: ShadowMethod, choice: &ShadowChoice, light: &Light) -> u64 {
+    let res = u64::from(choice.map.resolution);
+    match served_by {
+        ShadowMethod::Map if matches!(light, Light::Point { .. }) => res * res * 6,
+        ShadowMethod::Map => res * res,
+        ShadowMethod::Cascades => res * res * u64::from(choice.cascades.count),
+        _ => 0,
+    }
+}
+
+/// One scene as the run holds it.
+struct SceneJob {
+    label: String,
+    stem: String,
+    scene: Scene,
+    size: (u32, u32),
+    /// Per method: its points.
+    points: Vec<(MethodSpec, Vec<Point>)>,
+}
+
+fn scene_stem(path: Option<&Path>, taken: &[String]) -> String {
+    let base: String = path
+        .and_then(|p| p.file_stem())
+        .map_or("default".into(), |s| s.to_string_lossy().into_owned())
+        .chars()
+        .map(|c| if c.is_ascii_alphanumeric() || c == '-' || c == '_' { c } else { '_' })
+        .collect();
+    let mut stem = base.clone();
+    let mut k = 2;
+    while taken.contains(&stem) || stem == "results" {
+        stem = format!("{base}-{k}");
+        k += 1;
+    }
+    stem
+}
+
+fn prepare(options: &Options) -> Result<Vec<SceneJob>> {
+    let paths: Vec<Option<&PathBuf>> =
+        if options.scenes.is_empty() { vec![None] } else { options.scenes.iter().map(Some).collect() };
+    let mut jobs: Vec<SceneJob> = Vec::new();
+    for path in paths {
+        let scene = match path {
+            Some(p) => Scene::load(p)?,
+            None => Scene::default_scene(),
+        };
+        let taken: Vec<String> = jobs.iter().map(|j| j.stem.clone()).collect();
+        let stem = scene_stem(path.map(PathBuf::as_path), &taken);
+        let size = match (options.size, options.quick) {
+            (Some(s), _) => s,
+            (None, true) => (320, 240),
+            (None, false) => scene.image_size.unwrap_or((320, 240)),
+        };
+        let soft = scene.lights.iter().any(Light::has_size);
+        let mut points = Vec::new();
+        for m in &options.methods {
+            let base = sweep::base_choices(&scene.light_shadows, scene.lights.len(), m, &options.params)
+                .map_err(anyhow::Error::msg)?;
+            let axes = match &options.axes {
+                Some(a) => a.clone(),
+                None => sweep::default_axes(m.method, options.quick, soft),
+            };
+            points.push((m.clone(), sweep::points(m.method, &base, &axes).map_err(anyhow::Error::msg)?));
+        }
+        let label = path.map_or("default".into(), |p| p.display().to_string());
+        jobs.push(SceneJob { label, stem, scene, size, points });
+    }
+    Ok(jobs)
+}
+
+/// Runs the bench (see the module's notes); refuses to overwrite result files unless `force`.
+pub fn run(options: &Options) -> Result<Outcome> {
+    if options.methods.is_empty() {
+        bail!("--methods: no method to measure");
+    }
+    let jobs = prepare(options)?;
+    let dir = &options.out_dir;
+    let mut outputs = vec![dir.join("results.csv"), dir.join("results.json")];
+    for j in &jobs {
+        outputs.push(dir.join(format!("{}.svg", j.stem)));
+        outputs.push(dir.join(format!("{}.png", j.stem)));
+    }
+    if !options.force {
+        if let Some(existing) = outputs.iter().find(|p| p.exists()) {
+            bail!("{} exists: choose another -o DIR, or pass --force to replace the results", existing.display());
+        }
+    }
+    std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+
+    let ctx = GpuContext::new(&GpuOptions { validate: options.validate, device_name: options.device.clone() })?;
+    let device = ctx.device_name();
+    let driver = ctx.driver.clone();
+    let frames = options.frames.unwrap_or(if options.quick { QUICK_FRAMES } else { FRAMES }).max(1);
+    let warmup = if options.quick { QUICK_WARMUP } else { WARMUP };
+
+    let total: usize = jobs.iter().map(|j| 1 + j.points.iter().map(|p| p.1.len()).sum::<usize>()).sum();
+    let bar = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} ETA {eta} {msg}")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    let say = |text: String| bar.suspend(|| println!("{text}"));
+
+    let mut rows: Vec<Row> = Vec::new();
+    let mut scene_json = Vec::new();
+    let mut timing_label = String::new();
+    let mut time_axis = "shadow_gpu_ms";
+    for job in &jobs {
+        let (width, height) = job.size;
+        bar.set_message(format!("{}: reference", job.label));
+        let mut renderer = Renderer::new(ctx.clone(), job.scene.clone())
+            .with_context(|| format!("{}: preparing the scene", job.label))?;
+        let calibration: TimingCalibration = renderer.calibrate_timings()?.clone();
+        timing_label = calibration.describe();
+        if calibration.mode.is_none() {
+            time_axis = "host_ms";
+        }
+
+        // The reference: cached, or traced now and cached.
+        let key = reference::cache_key(&job.scene, width, height, &format!("{device} / {driver}"))
+            .map_err(anyhow::Error::msg)?;
+        let cache = reference::cache_dir();
+        let cached = cache.as_deref().and_then(|d| Reference::load(d, &key));
+        let was_cached = cached.is_some();
+        let (reference, ref_file) = match cached {
+            Some(r) => {
+                let file = cache.as_ref().map(|d| d.join(format!("{key}.ref")));
+                say(format!(
+                    "{}: reference cached ({})",
+                    job.label,
+                    file.as_ref().map_or(String::new(), |f| f.display().to_string())
+                ));
+                (r, file)
+            }
+            None => {
+                let start = Instant::now();
+                let r = reference::compute(&mut renderer, width, height)?;
+                let took = start.elapsed().as_secs_f64();
+                let file = match &cache {
+                    Some(d) => {
+                        Some(r.save(d, &key).with_context(|| format!("caching the reference in {}", d.display()))?)
+                    }
+                    None => None,
+                };
+                say(format!(
+                    "{}: reference traced in {took:.1} s ({})",
+                    job.label,
+                    file.as_ref()
+                        .map_or("not cached: no cache directory".into(), |f| format!("cached in {}", f.display()))
+                ));
+                (r, file)
+            }
+        };
+        bar.inc(1);
+
+        let lights = job.scene.lights.clone();
+        let volume_scene = match job.points.iter().any(|(m, _)| m.method == ShadowMethod::Volumes) {
+            true => {
+                let local = job.scene.translated(-renderer.gpu_scene.origin);
+                Some(crate::shadows::volumes::VolumeScene::new(&ctx, &local)?)
+            }
+            false => None,
+        };
+        let first_row = rows.len();
+        for (method, points) in &job.points {
+            for (point_index, point) in points.iter().enumerate() {
+                bar.set_message(format!("{} · {} · {}", job.label, method.id, point.label()));
+                let mut settings = reference::settings(width, height, OutputKind::Display, point.choices.clone());
+                settings.timestamps = calibration.mode.is_some();
+                let serving = served(&renderer, &ctx, &settings, volume_scene.as_ref());
+
+                for _ in 0..warmup {
+                    renderer.render(&settings)?;
+                }
+                let (mut shadow_ms, mut frame_ms, mut host_ms) = (Vec::new(), Vec::new(), Vec::new());
+                let mut shadow_passes: Vec<&'static str> = Vec::new();
+                let mut display = Vec::new();
+                for _ in 0..frames {
+                    let start = Instant::now();
+                    let frame = renderer.render(&settings)?;
+                    host_ms.push(start.elapsed().as_secs_f64() * 1e3);
+                    display = reference::display_bytes(frame);
+                    if let Some(t) = renderer.last_gpu_timings()? {
+                        let mut sum = 0.0;
+                        for &(name, ms) in t.passes.iter().filter(|p| is_shadow_pass(p.0)) {
+                            sum += ms;
+                            if !shadow_passes.contains(&name) {
+                                shadow_passes.push(name);
+                            }
+                        }
+                        shadow_ms.push(sum);
+                        frame_ms.push(t.frame_ms);
+                    }
+                }
+                let plan_bytes = renderer.last_plan().map_or(0, shadow_bytes);
+
+                let mut visibility = Vec::new();
+                for (n, &choice) in point.choices.iter().enumerate().take(lights.len()) {
+                    visibility.push(reference::light_visibility(&mut renderer, width, height, n, choice, 0)?);
+                }
+                if settings.is_stochastic(&lights) {
+                    // The timed frames accumulated; the views since broke the run, so this
+                    // frame stands alone.
+                    let mut single = settings.clone();
+                    single.timestamps = false;
+                    display = reference::display_bytes(renderer.render(&single)?);
+                }
+                let flip = flip_mean(&reference.display, &display, width, height);
+
+                let shadow = Spread::of(&shadow_ms);
+                let frame = Spread::of(&frame_ms);
+                let host = Spread::of(&host_ms).expect("at least one frame");
+                let common = Row {
+                    scene: job.label.clone(),
+                    method: method.id.clone(),
+                    point: point_index,
+                    sweep: point.label(),
+                    width,
+                    height,
+                    frames,
+                    shadow_gpu_ms: shadow.map(|s| s.median),
+                    shadow_gpu_iqr_ms: shadow.map(|s| s.iqr()),
+                    frame_gpu_ms: frame.map(|s| s.median),
+                    frame_gpu_iqr_ms: frame.map(|s| s.iqr()),
+                    host_ms: host.median,
+                    host_iqr_ms: host.iqr(),
+                    shadow_passes: shadow_passes.join("+"),
+                    shadow_bytes: plan_bytes,
+                    device: device.clone(),
+                    driver: driver.clone(),
+                    umbra_version: env!("CARGO_PKG_VERSION").into(),
+                    timing: timing_label.clone(),
+                    ..Default::default()
+                };
+                let (w, h) = (width as usize, height as usize);
+                let mut light_rows = Vec::new();
+                for (n, light) in lights.iter().enumerate() {
+                    let r = &reference.lights[n];
+                    let e = visibility_error(&r.visibility, &visibility[n], w, h, Some(&r.mask));
+                    let choice = point.choices[n];
+                    let (by, why) = serving[n].clone();
+                    let rays = match by {
+                        ShadowMethod::Traced if choice.traced.is_soft(light.has_size()) => {
+                            r.pixels() as u64 * u64::from(choice.traced.spp)
+                        }
+                        ShadowMethod::Traced => r.pixels() as u64,
+                        _ => 0,
+                    };
+                    let texels = map_texels(by, &choice, light);
+                    light_rows.push(Row {
+                        light: n.to_string(),
+                        light_kind: light.kind().into(),
+                        served_by: by.id().into(),
+                        fallback: why.unwrap_or_default(),
+                        settings: choice.describe(),
+                        vis_rmse: e.rmse,
+                        light_leak: e.light_leak,
+                        false_shadow: e.false_shadow,
+                        light_leak_away: e.light_leak_away,
+                        false_shadow_away: e.false_shadow_away,
+                        pixels: e.pixels,
+                        pixels_away: e.pixels_away,
+                        reference_error: r.error,
+                        reference_shadowed: r.shadowed_share(),
+                        scored_error: e.rmse.max(r.error),
+                        rays,
+                        map_texels: texels,
+                        map_bytes: texels * 4,
+                        ..common.clone()
+                    });
+                }
+                if lights.len() == 1 {
+                    light_rows[0].frame_row = true;
+                    light_rows[0].flip = Some(flip);
+                } else {
+                    let parts: Vec<(&[f32], &[f32], &[bool])> = (0..lights.len())
+                        .map(|n| {
+                            let r = &reference.lights[n];
+                            (&r.visibility[..], &visibility[n][..], &r.mask[..])
+                        })
+                        .collect();
+                    let e = pooled_error(&parts, w, h);
+                    let weighted: f64 = reference.lights.iter().map(|l| l.error * l.error * l.pixels() as f64).sum();
+                    let pixels: usize = reference.lights.iter().map(LightReference::pixels).sum();
+                    let ref_error = if pixels == 0 { 0.0 } else { (weighted / pixels as f64).sqrt() };
+                    let shadowed: usize = reference.lights.iter().map(LightReference::shadowed).sum();
+                    let mut served_set: Vec<&str> = light_rows.iter().map(|r| r.served_by.as_str()).collect();
+                    served_set.sort_unstable();
+                    served_set.dedup();
+                    let all = Row {
+                        light: "all".into(),
+                        light_kind: "all".into(),
+                        served_by: served_set.join("+"),
+                        fallback: light_rows
+                            .iter()
+                            .filter(|r| !r.fallback.is_empty())
+                            .map(|r| format!("light {}: {}", r.light, r.fallback))
+                            .collect::<Vec<_>>()
+                            .join("; "),
+                        settings: light_rows.iter().map(|r| r.settings.as_str()).collect::<Vec<_>>().join(" | "),
+                        vis_rmse: e.rmse,
+                        light_leak: e.light_leak,
+                        false_shadow: e.false_shadow,
+                        light_leak_away: e.light_leak_away,
+                        false_shadow_away: e.false_shadow_away,
+                        pixels: e.pixels,
+                        pixels_away: e.pixels_away,
+                        reference_error: ref_error,
+                        reference_shadowed: if pixels == 0 { 0.0 } else { shadowed as f64 / pixels as f64 },
+                        scored_error: e.rmse.max(ref_error),
+                        flip: Some(flip),
+                        rays: light_rows.iter().map(|r| r.rays).sum(),
+                        map_texels: light_rows.iter().map(|r| r.map_texels).sum(),
+                        map_bytes: light_rows.iter().map(|r| r.map_bytes).sum(),
+                        frame_row: true,
+                        ..common.clone()
+                    };
+                    light_rows.push(all);
+                }
+                rows.extend(light_rows);
+                bar.inc(1);
+            }
+        }
+
+        // The front, the chart.
+        let front = report::scene_pareto(&rows, &job.label);
+        for &i in &front {
+            rows[i].pareto = true;
+        }
+        let scene_rows: Vec<usize> = (first_row..rows.len()).filter(|&i| rows[i].frame_row).collect();
+        let mut series = Vec::new();
+        for (colour, (method, points)) in job.points.iter().enumerate() {
+            let at = |p: usize| scene_rows.iter().copied().find(|&i| rows[i].method == method.id && rows[i].point == p);
+            let mut axes: Vec<String> = Vec::new();
+            for p in points {
+                for (a, _) in &p.on_axes {
+                    if !axes.contains(a) {
+                        axes.push(a.clone());
+                    }
+                }
+            }
+            if axes.is_empty() {
+                let pts = (0..points.len()).filter_map(at).map(|i| (rows[i].time_ms(), rows[i].scored_error)).collect();
+                series.push(Series { label: method.id.clone(), colour, points: pts });
+            }
+            for axis in axes {
+                // The points on this axis, in the axis's value order.
+                let pts = (0..points.len())
+                    .filter(|&p| points[p].on_axes.iter().any(|(a, _)| *a == axis))
+                    .filter_map(at)
+                    .map(|i| (rows[i].time_ms(), rows[i].scored_error))
+                    .collect();
+                series.push(Series { label: format!("{} ({axis})", method.id), colour, points: pts });
+            }
+        }
+        let chart = Chart {
+            title: format!("{} at {width}x{height} on {device}", job.label),
+            x_label: if time_axis == "host_ms" {
+                "host time per frame, ms (log)".into()
+            } else {
+                "shadow GPU time per frame, ms (log)".into()
+            },
+            y_label: "visibility RMSE".into(),
+            series,
+            front: front.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect(),
+        };
+        chart.write(dir, &job.stem).map_err(anyhow::Error::msg)?;
+        scene_json.push(json!({
+            "scene": job.label,
+            "width": width,
+            "height": height,
+            "lights": lights.len(),
+            "pareto": front,
+            "chart_svg": format!("{}.svg", job.stem),
+            "chart_png": format!("{}.png", job.stem),
+            "reference": {
+                "key": key,
+                "file": ref_file.map(|f| f.display().to_string()),
+                "cached": was_cached,
+                "lights": reference.lights.iter().enumerate().map(|(n, l)| json!({
+                    "light": n,
+                    "kind": lights[n].kind(),
+                    "soft": l.soft,
+                    "samples": l.samples,
+                    "error": l.error,
+                    "shadowed_share": l.shadowed_share(),
+                    "pixels": l.pixels(),
+                })).collect::<Vec<_>>(),
+            },
+        }));
+        drop(volume_scene);
+        drop(renderer);
+    }
+    bar.finish_and_clear();
+
+    let doc = json!({
+        "umbra_version": env!("CARGO_PKG_VERSION"),
+        "device": device,
+        "driver": driver,
+        "timing": timing_label,
+        "time_axis": time_axis,
+        "error_axis": "scored_error",
+        "frames": frames,
+        "warmup_frames": warmup,
+        "quick": options.quick,
+        "methods": options.methods.iter().map(|m| m.id.clone()).collect::<Vec<_>>(),
+        "reference": {
+            "soft_spp_per_frame": reference::SPP,
+            "soft_frames": reference::FRAMES,
+            "error_estimator": "RMSE(half A - half B) / 2 over the mask",
+        },
+        "scenes": scene_json,
+        "rows": rows,
+    });
+    let csv_path = dir.join("results.csv");
+    let json_path = dir.join("results.json");
+    write_atomic(&csv_path, report::to_csv(&rows).as_bytes()).map_err(anyhow::Error::msg)?;
+    let text = serde_json::to_string_pretty(&doc).context("results as JSON")?;
+    write_atomic(&json_path, text.as_bytes()).map_err(anyhow::Error::msg)?;
+    let summary = report::summary(&rows);
+    Ok(Outcome { rows, summary, files: outputs, validation_messages: ctx.validation_messages() })
+}

@@ -20,6 +20,7 @@
 #define MAP_DEPTH 3
 #define MAP_VISIBILITY 4
 #define MAP_LAYERS 5
+#define MAP_SURFACE 6
 // shadows/map/depth.vert: the light's layers (view-projections), one per multiview view
 #define MAP_DEPTH_LAYERS 0
 // shadows/map/debug.comp: one layer of a light's map, remapped for display

@@ -10,6 +10,7 @@
 // the point (reversed depth: nearer is greater); the hardware depth bias was applied when the
 // map was drawn. The same facing and cone tests as the traced pass decide where the light reaches.
 #include "bindings.glsl"
+#include "gbuffer.glsl"
 #include "lights.glsl"
 #define MAP_LAYERS_BINDING MAP_LAYERS
 #include "map_layers.glsl"
@@ -20,6 +21,7 @@ layout(set = 0, binding = MAP_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = MAP_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 layout(set = 0, binding = MAP_DEPTH) uniform sampler2DArray shadow_map;
 layout(set = 0, binding = MAP_VISIBILITY, r8) uniform writeonly image2DArray visibility;
+layout(set = 0, binding = MAP_SURFACE) uniform usampler2D gbuffer_surface;
 
 layout(push_constant) uniform Push {
     uvec4 dims;    // x: width, y: height, z: light, w: visibility layer
@@ -108,6 +110,9 @@ void main() {
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
     vec3 n = texelFetch(gbuffer_normal, ivec2(px), 0).xyz;
+    // The normal offset moves along the geometric normal (the shading normal tilts on
+    // smooth low-polygon meshes); the facing test stays on the shading normal, as in traced.
+    vec3 ng = gbuffer_geometric_normal(texelFetch(gbuffer_surface, ivec2(px), 0));
     float v = 1.0;
     if (position.w > 0.0) {
         GpuLight l = lights[pc.dims.z];
@@ -125,7 +130,7 @@ void main() {
             uint face = a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
                       : a.y >= a.z ? (d.y >= 0.0 ? 2u : 3u)
                                    : (d.z >= 0.0 ? 4u : 5u);
-            v = layer_visibility(face, position.xyz, n, size, true);
+            v = layer_visibility(face, position.xyz, ng, size, true);
         } else if (pc.map.y == MAP_CASCADES) {
             float along = dot(position.xyz - pc.eye.xyz, pc.forward.xyz);
             uint count = pc.map.x;
@@ -134,17 +139,17 @@ void main() {
             if (along > layers[count - 1u].split.x) {
                 v = 1.0; // beyond the shadow distance
             } else {
-                v = layer_visibility(c, position.xyz, n, size, false);
+                v = layer_visibility(c, position.xyz, ng, size, false);
                 // Near the far end of a cascade, blend into the next so the seam does not show.
                 float end = layers[c].split.x;
                 float width = (end - layers[c].split.y) * pc.params.z;
                 if (c + 1u < count && width > 0.0 && along > end - width) {
                     float t = (along - (end - width)) / width;
-                    v = mix(v, layer_visibility(c + 1u, position.xyz, n, size, false), t);
+                    v = mix(v, layer_visibility(c + 1u, position.xyz, ng, size, false), t);
                 }
             }
         } else {
-            v = layer_visibility(0u, position.xyz, n, size, perspective_light);
+            v = layer_visibility(0u, position.xyz, ng, size, perspective_light);
         }
     }
     imageStore(visibility, ivec3(px, pc.dims.w), vec4(v));

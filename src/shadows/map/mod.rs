@@ -124,6 +124,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
             sampled(MAP_DEPTH),
             storage_image(MAP_VISIBILITY),
             (MAP_LAYERS, DescriptorKind::UniformBuffer),
+            sampled(MAP_SURFACE),
         ],
         std::mem::size_of::<ResolvePush>() as u32,
         TILE,
@@ -411,6 +412,7 @@ pub fn add_light<'a>(
         (MAP_DEPTH, Bound::Image(pass.read(&depth_image, read))),
         (MAP_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))),
         (MAP_LAYERS, Bound::Buffer(pass.read(&table, Access::ComputeShaderReadUniformBuffer))),
+        (MAP_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
     ];
     let forward = view_forward(frame);
     let push = ResolvePush {

@@ -176,7 +176,7 @@ impl Renderer {
         }
         let scene = crate::vk::get_or_make(&self.volume_scene, || {
             let local = self.scene.translated(-self.gpu_scene.origin);
-            crate::shadows::volumes::VolumeScene::new(&self.ctx, &local)
+            crate::shadows::volumes::VolumeScene::new(&self.ctx, &local, self.gpu_scene.origin)
         })?;
         Ok(Some(scene))
     }

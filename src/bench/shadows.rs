@@ -312,7 +312,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
         let volume_scene = match job.points.iter().any(|(m, _)| m.method == ShadowMethod::Volumes) {
             true => {
                 let local = job.scene.translated(-renderer.gpu_scene.origin);
-                Some(crate::shadows::volumes::VolumeScene::new(&ctx, &local)?)
+                Some(crate::shadows::volumes::VolumeScene::new(&ctx, &local, renderer.gpu_scene.origin)?)
             }
             false => None,
         };

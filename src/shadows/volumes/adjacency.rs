@@ -27,6 +27,19 @@ pub enum NotManifold {
     Empty,
 }
 
+impl NotManifold {
+    /// The same fault with its edge moved by `by` (scene-local to world coordinates).
+    pub fn shifted(self, by: glam::DVec3) -> NotManifold {
+        let s = |v: Vec3| (v.as_dvec3() + by).as_vec3();
+        match self {
+            NotManifold::Open { a, b } => NotManifold::Open { a: s(a), b: s(b) },
+            NotManifold::Shared { a, b, triangles } => NotManifold::Shared { a: s(a), b: s(b), triangles },
+            NotManifold::Inconsistent { a, b } => NotManifold::Inconsistent { a: s(a), b: s(b) },
+            NotManifold::Empty => NotManifold::Empty,
+        }
+    }
+}
+
 impl fmt::Display for NotManifold {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let p = |v: &Vec3| format!("({:.4}, {:.4}, {:.4})", v.x, v.y, v.z);

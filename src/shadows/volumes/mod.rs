@@ -80,14 +80,15 @@ impl CasterAdjacency {
 
 /// The adjacency of every shadow-casting mesh of `scene`, or why they cannot cast volumes: the
 /// first mesh that is not a closed, consistently wound 2-manifold, by name, and the edge that
-/// shows it.
-pub fn caster_adjacency(scene: &Scene) -> Result<CasterAdjacency, String> {
+/// shows it, in world coordinates (`origin`: where the scene-local frame's origin is).
+pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdjacency, String> {
     let mut all = CasterAdjacency::default();
     for mesh in scene.meshes.iter().filter(|m| m.cast_shadows && !m.indices.is_empty()) {
         let adj = adjacency::build(&mesh.positions, &mesh.indices).map_err(|e| {
             format!(
-                "mesh {:?} cannot cast shadow volumes: {e} (`cast_shadows = false` on it would leave it out)",
-                mesh.name
+                "mesh {:?} cannot cast shadow volumes: {} (`cast_shadows = false` on it would leave it out)",
+                mesh.name,
+                e.shifted(origin)
             )
         })?;
         let base = all.positions.len() as u32;
@@ -119,14 +120,15 @@ pub struct VolumeScene {
 }
 
 impl VolumeScene {
-    pub fn new(ctx: &Arc<GpuContext>, local: &Scene) -> GpuResult<VolumeScene> {
+    /// `local`: the scene in the frame `SceneGpu` holds, whose origin is `origin` in the world.
+    pub fn new(ctx: &Arc<GpuContext>, local: &Scene, origin: glam::DVec3) -> GpuResult<VolumeScene> {
         let refuse = |why: String| Ok(VolumeScene { refused: Some(why), casters: None });
         if depth_stencil_format(ctx).is_none() {
             return refuse(
                 "`volumes` needs a depth-stencil format (D32S8 or D24S8) this device can attach and sample".into(),
             );
         }
-        let all = match caster_adjacency(local) {
+        let all = match caster_adjacency(local, origin) {
             Ok(all) => all,
             Err(why) => return refuse(why),
         };
@@ -466,7 +468,8 @@ mod tests {
 
     #[test]
     fn casters_are_concatenated_with_their_indices_rebased() {
-        let all = caster_adjacency(&scene(&BOX_OVER_FLOOR.replace("FLOOR_CASTS", "false"))).expect("closed casters");
+        let all = caster_adjacency(&scene(&BOX_OVER_FLOOR.replace("FLOOR_CASTS", "false")), glam::DVec3::ZERO)
+            .expect("closed casters");
         assert_eq!(all.meshes, 2, "the floor does not cast");
         assert_eq!(all.indices.len() % 6, 0);
         assert!(all.indices.iter().all(|&i| (i as usize) < all.positions.len()));
@@ -478,14 +481,15 @@ mod tests {
 
     #[test]
     fn an_open_caster_refuses_with_its_name_and_edge() {
-        let why = caster_adjacency(&scene(&BOX_OVER_FLOOR.replace("FLOOR_CASTS", "true"))).unwrap_err();
+        let why =
+            caster_adjacency(&scene(&BOX_OVER_FLOOR.replace("FLOOR_CASTS", "true")), glam::DVec3::ZERO).unwrap_err();
         assert!(why.starts_with("mesh \"plane\" cannot cast shadow volumes: it is open: edge ("), "{why}");
         assert!(why.contains("has one triangle"), "{why}");
         let mut s = scene(&BOX_OVER_FLOOR.replace("FLOOR_CASTS", "false"));
         for mesh in &mut s.meshes {
             mesh.cast_shadows = false;
         }
-        assert_eq!(caster_adjacency(&s).unwrap_err(), "no mesh casts shadows");
+        assert_eq!(caster_adjacency(&s, glam::DVec3::ZERO).unwrap_err(), "no mesh casts shadows");
     }
 
     #[test]

@@ -102,7 +102,7 @@ pub fn write_image(frame: &Frame, path: &Path) -> Result<(), OutputError> {
 }
 
 /// Writes `frame` to `path` atomically. 8-bit frames go to PNG as they are; float frames go to
-/// EXR as they are, or to PNG clamped to [0,1] (debug views already mapped for display).
+/// EXR as they are, or to PNG clamped to 0..=1 (debug views already mapped for display).
 /// `options` says what may be replaced (see `check_output`).
 pub fn write_image_with(frame: &Frame, path: &Path, options: &WriteOptions) -> Result<(), OutputError> {
     let format = ImageFormat::from_path(path)?;

@@ -48,7 +48,7 @@ pub struct DebugInputs<'h> {
     pub origin: glam::Vec3,
     /// Distance shown as white in the display-referred depth view.
     pub far: f32,
-    /// Map values into [0,1] for an 8-bit file (else raw values for EXR).
+    /// Map values into 0..=1 for an 8-bit file (else raw values for EXR).
     pub display: bool,
 }
 

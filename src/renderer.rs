@@ -124,8 +124,7 @@ impl Renderer {
         for choice in &settings.shadows {
             choice.check().map_err(GpuError::Unsupported)?;
         }
-        let volume_scene = self.volume_scene(settings)?;
-        let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings, volume_scene);
+        let (plan, volume_scene) = self.shadow_plan_with(settings)?;
         if let Some(view) = settings.debug_view {
             crate::shadows::check_debug_view(view, &plan, &self.gpu_scene).map_err(GpuError::Unsupported)?;
         }
@@ -164,9 +163,23 @@ impl Renderer {
     /// needs the light to be served by that technique); why not.
     pub fn check_debug_view(&self, settings: &RenderSettings) -> Result<(), String> {
         let Some(view) = settings.debug_view else { return Ok(()) };
-        let volume_scene = self.volume_scene(settings).map_err(|e| e.to_string())?;
-        let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings, volume_scene);
+        let plan = self.shadow_plan(settings).map_err(|e| e.to_string())?;
         crate::shadows::check_debug_view(view, &plan, &self.gpu_scene)
+    }
+
+    /// Which technique serves which light for `settings` (what a frame with them would do),
+    /// the casters' adjacency made first if a light asks for volumes.
+    pub fn shadow_plan(&self, settings: &RenderSettings) -> GpuResult<crate::shadows::ShadowPlan> {
+        self.shadow_plan_with(settings).map(|(plan, _)| plan)
+    }
+
+    fn shadow_plan_with(
+        &self,
+        settings: &RenderSettings,
+    ) -> GpuResult<(crate::shadows::ShadowPlan, Option<&crate::shadows::volumes::VolumeScene>)> {
+        let volume_scene = self.volume_scene(settings)?;
+        let plan = crate::shadows::plan(&self.gpu_scene, &self.ctx.capabilities, settings, volume_scene);
+        Ok((plan, volume_scene))
     }
 
     /// The casters' adjacency when a light asks for `volumes`; made on first use.

@@ -77,25 +77,9 @@ fn with(method: ShadowMethod, set: &[(&str, &str)]) -> ShadowChoice {
     c
 }
 
-/// Pixels more than `r` pixels from any change of the reference.
-fn away_from_edges(reference: &[f32], w: u32, h: u32, r: i64) -> Vec<usize> {
-    let (w, h) = (w as i64, h as i64);
-    (0..reference.len())
-        .filter(|&i| {
-            let (x, y) = (i as i64 % w, i as i64 / w);
-            (-r..=r).all(|dy| {
-                (-r..=r).all(|dx| {
-                    let (nx, ny) = (x + dx, y + dy);
-                    !(0..w).contains(&nx) || !(0..h).contains(&ny) || reference[(ny * w + nx) as usize] == reference[i]
-                })
-            })
-        })
-        .collect()
-}
-
 /// (disagreeing pixels away from edges, compared pixels, occluded pixels of the reference).
 fn disagreement(traced: &[f32], test: &[f32], w: u32, h: u32) -> (usize, usize, usize) {
-    let pixels = away_from_edges(traced, w, h, 3);
+    let pixels = common::away_from_edges(traced, w, h, 3);
     let bad = pixels.iter().filter(|&&i| (traced[i] >= 0.5) != (test[i] >= 0.5)).count();
     (bad, pixels.len(), traced.iter().filter(|&&v| v == 0.0).count())
 }

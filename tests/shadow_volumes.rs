@@ -111,22 +111,6 @@ fn visibility(r: &mut Renderer, lights: usize, light: u32, choice: ShadowChoice)
     pixels.chunks_exact(4).map(|p| p[0]).collect()
 }
 
-/// Pixels more than `r` pixels from any change of the traced visibility.
-fn away_from_edges(traced: &[f32], r: i64) -> Vec<usize> {
-    let (w, h) = (W as i64, H as i64);
-    (0..traced.len())
-        .filter(|&i| {
-            let (x, y) = (i as i64 % w, i as i64 / w);
-            (-r..=r).all(|dy| {
-                (-r..=r).all(|dx| {
-                    let (nx, ny) = (x + dx, y + dy);
-                    !(0..w).contains(&nx) || !(0..h).contains(&ny) || traced[(ny * w + nx) as usize] == traced[i]
-                })
-            })
-        })
-        .collect()
-}
-
 struct Comparison {
     compared: usize,
     /// Lit in traced, shadowed here.
@@ -146,7 +130,7 @@ impl Comparison {
 }
 
 fn compare(traced: &[f32], other: &[f32]) -> Comparison {
-    let pixels = away_from_edges(traced, 3);
+    let pixels = common::away_from_edges(traced, W, H, 3);
     let false_shadow = pixels.iter().filter(|&&i| traced[i] == 1.0 && other[i] < 0.5).count();
     let leak = pixels.iter().filter(|&&i| traced[i] == 0.0 && other[i] >= 0.5).count();
     Comparison { compared: pixels.len(), false_shadow, leak }

@@ -135,12 +135,10 @@ fn pooled_error(parts: &[(&[f32], &[f32], &[bool])], width: usize, height: usize
 /// Which technique serves each light at a point, and why not the one asked for.
 fn served(
     renderer: &Renderer,
-    ctx: &GpuContext,
     settings: &crate::config::RenderSettings,
-    volumes: Option<&crate::shadows::volumes::VolumeScene>,
-) -> Vec<(ShadowMethod, Option<String>)> {
-    let plan = crate::shadows::plan(&renderer.gpu_scene, &ctx.capabilities, settings, volumes);
-    (0..renderer.scene().lights.len())
+) -> crate::vk::GpuResult<Vec<(ShadowMethod, Option<String>)>> {
+    let plan = renderer.shadow_plan(settings)?;
+    Ok((0..renderer.scene().lights.len())
         .map(|i| {
             let method = [ShadowMethod::Traced, ShadowMethod::Map, ShadowMethod::Cascades, ShadowMethod::Volumes]
                 .into_iter()
@@ -149,7 +147,7 @@ fn served(
             let why = plan.fallbacks.iter().find(|f| f.0 == i).map(|f| format!("{}: {}", f.1, f.2));
             (method, why)
         })
-        .collect()
+        .collect())
 }
 
 /// Map texels a light's shadows touch per frame, from its parameters.
@@ -309,20 +307,13 @@ pub fn run(options: &Options) -> Result<Outcome> {
         bar.inc(1);
 
         let lights = job.scene.lights.clone();
-        let volume_scene = match job.points.iter().any(|(m, _)| m.method == ShadowMethod::Volumes) {
-            true => {
-                let local = job.scene.translated(-renderer.gpu_scene.origin);
-                Some(crate::shadows::volumes::VolumeScene::new(&ctx, &local, renderer.gpu_scene.origin)?)
-            }
-            false => None,
-        };
         let first_row = rows.len();
         for (method, points) in &job.points {
             for (point_index, point) in points.iter().enumerate() {
                 bar.set_message(format!("{} · {} · {}", job.label, method.id, point.label()));
                 let mut settings = reference::settings(width, height, OutputKind::Display, point.choices.clone());
                 settings.timestamps = calibration.mode.is_some();
-                let serving = served(&renderer, &ctx, &settings, volume_scene.as_ref());
+                let serving = served(&renderer, &settings)?;
 
                 for _ in 0..warmup {
                     renderer.render(&settings)?;
@@ -543,7 +534,6 @@ pub fn run(options: &Options) -> Result<Outcome> {
                 })).collect::<Vec<_>>(),
             },
         }));
-        drop(volume_scene);
         drop(renderer);
     }
     bar.finish_and_clear();

@@ -35,25 +35,14 @@ struct Push {
     draw: UVec4,
 }
 
-/// The geometry pass's pipelines: `triangles` reads each fragment's triangle for the terminator
-/// offset and the geometric normal (needs the device's geometryShader feature, for
-/// `gl_PrimitiveID` in a fragment shader); `plain` stores no offset and takes the geometric
-/// normal from screen derivatives, for devices without the feature and scenes whose vertex and
-/// index buffers a shader cannot read.
+/// The geometry pass's pipeline. Where the device has the geometryShader feature (needed for
+/// `gl_PrimitiveID` in a fragment shader) it reads each fragment's triangle from the scene's
+/// vertex and index buffers (uploaded with storage usage for it) for the terminator offset and
+/// the geometric normal; elsewhere the plain variant stores no offset and takes the geometric
+/// normal from screen derivatives. Only the one the device uses is built.
 pub struct GeometryPipelines {
-    triangles: Option<GraphicsPipeline>,
-    plain: GraphicsPipeline,
-}
-
-impl GeometryPipelines {
-    /// The pipeline that draws `scene`, and whether it reads the scene's buffers.
-    fn for_scene(&self, scene: &SceneGpu) -> (&GraphicsPipeline, bool) {
-        let readable = |b: &crate::vk::Buffer| b.usage.contains(vk::BufferUsageFlags::STORAGE_BUFFER);
-        match &self.triangles {
-            Some(p) if readable(&scene.vertices) && readable(&scene.indices) => (p, true),
-            _ => (&self.plain, false),
-        }
-    }
+    pipeline: GraphicsPipeline,
+    reads_triangles: bool,
 }
 
 pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
@@ -71,12 +60,12 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
         dynamic_depth_bias: false,
     };
     let buffers = [storage(bindings::GEOMETRY_VERTICES), storage(bindings::GEOMETRY_INDICES)];
-    let triangles = match ctx.capabilities.geometry_shader {
-        true => Some(GraphicsPipeline::new(ctx, &desc("geometry", spirv::GEOMETRY_FRAG, &buffers))?),
-        false => None,
+    let reads_triangles = ctx.capabilities.geometry_shader;
+    let pipeline = match reads_triangles {
+        true => GraphicsPipeline::new(ctx, &desc("geometry", spirv::GEOMETRY_FRAG, &buffers))?,
+        false => GraphicsPipeline::new(ctx, &desc("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG, &[]))?,
     };
-    let plain = GraphicsPipeline::new(ctx, &desc("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG, &[]))?;
-    Ok(GeometryPipelines { triangles, plain })
+    Ok(GeometryPipelines { pipeline, reads_triangles })
 }
 
 pub fn add<'a>(
@@ -96,7 +85,7 @@ pub fn add<'a>(
         material: graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
         surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
     };
-    let (pipeline, reads_triangles) = pipelines.for_scene(scene);
+    let (pipeline, reads_triangles) = (&pipelines.pipeline, pipelines.reads_triangles);
     let mut pass = graph.add_pass("geometry");
     let vb = pass.read(vertices, Access::VertexBuffer);
     let ib = pass.read(indices, Access::IndexBuffer);

@@ -117,3 +117,11 @@ pub fn assert_member_offset(reflection: &str, member: &str, offset: usize, strid
     let found = found.unwrap_or_else(|| panic!("{member} not at offset {offset}:\n{reflection}"));
     assert!(found.ends_with(&format!("topLevelArrayStride {stride}")), "{found}");
 }
+
+/// Pixels more than `r` pixels (Chebyshev) from any shadow edge of `reference` (a `w` x `h`
+/// visibility image, binarised at 0.5): `umbra::bench::metrics::edge_distance_mask`'s pixels,
+/// as indices. The technique tests compare methods there, away from edges.
+pub fn away_from_edges(reference: &[f32], w: u32, h: u32, r: usize) -> Vec<usize> {
+    let far = umbra::bench::metrics::edge_distance_mask(reference, w as usize, h as usize, None, r);
+    (0..reference.len()).filter(|&i| far[i]).collect()
+}

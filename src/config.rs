@@ -4,7 +4,9 @@
 use serde::{Deserialize, Serialize};
 
 use crate::scene::Camera;
+pub use crate::shadows::auto::AutoParams;
 pub use crate::shadows::cascades::params::CascadeParams;
+pub use crate::shadows::hybrid::params::HybridParams;
 pub use crate::shadows::map::params::MapParams;
 pub use crate::shadows::traced::params::TracedParams;
 pub use crate::shadows::volumes::params::VolumeParams;
@@ -54,13 +56,30 @@ pub enum ShadowMethod {
     Cascades,
     /// Stencil shadow volumes: closed 2-manifold casters only (else `traced`).
     Volumes,
+    /// A coarse shadow map decides the pixels it is sure of; rays are traced for the rest.
+    Hybrid,
+    /// The cheapest method whose error, measured on the scene's own camera against the traced
+    /// reference, stays under `auto.max_error` (chosen by a calibration before rendering).
+    Auto,
     /// Unshadowed: the light reaches every surface facing it.
     None,
 }
 
 impl ShadowMethod {
-    pub const ALL: [ShadowMethod; 5] =
-        [ShadowMethod::Traced, ShadowMethod::Map, ShadowMethod::Cascades, ShadowMethod::Volumes, ShadowMethod::None];
+    pub const ALL: [ShadowMethod; 7] = [
+        ShadowMethod::Traced,
+        ShadowMethod::Map,
+        ShadowMethod::Cascades,
+        ShadowMethod::Volumes,
+        ShadowMethod::Hybrid,
+        ShadowMethod::Auto,
+        ShadowMethod::None,
+    ];
+
+    /// The methods that draw a light's shadows themselves (all but `auto`, which picks one of
+    /// them, and `none`).
+    pub const TECHNIQUES: [ShadowMethod; 5] =
+        [ShadowMethod::Traced, ShadowMethod::Map, ShadowMethod::Cascades, ShadowMethod::Volumes, ShadowMethod::Hybrid];
 
     /// The stable id.
     pub fn id(self) -> &'static str {
@@ -69,6 +88,8 @@ impl ShadowMethod {
             ShadowMethod::Map => "map",
             ShadowMethod::Cascades => "cascades",
             ShadowMethod::Volumes => "volumes",
+            ShadowMethod::Hybrid => "hybrid",
+            ShadowMethod::Auto => "auto",
             ShadowMethod::None => "none",
         }
     }
@@ -90,10 +111,18 @@ impl ShadowMethod {
         })
     }
 
-    /// The next method in the viewer's cycle.
+    /// The next method in the viewer's cycle (`auto` is chosen before rendering, not cycled to).
     pub fn next(self) -> ShadowMethod {
-        let i = ShadowMethod::ALL.iter().position(|&m| m == self).unwrap_or(0);
-        ShadowMethod::ALL[(i + 1) % ShadowMethod::ALL.len()]
+        const CYCLE: [ShadowMethod; 6] = [
+            ShadowMethod::Traced,
+            ShadowMethod::Map,
+            ShadowMethod::Cascades,
+            ShadowMethod::Volumes,
+            ShadowMethod::Hybrid,
+            ShadowMethod::None,
+        ];
+        let i = CYCLE.iter().position(|&m| m == self).unwrap_or(0);
+        CYCLE[(i + 1) % CYCLE.len()]
     }
 }
 
@@ -121,6 +150,8 @@ pub struct ShadowChoice {
     pub map: MapParams,
     pub cascades: CascadeParams,
     pub volumes: VolumeParams,
+    pub hybrid: HybridParams,
+    pub auto: AutoParams,
 }
 
 impl ShadowChoice {
@@ -145,10 +176,9 @@ impl ShadowChoice {
             .split_once('.')
             .ok_or_else(|| format!("{key:?}: parameter keys are TECHNIQUE.FIELD, e.g. map.resolution"))?;
         let mut table = toml::Value::try_from(*self).map_err(|e| e.to_string())?;
-        let section = table
-            .get_mut(technique)
-            .and_then(|t| t.as_table_mut())
-            .ok_or_else(|| format!("{key:?}: no technique {technique:?} (traced, map, cascades, volumes)"))?;
+        let section = table.get_mut(technique).and_then(|t| t.as_table_mut()).ok_or_else(|| {
+            format!("{key:?}: no technique {technique:?} (traced, map, cascades, volumes, hybrid, auto)")
+        })?;
         let parsed = parse_value(value);
         section.insert(field.to_string(), parsed);
         let mut next: ShadowChoice = table.try_into().map_err(|e: toml::de::Error| {
@@ -166,6 +196,8 @@ impl ShadowChoice {
         self.traced.check()?;
         self.map.check()?;
         self.cascades.check()?;
+        self.hybrid.check()?;
+        self.auto.check()?;
         Ok(())
     }
 
@@ -207,17 +239,22 @@ pub enum DebugView {
     Cascades(u32),
     /// Light N's shadow-volume stencil counts.
     Stencil(u32),
+    /// Light N's `hybrid` shadows: visibility in grey, the pixels rays were traced for in
+    /// red-orange.
+    Hybrid(u32),
 }
 
 impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
     pub const NAMES: &'static str =
-        "albedo, normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N]";
+        "albedo, normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], hybrid[:N]";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
         match self {
-            DebugView::Visibility(n) | DebugView::Cascades(n) | DebugView::Stencil(n) => Some(n as usize),
+            DebugView::Visibility(n) | DebugView::Cascades(n) | DebugView::Stencil(n) | DebugView::Hybrid(n) => {
+                Some(n as usize)
+            }
             DebugView::ShadowMap { light, .. } => Some(light as usize),
             _ => None,
         }
@@ -246,6 +283,7 @@ impl std::str::FromStr for DebugView {
             "visibility" => Ok(DebugView::Visibility(light(arg)?)),
             "cascades" => Ok(DebugView::Cascades(light(arg)?)),
             "stencil" => Ok(DebugView::Stencil(light(arg)?)),
+            "hybrid" => Ok(DebugView::Hybrid(light(arg)?)),
             "shadow-map" => {
                 let (n, c) = match arg.map(|a| a.split_once(':')) {
                     Some(Some((n, c))) => (Some(n), Some(c)),
@@ -272,6 +310,7 @@ impl std::fmt::Display for DebugView {
             DebugView::ShadowMap { light, layer } => write!(f, "shadow-map:{light}:{layer}"),
             DebugView::Cascades(n) => write!(f, "cascades:{n}"),
             DebugView::Stencil(n) => write!(f, "stencil:{n}"),
+            DebugView::Hybrid(n) => write!(f, "hybrid:{n}"),
         }
     }
 }
@@ -321,7 +360,7 @@ impl RenderSettings {
     pub fn is_stochastic(&self, lights: &[crate::scene::Light]) -> bool {
         lights.iter().enumerate().any(|(i, l)| {
             let c = self.shadow(i);
-            c.method == ShadowMethod::Traced && c.traced.is_soft(l.has_size())
+            matches!(c.method, ShadowMethod::Traced | ShadowMethod::Hybrid) && c.traced.is_soft(l.has_size())
         })
     }
 
@@ -362,12 +401,15 @@ mod tests {
         assert_eq!(ShadowMethod::parse("ray-traced-soft"), Ok((ShadowMethod::Traced, Some(true))));
         assert_eq!(ShadowMethod::parse("traced-soft"), Ok((ShadowMethod::Traced, Some(true))));
         let err = ShadowMethod::parse("shadowmap").unwrap_err();
-        assert!(err.contains("traced, map, cascades, volumes, none"), "{err}");
+        assert!(err.contains("traced, map, cascades, volumes, hybrid, auto, none"), "{err}");
         let mut m = ShadowMethod::Traced;
-        for _ in 0..ShadowMethod::ALL.len() {
+        let mut seen = Vec::new();
+        for _ in 0..ShadowMethod::ALL.len() - 1 {
+            seen.push(m);
             m = m.next();
         }
-        assert_eq!(m, ShadowMethod::Traced, "the cycle visits every method once");
+        assert_eq!(m, ShadowMethod::Traced, "the cycle visits every method but auto once");
+        assert!(!seen.contains(&ShadowMethod::Auto));
     }
 
     #[test]
@@ -424,6 +466,7 @@ mod tests {
             DebugView::Visibility(3),
             DebugView::ShadowMap { light: 1, layer: 2 },
             DebugView::Cascades(0),
+            DebugView::Hybrid(2),
         ] {
             assert_eq!(v.to_string().parse(), Ok(v));
         }

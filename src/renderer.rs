@@ -131,7 +131,8 @@ impl Renderer {
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
         visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())?;
         self.note_fallbacks(&plan);
-        let mut prepared = self.shadow_pipelines.prepare(&self.ctx, &self.gpu_scene, &plan, volume_scene)?;
+        let mut prepared =
+            self.shadow_pipelines.prepare(&self.ctx, &self.gpu_scene, &plan, volume_scene, settings.debug_view)?;
         let ray_query = self.ray_query_scene(settings)?;
         if !plan.traced.is_empty() {
             let traced = &self.shadow_pipelines.traced;

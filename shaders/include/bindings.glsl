@@ -76,8 +76,24 @@
 // shadow_trace.comp and shadow_trace_rq.comp: the G-buffer's surface channel (terminator offset
 // and geometric normal, see gbuffer.glsl)
 #define SHADOW_SURFACE 7
+// shadows/traced/trace_list.comp: the pixels to trace (a count, then pixel indices)
+#define SHADOW_LIST 8
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
+
+// shadows/hybrid/classify.comp: a light's layer where its shadow map is sure, and the list of
+// the pixels where it is not (traced next by shadows/traced/trace_list.comp)
+#define HYBRID_POSITION 0
+#define HYBRID_NORMAL 1
+#define HYBRID_LIGHTS 2
+#define HYBRID_DEPTH 3
+#define HYBRID_VISIBILITY 4
+#define HYBRID_LAYERS 5
+#define HYBRID_SURFACE 6
+#define HYBRID_LIST 7
+#define HYBRID_ARGS 8
+// shadows/hybrid/view.comp: the hybrid:N debug view (reads HYBRID_VISIBILITY and HYBRID_LIST)
+#define HYBRID_VIEW_OUTPUT 9
 
 #endif

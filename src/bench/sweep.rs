@@ -113,6 +113,7 @@ pub fn default_axes(method: ShadowMethod, quick: bool, soft_lights: bool) -> Vec
     };
     match (method, quick) {
         (ShadowMethod::Map, true) => vec![axis(&["map.resolution"], &["512", "2048"])],
+        (ShadowMethod::Hybrid, true) => vec![axis(&["hybrid.resolution"], &["256", "1024"])],
         (_, true) => Vec::new(),
         (ShadowMethod::Traced, false) if soft_lights => vec![axis(&["traced.spp"], &["1", "4", "16", "64", "256"])],
         (ShadowMethod::Traced, false) => Vec::new(),
@@ -123,7 +124,13 @@ pub fn default_axes(method: ShadowMethod, quick: bool, soft_lights: bool) -> Vec
         ],
         (ShadowMethod::Cascades, false) => vec![axis(&["cascades.count"], &["1", "2", "3", "4", "5", "6"])],
         (ShadowMethod::Volumes, false) => vec![axis(&["volumes.zpass"], &["false", "true"])],
-        (ShadowMethod::None, false) => Vec::new(),
+        (ShadowMethod::Hybrid, false) => vec![
+            axis(&["hybrid.resolution"], &["256", "512", "1024", "2048"]),
+            axis(&["hybrid.radius"], &["0", "1", "2"]),
+            axis(&["hybrid.margin"], &["0.5", "1", "2", "4"]),
+        ],
+        // `auto` is measured by the methods it picks from; the bench rings its choice.
+        (ShadowMethod::Auto | ShadowMethod::None, false) => Vec::new(),
     }
 }
 

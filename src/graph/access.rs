@@ -59,6 +59,11 @@ pub enum Access {
     AccelerationStructureBuildRead,
     /// Ray queries from a compute shader traversing the acceleration structure.
     ComputeShaderReadAccelerationStructure,
+    /// Read and written by a compute shader's atomics (an append list and its counters): a
+    /// write that also reads what came before it.
+    ComputeShaderAtomic,
+    /// The arguments of an indirect dispatch (or draw), read by the command itself.
+    IndirectCommandRead,
 }
 
 /// Which kind of resource an access applies to.
@@ -93,7 +98,14 @@ impl Access {
                 | Access::AcquiredImage
                 | Access::AccelerationStructureBuildScratch
                 | Access::AccelerationStructureBuildWrite
+                | Access::ComputeShaderAtomic
         )
+    }
+
+    /// Whether the write also reads what came before it (a read-modify-write), so the pass that
+    /// wrote that must be kept and ordered first, as for a read.
+    pub fn reads_previous(self) -> bool {
+        self == Access::ComputeShaderAtomic
     }
 
     /// The table. Writes contribute their access mask to a barrier's source scope; reads only
@@ -271,6 +283,22 @@ impl Access {
                 B::ACCELERATION_STRUCTURE_STORAGE_KHR,
                 Applies::Buffer,
             ),
+            Access::ComputeShaderAtomic => (
+                S::COMPUTE_SHADER,
+                A::SHADER_STORAGE_READ | A::SHADER_STORAGE_WRITE,
+                L::UNDEFINED,
+                I::empty(),
+                B::STORAGE_BUFFER,
+                Applies::Buffer,
+            ),
+            Access::IndirectCommandRead => (
+                S::DRAW_INDIRECT,
+                A::INDIRECT_COMMAND_READ,
+                L::UNDEFINED,
+                I::empty(),
+                B::INDIRECT_BUFFER,
+                Applies::Buffer,
+            ),
         };
         AccessInfo { stage, access, layout, image_usage, buffer_usage, applies }
     }
@@ -324,6 +352,8 @@ mod tests {
         Access::AccelerationStructureBuildWrite,
         Access::AccelerationStructureBuildRead,
         Access::ComputeShaderReadAccelerationStructure,
+        Access::ComputeShaderAtomic,
+        Access::IndirectCommandRead,
     ];
 
     #[test]

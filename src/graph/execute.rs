@@ -9,7 +9,7 @@ use std::sync::Arc;
 use ash::vk;
 
 use super::compile::{Barrier, SlotKey};
-use super::{BufferKind, CompiledGraph, External, ImageKind, Ref, RenderGraph, ResourceDesc, Storage};
+use super::{Access, BufferKind, CompiledGraph, External, ImageKind, Ref, RenderGraph, ResourceDesc, Storage};
 use crate::vk::{Buffer, GpuContext, GpuResult, Image, PipelineLayout, VkContext};
 
 /// A resource bound to a descriptor; its descriptor type and image layout follow from the access
@@ -418,7 +418,10 @@ impl PassContext<'_> {
         }
         let mut accel_writes: Vec<_> = structures
             .iter()
-            .map(|a| vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(std::slice::from_ref(a)))
+            .map(|a| {
+                vk::WriteDescriptorSetAccelerationStructureKHR::default()
+                    .acceleration_structures(std::slice::from_ref(a))
+            })
             .collect();
         let mut accel_writes = accel_writes.iter_mut();
         let (mut ii, mut bi) = (0, 0);
@@ -458,22 +461,44 @@ impl PassContext<'_> {
         width: u32,
         height: u32,
     ) -> GpuResult<()> {
+        self.bind_compute(pipeline, bound, push)?;
+        let [gx, gy] = pipeline.groups(width, height);
+        // SAFETY: recording state.
+        unsafe { self.device.cmd_dispatch(self.cmd, gx, gy, 1) };
+        Ok(())
+    }
+
+    /// Binds `pipeline` with `bound`, pushes `push`, and dispatches as many workgroups as the
+    /// `VkDispatchIndirectCommand` at the start of `args` says (written earlier on the device;
+    /// declared with `Access::IndirectCommandRead`).
+    pub fn dispatch_indirect(
+        &mut self,
+        pipeline: &crate::vk::ComputePipeline,
+        bound: &[(u32, Bound)],
+        push: &[u8],
+        args: Ref<BufferKind>,
+    ) -> GpuResult<()> {
+        debug_assert_eq!(args.access, Access::IndirectCommandRead);
+        self.bind_compute(pipeline, bound, push)?;
+        // SAFETY: recording state; the buffer holds a dispatch command at offset 0.
+        unsafe { self.device.cmd_dispatch_indirect(self.cmd, self.buffer(args), 0) };
+        Ok(())
+    }
+
+    fn bind_compute(
+        &mut self,
+        pipeline: &crate::vk::ComputePipeline,
+        bound: &[(u32, Bound)],
+        push: &[u8],
+    ) -> GpuResult<()> {
         // SAFETY: recording state; the pipeline outlives the frame.
         unsafe { self.device.cmd_bind_pipeline(self.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.pipeline) };
         self.bind_set(vk::PipelineBindPoint::COMPUTE, &pipeline.layout, bound)?;
-        let [gx, gy] = pipeline.groups(width, height);
-        // SAFETY: recording state; push size matches the layout's range.
-        unsafe {
-            if !push.is_empty() {
-                self.device.cmd_push_constants(
-                    self.cmd,
-                    pipeline.layout.layout,
-                    vk::ShaderStageFlags::COMPUTE,
-                    0,
-                    push,
-                );
-            }
-            self.device.cmd_dispatch(self.cmd, gx, gy, 1);
+        if !push.is_empty() {
+            // SAFETY: recording state; push size matches the layout's range.
+            unsafe {
+                self.device.cmd_push_constants(self.cmd, pipeline.layout.layout, vk::ShaderStageFlags::COMPUTE, 0, push)
+            };
         }
         Ok(())
     }

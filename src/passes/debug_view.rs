@@ -61,7 +61,7 @@ fn shader_view(view: DebugView) -> u32 {
         DebugView::Position => 3,
         DebugView::Visibility(_) => 4,
         // Written by the technique itself (`shadows::add`), never by this pass.
-        DebugView::ShadowMap { .. } | DebugView::Cascades(_) | DebugView::Stencil(_) => {
+        DebugView::ShadowMap { .. } | DebugView::Cascades(_) | DebugView::Stencil(_) | DebugView::Hybrid(_) => {
             unreachable!("a technique's own view")
         }
     }

@@ -78,6 +78,8 @@ struct LightDesc {
     traced: Option<crate::config::TracedParams>,
     map: Option<crate::config::MapParams>,
     cascades: Option<crate::config::CascadeParams>,
+    hybrid: Option<crate::config::HybridParams>,
+    auto: Option<crate::config::AutoParams>,
     volumes: Option<crate::config::VolumeParams>,
 }
 
@@ -359,13 +361,20 @@ impl Check<'_> {
             map: light.map.unwrap_or_default(),
             cascades: light.cascades.unwrap_or_default(),
             volumes: light.volumes.unwrap_or_default(),
+            hybrid: light.hybrid.unwrap_or_default(),
+            auto: light.auto.unwrap_or_default(),
         };
         if light.traced.is_some_and(|t| t.soft.is_some()) {
             return Err(self.fail(&format!("{path}.traced.soft"), "write `soft` on the light itself"));
         }
         choice.traced.soft = light.soft.or(soft);
-        let checks: [(&str, Result<(), String>); 3] =
-            [("traced", choice.traced.check()), ("map", choice.map.check()), ("cascades", choice.cascades.check())];
+        let checks: [(&str, Result<(), String>); 5] = [
+            ("traced", choice.traced.check()),
+            ("map", choice.map.check()),
+            ("cascades", choice.cascades.check()),
+            ("hybrid", choice.hybrid.check()),
+            ("auto", choice.auto.check()),
+        ];
         for (table, result) in checks {
             if let Err(e) = result {
                 return Err(self.fail(&format!("{path}.{table}"), e));

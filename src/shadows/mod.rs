@@ -1,4 +1,4 @@
-//! Shadow techniques, one folder each (`traced/`, `map/`, `cascades/`, `volumes/`): its
+//! Shadow techniques, one folder each (`traced/`, `map/`, `cascades/`, `volumes/`, `hybrid/`): its
 //! parameters (`params.rs`), its passes and, under `shaders/shadows/`, its shaders.
 //!
 //! The contract every technique keeps: from the G-buffer, the scene on the device, the lights it
@@ -8,9 +8,12 @@
 //! serve a light on this device and scene (`serves`); `plan` gives the lights it cannot to
 //! `traced`, with the reason, which the renderer prints once.
 //!
-//! `light_space` holds the device-free maths the raster techniques share.
+//! `light_space` holds the device-free maths the raster techniques share; `auto` the parameters
+//! of the method that picks one of the others.
 
+pub mod auto;
 pub mod cascades;
+pub mod hybrid;
 pub mod light_space;
 pub mod map;
 pub mod traced;
@@ -76,6 +79,9 @@ pub fn check_debug_view(view: DebugView, plan: &ShadowPlan, scene: &SceneGpu) ->
         DebugView::Cascades(light) if !find(light, &plan.cascades) => {
             Err(format!("--debug-view {view}: light {light} does not use cascades this frame"))
         }
+        DebugView::Hybrid(light) if !find(light, &plan.hybrid) => {
+            Err(format!("--debug-view {view}: light {light} does not use hybrid shadows this frame"))
+        }
         _ => Ok(()),
     }
 }
@@ -100,6 +106,7 @@ pub struct ShadowPlan {
     pub map: Vec<Served>,
     pub cascades: Vec<Served>,
     pub volumes: Vec<Served>,
+    pub hybrid: Vec<Served>,
     /// Lights whose method cannot serve them, given to `traced` instead: (light, method, why).
     pub fallbacks: Vec<(usize, ShadowMethod, String)>,
 }
@@ -111,7 +118,8 @@ impl ShadowPlan {
             ShadowMethod::Map => &self.map,
             ShadowMethod::Cascades => &self.cascades,
             ShadowMethod::Volumes => &self.volumes,
-            ShadowMethod::None => &[],
+            ShadowMethod::Hybrid => &self.hybrid,
+            ShadowMethod::Auto | ShadowMethod::None => &[],
         }
     }
 }
@@ -129,6 +137,10 @@ pub fn serves(
         ShadowMethod::Map => map::serves(light),
         ShadowMethod::Cascades => cascades::serves(light),
         ShadowMethod::Volumes => volumes::serves(light, caps, volumes),
+        ShadowMethod::Hybrid => hybrid::serves(light),
+        ShadowMethod::Auto => Err("auto is chosen by a calibration before rendering (umbra render, umbra bench), \
+                                   not within a frame"
+            .into()),
     }
 }
 
@@ -197,7 +209,8 @@ pub fn plan(
             ShadowMethod::Map => plan.map.push(served),
             ShadowMethod::Cascades => plan.cascades.push(served),
             ShadowMethod::Volumes => plan.volumes.push(served),
-            ShadowMethod::Traced | ShadowMethod::None => plan.traced.push(served),
+            ShadowMethod::Hybrid => plan.hybrid.push(served),
+            ShadowMethod::Traced | ShadowMethod::Auto | ShadowMethod::None => plan.traced.push(served),
         }
     }
     plan
@@ -209,6 +222,7 @@ pub struct Pipelines {
     pub traced: traced::Pipelines,
     map: std::sync::OnceLock<map::MapPipelines>,
     volumes: std::sync::OnceLock<volumes::Pipelines>,
+    hybrid: std::sync::OnceLock<hybrid::Pipelines>,
 }
 
 /// What one frame's techniques draw and trace with, made before its graph is built.
@@ -219,6 +233,7 @@ pub struct Prepared<'a> {
     pub map: Option<&'a map::MapPipelines>,
     /// The volume pipelines and the casters' adjacency.
     pub volumes: Option<(&'a volumes::Pipelines, &'a volumes::VolumeScene)>,
+    pub hybrid: Option<&'a hybrid::Pipelines>,
 }
 
 impl Pipelines {
@@ -230,12 +245,13 @@ impl Pipelines {
         scene: &SceneGpu,
         plan: &ShadowPlan,
         volume_scene: Option<&'a volumes::VolumeScene>,
+        debug_view: Option<DebugView>,
     ) -> crate::vk::GpuResult<Prepared<'a>> {
-        let map = match plan.map.is_empty() && plan.cascades.is_empty() {
+        let map = match plan.map.is_empty() && plan.cascades.is_empty() && plan.hybrid.is_empty() {
             true => None,
             false => {
                 let pipelines = crate::vk::get_or_make(&self.map, || map::pipelines(ctx))?;
-                for s in &plan.map {
+                for s in plan.map.iter().chain(&plan.hybrid) {
                     let cube = matches!(scene.local_lights[s.light as usize], Light::Point { .. });
                     pipelines.prepare_depth(if cube { 6 } else { 1 })?;
                 }
@@ -249,7 +265,17 @@ impl Pipelines {
             (false, Some(scene)) => Some((crate::vk::get_or_make(&self.volumes, || volumes::pipelines(ctx))?, scene)),
             _ => None,
         };
-        Ok(Prepared { traced: None, map, volumes })
+        let hybrid = match plan.hybrid.is_empty() {
+            true => None,
+            false => {
+                let pipelines = crate::vk::get_or_make(&self.hybrid, || hybrid::pipelines(ctx))?;
+                if debug_view.is_some_and(|v| matches!(v, DebugView::Hybrid(_))) {
+                    pipelines.prepare_view()?;
+                }
+                Some(pipelines)
+            }
+        };
+        Ok(Prepared { traced: None, map, volumes, hybrid })
     }
 }
 
@@ -276,20 +302,32 @@ pub fn add<'a>(
     if let Some((pipelines, scene)) = prepared.volumes.filter(|_| !plan.volumes.is_empty()) {
         debug = debug.or(volumes::add(g, frame, pipelines, scene, &plan.volumes, &mut target));
     }
+    // The BVH, imported once for whichever passes walk it.
+    let s = frame.scene;
+    let bvh_walked = prepared.traced.is_some_and(|(_, rq)| rq.is_none() && !plan.traced.is_empty())
+        || (prepared.hybrid.is_some() && !plan.hybrid.is_empty());
+    let bvh = bvh_walked.then(|| {
+        (
+            g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS),
+            g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS),
+        )
+    });
+    if let (Some(pipelines), Some(maps), Some((nodes, triangles))) = (prepared.hybrid, prepared.map, &bvh) {
+        let walk = hybrid::Bvh { nodes, triangles };
+        debug = debug.or(hybrid::add(g, frame, maps, pipelines, walk, &plan.hybrid, &mut target));
+    }
     if let Some((pipeline, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
-        match ray_query {
-            Some(rq) => {
+        match (ray_query, &bvh) {
+            (Some(rq), _) => {
                 let handles = rq.add(g);
                 let casters = traced::Casters::RayQuery(&handles);
                 traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
             }
-            None => {
-                let s = frame.scene;
-                let nodes = g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS);
-                let triangles = g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS);
-                let casters = traced::Casters::Bvh { nodes: &nodes, triangles: &triangles };
+            (None, Some((nodes, triangles))) => {
+                let casters = traced::Casters::Bvh { nodes, triangles };
                 traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
             }
+            (None, None) => unreachable!("imported above for the traced lights"),
         }
     }
     Some(Visibility { target, table, debug })

@@ -179,6 +179,14 @@ fn describe_choice(c: &ShadowChoice, light: &Light) -> String {
             format!("cascades {} of {1}x{1} pcf {2}", c.cascades.count, m.resolution, m.pcf_radius)
         }
         ShadowMethod::Volumes => format!("volumes {}", if c.volumes.zpass { "z-pass" } else { "z-fail" }),
+        ShadowMethod::Hybrid => {
+            let soft = if c.traced.is_soft(light.has_size()) { "soft" } else { "hard" };
+            format!(
+                "hybrid {0}x{0} r {1} margin {2}, {soft} rays",
+                c.hybrid.resolution, c.hybrid.radius, c.hybrid.margin
+            )
+        }
+        ShadowMethod::Auto => format!("auto max error {}", c.auto.max_error),
         ShadowMethod::None => "none".into(),
     }
 }

@@ -25,9 +25,8 @@ layout(push_constant) uniform Push {
     uvec4 frame; // x: frame index, seeding the samples; y: the light's layer; z: 1 = soft
 } pc;
 
-void main() {
-    uvec2 px = gl_GlobalInvocationID.xy;
-    if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
+// The light's visibility at pixel `px`: the share of its rays that reach the light.
+float trace_pixel(uvec2 px) {
     uint pixel = px.y * pc.dims.x + px.x;
     uint light = pc.dims.z;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
@@ -64,7 +63,27 @@ void main() {
             v = float(reached) / float(spp);
         }
     }
-    imageStore(visibility, ivec3(px, pc.frame.y), vec4(v));
+    return v;
 }
+
+#ifdef TRACE_LIST
+// Only the pixels a list names (`hybrid`: those its shadow map is not sure of), one invocation
+// each, in a 1D dispatch whose size the list's writer set (an indirect dispatch).
+layout(set = 0, binding = SHADOW_LIST, std430) readonly buffer List { uint count; uint pixels[]; } list;
+
+void main() {
+    uint i = gl_GlobalInvocationID.x;
+    if (i >= list.count) return;
+    uint p = list.pixels[i];
+    uvec2 px = uvec2(p % pc.dims.x, p / pc.dims.x);
+    imageStore(visibility, ivec3(px, pc.frame.y), vec4(trace_pixel(px)));
+}
+#else
+void main() {
+    uvec2 px = gl_GlobalInvocationID.xy;
+    if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
+    imageStore(visibility, ivec3(px, pc.frame.y), vec4(trace_pixel(px)));
+}
+#endif
 
 #endif

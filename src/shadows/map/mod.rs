@@ -60,6 +60,23 @@ impl MapLayer {
     }
 }
 
+impl LightMap {
+    /// A stand-in for a light that nothing can shadow this frame: one empty `resolution`-texel
+    /// layer that every lookup misses, so the bindings stay whole.
+    pub fn nothing(served: &Served, resolution: u32) -> LightMap {
+        LightMap {
+            light: served.light,
+            layer: served.layer,
+            mode: Mode::Single,
+            layers: vec![MapLayer::default()],
+            params: MapParams { resolution, ..served.choice.map },
+            pcss: false,
+            blend: 0.0,
+            what: "nothing to cast".into(),
+        }
+    }
+}
+
 /// How the resolve picks a layer (`MAP_SINGLE`, `MAP_CUBE`, `MAP_CASCADES` in the shader).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
@@ -263,16 +280,7 @@ pub fn add<'a>(
             }
             // Nothing casts onto what is seen: the light's layer is the unshadowed facing test.
             None => {
-                let map = LightMap {
-                    light: s.light,
-                    layer: s.layer,
-                    mode: Mode::Single,
-                    layers: vec![MapLayer::default()],
-                    params: MapParams { resolution: 16, ..s.choice.map },
-                    pcss: false,
-                    blend: 0.0,
-                    what: "nothing to cast".into(),
-                };
+                let map = LightMap::nothing(s, 16);
                 debug = debug.or(add_light(graph, frame, pipelines, &map, target));
             }
         }
@@ -321,16 +329,15 @@ fn add_layer_table(graph: &mut RenderGraph<'_>, map: &LightMap) -> Handle<Buffer
     buffer
 }
 
-/// Renders `map` from the casters inside its layers' frusta and resolves it into its layer;
-/// returns the frame's debug image when the frame shows this map (`shadow-map`, `cascades`).
-pub fn add_light<'a>(
+/// `map`'s layered depth image and its layer table: the casters inside each layer's frustum
+/// drawn depth-only from the light, with the map's depth bias (also `hybrid`'s map).
+pub fn add_depth<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     pipelines: &'a MapPipelines,
     map: &LightMap,
-    visibility: &mut Handle<ImageKind>,
-) -> Option<Handle<ImageKind>> {
-    let (scene, gbuffer, extent) = (frame.scene, frame.gbuffer, frame.extent);
+) -> (Handle<ImageKind>, Handle<BufferKind>) {
+    let scene = frame.scene;
     let res = map.params.resolution;
     let count = map.layers.len();
     let table = add_layer_table(graph, map);
@@ -401,6 +408,22 @@ pub fn add_light<'a>(
         }
         Ok(())
     });
+    (depth_image, table)
+}
+
+/// Renders `map` from the casters inside its layers' frusta and resolves it into its layer;
+/// returns the frame's debug image when the frame shows this map (`shadow-map`, `cascades`).
+pub fn add_light<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    pipelines: &'a MapPipelines,
+    map: &LightMap,
+    visibility: &mut Handle<ImageKind>,
+) -> Option<Handle<ImageKind>> {
+    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
+    let params = map.params;
+    let count = map.layers.len();
+    let (depth_image, table) = add_depth(graph, frame, pipelines, map);
 
     let mut pass = graph.add_pass("shadow map resolve");
     crate::passes::visibility::keep_other_layers(&mut pass, visibility);

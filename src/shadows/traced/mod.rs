@@ -9,6 +9,7 @@ pub mod params;
 
 use std::sync::{Arc, OnceLock};
 
+use ash::vk;
 use glam::UVec4;
 
 use self::accel::RayQueryHandles;
@@ -138,19 +139,24 @@ pub fn add<'a>(
     }
     crate::passes::visibility::keep_other_layers(&mut pass, visibility);
     bound.push((SHADOW_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))));
-    let frame_index = frame.frame_index;
-    let work: Vec<(u32, u32, Rays)> =
-        served.iter().map(|s| (s.light, s.layer, rays(s, &frame.scene.local_lights[s.light as usize]))).collect();
+    let pushes: Vec<[UVec4; 2]> = served
+        .iter()
+        .map(|s| push_constants(extent, frame.frame_index, s, rays(s, &frame.scene.local_lights[s.light as usize])))
+        .collect();
     pass.render(move |ctx| {
-        for &(light, layer, rays) in &work {
-            let (spp, soft) = match rays {
-                Rays::None => (0, 0),
-                Rays::Hard => (1, 0),
-                Rays::Soft(spp) => (spp, 1),
-            };
-            let push = [UVec4::new(extent.width, extent.height, light, spp), UVec4::new(frame_index, layer, soft, 0)];
-            ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), extent.width, extent.height)?;
+        for push in &pushes {
+            ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(push), extent.width, extent.height)?;
         }
         Ok(())
     });
+}
+
+/// The trace shaders' push constants for `served`'s `rays` (trace_body.glsl's `Push`).
+pub fn push_constants(extent: vk::Extent2D, frame_index: u32, served: &Served, rays: Rays) -> [UVec4; 2] {
+    let (spp, soft) = match rays {
+        Rays::None => (0, 0),
+        Rays::Hard => (1, 0),
+        Rays::Soft(spp) => (spp, 1),
+    };
+    [UVec4::new(extent.width, extent.height, served.light, spp), UVec4::new(frame_index, served.layer, soft, 0)]
 }

@@ -1,0 +1,305 @@
+//! `hybrid`: per light, a coarse shadow map decides every pixel it is sure of, and shadow rays
+//! through the compute BVH are traced only for the pixels it is not (a shadow edge, a caster
+//! thinner than its kernel, a depth too close to call), in the manner of AMD's FidelityFX Hybrid
+//! Shadows. Three passes per light: the map (`map::add_depth`, drawn with no bias: the
+//! classification's tolerance takes its place), `classify` (writes the sure pixels' visibility
+//! and appends the others to a list, counting the workgroups of an indirect dispatch as it
+//! goes), and `trace_list` (the traced pass's rays, for the listed pixels only). The rays are the
+//! traced method's, sample for sample, so a listed pixel gets exactly `traced`'s value; the
+//! `hybrid:N` debug view shows which pixels were traced.
+//!
+//! Hybrid always traverses the compute BVH (the ray-query backend has no list-driven pass).
+
+pub mod params;
+
+use std::sync::{Arc, OnceLock};
+
+use glam::{UVec4, Vec4};
+
+pub use self::params::HybridParams;
+use super::light_space::Bounds;
+use super::map::{self, LightMap, MapParams, MapPipelines};
+use super::{traced, FrameInputs, Served};
+use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{sampled, storage, storage_image, TILE};
+use crate::scene::Light;
+use crate::vk::bindings::*;
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+
+/// Listed pixels per workgroup of the list-driven passes (`LIST_GROUP` in classify.comp).
+pub const LIST_GROUP: u32 = 64;
+
+pub struct Pipelines {
+    classify: ComputePipeline,
+    /// The traced pass over a list of pixels.
+    trace: ComputePipeline,
+    /// The `hybrid:N` debug view, made on first use.
+    view: OnceLock<ComputePipeline>,
+    ctx: Arc<GpuContext>,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct ClassifyPush {
+    dims: UVec4,
+    map: UVec4,
+    params: Vec4,
+}
+
+pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
+    let classify = ComputePipeline::new(
+        ctx,
+        "hybrid classify",
+        spirv::SHADOWS_HYBRID_CLASSIFY_COMP,
+        &[
+            sampled(HYBRID_POSITION),
+            sampled(HYBRID_NORMAL),
+            storage(HYBRID_LIGHTS),
+            sampled(HYBRID_DEPTH),
+            storage_image(HYBRID_VISIBILITY),
+            (HYBRID_LAYERS, crate::vk::DescriptorKind::UniformBuffer),
+            sampled(HYBRID_SURFACE),
+            storage(HYBRID_LIST),
+            storage(HYBRID_ARGS),
+        ],
+        std::mem::size_of::<ClassifyPush>() as u32,
+        TILE,
+    )?;
+    let trace = ComputePipeline::new(
+        ctx,
+        "shadow trace (list)",
+        spirv::SHADOWS_TRACED_TRACE_LIST_COMP,
+        &[
+            sampled(SHADOW_POSITION),
+            sampled(SHADOW_NORMAL),
+            sampled(SHADOW_SURFACE),
+            storage(SHADOW_LIGHTS),
+            storage(SHADOW_BVH_NODES),
+            storage(SHADOW_BVH_TRIANGLES),
+            storage_image(SHADOW_VISIBILITY),
+            storage(SHADOW_LIST),
+        ],
+        32,
+        [LIST_GROUP, 1],
+    )?;
+    Ok(Pipelines { classify, trace, view: OnceLock::new(), ctx: ctx.clone() })
+}
+
+impl Pipelines {
+    fn view(&self) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.view, || {
+            ComputePipeline::new(
+                &self.ctx,
+                "hybrid view",
+                spirv::SHADOWS_HYBRID_VIEW_COMP,
+                &[sampled(HYBRID_VISIBILITY), storage(HYBRID_LIST), storage_image(HYBRID_VIEW_OUTPUT)],
+                16,
+                TILE,
+            )
+        })
+    }
+
+    /// What a frame showing `hybrid:N` needs beyond the passes themselves.
+    pub fn prepare_view(&self) -> GpuResult<()> {
+        self.view().map(|_| ())
+    }
+}
+
+/// Whether `hybrid` can serve `light`: every kind (spot and sun: one map; point: a cube).
+pub fn serves(_light: &Light) -> Result<(), String> {
+    Ok(())
+}
+
+/// The map `hybrid` draws for `served`: `map`'s, at the hybrid resolution, with no bias (the
+/// classification's tolerance stands for it); None when nothing can shadow what is seen.
+pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &Bounds) -> Option<LightMap> {
+    let h = served.choice.hybrid;
+    let params = MapParams {
+        resolution: h.resolution,
+        constant_bias: 0.0,
+        slope_bias: 0.0,
+        normal_offset: 0.0,
+        pcf_radius: h.radius,
+        pcss: Some(false),
+        ..served.choice.map
+    };
+    let served = Served { choice: crate::config::ShadowChoice { map: params, ..served.choice }, ..*served };
+    let mut m = map::light_map(&served, light, casters, receivers)?;
+    m.what = format!("hybrid {}", m.what);
+    Some(m)
+}
+
+/// The BVH the listed rays traverse.
+pub struct Bvh<'h> {
+    pub nodes: &'h Handle<BufferKind>,
+    pub triangles: &'h Handle<BufferKind>,
+}
+
+/// Writes each served light's visibility layer: its map, the classification, the rays for the
+/// pixels the map is not sure of. Returns the `hybrid:N` view when the frame shows one.
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    map_pipelines: &'a MapPipelines,
+    pipelines: &'a Pipelines,
+    bvh: Bvh<'_>,
+    served: &[Served],
+    target: &mut Handle<ImageKind>,
+) -> Option<Handle<ImageKind>> {
+    let casters = map::caster_bounds(frame.scene);
+    let receivers = map::visible_bounds(frame);
+    let mut debug = None;
+    for s in served {
+        let light = &frame.scene.local_lights[s.light as usize];
+        let map = light_map(s, light, &casters, &receivers);
+        let (list, args) = classify(graph, frame, map_pipelines, pipelines, s, map.as_ref(), target);
+        trace(graph, frame, pipelines, &bvh, s, &list, &args, target);
+        if frame.debug_view == Some(crate::config::DebugView::Hybrid(s.light)) {
+            debug = Some(add_view(graph, frame, pipelines, s, &list, &args, target));
+        }
+    }
+    debug
+}
+
+/// The map (when something can cast onto what is seen) and the classification: the sure
+/// pixels' visibility, and the list of the others with its indirect dispatch.
+fn classify<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    map_pipelines: &'a MapPipelines,
+    pipelines: &'a Pipelines,
+    served: &Served,
+    map: Option<&LightMap>,
+    target: &mut Handle<ImageKind>,
+) -> (Handle<BufferKind>, Handle<BufferKind>) {
+    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
+    // Without a map every reached pixel is lit; a one-texel stand-in keeps the bindings whole.
+    let stand_in;
+    let drawn = match map {
+        Some(m) => m,
+        None => {
+            stand_in = LightMap::nothing(served, 16);
+            &stand_in
+        }
+    };
+    let (depth, table) = map::add_depth(graph, frame, map_pipelines, drawn);
+    let pixels = u64::from(extent.width) * u64::from(extent.height);
+    let mut list = graph.create_buffer("hybrid list", 4 + 4 * pixels);
+    let mut args = graph.create_buffer("hybrid dispatch", 12);
+    let mut reset = graph.add_pass("shadow hybrid reset");
+    let list_dst = reset.write(&mut list, Access::TransferWrite);
+    let args_dst = reset.write(&mut args, Access::TransferWrite);
+    reset.render(move |ctx| {
+        // SAFETY: recording state; both writes are within the buffers and multiples of 4 bytes.
+        unsafe {
+            ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(list_dst), 0, bytemuck::bytes_of(&0u32));
+            ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(args_dst), 0, bytemuck::cast_slice(&[0u32, 1, 1]));
+        }
+        Ok(())
+    });
+
+    let mut pass = graph.add_pass("shadow hybrid classify");
+    pass.detail(format!("light {}, {}", served.light, if map.is_some() { "map decides" } else { "nothing to cast" }));
+    crate::passes::visibility::keep_other_layers(&mut pass, target);
+    let read = Access::ComputeShaderReadSampledImage;
+    let bound = [
+        (HYBRID_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
+        (HYBRID_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
+        (HYBRID_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
+        (HYBRID_DEPTH, Bound::Image(pass.read(&depth, read))),
+        (HYBRID_VISIBILITY, Bound::Image(pass.write(target, Access::ComputeShaderWrite))),
+        (HYBRID_LAYERS, Bound::Buffer(pass.read(&table, Access::ComputeShaderReadUniformBuffer))),
+        (HYBRID_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
+        (HYBRID_LIST, Bound::Buffer(pass.write(&mut list, Access::ComputeShaderAtomic))),
+        (HYBRID_ARGS, Bound::Buffer(pass.write(&mut args, Access::ComputeShaderAtomic))),
+    ];
+    let light = &frame.scene.local_lights[served.light as usize];
+    let h = served.choice.hybrid;
+    let sized = served.choice.traced.is_soft(light.has_size()) && light.has_size();
+    let push = ClassifyPush {
+        dims: UVec4::new(extent.width, extent.height, served.light, served.layer),
+        map: UVec4::new(map.is_some() as u32, drawn.mode as u32, h.radius, sized as u32),
+        params: Vec4::new(h.margin, h.max_radius as f32, 0.0, 0.0),
+    };
+    let classify = &pipelines.classify;
+    pass.render(move |ctx| ctx.dispatch(classify, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    (list, args)
+}
+
+/// The traced pass's rays for the listed pixels.
+#[allow(clippy::too_many_arguments)]
+fn trace<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    pipelines: &'a Pipelines,
+    bvh: &Bvh<'_>,
+    served: &Served,
+    list: &Handle<BufferKind>,
+    args: &Handle<BufferKind>,
+    target: &mut Handle<ImageKind>,
+) {
+    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
+    let mut pass = graph.add_pass("shadow hybrid trace");
+    pass.detail(format!("light {}", served.light));
+    crate::passes::visibility::keep_other_layers(&mut pass, target);
+    let read = Access::ComputeShaderReadSampledImage;
+    let storage_read = Access::ComputeShaderReadStorageBuffer;
+    let bound = [
+        (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
+        (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
+        (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
+        (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, storage_read))),
+        (SHADOW_BVH_NODES, Bound::Buffer(pass.read(bvh.nodes, storage_read))),
+        (SHADOW_BVH_TRIANGLES, Bound::Buffer(pass.read(bvh.triangles, storage_read))),
+        (SHADOW_LIST, Bound::Buffer(pass.read(list, storage_read))),
+        (SHADOW_VISIBILITY, Bound::Image(pass.write(target, Access::ComputeShaderWrite))),
+    ];
+    let dispatch = pass.read(args, Access::IndirectCommandRead);
+    let light = &frame.scene.local_lights[served.light as usize];
+    let push = traced::push_constants(extent, frame.frame_index, served, traced::rays(served, light));
+    let pipeline = &pipelines.trace;
+    pass.render(move |ctx| ctx.dispatch_indirect(pipeline, &bound, bytemuck::cast_slice(&push), dispatch));
+}
+
+/// The `hybrid:N` view: the light's visibility in grey, the traced pixels in red-orange.
+#[allow(clippy::too_many_arguments)]
+fn add_view<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    pipelines: &'a Pipelines,
+    served: &Served,
+    list: &Handle<BufferKind>,
+    args: &Handle<BufferKind>,
+    target: &Handle<ImageKind>,
+) -> Handle<ImageKind> {
+    let extent = frame.extent;
+    let view = pipelines.view.get().expect("made by prepare_view");
+    let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
+    let mut out = graph.create_image("debug view", desc);
+    for listed in [false, true] {
+        let mut pass = graph.add_pass(if listed { "hybrid view (traced)" } else { "hybrid view" });
+        if listed {
+            // Writes the listed pixels only: the rest stays as the first dispatch wrote it.
+            pass.read(&out, Access::ComputeShaderReadStorageImage);
+        }
+        let bound = [
+            (HYBRID_VISIBILITY, Bound::Image(pass.read(target, Access::ComputeShaderReadSampledImage))),
+            (HYBRID_LIST, Bound::Buffer(pass.read(list, Access::ComputeShaderReadStorageBuffer))),
+            (HYBRID_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
+        ];
+        let push = UVec4::new(extent.width, extent.height, served.layer, listed as u32);
+        if listed {
+            let dispatch = pass.read(args, Access::IndirectCommandRead);
+            pass.render(move |ctx| ctx.dispatch_indirect(view, &bound, bytemuck::bytes_of(&push), dispatch));
+        } else {
+            pass.render(move |ctx| ctx.dispatch(view, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+        }
+    }
+    out
+}
+
+/// Pixels of a `hybrid:N` view (RGBA floats) whose rays were traced: the red-orange ones,
+/// (1, v, 0); the others are grey (v, v, v).
+pub fn traced_pixels(view: &[f32]) -> usize {
+    view.chunks_exact(4).filter(|p| p[0] == 1.0 && p[2] == 0.0).count()
+}

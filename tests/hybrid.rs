@@ -1,0 +1,161 @@
+//! `hybrid` against `traced`: a coarse shadow map decides the pixels it is sure of, rays the
+//! rest. On a box, a sphere and a thin pole over a floor under a spot, a sun and a point light
+//! (hard), every pixel of hybrid's visibility must match traced's but a stated few, while the
+//! rays cover a small, printed share of the pixels the light reaches; the `hybrid:N` view shows
+//! exactly which pixels those are. For a light with a size, the listed pixels get traced's own
+//! samples, so hybrid soft stays within a stated RMSE of traced soft. All with validation and
+//! synchronization validation.
+
+mod common;
+
+use std::path::Path;
+
+use umbra::config::{DebugView, ShadowChoice, ShadowMethod};
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
+use umbra::scene::Scene;
+
+const W: u32 = 240;
+const H: u32 = 180;
+
+const SCENE: &str = r#"
+[camera]
+eye = [0.0, 3.5, 6.0]
+target = [0.0, 0.3, 0.0]
+vfov_deg = 45.0
+
+[[lights]]
+type = "spot"
+position = [-1.5, 4.0, 2.0]
+direction = [0.3, -1.0, -0.4]
+intensity = [40.0, 40.0, 40.0]
+inner_deg = 30.0
+outer_deg = 40.0
+
+[[lights]]
+type = "directional"
+direction = [0.5, -1.0, 0.3]
+irradiance = [2.0, 2.0, 2.0]
+
+[[lights]]
+type = "point"
+position = [1.2, 3.0, 1.5]
+intensity = [30.0, 30.0, 30.0]
+
+[[objects]]
+shape = "plane"
+size = 10.0
+[[objects]]
+shape = "cube"
+size = 1.0
+translate = [0.0, 0.5, 0.0]
+[[objects]]
+shape = "sphere"
+radius = 0.4
+translate = [1.4, 0.4, 0.6]
+[[objects]]
+shape = "cube"
+size = 1.0
+scale = [0.05, 1.5, 0.05]
+translate = [-1.2, 0.75, 0.8]
+"#;
+
+fn renderer(text: &str) -> (std::sync::Arc<umbra::vk::GpuContext>, Renderer) {
+    let ctx = common::gpu();
+    let scene = Scene::parse(text, "hybrid.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    let r = Renderer::new(ctx.clone(), scene).expect("renderer");
+    (ctx, r)
+}
+
+/// Light `light`'s view (`visibility` or `hybrid`) with `choice` for every light, as RGBA floats.
+fn view(r: &mut Renderer, view: DebugView, choice: ShadowChoice, lights: usize) -> Vec<f32> {
+    let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(lights, choice);
+    s.debug_view = Some(view);
+    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
+    assert!(pixels.iter().all(|x| x.is_finite()), "no NaN");
+    pixels
+}
+
+fn red(pixels: &[f32]) -> Vec<f32> {
+    pixels.chunks_exact(4).map(|p| p[0]).collect()
+}
+
+#[test]
+fn hybrid_matches_traced_while_tracing_a_small_share_of_the_pixels() {
+    let (ctx, mut r) = renderer(SCENE);
+    let hybrid = ShadowChoice { method: ShadowMethod::Hybrid, ..ShadowChoice::hard() };
+    for light in 0..3u32 {
+        let traced = red(&view(&mut r, DebugView::Visibility(light), ShadowChoice::hard(), 3));
+        let mine = red(&view(&mut r, DebugView::Visibility(light), hybrid, 3));
+        let shown = view(&mut r, DebugView::Hybrid(light), hybrid, 3);
+        let reached = traced.iter().filter(|&&v| v > 0.0).count();
+        let differ = traced.iter().zip(&mine).filter(|(a, b)| (*a - *b).abs() > 0.5).count();
+        let traced_pixels = umbra::shadows::hybrid::traced_pixels(&shown);
+        let share = traced_pixels as f64 / (W * H) as f64;
+        println!(
+            "light {light}: {differ} of {} pixels differ from traced; rays for {traced_pixels} pixels ({:.2} % of \
+             the frame), {reached} pixels lit by traced",
+            W * H,
+            share * 100.0
+        );
+        // What the map decides wrongly is a caster it misses entirely or a contact closer than
+        // its tolerance: at most 0.1 % of the frame here.
+        assert!(differ * 1000 <= (W * H) as usize, "light {light}: {differ} pixels differ");
+        assert!(traced_pixels > 0, "light {light}: shadow edges are traced");
+        assert!(share < 0.1, "light {light}: rays for {:.1} % of the frame", share * 100.0);
+        // The view's grey pixels are the visibility the frame used.
+        for (i, p) in shown.chunks_exact(4).enumerate() {
+            if !(p[0] == 1.0 && p[2] == 0.0) {
+                assert_eq!(p[0], mine[i], "light {light}, pixel {i}: the view shows the visibility");
+            }
+        }
+    }
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn hybrid_soft_shadows_trace_the_penumbrae_with_traceds_samples() {
+    let sun = SCENE.replace("irradiance = [2.0, 2.0, 2.0]", "irradiance = [2.0, 2.0, 2.0]\nangular_diameter_deg = 6.0");
+    let (ctx, mut r) = renderer(&sun);
+    let soft = ShadowChoice::soft(8);
+    let hybrid = ShadowChoice { method: ShadowMethod::Hybrid, ..soft };
+    let traced = red(&view(&mut r, DebugView::Visibility(1), soft, 3));
+    let mine = red(&view(&mut r, DebugView::Visibility(1), hybrid, 3));
+    let shown = view(&mut r, DebugView::Hybrid(1), hybrid, 3);
+    let penumbra = traced.iter().filter(|&&v| v > 0.0 && v < 1.0).count();
+    let listed = umbra::shadows::hybrid::traced_pixels(&shown);
+    let mut same_listed = 0;
+    let mut sq = 0.0f64;
+    for (i, p) in shown.chunks_exact(4).enumerate() {
+        let d = f64::from(traced[i] - mine[i]);
+        sq += d * d;
+        if p[0] == 1.0 && p[2] == 0.0 && traced[i] == mine[i] {
+            same_listed += 1;
+        }
+    }
+    let rmse = (sq / traced.len() as f64).sqrt();
+    println!("soft sun: {penumbra} penumbra pixels in traced, {listed} traced by hybrid, RMSE {rmse:.4}");
+    assert_eq!(same_listed, listed, "a listed pixel gets exactly traced's samples");
+    assert!(listed >= penumbra * 9 / 10, "the penumbrae are traced: {listed} listed, {penumbra} in penumbra");
+    assert!(rmse < 0.02, "hybrid soft against traced soft: RMSE {rmse}");
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn a_hybrid_light_gets_a_map_a_classification_and_list_driven_rays_and_no_full_trace() {
+    let (ctx, r) = renderer(SCENE);
+    let mut s = RenderSettings::new(W, H, OutputKind::Display).all_lights(3, ShadowChoice::hard());
+    s.shadows[1].method = ShadowMethod::Hybrid;
+    let plan = r.plan(&s).expect("plan");
+    let live = plan.live_pass_names();
+    for pass in ["shadow map", "shadow hybrid reset", "shadow hybrid classify", "shadow hybrid trace", "shadow trace"] {
+        assert!(live.contains(&pass), "{pass} in {live:?}");
+    }
+    let printed = plan.to_string();
+    assert!(printed.contains("shadow hybrid classify (light 1"), "{printed}");
+    assert!(printed.contains("shadow trace (light 0, 2)"), "lights 0 and 2 stay traced: {printed}");
+    assert!(printed.contains("[ComputeShaderAtomic] -> [IndirectCommandRead]"), "{printed}");
+    s.shadows = vec![ShadowChoice { method: ShadowMethod::Hybrid, ..ShadowChoice::hard() }; 3];
+    let live = r.plan(&s).expect("plan").live_pass_names();
+    assert!(!live.contains(&"shadow trace"), "no full-frame trace: {live:?}");
+    common::assert_clean(&ctx);
+}

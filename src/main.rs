@@ -46,9 +46,13 @@ enum BenchCommand {
 struct BenchShadowsArgs {
     /// Scene files (TOML); the built-in default scene if none.
     scenes: Vec<PathBuf>,
-    /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, none.
+    /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, hybrid, none.
     #[arg(long, default_value = umbra::bench::sweep::DEFAULT_METHODS)]
     methods: String,
+    /// The error bound (visibility RMSE) under which each chart rings the cheapest row: what
+    /// `--shadows auto` would pick with one method for every light.
+    #[arg(long, default_value_t = umbra::config::AutoParams::default().max_error, value_parser = parse_max_error)]
+    max_error: f64,
     /// A sweep axis, KEY=V1,V2,... with the keys of --param (keys joined by + move together:
     /// map.constant_bias+map.slope_bias=0,2); repeatable, axes are swept one at a time. Replaces
     /// the default sweeps: methods no axis names are measured at their defaults.
@@ -140,7 +144,7 @@ struct RenderArgs {
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_exposure)]
     exposure: f32,
-    /// Shadow method for every light (traced, map, cascades, volumes, none; ray-traced is an
+    /// Shadow method for every light (traced, map, cascades, volumes, hybrid, auto, none; ray-traced is an
     /// alias of traced, traced-soft and ray-traced-soft of soft traced), or per light counting
     /// from 0: `0=map,2=none`. Default: each light's `shadows` in the scene file, else traced.
     #[arg(long, value_parser = parse_shadows)]
@@ -153,6 +157,10 @@ struct RenderArgs {
     /// Hard traced shadows for every light, even those with a size.
     #[arg(long)]
     hard: bool,
+    /// `--shadows auto`: the largest visibility RMSE against the traced reference the chosen
+    /// method may have on this scene (default: each light's auto.max_error, 0.02).
+    #[arg(long, value_parser = parse_max_error)]
+    max_error: Option<f64>,
     /// What shadow rays traverse: the BVH in a compute shader (any device), or the device's own
     /// acceleration structures (VK_KHR_ray_query, where `umbra devices` says ray query: yes).
     /// Default: the scene's `shadow_backend`, else compute.
@@ -249,6 +257,9 @@ fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> 
         if args.hard {
             c.traced.soft = Some(false);
         }
+        if let Some(e) = args.max_error {
+            c.auto.max_error = e;
+        }
         if let Some(spp) = args.spp {
             c.traced.spp = spp;
         }
@@ -265,7 +276,9 @@ fn default_frames(settings: &RenderSettings, lights: &[umbra::scene::Light]) -> 
     let soft_spp = (0..lights.len())
         .map(|i| settings.shadow(i))
         .zip(lights)
-        .filter(|(c, l)| c.method == ShadowMethod::Traced && c.traced.is_soft(l.has_size()))
+        .filter(|(c, l)| {
+            matches!(c.method, ShadowMethod::Traced | ShadowMethod::Hybrid) && c.traced.is_soft(l.has_size())
+        })
         .map(|(c, _)| c.traced.spp.max(1))
         .min();
     soft_spp.map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
@@ -277,6 +290,13 @@ fn parse_size(text: &str) -> Result<(u32, u32), String> {
     match (parse(w), parse(h)) {
         (Some(w), Some(h)) => Ok((w, h)),
         _ => Err(format!("{text:?}: width and height must be integers from 1 to 16384")),
+    }
+}
+
+fn parse_max_error(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(e) if (0.0..=1.0).contains(&e) => Ok(e),
+        _ => Err(format!("{text:?}: the error bound is a visibility RMSE from 0 to 1")),
     }
 }
 
@@ -335,7 +355,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
     let write_options = WriteOptions { force: args.force, inputs: scene.sources.clone() };
     check_output(&args.output, &write_options)?;
     let (width, height) = args.size.or(scene.image_size).unwrap_or((320, 240));
-    let settings = RenderSettings {
+    let mut settings = RenderSettings {
         width,
         height,
         exposure_ev: args.exposure,
@@ -348,10 +368,23 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         frame_index: 0,
         busy_iterations: args.busy_pass,
     };
-    let frames = args.frames.unwrap_or_else(|| default_frames(&settings, &scene.lights));
+    let auto = settings.shadows.iter().any(|c| c.method == ShadowMethod::Auto);
+    if args.max_error.is_some() && !auto {
+        log::warn!("--max-error does nothing: no light's shadows are auto (--shadows auto)");
+    }
+    let lights = scene.lights.clone();
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();
     let mut renderer = Renderer::new(ctx.clone(), scene).context("preparing the scene")?;
+    if auto {
+        let start = Instant::now();
+        let chosen = umbra::bench::auto::resolve(&mut renderer, &mut settings).context("auto: calibrating")?;
+        for c in &chosen {
+            println!("{c}");
+        }
+        log::info!("auto: calibrated in {:.1} s", start.elapsed().as_secs_f64());
+    }
+    let frames = args.frames.unwrap_or_else(|| default_frames(&settings, &lights));
     // Before the first frame, so its host time holds no calibration.
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
     let mut timings = TimingLog::default();
@@ -477,6 +510,7 @@ fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
         force: args.force,
         device: args.device,
         validate: args.validate,
+        max_error: args.max_error,
     };
     let outcome = shadows::run(&options)?;
     print!("{}", outcome.summary);

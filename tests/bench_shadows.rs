@@ -143,7 +143,7 @@ fn bench_sweeps_two_scenes_scores_against_a_cached_reference() {
         b,
         sp,
         "--methods",
-        "traced,map,none",
+        "traced,map,hybrid,none",
         "--sweep",
         "map.constant_bias+map.slope_bias=0,2",
         "--sweep",
@@ -167,10 +167,11 @@ fn bench_sweeps_two_scenes_scores_against_a_cached_reference() {
 
     let (json, csv) = results(&out);
     let rows = json["rows"].as_array().unwrap();
-    // One light per scene: a row per scene, method and point; points: 2 traced, 2 map, 1 none.
-    assert_eq!(rows.len(), 10, "{stdout}");
+    // One light per scene: a row per scene, method and point; points: 2 traced, 2 map, 1 hybrid,
+    // 1 none.
+    assert_eq!(rows.len(), 12, "{stdout}");
     for scene in ["box.toml", "sphere.toml"] {
-        for (method, points) in [("traced", 2), ("map", 2), ("none", 1)] {
+        for (method, points) in [("traced", 2), ("map", 2), ("hybrid", 1), ("none", 1)] {
             let r = rows_of(&json, scene, method);
             let got: Vec<u64> = r.iter().map(|r| r["point"].as_u64().unwrap()).collect();
             assert_eq!(got, (0..points).collect::<Vec<u64>>(), "{scene} {method}");
@@ -213,6 +214,15 @@ fn bench_sweeps_two_scenes_scores_against_a_cached_reference() {
         }
         assert!(r["rays"].as_u64().unwrap() > 0 && r["pixels"].as_u64().unwrap() > 0);
     }
+    // Hybrid traces only where its map is unsure: on the hard box light a small share of traced's
+    // rays, and (those rays being traced's) nearly traced's visibility.
+    let traced_rays = rows_of(&json, "box.toml", "traced")[0]["rays"].as_u64().unwrap();
+    let hybrid = rows_of(&json, "box.toml", "hybrid")[0];
+    assert_eq!(s(hybrid, "served_by"), "hybrid");
+    let hybrid_rays = hybrid["rays"].as_u64().unwrap();
+    assert!(hybrid_rays > 0 && hybrid_rays * 4 < traced_rays, "{hybrid_rays} of {traced_rays} rays");
+    assert!(f(hybrid, "vis_rmse") < 0.05, "{hybrid}");
+    assert!(hybrid["map_texels"].as_u64().unwrap() > 0);
     // Soft traced: more samples, less error; the reference's own error is reported.
     let soft = rows_of(&json, "sphere.toml", "traced");
     assert!(f(soft[0], "reference_error") > 0.0);
@@ -251,6 +261,18 @@ fn bench_sweeps_two_scenes_scores_against_a_cached_reference() {
         assert_eq!(stored, front, "{name}");
         for &i in &frame {
             assert_eq!(rows[i]["pareto"] == true, front.contains(&i));
+        }
+        // auto's pick is the cheapest frame row (with shadows) under the run's bound.
+        let bound = f(&scene["auto"], "max_error");
+        let under: Vec<usize> = frame
+            .iter()
+            .copied()
+            .filter(|&i| rows[i]["method"] != "none" && f(&rows[i], "scored_error") <= bound)
+            .collect();
+        let cheapest = under.iter().copied().min_by(|&a, &b| f(&rows[a], time).total_cmp(&f(&rows[b], time)));
+        assert_eq!(scene["auto"]["row"].as_u64().map(|v| v as usize), cheapest, "{name}");
+        for &i in &frame {
+            assert_eq!(rows[i]["auto_choice"] == true, Some(i) == cheapest);
         }
         assert_eq!(scene["reference"]["cached"], false);
         let svg = std::fs::read_to_string(out.join(s(scene, "chart_svg"))).unwrap();

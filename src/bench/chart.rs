@@ -31,6 +31,8 @@ pub struct Chart {
     pub series: Vec<Series>,
     /// The Pareto front, in time order.
     pub front: Vec<(f64, f64)>,
+    /// The point `auto` picks under the run's error bound, ringed.
+    pub auto: Option<(f64, f64)>,
 }
 
 const SIZE: (u32, u32) = (900, 600);
@@ -109,6 +111,13 @@ impl Chart {
             .label("Pareto front")
             .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
         chart.draw_series(front.iter().map(|&p| Circle::new(p, 8, BLACK.stroke_width(2))))?;
+        if let Some(p) = self.auto.map(clamp) {
+            let ring = RGBColor(220, 0, 120);
+            chart
+                .draw_series(std::iter::once(Circle::new(p, 13, ring.stroke_width(3))))?
+                .label("auto's pick")
+                .legend(move |(x, y)| Circle::new((x + 10, y), 6, ring.stroke_width(2)));
+        }
         chart
             .configure_series_labels()
             .position(SeriesLabelPosition::UpperRight)

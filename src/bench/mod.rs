@@ -1,5 +1,6 @@
 //! `umbra bench`: sweeps of shadow methods, scored against a traced reference.
 //!
+//! - `auto`: the calibration that picks each `auto` light's method;
 //! - `metrics`: the error metrics (visibility RMSE, leak, false shadow, FLIP) and the Pareto front;
 //! - `sweep`: methods and the points of their sweeps;
 //! - `reference`: the traced reference per light and frame, and its cache;
@@ -7,6 +8,7 @@
 //! - `report`: rows as CSV and JSON, the summary table;
 //! - `chart`: time against error per scene, SVG and PNG.
 
+pub mod auto;
 pub mod chart;
 pub mod metrics;
 pub mod reference;

@@ -229,6 +229,39 @@ impl Reference {
     }
 }
 
+/// A reference as `load_or_compute` found or made it.
+pub struct Cached {
+    pub reference: Reference,
+    /// Its cache key (`cache_key`).
+    pub key: String,
+    /// Where it is cached (None without a cache directory).
+    pub file: Option<PathBuf>,
+    /// Whether it came from the cache.
+    pub cached: bool,
+    /// Seconds spent tracing it (0 when cached).
+    pub seconds: f64,
+}
+
+/// The reference of the renderer's scene at `width` x `height` on `device`: from the cache, or
+/// traced now and cached.
+pub fn load_or_compute(renderer: &mut Renderer, width: u32, height: u32, device: &str) -> anyhow::Result<Cached> {
+    use anyhow::Context as _;
+    let key = cache_key(renderer.scene(), width, height, device).map_err(anyhow::Error::msg)?;
+    let dir = cache_dir();
+    if let Some(reference) = dir.as_deref().and_then(|d| Reference::load(d, &key)) {
+        let file = dir.map(|d| d.join(format!("{key}.ref")));
+        return Ok(Cached { reference, key, file, cached: true, seconds: 0.0 });
+    }
+    let start = std::time::Instant::now();
+    let reference = compute(renderer, width, height)?;
+    let seconds = start.elapsed().as_secs_f64();
+    let file = match &dir {
+        Some(d) => Some(reference.save(d, &key).with_context(|| format!("caching the reference in {}", d.display()))?),
+        None => None,
+    };
+    Ok(Cached { reference, key, file, cached: false, seconds })
+}
+
 /// Settings of a capture at the bench's size: compute BVH, seeds from `frame_index`.
 pub fn settings(width: u32, height: u32, output: OutputKind, shadows: Vec<ShadowChoice>) -> RenderSettings {
     RenderSettings { shadows, shadow_backend: ShadowBackend::Compute, ..RenderSettings::new(width, height, output) }

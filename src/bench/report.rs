@@ -83,6 +83,9 @@ pub struct Row {
     pub frame_row: bool,
     /// Whether the frame row is on its scene's Pareto front of (time, scored_error).
     pub pareto: bool,
+    /// Whether the frame row is the one `auto` would choose for every light together: the
+    /// cheapest whose scored error stays under the run's `--max-error`.
+    pub auto_choice: bool,
     pub device: String,
     pub driver: String,
     pub umbra_version: String,
@@ -128,6 +131,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "shadow_bytes",
     "frame_row",
     "pareto",
+    "auto_choice",
     "device",
     "driver",
     "umbra_version",
@@ -188,6 +192,7 @@ impl Row {
             self.shadow_bytes.to_string(),
             self.frame_row.to_string(),
             self.pareto.to_string(),
+            self.auto_choice.to_string(),
             self.device.clone(),
             self.driver.clone(),
             self.umbra_version.clone(),
@@ -217,9 +222,22 @@ pub fn to_csv(rows: &[Row]) -> String {
 /// The indices (into `rows`) of `scene`'s frame rows on the Pareto front of
 /// `(time_ms, scored_error)`, by `metrics::pareto_front`, in time order.
 pub fn scene_pareto(rows: &[Row], scene: &str) -> Vec<usize> {
-    let frame: Vec<usize> = (0..rows.len()).filter(|&i| rows[i].scene == scene && rows[i].frame_row).collect();
+    let frame = frame_rows(rows, scene);
     let points: Vec<(f64, f64)> = frame.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect();
     super::metrics::pareto_front(&points).into_iter().map(|k| frame[k]).collect()
+}
+
+/// The frame row `auto` would pick on `scene` with one method for every light: the cheapest
+/// whose scored error is at most `max_error` (rows with no shadow work, `none`, left out).
+pub fn scene_auto(rows: &[Row], scene: &str, max_error: f64) -> Option<usize> {
+    let under = frame_rows(rows, scene).into_iter().filter(|&i| rows[i].method != "none");
+    under
+        .filter(|&i| rows[i].scored_error <= max_error)
+        .min_by(|&a, &b| rows[a].time_ms().total_cmp(&rows[b].time_ms()))
+}
+
+fn frame_rows(rows: &[Row], scene: &str) -> Vec<usize> {
+    (0..rows.len()).filter(|&i| rows[i].scene == scene && rows[i].frame_row).collect()
 }
 
 fn ms(v: Option<f64>) -> String {
@@ -236,7 +254,7 @@ pub fn bytes(n: u64) -> String {
 }
 
 /// The table printed at the end: per scene, each frame row (method, point, what served it,
-/// times, errors, work, memory), `*` marking the Pareto front, `~` an error within the
+/// times, errors, work, memory), `*` marking the Pareto front (`A` auto's pick), `~` an error within the
 /// reference's own.
 pub fn summary(rows: &[Row]) -> String {
     let mut out = String::new();
@@ -275,7 +293,11 @@ pub fn summary(rows: &[Row]) -> String {
             "memory",
         );
         for r in frame {
-            let mark = if r.pareto { '*' } else { ' ' };
+            let mark = match (r.auto_choice, r.pareto) {
+                (true, _) => 'A',
+                (false, true) => '*',
+                (false, false) => ' ',
+            };
             let within = if r.vis_rmse <= r.reference_error { '~' } else { ' ' };
             let mut sweep = r.sweep.clone();
             if sweep.len() > sweep_w {
@@ -303,7 +325,8 @@ pub fn summary(rows: &[Row]) -> String {
         }
     }
     out.push_str(
-        "\n* on the Pareto front of shadow GPU time and error; ~ error within the reference's own.\n\
+        "\n* on the Pareto front of shadow GPU time and error (A: also auto's pick under --max-error); ~ error \
+         within the reference's own.\n\
          Errors are visibility RMSE against the traced reference over pixels each light reaches; \
          leak and false are shares of them; rows per light are in results.csv.\n",
     );

@@ -19,7 +19,7 @@ use serde_json::json;
 
 use super::chart::{write_atomic, Chart, Series};
 use super::metrics::{flip_mean, visibility_error, VisibilityError};
-use super::reference::{self, LightReference, Reference};
+use super::reference::{self, LightReference};
 use super::report::{self, Row};
 use super::sweep::{self, Axis, MethodSpec, Point};
 use crate::config::{OutputKind, ShadowChoice, ShadowMethod};
@@ -48,6 +48,8 @@ pub struct Options {
     pub force: bool,
     pub device: Option<String>,
     pub validate: bool,
+    /// The error bound under which the chart rings `auto`'s pick.
+    pub max_error: f64,
 }
 
 /// What a run produced.
@@ -140,7 +142,7 @@ fn served(
     let plan = renderer.shadow_plan(settings)?;
     Ok((0..renderer.scene().lights.len())
         .map(|i| {
-            let method = [ShadowMethod::Traced, ShadowMethod::Map, ShadowMethod::Cascades, ShadowMethod::Volumes]
+            let method = ShadowMethod::TECHNIQUES
                 .into_iter()
                 .find(|&m| plan.served(m).iter().any(|s| s.light as usize == i))
                 .unwrap_or(ShadowMethod::None);
@@ -157,8 +159,27 @@ fn map_texels(served_by: ShadowMethod, choice: &ShadowChoice, light: &Light) -> 
         ShadowMethod::Map if matches!(light, Light::Point { .. }) => res * res * 6,
         ShadowMethod::Map => res * res,
         ShadowMethod::Cascades => res * res * u64::from(choice.cascades.count),
+        ShadowMethod::Hybrid => {
+            let res = u64::from(choice.hybrid.resolution);
+            res * res * if matches!(light, Light::Point { .. }) { 6 } else { 1 }
+        }
         _ => 0,
     }
+}
+
+/// Rays `hybrid` traced for light `n` in one frame: the pixels its `hybrid:N` view marks, times
+/// the rays per pixel.
+fn hybrid_rays(renderer: &mut Renderer, width: u32, height: u32, n: usize, choice: ShadowChoice) -> Result<u64> {
+    let light = renderer.scene().lights[n].clone();
+    let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); renderer.scene().lights.len()];
+    shadows[n] = choice;
+    let mut s = reference::settings(width, height, OutputKind::SceneLinear, shadows);
+    s.debug_view = Some(crate::config::DebugView::Hybrid(n as u32));
+    let crate::renderer::Frame::Rgba32F { pixels, .. } = renderer.render(&s)? else {
+        bail!("the hybrid view is read back as floats")
+    };
+    let per_pixel = if choice.traced.is_soft(light.has_size()) { u64::from(choice.traced.spp) } else { 1 };
+    Ok(crate::shadows::hybrid::traced_pixels(&pixels) as u64 * per_pixel)
 }
 
 /// One scene as the run holds it.
@@ -270,40 +291,16 @@ pub fn run(options: &Options) -> Result<Outcome> {
         }
 
         // The reference: cached, or traced now and cached.
-        let key = reference::cache_key(&job.scene, width, height, &format!("{device} / {driver}"))
-            .map_err(anyhow::Error::msg)?;
-        let cache = reference::cache_dir();
-        let cached = cache.as_deref().and_then(|d| Reference::load(d, &key));
-        let was_cached = cached.is_some();
-        let (reference, ref_file) = match cached {
-            Some(r) => {
-                let file = cache.as_ref().map(|d| d.join(format!("{key}.ref")));
-                say(format!(
-                    "{}: reference cached ({})",
-                    job.label,
-                    file.as_ref().map_or(String::new(), |f| f.display().to_string())
-                ));
-                (r, file)
+        let reference::Cached { reference, key, file: ref_file, cached: was_cached, seconds } =
+            reference::load_or_compute(&mut renderer, width, height, &format!("{device} / {driver}"))?;
+        let place = ref_file.as_ref().map(|f| f.display().to_string());
+        say(match (was_cached, place) {
+            (true, place) => format!("{}: reference cached ({})", job.label, place.unwrap_or_default()),
+            (false, Some(place)) => format!("{}: reference traced in {seconds:.1} s (cached in {place})", job.label),
+            (false, None) => {
+                format!("{}: reference traced in {seconds:.1} s (not cached: no cache directory)", job.label)
             }
-            None => {
-                let start = Instant::now();
-                let r = reference::compute(&mut renderer, width, height)?;
-                let took = start.elapsed().as_secs_f64();
-                let file = match &cache {
-                    Some(d) => {
-                        Some(r.save(d, &key).with_context(|| format!("caching the reference in {}", d.display()))?)
-                    }
-                    None => None,
-                };
-                say(format!(
-                    "{}: reference traced in {took:.1} s ({})",
-                    job.label,
-                    file.as_ref()
-                        .map_or("not cached: no cache directory".into(), |f| format!("cached in {}", f.display()))
-                ));
-                (r, file)
-            }
-        };
+        });
         bar.inc(1);
 
         let lights = job.scene.lights.clone();
@@ -390,6 +387,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
                             r.pixels() as u64 * u64::from(choice.traced.spp)
                         }
                         ShadowMethod::Traced => r.pixels() as u64,
+                        ShadowMethod::Hybrid => hybrid_rays(&mut renderer, width, height, n, choice)?,
                         _ => 0,
                     };
                     let texels = map_texels(by, &choice, light);
@@ -473,6 +471,10 @@ pub fn run(options: &Options) -> Result<Outcome> {
         for &i in &front {
             rows[i].pareto = true;
         }
+        let auto = report::scene_auto(&rows, &job.label, options.max_error);
+        if let Some(i) = auto {
+            rows[i].auto_choice = true;
+        }
         let scene_rows: Vec<usize> = (first_row..rows.len()).filter(|&i| rows[i].frame_row).collect();
         let mut series = Vec::new();
         for (colour, (method, points)) in job.points.iter().enumerate() {
@@ -509,6 +511,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             y_label: "visibility RMSE".into(),
             series,
             front: front.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect(),
+            auto: auto.map(|i| (rows[i].time_ms(), rows[i].scored_error)),
         };
         chart.write(dir, &job.stem).map_err(anyhow::Error::msg)?;
         scene_json.push(json!({
@@ -517,6 +520,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             "height": height,
             "lights": lights.len(),
             "pareto": front,
+            "auto": { "max_error": options.max_error, "row": auto },
             "chart_svg": format!("{}.svg", job.stem),
             "chart_png": format!("{}.png", job.stem),
             "reference": {

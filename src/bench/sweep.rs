@@ -21,7 +21,7 @@ pub struct MethodSpec {
 }
 
 /// The methods measured when `--methods` is not given.
-pub const DEFAULT_METHODS: &str = "traced,map,cascades,volumes";
+pub const DEFAULT_METHODS: &str = "traced,map,cascades,volumes,hybrid";
 
 /// Parses `--methods`: method ids (and their aliases) separated by commas, each once.
 pub fn parse_methods(text: &str) -> Result<Vec<MethodSpec>, String> {

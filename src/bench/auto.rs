@@ -1,0 +1,329 @@
+//! `--shadows auto`: per light, the cheapest method (and parameters) whose error on this scene's
+//! own camera stays under `auto.max_error`. A short calibration renders each candidate's
+//! visibility of the light at a small size (the frame's aspect, at most `CALIBRATION_WIDTH`
+//! wide), times its shadow passes there and at half that size (median of `TIMED` frames after
+//! one warm-up, GPU time where the device's timestamps can be trusted, else host time), reads
+//! the time for the frame's own size off the line through both, and scores it against the bench's traced
+//! reference (`reference`, cached), as the bench scores a row: the visibility RMSE over the
+//! light's pixels, never below the reference's own error. The measurements are cached beside
+//! the references, keyed by the reference's key and the candidates, so choosing again with
+//! another bound measures nothing.
+//!
+//! The candidates per light: `traced` as the light asks for it, `hybrid` at 512 and 1024
+//! texels, `map` at 512, 1024 and 2048, `cascades` of 2 and 4 (suns only) and z-fail `volumes`;
+//! a candidate that would fall back to `traced` on this scene (volumes on an open caster) is
+//! left out. When none stays under the bound, the one with the least error is taken, and the
+//! run says so.
+
+use std::path::PathBuf;
+
+use anyhow::{Context as _, Result};
+use serde::{Deserialize, Serialize};
+use sha2::{Digest, Sha256};
+
+use super::metrics::visibility_error;
+use super::reference::{self, Reference};
+use crate::config::{OutputKind, RenderSettings, ShadowChoice, ShadowMethod};
+use crate::renderer::Renderer;
+use crate::scene::Light;
+
+/// The calibration's largest width (the height follows the frame's aspect).
+pub const CALIBRATION_WIDTH: u32 = 320;
+/// Timed frames per candidate, after one warm-up frame.
+pub const TIMED: usize = 3;
+/// Bumped whenever what a calibration holds or how it is measured changes.
+const FORMAT_VERSION: u32 = 1;
+
+/// One candidate's measurement for one light.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Measure {
+    /// The method and the parameters the candidate sets: `map map.resolution=1024`.
+    pub label: String,
+    pub method: String,
+    /// The parameters set on top of the light's own choice, `KEY=VALUE`.
+    pub set: Vec<(String, String)>,
+    /// Shadow time per frame at the frame's size, ms (GPU, or host where timestamps cannot be
+    /// trusted), predicted from two calibration sizes.
+    pub time_ms: f64,
+    /// Visibility RMSE against the reference, at least the reference's own error.
+    pub error: f64,
+}
+
+impl Measure {
+    /// The light's choice with this candidate's method and parameters.
+    pub fn apply(&self, base: &ShadowChoice) -> ShadowChoice {
+        let mut c = *base;
+        c.method = ShadowMethod::parse(&self.method).map(|(m, _)| m).unwrap_or(ShadowMethod::Traced);
+        for (k, v) in &self.set {
+            c.set(k, v).expect("a candidate's own parameters");
+        }
+        c
+    }
+}
+
+/// What `resolve` chose for one light, and why.
+#[derive(Clone, Debug)]
+pub struct Chosen {
+    pub light: usize,
+    pub winner: Measure,
+    pub runner_up: Option<Measure>,
+    pub max_error: f64,
+    /// Whether the winner stays under the bound (else it is the least wrong).
+    pub within: bool,
+}
+
+impl std::fmt::Display for Chosen {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let w = &self.winner;
+        let how = if self.within { "the cheapest under" } else { "no candidate is under" };
+        write!(
+            f,
+            "light {}: auto chose {} ({:.3} ms, error {:.4}; {how} {})",
+            self.light, w.label, w.time_ms, w.error, self.max_error
+        )?;
+        match &self.runner_up {
+            Some(r) => write!(f, "; runner-up {} ({:.3} ms, error {:.4})", r.label, r.time_ms, r.error),
+            None => write!(f, "; no runner-up"),
+        }
+    }
+}
+
+/// The candidates for `light`: (method, parameters set on top of the light's choice).
+pub fn candidates(light: &Light) -> Vec<(ShadowMethod, Vec<(&'static str, &'static str)>)> {
+    let mut out = vec![
+        (ShadowMethod::Traced, vec![]),
+        (ShadowMethod::Hybrid, vec![("hybrid.resolution", "512")]),
+        (ShadowMethod::Hybrid, vec![("hybrid.resolution", "1024")]),
+        (ShadowMethod::Map, vec![("map.resolution", "512")]),
+        (ShadowMethod::Map, vec![("map.resolution", "1024")]),
+        (ShadowMethod::Map, vec![("map.resolution", "2048")]),
+    ];
+    if matches!(light, Light::Directional { .. }) {
+        out.push((ShadowMethod::Cascades, vec![("cascades.count", "2"), ("map.resolution", "1024")]));
+        out.push((ShadowMethod::Cascades, vec![("cascades.count", "4"), ("map.resolution", "1024")]));
+    }
+    out.push((ShadowMethod::Volumes, vec![("volumes.zpass", "false")]));
+    out
+}
+
+/// The calibration's size for a `width` x `height` frame.
+pub fn calibration_size(width: u32, height: u32) -> (u32, u32) {
+    if width <= CALIBRATION_WIDTH {
+        return (width.max(1), height.max(1));
+    }
+    let h = (u64::from(height) * u64::from(CALIBRATION_WIDTH) / u64::from(width)).max(1) as u32;
+    (CALIBRATION_WIDTH, h)
+}
+
+/// Index of the cheapest measure with error at most `max_error` (else the least error), and of
+/// the next cheapest under the bound (else the cheapest of the rest).
+pub fn choose(measures: &[Measure], max_error: f64) -> Option<(usize, Option<usize>, bool)> {
+    let by_time = |a: &usize, b: &usize| measures[*a].time_ms.total_cmp(&measures[*b].time_ms);
+    let mut under: Vec<usize> = (0..measures.len()).filter(|&i| measures[i].error <= max_error).collect();
+    under.sort_by(by_time);
+    if let Some(&winner) = under.first() {
+        let runner = under.get(1).copied().or_else(|| {
+            (0..measures.len())
+                .filter(|&i| i != winner)
+                .min_by(|a, b| measures[*a].error.total_cmp(&measures[*b].error))
+        });
+        return Some((winner, runner, true));
+    }
+    let mut all: Vec<usize> = (0..measures.len()).collect();
+    all.sort_by(|a, b| measures[*a].error.total_cmp(&measures[*b].error).then(by_time(a, b)));
+    Some((*all.first()?, all.get(1).copied(), false))
+}
+
+/// Replaces every `auto` light's choice in `settings` with the calibration's pick; returns what
+/// was chosen and why (nothing when no light asks for `auto`).
+pub fn resolve(renderer: &mut Renderer, settings: &mut RenderSettings) -> Result<Vec<Chosen>> {
+    let lights = renderer.scene().lights.clone();
+    let asked: Vec<usize> = (0..lights.len()).filter(|&i| settings.shadow_method(i) == ShadowMethod::Auto).collect();
+    if asked.is_empty() {
+        return Ok(Vec::new());
+    }
+    settings.shadows.resize(lights.len(), ShadowChoice::default());
+    let measured = calibrate(renderer, (settings.width, settings.height), &settings.shadows, &asked)?;
+    let mut out = Vec::new();
+    for (&n, measures) in asked.iter().zip(measured) {
+        let max_error = settings.shadows[n].auto.max_error;
+        let (w, r, within) = choose(&measures, max_error).context("auto: no candidate could be measured")?;
+        let base = settings.shadows[n];
+        settings.shadows[n] = measures[w].apply(&base);
+        out.push(Chosen {
+            light: n,
+            winner: measures[w].clone(),
+            runner_up: r.map(|r| measures[r].clone()),
+            max_error,
+            within,
+        });
+    }
+    Ok(out)
+}
+
+/// Each asked light's measures for a `target`-sized frame (cached): errors at the calibration
+/// size, times predicted for the target from two sizes.
+fn calibrate(
+    renderer: &mut Renderer,
+    target: (u32, u32),
+    base: &[ShadowChoice],
+    asked: &[usize],
+) -> Result<Vec<Vec<Measure>>> {
+    let (width, height) = calibration_size(target.0, target.1);
+    let device = format!("{} / {}", renderer.ctx.device_name(), renderer.ctx.driver);
+    let reference::Cached { reference, key: ref_key, .. } =
+        reference::load_or_compute(renderer, width, height, &device)?;
+    let key = calibration_key(&ref_key, target, base, asked);
+    let dir = reference::cache_dir().map(|d| d.with_file_name("auto"));
+    if let Some(cached) = dir.as_ref().and_then(|d| load(d, &key)) {
+        return Ok(cached);
+    }
+    let calibration = renderer.calibrate_timings()?.clone();
+    let mut out = Vec::new();
+    for &n in asked {
+        let light = renderer.scene().lights[n].clone();
+        let mut measures = Vec::new();
+        for (method, set) in candidates(&light) {
+            let mut choice = ShadowChoice { method, ..base[n] };
+            for (k, v) in &set {
+                choice.set(k, v).map_err(anyhow::Error::msg)?;
+            }
+            let timestamps = calibration.mode.is_some();
+            if let Some(m) = measure(renderer, &reference, (width, height), target, n, choice, timestamps)? {
+                let set: Vec<(String, String)> = set.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
+                let label = std::iter::once(method.id().to_string())
+                    .chain(set.iter().map(|(k, v)| format!("{k}={v}")))
+                    .collect::<Vec<_>>()
+                    .join(" ");
+                measures.push(Measure { label, method: method.id().into(), set, ..m });
+            }
+        }
+        out.push(measures);
+    }
+    if let Some(d) = &dir {
+        // A cache that cannot be written only costs the next run a calibration.
+        if let Err(e) = save(d, &key, &out) {
+            log::warn!("auto: calibration not cached in {}: {e}", d.display());
+        }
+    }
+    Ok(out)
+}
+
+/// One candidate for light `n`: its error at the calibration size, and its time for a `target`
+/// frame; None when it would not serve the light. Shadow work has a part per frame (a map's
+/// texels) and a part per pixel (rays, resolves), so the time is measured at the calibration
+/// size and at half its width and height, and the line through both is read at the target's
+/// pixel count.
+fn measure(
+    renderer: &mut Renderer,
+    reference: &Reference,
+    (width, height): (u32, u32),
+    target: (u32, u32),
+    n: usize,
+    choice: ShadowChoice,
+    timestamps: bool,
+) -> Result<Option<Measure>> {
+    let lights = renderer.scene().lights.len();
+    let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); lights];
+    shadows[n] = choice;
+    let settings = |w: u32, h: u32| {
+        let mut s = reference::settings(w, h, OutputKind::SceneLinear, shadows.clone());
+        s.debug_view = Some(crate::config::DebugView::Visibility(n as u32));
+        s.timestamps = timestamps;
+        s
+    };
+    let s = settings(width, height);
+    let plan = renderer.shadow_plan(&s)?;
+    if plan.fallbacks.iter().any(|f| f.0 == n) {
+        return Ok(None);
+    }
+    // The warm-up frame makes what the candidate needs; its visibility is what is scored.
+    let visibility = reference::red_channel(&renderer.render(&s)?);
+    let full = median_time(renderer, &s)?;
+    let (hw, hh) = ((width / 2).max(1), (height / 2).max(1));
+    let half_settings = settings(hw, hh);
+    renderer.render(&half_settings)?;
+    let half = median_time(renderer, &half_settings)?;
+    let (p_full, p_half) = (f64::from(width * height), f64::from(hw * hh));
+    let per_pixel = ((full - half) / (p_full - p_half)).max(0.0);
+    let fixed = (full - per_pixel * p_full).max(0.0);
+    let time_ms = fixed + per_pixel * f64::from(target.0) * f64::from(target.1);
+    let r = &reference.lights[n];
+    let e = visibility_error(&r.visibility, &visibility, width as usize, height as usize, Some(&r.mask));
+    Ok(Some(Measure {
+        label: String::new(),
+        method: String::new(),
+        set: Vec::new(),
+        time_ms,
+        error: e.rmse.max(r.error),
+    }))
+}
+
+/// Median over `TIMED` frames of `s`'s shadow work, ms (GPU, else host).
+fn median_time(renderer: &mut Renderer, s: &RenderSettings) -> Result<f64> {
+    let mut times = Vec::new();
+    for _ in 0..TIMED {
+        let start = std::time::Instant::now();
+        renderer.render(s)?;
+        let host = start.elapsed().as_secs_f64() * 1e3;
+        times.push(match renderer.last_gpu_timings()? {
+            Some(t) => t.passes.iter().filter(|p| super::shadows::is_shadow_pass(p.0)).map(|p| p.1).sum(),
+            None => host,
+        });
+    }
+    times.sort_by(f64::total_cmp);
+    Ok(times[times.len() / 2])
+}
+
+fn calibration_key(reference_key: &str, target: (u32, u32), base: &[ShadowChoice], asked: &[usize]) -> String {
+    let mut h = Sha256::new();
+    h.update(FORMAT_VERSION.to_le_bytes());
+    h.update(format!("target {}x{}", target.0, target.1).as_bytes());
+    h.update(reference_key.as_bytes());
+    for &n in asked {
+        // The bound is not part of what is measured.
+        let measured = ShadowChoice { method: ShadowMethod::Traced, auto: Default::default(), ..base[n] };
+        h.update(format!("light {n} {measured:?}").as_bytes());
+    }
+    h.finalize().iter().map(|b| format!("{b:02x}")).collect()
+}
+
+fn load(dir: &std::path::Path, key: &str) -> Option<Vec<Vec<Measure>>> {
+    let text = std::fs::read_to_string(dir.join(format!("{key}.json"))).ok()?;
+    serde_json::from_str(&text).ok()
+}
+
+fn save(dir: &std::path::Path, key: &str, measures: &[Vec<Measure>]) -> std::io::Result<PathBuf> {
+    std::fs::create_dir_all(dir)?;
+    let path = dir.join(format!("{key}.json"));
+    let text = serde_json::to_string_pretty(measures).map_err(std::io::Error::other)?;
+    super::chart::write_atomic(&path, text.as_bytes()).map_err(std::io::Error::other)?;
+    Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn m(time_ms: f64, error: f64) -> Measure {
+        Measure { label: format!("{time_ms}/{error}"), method: "map".into(), set: vec![], time_ms, error }
+    }
+
+    #[test]
+    fn the_cheapest_under_the_bound_wins_and_the_least_wrong_when_none_is() {
+        let ms = [m(10.0, 0.0), m(2.0, 0.05), m(1.0, 0.2), m(4.0, 0.01)];
+        assert_eq!(choose(&ms, 0.0), Some((0, Some(3), true)), "only the exact one");
+        assert_eq!(choose(&ms, 0.02), Some((3, Some(0), true)));
+        assert_eq!(choose(&ms, 0.1), Some((1, Some(3), true)));
+        assert_eq!(choose(&ms, 1.0), Some((2, Some(1), true)));
+        let wrong = [m(1.0, 0.3), m(5.0, 0.1)];
+        assert_eq!(choose(&wrong, 0.01), Some((1, Some(0), false)));
+        assert_eq!(choose(&[], 0.1), None);
+    }
+
+    #[test]
+    fn calibration_keeps_the_aspect_at_most_320_wide() {
+        assert_eq!(calibration_size(1920, 1080), (320, 180));
+        assert_eq!(calibration_size(200, 100), (200, 100));
+    }
+}

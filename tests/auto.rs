@@ -1,0 +1,91 @@
+//! `--shadows auto --max-error E` through the binary: per light, the calibration measures every
+//! candidate's time and error on the scene's own camera, and the pick is the cheapest under E.
+//! Checked against the calibration's own cached measurements: with E = 0 only an exact method
+//! (hard `traced`; `volumes`, or `hybrid` where its map missed nothing) qualifies, and with a
+//! generous E the pick is the cheapest of all, here (closed casters over a floor that casts
+//! nothing, so `volumes` serves) cheaper than `traced`. The second run reuses the
+//! cached calibration. With validation on.
+
+mod common;
+
+use serde_json::Value;
+
+const SCENE: &str = r#"
+[camera]
+eye = [0.0, 3.5, 6.0]
+target = [0.0, 0.3, 0.0]
+vfov_deg = 45.0
+
+[[lights]]
+type = "spot"
+position = [-1.5, 4.0, 2.0]
+direction = [0.3, -1.0, -0.4]
+intensity = [40.0, 40.0, 40.0]
+inner_deg = 30.0
+outer_deg = 40.0
+shadows = "auto"
+
+[[objects]]
+shape = "plane"
+size = 10.0
+cast_shadows = false
+[[objects]]
+shape = "cube"
+size = 1.0
+translate = [0.0, 0.5, 0.0]
+[[objects]]
+shape = "sphere"
+radius = 0.4
+translate = [1.4, 0.4, 0.6]
+"#;
+
+fn run(dir: &std::path::Path, max_error: &str) -> String {
+    let out = common::umbra()
+        .env("XDG_CACHE_HOME", dir.join("cache"))
+        .args(["render", dir.join("scene.toml").to_str().unwrap(), "-o"])
+        .arg(dir.join("out.png"))
+        .args(["--size", "640x480", "--max-error", max_error, "--validate", "--force"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{text}");
+    assert!(text.contains("validation: 0 messages"), "{text}");
+    text
+}
+
+/// The chosen label from `light 0: auto chose LABEL (`.
+fn chosen(text: &str) -> String {
+    let line = text.lines().find(|l| l.starts_with("light 0: auto chose ")).unwrap_or_else(|| panic!("{text}"));
+    let rest = &line["light 0: auto chose ".len()..];
+    rest[..rest.find(" (").unwrap()].to_string()
+}
+
+#[test]
+fn auto_picks_the_cheapest_method_under_the_bound_from_its_measurements() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("scene.toml"), SCENE).unwrap();
+    let strict = run(dir.path(), "0");
+    let generous = run(dir.path(), "0.5");
+    println!("{strict}\n{generous}");
+
+    let auto_dir = dir.path().join("cache/umbra/auto");
+    let files: Vec<_> = std::fs::read_dir(&auto_dir).unwrap().collect();
+    assert_eq!(files.len(), 1, "one calibration, reused by the second run");
+    let measures: Value =
+        serde_json::from_str(&std::fs::read_to_string(files[0].as_ref().unwrap().path()).unwrap()).unwrap();
+    let light = measures[0].as_array().unwrap();
+    let label = |m: &Value| m["label"].as_str().unwrap().to_string();
+    let time = |m: &Value| m["time_ms"].as_f64().unwrap();
+    let error = |m: &Value| m["error"].as_f64().unwrap();
+    let traced = light.iter().find(|m| m["method"] == "traced").expect("traced is a candidate");
+    assert_eq!(error(traced), 0.0, "hard traced is its own reference");
+    assert!(light.iter().any(|m| m["method"] == "map" && error(m) > 0.0), "a map's edges differ");
+
+    let exact = light.iter().filter(|m| error(m) == 0.0).min_by(|a, b| time(a).total_cmp(&time(b))).unwrap();
+    assert_eq!(chosen(&strict), label(exact));
+    let cheapest = light.iter().min_by(|a, b| time(a).total_cmp(&time(b))).unwrap();
+    assert!(error(cheapest) <= 0.5);
+    assert_eq!(chosen(&generous), label(cheapest));
+    assert!(time(cheapest) < time(traced), "a method cheaper than traced exists here: {light:?}");
+    assert!(generous.contains("runner-up"), "{generous}");
+}

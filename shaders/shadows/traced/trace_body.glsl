@@ -17,12 +17,14 @@ layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = SHADOW_SURFACE) uniform usampler2D gbuffer_surface;
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
-layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2DArray visibility;
+// The light's layer alone, bound through a view of that layer: other techniques may write the
+// other layers at the same time.
+layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visibility;
 
 // One light per dispatch: its layer of the visibility target.
 layout(push_constant) uniform Push {
     uvec4 dims;  // x: width, y: height, z: the light, w: rays per pixel (0: none, facing only)
-    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer; z: 1 = soft
+    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: 1 = soft
 } pc;
 
 void main() {
@@ -64,7 +66,7 @@ void main() {
             v = float(reached) / float(spp);
         }
     }
-    imageStore(visibility, ivec3(px, pc.frame.y), vec4(v));
+    imageStore(visibility, ivec2(px), vec4(v));
 }
 
 #endif

@@ -403,14 +403,13 @@ pub fn add_light<'a>(
     });
 
     let mut pass = graph.add_pass("shadow map resolve");
-    crate::passes::visibility::keep_other_layers(&mut pass, visibility);
     let read = Access::ComputeShaderReadSampledImage;
     let bound = [
         (MAP_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (MAP_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (MAP_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
         (MAP_DEPTH, Bound::Image(pass.read(&depth_image, read))),
-        (MAP_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))),
+        (MAP_VISIBILITY, Bound::Image(pass.write_layer(visibility, map.layer, Access::ComputeShaderWrite))),
         (MAP_LAYERS, Bound::Buffer(pass.read(&table, Access::ComputeShaderReadUniformBuffer))),
         (MAP_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
     ];

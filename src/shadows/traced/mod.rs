@@ -136,20 +136,28 @@ pub fn add<'a>(
             let _ = pass.read(&rq.bottom, read);
         }
     }
-    crate::passes::visibility::keep_other_layers(&mut pass, visibility);
-    bound.push((SHADOW_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))));
+    // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     let frame_index = frame.frame_index;
-    let work: Vec<(u32, u32, Rays)> =
-        served.iter().map(|s| (s.light, s.layer, rays(s, &frame.scene.local_lights[s.light as usize]))).collect();
+    let work: Vec<(u32, u32, Rays, Bound)> = served
+        .iter()
+        .map(|s| {
+            let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
+            let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
+            (s.light, s.layer, rays, layer)
+        })
+        .collect();
     pass.render(move |ctx| {
-        for &(light, layer, rays) in &work {
+        let mut bound = bound;
+        for &(light, layer, rays, target) in &work {
             let (spp, soft) = match rays {
                 Rays::None => (0, 0),
                 Rays::Hard => (1, 0),
                 Rays::Soft(spp) => (spp, 1),
             };
             let push = [UVec4::new(extent.width, extent.height, light, spp), UVec4::new(frame_index, layer, soft, 0)];
+            bound.push((SHADOW_VISIBILITY, target));
             ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), extent.width, extent.height)?;
+            bound.pop();
         }
         Ok(())
     });

@@ -25,6 +25,8 @@ struct Push {
 pub struct DebugPipelines {
     channel: ComputePipeline,
     visibility: ComputePipeline,
+    /// The geometric normal, decoded from the integer surface channel.
+    geometric_normal: ComputePipeline,
 }
 
 pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
@@ -35,6 +37,14 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
     Ok(DebugPipelines {
         channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &common, push, TILE)?,
         visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, TILE)?,
+        geometric_normal: ComputePipeline::new(
+            ctx,
+            "debug geometric normal",
+            spirv::DEBUG_GEOMETRIC_NORMAL_COMP,
+            &common,
+            push,
+            TILE,
+        )?,
     })
 }
 
@@ -60,6 +70,8 @@ fn shader_view(view: DebugView) -> u32 {
         DebugView::Depth => 2,
         DebugView::Position => 3,
         DebugView::Visibility(_) => 4,
+        // Its own shader (debug_geometric_normal.comp), which reads no view number.
+        DebugView::GeometricNormal => 5,
         // Written by the technique itself (`shadows::add`), never by this pass.
         DebugView::ShadowMap { .. } | DebugView::Cascades(_) | DebugView::Stencil(_) => {
             unreachable!("a technique's own view")
@@ -78,6 +90,7 @@ pub fn add<'a>(
     let source = match inputs.view {
         DebugView::Albedo => &gbuffer.material,
         DebugView::Normal => &gbuffer.normal,
+        DebugView::GeometricNormal => &gbuffer.surface,
         _ => &gbuffer.position,
     };
     let mut pass = graph.add_pass("debug view");
@@ -92,6 +105,7 @@ pub fn add<'a>(
             layer = l;
             &pipelines.visibility
         }
+        None if inputs.view == DebugView::GeometricNormal => &pipelines.geometric_normal,
         None => &pipelines.channel,
     };
     let push = Push {

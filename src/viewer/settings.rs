@@ -9,10 +9,11 @@ use crate::scene::{Camera, Light};
 
 /// The views V cycles through; the light-specific ones show the selected light, and are
 /// skipped where its technique has nothing to show.
-const VIEWS: [Option<DebugView>; 9] = [
+const VIEWS: [Option<DebugView>; 10] = [
     None,
     Some(DebugView::Albedo),
     Some(DebugView::Normal),
+    Some(DebugView::GeometricNormal),
     Some(DebugView::Depth),
     Some(DebugView::Position),
     Some(DebugView::Visibility(0)),

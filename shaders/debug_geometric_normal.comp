@@ -14,7 +14,6 @@ layout(push_constant) uniform Push {
     vec4 eye;
     vec4 origin;
     uvec4 params;   // x: width, y: height, z: view, w: display (1) or raw (0)
-    uvec4 layer;
 } pc;
 
 void main() {

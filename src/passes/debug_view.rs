@@ -19,7 +19,6 @@ struct Push {
     eye: Vec4,
     origin: Vec4,
     params: UVec4,
-    layer: UVec4,
 }
 
 pub struct DebugPipelines {
@@ -98,11 +97,11 @@ pub fn add<'a>(
         (DISPLAY_INPUT, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
         (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
     ];
-    let mut layer = 0;
     let pipeline = match inputs.visibility.filter(|_| matches!(inputs.view, DebugView::Visibility(_))) {
         Some((v, l)) => {
-            bound.push((DISPLAY_VISIBILITY, Bound::Image(pass.read(v, Access::ComputeShaderReadSampledImage))));
-            layer = l;
+            // The light's layer alone: other lights' shadow passes are culled.
+            let layer = pass.read_layer(v, l, Access::ComputeShaderReadSampledImage);
+            bound.push((DISPLAY_VISIBILITY, Bound::Image(layer)));
             &pipelines.visibility
         }
         None if inputs.view == DebugView::GeometricNormal => &pipelines.geometric_normal,
@@ -112,7 +111,6 @@ pub fn add<'a>(
         eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
         origin: inputs.origin.extend(0.0),
         params: UVec4::new(extent.width, extent.height, shader_view(inputs.view), inputs.display as u32),
-        layer: UVec4::new(layer, 0, 0, 0),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     out

@@ -97,7 +97,6 @@ pub struct MapPipelines {
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct DebugPush {
     dims: UVec4,
-    vis: UVec4,
     eye: Vec4,
     forward: Vec4,
 }
@@ -451,12 +450,11 @@ fn add_debug_view<'a>(
         (MAP_DEBUG_DEPTH, Bound::Image(pass.read(depth, read))),
         (MAP_DEBUG_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
         (MAP_DEBUG_POSITION, Bound::Image(pass.read(&frame.gbuffer.position, read))),
-        (MAP_DEBUG_VISIBILITY, Bound::Image(pass.read(visibility, read))),
+        (MAP_DEBUG_VISIBILITY, Bound::Image(pass.read_layer(visibility, map.layer, read))),
         (MAP_DEBUG_LAYERS, Bound::Buffer(pass.read(table, Access::ComputeShaderReadUniformBuffer))),
     ];
     let push = DebugPush {
         dims: UVec4::new(extent.width, extent.height, mode, arg),
-        vis: UVec4::new(map.layer, 0, 0, 0),
         eye: frame.camera.eye.extend(0.0),
         forward: frame.camera.forward.extend(0.0),
     };

@@ -115,10 +115,7 @@ impl CompiledGraph {
 /// depends on the last writer of every layer it reads (a later write of other layers does not
 /// hide an earlier writer), and a pass's reads see what was there before its own writes.
 fn cull(graph: &RenderGraph<'_>) -> Vec<bool> {
-    let layer_count = |r: usize| match graph.resources[r].desc {
-        ResourceDesc::Image(d) => d.layers,
-        ResourceDesc::Buffer(_) => 1,
-    };
+    let layer_count = |r: usize| graph.all_layers(r).count;
     let mut last_writer: Vec<PerLayer<Option<usize>>> =
         (0..graph.resources.len()).map(|r| PerLayer::new(layer_count(r), None)).collect();
     let writers_of = |r: usize, layers: Layers, last_writer: &[PerLayer<Option<usize>>]| -> Vec<usize> {
@@ -267,10 +264,7 @@ struct SyncState {
 /// State is kept per layer range: a pass's barrier covers only the layers it touches, and ranges
 /// in the same state (the layers one pass wrote, say) share one barrier.
 fn plan_barriers(graph: &RenderGraph<'_>, live: &[bool], plans: &[ResourcePlan]) -> (Vec<Vec<Barrier>>, Vec<Barrier>) {
-    let layer_count = |r: usize| match graph.resources[r].desc {
-        ResourceDesc::Image(d) => d.layers,
-        ResourceDesc::Buffer(_) => 1,
-    };
+    let layer_count = |r: usize| graph.all_layers(r).count;
     let mut states: BTreeMap<Location, PerLayer<SyncState>> = BTreeMap::new();
     for (i, r) in graph.resources.iter().enumerate() {
         if let Some((_, access)) = r.imported {
@@ -360,11 +354,11 @@ fn first_writes(graph: &RenderGraph<'_>, live: &[bool]) -> Vec<PerLayer<Option<O
 }
 
 /// The layers a pass may bring from UNDEFINED to their first layout now, beside the layers it
-/// writes: layers this resource has not touched yet, in the hands of no one else, whose first
-/// use is a write in the same layout this pass writes in (transient images only: an import
-/// holds what it holds). Done here, in this pass's barrier,
-/// the later writers of those layers need no barrier of their own (the barrier's second scope
-/// holds every later command), so techniques writing disjoint layers run back to back.
+/// writes: layers this resource has not touched yet whose first use is a write in the layout
+/// this pass writes in (transient images only: an import holds what it holds). Done in this
+/// pass's barrier, the later writers of those layers need no barrier of their own (a barrier's
+/// second scope holds every later command), so techniques writing disjoint layers run back to
+/// back.
 fn early_transitions(
     st: &mut PerLayer<SyncState>,
     resource: usize,

@@ -218,7 +218,7 @@ impl<'a> RenderGraph<'a> {
     }
 
     /// Every layer of a resource (buffers have one).
-    fn all_layers(&self, id: usize) -> Layers {
+    pub(crate) fn all_layers(&self, id: usize) -> Layers {
         match self.resources[id].desc {
             ResourceDesc::Image(d) => Layers::all(d.layers),
             ResourceDesc::Buffer(_) => Layers::all(1),

@@ -1,7 +1,8 @@
 //! Samplers, made once per distinct description and shared by every pipeline layout that names
 //! it. A sampler is immutable device state that does not depend on the pipeline: making one per
-//! layout (as umbra did) spent one of the device's few sampler objects (`maxSamplerAllocationCount`,
-//! 4000 on many desktop GPUs) per pipeline, and each technique added pipelines. No sampler
+//! layout (as umbra did) spent a sampler object per pipeline, of which a device may allow as few
+//! as 4000 (`maxSamplerAllocationCount`'s required minimum), and each technique added pipelines,
+//! all with the same nearest, clamped sampler. No sampler
 //! compares depth: lavapipe cannot filter depth formats, so shadow maps are read with texelFetch
 //! and filtered by hand (PCF, PCSS), and a compare op would only differ between devices.
 

@@ -2,9 +2,9 @@
 //! it. A sampler is immutable device state that does not depend on the pipeline: making one per
 //! layout (as umbra did) spent a sampler object per pipeline, of which a device may allow as few
 //! as 4000 (`maxSamplerAllocationCount`'s required minimum), and each technique added pipelines,
-//! all with the same nearest, clamped sampler. No sampler
-//! compares depth: lavapipe cannot filter depth formats, so shadow maps are read with texelFetch
-//! and filtered by hand (PCF, PCSS), and a compare op would only differ between devices.
+//! all with the same nearest, clamped sampler. No sampler compares depth: lavapipe cannot filter
+//! depth formats, so shadow maps are read with texelFetch and filtered by hand (PCF, PCSS), and a
+//! compare op would only differ between devices.
 
 use std::collections::HashMap;
 use std::sync::Mutex;

@@ -226,6 +226,8 @@ fn parse_value(text: &str) -> toml::Value {
 pub enum DebugView {
     Albedo,
     Normal,
+    /// The G-buffer's geometric (face) normal, which shadow rays and map lookups move along.
+    GeometricNormal,
     Depth,
     Position,
     /// Light N's visibility (lights count from 0 in file order).
@@ -247,7 +249,8 @@ pub enum DebugView {
 impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
     pub const NAMES: &'static str =
-        "albedo, normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], hybrid[:N]";
+        "albedo, normal, geometric-normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], \
+         hybrid[:N]";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
@@ -278,6 +281,7 @@ impl std::str::FromStr for DebugView {
         match name {
             "albedo" => plain(DebugView::Albedo),
             "normal" => plain(DebugView::Normal),
+            "geometric-normal" => plain(DebugView::GeometricNormal),
             "depth" => plain(DebugView::Depth),
             "position" => plain(DebugView::Position),
             "visibility" => Ok(DebugView::Visibility(light(arg)?)),
@@ -304,6 +308,7 @@ impl std::fmt::Display for DebugView {
         match self {
             DebugView::Albedo => f.write_str("albedo"),
             DebugView::Normal => f.write_str("normal"),
+            DebugView::GeometricNormal => f.write_str("geometric-normal"),
             DebugView::Depth => f.write_str("depth"),
             DebugView::Position => f.write_str("position"),
             DebugView::Visibility(n) => write!(f, "visibility:{n}"),
@@ -461,8 +466,10 @@ mod tests {
         assert_eq!("shadow-map:2:5".parse(), Ok(DebugView::ShadowMap { light: 2, layer: 5 }));
         assert_eq!("cascades:1".parse(), Ok(DebugView::Cascades(1)));
         assert!("shadow-map:1:x".parse::<DebugView>().unwrap_err().contains("layer"));
+        assert_eq!("geometric-normal".parse(), Ok(DebugView::GeometricNormal));
         for v in [
             DebugView::Albedo,
+            DebugView::GeometricNormal,
             DebugView::Visibility(3),
             DebugView::ShadowMap { light: 1, layer: 2 },
             DebugView::Cascades(0),

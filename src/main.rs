@@ -137,8 +137,9 @@ struct RenderArgs {
     /// interquartile range over --frames.
     #[arg(long)]
     timings: bool,
-    /// Write a debug view instead of the shaded image: albedo, normal, depth, position, or
-    /// visibility[:N] (light N's visibility, lights counted from 0; plain `visibility` is light 0).
+    /// Write a debug view instead of the shaded image: albedo, normal, geometric-normal, depth,
+    /// position, or visibility[:N] (light N's visibility, lights counted from 0; plain
+    /// `visibility` is light 0).
     #[arg(long, value_parser = clap::builder::ValueParser::new(|s: &str| s.parse::<DebugView>()))]
     debug_view: Option<DebugView>,
     /// Exposure in stops for PNG output.

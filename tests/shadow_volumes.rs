@@ -279,7 +279,13 @@ fn the_plan_copies_depth_then_writes_and_reads_the_stencil_per_light() {
     let mut s = settings(3, 2, choice(ShadowMethod::Volumes, false));
     s.shadows[1] = choice(ShadowMethod::Traced, false);
     s.shadows[2] = choice(ShadowMethod::Volumes, true);
-    let plan = r.plan(&s).expect("plan");
+    // The view reads light 2's layer alone: light 0's volume passes and the trace are culled.
+    let viewed = r.plan(&s).expect("plan");
+    let resolves = viewed.live_pass_names().iter().filter(|p| **p == "shadow volumes resolve").count();
+    assert_eq!(resolves, 1, "{viewed}");
+    assert!(!viewed.live_pass_names().contains(&"shadow trace"), "{viewed}");
+    // The shaded frame reads every light's layer.
+    let plan = r.plan(&RenderSettings { debug_view: None, ..s.clone() }).expect("plan");
     println!("{plan}");
     let passes = plan.live_pass_names();
     let at = |name: &str, nth: usize| {

@@ -60,7 +60,7 @@ fn every_technique_with_every_view_is_clean() {
         };
         let lights = scene.lights.len() as u32;
         let mut r = Renderer::new(ctx.clone(), scene).expect("renderer");
-        let mut views = vec![None, Some(DebugView::Albedo), Some(DebugView::Depth)];
+        let mut views = vec![None, Some(DebugView::Albedo), Some(DebugView::GeometricNormal), Some(DebugView::Depth)];
         for l in 0..lights {
             views.extend([
                 Some(DebugView::Visibility(l)),
@@ -94,5 +94,34 @@ fn every_technique_with_every_view_is_clean() {
     }
     println!("{rendered} frames rendered");
     assert!(rendered > 100);
+    common::assert_clean(&ctx);
+}
+
+/// Techniques write their lights' layers side by side with no barrier between them (each binds
+/// its own layer): a frame mixing three techniques shows each light's visibility exactly as a
+/// frame where that light's technique serves every light, and makes no validation message.
+#[test]
+fn mixed_techniques_write_their_layers_as_they_do_alone() {
+    let ctx = common::gpu();
+    let scene = Scene::parse(SCENE, "matrix.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    let mut r = Renderer::new(ctx.clone(), scene).expect("renderer");
+    let mut visibility = |methods: [ShadowMethod; 3], light: u32| -> Vec<f32> {
+        let mut s = RenderSettings::new(64, 48, OutputKind::SceneLinear);
+        s.shadows = methods.iter().map(|&method| ShadowChoice { method, ..ShadowChoice::hard() }).collect();
+        s.debug_view = Some(DebugView::Visibility(light));
+        match r.render(&s).unwrap_or_else(|e| panic!("{methods:?} light {light}: {e}")) {
+            Frame::Rgba32F { pixels, .. } => pixels,
+            Frame::Rgba8 { .. } => unreachable!("scene-linear output"),
+        }
+    };
+    use ShadowMethod::{Map, Traced, Volumes};
+    let mixed = [Map, Volumes, Traced];
+    for (light, alone) in [(0, [Map; 3]), (1, [Volumes; 3]), (2, [Traced; 3])] {
+        let together = visibility(mixed, light);
+        let shadowed = together.chunks(4).filter(|p| p[0] < 0.5).count();
+        assert!(shadowed > 0, "light {light} casts some shadow in the frame");
+        assert_eq!(together, visibility(alone, light), "light {light}'s layer differs beside other techniques");
+    }
+    drop(r);
     common::assert_clean(&ctx);
 }

@@ -234,3 +234,34 @@ fn the_surface_channel_encoding() {
     println!("octahedral 8-bit geometric normal: worst error {worst:.3} degrees");
     assert!(worst < 1.0, "{worst} degrees");
 }
+
+/// The `geometric-normal` view shows what rays are pushed along: on the 32-segment sphere, a
+/// unit face normal per facet (so far fewer distinct values than the smooth shading normal
+/// takes), never more than a facet's angle from the shading normal, and zero on background.
+#[test]
+fn the_geometric_normal_view_shows_the_facets_the_shading_normal_smooths() {
+    let ctx = common::gpu();
+    let mut r = Renderer::new(ctx.clone(), sphere(32)).expect("renderer");
+    let backend = ShadowBackend::Compute;
+    let geometric = frame(&mut r, backend, DebugView::GeometricNormal);
+    let shading = frame(&mut r, backend, DebugView::Normal);
+    let covered: Vec<bool> = frame(&mut r, backend, DebugView::Depth).iter().map(|d| d.x > 0.0).collect();
+    drop(r);
+    common::assert_clean(&ctx);
+    let key = |n: Vec3| (n * 100.0).round().as_ivec3().to_array();
+    let (mut faces, mut smooth) = (std::collections::HashSet::new(), std::collections::HashSet::new());
+    for i in 0..covered.len() {
+        let (g, n) = (geometric[i].truncate(), shading[i].truncate());
+        if !covered[i] {
+            assert_eq!(g, Vec3::ZERO, "pixel {i}: background");
+            continue;
+        }
+        assert!((g.length() - 1.0).abs() < 1e-3, "pixel {i}: {g} is not unit");
+        // A 32-segment sphere's facets span 11.25 degrees: the shading normal stays within one.
+        assert!(g.dot(n) > 11.25f32.to_radians().cos(), "pixel {i}: {g} against {n}");
+        faces.insert(key(g));
+        smooth.insert(key(n));
+    }
+    println!("{} distinct geometric normals, {} shading normals", faces.len(), smooth.len());
+    assert!(faces.len() * 4 < smooth.len(), "{} facets against {} smooth normals", faces.len(), smooth.len());
+}

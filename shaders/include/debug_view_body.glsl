@@ -6,7 +6,8 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 layout(set = 0, binding = DISPLAY_INPUT) uniform sampler2D gbuffer_channel;
 layout(set = 0, binding = DISPLAY_OUTPUT, rgba32f) uniform writeonly image2D result;
 #ifdef WITH_VISIBILITY
-layout(set = 0, binding = DISPLAY_VISIBILITY) uniform sampler2DArray visibility;
+// The shown light's layer alone, through a view of that layer.
+layout(set = 0, binding = DISPLAY_VISIBILITY) uniform sampler2D visibility;
 #endif
 
 #define VIEW_ALBEDO 0
@@ -19,7 +20,6 @@ layout(push_constant) uniform Push {
     vec4 eye;       // xyz eye (scene-local), w: 1/far distance used to display depth
     vec4 origin;    // xyz: world position of the scene-local origin
     uvec4 params;   // x: width, y: height, z: view, w: display (1) or raw (0)
-    uvec4 layer;    // x: the visibility view's layer
 } pc;
 
 float srgb_encode(float x) {
@@ -50,7 +50,7 @@ void main() {
         break;
     default: // VIEW_VISIBILITY; input is the position channel, to tell background apart.
 #ifdef WITH_VISIBILITY
-        v = vec3(texel.w > 0.0 ? texelFetch(visibility, ivec3(p, pc.layer.x), 0).r : 1.0);
+        v = vec3(texel.w > 0.0 ? texelFetch(visibility, ivec2(p), 0).r : 1.0);
 #else
         v = vec3(1.0); // no light: nothing to shadow
 #endif

@@ -8,12 +8,15 @@ use std::fmt;
 
 use ash::vk;
 
+use super::layers::{Layers, PerLayer};
 use super::{Access, RenderGraph, ResourceDesc};
 
 /// One memory/execution dependency (plus layout transition for images) before a pass.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Barrier {
     pub resource: usize,
+    /// The layers it covers (buffers: their one layer).
+    pub layers: Layers,
     /// The accesses this barrier waits for (the last write, or the reads since it).
     pub after: Vec<Access>,
     pub before: Vec<Access>,
@@ -108,36 +111,41 @@ impl CompiledGraph {
     }
 }
 
-/// Phase 1: a pass lives if something it writes is read by a live pass or exported.
+/// Phase 1: a pass lives if something it writes is read by a live pass or exported. Each read
+/// depends on the last writer of every layer it reads (a later write of other layers does not
+/// hide an earlier writer), and a pass's reads see what was there before its own writes.
 fn cull(graph: &RenderGraph<'_>) -> Vec<bool> {
-    // Versions: walk forward to learn which version each access reads or produces.
-    let mut version = vec![0u32; graph.resources.len()];
-    let mut touched: Vec<Vec<(usize, u32, bool)>> = Vec::with_capacity(graph.passes.len());
-    for pass in &graph.passes {
-        let mut list = Vec::new();
-        for a in &pass.accesses {
-            // A read-modify-write (atomics) needs the version before it, as a read would.
-            if a.access.reads_previous() {
-                list.push((a.resource, version[a.resource], false));
-            }
-            if a.access.is_write() {
-                version[a.resource] += 1;
-            }
-            list.push((a.resource, version[a.resource], a.access.is_write()));
+    let layer_count = |r: usize| graph.all_layers(r).count;
+    let mut last_writer: Vec<PerLayer<Option<usize>>> =
+        (0..graph.resources.len()).map(|r| PerLayer::new(layer_count(r), None)).collect();
+    let writers_of = |r: usize, layers: Layers, last_writer: &[PerLayer<Option<usize>>]| -> Vec<usize> {
+        last_writer[r].overlapping(layers).filter_map(|(_, w)| *w).collect()
+    };
+    let mut depends_on: Vec<Vec<usize>> = Vec::with_capacity(graph.passes.len());
+    for (i, pass) in graph.passes.iter().enumerate() {
+        let mut deps = Vec::new();
+        // Reads, and read-modify-writes (atomics), depend on what was written before.
+        for a in pass.accesses.iter().filter(|a| !a.access.is_write() || a.access.reads_previous()) {
+            deps.extend(writers_of(a.resource, a.layers, &last_writer));
         }
-        touched.push(list);
-    }
-    let mut needed: std::collections::HashSet<(usize, u32)> =
-        graph.exports.iter().map(|e| (e.resource, graph.resources[e.resource].version)).collect();
-    let mut live = vec![false; graph.passes.len()];
-    for (i, list) in touched.iter().enumerate().rev() {
-        if list.iter().any(|&(r, v, w)| w && needed.contains(&(r, v))) {
-            live[i] = true;
-            for &(r, v, w) in list {
-                if !w {
-                    needed.insert((r, v));
-                }
+        for a in pass.accesses.iter().filter(|a| a.access.is_write()) {
+            for (_, w) in last_writer[a.resource].runs_in(a.layers) {
+                *w = Some(i);
             }
+            last_writer[a.resource].merge();
+        }
+        depends_on.push(deps);
+    }
+    let mut live = vec![false; graph.passes.len()];
+    let mut pending: Vec<usize> = graph
+        .exports
+        .iter()
+        .flat_map(|e| writers_of(e.resource, Layers::all(layer_count(e.resource)), &last_writer))
+        .collect();
+    while let Some(p) = pending.pop() {
+        if !live[p] {
+            live[p] = true;
+            pending.extend(&depends_on[p]);
         }
     }
     live
@@ -241,7 +249,7 @@ enum Location {
     Imported(usize),
 }
 
-#[derive(Clone, Default)]
+#[derive(Clone, Default, PartialEq)]
 struct SyncState {
     layout: Option<vk::ImageLayout>,
     write: Option<Access>,
@@ -254,8 +262,11 @@ struct SyncState {
 }
 
 /// Phase 5: one batched barrier per pass, from each location's state to the pass's accesses.
+/// State is kept per layer range: a pass's barrier covers only the layers it touches, and ranges
+/// in the same state (the layers one pass wrote, say) share one barrier.
 fn plan_barriers(graph: &RenderGraph<'_>, live: &[bool], plans: &[ResourcePlan]) -> (Vec<Vec<Barrier>>, Vec<Barrier>) {
-    let mut states: BTreeMap<Location, SyncState> = BTreeMap::new();
+    let layer_count = |r: usize| graph.all_layers(r).count;
+    let mut states: BTreeMap<Location, PerLayer<SyncState>> = BTreeMap::new();
     for (i, r) in graph.resources.iter().enumerate() {
         if let Some((_, access)) = r.imported {
             let mut st = SyncState { occupant: Some(i), ..Default::default() };
@@ -267,7 +278,7 @@ fn plan_barriers(graph: &RenderGraph<'_>, live: &[bool], plans: &[ResourcePlan])
             } else if access != Access::Nothing {
                 st.reads.push(access);
             }
-            states.insert(Location::Imported(i), st);
+            states.insert(Location::Imported(i), PerLayer::new(layer_count(i), st));
         }
     }
     let location = |id: usize| match plans[id].storage {
@@ -275,24 +286,29 @@ fn plan_barriers(graph: &RenderGraph<'_>, live: &[bool], plans: &[ResourcePlan])
         Storage::Imported => Some(Location::Imported(id)),
         Storage::Unused => None,
     };
+    let first_writes = first_writes(graph, live);
     let mut per_pass = Vec::with_capacity(graph.passes.len());
     for (i, pass) in graph.passes.iter().enumerate() {
         let mut barriers = Vec::new();
         if live[i] {
             // Group this pass's accesses by resource, in declaration order.
-            let mut groups: Vec<(usize, Vec<Access>)> = Vec::new();
+            let mut groups: Vec<(usize, Vec<(Access, Layers)>)> = Vec::new();
             for a in &pass.accesses {
                 match groups.iter_mut().find(|g| g.0 == a.resource) {
-                    Some(g) => g.1.push(a.access),
-                    None => groups.push((a.resource, vec![a.access])),
+                    Some(g) => g.1.push((a.access, a.layers)),
+                    None => groups.push((a.resource, vec![(a.access, a.layers)])),
                 }
             }
-            for (resource, accesses) in groups {
+            for (resource, mut accesses) in groups {
                 let loc = location(resource).expect("live access has storage");
-                let st = states.entry(loc).or_default();
+                let st =
+                    states.entry(loc).or_insert_with(|| PerLayer::new(layer_count(resource), SyncState::default()));
                 let is_image = matches!(graph.resources[resource].desc, ResourceDesc::Image(_));
-                if let Some(b) = transition(st, resource, &accesses, is_image, pass.name) {
-                    barriers.push(b);
+                let early = early_transitions(st, resource, &accesses, &first_writes[resource]);
+                let first_early = accesses.len();
+                accesses.extend(early);
+                for b in transition_layers(st, resource, &accesses, first_early, is_image, pass.name) {
+                    push_merged(&mut barriers, b);
                 }
             }
         }
@@ -301,17 +317,131 @@ fn plan_barriers(graph: &RenderGraph<'_>, live: &[bool], plans: &[ResourcePlan])
     let mut exports = Vec::new();
     for e in &graph.exports {
         let Some(loc) = location(e.resource) else { continue };
-        let st = states.entry(loc).or_default();
+        let n = layer_count(e.resource);
+        let st = states.entry(loc).or_insert_with(|| PerLayer::new(n, SyncState::default()));
         let is_image = matches!(graph.resources[e.resource].desc, ResourceDesc::Image(_));
-        if let Some(b) = transition(st, e.resource, &[e.access], is_image, "export") {
-            exports.push(b);
+        for b in transition_layers(st, e.resource, &[(e.access, Layers::all(n))], 1, is_image, "export") {
+            push_merged(&mut exports, b);
         }
     }
     (per_pass, exports)
 }
 
+/// For each image, the access of the first live pass to touch each layer, when that pass only
+/// writes the layer (its old contents are not wanted): `None` where it reads it, or nothing does.
+fn first_writes(graph: &RenderGraph<'_>, live: &[bool]) -> Vec<PerLayer<Option<Option<Access>>>> {
+    let mut first: Vec<PerLayer<Option<Option<Access>>>> = graph
+        .resources
+        .iter()
+        .map(|r| match r.desc {
+            // Imported images keep what they hold: only transient ones start undefined.
+            ResourceDesc::Image(d) => PerLayer::new(d.layers, r.imported.is_some().then_some(None)),
+            ResourceDesc::Buffer(_) => PerLayer::new(1, Some(None)),
+        })
+        .collect();
+    for (pass, _) in graph.passes.iter().zip(live).filter(|(_, &l)| l) {
+        for a in &pass.accesses {
+            let reads_it = |run: Layers| {
+                pass.accesses.iter().any(|b| b.resource == a.resource && !b.access.is_write() && b.layers.overlaps(run))
+            };
+            for (run, f) in first[a.resource].runs_in(a.layers) {
+                if f.is_none() {
+                    *f = Some((a.access.is_write() && !reads_it(*run)).then_some(a.access));
+                }
+            }
+        }
+    }
+    first
+}
+
+/// The layers a pass may bring from UNDEFINED to their first layout now, beside the layers it
+/// writes: layers this resource has not touched yet whose first use is a write in the layout
+/// this pass writes in (transient images only: an import holds what it holds). Done in this
+/// pass's barrier, the later writers of those layers need no barrier of their own (a barrier's
+/// second scope holds every later command), so techniques writing disjoint layers run back to
+/// back.
+fn early_transitions(
+    st: &mut PerLayer<SyncState>,
+    resource: usize,
+    accesses: &[(Access, Layers)],
+    first: &PerLayer<Option<Option<Access>>>,
+) -> Vec<(Access, Layers)> {
+    let Some(&(write, _)) = accesses.first() else { return Vec::new() };
+    let layout = write.info().layout;
+    if accesses.iter().any(|(a, _)| !a.is_write() || a.info().layout != layout) {
+        return Vec::new();
+    }
+    let mine = |run: Layers| accesses.iter().any(|(_, l)| l.overlaps(run));
+    let mut early = Vec::new();
+    for (run, f) in first.overlapping(Layers::all(u32::MAX)) {
+        let Some(Some(later)) = *f else { continue };
+        if later.info().layout != layout || mine(*run) {
+            continue;
+        }
+        // Another occupant of the slot is done with it (lifetimes do not overlap); the barrier
+        // waits for its last use as it would before the first write.
+        if st.overlapping(*run).all(|(_, s)| s.occupant != Some(resource)) {
+            early.push((later, *run));
+        }
+    }
+    early
+}
+
+/// The barriers that make `accesses` (each on its layers) safe, one per run of layers in one
+/// state, and the new state of each run. Accesses from `early` on are early transitions (see
+/// `early_transitions`): their layers end in the new layout with nothing written yet.
+fn transition_layers(
+    st: &mut PerLayer<SyncState>,
+    resource: usize,
+    accesses: &[(Access, Layers)],
+    early: usize,
+    is_image: bool,
+    pass: &str,
+) -> Vec<Barrier> {
+    for &(_, layers) in accesses {
+        let _ = st.runs_in(layers);
+    }
+    let first = accesses.iter().map(|a| a.1.first).min().expect("a group has accesses");
+    let end = accesses.iter().map(|a| a.1.end()).max().expect("a group has accesses");
+    let mut barriers = Vec::new();
+    for (run, state) in st.runs_in(Layers { first, count: end - first }) {
+        let here: Vec<Access> = accesses.iter().filter(|(_, l)| l.contains(*run)).map(|(a, _)| *a).collect();
+        if !here.is_empty() {
+            if let Some(b) = transition(state, resource, *run, &here, is_image, pass) {
+                push_merged(&mut barriers, b);
+            }
+            let is_early = accesses[early..].iter().any(|(_, l)| l.contains(*run));
+            if is_early {
+                // Only the layout moved: the write itself is still to come.
+                *state = SyncState { layout: state.layout, occupant: state.occupant, ..Default::default() };
+            }
+        }
+    }
+    st.merge();
+    barriers
+}
+
+/// Appends `b`, or widens the last barrier when `b` is the same dependency on the next layers.
+fn push_merged(barriers: &mut Vec<Barrier>, b: Barrier) {
+    if let Some(last) = barriers.last_mut() {
+        let same = Barrier { layers: last.layers, ..b.clone() };
+        if *last == same && last.layers.end() == b.layers.first {
+            last.layers.count += b.layers.count;
+            return;
+        }
+    }
+    barriers.push(b);
+}
+
 /// The barrier (if any) that makes `accesses` safe given the location's state, and the new state.
-fn transition(st: &mut SyncState, resource: usize, accesses: &[Access], is_image: bool, pass: &str) -> Option<Barrier> {
+fn transition(
+    st: &mut SyncState,
+    resource: usize,
+    layers: Layers,
+    accesses: &[Access],
+    is_image: bool,
+    pass: &str,
+) -> Option<Barrier> {
     let mut dst_stage = vk::PipelineStageFlags2::NONE;
     let mut dst_access = vk::AccessFlags2::NONE;
     let mut layout = None;
@@ -352,6 +482,7 @@ fn transition(st: &mut SyncState, resource: usize, accesses: &[Access], is_image
         };
         Barrier {
             resource,
+            layers,
             after,
             before: accesses.to_vec(),
             src_stage,
@@ -430,6 +561,11 @@ impl fmt::Display for CompiledGraph {
 impl CompiledGraph {
     pub fn describe_barrier(&self, b: &Barrier) -> String {
         let layouts = b.layouts.map_or(String::new(), |(o, n)| format!(" [{o:?} -> {n:?}]"));
-        format!("barrier {}: {:?} -> {:?}{layouts}", self.resources[b.resource].name, b.after, b.before)
+        let r = &self.resources[b.resource];
+        let part = match r.desc {
+            ResourceDesc::Image(d) if b.layers != Layers::all(d.layers) => format!(" {}", b.layers),
+            _ => String::new(),
+        };
+        format!("barrier {}{part}: {:?} -> {:?}{layouts}", r.name, b.after, b.before)
     }
 }

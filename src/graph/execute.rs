@@ -173,7 +173,12 @@ impl TransientCache {
                     list.push(Image::new(&self.ctx, name, d, usage)?);
                 }
                 let image = &list[index];
-                Ok(External::Image { image: image.raw, view: image.view, stencil: image.stencil_view })
+                Ok(External::Image {
+                    image: image.raw,
+                    view: image.view,
+                    stencil: image.stencil_view,
+                    layer_views: image.layer_views.clone(),
+                })
             }
             ResourceDesc::Buffer(b) => {
                 let list = self.buffers.entry(key).or_default();
@@ -225,7 +230,7 @@ impl TransientCache {
         let mut resolved = Vec::with_capacity(graph.resources.len());
         for (decl, rp) in graph.resources.iter().zip(&plan.resources) {
             resolved.push(match rp.storage {
-                Storage::Imported => decl.imported.map(|(e, _)| e),
+                Storage::Imported => decl.imported.as_ref().map(|(e, _)| e.clone()),
                 Storage::Transient(s) => Some(self.slot(plan.slots[s], slot_index[s], decl.desc, decl.name)?),
                 Storage::Unused => None,
             });
@@ -317,6 +322,7 @@ fn record_barriers(
         match resolved[b.resource] {
             Some(External::Image { image, .. }) => {
                 let ResourceDesc::Image(desc) = plan.resources[b.resource].desc else { unreachable!("image resource") };
+                let range = desc.subresource_range().base_array_layer(b.layers.first).layer_count(b.layers.count);
                 let (old, new) = b.layouts.expect("image barrier has layouts");
                 images.push(
                     vk::ImageMemoryBarrier2::default()
@@ -329,7 +335,7 @@ fn record_barriers(
                         .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
                         .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
                         .image(image)
-                        .subresource_range(desc.subresource_range()),
+                        .subresource_range(range),
                 );
             }
             Some(External::Buffer { buffer }) => buffers.push(
@@ -362,23 +368,28 @@ pub struct PassContext<'e> {
 }
 
 impl PassContext<'_> {
+    /// The image behind `r` and the view that names what `r` declared: one layer's 2D view for
+    /// `read_layer` / `write_layer`, else the whole image's view.
     pub fn image(&self, r: Ref<ImageKind>) -> (vk::Image, vk::ImageView) {
-        match self.resolved[r.id] {
-            Some(External::Image { image, view, .. }) => (image, view),
+        match (&self.resolved[r.id], r.layer) {
+            (Some(External::Image { image, layer_views, .. }), Some(layer)) => {
+                let view = *layer_views.get(layer as usize).expect("array images have a view per layer");
+                (*image, view)
+            }
+            (Some(External::Image { image, view, .. }), None) => (*image, *view),
             _ => unreachable!("image handle resolves to an image"),
         }
     }
 
     /// The view a descriptor for `r` names: the stencil-aspect view for accesses that sample
-    /// stencil, else the image's view.
+    /// stencil, else the view `image` gives.
     pub fn descriptor_view(&self, r: Ref<ImageKind>) -> vk::ImageView {
         match self.resolved[r.id] {
             Some(External::Image { stencil, .. }) if r.access.views_stencil() => {
                 assert_ne!(stencil, vk::ImageView::null(), "a stencil read of an image without a stencil view");
                 stencil
             }
-            Some(External::Image { view, .. }) => view,
-            _ => unreachable!("image handle resolves to an image"),
+            _ => self.image(r).1,
         }
     }
 

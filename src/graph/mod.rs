@@ -1,10 +1,13 @@
 //! The frame graph. Passes declare what they read and write through typed, versioned handles;
 //! `compile` derives culling, lifetimes, usage flags, transient allocation and one batched
-//! barrier per pass; `execute` records it. Passes never write a barrier themselves.
+//! barrier per pass; `execute` records it. Passes never write a barrier themselves. Accesses
+//! name the image layers they touch (`read_layers`, `write_layers`; `read` and `write` take every
+//! layer), and compile tracks state per layer range.
 
 mod access;
 mod compile;
 mod execute;
+mod layers;
 
 use std::marker::PhantomData;
 
@@ -14,6 +17,7 @@ pub use access::{Access, AccessInfo, Applies};
 pub use compile::{Barrier, CompiledGraph, CompiledPass, ResourcePlan, Storage};
 pub use compile::{ResourceDescKey, SlotKey};
 pub use execute::{Bound, GpuTimings, PassContext, TimingMode, TransientCache};
+pub use layers::Layers;
 
 pub use crate::vk::ImageDesc;
 
@@ -48,6 +52,9 @@ pub struct Handle<K> {
 pub struct Ref<K> {
     pub(crate) id: usize,
     pub(crate) access: Access,
+    /// Declared through `read_layers` / `write_layers`: the pass binds this one layer through its
+    /// own 2D view. `None`: the pass binds the whole image's view.
+    pub(crate) layer: Option<u32>,
     _kind: PhantomData<K>,
 }
 
@@ -65,10 +72,11 @@ impl<K> Handle<K> {
 }
 
 /// A Vulkan object that lives outside the graph. An image's `stencil` is a view of its stencil
-/// aspect alone (what accesses that `Access::views_stencil` bind), or null.
-#[derive(Clone, Copy, Debug)]
+/// aspect alone (what accesses that `Access::views_stencil` bind), or null; `layer_views` holds a
+/// 2D view of each layer of an array image (what `read_layers` / `write_layers` bind), or nothing.
+#[derive(Clone, Debug)]
 pub enum External {
-    Image { image: vk::Image, view: vk::ImageView, stencil: vk::ImageView },
+    Image { image: vk::Image, view: vk::ImageView, stencil: vk::ImageView, layer_views: Vec<vk::ImageView> },
     Buffer { buffer: vk::Buffer },
 }
 
@@ -88,6 +96,8 @@ pub(crate) struct ResourceDecl {
 pub(crate) struct PassAccess {
     pub resource: usize,
     pub access: Access,
+    /// The layers it touches (all of them for `read` / `write`; buffers have one).
+    pub layers: Layers,
 }
 
 pub(crate) type PassFn<'a> = Box<dyn FnOnce(&mut PassContext) -> crate::vk::GpuResult<()> + 'a>;
@@ -148,7 +158,9 @@ impl<'a> RenderGraph<'a> {
         access: Access,
     ) -> Handle<ImageKind> {
         assert!(access.applies_to_image(), "{name}: {access:?} is not an image access");
-        let external = Some((External::Image { image, view, stencil: vk::ImageView::null() }, access));
+        let views = Vec::new();
+        let external =
+            Some((External::Image { image, view, stencil: vk::ImageView::null(), layer_views: views }, access));
         self.declare(name, ResourceDesc::Image(desc), external, usage.as_raw())
     }
 
@@ -182,8 +194,9 @@ impl<'a> RenderGraph<'a> {
         access: Access,
     ) -> Handle<ImageKind> {
         let handle = self.import_image(name, image.desc, (image.raw, image.view, image.usage), access);
-        if let Some((External::Image { stencil, .. }, _)) = &mut self.resources[handle.id].imported {
+        if let Some((External::Image { stencil, layer_views, .. }, _)) = &mut self.resources[handle.id].imported {
             *stencil = image.stencil_view;
+            layer_views.clone_from(&image.layer_views);
         }
         handle
     }
@@ -202,6 +215,14 @@ impl<'a> RenderGraph<'a> {
     fn check_version<K>(&self, handle: &Handle<K>) {
         let r = &self.resources[handle.id];
         assert_eq!(handle.version, r.version, "{}: stale handle (version {} of {})", r.name, handle.version, r.version);
+    }
+
+    /// Every layer of a resource (buffers have one).
+    pub(crate) fn all_layers(&self, id: usize) -> Layers {
+        match self.resources[id].desc {
+            ResourceDesc::Image(d) => Layers::all(d.layers),
+            ResourceDesc::Buffer(_) => Layers::all(1),
+        }
     }
 
     /// What an image handle refers to (typed handles make this infallible).
@@ -229,25 +250,63 @@ impl<'a> PassBuilder<'_, 'a> {
         assert!(access != Access::Nothing, "pass {}: Access::Nothing is not a use", self.pass.name);
     }
 
-    /// Declares a read. Rejects write accesses: those go through `write`.
+    /// Declares a read of every layer. Rejects write accesses: those go through `write`.
     pub fn read<K>(&mut self, handle: &Handle<K>, access: Access) -> Ref<K> {
+        let layers = self.graph.all_layers(handle.id);
+        self.declare_read(handle, layers, access, None)
+    }
+
+    /// Declares a write of every layer and bumps the handle's version. Rejects read accesses.
+    pub fn write<K>(&mut self, handle: &mut Handle<K>, access: Access) -> Ref<K> {
+        let layers = self.graph.all_layers(handle.id);
+        self.declare_write(handle, layers, access, None)
+    }
+
+    /// Declares a read of one layer of an array image, which the pass binds through that
+    /// layer's own 2D view: earlier writers of other layers are neither kept nor waited for.
+    pub fn read_layer(&mut self, handle: &Handle<ImageKind>, layer: u32, access: Access) -> Ref<ImageKind> {
+        self.declare_read(handle, self.one_layer(handle.id, layer), access, Some(layer))
+    }
+
+    /// Declares a write of one layer of an array image, bound through that layer's 2D view.
+    /// Passes that write other layers need no barrier against this one. The handle's version
+    /// still moves on: a later reader of any layer names the image after this write, and the
+    /// graph finds each layer's own last writer.
+    pub fn write_layer(&mut self, handle: &mut Handle<ImageKind>, layer: u32, access: Access) -> Ref<ImageKind> {
+        let layers = self.one_layer(handle.id, layer);
+        self.declare_write(handle, layers, access, Some(layer))
+    }
+
+    fn one_layer(&self, id: usize, layer: u32) -> Layers {
+        let r = &self.graph.resources[id];
+        let ResourceDesc::Image(d) = r.desc else { unreachable!("an image handle names an image") };
+        assert!(d.array && layer < d.layers, "pass {}: {} has no layer {layer} ({d:?})", self.pass.name, r.name);
+        Layers::one(layer)
+    }
+
+    fn declare_read<K>(&mut self, handle: &Handle<K>, layers: Layers, access: Access, layer: Option<u32>) -> Ref<K> {
         assert!(!access.is_write(), "pass {}: {access:?} is a write; declare it with write()", self.pass.name);
         self.graph.check_version(handle);
         self.check_kind(handle.id, access);
-        self.pass.accesses.push(PassAccess { resource: handle.id, access });
-        Ref { id: handle.id, access, _kind: PhantomData }
+        self.pass.accesses.push(PassAccess { resource: handle.id, access, layers });
+        Ref { id: handle.id, access, layer, _kind: PhantomData }
     }
 
-    /// Declares a write and bumps the handle's version. Rejects read accesses.
-    pub fn write<K>(&mut self, handle: &mut Handle<K>, access: Access) -> Ref<K> {
+    fn declare_write<K>(
+        &mut self,
+        handle: &mut Handle<K>,
+        layers: Layers,
+        access: Access,
+        layer: Option<u32>,
+    ) -> Ref<K> {
         assert!(access.is_write(), "pass {}: {access:?} is a read; declare it with read()", self.pass.name);
         self.graph.check_version(handle);
         self.check_kind(handle.id, access);
-        self.pass.accesses.push(PassAccess { resource: handle.id, access });
+        self.pass.accesses.push(PassAccess { resource: handle.id, access, layers });
         let r = &mut self.graph.resources[handle.id];
         r.version += 1;
         handle.version = r.version;
-        Ref { id: handle.id, access, _kind: PhantomData }
+        Ref { id: handle.id, access, layer, _kind: PhantomData }
     }
 
     /// A note on the pass's work for the printed plan (for example how many draws it makes).

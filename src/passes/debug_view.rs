@@ -19,12 +19,13 @@ struct Push {
     eye: Vec4,
     origin: Vec4,
     params: UVec4,
-    layer: UVec4,
 }
 
 pub struct DebugPipelines {
     channel: ComputePipeline,
     visibility: ComputePipeline,
+    /// The geometric normal, decoded from the integer surface channel.
+    geometric_normal: ComputePipeline,
 }
 
 pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
@@ -35,6 +36,14 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
     Ok(DebugPipelines {
         channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &common, push, TILE)?,
         visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, TILE)?,
+        geometric_normal: ComputePipeline::new(
+            ctx,
+            "debug geometric normal",
+            spirv::DEBUG_GEOMETRIC_NORMAL_COMP,
+            &common,
+            push,
+            TILE,
+        )?,
     })
 }
 
@@ -60,6 +69,8 @@ fn shader_view(view: DebugView) -> u32 {
         DebugView::Depth => 2,
         DebugView::Position => 3,
         DebugView::Visibility(_) => 4,
+        // Its own shader (debug_geometric_normal.comp), which reads no view number.
+        DebugView::GeometricNormal => 5,
         // Written by the technique itself (`shadows::add`), never by this pass.
         DebugView::ShadowMap { .. } | DebugView::Cascades(_) | DebugView::Stencil(_) | DebugView::Hybrid(_) => {
             unreachable!("a technique's own view")
@@ -78,6 +89,7 @@ pub fn add<'a>(
     let source = match inputs.view {
         DebugView::Albedo => &gbuffer.material,
         DebugView::Normal => &gbuffer.normal,
+        DebugView::GeometricNormal => &gbuffer.surface,
         _ => &gbuffer.position,
     };
     let mut pass = graph.add_pass("debug view");
@@ -85,20 +97,20 @@ pub fn add<'a>(
         (DISPLAY_INPUT, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
         (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
     ];
-    let mut layer = 0;
     let pipeline = match inputs.visibility.filter(|_| matches!(inputs.view, DebugView::Visibility(_))) {
         Some((v, l)) => {
-            bound.push((DISPLAY_VISIBILITY, Bound::Image(pass.read(v, Access::ComputeShaderReadSampledImage))));
-            layer = l;
+            // The light's layer alone: other lights' shadow passes are culled.
+            let layer = pass.read_layer(v, l, Access::ComputeShaderReadSampledImage);
+            bound.push((DISPLAY_VISIBILITY, Bound::Image(layer)));
             &pipelines.visibility
         }
+        None if inputs.view == DebugView::GeometricNormal => &pipelines.geometric_normal,
         None => &pipelines.channel,
     };
     let push = Push {
         eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
         origin: inputs.origin.extend(0.0),
         params: UVec4::new(extent.width, extent.height, shader_view(inputs.view), inputs.display as u32),
-        layer: UVec4::new(layer, 0, 0, 0),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     out

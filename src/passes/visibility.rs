@@ -6,7 +6,9 @@
 //! not converged (at most 255 samples per frame are ever resolved exactly; accumulation over
 //! frames happens in float radiance). The light table, written by a transfer at the start of
 //! each frame, maps each light to its layer (or to `UNSHADOWED`), so compose reads layers
-//! without knowing which technique wrote them.
+//! without knowing which technique wrote them. Each technique's pass declares only the layers it
+//! writes (`PassBuilder::write_layer`), so techniques do not wait on each other; compose's read
+//! of the whole target waits for every writer.
 
 use ash::vk;
 
@@ -85,13 +87,6 @@ pub fn check_limits(ctx: &GpuContext, extent: vk::Extent2D, lights: usize, layer
         )));
     }
     Ok(())
-}
-
-/// Declares that `pass` writes some layers of `target` and keeps the others: a read of what
-/// earlier techniques wrote, so the graph keeps those passes and orders this one after them
-/// (the graph tracks whole images, not layers).
-pub fn keep_other_layers(pass: &mut crate::graph::PassBuilder<'_, '_>, target: &Handle<ImageKind>) {
-    pass.read(target, Access::ComputeShaderReadStorageImage);
 }
 
 /// The frame's visibility target, `layers` layers (at least one).

@@ -139,6 +139,20 @@ pub fn cube_face_view_proj(position: Vec3, face: usize, near: f32, far: f32) -> 
 /// nearest caster that can shadow them to the farthest receiver. Casters beside the receivers'
 /// footprint are left out of the depth range, so a huge scene with a small view keeps its depth
 /// precision. None when either set is empty or they do not overlap across the light.
+///
+/// Depth clamp ("pancaking": the near plane at the receivers, casters in front of it clamped
+/// onto it) is not used here or in `fit_cascade`, though the device enables it where offered:
+/// measured, it brings nothing. It shortens the depth range only when casters lie toward the
+/// light beyond what the range holds anyway: the directional map's range never changed (every
+/// visible caster is a receiver), the near cascades' did by 3x to 7x (default scene 7.3 m to
+/// 2.25 m; the 1 km field 554 m to 83 m). But what a shorter range buys is depth precision, and
+/// D32_SFLOAT with reversed depth resolves about R * 2^-24 at the light's end (33 um over
+/// 554 m): light 0's visibility with pancaking differed in 1 of 307,200 pixels on the default
+/// scene at 640x480 (cascades) and in none on the field, grazing-sun and 100 km scenes, and no
+/// metric of tests/shadow_map*.rs or tests/stress_scenes.rs moved. Clamping in the depth
+/// pipeline every map shares also broke perspective maps (a spot inside a cube lit 7244 floor
+/// pixels where every other method lights 7743), so it would need a pipeline of its own, for
+/// no gain.
 pub fn directional_view_proj(direction: Vec3, receivers: &Bounds, casters: &Bounds) -> Option<Mat4> {
     if receivers.is_empty() || casters.is_empty() {
         return None;

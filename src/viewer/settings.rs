@@ -9,10 +9,11 @@ use crate::scene::{Camera, Light};
 
 /// The views V cycles through; the light-specific ones show the selected light, and are
 /// skipped where its technique has nothing to show.
-const VIEWS: [Option<DebugView>; 9] = [
+const VIEWS: [Option<DebugView>; 10] = [
     None,
     Some(DebugView::Albedo),
     Some(DebugView::Normal),
+    Some(DebugView::GeometricNormal),
     Some(DebugView::Depth),
     Some(DebugView::Position),
     Some(DebugView::Visibility(0)),
@@ -143,7 +144,8 @@ impl ViewerSettings {
                 describe_choice(&self.shadows[self.selected_light], light)
             ));
         }
-        let view = self.debug_view().map_or("shaded".to_string(), |v| format!("{v:?}").to_lowercase());
+        // Named as `--debug-view` names it (geometric-normal, shadow-map:0:0, ...).
+        let view = self.debug_view().map_or("shaded".to_string(), |v| v.to_string());
         lines.push(format!(
             "view {view}  {:+.1} EV  soft {} spp/frame  rays: {}",
             self.exposure_ev,
@@ -255,6 +257,22 @@ mod tests {
         assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::RayQuery);
         s.on_key(Key::B);
         assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::Compute, "B toggles back");
+    }
+
+    #[test]
+    fn the_overlay_names_the_view_as_the_command_line_does() {
+        let mut s = ViewerSettings::new(1);
+        let light = Light::Point { position: glam::Vec3::Y, intensity: glam::Vec3::ONE, radius: 0.0 };
+        let view_line = |s: &ViewerSettings| s.describe(&[light]).into_iter().find(|l| l.starts_with("view ")).unwrap();
+        assert!(view_line(&s).starts_with("view shaded "), "{}", view_line(&s));
+        while s.debug_view() != Some(DebugView::GeometricNormal) {
+            s.on_key(Key::V);
+        }
+        assert!(view_line(&s).starts_with("view geometric-normal "), "{}", view_line(&s));
+        s.on_key(Key::V);
+        s.on_key(Key::V);
+        s.on_key(Key::V);
+        assert!(view_line(&s).starts_with("view visibility:0 "), "{}", view_line(&s));
     }
 
     #[test]

@@ -42,6 +42,8 @@ pub struct GpuContext {
     pub driver: String,
     /// VK_KHR_acceleration_structure's functions, where `capabilities.ray_query`.
     pub acceleration_structure: Option<ash::khr::acceleration_structure::Device>,
+    /// Every sampler, shared by the pipeline layouts that name it.
+    pub samplers: super::SamplerCache,
     pub(super) allocator: ManuallyDrop<Mutex<Allocator>>,
     /// Present only for contexts made `with_window`.
     pub surface_loader: Option<ash::khr::surface::Instance>,
@@ -194,6 +196,7 @@ impl GpuContext {
             capabilities: caps,
             driver,
             acceleration_structure,
+            samplers: Default::default(),
             allocator: ManuallyDrop::new(Mutex::new(allocator)),
             command_pool,
             debug,
@@ -275,6 +278,8 @@ impl Drop for GpuContext {
         unsafe {
             let _ = self.device.device_wait_idle();
             self.device.destroy_command_pool(self.command_pool, None);
+            // Pipeline layouts hold an Arc of the context, so none outlives it.
+            self.samplers.destroy(&self.device);
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
         }

@@ -1,11 +1,12 @@
 //! The Vulkan layer: instance and device (with validation when asked), memory, buffers, images,
-//! pipelines and one-shot submission. Everything above it speaks in frame-graph terms.
+//! pipelines, shared samplers and one-shot submission. Everything above it speaks in frame-graph terms.
 
 mod capabilities;
 mod context;
 mod debug;
 mod pipeline;
 mod resources;
+mod sampler;
 mod swapchain;
 
 pub use capabilities::{Capabilities, DeviceListing};
@@ -16,6 +17,7 @@ pub use pipeline::{
     PipelineLayout, StencilState,
 };
 pub use resources::{subresource_range, Buffer, Image, ImageDesc};
+pub use sampler::{SamplerCache, SamplerDesc};
 pub use swapchain::{Acquired, Swapchain, SWAPCHAIN_USAGE};
 
 /// SPIR-V produced by build.rs from `shaders/`.

@@ -33,7 +33,8 @@ impl DescriptorKind {
     }
 }
 
-/// What pipelines of both kinds share: the layouts and the nearest sampler.
+/// What pipelines of both kinds share: the layouts and the nearest sampler (the context's, shared
+/// by every layout).
 pub struct PipelineLayout {
     pub set_layout: vk::DescriptorSetLayout,
     pub layout: vk::PipelineLayout,
@@ -50,17 +51,10 @@ impl PipelineLayout {
         push_bytes: u32,
     ) -> GpuResult<Self> {
         let device = &ctx.device;
-        let sampler_info = vk::SamplerCreateInfo::default()
-            .mag_filter(vk::Filter::NEAREST)
-            .min_filter(vk::Filter::NEAREST)
-            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
-            .address_mode_u(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .address_mode_v(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .address_mode_w(vk::SamplerAddressMode::CLAMP_TO_EDGE)
-            .max_lod(0.0);
+        // One sampler for every layout: shared through the context's cache.
+        let sampler = ctx.samplers.get(device, super::SamplerDesc::NEAREST_CLAMP)?;
         // SAFETY: valid device; create infos outlive the calls.
         unsafe {
-            let sampler = device.create_sampler(&sampler_info, None).vk("vkCreateSampler")?;
             let samplers = [sampler];
             let vk_bindings: Vec<_> = bindings
                 .iter()
@@ -105,7 +99,6 @@ impl Drop for PipelineLayout {
         unsafe {
             self.ctx.device.destroy_pipeline_layout(self.layout, None);
             self.ctx.device.destroy_descriptor_set_layout(self.set_layout, None);
-            self.ctx.device.destroy_sampler(self.sampler, None);
         }
     }
 }

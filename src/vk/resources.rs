@@ -144,6 +144,10 @@ pub struct Image {
     /// A view of the stencil aspect alone, for images with stencil that shaders sample (a
     /// sampled descriptor may view one aspect only); null otherwise.
     pub stencil_view: vk::ImageView,
+    /// A 2D view of each layer of an array image with a single aspect (empty otherwise): what a
+    /// pass that writes or reads one layer binds, so its descriptor (and what synchronization
+    /// validation checks) covers that layer alone while other passes use the others.
+    pub layer_views: Vec<vk::ImageView>,
     pub desc: ImageDesc,
     pub usage: vk::ImageUsageFlags,
     allocation: Option<Allocation>,
@@ -180,6 +184,7 @@ impl Image {
                 raw,
                 view: vk::ImageView::null(),
                 stencil_view: vk::ImageView::null(),
+                layer_views: Vec::new(),
                 desc,
                 usage,
                 allocation: Some(allocation),
@@ -199,6 +204,15 @@ impl Image {
                     let stencil_info = view_info.subresource_range(stencil_range);
                     image.stencil_view =
                         ctx.device.create_image_view(&stencil_info, None).vk("vkCreateImageView (stencil)")?;
+                }
+                let single_aspect = desc.aspect() != (vk::ImageAspectFlags::DEPTH | vk::ImageAspectFlags::STENCIL);
+                if desc.array && single_aspect {
+                    for layer in 0..desc.layers {
+                        let range = desc.subresource_range().base_array_layer(layer).layer_count(1);
+                        let info = view_info.view_type(vk::ImageViewType::TYPE_2D).subresource_range(range);
+                        let view = ctx.device.create_image_view(&info, None).vk("vkCreateImageView (layer)")?;
+                        image.layer_views.push(view);
+                    }
                 }
             }
             Ok(image)
@@ -233,7 +247,7 @@ impl Drop for Image {
     fn drop(&mut self) {
         // SAFETY: callers wait for the GPU before dropping resources it may still use.
         unsafe {
-            for view in [self.view, self.stencil_view] {
+            for &view in [self.view, self.stencil_view].iter().chain(&self.layer_views) {
                 if view != vk::ImageView::null() {
                     self.ctx.device.destroy_image_view(view, None);
                 }

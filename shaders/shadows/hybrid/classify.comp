@@ -23,7 +23,7 @@ layout(set = 0, binding = HYBRID_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = HYBRID_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = HYBRID_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 layout(set = 0, binding = HYBRID_DEPTH) uniform sampler2DArray shadow_map;
-layout(set = 0, binding = HYBRID_VISIBILITY, r8) uniform writeonly image2DArray visibility;
+layout(set = 0, binding = HYBRID_VISIBILITY, r8) uniform writeonly image2D visibility;
 layout(set = 0, binding = HYBRID_SURFACE) uniform usampler2D gbuffer_surface;
 // The pixels to trace, and the indirect dispatch that traces them (64 pixels a workgroup).
 layout(set = 0, binding = HYBRID_LIST, std430) buffer List { uint count; uint pixels[]; } list;
@@ -110,6 +110,6 @@ void main() {
         list.pixels[i] = px.y * pc.dims.x + px.x;
         if (i % LIST_GROUP == 0u) atomicAdd(args.groups_x, 1u);
     } else {
-        imageStore(visibility, ivec3(px, pc.dims.w), vec4(v));
+        imageStore(visibility, ivec2(px), vec4(v));
     }
 }

@@ -7,7 +7,7 @@
 #include "bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
-layout(set = 0, binding = HYBRID_VISIBILITY) uniform sampler2DArray visibility;
+layout(set = 0, binding = HYBRID_VISIBILITY) uniform sampler2D visibility;
 layout(set = 0, binding = HYBRID_LIST, std430) readonly buffer List { uint count; uint pixels[]; } list;
 layout(set = 0, binding = HYBRID_VIEW_OUTPUT, rgba32f) uniform writeonly image2D view;
 
@@ -26,6 +26,6 @@ void main() {
         if (i >= list.count) return;
         px = uvec2(list.pixels[i] % pc.dims.x, list.pixels[i] / pc.dims.x);
     }
-    float v = texelFetch(visibility, ivec3(px, pc.dims.z), 0).r;
+    float v = texelFetch(visibility, ivec2(px), 0).r;
     imageStore(view, ivec2(px), pc.dims.w == 0u ? vec4(v, v, v, 1.0) : vec4(1.0, v, 0.0, 1.0));
 }

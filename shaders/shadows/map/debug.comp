@@ -12,11 +12,11 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 layout(set = 0, binding = MAP_DEBUG_DEPTH) uniform sampler2DArray shadow_map;
 layout(set = 0, binding = MAP_DEBUG_OUTPUT, rgba32f) uniform writeonly image2D result;
 layout(set = 0, binding = MAP_DEBUG_POSITION) uniform sampler2D gbuffer_position;
-layout(set = 0, binding = MAP_DEBUG_VISIBILITY) uniform sampler2DArray visibility;
+// The light's layer of the visibility target alone, through a view of that layer.
+layout(set = 0, binding = MAP_DEBUG_VISIBILITY) uniform sampler2D visibility;
 
 layout(push_constant) uniform Push {
     uvec4 dims;    // x: width, y: height, z: 0 map layer / 1 cascades, w: layer (map) or cascade count
-    uvec4 vis;     // x: the light's visibility layer
     vec4 eye;      // xyz: camera
     vec4 forward;  // xyz: unit view direction
 } pc;
@@ -45,7 +45,7 @@ void main() {
             uint count = pc.dims.w;
             uint k = 0u;
             while (k + 1u < count && along > layers[k].split.x) k++;
-            float v = texelFetch(visibility, ivec3(px, pc.vis.x), 0).r;
+            float v = texelFetch(visibility, ivec2(px), 0).r;
             c = along > layers[count - 1u].split.x ? vec3(0.15) : TINTS[k] * (0.3 + 0.7 * v);
         }
     }

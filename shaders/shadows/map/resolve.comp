@@ -20,11 +20,13 @@ layout(set = 0, binding = MAP_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = MAP_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = MAP_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 layout(set = 0, binding = MAP_DEPTH) uniform sampler2DArray shadow_map;
-layout(set = 0, binding = MAP_VISIBILITY, r8) uniform writeonly image2DArray visibility;
+// The light's layer alone, bound through a view of that layer: other techniques may write the
+// other layers at the same time.
+layout(set = 0, binding = MAP_VISIBILITY, r8) uniform writeonly image2D visibility;
 layout(set = 0, binding = MAP_SURFACE) uniform usampler2D gbuffer_surface;
 
 layout(push_constant) uniform Push {
-    uvec4 dims;    // x: width, y: height, z: light, w: visibility layer
+    uvec4 dims;    // x: width, y: height, z: light, w: visibility layer (unused: the bound view is that layer)
     uvec4 map;     // x: layers, y: mode (MAP_SINGLE, MAP_CUBE, MAP_CASCADES), z: PCF radius, w: PCSS on
     vec4 params;   // x: normal offset (texels), y: PCSS largest radius (texels), z: cascade blend
                    // share, w: the light's size (radius in m, or tan of half its angular diameter)
@@ -152,5 +154,5 @@ void main() {
             v = layer_visibility(0u, position.xyz, ng, size, perspective_light);
         }
     }
-    imageStore(visibility, ivec3(px, pc.dims.w), vec4(v));
+    imageStore(visibility, ivec2(px), vec4(v));
 }

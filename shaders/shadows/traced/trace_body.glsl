@@ -17,12 +17,14 @@ layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = SHADOW_SURFACE) uniform usampler2D gbuffer_surface;
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
-layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2DArray visibility;
+// The light's layer alone, bound through a view of that layer: other techniques may write the
+// other layers at the same time.
+layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visibility;
 
 // One light per dispatch: its layer of the visibility target.
 layout(push_constant) uniform Push {
     uvec4 dims;  // x: width, y: height, z: the light, w: rays per pixel (0: none, facing only)
-    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer; z: 1 = soft
+    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: 1 = soft
 } pc;
 
 // The light's visibility at pixel `px`: the share of its rays that reach the light.
@@ -76,13 +78,13 @@ void main() {
     if (i >= list.count) return;
     uint p = list.pixels[i];
     uvec2 px = uvec2(p % pc.dims.x, p / pc.dims.x);
-    imageStore(visibility, ivec3(px, pc.frame.y), vec4(trace_pixel(px)));
+    imageStore(visibility, ivec2(px), vec4(trace_pixel(px)));
 }
 #else
 void main() {
     uvec2 px = gl_GlobalInvocationID.xy;
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
-    imageStore(visibility, ivec3(px, pc.frame.y), vec4(trace_pixel(px)));
+    imageStore(visibility, ivec2(px), vec4(trace_pixel(px)));
 }
 #endif
 

@@ -12,10 +12,12 @@ layout(set = 0, binding = VOLUMES_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = VOLUMES_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = VOLUMES_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 layout(set = 0, binding = VOLUMES_STENCIL) uniform usampler2D stencil_count;
-layout(set = 0, binding = VOLUMES_VISIBILITY, r8) uniform writeonly image2DArray visibility;
+// The light's layer alone, bound through a view of that layer: other techniques may write the
+// other layers at the same time.
+layout(set = 0, binding = VOLUMES_VISIBILITY, r8) uniform writeonly image2D visibility;
 
 layout(push_constant) uniform Push {
-    uvec4 dims; // x: width, y: height, z: light, w: layer
+    uvec4 dims; // x: width, y: height, z: light, w: layer (unused here: the bound view is that layer)
 } pc;
 
 void main() {
@@ -33,5 +35,5 @@ void main() {
         bool reaches = dot(n, L) > 0.0 && max(e.r, max(e.g, e.b)) > 0.0;
         v = reaches && texelFetch(stencil_count, ivec2(px), 0).r == 0u ? 1.0 : 0.0;
     }
-    imageStore(visibility, ivec3(px, pc.dims.w), vec4(v));
+    imageStore(visibility, ivec2(px), vec4(v));
 }

@@ -200,14 +200,14 @@ fn classify<'a>(
 
     let mut pass = graph.add_pass("shadow hybrid classify");
     pass.detail(format!("light {}, {}", served.light, if map.is_some() { "map decides" } else { "nothing to cast" }));
-    crate::passes::visibility::keep_other_layers(&mut pass, target);
     let read = Access::ComputeShaderReadSampledImage;
     let bound = [
         (HYBRID_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (HYBRID_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (HYBRID_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
         (HYBRID_DEPTH, Bound::Image(pass.read(&depth, read))),
-        (HYBRID_VISIBILITY, Bound::Image(pass.write(target, Access::ComputeShaderWrite))),
+        // Every pixel of the layer: the sure ones now, the listed ones by the rays next.
+        (HYBRID_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
         (HYBRID_LAYERS, Bound::Buffer(pass.read(&table, Access::ComputeShaderReadUniformBuffer))),
         (HYBRID_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
         (HYBRID_LIST, Bound::Buffer(pass.write(&mut list, Access::ComputeShaderAtomic))),
@@ -241,7 +241,8 @@ fn trace<'a>(
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
     let mut pass = graph.add_pass("shadow hybrid trace");
     pass.detail(format!("light {}", served.light));
-    crate::passes::visibility::keep_other_layers(&mut pass, target);
+    // Writes the listed pixels only: the classification's stay.
+    pass.read_layer(target, served.layer, Access::ComputeShaderReadStorageImage);
     let read = Access::ComputeShaderReadSampledImage;
     let storage_read = Access::ComputeShaderReadStorageBuffer;
     let bound = [
@@ -252,7 +253,7 @@ fn trace<'a>(
         (SHADOW_BVH_NODES, Bound::Buffer(pass.read(bvh.nodes, storage_read))),
         (SHADOW_BVH_TRIANGLES, Bound::Buffer(pass.read(bvh.triangles, storage_read))),
         (SHADOW_LIST, Bound::Buffer(pass.read(list, storage_read))),
-        (SHADOW_VISIBILITY, Bound::Image(pass.write(target, Access::ComputeShaderWrite))),
+        (SHADOW_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
     ];
     let dispatch = pass.read(args, Access::IndirectCommandRead);
     let light = &frame.scene.local_lights[served.light as usize];
@@ -283,7 +284,7 @@ fn add_view<'a>(
             pass.read(&out, Access::ComputeShaderReadStorageImage);
         }
         let bound = [
-            (HYBRID_VISIBILITY, Bound::Image(pass.read(target, Access::ComputeShaderReadSampledImage))),
+            (HYBRID_VISIBILITY, Bound::Image(pass.read_layer(target, served.layer, Access::ComputeShaderReadSampledImage))),
             (HYBRID_LIST, Bound::Buffer(pass.read(list, Access::ComputeShaderReadStorageBuffer))),
             (HYBRID_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
         ];

@@ -114,7 +114,6 @@ pub struct MapPipelines {
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
 struct DebugPush {
     dims: UVec4,
-    vis: UVec4,
     eye: Vec4,
     forward: Vec4,
 }
@@ -426,14 +425,13 @@ pub fn add_light<'a>(
     let (depth_image, table) = add_depth(graph, frame, pipelines, map);
 
     let mut pass = graph.add_pass("shadow map resolve");
-    crate::passes::visibility::keep_other_layers(&mut pass, visibility);
     let read = Access::ComputeShaderReadSampledImage;
     let bound = [
         (MAP_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (MAP_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (MAP_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
         (MAP_DEPTH, Bound::Image(pass.read(&depth_image, read))),
-        (MAP_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))),
+        (MAP_VISIBILITY, Bound::Image(pass.write_layer(visibility, map.layer, Access::ComputeShaderWrite))),
         (MAP_LAYERS, Bound::Buffer(pass.read(&table, Access::ComputeShaderReadUniformBuffer))),
         (MAP_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
     ];
@@ -475,12 +473,11 @@ fn add_debug_view<'a>(
         (MAP_DEBUG_DEPTH, Bound::Image(pass.read(depth, read))),
         (MAP_DEBUG_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
         (MAP_DEBUG_POSITION, Bound::Image(pass.read(&frame.gbuffer.position, read))),
-        (MAP_DEBUG_VISIBILITY, Bound::Image(pass.read(visibility, read))),
+        (MAP_DEBUG_VISIBILITY, Bound::Image(pass.read_layer(visibility, map.layer, read))),
         (MAP_DEBUG_LAYERS, Bound::Buffer(pass.read(table, Access::ComputeShaderReadUniformBuffer))),
     ];
     let push = DebugPush {
         dims: UVec4::new(extent.width, extent.height, mode, arg),
-        vis: UVec4::new(map.layer, 0, 0, 0),
         eye: frame.camera.eye.extend(0.0),
         forward: frame.camera.forward.extend(0.0),
     };

@@ -137,15 +137,21 @@ pub fn add<'a>(
             let _ = pass.read(&rq.bottom, read);
         }
     }
-    crate::passes::visibility::keep_other_layers(&mut pass, visibility);
-    bound.push((SHADOW_VISIBILITY, Bound::Image(pass.write(visibility, Access::ComputeShaderWrite))));
-    let pushes: Vec<[UVec4; 2]> = served
+    // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
+    let work: Vec<([UVec4; 2], Bound)> = served
         .iter()
-        .map(|s| push_constants(extent, frame.frame_index, s, rays(s, &frame.scene.local_lights[s.light as usize])))
+        .map(|s| {
+            let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
+            let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
+            (push_constants(extent, frame.frame_index, s, rays), layer)
+        })
         .collect();
     pass.render(move |ctx| {
-        for push in &pushes {
+        let mut bound = bound;
+        for (push, target) in &work {
+            bound.push((SHADOW_VISIBILITY, *target));
             ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(push), extent.width, extent.height)?;
+            bound.pop();
         }
         Ok(())
     });

@@ -403,14 +403,13 @@ pub fn add<'a>(
         });
 
         let mut pass = graph.add_pass("shadow volumes resolve");
-        crate::passes::visibility::keep_other_layers(&mut pass, target);
         let read = Access::ComputeShaderReadSampledImage;
         let bound = [
             (VOLUMES_POSITION, Bound::Image(pass.read(&frame.gbuffer.position, read))),
             (VOLUMES_NORMAL, Bound::Image(pass.read(&frame.gbuffer.normal, read))),
             (VOLUMES_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
             (VOLUMES_STENCIL, Bound::Image(pass.read(&depth_stencil, Access::ComputeShaderReadStencil))),
-            (VOLUMES_VISIBILITY, Bound::Image(pass.write(target, Access::ComputeShaderWrite))),
+            (VOLUMES_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
         ];
         let push = UVec4::new(extent.width, extent.height, served.light, served.layer);
         let pipeline = &pipelines.resolve;

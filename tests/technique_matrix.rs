@@ -67,6 +67,7 @@ fn every_technique_with_every_view_is_clean() {
                 Some(DebugView::ShadowMap { light: l, layer: 0 }),
                 Some(DebugView::Cascades(l)),
                 Some(DebugView::Stencil(l)),
+                Some(DebugView::Hybrid(l)),
             ]);
         }
         for method in ShadowMethod::ALL {
@@ -114,13 +115,16 @@ fn mixed_techniques_write_their_layers_as_they_do_alone() {
             Frame::Rgba8 { .. } => unreachable!("scene-linear output"),
         }
     };
-    use ShadowMethod::{Map, Traced, Volumes};
-    let mixed = [Map, Volumes, Traced];
-    for (light, alone) in [(0, [Map; 3]), (1, [Volumes; 3]), (2, [Traced; 3])] {
-        let together = visibility(mixed, light);
-        let shadowed = together.chunks(4).filter(|p| p[0] < 0.5).count();
-        assert!(shadowed > 0, "light {light} casts some shadow in the frame");
-        assert_eq!(together, visibility(alone, light), "light {light}'s layer differs beside other techniques");
+    use ShadowMethod::{Hybrid, Map, Traced, Volumes};
+    for mixed in [[Map, Volumes, Traced], [Hybrid, Map, Volumes], [Traced, Hybrid, Map]] {
+        for (light, method) in mixed.into_iter().enumerate() {
+            let light = light as u32;
+            let together = visibility(mixed, light);
+            let shadowed = together.chunks(4).filter(|p| p[0] < 0.5).count();
+            assert!(shadowed > 0, "light {light} casts some shadow in the frame");
+            let alone = visibility([method; 3], light);
+            assert_eq!(together, alone, "{mixed:?}: light {light}'s layer differs beside other techniques");
+        }
     }
     drop(r);
     common::assert_clean(&ctx);

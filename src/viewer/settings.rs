@@ -9,7 +9,7 @@ use crate::scene::{Camera, Light};
 
 /// The views V cycles through; the light-specific ones show the selected light, and are
 /// skipped where its technique has nothing to show.
-const VIEWS: [Option<DebugView>; 10] = [
+const VIEWS: [Option<DebugView>; 11] = [
     None,
     Some(DebugView::Albedo),
     Some(DebugView::Normal),
@@ -20,6 +20,7 @@ const VIEWS: [Option<DebugView>; 10] = [
     Some(DebugView::ShadowMap { light: 0, layer: 0 }),
     Some(DebugView::Cascades(0)),
     Some(DebugView::Stencil(0)),
+    Some(DebugView::Hybrid(0)),
 ];
 
 #[derive(Clone, Debug, PartialEq)]
@@ -74,6 +75,7 @@ impl ViewerSettings {
             // Volumes can still fall back (open casters): the renderer then refuses the view,
             // so the viewer offers it only for what it can check here.
             Some(DebugView::Stencil(_)) => (method == Some(ShadowMethod::Volumes)).then_some(DebugView::Stencil(light)),
+            Some(DebugView::Hybrid(_)) => (method == Some(ShadowMethod::Hybrid)).then_some(DebugView::Hybrid(light)),
             v => v,
         }
     }

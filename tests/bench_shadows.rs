@@ -374,7 +374,9 @@ fn sweeps_parse_and_points_merge() {
     assert_eq!((traced.len(), traced[0].label()), (1, "default".to_string()));
     // Default sweeps: the full one and the quick one.
     let full = default_axes(ShadowMethod::Map, false, true);
-    assert_eq!(full.iter().map(|a| a.values.len()).collect::<Vec<_>>(), [5, 4, 4]);
+    assert_eq!(full.iter().map(|a| a.values.len()).collect::<Vec<_>>(), [5, 4, 4, 4], "PCSS's kernel with soft lights");
+    assert_eq!(default_axes(ShadowMethod::Map, false, false).len(), 3, "no PCSS sweep without soft lights");
+    assert_eq!(default_axes(ShadowMethod::Hybrid, true, false)[0].keys, ["hybrid.resolution"]);
     assert_eq!(default_axes(ShadowMethod::Map, true, true)[0].values, ["512", "2048"]);
     assert!(default_axes(ShadowMethod::Traced, true, true).is_empty());
     assert_eq!(default_axes(ShadowMethod::Traced, false, true)[0].values, ["1", "4", "16", "64", "256"]);

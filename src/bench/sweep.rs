@@ -117,11 +117,18 @@ pub fn default_axes(method: ShadowMethod, quick: bool, soft_lights: bool) -> Vec
         (_, true) => Vec::new(),
         (ShadowMethod::Traced, false) if soft_lights => vec![axis(&["traced.spp"], &["1", "4", "16", "64", "256"])],
         (ShadowMethod::Traced, false) => Vec::new(),
-        (ShadowMethod::Map, false) => vec![
-            axis(&["map.resolution"], &["256", "512", "1024", "2048", "4096"]),
-            axis(&["map.pcf_radius"], &["0", "1", "2", "3"]),
-            axis(&["map.constant_bias", "map.slope_bias"], &["0", "1", "2", "4"]),
-        ],
+        (ShadowMethod::Map, false) => {
+            let mut axes = vec![
+                axis(&["map.resolution"], &["256", "512", "1024", "2048", "4096"]),
+                axis(&["map.pcf_radius"], &["0", "1", "2", "3"]),
+                axis(&["map.constant_bias", "map.slope_bias"], &["0", "1", "2", "4"]),
+            ];
+            if soft_lights {
+                // PCSS's kernel: the widest penumbra it can draw.
+                axes.push(axis(&["map.pcss_max_radius"], &["4", "8", "16", "32"]));
+            }
+            axes
+        }
         (ShadowMethod::Cascades, false) => vec![axis(&["cascades.count"], &["1", "2", "3", "4", "5", "6"])],
         (ShadowMethod::Volumes, false) => vec![axis(&["volumes.zpass"], &["false", "true"])],
         (ShadowMethod::Hybrid, false) => vec![

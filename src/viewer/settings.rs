@@ -205,7 +205,13 @@ mod tests {
         let methods = |s: &ViewerSettings| s.shadows.iter().map(|c| c.method).collect::<Vec<_>>();
         s.on_key(Key::T);
         assert_eq!(methods(&s), vec![ShadowMethod::Map, ShadowMethod::Traced, ShadowMethod::Traced]);
-        for next in [ShadowMethod::Cascades, ShadowMethod::Volumes, ShadowMethod::None, ShadowMethod::Traced] {
+        for next in [
+            ShadowMethod::Cascades,
+            ShadowMethod::Volumes,
+            ShadowMethod::Hybrid,
+            ShadowMethod::None,
+            ShadowMethod::Traced,
+        ] {
             s.on_key(Key::T);
             assert_eq!(s.shadows[0].method, next);
         }
@@ -236,8 +242,8 @@ mod tests {
         assert_eq!(s.soft_spp, 1);
         s.on_key(Key::L);
         assert_eq!(s.selected_light, 0, "selection wraps");
-        // Traced lights: the map and cascade views are skipped.
-        for _ in 0..VIEWS.len() - 3 {
+        // Traced lights: the map, cascade, stencil and hybrid views are skipped.
+        for _ in 0..VIEWS.len() - 4 {
             s.on_key(Key::V);
         }
         assert_eq!(s.debug_view(), None, "views wrap back to shaded");

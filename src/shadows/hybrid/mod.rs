@@ -284,7 +284,10 @@ fn add_view<'a>(
             pass.read(&out, Access::ComputeShaderReadStorageImage);
         }
         let bound = [
-            (HYBRID_VISIBILITY, Bound::Image(pass.read_layer(target, served.layer, Access::ComputeShaderReadSampledImage))),
+            (
+                HYBRID_VISIBILITY,
+                Bound::Image(pass.read_layer(target, served.layer, Access::ComputeShaderReadSampledImage)),
+            ),
             (HYBRID_LIST, Bound::Buffer(pass.read(list, Access::ComputeShaderReadStorageBuffer))),
             (HYBRID_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
         ];

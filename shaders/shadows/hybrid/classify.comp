@@ -68,9 +68,11 @@ float classify(uint layer, vec3 p, vec3 ng, vec3 L, float light_size, bool persp
         for (int dx = -TAPS; dx <= TAPS; dx++) {
             vec2 offset = vec2(dx, dy) * step_texels;
             ivec2 t = clamp(ivec2(floor(uv * size + offset)), ivec2(0), last);
-            float occluder = map_linear_depth(m, texelFetch(shadow_map, ivec3(t, layer), 0).r);
+            float stored = texelFetch(shadow_map, ivec3(t, layer), 0).r;
+            float occluder = map_linear_depth(m, stored);
             float tolerance = texel * (pc.params.x + (length(offset) + 1.0) * slope);
-            occluding += receiver - occluder > tolerance ? 1u : 0u;
+            // 0 is the clear value: nothing drawn there, whatever lies beyond the far plane.
+            occluding += stored > 0.0 && receiver - occluder > tolerance ? 1u : 0u;
             taps++;
         }
     }

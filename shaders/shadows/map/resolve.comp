@@ -47,7 +47,9 @@ float pcf(uint layer, vec2 uv, float z, float radius, int taps) {
             vec2 t = uv * size + vec2(dx, dy) * step_texels;
             ivec2 texel = clamp(ivec2(floor(t)), ivec2(0), last);
             float occluder = texelFetch(shadow_map, ivec3(texel, layer), 0).r;
-            lit += z >= occluder ? 1.0 : 0.0;
+            // 0 is the clear value: nothing drawn there. A receiver beyond the map's far plane
+            // (past every caster) has z < 0 and must not be shadowed by it.
+            lit += occluder <= 0.0 || z >= occluder ? 1.0 : 0.0;
         }
     }
     return lit / float((2 * half_taps + 1) * (2 * half_taps + 1));
@@ -65,7 +67,7 @@ vec2 blockers(uint layer, vec2 uv, float z, float radius) {
             vec2 t = uv * size + vec2(dx, dy) * (radius / float(HALF));
             ivec2 texel = clamp(ivec2(floor(t)), ivec2(0), last);
             float d = texelFetch(shadow_map, ivec3(texel, layer), 0).r;
-            if (d > z) {
+            if (d > z && d > 0.0) {
                 sum += map_linear_depth(layers[layer], d);
                 count += 1.0;
             }

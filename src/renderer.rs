@@ -9,7 +9,6 @@ use gpu_allocator::MemoryLocation;
 
 pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
 pub use crate::frame::{Target, BACKGROUND};
-use crate::gpu_scene::geometry_centre;
 pub use crate::gpu_scene::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
@@ -53,6 +52,9 @@ pub struct Renderer {
     timing: std::sync::OnceLock<TimingCalibration>,
     pub gpu_scene: SceneGpu,
     scene: Scene,
+    /// `scene` in the local frame the GPU sees, less what f32 cannot hold there
+    /// (`Scene::local_frame`); what the ray-query and volume structures are built from.
+    local: Scene,
     pub ctx: Arc<GpuContext>,
 }
 
@@ -60,10 +62,10 @@ impl Renderer {
     /// Prepares `scene` for the GPU. Everything the GPU sees — vertices, BVH, lights, camera —
     /// is moved (in f64) into a scene-local frame centred on the geometry, so positions stay
     /// small and f32 keeps its precision (and shadow-ray offsets stay tiny) wherever the scene
-    /// sits in the world.
+    /// sits in the world. Meshes too far from the camera for f32 there are left out, with a
+    /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
-        let origin = geometry_centre(&scene);
-        let local = scene.translated(-origin);
+        let (local, origin) = scene.local_frame();
         let bvh = ShadowBvh::build(&local);
         log::info!(
             "scene: {} triangles, {} lights, BVH of {} nodes over {} shadow-casting triangles",
@@ -99,6 +101,7 @@ impl Renderer {
             timing: std::sync::OnceLock::new(),
             gpu_scene: SceneGpu::upload(&ctx, &local, &bvh, origin)?,
             scene,
+            local,
             ctx,
         })
     }
@@ -188,8 +191,7 @@ impl Renderer {
             return Ok(None);
         }
         let scene = crate::vk::get_or_make(&self.volume_scene, || {
-            let local = self.scene.translated(-self.gpu_scene.origin);
-            crate::shadows::volumes::VolumeScene::new(&self.ctx, &local, self.gpu_scene.origin)
+            crate::shadows::volumes::VolumeScene::new(&self.ctx, &self.local, self.gpu_scene.origin)
         })?;
         Ok(Some(scene))
     }
@@ -216,10 +218,8 @@ impl Renderer {
         if !self.gpu_scene.has_casters {
             return Ok(None);
         }
-        let scene = crate::vk::get_or_make(&self.ray_query, || {
-            let local = self.scene.translated(-self.gpu_scene.origin);
-            RayQueryScene::new(&self.ctx, &caster_triangles(&local))
-        })?;
+        let scene =
+            crate::vk::get_or_make(&self.ray_query, || RayQueryScene::new(&self.ctx, &caster_triangles(&self.local)))?;
         Ok(Some(scene))
     }
 

@@ -234,8 +234,9 @@ fn fins() -> Mesh {
     ];
     Mesh {
         name: "fins".into(),
+        object: "objects[9]".into(),
         normals: vec![Vec3::Z; positions.len()],
-        positions,
+        positions: positions.iter().map(|p| p.as_dvec3()).collect(),
         indices: vec![0, 1, 2, 1, 0, 3, 1, 0, 4],
         material: Default::default(),
         cast_shadows: true,

@@ -89,7 +89,12 @@ impl CompiledGraph {
             .iter()
             .zip(barriers)
             .zip(&live)
-            .map(|((p, barriers), &live)| CompiledPass { name: p.name, detail: p.detail.clone(), culled: !live, barriers })
+            .map(|((p, barriers), &live)| CompiledPass {
+                name: p.name,
+                detail: p.detail.clone(),
+                culled: !live,
+                barriers,
+            })
             .collect();
         CompiledGraph { passes, resources, slots, export_barriers }
     }
@@ -213,15 +218,13 @@ fn assign_transients(plans: &mut [ResourcePlan]) -> Vec<SlotKey> {
 
 fn slot_key(plan: &ResourcePlan) -> SlotKey {
     let desc = match plan.desc {
-        ResourceDesc::Image(d) => {
-            ResourceDescKey::Image {
-                format: d.format.as_raw(),
-                width: d.width,
-                height: d.height,
-                layers: d.layers,
-                array: d.array,
-            }
-        }
+        ResourceDesc::Image(d) => ResourceDescKey::Image {
+            format: d.format.as_raw(),
+            width: d.width,
+            height: d.height,
+            layers: d.layers,
+            array: d.array,
+        },
         ResourceDesc::Buffer(b) => ResourceDescKey::Buffer { size: b.size },
     };
     SlotKey { desc, image_usage: plan.image_usage.as_raw(), buffer_usage: plan.buffer_usage.as_raw() }
@@ -382,7 +385,10 @@ impl fmt::Display for CompiledGraph {
             let what = match r.desc {
                 ResourceDesc::Image(d) => {
                     if d.array {
-                        format!("image {:?} {}x{}x{} layers usage {:?}", d.format, d.width, d.height, d.layers, r.image_usage)
+                        format!(
+                            "image {:?} {}x{}x{} layers usage {:?}",
+                            d.format, d.width, d.height, d.layers, r.image_usage
+                        )
                     } else {
                         format!("image {:?} {}x{} usage {:?}", d.format, d.width, d.height, r.image_usage)
                     }

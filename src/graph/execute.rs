@@ -418,7 +418,10 @@ impl PassContext<'_> {
         }
         let mut accel_writes: Vec<_> = structures
             .iter()
-            .map(|a| vk::WriteDescriptorSetAccelerationStructureKHR::default().acceleration_structures(std::slice::from_ref(a)))
+            .map(|a| {
+                vk::WriteDescriptorSetAccelerationStructureKHR::default()
+                    .acceleration_structures(std::slice::from_ref(a))
+            })
             .collect();
         let mut accel_writes = accel_writes.iter_mut();
         let (mut ii, mut bi) = (0, 0);

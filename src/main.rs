@@ -256,18 +256,45 @@ fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> 
     Ok(choices)
 }
 
+/// Says, one line each, which options given do nothing with the rest of the command: silently
+/// ignoring them would look like they had an effect.
+fn warn_unused_options(
+    args: &RenderArgs,
+    settings: &RenderSettings,
+    lights: &[umbra::scene::Light],
+    format: ImageFormat,
+) {
+    if let Some(spp) = args.spp {
+        if soft_traced_lights(settings, lights).next().is_none() {
+            log::warn!("--spp {spp} does nothing here: no light has soft traced shadows (a light needs a size and `traced` without --hard)");
+        }
+    }
+    if args.exposure != 0.0 && (format == ImageFormat::Exr || args.debug_view.is_some()) {
+        let what =
+            if format == ImageFormat::Exr { "EXR output holds linear radiance" } else { "debug views are written raw" };
+        log::warn!("--exposure {} does nothing here: {what}; it applies to the shaded PNG only", args.exposure);
+    }
+}
+
+/// Samples per frame of each light whose shadows are traced and soft.
+fn soft_traced_lights<'a>(
+    settings: &'a RenderSettings,
+    lights: &'a [umbra::scene::Light],
+) -> impl Iterator<Item = u32> + 'a {
+    (0..lights.len())
+        .map(|i| settings.shadow(i))
+        .zip(lights)
+        .filter(|(c, l)| c.method == ShadowMethod::Traced && c.traced.is_soft(l.has_size()))
+        .map(|(c, _)| c.traced.spp.max(1))
+}
+
 /// Samples per pixel a default render gathers for soft shadows, over accumulated frames.
 const CONVERGED_SPP: u32 = 64;
 
 /// One frame, or with soft shadows enough accumulated frames for `CONVERGED_SPP` samples per
 /// pixel of the light with the fewest samples per frame.
 fn default_frames(settings: &RenderSettings, lights: &[umbra::scene::Light]) -> u32 {
-    let soft_spp = (0..lights.len())
-        .map(|i| settings.shadow(i))
-        .zip(lights)
-        .filter(|(c, l)| c.method == ShadowMethod::Traced && c.traced.is_soft(l.has_size()))
-        .map(|(c, _)| c.traced.spp.max(1))
-        .min();
+    let soft_spp = soft_traced_lights(settings, lights).min();
     soft_spp.map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
 }
 
@@ -348,6 +375,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         frame_index: 0,
         busy_iterations: args.busy_pass,
     };
+    warn_unused_options(&args, &settings, &scene.lights, format);
     let frames = args.frames.unwrap_or_else(|| default_frames(&settings, &scene.lights));
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();

@@ -445,3 +445,55 @@ fn a_closed_stdout_ends_quietly() {
     assert_ne!(o.status.code(), Some(101), "{err}");
     assert!(o.status.success() || o.status.signal() == Some(libc::SIGPIPE), "{:?}: {err}", o.status);
 }
+
+/// A size no frame fits names the size and what it needs, once: it was "vkBindImageMemory
+/// failed: A device memory allocation has failed" (and before that "memory allocation failed:
+/// Out of memory: Out of memory"). No image is written.
+#[test]
+fn a_size_too_big_for_the_device_names_the_size_and_the_need() {
+    let dir = out_dir("huge");
+    let scene = dir.join("no-lights.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 2, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n[[objects]]\nshape = \"cube\"\n",
+    )
+    .unwrap();
+    let out = dir.join("huge.png");
+    let o = run(&["render", scene.to_str().unwrap(), "--size", "16384x16384", "-o", out.to_str().unwrap()]);
+    assert_clear_error(&o, &["16384x16384 needs", "MiB"]);
+    let err = stderr(&o);
+    assert!(!err.contains("Out of memory: Out of memory") && !err.contains("vkBindImageMemory"), "{err}");
+    assert!(!out.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `umbra view` without a display: one line saying so, without winit's own source path.
+#[test]
+fn view_without_a_display_says_so_in_one_line() {
+    let o = umbra().arg("view").env_remove("DISPLAY").env_remove("WAYLAND_DISPLAY").output().expect("run umbra");
+    assert_clear_error(&o, &["cannot open a window", "DISPLAY is set", "xvfb-run"]);
+    assert!(!stderr(&o).contains(".rs:"), "{}", stderr(&o));
+}
+
+/// Options that do nothing with the rest of the command say so in one warning; the run goes on.
+#[test]
+fn options_that_do_nothing_say_so() {
+    let dir = out_dir("unused");
+    let exr = dir.join("a.exr");
+    let png = dir.join("a.png");
+    let warnings = |o: &Output| -> Vec<String> {
+        assert!(o.status.success(), "{}", stderr(o));
+        stderr(o).lines().filter(|l| l.contains("does nothing")).map(str::to_owned).collect()
+    };
+    let o = run(&["render", "--size", "32x24", "--hard", "--spp", "4", "-o", png.to_str().unwrap()]);
+    let w = warnings(&o);
+    assert!(w.len() == 1 && w[0].starts_with("warn: --spp 4 does nothing here"), "{w:?}");
+    let o = run(&["render", "--size", "32x24", "--frames", "1", "--exposure", "2", "-o", exr.to_str().unwrap()]);
+    let w = warnings(&o);
+    assert!(w.len() == 1 && w[0].contains("--exposure 2 does nothing here: EXR output"), "{w:?}");
+    // Where they do something, nothing is said: the default scene's lights have sizes.
+    let o = run(&["render", "--size", "32x24", "--spp", "4", "--exposure", "1", "-o", png.to_str().unwrap()]);
+    assert_eq!(warnings(&o), Vec::<String>::new());
+    assert!(exr.exists() && png.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -57,7 +57,9 @@ pub struct ViewerReport {
 
 /// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
 pub fn run(options: ViewerOptions) -> Result<ViewerReport> {
-    let event_loop = EventLoop::new().context("cannot open a window (is there a display? try xvfb-run)")?;
+    let event_loop = EventLoop::new().map_err(|e| {
+        anyhow::anyhow!("cannot open a window: {} (is there a display? try xvfb-run)", without_source_path(&e))
+    })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut app = App { options, running: None, error: None, report: ViewerReport::default() };
     event_loop.run_app(&mut app).context("window event loop")?;
@@ -65,6 +67,16 @@ pub fn run(options: ViewerOptions) -> Result<ViewerReport> {
         return Err(e);
     }
     Ok(app.report)
+}
+
+/// winit's error without the `os error at src/…/mod.rs:765:` prefix naming its own source file,
+/// which tells a user nothing: "neither WAYLAND_DISPLAY nor … DISPLAY is set".
+fn without_source_path(e: &impl std::fmt::Display) -> String {
+    let text = e.to_string();
+    let Some(rest) = text.strip_prefix("os error at ") else { return text };
+    // `FILE:LINE: reason`: the reason follows the first ": " after the line number.
+    let reason = rest.split_once(".rs:").and_then(|(_, after)| after.split_once(": ")).map(|(_, r)| r);
+    reason.unwrap_or(rest).trim_end_matches('.').to_owned()
 }
 
 struct App {

@@ -163,6 +163,11 @@ impl SceneGpu {
         })
     }
 
+    /// Bytes of the scene's buffers on the device.
+    pub fn bytes(&self) -> u64 {
+        [&self.vertices, &self.indices, &self.lights, &self.bvh_nodes, &self.bvh_triangles].iter().map(|b| b.size).sum()
+    }
+
     /// A world-space camera in the scene-local frame (subtracted in f64).
     pub fn to_local(&self, cam: &Camera) -> Camera {
         Camera { eye: cam.eye - self.origin, target: cam.target - self.origin, ..*cam }

@@ -66,13 +66,15 @@ impl Renderer {
     /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
         let (local, origin) = scene.local_frame();
+        let start = std::time::Instant::now();
         let bvh = ShadowBvh::build(&local);
         log::info!(
-            "scene: {} triangles, {} lights, BVH of {} nodes over {} shadow-casting triangles",
+            "BVH build: {} nodes over {} shadow-casting triangles in {:.1} ms ({} triangles, {} lights in the scene)",
+            bvh.node_count(),
+            bvh.triangle_count(),
+            start.elapsed().as_secs_f64() * 1e3,
             scene.triangle_count(),
             scene.lights.len(),
-            bvh.node_count(),
-            bvh.triangle_count()
         );
         let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
         for (what, bytes) in [
@@ -85,6 +87,13 @@ impl Renderer {
                 )));
             }
         }
+        let start = std::time::Instant::now();
+        let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
+        log::info!(
+            "upload: {} KiB of scene buffers in {:.1} ms",
+            gpu_scene.bytes() >> 10,
+            start.elapsed().as_secs_f64() * 1e3
+        );
         Ok(Renderer {
             capture: Some(Capture {
                 cache: TransientCache::new(&ctx)?,
@@ -99,7 +108,7 @@ impl Renderer {
             shadow_pipelines: Default::default(),
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
-            gpu_scene: SceneGpu::upload(&ctx, &local, &bvh, origin)?,
+            gpu_scene,
             scene,
             local,
             ctx,

@@ -26,8 +26,12 @@ use crate::vk::{GpuContext, GpuOptions};
 
 pub struct ViewerOptions {
     pub scene: Scene,
-    /// Where screenshots go: beside the scene file (or the working directory).
+    /// Where screenshots and captures go: `--out-dir`, else beside the scene file (or the
+    /// working directory).
     pub screenshot_dir: PathBuf,
+    /// Seconds each frame moves the camera by: `--fixed-dt`, 1/60 for scripts by default, so a
+    /// script gives the same images on a fast and a slow machine; None follows the clock.
+    pub fixed_dt: Option<f32>,
     pub title: String,
     pub size: (u32, u32),
     pub validate: bool,
@@ -50,7 +54,10 @@ pub struct ViewerReport {
     /// Turns with nothing presented (minimised, or the swapchain being recreated).
     pub skipped: u64,
     pub validation_messages: usize,
+    /// Files written by F12 and the script's `screenshot` (a render at the window's size).
     pub screenshots: Vec<PathBuf>,
+    /// Files written by the script's `capture` (the presented frame as shown).
+    pub captures: Vec<PathBuf>,
     /// The swapchain's present mode, as Vulkan names it.
     pub present_mode: Option<String>,
 }
@@ -261,7 +268,7 @@ impl App {
             return Ok(());
         }
         let now = Instant::now();
-        let dt = (now - r.last_frame).as_secs_f32().min(0.25);
+        let dt = self.options.fixed_dt.unwrap_or((now - r.last_frame).as_secs_f32().min(0.25));
         r.last_frame = now;
         r.camera.update(&r.input, dt);
         let mut settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
@@ -280,8 +287,11 @@ impl App {
                 }
                 if let (Some(name), Some(frame)) = (capture, captured) {
                     let path = r.screenshot_dir.join(format!("{name}.png"));
-                    crate::output::write_image(&frame, &path)?;
-                    self.report.screenshots.push(path);
+                    // A full or read-only disk costs the file, not the session (as F12).
+                    match crate::output::write_image(&frame, &path) {
+                        Ok(()) => self.report.captures.push(path),
+                        Err(e) => log::error!("capture failed: {e}"),
+                    }
                 }
                 r.fps.tick(now);
                 self.report.frames += 1;
@@ -367,7 +377,13 @@ impl Running {
                     });
                 }
                 // Taken at this point of the script, before any later step changes the view.
-                ScriptStep::Screenshot(name) => self.screenshot(Some(name))?,
+                ScriptStep::Screenshot(name) => {
+                    // Logged and carried on from, as F12 is: a full or read-only disk costs the
+                    // file, not the session.
+                    if let Err(e) = self.screenshot(Some(name)) {
+                        log::error!("screenshot failed: {e:#}");
+                    }
+                }
                 // Draws the frame it captures before the script goes on.
                 ScriptStep::Capture(name) => {
                     self.pending_capture = Some(name);
@@ -410,8 +426,8 @@ impl Running {
         lines
     }
 
-    /// Writes NAME.png (as shown) and NAME.exr (linear radiance) beside the scene, rendering the
-    /// current view through the capture path at the window's size.
+    /// Writes NAME.png (as shown) and NAME.exr (linear radiance) into the screenshot directory,
+    /// rendering the current view through the capture path at the window's size.
     fn screenshot(&mut self, name: Option<String>) -> Result<()> {
         let stem = name.unwrap_or_else(timestamp_name);
         let extent = self.presenter.extent().unwrap_or(ash::vk::Extent2D { width: 320, height: 240 });

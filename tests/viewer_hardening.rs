@@ -25,6 +25,10 @@ static XVFB: std::sync::Mutex<()> = std::sync::Mutex::new(());
 /// `umbra view scene.toml --validate --hard --script` under its own Xvfb server; the output
 /// whatever the exit status.
 fn view(dir: &Path, script: &str, extra: &[&str]) -> Output {
+    view_with_env(dir, script, extra, &[])
+}
+
+fn view_with_env(dir: &Path, script: &str, extra: &[&str], env: &[(&str, &str)]) -> Output {
     common::lavapipe_env();
     std::fs::write(dir.join("script.txt"), script).unwrap();
     let _one_at_a_time = XVFB.lock().unwrap_or_else(|e| e.into_inner());
@@ -34,6 +38,7 @@ fn view(dir: &Path, script: &str, extra: &[&str]) -> Output {
         .args(["--validate", "--hard", "--size", "160x120", "--script"])
         .arg(dir.join("script.txt"))
         .args(extra)
+        .envs(env.iter().copied())
         .output()
         .expect("xvfb-run (installed by tools/setup)")
 }
@@ -112,5 +117,18 @@ fn a_moving_script_gives_the_same_image_twice() {
     let start = image::open(dir.join("start.png")).unwrap().to_rgb8();
     let moved = start.pixels().zip(images[0].pixels()).filter(|(a, b)| a != b).count();
     assert!(moved > 1000, "only {moved} pixels changed: the script did not move the camera");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The viewer is built with Wayland (dlopen'd, so no new library to build against) and X11.
+/// winit tries Wayland whenever WAYLAND_DISPLAY is set and cannot fall back, so with a stale
+/// WAYLAND_DISPLAY beside a working X display the viewer picks X11 itself.
+#[test]
+fn a_stale_wayland_display_falls_back_to_x11() {
+    let dir = scene_dir("stale-wayland");
+    let out = view_with_env(&dir, "frames 2\ncapture c\nquit\n", &["-v"], &[("WAYLAND_DISPLAY", "wayland-umbra-none")]);
+    assert_ran_clean(&out);
+    assert!(text(&out).contains("no Wayland compositor at"), "{}", text(&out));
+    assert!(dir.join("c.png").is_file());
     let _ = std::fs::remove_dir_all(&dir);
 }

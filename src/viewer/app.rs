@@ -64,7 +64,7 @@ pub struct ViewerReport {
 
 /// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
 pub fn run(options: ViewerOptions) -> Result<ViewerReport> {
-    let event_loop = EventLoop::new().map_err(|e| {
+    let event_loop = event_loop().map_err(|e| {
         anyhow::anyhow!("cannot open a window: {} (is there a display? try xvfb-run)", without_source_path(&e))
     })?;
     event_loop.set_control_flow(ControlFlow::Poll);
@@ -74,6 +74,30 @@ pub fn run(options: ViewerOptions) -> Result<ViewerReport> {
         return Err(e);
     }
     Ok(app.report)
+}
+
+/// The event loop on Wayland where a compositor is there, else X11. winit tries Wayland
+/// whenever WAYLAND_DISPLAY is set and does not fall back (nor can a second event loop be
+/// made), so a stale WAYLAND_DISPLAY beside a working DISPLAY (an ssh session, say) would end
+/// the run: X11 is chosen up front when the Wayland socket is not there.
+fn event_loop() -> Result<EventLoop<()>, winit::error::EventLoopError> {
+    use winit::platform::x11::EventLoopBuilderExtX11;
+    let mut builder = EventLoop::builder();
+    let socket =
+        std::env::var_os("WAYLAND_DISPLAY").filter(|_| std::env::var_os("WAYLAND_SOCKET").is_none()).map(|name| {
+            let name = PathBuf::from(name);
+            match std::env::var_os("XDG_RUNTIME_DIR") {
+                Some(dir) if name.is_relative() => PathBuf::from(dir).join(name),
+                _ => name,
+            }
+        });
+    if let Some(socket) = socket.filter(|s| !s.exists()) {
+        if std::env::var_os("DISPLAY").is_some() {
+            log::info!("no Wayland compositor at {} (WAYLAND_DISPLAY); using X11", socket.display());
+            builder.with_x11();
+        }
+    }
+    builder.build()
 }
 
 /// winit's error without the `os error at src/…/mod.rs:765:` prefix naming its own source file,

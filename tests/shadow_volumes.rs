@@ -225,7 +225,7 @@ fn captured_log() -> &'static Mutex<Vec<String>> {
 
 /// Three triangles on one edge (a fin on a fin): closed nowhere, and not a 2-manifold.
 fn fins() -> Mesh {
-    let positions = vec![
+    let positions = [
         Vec3::new(-0.5, 1.0, 0.0),
         Vec3::new(0.5, 1.0, 0.0),
         Vec3::new(0.0, 1.8, 0.0),

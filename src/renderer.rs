@@ -179,6 +179,15 @@ impl Renderer {
         crate::shadows::check_debug_view(view, &plan, &self.gpu_scene)
     }
 
+    /// Whether this device can hold a frame of `settings`' size (its images and visibility
+    /// layers), and what it would need if not; the viewer asks before it acquires an image.
+    pub fn check_frame_size(&self, settings: &RenderSettings) -> Result<(), String> {
+        let plan = self.shadow_plan(settings).map_err(|e| e.to_string())?;
+        let extent = vk::Extent2D { width: settings.width, height: settings.height };
+        visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())
+            .map_err(|e| e.to_string())
+    }
+
     /// Which technique serves which light for `settings` (what a frame with them would do),
     /// the casters' adjacency made first if a light asks for volumes.
     pub fn shadow_plan(&self, settings: &RenderSettings) -> GpuResult<crate::shadows::ShadowPlan> {

@@ -137,6 +137,8 @@ struct Running {
     screenshots: Vec<PathBuf>,
     /// A capture of the next presented frame, by name.
     pending_capture: Option<String>,
+    /// The last reason a frame was too large for the device, so it is logged once per size.
+    too_large_noted: Option<String>,
     quit: bool,
 }
 
@@ -280,6 +282,7 @@ impl App {
             screenshot_dir: o.screenshot_dir.clone(),
             screenshots: Vec::new(),
             pending_capture: None,
+            too_large_noted: None,
             quit: false,
         })
     }
@@ -323,6 +326,16 @@ impl App {
             }
             Drawn::Skipped => {
                 // Nothing was shown: a capture waits for the next frame that is.
+                r.pending_capture = r.pending_capture.take().or(capture);
+                self.report.skipped += 1;
+                r.script_frames = r.script_frames.saturating_sub(1);
+            }
+            Drawn::TooLarge(why) => {
+                // A window larger than the device can draw (a huge monitor, a scripted resize)
+                // waits for a smaller size instead of ending the session; said once per size.
+                if r.too_large_noted.replace(why.clone()).as_ref() != Some(&why) {
+                    log::warn!("{why}; nothing is drawn until the window is smaller");
+                }
                 r.pending_capture = r.pending_capture.take().or(capture);
                 self.report.skipped += 1;
                 r.script_frames = r.script_frames.saturating_sub(1);

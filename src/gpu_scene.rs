@@ -103,7 +103,8 @@ pub struct SceneGpu {
 }
 
 impl SceneGpu {
-    /// Uploads `scene`, already moved into the local frame whose origin is `origin`.
+    /// Uploads `scene`, already moved into the local frame whose origin is `origin`
+    /// (`Scene::local_frame`); positions are rounded to f32 here.
     pub fn upload(ctx: &Arc<GpuContext>, scene: &Scene, bvh: &ShadowBvh, origin: DVec3) -> GpuResult<SceneGpu> {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
@@ -112,7 +113,9 @@ impl SceneGpu {
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
             let mut bounds = Bounds::EMPTY;
-            mesh.positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
+            // The local frame's f32: where the GPU's triangles are.
+            let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+            positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
             draws.push(Draw {
                 first_index: indices.len() as u32,
                 index_count: mesh.indices.len() as u32,
@@ -121,7 +124,7 @@ impl SceneGpu {
                 cast_shadows: mesh.cast_shadows,
                 bounds,
             });
-            for (p, n) in mesh.positions.iter().zip(&mesh.normals) {
+            for (p, n) in positions.iter().zip(&mesh.normals) {
                 lo = lo.min(*p);
                 hi = hi.max(*p);
                 vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
@@ -160,10 +163,14 @@ impl SceneGpu {
         })
     }
 
-    /// A world-space camera in the scene-local frame.
+    /// Bytes of the scene's buffers on the device.
+    pub fn bytes(&self) -> u64 {
+        [&self.vertices, &self.indices, &self.lights, &self.bvh_nodes, &self.bvh_triangles].iter().map(|b| b.size).sum()
+    }
+
+    /// A world-space camera in the scene-local frame (subtracted in f64).
     pub fn to_local(&self, cam: &Camera) -> Camera {
-        let shift = |p: Vec3| (p.as_dvec3() - self.origin).as_vec3();
-        Camera { eye: shift(cam.eye), target: shift(cam.target), ..*cam }
+        Camera { eye: cam.eye - self.origin, target: cam.target - self.origin, ..*cam }
     }
 }
 
@@ -202,21 +209,24 @@ pub fn perspective_reversed_infinite(fov_y: f32, aspect: f32, near: f32) -> Mat4
 }
 
 impl CameraMatrices {
+    /// `cam` is in the scene-local frame: its view direction is taken in f64 (so points that
+    /// differ only there still look somewhere), its eye rounded to f32.
     pub fn new(cam: &Camera, bounds: (Vec3, Vec3), width: u32, height: u32) -> CameraMatrices {
         let (lo, hi) = bounds;
+        let eye = cam.eye.as_vec3();
         let centre = (lo + hi) * 0.5;
         let radius = (hi - lo).length() * 0.5;
-        let far = ((centre - cam.eye).length() + radius).max(1.0) * 1.01;
+        let far = ((centre - eye).length() + radius).max(1.0) * 1.01;
         // Near: half the distance to the scene's bounds (nothing nearer can be drawn), at
         // least 1 mm; with reversed infinite depth this costs no precision far away.
-        let outside = (lo - cam.eye).max(cam.eye - hi).max(Vec3::ZERO).length();
+        let outside = (lo - eye).max(eye - hi).max(Vec3::ZERO).length();
         let near = (outside * 0.5).max(1e-3);
-        let forward = (cam.target - cam.eye).normalize();
+        let forward = (cam.target - cam.eye).normalize().as_vec3();
         let view = glam::camera::rh::view::look_to_mat4(Vec3::ZERO, forward, cam.up.normalize());
         let (fov_y, aspect) = (cam.vfov_deg.to_radians(), width as f32 / height as f32);
         let proj = perspective_reversed_infinite(fov_y, aspect, near);
         CameraMatrices {
-            eye: cam.eye,
+            eye,
             view_proj_relative: proj * view,
             near,
             far,
@@ -225,20 +235,5 @@ impl CameraMatrices {
             fov_y,
             aspect,
         }
-    }
-}
-
-/// Centre of the geometry's bounds in world space (f64), or the origin for an empty scene.
-pub fn geometry_centre(scene: &Scene) -> DVec3 {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for p in scene.meshes.iter().flat_map(|m| &m.positions) {
-        lo = lo.min(p.as_dvec3());
-        hi = hi.max(p.as_dvec3());
-    }
-    if lo.x.is_finite() {
-        (lo + hi) * 0.5
-    } else {
-        DVec3::ZERO
     }
 }

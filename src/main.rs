@@ -1,7 +1,7 @@
 //! The command line: `umbra render` captures a frame headless (PNG or EXR), with optional
 //! validation, timings and debug views.
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::time::Instant;
 
@@ -20,6 +20,23 @@ use umbra::vk::{GpuContext, GpuOptions};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Errors only (no warnings). RUST_LOG, when set, decides instead.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// More: -v adds what is done and how long loading takes (parse, BVH build, upload), -vv
+    /// debug detail. RUST_LOG, when set, decides instead.
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+}
+
+/// The log level `-q` / `-v` ask for; warnings by default.
+fn log_level(cli: &Cli) -> &'static str {
+    match (cli.quiet, cli.verbose) {
+        (true, _) => "error",
+        (false, 0) => "warn",
+        (false, 1) => "info",
+        (false, _) => "debug",
+    }
 }
 
 #[derive(Subcommand)]
@@ -113,15 +130,33 @@ struct ViewArgs {
     /// Start with hard traced shadows for every light, even those with a size (H toggles).
     #[arg(long)]
     hard: bool,
+    /// Directory for screenshots (F12, script `screenshot`) and captures (script `capture`).
+    /// Default: beside the scene file, else the working directory.
+    #[arg(long, value_name = "DIR")]
+    out_dir: Option<PathBuf>,
+    /// Move the camera by this many seconds each frame instead of the clock's time, so a
+    /// script replays the same on any machine. Default with --script: 1/60; without, the clock.
+    #[arg(long, value_name = "SECONDS", value_parser = parse_fixed_dt)]
+    fixed_dt: Option<f32>,
+}
+
+fn parse_fixed_dt(text: &str) -> Result<f32, String> {
+    match text.trim().parse::<f32>() {
+        Ok(dt) if dt > 0.0 && dt <= 1.0 => Ok(dt),
+        Ok(_) => Err(format!("{text:?}: seconds per frame must be in (0, 1]")),
+        Err(e) => Err(format!("{text:?}: {e}")),
+    }
 }
 
 #[derive(clap::Args)]
 struct RenderArgs {
     /// Scene file (TOML); the built-in default scene if omitted.
     scene: Option<PathBuf>,
-    /// Output file: .png (tone-mapped sRGB) or .exr (linear radiance, W/(m^2 sr), float32).
+    /// Output file: .png (tone-mapped sRGB) or .exr (linear radiance, W/(m^2 sr), float32, ZIP,
+    /// with how it was made in its header). Default: SCENE.png (the scene file's name), or
+    /// out.png for the built-in scene, in the current directory.
     #[arg(short, long)]
-    output: PathBuf,
+    output: Option<PathBuf>,
     /// Image size as WIDTHxHEIGHT; overrides the scene's [image].
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
@@ -268,21 +303,100 @@ fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> 
     Ok(choices)
 }
 
-/// Samples per pixel a default render gathers for soft shadows, over accumulated frames.
-const CONVERGED_SPP: u32 = 64;
+/// Says, one line each, which options given do nothing with the rest of the command: silently
+/// ignoring them would look like they had an effect.
+fn warn_unused_options(
+    args: &RenderArgs,
+    settings: &RenderSettings,
+    lights: &[umbra::scene::Light],
+    format: ImageFormat,
+) {
+    if let Some(spp) = args.spp {
+        if soft_traced_lights(settings, lights).next().is_none() {
+            log::warn!("--spp {spp} does nothing here: no light has soft traced shadows (a light needs a size and `traced` without --hard)");
+        }
+    }
+    if args.exposure != 0.0 && (format == ImageFormat::Exr || args.debug_view.is_some()) {
+        let what =
+            if format == ImageFormat::Exr { "EXR output holds linear radiance" } else { "debug views are written raw" };
+        log::warn!("--exposure {} does nothing here: {what}; it applies to the shaded PNG only", args.exposure);
+    }
+}
 
-/// One frame, or with soft shadows enough accumulated frames for `CONVERGED_SPP` samples per
-/// pixel of the light with the fewest samples per frame.
-fn default_frames(settings: &RenderSettings, lights: &[umbra::scene::Light]) -> u32 {
-    let soft_spp = (0..lights.len())
+/// Samples per frame of each light whose shadows are traced and soft (by `traced`, or by
+/// `hybrid` where its map is unsure).
+fn soft_traced_lights<'a>(
+    settings: &'a RenderSettings,
+    lights: &'a [umbra::scene::Light],
+) -> impl Iterator<Item = u32> + 'a {
+    (0..lights.len())
         .map(|i| settings.shadow(i))
         .zip(lights)
         .filter(|(c, l)| {
             matches!(c.method, ShadowMethod::Traced | ShadowMethod::Hybrid) && c.traced.is_soft(l.has_size())
         })
         .map(|(c, _)| c.traced.spp.max(1))
-        .min();
+}
+
+/// How an image was made, for its file's header: scene, size, each light's method and
+/// parameters, samples, umbra's version and the device.
+fn provenance(
+    args: &RenderArgs,
+    settings: &RenderSettings,
+    scene: &Scene,
+    frames: u32,
+    device: &str,
+) -> Vec<(String, String)> {
+    let scene_name =
+        args.scene.as_ref().map_or_else(|| "built-in default scene".to_owned(), |p| p.display().to_string());
+    let shadows: Vec<String> =
+        (0..scene.lights.len()).map(|i| format!("{i}: {}", settings.shadow(i).describe())).collect();
+    let soft_spp = soft_traced_lights(settings, &scene.lights).min();
+    let samples = match soft_spp {
+        Some(spp) => {
+            format!("{frames} frames; soft shadows {spp} rays per pixel and light a frame, {} in all", spp * frames)
+        }
+        None => format!("{frames} frames; hard shadows, 1 ray per pixel and light"),
+    };
+    let mut out = vec![
+        ("scene", scene_name),
+        ("size", format!("{}x{}", settings.width, settings.height)),
+        ("shadows", if shadows.is_empty() { "no lights".to_owned() } else { shadows.join("; ") }),
+        ("shadow_backend", format!("{:?}", settings.shadow_backend).to_lowercase()),
+        ("samples", samples),
+        ("version", env!("CARGO_PKG_VERSION").to_owned()),
+        ("device", device.to_owned()),
+    ];
+    if let Some(view) = settings.debug_view {
+        out.push(("debug_view", view.to_string()));
+    }
+    out.into_iter().map(|(k, v)| (k.to_owned(), v)).collect()
+}
+
+/// Samples per pixel a default render gathers for soft shadows, over accumulated frames.
+const CONVERGED_SPP: u32 = 64;
+
+/// One frame, or with soft shadows enough accumulated frames for `CONVERGED_SPP` samples per
+/// pixel of the light with the fewest samples per frame.
+fn default_frames(settings: &RenderSettings, lights: &[umbra::scene::Light]) -> u32 {
+    let soft_spp = soft_traced_lights(settings, lights).min();
     soft_spp.map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
+}
+
+/// The scene file (or the built-in scene), its parse timed at -v.
+fn load_scene(path: Option<&Path>) -> Result<Scene> {
+    let start = Instant::now();
+    let scene = match path {
+        Some(path) => Scene::load(path)?,
+        None => Scene::default_scene(),
+    };
+    let name = path.map_or_else(|| "built-in scene".to_owned(), |p| p.display().to_string());
+    log::info!("parse: {name} in {:.1} ms ({} triangles)", ms_since(start), scene.triangle_count());
+    Ok(scene)
+}
+
+fn ms_since(start: Instant) -> f64 {
+    start.elapsed().as_secs_f64() * 1e3
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {
@@ -317,13 +431,13 @@ fn main() -> ExitCode {
     unsafe {
         libc::signal(libc::SIGPIPE, libc::SIG_DFL);
     }
-    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or("warn"))
+    let cli = Cli::parse();
+    env_logger::Builder::from_env(env_logger::Env::default().default_filter_or(log_level(&cli)))
         .format(|buf, record| {
             use std::io::Write;
             writeln!(buf, "{}: {}", record.level().as_str().to_lowercase(), record.args())
         })
         .init();
-    let cli = Cli::parse();
     let result = match cli.command {
         Command::Render(args) => render(args),
         Command::View(args) => view(args),
@@ -339,22 +453,33 @@ fn main() -> ExitCode {
     }
 }
 
-fn render(args: RenderArgs) -> Result<ExitCode> {
-    let format = ImageFormat::from_path(&args.output)?;
+/// Where `umbra render` writes without `-o`: the scene file's name with `.png`, or `out.png`
+/// for the built-in scene, in the current directory (not beside the scene, whose folder may be
+/// read-only or shared).
+fn default_output(scene: Option<&Path>) -> PathBuf {
+    let mut name = scene.and_then(|p| p.file_stem()).map_or_else(|| "out".into(), |s| s.to_os_string());
+    name.push(".png");
+    PathBuf::from(name)
+}
+
+fn render(mut args: RenderArgs) -> Result<ExitCode> {
+    let given_output = args.output.is_some();
+    let output = args.output.take().unwrap_or_else(|| default_output(args.scene.as_deref()));
+    let format = ImageFormat::from_path(&output)?;
     // Fail before any GPU work if the file could never be written.
-    if let Some(dir) = args.output.parent().filter(|d| !d.as_os_str().is_empty()) {
+    if let Some(dir) = output.parent().filter(|d| !d.as_os_str().is_empty()) {
         if !dir.is_dir() {
-            bail!("{}: the directory {} does not exist", args.output.display(), dir.display());
+            bail!("{}: the directory {} does not exist", output.display(), dir.display());
         }
     }
-    check_output(&args.output, &WriteOptions { force: args.force, inputs: args.scene.iter().cloned().collect() })?;
-    let scene = match &args.scene {
-        Some(path) => Scene::load(path)?,
-        None => Scene::default_scene(),
-    };
+    check_output(
+        &output,
+        &WriteOptions { force: args.force, inputs: args.scene.iter().cloned().collect(), provenance: Vec::new() },
+    )?;
+    let scene = load_scene(args.scene.as_deref())?;
     // The output must not be a file the scene was read from, nor read-only without --force.
-    let write_options = WriteOptions { force: args.force, inputs: scene.sources.clone() };
-    check_output(&args.output, &write_options)?;
+    let mut write_options = WriteOptions { force: args.force, inputs: scene.sources.clone(), provenance: Vec::new() };
+    check_output(&output, &write_options)?;
     let (width, height) = args.size.or(scene.image_size).unwrap_or((320, 240));
     let mut settings = RenderSettings {
         width,
@@ -385,6 +510,8 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         }
         log::info!("auto: calibrated in {:.1} s", start.elapsed().as_secs_f64());
     }
+    // After auto's choice: what it chose decides whether --spp does anything.
+    warn_unused_options(&args, &settings, &lights, format);
     let frames = args.frames.unwrap_or_else(|| default_frames(&settings, &lights));
     // Before the first frame, so its host time holds no calibration.
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
@@ -404,8 +531,11 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
         }
     }
     let frame = frame.expect("at least one frame");
-    write_image_with(&frame, &args.output, &write_options)?;
-    println!("wrote {} ({width}x{height}) on {device_name}", args.output.display());
+    write_options.provenance = provenance(&args, &settings, renderer.scene(), frames, &device_name);
+    write_image_with(&frame, &output, &write_options)?;
+    // Without -o, the full path: the user did not name the file, so say where it went.
+    let shown = if given_output { output.clone() } else { std::path::absolute(&output).unwrap_or(output.clone()) };
+    println!("wrote {} ({width}x{height}) on {device_name}", shown.display());
     if let Some(calibration) = &calibration {
         print_timings(&timings, calibration);
     }
@@ -421,10 +551,7 @@ fn render(args: RenderArgs) -> Result<ExitCode> {
 }
 
 fn view(args: ViewArgs) -> Result<ExitCode> {
-    let scene = match &args.scene {
-        Some(path) => Scene::load(path)?,
-        None => Scene::default_scene(),
-    };
+    let scene = load_scene(args.scene.as_deref())?;
     let script = match &args.script {
         Some(path) => {
             let text =
@@ -433,10 +560,15 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         }
         None => Vec::new(),
     };
-    let screenshot_dir = match args.scene.as_ref().and_then(|p| p.parent()) {
-        Some(dir) if !dir.as_os_str().is_empty() => dir.to_owned(),
+    let screenshot_dir = match (&args.out_dir, args.scene.as_ref().and_then(|p| p.parent())) {
+        // Refused now if it is no directory at all; one that cannot be written costs each
+        // screenshot, logged, and the session goes on.
+        (Some(dir), _) if !dir.is_dir() => bail!("--out-dir {}: not a directory", dir.display()),
+        (Some(dir), _) => dir.clone(),
+        (None, Some(dir)) if !dir.as_os_str().is_empty() => dir.to_owned(),
         _ => std::env::current_dir().context("working directory")?,
     };
+    let fixed_dt = args.fixed_dt.or((!script.is_empty()).then_some(1.0 / 60.0));
     let title = match &args.scene {
         Some(p) => format!("umbra - {}", p.display()),
         None => "umbra - default scene".into(),
@@ -450,6 +582,7 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         size: args.size.or(scene.image_size).unwrap_or((960, 540)),
         scene,
         screenshot_dir,
+        fixed_dt,
         title,
         validate: args.validate,
         device: args.device,
@@ -465,6 +598,9 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
     }
     for shot in &report.screenshots {
         println!("screenshot: {}", shot.display());
+    }
+    for capture in &report.captures {
+        println!("capture: {}", capture.display());
     }
     if args.validate {
         println!("validation: {} messages", report.validation_messages);

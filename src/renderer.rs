@@ -9,7 +9,6 @@ use gpu_allocator::MemoryLocation;
 
 pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
 pub use crate::frame::{Target, BACKGROUND};
-use crate::gpu_scene::geometry_centre;
 pub use crate::gpu_scene::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
@@ -53,6 +52,9 @@ pub struct Renderer {
     timing: std::sync::OnceLock<TimingCalibration>,
     pub gpu_scene: SceneGpu,
     scene: Scene,
+    /// `scene` in the local frame the GPU sees, less what f32 cannot hold there
+    /// (`Scene::local_frame`); what the ray-query and volume structures are built from.
+    local: Scene,
     pub ctx: Arc<GpuContext>,
 }
 
@@ -60,17 +62,19 @@ impl Renderer {
     /// Prepares `scene` for the GPU. Everything the GPU sees — vertices, BVH, lights, camera —
     /// is moved (in f64) into a scene-local frame centred on the geometry, so positions stay
     /// small and f32 keeps its precision (and shadow-ray offsets stay tiny) wherever the scene
-    /// sits in the world.
+    /// sits in the world. Meshes too far from the camera for f32 there are left out, with a
+    /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
-        let origin = geometry_centre(&scene);
-        let local = scene.translated(-origin);
+        let (local, origin) = scene.local_frame();
+        let start = std::time::Instant::now();
         let bvh = ShadowBvh::build(&local);
         log::info!(
-            "scene: {} triangles, {} lights, BVH of {} nodes over {} shadow-casting triangles",
+            "BVH build: {} nodes over {} shadow-casting triangles in {:.1} ms ({} triangles, {} lights in the scene)",
+            bvh.node_count(),
+            bvh.triangle_count(),
+            start.elapsed().as_secs_f64() * 1e3,
             scene.triangle_count(),
             scene.lights.len(),
-            bvh.node_count(),
-            bvh.triangle_count()
         );
         let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
         for (what, bytes) in [
@@ -83,6 +87,13 @@ impl Renderer {
                 )));
             }
         }
+        let start = std::time::Instant::now();
+        let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
+        log::info!(
+            "upload: {} KiB of scene buffers in {:.1} ms",
+            gpu_scene.bytes() >> 10,
+            start.elapsed().as_secs_f64() * 1e3
+        );
         Ok(Renderer {
             capture: Some(Capture {
                 cache: TransientCache::new(&ctx)?,
@@ -97,8 +108,9 @@ impl Renderer {
             shadow_pipelines: Default::default(),
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
-            gpu_scene: SceneGpu::upload(&ctx, &local, &bvh, origin)?,
+            gpu_scene,
             scene,
+            local,
             ctx,
         })
     }
@@ -168,6 +180,15 @@ impl Renderer {
         crate::shadows::check_debug_view(view, &plan, &self.gpu_scene)
     }
 
+    /// Whether this device can hold a frame of `settings`' size (its images and visibility
+    /// layers), and what it would need if not; the viewer asks before it acquires an image.
+    pub fn check_frame_size(&self, settings: &RenderSettings) -> Result<(), String> {
+        let plan = self.shadow_plan(settings).map_err(|e| e.to_string())?;
+        let extent = vk::Extent2D { width: settings.width, height: settings.height };
+        visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())
+            .map_err(|e| e.to_string())
+    }
+
     /// Which technique serves which light for `settings` (what a frame with them would do),
     /// the casters' adjacency made first if a light asks for volumes.
     pub fn shadow_plan(&self, settings: &RenderSettings) -> GpuResult<crate::shadows::ShadowPlan> {
@@ -189,8 +210,7 @@ impl Renderer {
             return Ok(None);
         }
         let scene = crate::vk::get_or_make(&self.volume_scene, || {
-            let local = self.scene.translated(-self.gpu_scene.origin);
-            crate::shadows::volumes::VolumeScene::new(&self.ctx, &local, self.gpu_scene.origin)
+            crate::shadows::volumes::VolumeScene::new(&self.ctx, &self.local, self.gpu_scene.origin)
         })?;
         Ok(Some(scene))
     }
@@ -217,10 +237,8 @@ impl Renderer {
         if !self.gpu_scene.has_casters {
             return Ok(None);
         }
-        let scene = crate::vk::get_or_make(&self.ray_query, || {
-            let local = self.scene.translated(-self.gpu_scene.origin);
-            RayQueryScene::new(&self.ctx, &caster_triangles(&local))
-        })?;
+        let scene =
+            crate::vk::get_or_make(&self.ray_query, || RayQueryScene::new(&self.ctx, &caster_triangles(&self.local)))?;
         Ok(Some(scene))
     }
 

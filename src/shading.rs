@@ -57,7 +57,7 @@ fn gpu_light(light: &Light) -> GpuLight {
     let pack = |v: Vec3, w: f32| v.extend(w).to_array();
     match *light {
         Light::Point { position, intensity, radius } => GpuLight {
-            position_kind: pack(position, LIGHT_POINT),
+            position_kind: pack(position.as_vec3(), LIGHT_POINT),
             direction_cos_outer: pack(Vec3::ZERO, -1.0),
             intensity_cos_inner: pack(intensity, 1.0),
             size: [radius.max(0.0), 0.0, 0.0, 0.0],
@@ -74,7 +74,7 @@ fn gpu_light(light: &Light) -> GpuLight {
             let cos_inner = inner.cos();
             let cos_outer = outer.cos().min(cos_inner - SPOT_MIN_PENUMBRA_COS);
             GpuLight {
-                position_kind: pack(position, LIGHT_SPOT),
+                position_kind: pack(position.as_vec3(), LIGHT_SPOT),
                 direction_cos_outer: pack(direction.normalize(), cos_outer),
                 intensity_cos_inner: pack(intensity, cos_inner),
                 size: [radius.max(0.0), 0.0, 0.0, 0.0],
@@ -459,7 +459,7 @@ impl Surfaces {
             for t in mesh.indices.chunks_exact(3) {
                 let at = |k: usize| t[k] as usize;
                 triangles.push(SurfaceTriangle {
-                    corner: [0, 1, 2].map(|k| mesh.positions[at(k)]),
+                    corner: [0, 1, 2].map(|k| mesh.positions[at(k)].as_vec3()),
                     normal: [0, 1, 2].map(|k| mesh.normals[at(k)].normalize()),
                 });
             }

@@ -4,7 +4,7 @@
 
 mod common;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::f32::consts::PI;
@@ -163,9 +163,10 @@ fn empty_bvh_uploads_a_dummy_and_never_occludes() {
 
 #[test]
 fn scene_build_takes_only_shadow_casters() {
-    let mesh = |name: &str, y: f32, cast_shadows| Mesh {
+    let mesh = |name: &str, y: f64, cast_shadows| Mesh {
         name: name.into(),
-        positions: vec![Vec3::new(-1.0, y, -1.0), Vec3::new(1.0, y, -1.0), Vec3::new(0.0, y, 1.0)],
+        object: name.into(),
+        positions: vec![DVec3::new(-1.0, y, -1.0), DVec3::new(1.0, y, -1.0), DVec3::new(0.0, y, 1.0)],
         normals: vec![Vec3::Y; 3],
         indices: vec![0, 1, 2],
         material: Material::default(),
@@ -173,7 +174,7 @@ fn scene_build_takes_only_shadow_casters() {
     };
     let scene = Scene {
         image_size: None,
-        camera: Camera { eye: Vec3::Z, target: Vec3::ZERO, up: Vec3::Y, vfov_deg: 60.0 },
+        camera: Camera { eye: DVec3::Z, target: DVec3::ZERO, up: Vec3::Y, vfov_deg: 60.0 },
         lights: vec![],
         meshes: vec![mesh("caster", 1.0, true), mesh("receiver", 2.0, false)],
         stats: LoadStats::default(),

@@ -445,3 +445,130 @@ fn a_closed_stdout_ends_quietly() {
     assert_ne!(o.status.code(), Some(101), "{err}");
     assert!(o.status.success() || o.status.signal() == Some(libc::SIGPIPE), "{:?}: {err}", o.status);
 }
+
+/// A size no frame fits names the size and what it needs, once: it was "vkBindImageMemory
+/// failed: A device memory allocation has failed" (and before that "memory allocation failed:
+/// Out of memory: Out of memory"). No image is written.
+#[test]
+fn a_size_too_big_for_the_device_names_the_size_and_the_need() {
+    let dir = out_dir("huge");
+    let scene = dir.join("no-lights.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 2, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n[[objects]]\nshape = \"cube\"\n",
+    )
+    .unwrap();
+    let out = dir.join("huge.png");
+    let o = run(&["render", scene.to_str().unwrap(), "--size", "16384x16384", "-o", out.to_str().unwrap()]);
+    assert_clear_error(&o, &["16384x16384 needs", "MiB"]);
+    let err = stderr(&o);
+    assert!(!err.contains("Out of memory: Out of memory") && !err.contains("vkBindImageMemory"), "{err}");
+    assert!(!out.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `umbra view` without a display: one line saying so, without winit's own source path.
+#[test]
+fn view_without_a_display_says_so_in_one_line() {
+    let o = umbra().arg("view").env_remove("DISPLAY").env_remove("WAYLAND_DISPLAY").output().expect("run umbra");
+    assert_clear_error(&o, &["cannot open a window", "DISPLAY is set", "xvfb-run"]);
+    assert!(!stderr(&o).contains(".rs:"), "{}", stderr(&o));
+}
+
+/// Options that do nothing with the rest of the command say so in one warning; the run goes on.
+#[test]
+fn options_that_do_nothing_say_so() {
+    let dir = out_dir("unused");
+    let exr = dir.join("a.exr");
+    let png = dir.join("a.png");
+    let warnings = |o: &Output| -> Vec<String> {
+        assert!(o.status.success(), "{}", stderr(o));
+        stderr(o).lines().filter(|l| l.contains("does nothing")).map(str::to_owned).collect()
+    };
+    let o = run(&["render", "--size", "32x24", "--hard", "--spp", "4", "-o", png.to_str().unwrap()]);
+    let w = warnings(&o);
+    assert!(w.len() == 1 && w[0].starts_with("warn: --spp 4 does nothing here"), "{w:?}");
+    let o = run(&["render", "--size", "32x24", "--frames", "1", "--exposure", "2", "-o", exr.to_str().unwrap()]);
+    let w = warnings(&o);
+    assert!(w.len() == 1 && w[0].contains("--exposure 2 does nothing here: EXR output"), "{w:?}");
+    // Where they do something, nothing is said: the default scene's lights have sizes.
+    let o = run(&["render", "--size", "32x24", "--spp", "4", "--exposure", "1", "-o", png.to_str().unwrap()]);
+    assert_eq!(warnings(&o), Vec::<String>::new());
+    assert!(exr.exists() && png.exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// An EXR says how it was made: ZIP-compressed (RLE saved 2 % on renders), with the scene,
+/// size, each light's method, samples, version and device as `umbra:` text attributes.
+#[test]
+fn exr_is_zip_compressed_and_says_how_it_was_made() {
+    let dir = out_dir("exr-meta");
+    let out = dir.join("frame.exr");
+    let o = run(&["render", "-o", out.to_str().unwrap(), "--size", "96x64", "--frames", "2", "--shadows", "2=map"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let meta = exr::meta::MetaData::read_from_file(&out, false).expect("an EXR header");
+    let header = &meta.headers[0];
+    assert_eq!(header.compression, exr::compression::Compression::ZIP16);
+    let text = |key: &str| match header.own_attributes.other.get(&exr::prelude::Text::from(key)) {
+        Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
+        other => panic!("{key}: {other:?}"),
+    };
+    assert_eq!(text("umbra:scene"), "built-in default scene");
+    assert_eq!(text("umbra:size"), "96x64");
+    let shadows = text("umbra:shadows");
+    assert!(shadows.starts_with("0: traced") && shadows.contains("; 2: map"), "{shadows}");
+    assert!(text("umbra:samples").starts_with("2 frames; soft shadows 8 rays"), "{}", text("umbra:samples"));
+    assert_eq!(text("umbra:version"), env!("CARGO_PKG_VERSION"));
+    assert!(text("umbra:device").contains("llvmpipe"));
+    let software = header.own_attributes.software_name.as_ref().map(|t| t.to_string());
+    assert_eq!(software.as_deref(), Some(concat!("umbra ", env!("CARGO_PKG_VERSION"))));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Without `-o`, `umbra render` writes SCENE.png (or out.png for the built-in scene) in the
+/// current directory, not beside the scene, and says where with the full path.
+#[test]
+fn render_without_output_writes_into_the_current_directory() {
+    let cwd = out_dir("default-output");
+    let scenes = out_dir("default-output-scenes");
+    let scene = scenes.join("cube.toml");
+    std::fs::write(
+        &scene,
+        "[camera]\neye = [0, 2, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n[[objects]]\nshape = \"cube\"\n",
+    )
+    .unwrap();
+    for (args, name) in [(vec![scene.to_str().unwrap()], "cube.png"), (vec![], "out.png")] {
+        let o = umbra().arg("render").args(&args).args(["--size", "32x24"]).current_dir(&cwd).output().unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        let written = cwd.join(name);
+        assert!(written.is_file(), "{name} in the working directory");
+        assert!(stdout(&o).starts_with(&format!("wrote {} (32x24)", written.display())), "{}", stdout(&o));
+    }
+    assert_eq!(std::fs::read_dir(&scenes).unwrap().count(), 1, "nothing written beside the scene");
+    let _ = std::fs::remove_dir_all(&cwd);
+    let _ = std::fs::remove_dir_all(&scenes);
+}
+
+/// `-v` times the load phases (parse, BVH build, upload); `-q` leaves errors only; RUST_LOG,
+/// when set, decides over both.
+#[test]
+fn verbosity_flags_sit_beside_rust_log() {
+    let dir = out_dir("verbosity");
+    let png = dir.join("a.png");
+    let png = png.to_str().unwrap().to_owned();
+    let args =
+        |flag: &'static str| ["render", flag, "--hard", "--spp", "2", "--size", "32x24", "-o", &png].map(str::to_owned);
+    let o = umbra().args(args("-v")).env_remove("RUST_LOG").output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    for phase in ["info: parse: built-in scene in ", "info: BVH build: ", "info: upload: "] {
+        let line = err.lines().find(|l| l.starts_with(phase)).unwrap_or_else(|| panic!("no {phase:?} in:\n{err}"));
+        assert!(line.contains(" ms"), "{line}");
+    }
+    assert!(err.contains("warn: --spp 2 does nothing"), "{err}");
+    let o = umbra().args(args("-q")).env_remove("RUST_LOG").output().unwrap();
+    assert!(o.status.success() && stderr(&o).is_empty(), "-q: {}", stderr(&o));
+    let o = umbra().args(args("-q")).env("RUST_LOG", "warn").output().unwrap();
+    assert!(stderr(&o).contains("warn: --spp 2 does nothing"), "RUST_LOG decides: {}", stderr(&o));
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -5,7 +5,7 @@
 mod common;
 
 use ash::vk;
-use glam::{UVec4, Vec3, Vec4};
+use glam::{DVec3, UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 use umbra::graph::{Access, Bound, CompiledGraph, RenderGraph, TransientCache};
 use umbra::scene::Light;
@@ -23,17 +23,17 @@ struct Query {
 #[test]
 fn gpu_light_samples_match_the_rust_twin() {
     let lights: Vec<GpuLight> = gpu_lights(&[
-        Light::Point { position: Vec3::new(0.3, 2.0, -0.4), intensity: Vec3::ONE, radius: 0.2 },
+        Light::Point { position: DVec3::new(0.3, 2.0, -0.4), intensity: Vec3::ONE, radius: 0.2 },
         Light::Directional { direction: Vec3::new(0.55, -1.0, 0.45), irradiance: Vec3::ONE, angular_diameter_deg: 2.5 },
         Light::Spot {
-            position: Vec3::new(-1.6, 3.2, 1.2),
+            position: DVec3::new(-1.6, 3.2, 1.2),
             direction: Vec3::new(0.05, -1.0, -0.35),
             intensity: Vec3::ONE,
             inner_deg: 16.0,
             outer_deg: 26.0,
             radius: 0.1,
         },
-        Light::Point { position: Vec3::new(1.0, 1.0, 1.0), intensity: Vec3::ONE, radius: 0.0 },
+        Light::Point { position: DVec3::new(1.0, 1.0, 1.0), intensity: Vec3::ONE, radius: 0.0 },
         Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE, angular_diameter_deg: 0.0 },
     ]);
     let queries: Vec<Query> = (0..2000u32)

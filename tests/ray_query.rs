@@ -53,7 +53,7 @@ fn compare_backends(name: &str, scene: Scene, w: u32, h: u32) {
     }
     let bvh = ShadowBvh::build(&scene);
     let surfaces = Surfaces::new(&scene);
-    let eye = scene.camera.eye;
+    let eye = scene.camera.eye.as_vec3();
     let light = gpu_lights(&scene.lights)[0];
     let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
     let vis = |r: &mut Renderer, b| frame(r, &settings(w, h, b, Some(DebugView::Visibility(0))));

@@ -61,7 +61,7 @@ fn triangles(mesh: &Mesh) -> impl Iterator<Item = [usize; 3]> + '_ {
 
 fn geometric_normal(mesh: &Mesh, [a, b, c]: [usize; 3]) -> Vec3 {
     let p = &mesh.positions;
-    (p[b] - p[a]).cross(p[c] - p[a]).normalize()
+    (p[b] - p[a]).cross(p[c] - p[a]).normalize().as_vec3()
 }
 
 fn assert_close(a: Vec3, b: Vec3, tolerance: f32, what: &str) {
@@ -231,29 +231,23 @@ fn bad_cameras_are_rejected() {
     }
 }
 
-/// The camera is checked on the f32 values the renderer gets: points that differ only in f64
-/// are one point there, and a view direction that is only off the up axis in f64 lies on it.
+/// The camera is checked on the view direction the renderer gets: `target - eye`, taken in f64
+/// (world positions stay f64 until the renderer's local frame), then rounded to f32. Points
+/// 1e-7 apart are a direction (they were one f32 point when the camera was stored in f32); a
+/// difference that underflows f32 is none, and one along `up` is parallel to it.
 #[test]
-fn cameras_are_checked_in_single_precision() {
+fn cameras_are_checked_on_the_f32_view_direction() {
     let cases = [
-        // 2.2000001 and 2.2 round to the same f32: no view direction at all.
-        (
-            "eye = [0, 2.2, 5.2]\ntarget = [0, 2.2000001, 5.2]\nvfov_deg = 40\n",
-            "camera.target: must differ from camera.eye",
-        ),
-        // 1000.000002 rounds to 1000 in f32: the view is straight up, along `up`.
-        (
-            "eye = [1000, 0, 0]\ntarget = [1000.000002, 1, 0]\nvfov_deg = 40\n",
-            "camera.up: is parallel to the view direction",
-        ),
+        ("eye = [0, 0, 0]\ntarget = [1e-50, 0, 0]\nvfov_deg = 40\n", "camera.target: must differ from camera.eye"),
+        ("eye = [1e7, 0, 0]\ntarget = [1e7, 1, 0]\nvfov_deg = 40\n", "camera.up: is parallel to the view direction"),
     ];
     for (camera, expected) in cases {
         let message = parse_error(&format!("[camera]\n{camera}"));
         assert!(message.contains(expected), "expected {expected:?} in {message:?}");
     }
-    // Points that stay distinct in f32 are still fine.
-    let scene = parse("[camera]\neye = [0, 2.2, 5.2]\ntarget = [0, 2.2, 5.2000003]\nvfov_deg = 40\n");
+    let scene = parse("[camera]\neye = [0, 2.2, 5.2]\ntarget = [0, 2.2, 5.2000001]\nvfov_deg = 40\n");
     assert_ne!(scene.camera.eye, scene.camera.target);
+    assert!((scene.camera.target - scene.camera.eye).z > 0.0, "the view direction is kept");
 }
 
 /// serde's fixed-size arrays read their first N elements and drop the rest: every array key
@@ -431,9 +425,9 @@ fn plane_scene(segments: Option<u32>) -> Scene {
 }
 
 /// Smallest and largest corner of the box around `mesh`'s vertices.
-fn extent(mesh: &Mesh) -> (Vec3, Vec3) {
-    let lo = mesh.positions.iter().fold(Vec3::INFINITY, |e, p| e.min(*p));
-    let hi = mesh.positions.iter().fold(Vec3::NEG_INFINITY, |e, p| e.max(*p));
+fn extent(mesh: &Mesh) -> (DVec3, DVec3) {
+    let lo = mesh.positions.iter().fold(DVec3::INFINITY, |e, p| e.min(*p));
+    let hi = mesh.positions.iter().fold(DVec3::NEG_INFINITY, |e, p| e.max(*p));
     (lo, hi)
 }
 
@@ -442,7 +436,7 @@ fn one_segment_plane_is_the_original_quad() {
     // The plane before `segments` existed, vertex for vertex: what the renderer uploads, so
     // shading cannot change.
     let (h, up) = (1.5, Vec3::Y);
-    let quad = [Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, h), Vec3::new(h, 0.0, -h)];
+    let quad = [DVec3::new(-h, 0.0, -h), DVec3::new(-h, 0.0, h), DVec3::new(h, 0.0, h), DVec3::new(h, 0.0, -h)];
     for scene in [plane_scene(None), plane_scene(Some(1))] {
         let plane = mesh_named(&scene, "plane");
         assert_eq!(plane.positions, quad);
@@ -469,7 +463,7 @@ fn plane_segments_make_a_grid_over_the_same_square() {
             assert_close(geometric_normal(plane, tri), Vec3::Y, 1e-6, "face normal");
         }
         // The triangles tile the square: their areas add up to 3 x 3.
-        let area: f32 = triangles(plane)
+        let area: f64 = triangles(plane)
             .map(|[a, b, c]| {
                 let p = &plane.positions;
                 0.5 * (p[b] - p[a]).cross(p[c] - p[a]).length()
@@ -654,9 +648,9 @@ fn obj_without_normals_is_flat_shaded() {
         }
     }
     // Faces still point out of the (rotated, unevenly scaled) solid.
-    let centre = tetra.positions.iter().copied().sum::<Vec3>() / tetra.positions.len() as f32;
+    let centre = tetra.positions.iter().copied().sum::<DVec3>() / tetra.positions.len() as f64;
     for tri in triangles(tetra) {
-        assert!(geometric_normal(tetra, tri).dot(tetra.positions[tri[0]] - centre) > 0.0);
+        assert!(geometric_normal(tetra, tri).as_dvec3().dot(tetra.positions[tri[0]] - centre) > 0.0);
     }
 }
 
@@ -672,7 +666,7 @@ fn obj_with_normals_keeps_them_and_its_mtl_material() {
         (Vec3::new(0.0, 1.0, 0.5), Vec3::new(-0.3, -0.2, 1.0)),
     ];
     for (position, normal) in expected {
-        let i = patch.positions.iter().position(|p| *p == position).expect("vertex kept");
+        let i = patch.positions.iter().position(|p| *p == position.as_dvec3()).expect("vertex kept");
         assert_close(patch.normals[i], normal.normalize(), 1e-6, "smooth normal");
     }
     // Kd and Pm come from the MTL; the scene overrides roughness only.
@@ -716,13 +710,13 @@ fn transform_matrix_equals_translate_rotate_scale() {
     let (a, b) = (&by_parts.meshes[0], &by_matrix.meshes[0]);
     assert_eq!(a.indices, b.indices);
     for (pa, pb) in a.positions.iter().zip(&b.positions) {
-        assert_close(*pa, *pb, 1e-5, "position");
+        assert_close(pa.as_vec3(), pb.as_vec3(), 1e-5, "position");
     }
     for (na, nb) in a.normals.iter().zip(&b.normals) {
         assert_close(*na, *nb, 1e-5, "normal");
     }
     // The cube's (+, +, +) corner lands where the hand-written matrix puts it.
-    let corner = Vec3::new(2.5, 0.0, 2.0);
+    let corner = DVec3::new(2.5, 0.0, 2.0);
     assert!(a.positions.iter().any(|p| (*p - corner).length() < 1e-5), "{:?}", a.positions);
 }
 
@@ -804,11 +798,11 @@ fn translated_moves_everything_by_the_offset() {
     let scene = Scene::default_scene();
     let offset = DVec3::new(100_000.0, -3.0, -100_000.0);
     let moved = scene.translated(offset);
-    // Each moved point is the f32 nearest the exact f64 sum: within half an ulp at 1e5.
-    let half_ulp = 0.5 * 100_000f32.next_up() as f64 - 0.5 * 100_000.0;
-    let check = |before: Vec3, after: Vec3| {
-        let error = (after.as_dvec3() - (before.as_dvec3() + offset)).abs().max_element();
-        assert!(error <= half_ulp + 1e-9, "{before} moved to {after}");
+    // Each moved point is the f64 sum: within half an f64 ulp at 1e5 (1e-11 m), where the f32
+    // world positions of old were within 4 mm.
+    let check = |before: DVec3, after: DVec3| {
+        let error = (after - (before + offset)).abs().max_element();
+        assert!(error <= 1e-11, "{before} moved to {after}");
     };
     check(scene.camera.eye, moved.camera.eye);
     check(scene.camera.target, moved.camera.target);
@@ -846,9 +840,9 @@ fn translated_is_exact_when_the_sum_is_representable() {
     let offset = DVec3::new(100_000.0, 0.0, -100_000.0);
     let moved = scene.translated(offset);
     for (a, b) in scene.meshes[0].positions.iter().zip(&moved.meshes[0].positions) {
-        assert_eq!(b.as_dvec3() - offset, a.as_dvec3());
+        assert_eq!(*b - offset, *a);
     }
-    assert_eq!(moved.camera.eye.as_dvec3() - offset, scene.camera.eye.as_dvec3());
+    assert_eq!(moved.camera.eye - offset, scene.camera.eye);
 }
 
 #[test]

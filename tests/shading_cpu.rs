@@ -3,7 +3,7 @@
 
 mod common;
 
-use glam::{UVec3, Vec2, Vec3};
+use glam::{DVec3, UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
 use umbra::scene::{Light, Material};
 use umbra::shading::*;
@@ -85,7 +85,8 @@ fn brdf_edge_cases_stay_finite() {
 #[test]
 fn point_light_falls_off_with_the_square_of_distance() {
     let light =
-        gpu_lights(&[Light::Point { position: Vec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0), radius: 0.0 }])[0];
+        gpu_lights(&[Light::Point { position: DVec3::new(0.0, 2.0, 0.0), intensity: Vec3::splat(8.0), radius: 0.0 }])
+            [0];
     let s = light_sample(&light, Vec3::ZERO);
     assert_eq!((s.l, s.dist, s.e_normal), (Vec3::Y, 2.0, Vec3::splat(2.0)));
     let s = light_sample(&light, Vec3::new(0.0, -2.0, 0.0));
@@ -110,7 +111,7 @@ fn directional_light_comes_from_against_its_travel() {
 #[test]
 fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
     let spot = Light::Spot {
-        position: Vec3::ZERO,
+        position: DVec3::ZERO,
         direction: Vec3::NEG_Y,
         intensity: Vec3::ONE,
         inner_deg: 20.0,
@@ -132,7 +133,7 @@ fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
     assert!(1.0 > a && a > b && b > c && c > 0.0, "{a} {b} {c}");
     // inner == outer would divide by zero: the penumbra is widened instead.
     let hard = gpu_lights(&[Light::Spot {
-        position: Vec3::ZERO,
+        position: DVec3::ZERO,
         direction: Vec3::NEG_Y,
         intensity: Vec3::ONE,
         inner_deg: 30.0,
@@ -146,9 +147,9 @@ fn spot_light_is_full_inside_the_inner_cone_and_dark_outside_the_outer() {
 fn shade_point_sums_visible_lights() {
     let material = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0 };
     let lights = gpu_lights(&[
-        Light::Point { position: Vec3::new(0.0, 1.0, 0.0), intensity: Vec3::ONE, radius: 0.0 },
+        Light::Point { position: DVec3::new(0.0, 1.0, 0.0), intensity: Vec3::ONE, radius: 0.0 },
         Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE, angular_diameter_deg: 0.0 },
-        Light::Point { position: Vec3::new(0.0, -1.0, 0.0), intensity: Vec3::splat(100.0), radius: 0.0 },
+        Light::Point { position: DVec3::new(0.0, -1.0, 0.0), intensity: Vec3::splat(100.0), radius: 0.0 },
     ]);
     let one = brdf_times_cos(Vec3::Y, Vec3::Y, Vec3::Y, Vec3::ONE, 1.0, 0.0);
     let asked = std::cell::RefCell::new(Vec::new());
@@ -237,10 +238,10 @@ fn light_sampling_glsl_compiles_with_the_rust_light_layout() {
 
 fn sized_lights(radius: f32, angular_diameter_deg: f32) -> Vec<GpuLight> {
     gpu_lights(&[
-        Light::Point { position: Vec3::new(0.3, 2.0, -0.4), intensity: Vec3::splat(8.0), radius },
+        Light::Point { position: DVec3::new(0.3, 2.0, -0.4), intensity: Vec3::splat(8.0), radius },
         Light::Directional { direction: Vec3::new(0.55, -1.0, 0.45), irradiance: Vec3::ONE, angular_diameter_deg },
         Light::Spot {
-            position: Vec3::new(-1.6, 3.2, 1.2),
+            position: DVec3::new(-1.6, 3.2, 1.2),
             direction: Vec3::new(0.05, -1.0, -0.35),
             intensity: Vec3::ONE,
             inner_deg: 16.0,

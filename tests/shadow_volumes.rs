@@ -225,7 +225,7 @@ fn captured_log() -> &'static Mutex<Vec<String>> {
 
 /// Three triangles on one edge (a fin on a fin): closed nowhere, and not a 2-manifold.
 fn fins() -> Mesh {
-    let positions = vec![
+    let positions = [
         Vec3::new(-0.5, 1.0, 0.0),
         Vec3::new(0.5, 1.0, 0.0),
         Vec3::new(0.0, 1.8, 0.0),
@@ -234,8 +234,9 @@ fn fins() -> Mesh {
     ];
     Mesh {
         name: "fins".into(),
+        object: "objects[9]".into(),
         normals: vec![Vec3::Z; positions.len()],
-        positions,
+        positions: positions.iter().map(|p| p.as_dvec3()).collect(),
         indices: vec![0, 1, 2, 1, 0, 3, 1, 0, 4],
         material: Default::default(),
         cast_shadows: true,

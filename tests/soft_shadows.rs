@@ -6,7 +6,7 @@ mod common;
 
 use std::path::Path;
 
-use glam::{UVec3, Vec3, Vec4};
+use glam::{UVec3, Vec4};
 use umbra::config::DebugView;
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
 use umbra::scene::bvh::ShadowBvh;
@@ -87,7 +87,8 @@ fn soft_visibility_matches_the_cpu_with_the_same_samples() {
             0.0
         } else {
             // Where the traced pass starts its rays (the geometry pass's surface channel, by its twin).
-            let origin = surfaces.at(p, scene.camera.eye, 1e-4).expect("a triangle under the pixel").ray_origin(p);
+            let origin =
+                surfaces.at(p, scene.camera.eye.as_vec3(), 1e-4).expect("a triangle under the pixel").ray_origin(p);
             let mut reached = 0;
             let mut edge = false;
             for k in 0..SPP {
@@ -173,7 +174,7 @@ fn a_still_view_accumulates_toward_the_converged_image() {
     assert!(e16 < 0.4 * e1, "accumulation did not converge: {e1} -> {e16}");
     // Changing the view restarts the mean: the next frame is a single frame again.
     let mut moved = s.clone();
-    moved.camera = Some(umbra::scene::Camera { eye: Vec3::new(0.1, 3.0, 4.0), ..scene_camera() });
+    moved.camera = Some(umbra::scene::Camera { eye: glam::DVec3::new(0.1, 3.0, 4.0), ..scene_camera() });
     let restarted = floats(r.render(&moved).unwrap());
     let fresh = {
         let mut r2 = Renderer::new(ctx.clone(), self::scene()).unwrap();

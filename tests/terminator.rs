@@ -109,7 +109,7 @@ fn self_shadowed(scene: &Scene, backend: ShadowBackend) -> (usize, usize, usize,
     let v = render(scene, backend);
     let lit = facing(&v);
     let surfaces = Surfaces::new(scene);
-    let eye = scene.camera.eye;
+    let eye = scene.camera.eye.as_vec3();
     let at = |i: usize| surfaces.at(v.position[i], eye, 1e-4).expect("a triangle under the pixel");
     let gpu = lit.iter().filter(|&&i| v.visibility[i] == 0.0).count();
     let geometric_only = cpu_shadowed(scene, &lit, |i| offset_ray_origin(v.position[i], at(i).geometric_normal));

@@ -59,7 +59,12 @@ pub fn target_bytes(extent: vk::Extent2D, layers: u32) -> u64 {
     u64::from(extent.width) * u64::from(extent.height) * u64::from(layers)
 }
 
-/// Refuses a frame whose target this device cannot hold, naming the limit.
+/// Bytes per pixel of the frame's other images: the G-buffer (depth 4, position 16, normal 8,
+/// material 8, surface 8), radiance (16) and the display image (4).
+pub const FRAME_BYTES_PER_PIXEL: u64 = 44 + 16 + 4;
+
+/// Refuses a frame whose images this device cannot hold, naming the size and what it needs, so
+/// a huge `--size` is one plain line rather than an allocator's error.
 pub fn check_limits(ctx: &GpuContext, extent: vk::Extent2D, lights: usize, layers: u32) -> GpuResult<()> {
     if lights > MAX_LIGHTS {
         return Err(GpuError::Unsupported(format!("{lights} lights: umbra takes at most {MAX_LIGHTS}")));
@@ -71,22 +76,50 @@ pub fn check_limits(ctx: &GpuContext, extent: vk::Extent2D, lights: usize, layer
              lights' shadows off)"
         )));
     }
-    // SAFETY: plain query on the context's device.
-    let memory = unsafe { ctx.instance.get_physical_device_memory_properties(ctx.physical) };
-    let heap = memory.memory_heaps_as_slice().iter().filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL));
-    let largest = heap.map(|h| h.size).max().unwrap_or(u64::MAX);
-    let bytes = target_bytes(extent, layers);
-    if bytes > largest / 2 {
+    let (heap, max_allocation) = memory_limits(ctx);
+    let pixels = u64::from(extent.width) * u64::from(extent.height);
+    let visibility = target_bytes(extent, layers);
+    let frame = pixels * FRAME_BYTES_PER_PIXEL + visibility;
+    let size = format!("{}x{}", extent.width, extent.height);
+    let smaller = "use a smaller --size or window";
+    // The largest single image: position or radiance, 16 bytes per pixel.
+    if pixels * 16 > max_allocation {
         return Err(GpuError::Unsupported(format!(
-            "{}x{} with {layers} shadowed lights needs a {} MiB visibility target, over half of this device's {} MiB \
-             of memory (use a smaller --size or fewer shadowed lights)",
-            extent.width,
-            extent.height,
-            bytes >> 20,
-            largest >> 20
+            "{size} needs {} MiB for one frame image (16 bytes per pixel), over this device's {} MiB per \
+             allocation ({smaller})",
+            (pixels * 16) >> 20,
+            max_allocation >> 20
+        )));
+    }
+    if frame > heap / 2 {
+        // Name the visibility target only where it is there to blame: `none` allocates none.
+        let lights = if layers > 0 { format!(" and {layers} shadowed lights") } else { String::new() };
+        return Err(GpuError::Unsupported(format!(
+            "{size}{lights} needs {} MiB of frame images ({FRAME_BYTES_PER_PIXEL} bytes per pixel{}), over half of \
+             this device's {} MiB of memory ({smaller}{})",
+            frame >> 20,
+            if layers > 0 { format!(" plus {layers} for visibility") } else { String::new() },
+            heap >> 20,
+            if layers > 0 { " or fewer shadowed lights" } else { "" },
         )));
     }
     Ok(())
+}
+
+/// The largest device-local heap and the largest single allocation the device allows.
+fn memory_limits(ctx: &GpuContext) -> (u64, u64) {
+    // SAFETY: plain queries on the context's device; the chained struct outlives the call.
+    let memory = unsafe { ctx.instance.get_physical_device_memory_properties(ctx.physical) };
+    let heaps = memory.memory_heaps_as_slice().iter().filter(|h| h.flags.contains(vk::MemoryHeapFlags::DEVICE_LOCAL));
+    let heap = heaps.map(|h| h.size).max().unwrap_or(u64::MAX);
+    let mut maintenance3 = vk::PhysicalDeviceMaintenance3Properties::default();
+    let mut properties = vk::PhysicalDeviceProperties2::default().push_next(&mut maintenance3);
+    unsafe { ctx.instance.get_physical_device_properties2(ctx.physical, &mut properties) };
+    let max_allocation = match maintenance3.max_memory_allocation_size {
+        0 => u64::MAX,
+        n => n,
+    };
+    (heap, max_allocation)
 }
 
 /// The frame's visibility target, `layers` layers (at least one).

@@ -91,14 +91,17 @@ pub struct ShadowBvh {
 
 /// The shadow casters of `scene` as the BVH (and the ray-query backend's acceleration
 /// structure) see them: the triangles of every mesh with `cast_shadows`, in mesh order, without
-/// those with non-finite vertices (they would poison the bounding boxes).
+/// those with non-finite vertices (they would poison the bounding boxes). Positions are rounded to
+/// f32 here: `scene` is expected in the renderer's local frame (`Scene::local_frame`).
 pub fn caster_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
     scene
         .meshes
         .iter()
         .filter(|mesh| mesh.cast_shadows)
         .flat_map(|mesh| {
-            mesh.indices.chunks_exact(3).map(|i| [i[0], i[1], i[2]].map(|index| mesh.positions[index as usize]))
+            mesh.indices
+                .chunks_exact(3)
+                .map(|i| [i[0], i[1], i[2]].map(|index| mesh.positions[index as usize].as_vec3()))
         })
         .filter(|tri| tri.iter().all(|v| v.is_finite()))
         .collect()

@@ -235,7 +235,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         for local in &placed.meshes {
             let material = placed.material.apply(local.material.unwrap_or_default());
             let cast_shadows = object.cast_shadows.unwrap_or(true);
-            meshes.extend(mesh::place(local, &placed.transform, material, cast_shadows, &mut dropped));
+            meshes.extend(mesh::place(&path, local, &placed.transform, material, cast_shadows, &mut dropped));
         }
         let source = &placed.source;
         if dropped.degenerate_triangles + dropped.non_finite_triangles > 0 {
@@ -325,10 +325,11 @@ impl Check<'_> {
             Some(up) => self.direction("camera.up", up.0)?,
             None => DVec3::Y,
         };
-        // Judged on the f32 values the renderer gets: `target = eye + 1e-7` differs in f64 but
-        // is the same point in f32, which would leave the view direction undefined.
-        let (eye, target, up) = (eye.as_vec3(), target.as_vec3(), up.as_vec3());
-        let Some(view) = (target - eye).try_normalize() else {
+        // Judged on the f32 direction the renderer gets: it takes `target - eye` in f64 (the
+        // points stay f64 until the renderer's scene-local frame), so `target = eye + 1e-7` is
+        // a view direction, while a difference that underflows f32 is none.
+        let up = up.as_vec3();
+        let Some(view) = (target - eye).as_vec3().try_normalize() else {
             return Err(self.fail("camera.target", "must differ from camera.eye"));
         };
         if view.cross(up).length() < 1e-6 {
@@ -426,7 +427,7 @@ impl Check<'_> {
         };
         Ok(match light.kind {
             LightKind::Point => Light::Point {
-                position: position()?.as_vec3(),
+                position: position()?,
                 intensity: power("intensity", &light.intensity)?,
                 radius: radius()?,
             },
@@ -453,7 +454,7 @@ impl Check<'_> {
                     return Err(self.fail(path, message));
                 }
                 Light::Spot {
-                    position: position()?.as_vec3(),
+                    position: position()?,
                     direction: direction()?.as_vec3(),
                     intensity: power("intensity", &light.intensity)?,
                     inner_deg: inner as f32,
@@ -678,13 +679,13 @@ impl Check<'_> {
     }
 
     /// A shape's size or radius: positive and finite.
-    fn length(&self, path: &str, key: &str, v: Option<f64>, default: f64) -> Result<f32, SceneError> {
+    fn length(&self, path: &str, key: &str, v: Option<f64>, default: f64) -> Result<f64, SceneError> {
         let v = v.unwrap_or(default);
         // Also in f32, where 1e-300 is 0 and 1e300 is infinite.
         if !(v > 0.0 && (v as f32).is_finite() && v as f32 > 0.0) {
             let message = format!("{} must be positive and finite", short_number(v));
             return Err(self.fail(&format!("{path}.{key}"), message));
         }
-        Ok(v as f32)
+        Ok(v)
     }
 }

@@ -10,7 +10,7 @@ use super::{LoadStats, Material, Mesh};
 #[derive(Clone, Debug)]
 pub(super) struct ObjectMesh {
     pub name: String,
-    pub positions: Vec<Vec3>,
+    pub positions: Vec<DVec3>,
     /// One per position when the source has smooth normals.
     pub normals: Option<Vec<Vec3>>,
     pub indices: Vec<u32>,
@@ -19,12 +19,13 @@ pub(super) struct ObjectMesh {
 }
 
 /// Below this sine of the angle between two edges a triangle has no usable plane: its face
-/// normal is noise. Slightly above f32 epsilon, as positions are stored in f32.
+/// normal is noise. Slightly above f32 epsilon: the renderer rounds the triangle to f32 (in its
+/// scene-local frame), and a plane thinner than that is noise there.
 const MIN_EDGE_SINE: f64 = 2.0 * f32::EPSILON as f64;
 
 /// What is left of a triangle list after dropping unusable triangles, in world space.
 struct Builder {
-    positions: Vec<Vec3>,
+    positions: Vec<DVec3>,
     normals: Vec<Vec3>,
     indices: Vec<u32>,
     /// Output index of each source vertex already emitted as a smooth vertex.
@@ -32,7 +33,7 @@ struct Builder {
 }
 
 impl Builder {
-    fn push_vertex(&mut self, position: Vec3, normal: Vec3) -> u32 {
+    fn push_vertex(&mut self, position: DVec3, normal: Vec3) -> u32 {
         // Meshes over 4G vertices are far beyond what the loader is asked to handle.
         let index = self.positions.len() as u32;
         self.positions.push(position);
@@ -40,7 +41,7 @@ impl Builder {
         index
     }
 
-    fn smooth_vertex(&mut self, source: usize, position: Vec3, normal: Vec3) -> u32 {
+    fn smooth_vertex(&mut self, source: usize, position: DVec3, normal: Vec3) -> u32 {
         if let Some(index) = self.smooth_slot[source] {
             return index;
         }
@@ -53,19 +54,14 @@ impl Builder {
 /// Transforms `mesh` by `object_to_world` and returns it as a world-space `Mesh`, or `None` when
 /// no triangle survives. `object_to_world` must be affine and invertible (the scene file checks).
 pub(super) fn place(
+    object: &str,
     mesh: &ObjectMesh,
     object_to_world: &DMat4,
     material: Material,
     cast_shadows: bool,
     stats: &mut LoadStats,
 ) -> Option<Mesh> {
-    let world: Vec<DVec3> = mesh
-        .positions
-        .iter()
-        .map(|p| object_to_world.transform_point3(p.as_dvec3()))
-        // Round to what the renderer stores, so the checks below judge the stored triangle.
-        .map(|p| p.as_vec3().as_dvec3())
-        .collect();
+    let world: Vec<DVec3> = mesh.positions.iter().map(|&p| object_to_world.transform_point3(p)).collect();
     let normal_matrix = DMat3::from_mat4(*object_to_world).inverse().transpose();
     let world_normals: Option<Vec<Option<DVec3>>> = mesh
         .normals
@@ -105,14 +101,14 @@ pub(super) fn place(
         match smooth {
             Some(normals) => {
                 for ((&source, corner), normal) in tri.iter().zip(&corners).zip(normals) {
-                    let v = out.smooth_vertex(source, corner.as_vec3(), normal.as_vec3());
+                    let v = out.smooth_vertex(source, *corner, normal.as_vec3());
                     out.indices.push(v);
                 }
             }
             // Flat, or a smooth mesh with an unusable normal here: use the face's own.
             None => {
                 for corner in &corners {
-                    let v = out.push_vertex(corner.as_vec3(), face_normal.as_vec3());
+                    let v = out.push_vertex(*corner, face_normal.as_vec3());
                     out.indices.push(v);
                 }
             }
@@ -124,6 +120,7 @@ pub(super) fn place(
     }
     Some(Mesh {
         name: mesh.name.clone(),
+        object: object.to_owned(),
         positions: out.positions,
         normals: out.normals,
         indices: out.indices,
@@ -155,10 +152,10 @@ mod tests {
         ObjectMesh {
             name: "quad".into(),
             positions: vec![
-                Vec3::new(0.0, 0.0, 0.0),
-                Vec3::new(1.0, 0.0, 0.0),
-                Vec3::new(1.0, 1.0, 0.0),
-                Vec3::new(0.0, 1.0, 0.0),
+                DVec3::new(0.0, 0.0, 0.0),
+                DVec3::new(1.0, 0.0, 0.0),
+                DVec3::new(1.0, 1.0, 0.0),
+                DVec3::new(0.0, 1.0, 0.0),
             ],
             normals: Some(vec![Vec3::Z; 4]),
             indices: vec![0, 1, 2, 0, 2, 3],
@@ -169,7 +166,7 @@ mod tests {
     #[test]
     fn smooth_vertices_are_shared() {
         let mut stats = LoadStats::default();
-        let mesh = place(&quad(), &DMat4::IDENTITY, Material::default(), true, &mut stats).unwrap();
+        let mesh = place("objects[0]", &quad(), &DMat4::IDENTITY, Material::default(), true, &mut stats).unwrap();
         assert_eq!(mesh.positions.len(), 4);
         assert_eq!(mesh.indices, vec![0, 1, 2, 0, 2, 3]);
         assert_eq!(stats, LoadStats::default());
@@ -179,10 +176,10 @@ mod tests {
     fn mirroring_keeps_front_faces_counter_clockwise() {
         let mut stats = LoadStats::default();
         let mirror = DMat4::from_scale(DVec3::new(-1.0, 1.0, 1.0));
-        let mesh = place(&quad(), &mirror, Material::default(), true, &mut stats).unwrap();
+        let mesh = place("objects[0]", &quad(), &mirror, Material::default(), true, &mut stats).unwrap();
         for tri in mesh.indices.chunks_exact(3) {
             let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
-            let geometric = (b - a).cross(c - a);
+            let geometric = (b - a).cross(c - a).as_vec3();
             assert!(geometric.dot(mesh.normals[tri[0] as usize]) > 0.0);
         }
     }
@@ -192,7 +189,7 @@ mod tests {
         let mut bad = quad();
         bad.normals = Some(vec![Vec3::ZERO, Vec3::Z, Vec3::Z, Vec3::Z]);
         let mut stats = LoadStats::default();
-        let mesh = place(&bad, &DMat4::IDENTITY, Material::default(), true, &mut stats).unwrap();
+        let mesh = place("objects[0]", &bad, &DMat4::IDENTITY, Material::default(), true, &mut stats).unwrap();
         assert_eq!(mesh.triangle_count(), 2);
         assert!(mesh.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
     }

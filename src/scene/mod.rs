@@ -5,6 +5,7 @@ pub mod bvh;
 mod error;
 mod file;
 mod input;
+mod local;
 mod mesh;
 mod obj;
 mod shapes;
@@ -15,12 +16,14 @@ use glam::{DVec3, Vec3};
 
 pub use error::SceneError;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
+pub use local::MAX_LOCAL_DISTANCE;
 
-/// Pinhole camera. `vfov_deg` is the full vertical field of view.
+/// Pinhole camera. `vfov_deg` is the full vertical field of view. Points are in f64, like every
+/// world position (see `Mesh`); the renderer rounds them to f32 only in its scene-local frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
-    pub eye: Vec3,
-    pub target: Vec3,
+    pub eye: DVec3,
+    pub target: DVec3,
     pub up: Vec3,
     pub vfov_deg: f32,
 }
@@ -33,13 +36,13 @@ pub struct Camera {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
     /// Radiant intensity in W/sr; E = I cos(theta) / d^2. `radius`: sphere radius in metres.
-    Point { position: Vec3, intensity: Vec3, radius: f32 },
+    Point { position: DVec3, intensity: Vec3, radius: f32 },
     /// `direction` is the direction the light travels; irradiance in W/m^2 on a surface facing it.
     /// `angular_diameter_deg`: full apparent diameter of the disk in degrees (the sun: ~0.53).
     Directional { direction: Vec3, irradiance: Vec3, angular_diameter_deg: f32 },
     /// Intensity on the axis in W/sr, smooth falloff between the inner and outer cone (degrees,
     /// half-angles measured from the axis). `radius`: sphere radius in metres.
-    Spot { position: Vec3, direction: Vec3, intensity: Vec3, inner_deg: f32, outer_deg: f32, radius: f32 },
+    Spot { position: DVec3, direction: Vec3, intensity: Vec3, inner_deg: f32, outer_deg: f32, radius: f32 },
 }
 
 impl Light {
@@ -79,10 +82,16 @@ impl Default for Material {
 /// A triangle mesh already transformed to world space. `normals` is per vertex and unit length;
 /// flat-shaded meshes have their vertices split per face. Triangles are counter-clockwise
 /// front-facing.
+///
+/// Positions are f64: a world position needs more than f32's 24 bits far from the origin (at
+/// 1e7 m an f32 step is 1 m, and a sphere there rounds to a box). The renderer subtracts the
+/// scene-local origin in f64 and only then rounds to f32 (`Scene::local_frame`).
 #[derive(Clone, Debug)]
 pub struct Mesh {
     pub name: String,
-    pub positions: Vec<Vec3>,
+    /// Where the scene put it, for messages: `objects[2]` in a scene file's order.
+    pub object: String,
+    pub positions: Vec<DVec3>,
     pub normals: Vec<Vec3>,
     pub indices: Vec<u32>,
     pub material: Material,
@@ -156,11 +165,10 @@ impl Scene {
             .expect("the built-in default scene parses")
     }
 
-    /// The same scene moved by `offset`: camera, lights and every vertex. The sums are taken in
-    /// f64 and rounded once, so far from the origin each point is the nearest f32 to its true
-    /// position. Directions and normals do not change.
+    /// The same scene moved by `offset`: camera, lights and every vertex, in f64. Directions
+    /// and normals do not change.
     pub fn translated(&self, offset: DVec3) -> Scene {
-        let shift = |p: Vec3| (p.as_dvec3() + offset).as_vec3();
+        let shift = |p: DVec3| p + offset;
         let mut scene = self.clone();
         scene.camera.eye = shift(scene.camera.eye);
         scene.camera.target = shift(scene.camera.target);

@@ -6,7 +6,7 @@ use std::cell::RefCell;
 use std::io::{self, BufRead, Read};
 use std::path::{Path, PathBuf};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::input;
 use super::mesh::ObjectMesh;
@@ -54,7 +54,7 @@ pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
         .into_iter()
         .map(|model| {
             let mesh = model.mesh;
-            let positions = to_vec3(&mesh.positions);
+            let positions = to_dvec3(&mesh.positions);
             // tobj leaves normals short when only some faces have `vn`; shade such a mesh flat.
             let normals = Some(to_vec3(&mesh.normals)).filter(|n| n.len() == positions.len());
             ObjectMesh {
@@ -83,6 +83,11 @@ fn count_short_faces(bytes: &[u8]) -> usize {
 
 fn to_vec3(flat: &[f32]) -> Vec<Vec3> {
     flat.chunks_exact(3).map(Vec3::from_slice).collect()
+}
+
+/// OBJ positions as tobj reads them (f32, in object space), widened to the mesh type's f64.
+fn to_dvec3(flat: &[f32]) -> Vec<DVec3> {
+    flat.chunks_exact(3).map(|p| Vec3::from_slice(p).as_dvec3()).collect()
 }
 
 /// Names the line for errors tobj raises while reading one; the rest surface later, when it

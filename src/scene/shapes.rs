@@ -1,9 +1,10 @@
 //! Built-in shapes (plane, cube, UV sphere) in object space, so test and default scenes need no
-//! mesh files. All are centred at the origin with counter-clockwise front faces.
+//! mesh files. All are centred at the origin with counter-clockwise front faces. Positions are
+//! made in f64, like world positions, so a shape's size is kept to the last bit it is given.
 
-use std::f32::consts::PI;
+use std::f64::consts::PI;
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::mesh::ObjectMesh;
 
@@ -14,7 +15,7 @@ use super::mesh::ObjectMesh;
 /// With one segment the triangles, and so the placed mesh (whose vertices come out in the order
 /// the triangles first use them), are exactly those of the single quad this shape used to be:
 /// corners (-h, -h), (-h, h), (h, h), (h, -h) in (x, z), triangles [0, 1, 2] and [0, 2, 3].
-pub(super) fn plane(size: f32, segments: u32) -> ObjectMesh {
+pub(super) fn plane(size: f64, segments: u32) -> ObjectMesh {
     let n = segments.max(1);
     let h = 0.5 * size;
     let side = n as usize + 1;
@@ -22,13 +23,13 @@ pub(super) fn plane(size: f32, segments: u32) -> ObjectMesh {
     // `segments` well below where the vertex count would leave u32.
     let vertex_count = side * side;
     assert!(u32::try_from(vertex_count).is_ok(), "plane vertex count {vertex_count} overflows u32");
-    // -h at 0, +h at n exactly, and mirror-symmetric: the integers and n are exact in f32.
-    let coordinate = |k: usize| h * (((2 * k) as f32 - n as f32) / n as f32);
-    let coordinates: Vec<f32> = (0..side).map(coordinate).collect();
+    // -h at 0, +h at n exactly, and mirror-symmetric: the integers and n are exact in f64.
+    let coordinate = |k: usize| h * (((2 * k) as f64 - n as f64) / n as f64);
+    let coordinates: Vec<f64> = (0..side).map(coordinate).collect();
     let mut positions = Vec::with_capacity(vertex_count);
     for &x in &coordinates {
         for &z in &coordinates {
-            positions.push(Vec3::new(x, 0.0, z));
+            positions.push(DVec3::new(x, 0.0, z));
         }
     }
     let at = |i: usize, j: usize| (i * side + j) as u32;
@@ -44,7 +45,7 @@ pub(super) fn plane(size: f32, segments: u32) -> ObjectMesh {
 }
 
 /// Cube of edge `size`; each face has its own four vertices so its normals stay sharp.
-pub(super) fn cube(size: f32) -> ObjectMesh {
+pub(super) fn cube(size: f64) -> ObjectMesh {
     let h = 0.5 * size;
     let mut positions = Vec::with_capacity(24);
     let mut normals = Vec::with_capacity(24);
@@ -61,7 +62,7 @@ pub(super) fn cube(size: f32) -> ObjectMesh {
         let v = normal.cross(u);
         let base = positions.len() as u32;
         for (su, sv) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-            positions.push((normal + su * u + sv * v) * h);
+            positions.push((normal + su * u + sv * v).as_dvec3() * h);
             normals.push(normal);
         }
         indices.extend([0, 1, 2, 0, 2, 3].map(|i| base + i));
@@ -73,7 +74,7 @@ pub(super) fn cube(size: f32) -> ObjectMesh {
 /// smooth normals: 2 segments (rings - 1) triangles. A single vertex at each pole keeps the
 /// caps free of degenerate triangles. Work and memory are linear in the triangle count: one sine
 /// and cosine per ring and per segment, and buffers allocated once at their final size.
-pub(super) fn sphere(radius: f32, segments: u32) -> ObjectMesh {
+pub(super) fn sphere(radius: f64, segments: u32) -> ObjectMesh {
     let segments = segments.max(3);
     let rings = (segments / 2).max(2);
     // Both poles plus (rings - 1) latitude rings of `segments` vertices. The scene file caps
@@ -83,17 +84,17 @@ pub(super) fn sphere(radius: f32, segments: u32) -> ObjectMesh {
     let triangle_count = 2 * segments as usize * (rings as usize - 1);
 
     // (sin, cos) of each segment's longitude, shared by every ring.
-    let longitudes: Vec<(f32, f32)> =
-        (0..segments).map(|segment| (2.0 * PI * segment as f32 / segments as f32).sin_cos()).collect();
+    let longitudes: Vec<(f64, f64)> =
+        (0..segments).map(|segment| (2.0 * PI * segment as f64 / segments as f64).sin_cos()).collect();
     let mut normals = Vec::with_capacity(vertex_count);
-    normals.push(Vec3::Y);
+    normals.push(DVec3::Y);
     for ring in 1..rings {
-        let (sin_theta, cos_theta) = (PI * ring as f32 / rings as f32).sin_cos();
+        let (sin_theta, cos_theta) = (PI * ring as f64 / rings as f64).sin_cos();
         for &(sin_phi, cos_phi) in &longitudes {
-            normals.push(Vec3::new(sin_theta * cos_phi, cos_theta, -sin_theta * sin_phi));
+            normals.push(DVec3::new(sin_theta * cos_phi, cos_theta, -sin_theta * sin_phi));
         }
     }
-    normals.push(Vec3::NEG_Y);
+    normals.push(DVec3::NEG_Y);
     debug_assert_eq!(normals.len(), vertex_count);
     let south = normals.len() as u32 - 1;
     // Vertex of `segment` (wrapping) on latitude ring `ring` (1..rings).
@@ -113,7 +114,7 @@ pub(super) fn sphere(radius: f32, segments: u32) -> ObjectMesh {
     ObjectMesh {
         name: "sphere".into(),
         positions: normals.iter().map(|n| *n * radius).collect(),
-        normals: Some(normals),
+        normals: Some(normals.iter().map(|n| n.as_vec3()).collect()),
         indices,
         material: None,
     }
@@ -128,9 +129,9 @@ mod tests {
         let normals = mesh.normals.as_ref().expect("shapes have normals");
         for tri in mesh.indices.chunks_exact(3) {
             let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[tri[k] as usize]);
-            let geometric = (b - a).cross(c - a);
+            let geometric = (b - a).cross(c - a).as_vec3();
             // Relative to the edges, as fine spheres have tiny (but well-shaped) cap triangles.
-            let sine = geometric.length() / ((b - a).length() * (c - a).length());
+            let sine = geometric.length() / ((b - a).length() * (c - a).length()) as f32;
             assert!(sine > 1e-4, "{}: degenerate triangle {tri:?}", mesh.name);
             for &i in tri {
                 assert!(geometric.dot(normals[i as usize]) > 0.0, "{}: {tri:?}", mesh.name);
@@ -150,12 +151,12 @@ mod tests {
 
     #[test]
     fn shapes_have_the_asked_size() {
-        let extent = |m: &ObjectMesh| m.positions.iter().fold(Vec3::ZERO, |e, p| e.max(p.abs()));
-        assert_eq!(extent(&plane(4.0, 1)), Vec3::new(2.0, 0.0, 2.0));
-        assert_eq!(extent(&plane(4.0, 7)), Vec3::new(2.0, 0.0, 2.0));
-        assert_eq!(extent(&cube(1.0)), Vec3::splat(0.5));
+        let extent = |m: &ObjectMesh| m.positions.iter().fold(DVec3::ZERO, |e, p| e.max(p.abs()));
+        assert_eq!(extent(&plane(4.0, 1)), DVec3::new(2.0, 0.0, 2.0));
+        assert_eq!(extent(&plane(4.0, 7)), DVec3::new(2.0, 0.0, 2.0));
+        assert_eq!(extent(&cube(1.0)), DVec3::splat(0.5));
         let sphere = sphere(2.0, 16);
-        assert!(sphere.positions.iter().all(|p| (p.length() - 2.0).abs() < 1e-5));
+        assert!(sphere.positions.iter().all(|p| (p.length() - 2.0).abs() < 1e-12));
         assert_eq!(sphere.indices.len() / 3, 2 * 16 * (8 - 1));
     }
 
@@ -165,7 +166,7 @@ mod tests {
         let h = 1.5;
         // Stored row by row, (x, z) = (-, -), (-, +), (+, -), (+, +); the triangles visit them as
         // (-, -), (-, +), (+, +), (+, -), the original quad's corner order.
-        let expected = [Vec3::new(-h, 0.0, -h), Vec3::new(-h, 0.0, h), Vec3::new(h, 0.0, -h), Vec3::new(h, 0.0, h)];
+        let expected = [DVec3::new(-h, 0.0, -h), DVec3::new(-h, 0.0, h), DVec3::new(h, 0.0, -h), DVec3::new(h, 0.0, h)];
         assert_eq!(quad.positions, expected);
         assert_eq!(quad.indices, [0, 1, 3, 0, 3, 2]);
         assert_eq!(quad.normals, Some(vec![Vec3::Y; 4]));

@@ -155,8 +155,9 @@ pub fn reaches_view(light: &Light, seen: &light_space::Bounds) -> bool {
     match *light {
         _ if seen.is_empty() => false,
         Light::Spot { position, direction, outer_deg, .. } => {
-            // Behind the light's plane, or (the box's bounding sphere) farther from the cone's
-            // surface than its radius: out of reach. Both tests are conservative.
+            let position = position.as_vec3(); // `light` is in the local frame, like `seen`
+                                               // Behind the light's plane, or (the box's bounding sphere) farther from the cone's
+                                               // surface than its radius: out of reach. Both tests are conservative.
             if seen.corners().iter().all(|c| (*c - position).dot(direction) <= 0.0) {
                 return false; // all behind the light
             }

@@ -26,8 +26,12 @@ use crate::vk::{GpuContext, GpuOptions};
 
 pub struct ViewerOptions {
     pub scene: Scene,
-    /// Where screenshots go: beside the scene file (or the working directory).
+    /// Where screenshots and captures go: `--out-dir`, else beside the scene file (or the
+    /// working directory).
     pub screenshot_dir: PathBuf,
+    /// Seconds each frame moves the camera by: `--fixed-dt`, 1/60 for scripts by default, so a
+    /// script gives the same images on a fast and a slow machine; None follows the clock.
+    pub fixed_dt: Option<f32>,
     pub title: String,
     pub size: (u32, u32),
     pub validate: bool,
@@ -50,14 +54,19 @@ pub struct ViewerReport {
     /// Turns with nothing presented (minimised, or the swapchain being recreated).
     pub skipped: u64,
     pub validation_messages: usize,
+    /// Files written by F12 and the script's `screenshot` (a render at the window's size).
     pub screenshots: Vec<PathBuf>,
+    /// Files written by the script's `capture` (the presented frame as shown).
+    pub captures: Vec<PathBuf>,
     /// The swapchain's present mode, as Vulkan names it.
     pub present_mode: Option<String>,
 }
 
 /// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
 pub fn run(options: ViewerOptions) -> Result<ViewerReport> {
-    let event_loop = EventLoop::new().context("cannot open a window (is there a display? try xvfb-run)")?;
+    let event_loop = event_loop().map_err(|e| {
+        anyhow::anyhow!("cannot open a window: {} (is there a display? try xvfb-run)", without_source_path(&e))
+    })?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut app = App { options, running: None, error: None, report: ViewerReport::default() };
     event_loop.run_app(&mut app).context("window event loop")?;
@@ -65,6 +74,40 @@ pub fn run(options: ViewerOptions) -> Result<ViewerReport> {
         return Err(e);
     }
     Ok(app.report)
+}
+
+/// The event loop on Wayland where a compositor is there, else X11. winit tries Wayland
+/// whenever WAYLAND_DISPLAY is set and does not fall back (nor can a second event loop be
+/// made), so a stale WAYLAND_DISPLAY beside a working DISPLAY (an ssh session, say) would end
+/// the run: X11 is chosen up front when the Wayland socket is not there.
+fn event_loop() -> Result<EventLoop<()>, winit::error::EventLoopError> {
+    use winit::platform::x11::EventLoopBuilderExtX11;
+    let mut builder = EventLoop::builder();
+    let socket =
+        std::env::var_os("WAYLAND_DISPLAY").filter(|_| std::env::var_os("WAYLAND_SOCKET").is_none()).map(|name| {
+            let name = PathBuf::from(name);
+            match std::env::var_os("XDG_RUNTIME_DIR") {
+                Some(dir) if name.is_relative() => PathBuf::from(dir).join(name),
+                _ => name,
+            }
+        });
+    if let Some(socket) = socket.filter(|s| !s.exists()) {
+        if std::env::var_os("DISPLAY").is_some() {
+            log::info!("no Wayland compositor at {} (WAYLAND_DISPLAY); using X11", socket.display());
+            builder.with_x11();
+        }
+    }
+    builder.build()
+}
+
+/// winit's error without the `os error at src/…/mod.rs:765:` prefix naming its own source file,
+/// which tells a user nothing: "neither WAYLAND_DISPLAY nor … DISPLAY is set".
+fn without_source_path(e: &impl std::fmt::Display) -> String {
+    let text = e.to_string();
+    let Some(rest) = text.strip_prefix("os error at ") else { return text };
+    // `FILE:LINE: reason`: the reason follows the first ": " after the line number.
+    let reason = rest.split_once(".rs:").and_then(|(_, after)| after.split_once(": ")).map(|(_, r)| r);
+    reason.unwrap_or(rest).trim_end_matches('.').to_owned()
 }
 
 struct App {
@@ -94,6 +137,8 @@ struct Running {
     screenshots: Vec<PathBuf>,
     /// A capture of the next presented frame, by name.
     pending_capture: Option<String>,
+    /// The last reason a frame was too large for the device, so it is logged once per size.
+    too_large_noted: Option<String>,
     quit: bool,
 }
 
@@ -237,6 +282,7 @@ impl App {
             screenshot_dir: o.screenshot_dir.clone(),
             screenshots: Vec::new(),
             pending_capture: None,
+            too_large_noted: None,
             quit: false,
         })
     }
@@ -249,7 +295,7 @@ impl App {
             return Ok(());
         }
         let now = Instant::now();
-        let dt = (now - r.last_frame).as_secs_f32().min(0.25);
+        let dt = self.options.fixed_dt.unwrap_or((now - r.last_frame).as_secs_f32().min(0.25));
         r.last_frame = now;
         r.camera.update(&r.input, dt);
         let mut settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
@@ -268,8 +314,11 @@ impl App {
                 }
                 if let (Some(name), Some(frame)) = (capture, captured) {
                     let path = r.screenshot_dir.join(format!("{name}.png"));
-                    crate::output::write_image(&frame, &path)?;
-                    self.report.screenshots.push(path);
+                    // A full or read-only disk costs the file, not the session (as F12).
+                    match crate::output::write_image(&frame, &path) {
+                        Ok(()) => self.report.captures.push(path),
+                        Err(e) => log::error!("capture failed: {e}"),
+                    }
                 }
                 r.fps.tick(now);
                 self.report.frames += 1;
@@ -277,6 +326,16 @@ impl App {
             }
             Drawn::Skipped => {
                 // Nothing was shown: a capture waits for the next frame that is.
+                r.pending_capture = r.pending_capture.take().or(capture);
+                self.report.skipped += 1;
+                r.script_frames = r.script_frames.saturating_sub(1);
+            }
+            Drawn::TooLarge(why) => {
+                // A window larger than the device can draw (a huge monitor, a scripted resize)
+                // waits for a smaller size instead of ending the session; said once per size.
+                if r.too_large_noted.replace(why.clone()).as_ref() != Some(&why) {
+                    log::warn!("{why}; nothing is drawn until the window is smaller");
+                }
                 r.pending_capture = r.pending_capture.take().or(capture);
                 self.report.skipped += 1;
                 r.script_frames = r.script_frames.saturating_sub(1);
@@ -355,7 +414,13 @@ impl Running {
                     });
                 }
                 // Taken at this point of the script, before any later step changes the view.
-                ScriptStep::Screenshot(name) => self.screenshot(Some(name))?,
+                ScriptStep::Screenshot(name) => {
+                    // Logged and carried on from, as F12 is: a full or read-only disk costs the
+                    // file, not the session.
+                    if let Err(e) = self.screenshot(Some(name)) {
+                        log::error!("screenshot failed: {e:#}");
+                    }
+                }
                 // Draws the frame it captures before the script goes on.
                 ScriptStep::Capture(name) => {
                     self.pending_capture = Some(name);
@@ -398,8 +463,8 @@ impl Running {
         lines
     }
 
-    /// Writes NAME.png (as shown) and NAME.exr (linear radiance) beside the scene, rendering the
-    /// current view through the capture path at the window's size.
+    /// Writes NAME.png (as shown) and NAME.exr (linear radiance) into the screenshot directory,
+    /// rendering the current view through the capture path at the window's size.
     fn screenshot(&mut self, name: Option<String>) -> Result<()> {
         let stem = name.unwrap_or_else(timestamp_name);
         let extent = self.presenter.extent().unwrap_or(ash::vk::Extent2D { width: 320, height: 240 });

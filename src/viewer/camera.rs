@@ -7,7 +7,7 @@
 
 use std::f32::consts::{PI, TAU};
 
-use glam::Vec3;
+use glam::{DVec3, Vec3};
 
 use super::input::{InputState, Key};
 use crate::scene::Camera;
@@ -19,7 +19,9 @@ const FAST: f32 = 4.0;
 
 #[derive(Clone, Debug, PartialEq)]
 pub struct FlyCamera {
-    pub eye: Vec3,
+    /// World position, in f64 like every world position (far from the origin an f32 eye would
+    /// move in steps of a metre).
+    pub eye: DVec3,
     /// Radians, in [-pi, pi).
     pub yaw: f32,
     pub pitch: f32,
@@ -31,13 +33,13 @@ impl FlyCamera {
     /// Yaw and pitch from the scene camera's eye and target; speed from its distance, so a
     /// second of movement crosses about a third of the view.
     pub fn from_scene(cam: &Camera) -> FlyCamera {
-        let d = (cam.target - cam.eye).normalize_or(Vec3::NEG_Z);
+        let d = (cam.target - cam.eye).normalize_or(DVec3::NEG_Z).as_vec3();
         let max = MAX_PITCH_DEG.to_radians();
         FlyCamera {
             eye: cam.eye,
             yaw: wrap_angle((-d.x).atan2(-d.z)),
             pitch: d.y.clamp(-1.0, 1.0).asin().clamp(-max, max),
-            speed: ((cam.target - cam.eye).length() * 0.35).max(0.1),
+            speed: (((cam.target - cam.eye).length() * 0.35) as f32).max(0.1),
         }
     }
 
@@ -58,7 +60,7 @@ impl FlyCamera {
     }
 
     pub fn to_camera(&self, vfov_deg: f32) -> Camera {
-        Camera { eye: self.eye, target: self.eye + self.forward(), up: Vec3::Y, vfov_deg }
+        Camera { eye: self.eye, target: self.eye + self.forward().as_dvec3(), up: Vec3::Y, vfov_deg }
     }
 
     /// Turns by raw mouse motion: right turns right, down looks down. Non-finite motion is
@@ -93,7 +95,7 @@ impl FlyCamera {
         motion += Vec3::Y * axis(Key::E, Key::Q);
         if motion != Vec3::ZERO {
             let speed = if input.held(Key::Shift) { self.speed * FAST } else { self.speed };
-            self.eye += motion.normalize() * speed * dt;
+            self.eye += (motion.normalize() * speed * dt).as_dvec3();
         }
     }
 }
@@ -118,7 +120,7 @@ mod tests {
     use crate::viewer::input::InputEvent;
 
     fn cam(eye: Vec3, target: Vec3) -> Camera {
-        Camera { eye, target, up: Vec3::Y, vfov_deg: 40.0 }
+        Camera { eye: eye.as_dvec3(), target: target.as_dvec3(), up: Vec3::Y, vfov_deg: 40.0 }
     }
 
     fn held(keys: &[Key]) -> InputState {
@@ -144,7 +146,7 @@ mod tests {
                 continue; // steeper than the clamp: documented to be clamped
             }
             let c = FlyCamera::from_scene(&cam(eye, target)).to_camera(40.0);
-            assert!(((c.target - c.eye) - d).length() < 1e-5, "{d:?} vs {:?}", c.target - c.eye);
+            assert!(((c.target - c.eye).as_vec3() - d).length() < 1e-5, "{d:?} vs {:?}", c.target - c.eye);
             checked += 1;
         }
         assert!(checked > 300);
@@ -166,19 +168,19 @@ mod tests {
         let s = start.speed;
         let mut c = start.clone();
         c.update(&held(&[Key::W]), 1.0);
-        assert!((c.eye - Vec3::new(0.0, 0.0, -s)).length() < 1e-5, "{:?}", c.eye);
+        assert!((c.eye.as_vec3() - Vec3::new(0.0, 0.0, -s)).length() < 1e-5, "{:?}", c.eye);
         let mut c = start.clone();
         c.update(&held(&[Key::W, Key::Shift]), 0.5);
-        assert!((c.eye.z + 2.0 * s).abs() < 1e-5, "4x speed for half a second");
+        assert!((c.eye.z as f32 + 2.0 * s).abs() < 1e-5, "4x speed for half a second");
         let mut c = start.clone();
         c.update(&held(&[Key::E]), 1.0);
-        assert!((c.eye - Vec3::new(0.0, s, 0.0)).length() < 1e-5, "E moves up along world Y only");
+        assert!((c.eye.as_vec3() - Vec3::new(0.0, s, 0.0)).length() < 1e-5, "E moves up along world Y only");
         let mut c = start.clone();
         c.update(&held(&[Key::D]), 1.0);
-        assert!((c.eye - Vec3::new(s, 0.0, 0.0)).length() < 1e-5, "D strafes right");
+        assert!((c.eye.as_vec3() - Vec3::new(s, 0.0, 0.0)).length() < 1e-5, "D strafes right");
         let mut c = start.clone();
         c.update(&held(&[Key::W, Key::S]), 1.0);
-        assert_eq!(c.eye, Vec3::ZERO, "opposite keys cancel");
+        assert_eq!(c.eye, DVec3::ZERO, "opposite keys cancel");
     }
 
     #[test]

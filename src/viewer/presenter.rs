@@ -51,6 +51,9 @@ pub enum Drawn {
     Frame { timings: Vec<(&'static str, f64)>, captured: Option<Frame> },
     /// Nothing to draw into (minimised, or the swapchain was just recreated).
     Skipped,
+    /// The window is larger than this device can draw a frame for (the reason says what it
+    /// needs); nothing was acquired, so the viewer can wait for a smaller size.
+    TooLarge(String),
 }
 
 impl Presenter {
@@ -165,6 +168,13 @@ impl Presenter {
             if self.swapchain.is_none() {
                 return Ok(Drawn::Skipped);
             }
+        }
+        // Before acquiring: an image acquired and then not presented would hold the swapchain.
+        let extent = self.swapchain.as_ref().expect("recreated above").extent;
+        let mut sized = settings.clone();
+        (sized.width, sized.height) = (extent.width, extent.height);
+        if let Err(why) = renderer.check_frame_size(&sized) {
+            return Ok(Drawn::TooLarge(why));
         }
         let device = &self.ctx.device;
         let slot = &mut self.slots[self.next];

@@ -250,8 +250,8 @@ mod tests {
         s.on_key(Key::V);
         assert_eq!(
             s.render_settings(Camera {
-                eye: glam::Vec3::Z,
-                target: glam::Vec3::ZERO,
+                eye: glam::DVec3::Z,
+                target: glam::DVec3::ZERO,
                 up: glam::Vec3::Y,
                 vfov_deg: 40.0
             })
@@ -260,7 +260,7 @@ mod tests {
         );
         s.on_key(Key::F1);
         assert!(!s.overlay);
-        let cam = Camera { eye: glam::Vec3::Z, target: glam::Vec3::ZERO, up: glam::Vec3::Y, vfov_deg: 40.0 };
+        let cam = Camera { eye: glam::DVec3::Z, target: glam::DVec3::ZERO, up: glam::Vec3::Y, vfov_deg: 40.0 };
         s.on_key(Key::B);
         assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::RayQuery);
         s.on_key(Key::B);

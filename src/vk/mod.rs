@@ -30,17 +30,31 @@ pub mod bindings {
     include!(concat!(env!("OUT_DIR"), "/bindings.rs"));
 }
 
-/// Errors from the GPU layer: one line each, naming the call that failed.
+/// Errors from the GPU layer: one line each, naming the call that failed. The wrapped errors'
+/// text is in the message and they are not given as a `source`: `{:#}` prints the chain, and
+/// "Out of memory: Out of memory" said it twice.
 #[derive(Debug, thiserror::Error)]
 pub enum GpuError {
     #[error("cannot load the Vulkan loader (libvulkan.so.1): {0}; run tools/setup")]
-    Loader(#[from] ash::LoadingError),
+    Loader(ash::LoadingError),
     #[error("{call} failed: {result}")]
     Vk { call: &'static str, result: ash::vk::Result },
-    #[error("memory allocation failed: {0}")]
-    Alloc(#[from] gpu_allocator::AllocationError),
+    #[error("device memory allocation failed: {0}")]
+    Alloc(gpu_allocator::AllocationError),
     #[error("{0}")]
     Unsupported(String),
+}
+
+impl From<ash::LoadingError> for GpuError {
+    fn from(e: ash::LoadingError) -> GpuError {
+        GpuError::Loader(e)
+    }
+}
+
+impl From<gpu_allocator::AllocationError> for GpuError {
+    fn from(e: gpu_allocator::AllocationError) -> GpuError {
+        GpuError::Alloc(e)
+    }
 }
 
 pub type GpuResult<T> = Result<T, GpuError>;

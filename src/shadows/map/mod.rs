@@ -235,6 +235,7 @@ pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &B
     let extent = (casters.max - casters.min).length().max(1e-3);
     let (mode, layers, what) = match *light {
         Light::Spot { position, direction, outer_deg, .. } => {
+            let position = position.as_vec3(); // the local frame's f32
             let vp = spot_view_proj(position, direction, outer_deg, casters);
             let (near, far) = depth_range(position, direction, casters, extent * 1e-4);
             let fov = (2.0 * outer_deg).to_radians().clamp(1e-3, 179f32.to_radians());
@@ -245,6 +246,7 @@ pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &B
             (Mode::Single, vec![MapLayer::orthographic(vp, res)], "directional".to_string())
         }
         Light::Point { position, .. } => {
+            let position = position.as_vec3(); // the local frame's f32
             let far = casters.corners().iter().map(|c| (*c - position).length()).fold(0.0, f32::max) * 1.01;
             if far <= 0.0 {
                 return None;
@@ -495,6 +497,7 @@ pub fn view_forward(frame: &FrameInputs<'_, '_>) -> Vec3 {
 mod tests {
     use super::*;
     use crate::shadows::light_space::{orthographic_reversed, perspective_reversed};
+    use glam::DVec3;
 
     #[test]
     fn boxes_outside_a_spot_frustum_are_culled() {
@@ -544,7 +547,7 @@ mod tests {
         let casters = Bounds::new(Vec3::new(-1.0, 0.0, -1.0), Vec3::new(1.0, 1.0, 1.0));
         let receivers = Bounds::new(Vec3::new(-5.0, 0.0, -5.0), Vec3::new(5.0, 1.0, 5.0));
         let served = Served { light: 0, layer: 0, choice: Default::default(), unshadowed: false };
-        let point = Light::Point { position: Vec3::new(0.0, 4.0, 0.0), intensity: Vec3::ONE, radius: 0.0 };
+        let point = Light::Point { position: DVec3::new(0.0, 4.0, 0.0), intensity: Vec3::ONE, radius: 0.0 };
         let m = light_map(&served, &point, &casters, &receivers).expect("point");
         assert_eq!((m.mode, m.layers.len()), (Mode::Cube, 6));
         let sun = Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE, angular_diameter_deg: 0.5 };

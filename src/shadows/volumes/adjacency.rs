@@ -265,7 +265,8 @@ mod scene_tests {
     fn the_default_scenes_solids_qualify_and_its_floor_does_not() {
         let scene = Scene::default_scene();
         for mesh in &scene.meshes {
-            let result = build(&mesh.positions, &mesh.indices);
+            let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+            let result = build(&positions, &mesh.indices);
             if mesh.name.contains("plane") {
                 assert!(matches!(result, Err(NotManifold::Open { .. })), "{}: {result:?}", mesh.name);
             } else {

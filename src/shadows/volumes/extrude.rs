@@ -13,7 +13,7 @@ use crate::scene::Light;
 /// push constant holds.
 pub fn light_point(light: &Light) -> Vec4 {
     match *light {
-        Light::Point { position, .. } | Light::Spot { position, .. } => position.extend(1.0),
+        Light::Point { position, .. } | Light::Spot { position, .. } => position.as_vec3().extend(1.0),
         Light::Directional { direction, .. } => (-direction).extend(0.0),
     }
 }
@@ -132,7 +132,8 @@ mod tests {
         let (p, i) = cube(Vec3::ZERO);
         let mut meshes = vec![("cube".to_string(), build(&p, &i).unwrap())];
         for mesh in crate::scene::Scene::default_scene().meshes {
-            if let Ok(adj) = build(&mesh.positions, &mesh.indices) {
+            let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+            if let Ok(adj) = build(&positions, &mesh.indices) {
                 meshes.push((mesh.name, adj));
             }
         }
@@ -238,7 +239,7 @@ mod tests {
     fn the_light_point_is_homogeneous() {
         let sun = Light::Directional { direction: Vec3::NEG_Y, irradiance: Vec3::ONE, angular_diameter_deg: 0.0 };
         assert_eq!(light_point(&sun), Vec4::new(0.0, 1.0, 0.0, 0.0));
-        let bulb = Light::Point { position: Vec3::new(1.0, 2.0, 3.0), intensity: Vec3::ONE, radius: 0.0 };
+        let bulb = Light::Point { position: DVec3::new(1.0, 2.0, 3.0), intensity: Vec3::ONE, radius: 0.0 };
         assert_eq!(light_point(&bulb), Vec4::new(1.0, 2.0, 3.0, 1.0));
         // Extruded away from the light, either way.
         assert_eq!(beyond(Vec3::ZERO, light_point(&sun)), Vec4::new(0.0, -1.0, 0.0, 0.0));

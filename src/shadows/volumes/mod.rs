@@ -84,7 +84,8 @@ impl CasterAdjacency {
 pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdjacency, String> {
     let mut all = CasterAdjacency::default();
     for mesh in scene.meshes.iter().filter(|m| m.cast_shadows && !m.indices.is_empty()) {
-        let adj = adjacency::build(&mesh.positions, &mesh.indices).map_err(|e| {
+        let positions: Vec<glam::Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+        let adj = adjacency::build(&positions, &mesh.indices).map_err(|e| {
             format!(
                 "mesh {:?} cannot cast shadow volumes: {} (`cast_shadows = false` on it would leave it out)",
                 mesh.name,
@@ -494,7 +495,7 @@ mod tests {
     #[test]
     fn a_device_without_geometry_shaders_is_refused_first() {
         let caps = Capabilities { geometry_shader: false, ..Default::default() };
-        let light = Light::Point { position: glam::Vec3::Y, intensity: glam::Vec3::ONE, radius: 0.0 };
+        let light = Light::Point { position: glam::DVec3::Y, intensity: glam::Vec3::ONE, radius: 0.0 };
         let why = serves(&light, &caps, None).unwrap_err();
         assert!(why.contains("geometry shader"), "{why}");
         let caps = Capabilities { geometry_shader: true, ..Default::default() };

@@ -1,0 +1,66 @@
+//! The renderer's scene-local frame: world positions (f64) moved, in f64, so that the geometry
+//! is centred on the origin, where the f32 the GPU works in keeps its precision. Geometry that
+//! f32 cannot hold there is left out, one warning per object, so the rest still renders.
+
+use glam::DVec3;
+
+use super::{Light, Scene};
+
+/// How far from the camera, along any axis, a vertex may lie and still be rendered (metres).
+/// f32 itself reaches 3.4e38, but the renderer multiplies coordinates together: edge cross
+/// products in ray-triangle tests, squared lengths of bounds and light vectors, light-space
+/// fits. At 1e12 m (about 7 times the Sun's distance) a cube of a coordinate, 1e36, still fits;
+/// a sphere at 1e19 m or a triangle at 1e38 m does not (either made the whole image background
+/// before it was left out).
+pub const MAX_LOCAL_DISTANCE: f64 = 1e12;
+
+impl Scene {
+    /// This scene moved into its scene-local frame, and that frame's origin in world space.
+    ///
+    /// Meshes with a vertex more than `MAX_LOCAL_DISTANCE` from the camera are left out, each
+    /// with a warning naming it; the origin is then the centre of the bounds of what is kept (or
+    /// the camera when nothing is), so the kept geometry's coordinates stay below that distance.
+    /// Positions are still f64 here; the renderer rounds them to f32 as it uploads them.
+    pub fn local_frame(&self) -> (Scene, DVec3) {
+        let eye = self.camera.eye;
+        let within = |p: &DVec3| (*p - eye).abs().max_element() <= MAX_LOCAL_DISTANCE;
+        let mut kept = self.clone();
+        kept.meshes.retain(|mesh| {
+            let Some(far) = mesh.positions.iter().find(|p| !within(p)) else { return true };
+            log::warn!(
+                "{} ({}): a vertex lies {} m from the camera, beyond the {} m single precision can \
+                 hold in the renderer's frame; the mesh is left out",
+                mesh.object,
+                mesh.name,
+                super::error::short_number((*far - eye).length()),
+                super::error::short_number(MAX_LOCAL_DISTANCE),
+            );
+            false
+        });
+        for (i, light) in kept.lights.iter().enumerate() {
+            if let Light::Point { position, .. } | Light::Spot { position, .. } = light {
+                if !within(position) {
+                    log::warn!(
+                        "lights[{i}]: {} m from the camera, beyond the {} m the renderer's frame holds; \
+                         its light and shadows will be wrong",
+                        super::error::short_number((*position - eye).length()),
+                        super::error::short_number(MAX_LOCAL_DISTANCE),
+                    );
+                }
+            }
+        }
+        let origin = geometry_centre(&kept).unwrap_or(eye);
+        (kept.translated(-origin), origin)
+    }
+}
+
+/// Centre of the bounds of every mesh vertex, in world space; `None` without geometry.
+fn geometry_centre(scene: &Scene) -> Option<DVec3> {
+    let mut lo = DVec3::splat(f64::INFINITY);
+    let mut hi = DVec3::splat(f64::NEG_INFINITY);
+    for p in scene.meshes.iter().flat_map(|m| &m.positions) {
+        lo = lo.min(*p);
+        hi = hi.max(*p);
+    }
+    lo.x.is_finite().then(|| (lo + hi) * 0.5)
+}

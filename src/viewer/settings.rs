@@ -270,7 +270,7 @@ mod tests {
     #[test]
     fn the_overlay_names_the_view_as_the_command_line_does() {
         let mut s = ViewerSettings::new(1);
-        let light = Light::Point { position: glam::Vec3::Y, intensity: glam::Vec3::ONE, radius: 0.0 };
+        let light = Light::Point { position: glam::DVec3::Y, intensity: glam::Vec3::ONE, radius: 0.0 };
         let view_line = |s: &ViewerSettings| s.describe(&[light]).into_iter().find(|l| l.starts_with("view ")).unwrap();
         assert!(view_line(&s).starts_with("view shaded "), "{}", view_line(&s));
         while s.debug_view() != Some(DebugView::GeometricNormal) {

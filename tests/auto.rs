@@ -2,8 +2,8 @@
 //! candidate's time and error on the scene's own camera, and the pick is the cheapest under E.
 //! Checked against the calibration's own cached measurements: with E = 0 only an exact method
 //! (hard `traced`; `volumes`, or `hybrid` where its map missed nothing) qualifies, and with a
-//! generous E the pick is the cheapest of all, here (closed casters over a floor that casts
-//! nothing, so `volumes` serves) cheaper than `traced`. The second run reuses the
+//! generous E the pick is the cheapest of all (closed casters over a floor that casts nothing,
+//! so `volumes` serves too). Which is cheapest is measured, not asserted. The second run reuses the
 //! cached calibration. With validation on.
 
 mod common;
@@ -86,6 +86,11 @@ fn auto_picks_the_cheapest_method_under_the_bound_from_its_measurements() {
     let cheapest = light.iter().min_by(|a, b| time(a).total_cmp(&time(b))).unwrap();
     assert!(error(cheapest) <= 0.5);
     assert_eq!(chosen(&generous), label(cheapest));
-    assert!(time(cheapest) < time(traced), "a method cheaper than traced exists here: {light:?}");
+    // Which candidate is cheapest is a measurement (no test asserts a speed); what follows from
+    // it is not: when the cheapest is inexact, the strict and the generous bound pick apart.
+    if error(cheapest) > 0.0 {
+        assert_ne!(chosen(&strict), chosen(&generous));
+    }
+    println!("cheapest: {} ({:.3} ms, error {:.4}); traced {:.3} ms", label(cheapest), time(cheapest), error(cheapest), time(traced));
     assert!(generous.contains("runner-up"), "{generous}");
 }

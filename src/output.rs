@@ -134,6 +134,24 @@ pub fn write_image_with(frame: &Frame, path: &Path, options: &WriteOptions) -> R
     cleanup::persist(tmp, path).map_err(|e| fail(format!("cannot move the finished image into place: {e}")))
 }
 
+/// Writes `bytes` to `path` atomically: a temporary file beside it, created exclusively with
+/// the mode a new file gets (0666 less the umask), removed on failure or on SIGINT/SIGTERM, then
+/// renamed into place. For every other file umbra writes (bench results, charts).
+pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let dir = match path.parent() {
+        Some(dir) if !dir.as_os_str().is_empty() => dir,
+        _ => Path::new("."),
+    };
+    let mut tmp = cleanup::create(dir, &file_name)?;
+    if let Err(e) = tmp.write_all(bytes).and_then(|()| tmp.as_file().sync_all()) {
+        cleanup::discard(tmp);
+        return Err(e);
+    }
+    cleanup::persist(tmp, path)
+}
+
 fn write_png(frame: &Frame, tmp: &NamedTempFile) -> Result<(), String> {
     let (width, height, bytes) = match frame {
         Frame::Rgba8 { width, height, pixels } => (*width, *height, pixels.clone()),

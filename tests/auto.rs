@@ -91,6 +91,12 @@ fn auto_picks_the_cheapest_method_under_the_bound_from_its_measurements() {
     if error(cheapest) > 0.0 {
         assert_ne!(chosen(&strict), chosen(&generous));
     }
-    println!("cheapest: {} ({:.3} ms, error {:.4}); traced {:.3} ms", label(cheapest), time(cheapest), error(cheapest), time(traced));
+    println!(
+        "cheapest: {} ({:.3} ms, error {:.4}); traced {:.3} ms",
+        label(cheapest),
+        time(cheapest),
+        error(cheapest),
+        time(traced)
+    );
     assert!(generous.contains("runner-up"), "{generous}");
 }

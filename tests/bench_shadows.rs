@@ -280,6 +280,14 @@ fn bench_sweeps_two_scenes_scores_against_a_cached_reference() {
         assert!(svg.starts_with("<svg") || svg.starts_with("<?xml"), "{}", &svg[..80.min(svg.len())]);
         assert!(svg.trim_end().ends_with("</svg>"));
         let png = image::open(out.join(s(scene, "chart_png"))).expect("the PNG chart decodes");
+        // Results get the mode any new file gets (0666 less the umask), not a temporary
+        // file's 0600.
+        use std::os::unix::fs::PermissionsExt as _;
+        let status = std::fs::read_to_string("/proc/self/status").unwrap();
+        let umask =
+            status.lines().find_map(|l| l.strip_prefix("Umask:")).map(|m| u32::from_str_radix(m.trim(), 8).unwrap());
+        let mode = std::fs::metadata(out.join(s(scene, "chart_png"))).unwrap().permissions().mode() & 0o777;
+        assert_eq!(mode, 0o666 & !umask.unwrap_or(0o022), "chart mode {mode:o}");
         assert!(png.width() > 100 && png.height() > 100);
     }
 

@@ -4,7 +4,6 @@
 //! draw, and the PNG's text is drawn with the public-domain font8x8 glyphs (the viewer's
 //! overlay font) through [`GlyphBitmap`], a bitmap backend whose only change is text.
 
-use std::io::Write as _;
 use std::path::Path;
 
 use plotters::coord::Shift;
@@ -165,12 +164,7 @@ use image::ImageEncoder as _;
 
 /// Writes `bytes` to a temporary file beside `path`, then renames it to `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {
-    let dir = path.parent().filter(|d| !d.as_os_str().is_empty()).unwrap_or(Path::new("."));
-    let fail = |e: std::io::Error| format!("{}: {e}", path.display());
-    let mut tmp = tempfile::NamedTempFile::new_in(dir).map_err(fail)?;
-    tmp.write_all(bytes).map_err(fail)?;
-    tmp.persist(path).map_err(|e| fail(e.error))?;
-    Ok(())
+    crate::output::write_file_atomic(path, bytes).map_err(|e| format!("{}: {e}", path.display()))
 }
 
 mod glyphs {

@@ -232,7 +232,8 @@ pub fn scene_pareto(rows: &[Row], scene: &str) -> Vec<usize> {
 /// a light fell back to another method left out).
 pub fn scene_auto(rows: &[Row], scene: &str, max_error: f64) -> Option<usize> {
     // A row whose method fell back to `traced` for some light measured traced, not the method.
-    let under = frame_rows(rows, scene).into_iter().filter(|&i| rows[i].method != "none" && rows[i].fallback.is_empty());
+    let under =
+        frame_rows(rows, scene).into_iter().filter(|&i| rows[i].method != "none" && rows[i].fallback.is_empty());
     under
         .filter(|&i| rows[i].scored_error <= max_error)
         .min_by(|&a, &b| rows[a].time_ms().total_cmp(&rows[b].time_ms()))

@@ -502,7 +502,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             }
         }
         let chart = Chart {
-            title: format!("{} at {width}x{height} on {device}", job.label),
+            title: format!("{}, {width}x{height}, {device}", job.stem),
             x_label: if time_axis == "host_ms" {
                 "host time per frame, ms (log)".into()
             } else {

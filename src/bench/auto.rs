@@ -181,7 +181,7 @@ fn calibrate(
     let calibration = renderer.calibrate_timings()?.clone();
     let mut out = Vec::new();
     for &n in asked {
-        let light = renderer.scene().lights[n].clone();
+        let light = renderer.scene().lights[n];
         let mut measures = Vec::new();
         for (method, set) in candidates(&light) {
             let mut choice = ShadowChoice { method, ..base[n] };

@@ -170,7 +170,7 @@ fn map_texels(served_by: ShadowMethod, choice: &ShadowChoice, light: &Light) -> 
 /// Rays `hybrid` traced for light `n` in one frame: the pixels its `hybrid:N` view marks, times
 /// the rays per pixel.
 fn hybrid_rays(renderer: &mut Renderer, width: u32, height: u32, n: usize, choice: ShadowChoice) -> Result<u64> {
-    let light = renderer.scene().lights[n].clone();
+    let light = renderer.scene().lights[n];
     let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); renderer.scene().lights.len()];
     shadows[n] = choice;
     let mut s = reference::settings(width, height, OutputKind::SceneLinear, shadows);

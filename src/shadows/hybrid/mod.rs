@@ -65,23 +65,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
         std::mem::size_of::<ClassifyPush>() as u32,
         TILE,
     )?;
-    let trace = ComputePipeline::new(
-        ctx,
-        "shadow trace (list)",
-        spirv::SHADOWS_TRACED_TRACE_LIST_COMP,
-        &[
-            sampled(SHADOW_POSITION),
-            sampled(SHADOW_NORMAL),
-            sampled(SHADOW_SURFACE),
-            storage(SHADOW_LIGHTS),
-            storage(SHADOW_BVH_NODES),
-            storage(SHADOW_BVH_TRIANGLES),
-            storage_image(SHADOW_VISIBILITY),
-            storage(SHADOW_LIST),
-        ],
-        32,
-        [LIST_GROUP, 1],
-    )?;
+    let trace = traced::list_pipeline(ctx, LIST_GROUP)?;
     Ok(Pipelines { classify, trace, view: OnceLock::new(), ctx: ctx.clone() })
 }
 

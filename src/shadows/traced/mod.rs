@@ -37,22 +37,33 @@ impl Pipelines {
     }
 }
 
+/// The compute-BVH trace's bindings (trace.comp and trace_list.comp).
+const BVH_BINDINGS: [(u32, DescriptorKind); 7] = [
+    (SHADOW_POSITION, DescriptorKind::SampledImage),
+    (SHADOW_NORMAL, DescriptorKind::SampledImage),
+    (SHADOW_SURFACE, DescriptorKind::SampledImage),
+    (SHADOW_LIGHTS, DescriptorKind::StorageBuffer),
+    (SHADOW_BVH_NODES, DescriptorKind::StorageBuffer),
+    (SHADOW_BVH_TRIANGLES, DescriptorKind::StorageBuffer),
+    (SHADOW_VISIBILITY, DescriptorKind::StorageImage),
+];
+
 pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(ctx, "shadow trace", spirv::SHADOWS_TRACED_TRACE_COMP, &BVH_BINDINGS, 32, TILE)
+}
+
+/// The same rays over the compute BVH for the pixels of a list only (`hybrid`), one
+/// invocation per listed pixel, `list_group` to a workgroup (an indirect dispatch).
+pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32) -> GpuResult<ComputePipeline> {
+    let mut bindings = BVH_BINDINGS.to_vec();
+    bindings.push((SHADOW_LIST, DescriptorKind::StorageBuffer));
     ComputePipeline::new(
         ctx,
-        "shadow trace",
-        spirv::SHADOWS_TRACED_TRACE_COMP,
-        &[
-            sampled(SHADOW_POSITION),
-            sampled(SHADOW_NORMAL),
-            sampled(SHADOW_SURFACE),
-            storage(SHADOW_LIGHTS),
-            storage(SHADOW_BVH_NODES),
-            storage(SHADOW_BVH_TRIANGLES),
-            storage_image(SHADOW_VISIBILITY),
-        ],
+        "shadow trace (list)",
+        spirv::SHADOWS_TRACED_TRACE_LIST_COMP,
+        &bindings,
         32,
-        TILE,
+        [list_group, 1],
     )
 }
 

@@ -89,3 +89,18 @@ fn lights_past_128_keep_their_own_method() {
     drop(renderer);
     common::assert_clean(&ctx);
 }
+
+/// `--size 8192x8192 --shadows none` was refused for a visibility buffer that `none` never
+/// allocates (issue 10): a frame without shadow work now plans no visibility target and passes
+/// the limit checks (planned, not rendered: a 67-megapixel frame takes a while on lavapipe).
+#[test]
+fn a_frame_without_shadow_work_needs_no_visibility_target_at_any_size() {
+    let ctx = common::gpu();
+    let renderer = Renderer::new(ctx.clone(), ring_of_spots(64)).expect("renderer");
+    let mut s = RenderSettings::new(8192, 8192, OutputKind::Display);
+    s.shadows = vec![ShadowChoice::of(ShadowMethod::None); 64];
+    let plan = renderer.plan(&s).expect("no shadow work: nothing to refuse").to_string();
+    assert!(!plan.contains("visibility"), "{plan}");
+    drop(renderer);
+    common::assert_clean(&ctx);
+}

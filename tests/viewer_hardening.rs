@@ -2,7 +2,8 @@
 //! screenshots and captures go to `--out-dir` and are named apart in the summary, a scripted
 //! screenshot or capture that cannot be written is logged and the session goes on (as F12),
 //! a script moves the camera by a fixed step per frame (`--fixed-dt`, 1/60 s by default) so two
-//! runs give the same image, and a window too large for the device does not end the session.
+//! runs give the same image, a 5120x2880 window with three shadowed lights renders, and a
+//! window too large for the device does not end the session.
 
 mod common;
 
@@ -152,5 +153,62 @@ fn a_window_too_large_for_the_device_waits_for_a_smaller_size() {
     assert!(text.contains("3 turns without a frame"), "{text}");
     let after = image::open(dir.join("after.png")).expect("drawn again once smaller");
     assert_eq!((after.width(), after.height()), (160, 120));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The issue's case: a script resizing to 5120x2880 with three shadowed lights exited with
+/// "needs a 176947200-byte visibility buffer" (three f32 layers past lavapipe's 128 MiB storage
+/// binding). The visibility target is now an R8 layered image: the window renders at that size.
+/// A small scene keeps it to seconds.
+#[test]
+fn a_5120x2880_window_with_three_shadowed_lights_keeps_rendering() {
+    let dir = scene_dir("5k");
+    let scene = r#"
+[camera]
+eye = [0.0, 3.5, 6.0]
+target = [0.0, 0.3, 0.0]
+vfov_deg = 45.0
+
+[[lights]]
+type = "point"
+position = [1.2, 3.0, 1.5]
+intensity = [30.0, 30.0, 30.0]
+
+[[lights]]
+type = "directional"
+direction = [0.5, -1.0, 0.3]
+irradiance = [2.0, 2.0, 2.0]
+
+[[lights]]
+type = "spot"
+position = [-1.5, 4.0, 2.0]
+direction = [0.3, -1.0, -0.4]
+intensity = [40.0, 40.0, 40.0]
+inner_deg = 30.0
+outer_deg = 40.0
+
+[[objects]]
+shape = "plane"
+size = 10.0
+[[objects]]
+shape = "cube"
+size = 1.0
+translate = [0.0, 0.5, 0.0]
+"#;
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    let out =
+        view(&dir, "frames 1\nresize 5120 2880\nframes 1\ncapture big\nquit\n", &["--out-dir", dir.to_str().unwrap()]);
+    assert_ran_clean(&out);
+    let big = image::open(dir.join("big.png")).expect("the 5120x2880 frame was captured");
+    assert_eq!((big.width(), big.height()), (5120, 2880));
+    // A shaded frame: lit surfaces, and shadows or background far darker than the brightest.
+    let rgb = big.to_rgb8();
+    let lums: Vec<u32> = (0..rgb.height())
+        .step_by(16)
+        .flat_map(|y| (0..rgb.width()).step_by(16).map(move |x| (x, y)))
+        .map(|(x, y)| rgb.get_pixel(x, y).0.iter().map(|&c| u32::from(c)).sum())
+        .collect();
+    let brightest = *lums.iter().max().unwrap();
+    assert!(brightest > 200 && lums.iter().any(|&l| l < brightest / 4), "a shaded frame");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -33,6 +33,7 @@ pub(super) struct LoadedObj {
 /// of its MTL libraries looked up next to it. A missing or broken MTL only costs the materials.
 pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
     let bytes = input::read(path).map_err(ObjError::Read)?;
+    check_indices(&bytes).map_err(ObjError::Parse)?;
     let short_faces = count_short_faces(&bytes);
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let dir = path.parent().unwrap_or(Path::new(""));
@@ -67,6 +68,61 @@ pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
         })
         .collect();
     Ok(LoadedObj { meshes, short_faces, material_files: material_files.into_inner() })
+}
+
+/// Refuses a face corner whose index names no vertex, texture coordinate or normal: a positive
+/// index past the file's count of them, or a negative (relative) one reaching back past the
+/// first. tobj turns such a relative index into a huge one and overflows its arithmetic on it
+/// (a panic where overflow is checked; found by `tools/fuzz --afl`), so they are caught here,
+/// with the line.
+fn check_indices(bytes: &[u8]) -> Result<(), String> {
+    fn words(line: &[u8]) -> Vec<&[u8]> {
+        line.split(|b| b.is_ascii_whitespace()).filter(|w| !w.is_empty()).collect()
+    }
+    let lines = || bytes.split(|&b| b == b'\n');
+    const KINDS: [(&[u8], &str); 3] = [(b"v", "vertex"), (b"vt", "texture coordinate"), (b"vn", "normal")];
+    let mut total = [0i64; 3];
+    for line in lines() {
+        if let Some(k) = words(line).first().and_then(|w| KINDS.iter().position(|(key, _)| key == w)) {
+            total[k] += 1;
+        }
+    }
+    let mut seen = [0i64; 3];
+    for (n, line) in lines().enumerate() {
+        let words = words(line);
+        let Some(&first) = words.first() else { continue };
+        if let Some(k) = KINDS.iter().position(|(key, _)| *key == first) {
+            seen[k] += 1;
+            continue;
+        }
+        if !matches!(first, b"f" | b"l" | b"p") {
+            continue;
+        }
+        for corner in &words[1..] {
+            for (k, part) in corner.split(|&b| b == b'/').enumerate().take(3) {
+                let Some(index) = std::str::from_utf8(part).ok().and_then(|t| t.parse::<i64>().ok()) else { continue };
+                if k > 0 && total[k] == 0 {
+                    continue; // tobj ignores texture and normal indices of a file that has none
+                }
+                let fits = match index {
+                    i if i > 0 => i <= total[k],
+                    i if i < 0 => -i <= seen[k],
+                    _ => false,
+                };
+                if !fits {
+                    let (_, what) = KINDS[k];
+                    let have = if index < 0 { seen[k] } else { total[k] };
+                    return Err(format!(
+                        "line {}: {} index {index} names no {what} (there are {have}{})",
+                        n + 1,
+                        String::from_utf8_lossy(first),
+                        if index < 0 { " before it" } else { "" }
+                    ));
+                }
+            }
+        }
+    }
+    Ok(())
 }
 
 /// `f` lines with one or two vertex references, which tobj parses as points and lines and, with
@@ -191,6 +247,23 @@ impl BufRead for LineCounter<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// AFL's crash (tools/fuzz --afl): a relative index reaching back past the first texture
+    /// coordinate overflowed tobj's arithmetic. Refused here with its line; valid relative,
+    /// forward and attribute-less indices pass, as tobj reads them.
+    #[test]
+    fn face_indices_that_name_nothing_are_refused_with_their_line() {
+        let ok = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/1 3/-1\nf -3//7 -2 -1\nf 1 2 4\nv 1 1 0\n";
+        assert_eq!(check_indices(ok), Ok(()), "relative, forward, and normals where the file has none");
+        let back = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nvt 0 0\nf 1/1 2/-3 3/1\n";
+        assert_eq!(
+            check_indices(back).unwrap_err(),
+            "line 5: f index -3 names no texture coordinate (there are 1 before it)"
+        );
+        let past = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 18446744073709551\n";
+        assert!(check_indices(past).unwrap_err().starts_with("line 4: f index 18446744073709551 names no vertex"));
+        assert!(check_indices(b"v 0 0 0\nf 0 1 1\n").unwrap_err().contains("index 0 names no vertex"));
+    }
 
     #[test]
     fn shininess_maps_to_roughness_monotonically() {

@@ -10,34 +10,12 @@ mod common;
 
 use serde_json::Value;
 
-const SCENE: &str = r#"
-[camera]
-eye = [0.0, 3.5, 6.0]
-target = [0.0, 0.3, 0.0]
-vfov_deg = 45.0
-
-[[lights]]
-type = "spot"
-position = [-1.5, 4.0, 2.0]
-direction = [0.3, -1.0, -0.4]
-intensity = [40.0, 40.0, 40.0]
-inner_deg = 30.0
-outer_deg = 40.0
-shadows = "auto"
-
-[[objects]]
-shape = "plane"
-size = 10.0
-cast_shadows = false
-[[objects]]
-shape = "cube"
-size = 1.0
-translate = [0.0, 0.5, 0.0]
-[[objects]]
-shape = "sphere"
-radius = 0.4
-translate = [1.4, 0.4, 0.6]
-"#;
+/// The shared box scene under its spot, on `auto`, over a floor that casts nothing.
+fn scene() -> String {
+    let spot = format!("{}shadows = \"auto\"\n", common::SPOT);
+    let floor = format!("{}cast_shadows = false\n", common::FLOOR);
+    common::scene(&[common::CAMERA, &spot, &floor, common::CUBE, common::SPHERE])
+}
 
 fn run(dir: &std::path::Path, max_error: &str) -> String {
     let out = common::umbra()
@@ -63,7 +41,7 @@ fn chosen(text: &str) -> String {
 #[test]
 fn auto_picks_the_cheapest_method_under_the_bound_from_its_measurements() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("scene.toml"), SCENE).unwrap();
+    std::fs::write(dir.path().join("scene.toml"), scene()).unwrap();
     let strict = run(dir.path(), "0");
     let generous = run(dir.path(), "0.5");
     println!("{strict}\n{generous}");

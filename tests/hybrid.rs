@@ -17,47 +17,20 @@ use umbra::scene::Scene;
 const W: u32 = 240;
 const H: u32 = 180;
 
-const SCENE: &str = r#"
-[camera]
-eye = [0.0, 3.5, 6.0]
-target = [0.0, 0.3, 0.0]
-vfov_deg = 45.0
-
-[[lights]]
-type = "spot"
-position = [-1.5, 4.0, 2.0]
-direction = [0.3, -1.0, -0.4]
-intensity = [40.0, 40.0, 40.0]
-inner_deg = 30.0
-outer_deg = 40.0
-
-[[lights]]
-type = "directional"
-direction = [0.5, -1.0, 0.3]
-irradiance = [2.0, 2.0, 2.0]
-
-[[lights]]
-type = "point"
-position = [1.2, 3.0, 1.5]
-intensity = [30.0, 30.0, 30.0]
-
-[[objects]]
-shape = "plane"
-size = 10.0
-[[objects]]
-shape = "cube"
-size = 1.0
-translate = [0.0, 0.5, 0.0]
-[[objects]]
-shape = "sphere"
-radius = 0.4
-translate = [1.4, 0.4, 0.6]
-[[objects]]
-shape = "cube"
-size = 1.0
-scale = [0.05, 1.5, 0.05]
-translate = [-1.2, 0.75, 0.8]
-"#;
+/// The shared box scene's three lights, with a 5 cm pole beside the box.
+fn scene() -> String {
+    let pole = "[[objects]]\nshape = \"cube\"\nsize = 1.0\nscale = [0.05, 1.5, 0.05]\ntranslate = [-1.2, 0.75, 0.8]\n";
+    common::scene(&[
+        common::CAMERA,
+        common::SPOT,
+        common::SUN,
+        common::POINT,
+        common::FLOOR,
+        common::CUBE,
+        common::SPHERE,
+        pole,
+    ])
+}
 
 fn renderer(text: &str) -> (std::sync::Arc<umbra::vk::GpuContext>, Renderer) {
     let ctx = common::gpu();
@@ -81,7 +54,7 @@ fn red(pixels: &[f32]) -> Vec<f32> {
 
 #[test]
 fn hybrid_matches_traced_while_tracing_a_small_share_of_the_pixels() {
-    let (ctx, mut r) = renderer(SCENE);
+    let (ctx, mut r) = renderer(&scene());
     let hybrid = ShadowChoice { method: ShadowMethod::Hybrid, ..ShadowChoice::hard() };
     for light in 0..3u32 {
         let traced = red(&view(&mut r, DebugView::Visibility(light), ShadowChoice::hard(), 3));
@@ -114,7 +87,8 @@ fn hybrid_matches_traced_while_tracing_a_small_share_of_the_pixels() {
 
 #[test]
 fn hybrid_soft_shadows_trace_the_penumbrae_with_traceds_samples() {
-    let sun = SCENE.replace("irradiance = [2.0, 2.0, 2.0]", "irradiance = [2.0, 2.0, 2.0]\nangular_diameter_deg = 6.0");
+    let sun =
+        scene().replace("irradiance = [2.0, 2.0, 2.0]", "irradiance = [2.0, 2.0, 2.0]\nangular_diameter_deg = 6.0");
     let (ctx, mut r) = renderer(&sun);
     let soft = ShadowChoice::soft(8);
     let hybrid = ShadowChoice { method: ShadowMethod::Hybrid, ..soft };
@@ -142,7 +116,7 @@ fn hybrid_soft_shadows_trace_the_penumbrae_with_traceds_samples() {
 
 #[test]
 fn a_hybrid_light_gets_a_map_a_classification_and_list_driven_rays_and_no_full_trace() {
-    let (ctx, r) = renderer(SCENE);
+    let (ctx, r) = renderer(&scene());
     let mut s = RenderSettings::new(W, H, OutputKind::Display).all_lights(3, ShadowChoice::hard());
     s.shadows[1].method = ShadowMethod::Hybrid;
     let plan = r.plan(&s).expect("plan");

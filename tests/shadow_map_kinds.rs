@@ -38,19 +38,7 @@ translate = [1.4, 0.4, 0.6]
     )
 }
 
-const SUN: &str = r#"
-[[lights]]
-type = "directional"
-direction = [0.5, -1.0, 0.3]
-irradiance = [2.0, 2.0, 2.0]
-"#;
-
-const POINT: &str = r#"
-[[lights]]
-type = "point"
-position = [1.2, 3.0, 1.5]
-intensity = [30.0, 30.0, 30.0]
-"#;
+use common::{POINT, SUN};
 
 fn renderer(text: &str) -> (std::sync::Arc<umbra::vk::GpuContext>, Renderer) {
     let ctx = common::gpu();

@@ -163,38 +163,7 @@ fn a_window_too_large_for_the_device_waits_for_a_smaller_size() {
 #[test]
 fn a_5120x2880_window_with_three_shadowed_lights_keeps_rendering() {
     let dir = scene_dir("5k");
-    let scene = r#"
-[camera]
-eye = [0.0, 3.5, 6.0]
-target = [0.0, 0.3, 0.0]
-vfov_deg = 45.0
-
-[[lights]]
-type = "point"
-position = [1.2, 3.0, 1.5]
-intensity = [30.0, 30.0, 30.0]
-
-[[lights]]
-type = "directional"
-direction = [0.5, -1.0, 0.3]
-irradiance = [2.0, 2.0, 2.0]
-
-[[lights]]
-type = "spot"
-position = [-1.5, 4.0, 2.0]
-direction = [0.3, -1.0, -0.4]
-intensity = [40.0, 40.0, 40.0]
-inner_deg = 30.0
-outer_deg = 40.0
-
-[[objects]]
-shape = "plane"
-size = 10.0
-[[objects]]
-shape = "cube"
-size = 1.0
-translate = [0.0, 0.5, 0.0]
-"#;
+    let scene = common::scene(&[common::CAMERA, common::POINT, common::SUN, common::SPOT, common::FLOOR, common::CUBE]);
     std::fs::write(dir.join("scene.toml"), scene).unwrap();
     let out =
         view(&dir, "frames 1\nresize 5120 2880\nframes 1\ncapture big\nquit\n", &["--out-dir", dir.to_str().unwrap()]);

@@ -189,13 +189,15 @@ fn calibrate(
                 choice.set(k, v).map_err(anyhow::Error::msg)?;
             }
             let timestamps = calibration.mode.is_some();
-            if let Some(m) = measure(renderer, &reference, (width, height), target, n, choice, timestamps)? {
+            if let Some((time_ms, error)) =
+                measure(renderer, &reference, (width, height), target, n, choice, timestamps)?
+            {
                 let set: Vec<(String, String)> = set.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
                 let label = std::iter::once(method.id().to_string())
                     .chain(set.iter().map(|(k, v)| format!("{k}={v}")))
                     .collect::<Vec<_>>()
                     .join(" ");
-                measures.push(Measure { label, method: method.id().into(), set, ..m });
+                measures.push(Measure { label, method: method.id().into(), set, time_ms, error });
             }
         }
         out.push(measures);
@@ -209,8 +211,8 @@ fn calibrate(
     Ok(out)
 }
 
-/// One candidate for light `n`: its error at the calibration size, and its time for a `target`
-/// frame; None when it would not serve the light. Shadow work has a part per frame (a map's
+/// One candidate for light `n`: its time for a `target` frame and its error at the calibration
+/// size; None when it would not serve the light. Shadow work has a part per frame (a map's
 /// texels) and a part per pixel (rays, resolves), so the time is measured at the calibration
 /// size and at half its width and height, and the line through both is read at the target's
 /// pixel count.
@@ -222,7 +224,7 @@ fn measure(
     n: usize,
     choice: ShadowChoice,
     timestamps: bool,
-) -> Result<Option<Measure>> {
+) -> Result<Option<(f64, f64)>> {
     let lights = renderer.scene().lights.len();
     let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); lights];
     shadows[n] = choice;
@@ -250,13 +252,7 @@ fn measure(
     let time_ms = fixed + per_pixel * f64::from(target.0) * f64::from(target.1);
     let r = &reference.lights[n];
     let e = visibility_error(&r.visibility, &visibility, width as usize, height as usize, Some(&r.mask));
-    Ok(Some(Measure {
-        label: String::new(),
-        method: String::new(),
-        set: Vec::new(),
-        time_ms,
-        error: e.rmse.max(r.error),
-    }))
+    Ok(Some((time_ms, e.rmse.max(r.error))))
 }
 
 /// Median over `TIMED` frames of `s`'s shadow work, ms (GPU, else host).

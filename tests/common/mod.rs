@@ -125,3 +125,21 @@ pub fn away_from_edges(reference: &[f32], w: u32, h: u32, r: usize) -> Vec<usize
     let far = umbra::bench::metrics::edge_distance_mask(reference, w as usize, h as usize, None, r);
     (0..reference.len()).filter(|&i| far[i]).collect()
 }
+
+/// Pieces of the box-on-a-floor scene the technique tests share (join them with `scene`): a
+/// camera looking down at the origin, a spot, a sun and a point light that each shadow the box,
+/// the floor, the box and a sphere beside it.
+pub const CAMERA: &str = "[camera]\neye = [0.0, 3.5, 6.0]\ntarget = [0.0, 0.3, 0.0]\nvfov_deg = 45.0\n";
+pub const SPOT: &str = "[[lights]]\ntype = \"spot\"\nposition = [-1.5, 4.0, 2.0]\ndirection = [0.3, -1.0, -0.4]\n\
+                        intensity = [40.0, 40.0, 40.0]\ninner_deg = 30.0\nouter_deg = 40.0\n";
+pub const SUN: &str =
+    "\n[[lights]]\ntype = \"directional\"\ndirection = [0.5, -1.0, 0.3]\nirradiance = [2.0, 2.0, 2.0]\n";
+pub const POINT: &str = "\n[[lights]]\ntype = \"point\"\nposition = [1.2, 3.0, 1.5]\nintensity = [30.0, 30.0, 30.0]\n";
+pub const FLOOR: &str = "[[objects]]\nshape = \"plane\"\nsize = 10.0\n";
+pub const CUBE: &str = "[[objects]]\nshape = \"cube\"\nsize = 1.0\ntranslate = [0.0, 0.5, 0.0]\n";
+pub const SPHERE: &str = "[[objects]]\nshape = \"sphere\"\nradius = 0.4\ntranslate = [1.4, 0.4, 0.6]\n";
+
+/// A scene file from `parts`, in order (a key after a table's part belongs to that table).
+pub fn scene(parts: &[&str]) -> String {
+    parts.join("\n")
+}

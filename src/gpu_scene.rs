@@ -13,7 +13,7 @@ use crate::scene::bvh::ShadowBvh;
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
 use crate::shadows::light_space::Bounds;
-use crate::vk::{Buffer, GpuContext, GpuResult};
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, TexelBuffer};
 
 /// How frames find the scene's buffers: uploaded once and made visible to any read, so no
 /// frame needs a barrier for them (and frames in flight do not wait on each other's copies).
@@ -64,6 +64,103 @@ pub fn upload<const N: usize>(
     Ok(targets.try_into().unwrap_or_else(|_| unreachable!("one target per item")))
 }
 
+/// The shadow BVH on the device (`crate::scene::bvh::wide` gives the layout): nodes as RGBA32UI
+/// texels, triangles as RGB32F texels where the device reads that format from a texel buffer,
+/// else RGBA32F.
+pub struct BvhBuffers {
+    pub nodes: TexelBuffer,
+    pub triangles: TexelBuffer,
+}
+
+/// How a device takes a BVH's triangles.
+#[derive(Clone, Copy, Debug)]
+pub struct BvhLayout {
+    /// Floats per triangle texel: 3 (RGB32F) or 4 (RGBA32F).
+    pub components: usize,
+}
+
+impl BvhBuffers {
+    /// The triangle format `ctx` reads, once `bvh` is known to fit its texel buffers: an error
+    /// naming the limit where it does not.
+    pub fn layout(ctx: &GpuContext, bvh: &ShadowBvh) -> GpuResult<BvhLayout> {
+        let caps = &ctx.capabilities;
+        let limit = u64::from(caps.max_texel_buffer_elements);
+        let wide = bvh.wide();
+        let node_texels = wide.nodes.len() as u64 * 4;
+        let triangle_texels = wide.triangles.len() as u64 * 3;
+        for (what, texels) in [("nodes", node_texels), ("triangles", triangle_texels)] {
+            if texels > limit {
+                return Err(GpuError::Unsupported(format!(
+                    "the shadow BVH's {what} need {texels} texels in one texel buffer ({} triangles); {} allows at \
+                     most {limit} (maxTexelBufferElements): split the scene or use fewer triangles",
+                    bvh.triangle_count(),
+                    ctx.device_name()
+                )));
+            }
+        }
+        Ok(BvhLayout { components: if caps.rgb32f_texel_buffer { 3 } else { 4 } })
+    }
+
+    /// Wraps the uploaded buffers (filled as `layout` says) in their views.
+    pub fn new(ctx: &Arc<GpuContext>, layout: BvhLayout, nodes: Buffer, triangles: Buffer) -> GpuResult<BvhBuffers> {
+        let format = if layout.components == 3 { vk::Format::R32G32B32_SFLOAT } else { vk::Format::R32G32B32A32_SFLOAT };
+        Ok(BvhBuffers {
+            nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
+            triangles: TexelBuffer::new(ctx, triangles, format)?,
+        })
+    }
+
+    /// Uploads `bvh` alone (the ray benchmark and tests; a scene uploads it with its other
+    /// buffers).
+    pub fn upload(ctx: &Arc<GpuContext>, bvh: &ShadowBvh) -> GpuResult<BvhBuffers> {
+        let layout = BvhBuffers::layout(ctx, bvh)?;
+        let floats = bvh.wide().triangle_floats(layout.components);
+        let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        let [nodes, triangles] = upload(
+            ctx,
+            [
+                ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
+                ("bvh triangles", bytemuck::cast_slice(&floats), texel),
+            ],
+        )?;
+        BvhBuffers::new(ctx, layout, nodes, triangles)
+    }
+
+    /// Device bytes of nodes and triangles.
+    pub fn bytes(&self) -> u64 {
+        self.nodes.buffer.size + self.triangles.buffer.size
+    }
+
+    /// Imports both into `g` for a frame's passes to read.
+    pub fn import<'a>(&'a self, g: &mut RenderGraph<'a>, access: Access) -> BvhHandles {
+        BvhHandles {
+            nodes: g.import_buffer("bvh nodes", &self.nodes.buffer, access),
+            triangles: g.import_buffer("bvh triangles", &self.triangles.buffer, access),
+            node_view: self.nodes.view,
+            triangle_view: self.triangles.view,
+        }
+    }
+}
+
+/// The BVH as a frame's graph holds it: what a pass that walks it reads and binds.
+pub struct BvhHandles {
+    pub nodes: crate::graph::Handle<crate::graph::BufferKind>,
+    pub triangles: crate::graph::Handle<crate::graph::BufferKind>,
+    pub node_view: vk::BufferView,
+    pub triangle_view: vk::BufferView,
+}
+
+impl BvhHandles {
+    /// Declares `pass`'s reads of both and returns them bound at `nodes` and `triangles`.
+    pub fn bind(&self, pass: &mut crate::graph::PassBuilder<'_, '_>, nodes: u32, triangles: u32) -> [(u32, crate::graph::Bound); 2] {
+        let read = Access::ComputeShaderReadUniformTexelBuffer;
+        [
+            (nodes, crate::graph::Bound::TexelBuffer(pass.read(&self.nodes, read), self.node_view)),
+            (triangles, crate::graph::Bound::TexelBuffer(pass.read(&self.triangles, read), self.triangle_view)),
+        ]
+    }
+}
+
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct Vertex {
@@ -91,8 +188,7 @@ pub struct SceneGpu {
     pub light_count: u32,
     /// The lights in the scene-local frame (what the buffer holds, before packing).
     pub local_lights: Vec<crate::scene::Light>,
-    pub bvh_nodes: Buffer,
-    pub bvh_triangles: Buffer,
+    pub bvh: BvhBuffers,
     pub has_casters: bool,
     /// Bounds of the geometry in the scene-local frame.
     pub bounds: (Vec3, Vec3),
@@ -137,16 +233,20 @@ impl SceneGpu {
         }
         let lights = gpu_lights(&scene.lights);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let layout = BvhBuffers::layout(ctx, bvh)?;
+        let triangle_floats = bvh.wide().triangle_floats(layout.components);
+        let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
             ctx,
             [
                 ("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER | storage),
                 ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | storage),
                 ("lights", bytemuck::cast_slice(&lights), storage),
-                ("bvh nodes", bytemuck::cast_slice(bvh.nodes()), storage),
-                ("bvh triangles", bytemuck::cast_slice(bvh.triangles()), storage),
+                ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
+                ("bvh triangles", bytemuck::cast_slice(&triangle_floats), texel),
             ],
         )?;
+        let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles)?;
         Ok(SceneGpu {
             vertices,
             indices,
@@ -154,8 +254,7 @@ impl SceneGpu {
             lights,
             light_count: scene.lights.len() as u32,
             local_lights: scene.lights.clone(),
-            bvh_nodes,
-            bvh_triangles,
+            bvh: bvh_buffers,
             has_casters: !bvh.is_empty(),
             bounds: (lo, hi),
             origin,
@@ -165,7 +264,10 @@ impl SceneGpu {
 
     /// Bytes of the scene's buffers on the device.
     pub fn bytes(&self) -> u64 {
-        [&self.vertices, &self.indices, &self.lights, &self.bvh_nodes, &self.bvh_triangles].iter().map(|b| b.size).sum()
+        [&self.vertices, &self.indices, &self.lights, &self.bvh.nodes.buffer, &self.bvh.triangles.buffer]
+            .iter()
+            .map(|b| b.size)
+            .sum()
     }
 
     /// A world-space camera in the scene-local frame (subtracted in f64).

@@ -57,6 +57,34 @@ enum BenchCommand {
     /// Sweep shadow methods and their parameters over scenes; write results.csv, results.json
     /// and a time-against-error chart per scene (SVG and PNG) into DIR.
     Shadows(BenchShadowsArgs),
+    /// Trace the camera's shadow (or area, or AO) rays with the compute BVH, the device's ray
+    /// query and obvhs on the CPU; check they agree and print rays per second side by side.
+    Rays(BenchRaysArgs),
+}
+
+#[derive(clap::Args)]
+struct BenchRaysArgs {
+    /// Scene file (TOML); the built-in default scene if omitted.
+    scene: Option<PathBuf>,
+    /// Which rays: one toward light 0 per covered pixel, the same over a 1 m disk, or
+    /// cosine-weighted ambient-occlusion rays of length 1.
+    #[arg(long, value_enum, default_value = "shadow")]
+    rays: umbra::bench::rays::RayKind,
+    /// Threads on each side: lavapipe's (LP_NUM_THREADS, unless already set) and the CPU's.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=256))]
+    threads: u32,
+    /// Image size as WIDTHxHEIGHT (default: the scene's [image], else 320x240).
+    #[arg(long, value_parser = parse_size)]
+    size: Option<(u32, u32)>,
+    /// Timed runs of each tracer; the median is reported.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeats: u32,
+    /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
+    #[arg(long)]
+    device: Option<String>,
+    /// Khronos validation with synchronization validation; exits non-zero on any message.
+    #[arg(long)]
+    validate: bool,
 }
 
 #[derive(clap::Args)]
@@ -443,6 +471,7 @@ fn main() -> ExitCode {
         Command::View(args) => view(args),
         Command::Devices => devices(),
         Command::Bench(BenchCommand::Shadows(args)) => bench_shadows(args),
+        Command::Bench(BenchCommand::Rays(args)) => bench_rays(args),
     };
     match result {
         Ok(code) => code,
@@ -608,6 +637,20 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
             return Ok(ExitCode::FAILURE);
         }
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_rays(args: BenchRaysArgs) -> Result<ExitCode> {
+    let outcome = umbra::bench::rays::run(&umbra::bench::rays::Options {
+        scene: args.scene,
+        rays: args.rays,
+        threads: args.threads as usize,
+        size: args.size,
+        repeats: args.repeats as usize,
+        device: args.device,
+        validate: args.validate,
+    })?;
+    print!("{}", outcome.report);
     Ok(ExitCode::SUCCESS)
 }
 

@@ -76,17 +76,6 @@ impl Renderer {
             scene.triangle_count(),
             scene.lights.len(),
         );
-        let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
-        for (what, bytes) in [
-            ("BVH nodes", std::mem::size_of_val(bvh.nodes())),
-            ("BVH triangles", std::mem::size_of_val(bvh.triangles())),
-        ] {
-            if bytes as u64 > limit {
-                return Err(GpuError::Unsupported(format!(
-                    "the scene's {what} take {bytes} bytes, over this device's storage-buffer limit of {limit}"
-                )));
-            }
-        }
         let start = std::time::Instant::now();
         let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
         log::info!(
@@ -94,6 +83,15 @@ impl Renderer {
             gpu_scene.bytes() >> 10,
             start.elapsed().as_secs_f64() * 1e3
         );
+        if !bvh.is_empty() {
+            log::info!(
+                "shadow BVH on the device: {} KiB, {:.1} bytes per triangle (4-wide nodes of 64 B, \
+                 triangles of {} B)",
+                gpu_scene.bvh.bytes() >> 10,
+                gpu_scene.bvh.bytes() as f64 / bvh.triangle_count() as f64,
+                gpu_scene.bvh.triangles.buffer.size as usize / bvh.wide().triangles.len()
+            );
+        }
         Ok(Renderer {
             capture: Some(Capture {
                 cache: TransientCache::new(&ctx)?,

@@ -8,7 +8,7 @@ use glam::{DVec3, Vec3};
 use rand::rngs::StdRng;
 use rand::{Rng, SeedableRng};
 use std::f32::consts::PI;
-use umbra::scene::bvh::{offset_ray_origin, GpuBvhNode, GpuTriangle, ShadowBvh, BVH_STACK_SIZE, RAY_OFFSET_MIN};
+use umbra::scene::bvh::{offset_ray_origin, ShadowBvh, WideNode, BVH_STACK_SIZE, RAY_OFFSET_MIN};
 use umbra::scene::{Camera, LoadStats, Material, Mesh, Scene};
 
 /// Barycentric (and relative-t) tolerance under which two f32 implementations may disagree.
@@ -85,7 +85,7 @@ fn median_split_fallback_matches_obvhs() {
 /// ray except a tiny fraction that pass within EDGE_EPS of an edge.
 fn compare_with_obvhs(bvh: &ShadowBvh, tris: &[[Vec3; 3]], rng: &mut StdRng, ray_count: usize) {
     assert_eq!(bvh.triangle_count(), tris.len());
-    assert!(bvh.depth() <= BVH_STACK_SIZE);
+    assert!(bvh.stack_need() <= BVH_STACK_SIZE);
     let (mut occluded, mut mismatches, mut unexplained) = (0, 0, Vec::new());
     let mut loosely_near = 0;
     for i in 0..ray_count {
@@ -152,7 +152,7 @@ fn empty_bvh_uploads_a_dummy_and_never_occludes() {
     let bvh = ShadowBvh::from_triangles(&[]);
     assert!(bvh.is_empty());
     assert_eq!((bvh.triangle_count(), bvh.node_count()), (0, 0));
-    assert_eq!((bvh.nodes().len(), bvh.triangles().len()), (1, 1));
+    assert_eq!((bvh.wide().nodes.len(), bvh.wide().triangles.len()), (1, 1));
     for dir in [Vec3::X, Vec3::NEG_Y, Vec3::new(1.0, 1.0, 1.0).normalize()] {
         for origin in [Vec3::ZERO, Vec3::new(-1.0, 0.0, 0.0), Vec3::new(0.0, 5.0, 0.0)] {
             assert!(!bvh.occluded_gpu_layout(origin, dir, 1e30));
@@ -232,7 +232,7 @@ fn depth_fits_the_shader_stack() {
     }));
     let bvh = ShadowBvh::from_triangles(&tris);
     println!("{} triangles, {} nodes, depth {}", bvh.triangle_count(), bvh.node_count(), bvh.depth());
-    assert!(bvh.depth() >= 10 && bvh.depth() <= BVH_STACK_SIZE);
+    assert!(bvh.depth() >= 10 && bvh.stack_need() <= BVH_STACK_SIZE);
     let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
     assert!(glsl.contains(&format!("#define BVH_STACK_SIZE {BVH_STACK_SIZE}\n")));
 }
@@ -255,24 +255,18 @@ fn log2_ceil(n: usize) -> usize {
     (usize::BITS - (n.max(1) - 1).leading_zeros()) as usize
 }
 
-/// obvhs's own build of `tris` (its "medium" preset, reordered as `ShadowBvh` does), as the
-/// GPU would receive it.
-fn obvhs_gpu_nodes(tris: &[[Vec3; 3]]) -> Vec<GpuBvhNode> {
+/// obvhs's own build of `tris` (its "medium" preset), node by node as (min, max, count, first).
+fn obvhs_nodes(tris: &[[Vec3; 3]]) -> Vec<([f32; 3], [f32; 3], u32, u32)> {
     use obvhs::bvh2::builder::build_bvh2_from_tris;
     let tris: Vec<obvhs::triangle::Triangle> =
         tris.iter().map(|&[a, b, c]| obvhs::triangle::Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
     let params = obvhs::BvhBuildParams::medium_build();
-    let mut bvh = build_bvh2_from_tris(&tris, params, &mut std::time::Duration::default());
-    bvh.reorder_in_stack_traversal_order();
-    bvh.nodes
-        .iter()
-        .map(|n| GpuBvhNode {
-            aabb_min: n.aabb.min.into(),
-            first: n.first_index,
-            aabb_max: n.aabb.max.into(),
-            count: n.prim_count,
-        })
-        .collect()
+    let bvh = build_bvh2_from_tris(&tris, params, &mut std::time::Duration::default());
+    node_tuples(&bvh)
+}
+
+fn node_tuples(bvh: &obvhs::bvh2::Bvh2) -> Vec<([f32; 3], [f32; 3], u32, u32)> {
+    bvh.nodes.iter().map(|n| (n.aabb.min.into(), n.aabb.max.into(), n.prim_count, n.first_index)).collect()
 }
 
 /// The guarded build is obvhs's PLOC build, node for node, wherever the clustering does not
@@ -298,9 +292,10 @@ fn ordinary_scenes_keep_obvhs_tree_exactly() {
     ];
     for (what, tris) in inputs {
         let ours = ShadowBvh::from_triangles(&tris);
-        let reference = obvhs_gpu_nodes(&tris);
-        assert_eq!(ours.nodes().len(), reference.len(), "{what}: node count");
-        let first_difference = ours.nodes().iter().zip(&reference).position(|(a, b)| a != b);
+        let reference = obvhs_nodes(&tris);
+        let ours_nodes = node_tuples(ours.binary());
+        assert_eq!(ours_nodes.len(), reference.len(), "{what}: node count");
+        let first_difference = ours_nodes.iter().zip(&reference).position(|(a, b)| a != b);
         assert_eq!(first_difference, None, "{what}: nodes differ from obvhs's");
         println!("{what}: {} triangles, depth {}, same tree as obvhs", tris.len(), ours.depth());
     }
@@ -319,7 +314,7 @@ fn a_million_coincident_triangles_build_a_shallow_tree_quickly() {
     let bound = 2 * log2_ceil(n) + 4;
     println!("depth {}, {} nodes (bound {bound})", bvh.depth(), bvh.node_count());
     assert_eq!(bvh.triangle_count(), n);
-    assert!(bvh.depth() <= bound && bvh.depth() <= BVH_STACK_SIZE, "depth {} over {bound}", bvh.depth());
+    assert!(bvh.depth() <= bound && bvh.stack_need() <= BVH_STACK_SIZE, "depth {} over {bound}", bvh.depth());
     assert!(bvh.occluded_gpu_layout(Vec3::ZERO, Vec3::Z, 2.0));
     assert!(bvh.occluded_obvhs(Vec3::ZERO, Vec3::Z, 2.0));
     assert!(!bvh.occluded_gpu_layout(Vec3::new(3.0, 0.0, 0.0), Vec3::Z, 2.0));
@@ -327,11 +322,11 @@ fn a_million_coincident_triangles_build_a_shallow_tree_quickly() {
     let mut leaves = vec![0u32; 1];
     let mut in_leaves = 0usize;
     while let Some(i) = leaves.pop() {
-        let node = bvh.nodes()[i as usize];
-        if node.count > 0 {
-            in_leaves += node.count as usize;
+        let node = bvh.binary().nodes[i as usize];
+        if node.prim_count > 0 {
+            in_leaves += node.prim_count as usize;
         } else {
-            leaves.extend([node.first, node.first + 1]);
+            leaves.extend([node.first_index, node.first_index + 1]);
         }
     }
     assert_eq!(in_leaves, n);
@@ -371,7 +366,7 @@ fn a_100k_corner_polygon_loads_and_builds_quickly() {
     assert_eq!(bvh.triangle_count(), triangles);
     let bound = 2 * log2_ceil(corners) + 4;
     println!("depth {}, {} nodes (bound {bound})", bvh.depth(), bvh.node_count());
-    assert!(bvh.depth() <= bound && bvh.depth() <= BVH_STACK_SIZE, "depth {} over {bound}", bvh.depth());
+    assert!(bvh.depth() <= bound && bvh.stack_need() <= BVH_STACK_SIZE, "depth {} over {bound}", bvh.depth());
     // The disc (y = 0, radius 1) shadows what is under it, not what is beside it.
     assert!(bvh.occluded_gpu_layout(Vec3::new(0.3, -1.0, 0.2), Vec3::Y, 2.0));
     assert!(!bvh.occluded_gpu_layout(Vec3::new(1.5, -1.0, 0.0), Vec3::Y, 2.0));
@@ -416,21 +411,13 @@ fn offset_origin_clears_its_surface_at_any_distance() {
     assert_eq!(offset_ray_origin(Vec3::ZERO, Vec3::Y), Vec3::new(0.0, RAY_OFFSET_MIN, 0.0));
 }
 
+/// The GLSL include compiles, and reads nodes of the size the Rust layout writes: four texels
+/// a node (`4u * entry`), three a triangle (`3u * i`).
 #[test]
 fn bvh_glsl_compiles_with_the_rust_layout() {
-    let shader = "tests/shaders/bvh_include.comp";
-    common::compile_shader(shader);
-    let reflection = common::shader_reflection(shader);
-    let expect = |member: &str, offset: usize, stride: usize| {
-        common::assert_member_offset(&reflection, member, offset, stride);
-    };
-    let node = size_of::<GpuBvhNode>();
-    expect("bvh_nodes.aabb_min", std::mem::offset_of!(GpuBvhNode, aabb_min), node);
-    expect("bvh_nodes.first", std::mem::offset_of!(GpuBvhNode, first), node);
-    expect("bvh_nodes.aabb_max", std::mem::offset_of!(GpuBvhNode, aabb_max), node);
-    expect("bvh_nodes.count", std::mem::offset_of!(GpuBvhNode, count), node);
-    let tri = size_of::<GpuTriangle>();
-    expect("bvh_triangles.v0", std::mem::offset_of!(GpuTriangle, v0), tri);
-    expect("bvh_triangles.e1", std::mem::offset_of!(GpuTriangle, e1), tri);
-    expect("bvh_triangles.e2", std::mem::offset_of!(GpuTriangle, e2), tri);
+    common::compile_shader("tests/shaders/bvh_include.comp");
+    assert_eq!(size_of::<WideNode>(), 64);
+    let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
+    assert!(glsl.contains("int at = int(4u * entry);"));
+    assert!(glsl.contains("texelFetch(bvh_triangles, int(3u * i))"));
 }

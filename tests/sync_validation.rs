@@ -17,8 +17,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
     let pipeline = ray_batch::pipeline(&ctx).unwrap();
     let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
     let rays = Buffer::new(&ctx, "rays", 64 * 32, usage, MemoryLocation::GpuOnly).unwrap();
-    let nodes = Buffer::with_data(&ctx, "nodes", bytemuck::cast_slice(bvh.nodes()), usage).unwrap();
-    let tris = Buffer::with_data(&ctx, "tris", bytemuck::cast_slice(bvh.triangles()), usage).unwrap();
+    let bvh = umbra::gpu_scene::BvhBuffers::upload(&ctx, &bvh).unwrap();
     let staging = Buffer::with_data(
         &ctx,
         "ray source",
@@ -30,8 +29,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
     let mut pool_to_free = None;
     let mut g = RenderGraph::new();
     let mut ray_handle = g.import_buffer("rays", &rays, Access::Nothing);
-    let n = g.import_buffer("nodes", &nodes, Access::HostWrite);
-    let t = g.import_buffer("tris", &tris, Access::HostWrite);
+    let walk = bvh.import(&mut g, Access::AnyRead);
     // Pass 1: fill the rays with a transfer (declared).
     let mut p = g.add_pass("upload rays");
     let dst = p.write(&mut ray_handle, Access::TransferWrite);
@@ -49,13 +47,14 @@ fn run(declare_the_read: bool) -> Vec<String> {
     });
     // Pass 2: the query reads the rays. The faulty variant binds them without declaring the read.
     let hits = if declare_the_read {
-        ray_batch::add(&mut g, &pipeline, &ray_handle, &n, &t, 64)
+        ray_batch::add(&mut g, &pipeline, &ray_handle, &walk, 64)
     } else {
         let undeclared = rays.raw;
         let mut hits = g.create_buffer("hits", 256);
         let mut p = g.add_pass("bvh rays (undeclared read)");
-        let nr = p.read(&n, Access::ComputeShaderReadStorageBuffer);
-        let tr = p.read(&t, Access::ComputeShaderReadStorageBuffer);
+        let _ = p.read(&walk.nodes, Access::ComputeShaderReadUniformTexelBuffer);
+        let _ = p.read(&walk.triangles, Access::ComputeShaderReadUniformTexelBuffer);
+        let views = [(0u32, walk.node_view), (1u32, walk.triangle_view)];
         let hr = p.write(&mut hits, Access::ComputeShaderWrite);
         let pipeline = &pipeline;
         let pool = descriptor_pool(&ctx.device);
@@ -70,14 +69,9 @@ fn run(declare_the_read: bool) -> Vec<String> {
                         &vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts),
                     )
                     .unwrap()[0];
-                let infos = [
-                    (RAYS_INPUT, undeclared),
-                    (RAYS_BVH_NODES, pctx.buffer(nr)),
-                    (RAYS_BVH_TRIANGLES, pctx.buffer(tr)),
-                    (RAYS_OUTPUT, pctx.buffer(hr)),
-                ]
+                let infos = [(RAYS_INPUT, undeclared), (RAYS_OUTPUT, pctx.buffer(hr))]
                 .map(|(b, buf)| (b, [vk::DescriptorBufferInfo { buffer: buf, offset: 0, range: vk::WHOLE_SIZE }]));
-                let writes: Vec<_> = infos
+                let mut writes: Vec<_> = infos
                     .iter()
                     .map(|(b, info)| {
                         vk::WriteDescriptorSet::default()
@@ -87,6 +81,16 @@ fn run(declare_the_read: bool) -> Vec<String> {
                             .buffer_info(info)
                     })
                     .collect();
+                let [(_, node_view), (_, triangle_view)] = &views;
+                for (binding, view) in [(RAYS_BVH_NODES, node_view), (RAYS_BVH_TRIANGLES, triangle_view)] {
+                    writes.push(
+                        vk::WriteDescriptorSet::default()
+                            .dst_set(set)
+                            .dst_binding(binding)
+                            .descriptor_type(vk::DescriptorType::UNIFORM_TEXEL_BUFFER)
+                            .texel_buffer_view(std::slice::from_ref(view)),
+                    );
+                }
                 d.update_descriptor_sets(&writes, &[]);
                 d.cmd_bind_pipeline(pctx.cmd, vk::PipelineBindPoint::COMPUTE, pipeline.pipeline);
                 d.cmd_bind_descriptor_sets(
@@ -126,7 +130,10 @@ fn run(declare_the_read: bool) -> Vec<String> {
 }
 
 fn descriptor_pool(device: &ash::Device) -> vk::DescriptorPool {
-    let sizes = [vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 4 }];
+    let sizes = [
+        vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 2 },
+        vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_TEXEL_BUFFER, descriptor_count: 2 },
+    ];
     unsafe {
         device.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None)
     }

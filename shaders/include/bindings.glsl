@@ -49,6 +49,7 @@
 #define RAYS_BVH_NODES 1
 #define RAYS_BVH_TRIANGLES 2
 #define RAYS_OUTPUT 3
+#define RAYS_TLAS 4
 
 // overlay.comp: text over the presented image
 #define OVERLAY_CANVAS 0

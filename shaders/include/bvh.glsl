@@ -1,9 +1,9 @@
-// Any-hit shadow query over the CPU-built BVH (src/scene/bvh.rs documents the layout).
-// Line-for-line twin of ShadowBvh::occluded_gpu_layout, which tests check against obvhs.
+// Any-hit shadow query over the CPU-built 4-wide quantised BVH (src/scene/bvh/wide.rs documents
+// the layout). Line-for-line twin of WideBvh::occluded, which tests check against obvhs.
 //
 // Contract: before including, #define BVH_SET, BVH_NODES_BINDING and BVH_TRIANGLES_BINDING;
-// this file declares the two read-only std430 storage buffers `BvhNodes { BvhNode bvh_nodes[]; }`
-// and `BvhTriangles { BvhTriangle bvh_triangles[]; }` at those bindings.
+// this file declares the two uniform texel buffers `bvh_nodes` (RGBA32UI, four texels a node)
+// and `bvh_triangles` (RGB32F or RGBA32F, three texels a triangle: v0, e1, e2) there.
 #ifndef UMBRA_BVH_GLSL
 #define UMBRA_BVH_GLSL
 
@@ -11,37 +11,20 @@
 #error "define BVH_SET, BVH_NODES_BINDING and BVH_TRIANGLES_BINDING before including bvh.glsl"
 #endif
 
-// Inner node (count == 0): children are bvh_nodes[first] and bvh_nodes[first + 1].
-// Leaf (count > 0): triangles bvh_triangles[first .. first + count].
-struct BvhNode {
-    vec3 aabb_min;
-    uint first;
-    vec3 aabb_max;
-    uint count;
-};
+// Texel buffers, not storage buffers: lavapipe turns a storage load whose address differs
+// between the lanes of a SIMD vector into a per-lane loop; a texel fetch is one gather.
+layout(set = BVH_SET, binding = BVH_NODES_BINDING) uniform usamplerBuffer bvh_nodes;
+layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform samplerBuffer bvh_triangles;
 
-// e1 = v1 - v0, e2 = v2 - v0; w unused.
-struct BvhTriangle {
-    vec4 v0;
-    vec4 e1;
-    vec4 e2;
-};
-
-layout(std430, set = BVH_SET, binding = BVH_NODES_BINDING) readonly restrict buffer BvhNodes {
-    BvhNode bvh_nodes[];
-};
-layout(std430, set = BVH_SET, binding = BVH_TRIANGLES_BINDING) readonly restrict buffer BvhTriangles {
-    BvhTriangle bvh_triangles[];
-};
-
-// One entry per tree level at most; the CPU build asserts depth <= BVH_STACK_SIZE.
+// Entries in the traversal stack; the CPU build keeps every tree's need within it.
 #define BVH_STACK_SIZE 64
+// A child word with this bit is a leaf: bits 28-30 its triangle count - 1, 0-27 its first.
+const uint BVH_LEAF = 0x80000000u;
+const uint BVH_FIRST_MASK = 0x0FFFFFFFu;
 // Direction components closer to zero are replaced so 1/d stays finite (no 0 * inf = NaN).
 const float BVH_MIN_DIR_COMPONENT = 1e-20;
 // Widens the far slab distance by 2 gamma(3) (Ize 2013) so rounding never culls a touched box.
 const float BVH_SLAB_FAR_SCALE = 1.0000004;
-// Returned by bvh_slab_entry for a missed box (FLT_MAX).
-const float BVH_SLAB_MISS = 3.402823466e38;
 
 float bvh_safe_component(float c) {
     if (abs(c) < BVH_MIN_DIR_COMPONENT) {
@@ -50,29 +33,35 @@ float bvh_safe_component(float c) {
     return c;
 }
 
-// Entry distance clamped to [0, tmax], or BVH_SLAB_MISS.
-float bvh_slab_entry(BvhNode node, vec3 origin, vec3 inv_dir, float tmax) {
-    vec3 t0 = (node.aabb_min - origin) * inv_dir;
-    vec3 t1 = (node.aabb_max - origin) * inv_dir;
-    vec3 lo = min(t0, t1);
-    vec3 hi = max(t0, t1);
-    float t_enter = max(max(lo.x, lo.y), max(lo.z, 0.0));
-    float t_exit = min(min(hi.x, hi.y), min(hi.z, tmax)) * BVH_SLAB_FAR_SCALE;
-    return t_enter <= t_exit ? t_enter : BVH_SLAB_MISS;
+// The four 8-bit coordinates packed in `word`, child i in byte i.
+vec4 bvh_bytes(uint word) {
+    return vec4((uvec4(word) >> uvec4(0u, 8u, 16u, 24u)) & 0xFFu);
+}
+
+// Near and far slab distances of the four children along one axis. `origin + q * scale` is
+// exact but for the sum (q has 8 bits, scale is a power of two): fused or not, the same box.
+void bvh_slab(float base, float scale, uint q_lo, uint q_hi, float o, float inv, out vec4 near, out vec4 far) {
+    vec4 lo = vec4(base) + bvh_bytes(q_lo) * scale;
+    vec4 hi = vec4(base) + bvh_bytes(q_hi) * scale;
+    vec4 a = (lo - vec4(o)) * inv;
+    vec4 b = (hi - vec4(o)) * inv;
+    near = min(a, b);
+    far = max(a, b);
 }
 
 // Möller–Trumbore without back-face culling: shadows are cast by both faces. A NaN (from a
 // denormal determinant) falls through every comparison to a miss.
-bool bvh_triangle_occludes(BvhTriangle tri, vec3 origin, vec3 dir, float tmax) {
-    vec3 e1 = tri.e1.xyz;
-    vec3 e2 = tri.e2.xyz;
+bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
+    vec3 v0 = texelFetch(bvh_triangles, int(3u * i)).xyz;
+    vec3 e1 = texelFetch(bvh_triangles, int(3u * i + 1u)).xyz;
+    vec3 e2 = texelFetch(bvh_triangles, int(3u * i + 2u)).xyz;
     vec3 p = cross(dir, e2);
     float det = dot(e1, p);
     if (det == 0.0) {
         return false;
     }
     float inv_det = 1.0 / det;
-    vec3 s = origin - tri.v0.xyz;
+    vec3 s = origin - v0;
     float u = dot(s, p) * inv_det;
     if (u < 0.0 || u > 1.0) {
         return false;
@@ -86,77 +75,54 @@ bool bvh_triangle_occludes(BvhTriangle tri, vec3 origin, vec3 dir, float tmax) {
     return t > 0.0 && t < tmax;
 }
 
-bool bvh_leaf_occludes(BvhNode leaf, vec3 origin, vec3 dir, float tmax) {
-    for (uint i = leaf.first; i < leaf.first + leaf.count; i++) {
-        if (bvh_triangle_occludes(bvh_triangles[i], origin, dir, tmax)) {
-            return true;
-        }
-    }
-    return false;
-}
-
 // True when a triangle (either face) lies on the ray at t in (0, tmax). dir need not be unit;
 // t is in units of |dir|.
 bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
     vec3 inv_dir = 1.0 / vec3(bvh_safe_component(dir.x), bvh_safe_component(dir.y),
                               bvh_safe_component(dir.z));
-
-    BvhNode root = bvh_nodes[0];
-    if (bvh_slab_entry(root, origin, inv_dir, tmax) == BVH_SLAB_MISS) {
-        return false;
-    }
-    if (root.count > 0u) {
-        return bvh_leaf_occludes(root, origin, dir, tmax);
-    }
-
     uint stack[BVH_STACK_SIZE];
     uint stack_len = 0u;
-    uint pair = root.first;
+    uint entry = 0u; // the root node
     for (;;) {
-        BvhNode near = bvh_nodes[pair];
-        BvhNode far = bvh_nodes[pair + 1u];
-        float t_near = bvh_slab_entry(near, origin, inv_dir, tmax);
-        float t_far = bvh_slab_entry(far, origin, inv_dir, tmax);
-        if (t_near > t_far) {
-            BvhNode n = near;
-            near = far;
-            far = n;
-            float t = t_near;
-            t_near = t_far;
-            t_far = t;
-        }
-
-        bool descend_near = t_near != BVH_SLAB_MISS;
-        if (descend_near && near.count > 0u) {
-            if (bvh_leaf_occludes(near, origin, dir, tmax)) {
-                return true;
+        if ((entry & BVH_LEAF) != 0u) {
+            // A leaf popped from the stack: its triangles, one after another.
+            uint first = entry & BVH_FIRST_MASK;
+            uint end = first + ((entry >> 28) & 7u) + 1u;
+            for (uint i = first; i < end; i++) {
+                if (bvh_triangle_occludes(i, origin, dir, tmax)) {
+                    return true;
+                }
             }
-            descend_near = false;
-        }
-        bool descend_far = t_far != BVH_SLAB_MISS;
-        if (descend_far && far.count > 0u) {
-            if (bvh_leaf_occludes(far, origin, dir, tmax)) {
-                return true;
-            }
-            descend_far = false;
-        }
-
-        if (descend_near && descend_far) {
-            // Cannot overflow: one entry per level at most, and depth <= BVH_STACK_SIZE. The
-            // clamp only keeps a corrupt buffer from writing out of bounds.
-            stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = far.first;
-            stack_len++;
-            pair = near.first;
-        } else if (descend_near) {
-            pair = near.first;
-        } else if (descend_far) {
-            pair = far.first;
-        } else if (stack_len > 0u) {
-            stack_len--;
-            pair = stack[stack_len];
         } else {
+            // A node: test its four children's boxes at once, push those the ray touches.
+            int at = int(4u * entry);
+            uvec4 head = texelFetch(bvh_nodes, at);
+            uvec4 words = texelFetch(bvh_nodes, at + 1);
+            uvec4 qxy = texelFetch(bvh_nodes, at + 2);
+            uvec4 qz = texelFetch(bvh_nodes, at + 3);
+            vec3 base = uintBitsToFloat(head.xyz);
+            uvec3 exps = (uvec3(head.w) >> uvec3(0u, 8u, 16u)) & 0xFFu;
+            vec3 scale = uintBitsToFloat(exps << 23);
+            vec4 nx, fx, ny, fy, nz, fz;
+            bvh_slab(base.x, scale.x, qxy.x, qxy.y, origin.x, inv_dir.x, nx, fx);
+            bvh_slab(base.y, scale.y, qxy.z, qxy.w, origin.y, inv_dir.y, ny, fy);
+            bvh_slab(base.z, scale.z, qz.x, qz.y, origin.z, inv_dir.z, nz, fz);
+            vec4 enter = max(max(nx, ny), max(nz, vec4(0.0)));
+            vec4 exit = min(min(fx, fy), min(fz, vec4(tmax))) * BVH_SLAB_FAR_SCALE;
+            bvec4 hit = lessThanEqual(enter, exit);
+            uint mask = head.w >> 24;
+            // The clamp only keeps a corrupt buffer from writing out of bounds: the build keeps
+            // every tree's need within the stack.
+            if (hit.x && (mask & 1u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.x; stack_len++; }
+            if (hit.y && (mask & 2u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.y; stack_len++; }
+            if (hit.z && (mask & 4u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.z; stack_len++; }
+            if (hit.w && (mask & 8u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.w; stack_len++; }
+        }
+        if (stack_len == 0u) {
             return false;
         }
+        stack_len--;
+        entry = stack[stack_len];
     }
     return false;
 }

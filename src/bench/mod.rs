@@ -5,12 +5,14 @@
 //! - `sweep`: methods and the points of their sweeps;
 //! - `reference`: the traced reference per light and frame, and its cache;
 //! - `shadows`: the run itself (`umbra bench shadows`);
+//! - `rays`: the ray benchmark (`umbra bench rays`): device traversals against obvhs on the CPU;
 //! - `report`: rows as CSV and JSON, the summary table;
 //! - `chart`: time against error per scene, SVG and PNG.
 
 pub mod auto;
 pub mod chart;
 pub mod metrics;
+pub mod rays;
 pub mod reference;
 pub mod report;
 pub mod shadows;

@@ -17,6 +17,8 @@ pub enum Access {
     IndexBuffer,
     VertexShaderReadUniformBuffer,
     ComputeShaderReadStorageBuffer,
+    /// A uniform texel buffer read by a compute shader (`texelFetch` on a `samplerBuffer`).
+    ComputeShaderReadUniformTexelBuffer,
     ComputeShaderReadUniformBuffer,
     ComputeShaderReadSampledImage,
     FragmentShaderReadSampledImage,
@@ -140,6 +142,14 @@ impl Access {
                 L::UNDEFINED,
                 I::empty(),
                 B::STORAGE_BUFFER,
+                Applies::Buffer,
+            ),
+            Access::ComputeShaderReadUniformTexelBuffer => (
+                S::COMPUTE_SHADER,
+                A::SHADER_SAMPLED_READ,
+                L::UNDEFINED,
+                I::empty(),
+                B::UNIFORM_TEXEL_BUFFER,
                 Applies::Buffer,
             ),
             Access::ComputeShaderReadUniformBuffer => {
@@ -330,6 +340,7 @@ mod tests {
         Access::IndexBuffer,
         Access::VertexShaderReadUniformBuffer,
         Access::ComputeShaderReadStorageBuffer,
+        Access::ComputeShaderReadUniformTexelBuffer,
         Access::ComputeShaderReadUniformBuffer,
         Access::ComputeShaderReadSampledImage,
         Access::FragmentShaderReadSampledImage,

@@ -21,6 +21,9 @@ pub enum Bound {
     /// An acceleration structure: the graph orders accesses on its backing buffer (the `Ref`),
     /// the descriptor names the structure itself.
     AccelerationStructure(Ref<BufferKind>, vk::AccelerationStructureKHR),
+    /// A texel buffer: the graph orders accesses on the buffer (the `Ref`), the descriptor
+    /// names its view (made once with the buffer; see `crate::vk::TexelView`).
+    TexelBuffer(Ref<BufferKind>, vk::BufferView),
 }
 
 /// How passes are bracketed with timestamps (see `crate::timing` for how one is chosen).
@@ -69,6 +72,7 @@ impl TransientCache {
         let mut sizes = vec![
             vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: POOL_SETS * 4 },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: POOL_SETS * 2 },
+            vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_TEXEL_BUFFER, descriptor_count: POOL_SETS * 2 },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: POOL_SETS * 6 },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_IMAGE, descriptor_count: POOL_SETS * 2 },
         ];
@@ -415,6 +419,7 @@ impl PassContext<'_> {
         let mut image_infos = Vec::with_capacity(bound.len());
         let mut buffer_infos = Vec::with_capacity(bound.len());
         let mut structures = Vec::with_capacity(bound.len());
+        let mut texel_views: Vec<vk::BufferView> = Vec::with_capacity(bound.len());
         for &(_, b) in bound {
             match b {
                 Bound::Image(r) => image_infos.push(
@@ -425,6 +430,7 @@ impl PassContext<'_> {
                 Bound::Buffer(r) => buffer_infos
                     .push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(0).range(vk::WHOLE_SIZE)),
                 Bound::AccelerationStructure(_, accel) => structures.push(accel),
+                Bound::TexelBuffer(_, view) => texel_views.push(view),
             }
         }
         let mut accel_writes: Vec<_> = structures
@@ -435,7 +441,7 @@ impl PassContext<'_> {
             })
             .collect();
         let mut accel_writes = accel_writes.iter_mut();
-        let (mut ii, mut bi) = (0, 0);
+        let (mut ii, mut bi, mut ti) = (0, 0, 0);
         let mut writes = Vec::with_capacity(bound.len());
         for &(binding, b) in bound {
             let kind =
@@ -452,6 +458,10 @@ impl PassContext<'_> {
                 }
                 Bound::AccelerationStructure(..) => {
                     w.descriptor_count(1).push_next(accel_writes.next().expect("one write per structure"))
+                }
+                Bound::TexelBuffer(..) => {
+                    ti += 1;
+                    w.texel_buffer_view(std::slice::from_ref(&texel_views[ti - 1]))
                 }
             });
         }

@@ -11,7 +11,8 @@ use super::storage;
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
 use crate::scene::bvh::ShadowBvh;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Buffer, ComputePipeline, GpuContext, GpuResult};
+use crate::gpu_scene::{BvhBuffers, BvhHandles};
+use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
 
 const GROUP: [u32; 2] = [64, 1];
 
@@ -34,27 +35,32 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
         ctx,
         "bvh rays",
         spirv::BVH_RAYS_COMP,
-        &[storage(RAYS_INPUT), storage(RAYS_BVH_NODES), storage(RAYS_BVH_TRIANGLES), storage(RAYS_OUTPUT)],
+        &[
+            storage(RAYS_INPUT),
+            (RAYS_BVH_NODES, DescriptorKind::UniformTexelBuffer),
+            (RAYS_BVH_TRIANGLES, DescriptorKind::UniformTexelBuffer),
+            storage(RAYS_OUTPUT),
+        ],
         16,
         GROUP,
     )
 }
 
-/// Declares the query pass: reads `rays`, `nodes`, `triangles`; returns the hit flags (u32 each).
+/// Declares the query pass: reads `rays` and the BVH; returns the hit flags (u32 each).
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
     rays: &Handle<BufferKind>,
-    nodes: &Handle<BufferKind>,
-    triangles: &Handle<BufferKind>,
+    bvh: &BvhHandles,
     count: u32,
 ) -> Handle<BufferKind> {
     let mut hits = graph.create_buffer("hits", u64::from(count.max(1)) * 4);
     let mut pass = graph.add_pass("bvh rays");
+    let [nodes, triangles] = bvh.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES);
     let bound = [
         (RAYS_INPUT, Bound::Buffer(pass.read(rays, Access::ComputeShaderReadStorageBuffer))),
-        (RAYS_BVH_NODES, Bound::Buffer(pass.read(nodes, Access::ComputeShaderReadStorageBuffer))),
-        (RAYS_BVH_TRIANGLES, Bound::Buffer(pass.read(triangles, Access::ComputeShaderReadStorageBuffer))),
+        nodes,
+        triangles,
         (RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))),
     ];
     let push = UVec4::new(count, 0, 0, 0);
@@ -67,8 +73,7 @@ pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResu
     let pipeline = pipeline(ctx)?;
     let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let ray_buf = Buffer::with_data(ctx, "rays", bytemuck::cast_slice(rays), usage)?;
-    let nodes = Buffer::with_data(ctx, "bvh nodes", bytemuck::cast_slice(bvh.nodes()), usage)?;
-    let tris = Buffer::with_data(ctx, "bvh triangles", bytemuck::cast_slice(bvh.triangles()), usage)?;
+    let bvh = BvhBuffers::upload(ctx, bvh)?;
     let count = rays.len() as u32;
     let out = Buffer::new(
         ctx,
@@ -80,12 +85,108 @@ pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResu
     let mut cache = TransientCache::new(ctx)?;
     let mut g = RenderGraph::new();
     let r = g.import_buffer("rays", &ray_buf, Access::HostWrite);
-    let n = g.import_buffer("bvh nodes", &nodes, Access::HostWrite);
-    let t = g.import_buffer("bvh triangles", &tris, Access::HostWrite);
-    let hits = add(&mut g, &pipeline, &r, &n, &t, count);
+    let walk = bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS);
+    let hits = add(&mut g, &pipeline, &r, &walk, count);
     super::readback::add_buffer(&mut g, &hits, &out);
     let plan = CompiledGraph::compile(&g);
     ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
     let flags: &[u32] = bytemuck::cast_slice(&out.mapped()[..rays.len() * 4]);
     Ok(flags.iter().map(|&h| h != 0).collect())
+}
+
+/// What a timed batch traverses.
+pub enum Target<'s> {
+    /// The compute traversal of the CPU-built BVH.
+    Compute(&'s BvhBuffers),
+    /// The driver's acceleration structures (VK_KHR_ray_query).
+    RayQuery(&'s crate::shadows::traced::accel::RayQueryScene),
+}
+
+/// The ray-query twin of `pipeline`; only on devices with ray query.
+pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(
+        ctx,
+        "bvh rays (ray query)",
+        spirv::BVH_RAYS_RQ_COMP,
+        &[storage(RAYS_INPUT), (RAYS_TLAS, DescriptorKind::AccelerationStructure), storage(RAYS_OUTPUT)],
+        16,
+        GROUP,
+    )
+}
+
+/// Rays on the device, traced again and again for timing.
+pub struct TimedBatch {
+    ctx: Arc<GpuContext>,
+    rays: Buffer,
+    hits: Buffer,
+    count: u32,
+    cache: TransientCache,
+}
+
+impl TimedBatch {
+    pub fn new(ctx: &Arc<GpuContext>, rays: &[GpuRay]) -> GpuResult<TimedBatch> {
+        let count = u32::try_from(rays.len())
+            .map_err(|_| crate::vk::GpuError::Unsupported(format!("{} rays in one batch", rays.len())))?;
+        let [rays_buf] = crate::gpu_scene::upload(
+            ctx,
+            [("rays", bytemuck::cast_slice(rays), vk::BufferUsageFlags::STORAGE_BUFFER)],
+        )?;
+        let hits = Buffer::new(
+            ctx,
+            "hits",
+            u64::from(count.max(1)) * 4,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::GpuToCpu,
+        )?;
+        Ok(TimedBatch { ctx: ctx.clone(), rays: rays_buf, hits, count, cache: TransientCache::new(ctx)? })
+    }
+
+    /// Traces every ray once through `target` with `pipeline` (`pipeline` or
+    /// `ray_query_pipeline`, to match). Returns whether each is occluded and the pass's time
+    /// in milliseconds: GPU timestamps where the device writes them, else the host clock
+    /// around the submission.
+    pub fn trace(&mut self, pipeline: &ComputePipeline, target: &Target<'_>) -> GpuResult<(Vec<bool>, f64)> {
+        let mut g = RenderGraph::new();
+        let rays = g.import_buffer("rays", &self.rays, crate::gpu_scene::SCENE_ACCESS);
+        let mut hits = g.import_buffer("hits", &self.hits, Access::Nothing);
+        let count = self.count;
+        let rq = match target {
+            Target::RayQuery(scene) => Some(scene.add(&mut g)),
+            Target::Compute(_) => None,
+        };
+        let walk = match target {
+            Target::Compute(bvh) => Some(bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS)),
+            Target::RayQuery(_) => None,
+        };
+        let mut pass = g.add_pass("bvh rays");
+        let mut bound = vec![(RAYS_INPUT, Bound::Buffer(pass.read(&rays, Access::ComputeShaderReadStorageBuffer)))];
+        if let Some(walk) = &walk {
+            bound.extend(walk.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES));
+        }
+        if let Some(rq) = &rq {
+            let read = Access::ComputeShaderReadAccelerationStructure;
+            bound.push((RAYS_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));
+            let _ = pass.read(&rq.bottom, read);
+        }
+        bound.push((RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))));
+        let push = UVec4::new(count, 0, 0, 0);
+        pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), count, 1));
+        g.export(hits, Access::HostRead);
+        let plan = CompiledGraph::compile(&g);
+        let timing = self.ctx.timestamp_period_ns.map(|_| crate::graph::TimingMode::Flushed);
+        let cache = &mut self.cache;
+        let start = std::time::Instant::now();
+        self.ctx.submit_and_wait(|cmd| cache.execute_timed(g, &plan, cmd, timing))?;
+        let wall = start.elapsed().as_secs_f64() * 1e3;
+        if let Target::RayQuery(scene) = target {
+            scene.note_recorded(&plan);
+        }
+        let stamped = if timing.is_some() {
+            self.cache.read_timings()?.iter().find(|(name, _)| *name == "bvh rays").map(|t| t.1)
+        } else {
+            None
+        };
+        let flags: &[u32] = bytemuck::cast_slice(&self.hits.mapped()[..self.count as usize * 4]);
+        Ok((flags.iter().map(|&h| h != 0).collect(), stamped.unwrap_or(wall)))
+    }
 }

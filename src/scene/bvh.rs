@@ -1,21 +1,8 @@
-//! Shadow-caster BVH: built with obvhs on the CPU, flattened to the layout the GPU traverses.
-//! `occluded_gpu_layout` walks exactly the arrays uploaded to the GPU, line for line like
-//! shaders/include/bvh.glsl, so the shader can be checked against obvhs's own traversal.
-//!
-//! # GPU layout (std430, both arrays read-only storage buffers)
-//!
-//! `GpuBvhNode`, 32 bytes: `vec3 aabb_min; uint first; vec3 aabb_max; uint count;`
-//! (a vec3 followed by a scalar fills one 16-byte slot exactly, so std430 adds no padding).
-//! - inner node (`count == 0`): its two children are `nodes[first]` and `nodes[first + 1]`;
-//! - leaf (`count > 0`): triangles `triangles[first .. first + count]`.
-//!
-//! Node 0 is the root. Nodes are in depth-first order, so parents precede their children.
-//!
-//! `GpuTriangle`, 48 bytes: `vec4 v0; vec4 e1; vec4 e2;` with `e1 = v1 - v0`, `e2 = v2 - v0`
-//! (Möller–Trumbore wants the edges; `w` is unused), reordered so leaves index them directly.
-//!
-//! An empty BVH still uploads one node and one triangle: a root leaf holding a degenerate
-//! triangle at the origin, which no ray can hit, so buffers are never zero-sized.
+//! Shadow-caster BVH: built with obvhs on the CPU (a binary tree, kept as the reference
+//! traversal), collapsed into the 4-wide quantised layout the GPU traverses (`wide`, whose module
+//! docs give the encoding). `occluded_gpu_layout` walks exactly the arrays uploaded to the GPU,
+//! line for line like shaders/include/bvh.glsl, so the shader can be checked against obvhs's own
+//! traversal.
 
 use glam::{Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -27,55 +14,13 @@ use super::Scene;
 
 mod ploc;
 mod ray_offset;
+pub mod wide;
+pub use wide::{WideBvh, WideNode};
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};
 
-/// Entries in the traversal stack of `bvh.glsl` (`BVH_STACK_SIZE` there). Traversal pushes at
-/// most one entry per tree level, so any BVH with `depth() <= BVH_STACK_SIZE` fits.
-pub const BVH_STACK_SIZE: usize = 64;
-
-/// Substitute for direction components too close to zero to invert: keeps `1/d` finite so the
-/// slab test never computes `0 * inf = NaN`. 1e20 times any sane scene extent stays finite.
-const MIN_DIR_COMPONENT: f32 = 1e-20;
-
-/// Widens the far slab distance by 2 * gamma(3) (Ize, "Robust BVH Ray Traversal", 2013), so
-/// rounding in the slab distances can never cull a box the ray actually touches.
-const SLAB_FAR_SCALE: f32 = 1.000_000_4;
-
-/// One BVH node as the GPU reads it (see the module docs for the encoding).
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct GpuBvhNode {
-    pub aabb_min: [f32; 3],
-    /// Inner node: index of the left child (the right one follows it). Leaf: first triangle.
-    pub first: u32,
-    pub aabb_max: [f32; 3],
-    /// Number of triangles in a leaf; 0 marks an inner node.
-    pub count: u32,
-}
-
-/// One shadow-casting triangle as the GPU reads it: a vertex and the two edges from it.
-#[repr(C)]
-#[derive(Clone, Copy, Debug, Default, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
-pub struct GpuTriangle {
-    pub v0: [f32; 4],
-    pub e1: [f32; 4],
-    pub e2: [f32; 4],
-}
-
-impl GpuTriangle {
-    fn new([a, b, c]: [Vec3; 3]) -> Self {
-        GpuTriangle { v0: a.extend(0.0).into(), e1: (b - a).extend(0.0).into(), e2: (c - a).extend(0.0).into() }
-    }
-    fn v0(&self) -> Vec3 {
-        Vec3::from_slice(&self.v0[..3])
-    }
-    fn e1(&self) -> Vec3 {
-        Vec3::from_slice(&self.e1[..3])
-    }
-    fn e2(&self) -> Vec3 {
-        Vec3::from_slice(&self.e2[..3])
-    }
-}
+/// Entries in the traversal stack of `bvh.glsl` (`BVH_STACK_SIZE` there). A tree whose
+/// traversal could need more (`ShadowBvh::stack_need`) is rebuilt balanced.
+pub const BVH_STACK_SIZE: usize = wide::STACK_SIZE;
 
 /// The BVH over every shadow-casting triangle of a scene, in obvhs's form (kept as the
 /// reference traversal) and in the flattened GPU form.
@@ -83,8 +28,7 @@ pub struct ShadowBvh {
     reference: Bvh2,
     /// The input triangles in input order, indexed through `reference.primitive_indices`.
     reference_triangles: Vec<Triangle>,
-    nodes: Vec<GpuBvhNode>,
-    triangles: Vec<GpuTriangle>,
+    wide: WideBvh,
     triangle_count: usize,
     depth: usize,
 }
@@ -115,12 +59,12 @@ impl ShadowBvh {
     }
 
     pub fn from_triangles(tris: &[[Vec3; 3]]) -> ShadowBvh {
-        ShadowBvh::with_builder(tris, |reference_triangles| {
-            // PLOC with a medium search radius, reinsertion before and after leaf collapse:
-            // obvhs's "medium" preset, with a guard that stops the clustering where it stalls
-            // (coincident or nested triangles) and joins what it built by a median split.
-            // Spatial pre-splits stay off so each triangle is in one leaf.
-            let (mut bvh, report) = ploc::build(reference_triangles);
+        // PLOC with a medium search radius, reinsertion before and after leaf collapse:
+        // obvhs's "medium" preset, with a guard that stops the clustering where it stalls
+        // (coincident or nested triangles) and joins what it built by a median split.
+        // Spatial pre-splits stay off so each triangle is in one leaf.
+        let bvh = ShadowBvh::with_builder(tris, |reference_triangles| {
+            let (bvh, report) = ploc::build(reference_triangles);
             if report.stopped_with > 0 {
                 log::info!(
                     "shadow BVH: clustering stalled after {} passes with {} nodes left; \
@@ -129,20 +73,20 @@ impl ShadowBvh {
                     report.stopped_with
                 );
             }
-            // Depth-first order: parents before children, siblings together, for GPU caches.
-            bvh.reorder_in_stack_traversal_order();
-            let depth = bvh.depth(0);
-            if depth <= BVH_STACK_SIZE {
-                return bvh;
-            }
-            // PLOC gives no depth bound; a pathological input gets a balanced tree instead,
-            // slower to trace but never deeper than log2(triangles) levels.
-            log::warn!(
-                "shadow BVH is {depth} levels deep, over the shader's stack of \
-                 {BVH_STACK_SIZE}: falling back to a median-split build"
-            );
-            median_split_bvh(reference_triangles)
-        })
+            bvh
+        });
+        if bvh.stack_need() <= BVH_STACK_SIZE {
+            return bvh;
+        }
+        // PLOC gives no depth bound; a pathological input gets a balanced tree instead,
+        // slower to trace but never deeper than log2(triangles) levels.
+        log::warn!(
+            "shadow BVH traversal could need {} stack entries, over the shader's {BVH_STACK_SIZE} \
+             (binary depth {}): falling back to a median-split build",
+            bvh.stack_need(),
+            bvh.depth()
+        );
+        ShadowBvh::from_triangles_median_split(tris)
     }
 
     /// The balanced fallback build that `from_triangles` uses when PLOC's tree is too deep for
@@ -154,32 +98,11 @@ impl ShadowBvh {
     fn with_builder(tris: &[[Vec3; 3]], build: impl FnOnce(&[Triangle]) -> Bvh2) -> ShadowBvh {
         let reference_triangles: Vec<Triangle> =
             tris.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
-        if tris.is_empty() {
-            return ShadowBvh {
-                reference: Bvh2::default(),
-                reference_triangles,
-                nodes: vec![GpuBvhNode { count: 1, ..Default::default() }],
-                triangles: vec![GpuTriangle::default()],
-                triangle_count: 0,
-                depth: 0,
-            };
-        }
-        let reference = build(&reference_triangles);
-        let depth = reference.depth(0);
-        assert!(depth <= BVH_STACK_SIZE, "{depth} levels overflow bvh.glsl's stack");
-
-        let nodes = reference
-            .nodes
-            .iter()
-            .map(|node| GpuBvhNode {
-                aabb_min: node.aabb.min.into(),
-                first: node.first_index,
-                aabb_max: node.aabb.max.into(),
-                count: node.prim_count,
-            })
-            .collect();
-        let triangles = reference.primitive_indices.iter().map(|&i| GpuTriangle::new(tris[i as usize])).collect();
-        ShadowBvh { reference, reference_triangles, nodes, triangles, triangle_count: tris.len(), depth }
+        assert!(tris.len() < wide::MAX_TRIANGLES, "{} triangles exceed the layout's 2^28", tris.len());
+        let reference = if tris.is_empty() { Bvh2::default() } else { build(&reference_triangles) };
+        let depth = if tris.is_empty() { 0 } else { reference.depth(0) };
+        let wide = WideBvh::from_bvh2(&reference, tris);
+        ShadowBvh { reference, reference_triangles, wide, triangle_count: tris.len(), depth }
     }
 
     /// Shadow-casting triangles in the BVH (the dummy triangle of an empty BVH not counted).
@@ -187,12 +110,12 @@ impl ShadowBvh {
         self.triangle_count
     }
 
-    /// Real nodes (0 when empty); `nodes().len()` is what to upload.
+    /// Real wide nodes (0 when empty); `wide().nodes.len()` is what to upload.
     pub fn node_count(&self) -> usize {
         if self.is_empty() {
             0
         } else {
-            self.nodes.len()
+            self.wide.nodes.len()
         }
     }
 
@@ -200,80 +123,31 @@ impl ShadowBvh {
         self.triangle_count == 0
     }
 
-    /// Levels from the root to the deepest leaf (root alone = 1, empty = 0); at most
-    /// `BVH_STACK_SIZE` by construction.
+    /// Levels of the binary tree from the root to the deepest leaf (root alone = 1, empty = 0).
     pub fn depth(&self) -> usize {
         self.depth
     }
 
-    /// The node array to upload; never empty.
-    pub fn nodes(&self) -> &[GpuBvhNode] {
-        &self.nodes
+    /// The deepest the GPU traversal's stack can get on this tree; at most `BVH_STACK_SIZE`
+    /// for trees `from_triangles` returns.
+    pub fn stack_need(&self) -> usize {
+        self.wide.stack_need
     }
 
-    /// The triangle array to upload, in leaf order; never empty.
-    pub fn triangles(&self) -> &[GpuTriangle] {
-        &self.triangles
+    /// The layout the GPU reads: nodes and triangles, never empty.
+    pub fn wide(&self) -> &WideBvh {
+        &self.wide
+    }
+
+    /// obvhs's binary tree, before the collapse.
+    pub fn binary(&self) -> &Bvh2 {
+        &self.reference
     }
 
     /// Any-hit shadow query over the GPU arrays, a line-for-line twin of `bvh_occluded` in
     /// bvh.glsl: true when some triangle (either face) is hit at t in (0, tmax).
     pub fn occluded_gpu_layout(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        let nodes = &self.nodes;
-        let inv_dir = Vec3::ONE / safe_dir(dir);
-
-        let root = nodes[0];
-        if slab_entry(&root, origin, inv_dir, tmax) == SLAB_MISS {
-            return false;
-        }
-        if root.count > 0 {
-            return leaf_occludes(&self.triangles, &root, origin, dir, tmax);
-        }
-
-        let mut stack = [0u32; BVH_STACK_SIZE];
-        let mut stack_len = 0usize;
-        let mut pair = root.first;
-        loop {
-            let mut near = nodes[pair as usize];
-            let mut far = nodes[pair as usize + 1];
-            let mut t_near = slab_entry(&near, origin, inv_dir, tmax);
-            let mut t_far = slab_entry(&far, origin, inv_dir, tmax);
-            if t_near > t_far {
-                (near, far) = (far, near);
-                (t_near, t_far) = (t_far, t_near);
-            }
-
-            let mut descend_near = t_near != SLAB_MISS;
-            if descend_near && near.count > 0 {
-                if leaf_occludes(&self.triangles, &near, origin, dir, tmax) {
-                    return true;
-                }
-                descend_near = false;
-            }
-            let mut descend_far = t_far != SLAB_MISS;
-            if descend_far && far.count > 0 {
-                if leaf_occludes(&self.triangles, &far, origin, dir, tmax) {
-                    return true;
-                }
-                descend_far = false;
-            }
-
-            if descend_near && descend_far {
-                // Cannot overflow: one entry per level at most, and depth <= BVH_STACK_SIZE.
-                stack[stack_len] = far.first;
-                stack_len += 1;
-                pair = near.first;
-            } else if descend_near {
-                pair = near.first;
-            } else if descend_far {
-                pair = far.first;
-            } else if stack_len > 0 {
-                stack_len -= 1;
-                pair = stack[stack_len];
-            } else {
-                return false;
-            }
-        }
+        self.wide.occluded(origin, dir, tmax)
     }
 
     /// The same query through obvhs's own Bvh2 traversal and triangle test: the independent
@@ -312,8 +186,8 @@ impl ShadowBvh {
         let o = origin.as_dvec3();
         let d = dir.as_dvec3();
         let tmax = tmax as f64;
-        self.triangles.iter().any(|tri| {
-            let (v0, e1, e2) = (tri.v0().as_dvec3(), tri.e1().as_dvec3(), tri.e2().as_dvec3());
+        self.wide.triangles.iter().any(|&[v0, e1, e2]| {
+            let (v0, e1, e2) = (v0.as_dvec3(), e1.as_dvec3(), e2.as_dvec3());
             let twice_area = e1.cross(e2).length();
             if twice_area == 0.0 {
                 return false; // degenerate: no implementation can hit it
@@ -384,66 +258,3 @@ fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
     Bvh2 { nodes, primitive_indices: order, ..Bvh2::default() }
 }
 
-/// Returned by `slab_entry` for a box the ray misses (GLSL: `BVH_SLAB_MISS`).
-const SLAB_MISS: f32 = f32::MAX;
-
-fn safe_dir(d: Vec3) -> Vec3 {
-    let fix = |c: f32| {
-        if c.abs() < MIN_DIR_COMPONENT {
-            if c < 0.0 {
-                -MIN_DIR_COMPONENT
-            } else {
-                MIN_DIR_COMPONENT
-            }
-        } else {
-            c
-        }
-    };
-    Vec3::new(fix(d.x), fix(d.y), fix(d.z))
-}
-
-/// Distance at which the ray enters the node's box, clamped to the segment [0, tmax], or
-/// `SLAB_MISS` when it does not touch the box within the segment.
-fn slab_entry(node: &GpuBvhNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> f32 {
-    let t0 = (Vec3::from(node.aabb_min) - origin) * inv_dir;
-    let t1 = (Vec3::from(node.aabb_max) - origin) * inv_dir;
-    let lo = t0.min(t1);
-    let hi = t0.max(t1);
-    let t_enter = lo.x.max(lo.y).max(lo.z.max(0.0));
-    let t_exit = hi.x.min(hi.y).min(hi.z.min(tmax)) * SLAB_FAR_SCALE;
-    if t_enter <= t_exit {
-        t_enter
-    } else {
-        SLAB_MISS
-    }
-}
-
-fn leaf_occludes(tris: &[GpuTriangle], leaf: &GpuBvhNode, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-    (leaf.first..leaf.first + leaf.count).any(|i| triangle_occludes(&tris[i as usize], origin, dir, tmax))
-}
-
-/// Möller–Trumbore without back-face culling: shadows are cast by both faces. Comparisons are
-/// written as in GLSL so a NaN (from a denormal determinant) falls through to a miss in both.
-#[allow(clippy::manual_range_contains)]
-fn triangle_occludes(tri: &GpuTriangle, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-    let e1 = tri.e1();
-    let e2 = tri.e2();
-    let p = dir.cross(e2);
-    let det = e1.dot(p);
-    if det == 0.0 {
-        return false; // ray parallel to the plane, or a degenerate triangle
-    }
-    let inv_det = 1.0 / det;
-    let s = origin - tri.v0();
-    let u = s.dot(p) * inv_det;
-    if u < 0.0 || u > 1.0 {
-        return false;
-    }
-    let q = s.cross(e1);
-    let v = dir.dot(q) * inv_det;
-    if v < 0.0 || u + v > 1.0 {
-        return false;
-    }
-    let t = e2.dot(q) * inv_det;
-    t > 0.0 && t < tmax
-}

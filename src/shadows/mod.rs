@@ -307,14 +307,8 @@ pub fn add<'a>(
     let s = frame.scene;
     let bvh_walked = prepared.traced.is_some_and(|(_, rq)| rq.is_none() && !plan.traced.is_empty())
         || (prepared.hybrid.is_some() && !plan.hybrid.is_empty());
-    let bvh = bvh_walked.then(|| {
-        (
-            g.import_buffer("bvh nodes", &s.bvh_nodes, SCENE_ACCESS),
-            g.import_buffer("bvh triangles", &s.bvh_triangles, SCENE_ACCESS),
-        )
-    });
-    if let (Some(pipelines), Some(maps), Some((nodes, triangles))) = (prepared.hybrid, prepared.map, &bvh) {
-        let walk = hybrid::Bvh { nodes, triangles };
+    let bvh = bvh_walked.then(|| s.bvh.import(g, SCENE_ACCESS));
+    if let (Some(pipelines), Some(maps), Some(walk)) = (prepared.hybrid, prepared.map, &bvh) {
         debug = debug.or(hybrid::add(g, frame, maps, pipelines, walk, &plan.hybrid, &mut target));
     }
     if let Some((pipeline, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
@@ -324,8 +318,8 @@ pub fn add<'a>(
                 let casters = traced::Casters::RayQuery(&handles);
                 traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
             }
-            (None, Some((nodes, triangles))) => {
-                let casters = traced::Casters::Bvh { nodes, triangles };
+            (None, Some(walk)) => {
+                let casters = traced::Casters::Bvh(walk);
                 traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
             }
             (None, None) => unreachable!("imported above for the traced lights"),

@@ -15,6 +15,10 @@ pub struct Capabilities {
     pub depth_clamp: bool,
     /// The chosen queue family writes timestamps.
     pub timestamps: bool,
+    /// RGB32F is readable from a uniform texel buffer (the BVH's triangles take 36 bytes, not 48).
+    pub rgb32f_texel_buffer: bool,
+    /// `maxTexelBufferElements`: the most texels one texel buffer view may hold.
+    pub max_texel_buffer_elements: u32,
 }
 
 impl Capabilities {
@@ -69,6 +73,11 @@ pub(crate) fn detect(instance: &ash::Instance, pd: vk::PhysicalDevice, family: O
             geometry_shader: base.geometry_shader == vk::TRUE,
             depth_clamp: base.depth_clamp == vk::TRUE,
             timestamps,
+            rgb32f_texel_buffer: instance
+                .get_physical_device_format_properties(pd, vk::Format::R32G32B32_SFLOAT)
+                .buffer_features
+                .contains(vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER),
+            max_texel_buffer_elements: props.limits.max_texel_buffer_elements,
         }
     }
 }

@@ -14,6 +14,8 @@ use super::{GpuContext, GpuError, GpuResult, VkContext};
 pub enum DescriptorKind {
     StorageBuffer,
     UniformBuffer,
+    /// A uniform texel buffer, through a buffer view (`Bound::TexelBuffer`).
+    UniformTexelBuffer,
     /// A combined image sampler with the pipeline's nearest-filtering sampler (used with texelFetch).
     SampledImage,
     StorageImage,
@@ -26,6 +28,7 @@ impl DescriptorKind {
         match self {
             DescriptorKind::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
             DescriptorKind::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
+            DescriptorKind::UniformTexelBuffer => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
             DescriptorKind::SampledImage => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
             DescriptorKind::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
             DescriptorKind::AccelerationStructure => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,

@@ -113,12 +113,6 @@ pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &B
     Some(m)
 }
 
-/// The BVH the listed rays traverse.
-pub struct Bvh<'h> {
-    pub nodes: &'h Handle<BufferKind>,
-    pub triangles: &'h Handle<BufferKind>,
-}
-
 /// Writes each served light's visibility layer: its map, the classification, the rays for the
 /// pixels the map is not sure of. Returns the `hybrid:N` view when the frame shows one.
 pub fn add<'a>(
@@ -126,7 +120,7 @@ pub fn add<'a>(
     frame: &FrameInputs<'_, 'a>,
     map_pipelines: &'a MapPipelines,
     pipelines: &'a Pipelines,
-    bvh: Bvh<'_>,
+    bvh: &crate::gpu_scene::BvhHandles,
     served: &[Served],
     target: &mut Handle<ImageKind>,
 ) -> Option<Handle<ImageKind>> {
@@ -137,7 +131,7 @@ pub fn add<'a>(
         let light = &frame.scene.local_lights[s.light as usize];
         let map = light_map(s, light, &casters, &receivers);
         let (list, args) = classify(graph, frame, map_pipelines, pipelines, s, map.as_ref(), target);
-        trace(graph, frame, pipelines, &bvh, s, &list, &args, target);
+        trace(graph, frame, pipelines, bvh, s, &list, &args, target);
         if frame.debug_view == Some(crate::config::DebugView::Hybrid(s.light)) {
             debug = Some(add_view(graph, frame, pipelines, s, &list, &args, target));
         }
@@ -216,7 +210,7 @@ fn trace<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     pipelines: &'a Pipelines,
-    bvh: &Bvh<'_>,
+    bvh: &crate::gpu_scene::BvhHandles,
     served: &Served,
     list: &Handle<BufferKind>,
     args: &Handle<BufferKind>,
@@ -229,13 +223,14 @@ fn trace<'a>(
     pass.read_layer(target, served.layer, Access::ComputeShaderReadStorageImage);
     let read = Access::ComputeShaderReadSampledImage;
     let storage_read = Access::ComputeShaderReadStorageBuffer;
+    let [bvh_nodes, bvh_triangles] = bvh.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES);
     let bound = [
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, storage_read))),
-        (SHADOW_BVH_NODES, Bound::Buffer(pass.read(bvh.nodes, storage_read))),
-        (SHADOW_BVH_TRIANGLES, Bound::Buffer(pass.read(bvh.triangles, storage_read))),
+        bvh_nodes,
+        bvh_triangles,
         (SHADOW_LIST, Bound::Buffer(pass.read(list, storage_read))),
         (SHADOW_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
     ];

@@ -14,7 +14,7 @@ use glam::UVec4;
 
 use self::accel::RayQueryHandles;
 use super::{FrameInputs, Served};
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageKind, RenderGraph};
+use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
@@ -43,8 +43,8 @@ const BVH_BINDINGS: [(u32, DescriptorKind); 7] = [
     (SHADOW_NORMAL, DescriptorKind::SampledImage),
     (SHADOW_SURFACE, DescriptorKind::SampledImage),
     (SHADOW_LIGHTS, DescriptorKind::StorageBuffer),
-    (SHADOW_BVH_NODES, DescriptorKind::StorageBuffer),
-    (SHADOW_BVH_TRIANGLES, DescriptorKind::StorageBuffer),
+    (SHADOW_BVH_NODES, DescriptorKind::UniformTexelBuffer),
+    (SHADOW_BVH_TRIANGLES, DescriptorKind::UniformTexelBuffer),
     (SHADOW_VISIBILITY, DescriptorKind::StorageImage),
 ];
 
@@ -89,7 +89,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
 /// What the rays traverse.
 pub enum Casters<'h> {
     /// The CPU-built BVH, walked by the shader.
-    Bvh { nodes: &'h Handle<BufferKind>, triangles: &'h Handle<BufferKind> },
+    Bvh(&'h crate::gpu_scene::BvhHandles),
     /// The driver's acceleration structures.
     RayQuery(&'h RayQueryHandles),
 }
@@ -136,11 +136,7 @@ pub fn add<'a>(
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
     match casters {
-        Casters::Bvh { nodes, triangles } => {
-            let read = Access::ComputeShaderReadStorageBuffer;
-            bound.push((SHADOW_BVH_NODES, Bound::Buffer(pass.read(nodes, read))));
-            bound.push((SHADOW_BVH_TRIANGLES, Bound::Buffer(pass.read(triangles, read))));
-        }
+        Casters::Bvh(walk) => bound.extend(walk.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES)),
         Casters::RayQuery(rq) => {
             let read = Access::ComputeShaderReadAccelerationStructure;
             bound.push((SHADOW_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));

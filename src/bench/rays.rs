@@ -1,0 +1,345 @@
+//! `umbra bench rays`: the same rays traced by the compute traversal, by the device's own ray
+//! query (where it has one) and by obvhs on the CPU, checked against each other and timed side by
+//! side, as rays per second and their ratios.
+//!
+//! The rays are those of the scene's camera: a primary ray through each pixel centre finds the
+//! surface (on the CPU, through obvhs), and from there
+//! - `shadow`: one ray toward light 0's centre where the surface faces it;
+//! - `area`: the same toward a point jittered over a 1 m disk around light 0, facing it;
+//! - `ao`: one cosine-distributed ray of length 1 about the surface normal.
+//!
+//! The CPU side runs on as many threads as lavapipe (`--threads`, which sets `LP_NUM_THREADS`
+//! before the device is made), with obvhs's binary BVH (umbra's build) and its compressed 8-wide
+//! BVH (obvhs's medium preset), and reports its faster.
+
+use std::time::Instant;
+
+use anyhow::{bail, Context, Result};
+use glam::{Vec3, Vec3A};
+use obvhs::ray::{Ray, RayHit};
+use obvhs::triangle::Triangle;
+
+use crate::gpu_scene::BvhBuffers;
+use crate::passes::ray_batch::{self, GpuRay, Target, TimedBatch};
+use crate::scene::bvh::{caster_triangles, offset_ray_origin, ShadowBvh};
+use crate::scene::{Light, Scene};
+use crate::shadows::traced::accel::RayQueryScene;
+use crate::vk::{GpuContext, GpuOptions};
+
+/// Which rays to cast.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum RayKind {
+    /// One ray per covered pixel toward light 0's centre.
+    Shadow,
+    /// One ray per covered pixel toward a point over a 1 m disk around light 0.
+    Area,
+    /// One cosine-weighted ray of length 1 per covered pixel.
+    Ao,
+}
+
+pub struct Options {
+    pub scene: Option<std::path::PathBuf>,
+    pub rays: RayKind,
+    pub threads: usize,
+    pub size: Option<(u32, u32)>,
+    /// Timed repetitions per tracer (the median is reported).
+    pub repeats: usize,
+    pub device: Option<String>,
+    pub validate: bool,
+}
+
+/// One tracer's result.
+pub struct Timing {
+    pub name: String,
+    pub ms: f64,
+    pub mrays_per_s: f64,
+}
+
+pub struct Outcome {
+    pub rays: usize,
+    pub occluded: usize,
+    pub timings: Vec<Timing>,
+    /// Rays on which the compute traversal and obvhs disagree, and how many of those are not
+    /// within the edge tolerance of some triangle (must be 0).
+    pub mismatches: usize,
+    pub unexplained: usize,
+    pub report: String,
+}
+
+/// Barycentric tolerance under which two f32 implementations may disagree (as the tests use).
+const EDGE_EPS: f64 = 1e-6;
+
+pub fn run(options: &Options) -> Result<Outcome> {
+    if std::env::var_os("LP_NUM_THREADS").is_none() {
+        // Read by lavapipe when the device is made: the same threads on both sides.
+        std::env::set_var("LP_NUM_THREADS", options.threads.to_string());
+    } else if std::env::var("LP_NUM_THREADS").ok() != Some(options.threads.to_string()) {
+        log::warn!(
+            "LP_NUM_THREADS={} is set: lavapipe uses that, the CPU {} thread(s)",
+            std::env::var("LP_NUM_THREADS").unwrap_or_default(),
+            options.threads
+        );
+    }
+    let scene = match &options.scene {
+        Some(path) => Scene::load(path).map_err(|e| anyhow::anyhow!("{e}"))?,
+        None => Scene::default_scene(),
+    };
+    let name = options.scene.as_ref().map_or("the default scene".to_string(), |p| p.display().to_string());
+    let (local, _) = scene.local_frame();
+    let (width, height) = options.size.or(scene.image_size).unwrap_or((320, 240));
+    let Some(light) = local.lights.first() else { bail!("{name}: no light to cast shadow rays toward") };
+
+    let tris = caster_triangles(&local);
+    if tris.is_empty() {
+        bail!("{name}: no shadow-casting triangles to trace");
+    }
+    let start = Instant::now();
+    let bvh = ShadowBvh::build(&local);
+    let build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let rays = camera_rays(&local, &bvh, light, width, height, options.rays);
+    if rays.is_empty() {
+        bail!("{name}: the camera sees no surface that light 0 can reach");
+    }
+
+    let ctx = GpuContext::new(&GpuOptions { validate: options.validate, device_name: options.device.clone() })?;
+    let mut timings = Vec::new();
+    let gpu_rays: Vec<GpuRay> = rays.iter().map(|r| GpuRay::new(r.0, r.1, r.2)).collect();
+    let mut batch = TimedBatch::new(&ctx, &gpu_rays)?;
+    let buffers = BvhBuffers::upload(&ctx, &bvh)?;
+    let pipeline = ray_batch::pipeline(&ctx)?;
+    let (gpu_hits, ms) = repeat(options.repeats, || batch.trace(&pipeline, &Target::Compute(&buffers)))?;
+    timings.push(timing("compute BVH (device)", ms, rays.len()));
+    let mut rq_disagree = None;
+    if ctx.capabilities.ray_query {
+        let scene = RayQueryScene::new(&ctx, &tris)?;
+        let rq_pipeline = ray_batch::ray_query_pipeline(&ctx)?;
+        // The first trace builds the structures: not timed.
+        batch.trace(&rq_pipeline, &Target::RayQuery(&scene))?;
+        let (rq_hits, ms) = repeat(options.repeats, || batch.trace(&rq_pipeline, &Target::RayQuery(&scene)))?;
+        timings.push(timing("ray query (device)", ms, rays.len()));
+        rq_disagree = Some(gpu_hits.iter().zip(&rq_hits).filter(|(a, b)| a != b).count());
+    }
+    if ctx.validation_messages() > 0 {
+        bail!("validation: {} messages", ctx.validation_messages());
+    }
+
+    // The CPU: obvhs's binary tree (umbra's build) and its compressed wide tree.
+    let obvhs_tris: Vec<Triangle> =
+        tris.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
+    let binary = bvh.binary();
+    let (cpu_hits, ms) = repeat(options.repeats, || {
+        Ok(cpu_trace(&rays, options.threads, |o, d, t| {
+            let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
+            !binary.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[binary.primitive_indices[id] as usize], ray))
+        }))
+    })?;
+    timings.push(timing("obvhs BVH2 (CPU)", ms, rays.len()));
+    let start = Instant::now();
+    let cw = obvhs::cwbvh::builder::build_cwbvh_from_tris(
+        &obvhs_tris,
+        obvhs::BvhBuildParams::medium_build(),
+        &mut std::time::Duration::default(),
+    );
+    let cw_build_ms = start.elapsed().as_secs_f64() * 1e3;
+    let (cw_hits, ms) = repeat(options.repeats, || {
+        Ok(cpu_trace(&rays, options.threads, |o, d, t| {
+            let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
+            !cw.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[cw.primitive_indices[id] as usize], ray))
+        }))
+    })?;
+    timings.push(timing("obvhs CWBVH (CPU)", ms, rays.len()));
+
+    // Agreement: every ray where the device and obvhs differ must graze an edge.
+    let mut mismatches = 0;
+    let mut unexplained = 0;
+    for (i, r) in rays.iter().enumerate() {
+        if gpu_hits[i] != cpu_hits[i] || cpu_hits[i] != cw_hits[i] {
+            mismatches += 1;
+            if !bvh.ray_near_edge(r.0, r.1, r.2, EDGE_EPS) {
+                unexplained += 1;
+            }
+        }
+    }
+    let occluded = gpu_hits.iter().filter(|&&h| h).count();
+    let best_cpu = timings.iter().filter(|t| t.name.contains("CPU")).map(|t| t.ms).fold(f64::INFINITY, f64::min);
+    let mut report = format!(
+        "{name}: {} {} rays from {width}x{height} ({:.1} % occluded), {} triangles; {} lavapipe/CPU thread(s)\n\
+         BVH build {build_ms:.0} ms (umbra, binary + 4-wide collapse), {cw_build_ms:.0} ms (obvhs CWBVH); device BVH {:.1} bytes per triangle\n",
+        rays.len(),
+        format!("{:?}", options.rays).to_lowercase(),
+        100.0 * occluded as f64 / rays.len() as f64,
+        tris.len(),
+        options.threads,
+        buffers.bytes() as f64 / tris.len() as f64,
+    );
+    report += &format!("{:<24} {:>10} {:>10} {:>14}\n", "tracer", "ms", "Mrays/s", "vs best CPU");
+    for t in &timings {
+        report += &format!("{:<24} {:>10.1} {:>10.2} {:>13.2}x\n", t.name, t.ms, t.mrays_per_s, best_cpu / t.ms);
+    }
+    report += &format!(
+        "agreement: {mismatches} of {} rays differ between tracers, {unexplained} of them away from any edge",
+        rays.len()
+    );
+    if let Some(n) = rq_disagree {
+        report += &format!("; ray query differs from the compute traversal on {n}");
+    }
+    report.push('\n');
+    if unexplained > 0 {
+        bail!("{report}the tracers disagree on {unexplained} rays that graze no edge");
+    }
+    Ok(Outcome { rays: rays.len(), occluded, timings, mismatches, unexplained, report })
+}
+
+fn timing(name: &str, ms: f64, rays: usize) -> Timing {
+    Timing { name: name.to_string(), ms, mrays_per_s: rays as f64 / (ms * 1e3) }
+}
+
+/// Runs `f` `n` times (at least once) and returns the first result with the median time.
+fn repeat<T>(n: usize, mut f: impl FnMut() -> Result<(T, f64), crate::vk::GpuError>) -> Result<(T, f64)> {
+    let mut times = Vec::new();
+    let mut first = None;
+    for _ in 0..n.max(1) {
+        let (value, ms) = f().context("tracing on the device")?;
+        times.push(ms);
+        first.get_or_insert(value);
+    }
+    times.sort_by(f64::total_cmp);
+    Ok((first.expect("ran at least once"), times[times.len() / 2]))
+}
+
+/// obvhs's triangle test as a shadow query wants it: open at t = 0.
+fn hit_t(tri: &Triangle, ray: &Ray) -> f32 {
+    let t = tri.intersect(ray);
+    if t > 0.0 {
+        t
+    } else {
+        f32::INFINITY
+    }
+}
+
+/// Traces `rays` on `threads` threads with `occluded`; returns the flags and the wall time.
+fn cpu_trace(
+    rays: &[(Vec3, Vec3, f32)],
+    threads: usize,
+    occluded: impl Fn(Vec3, Vec3, f32) -> bool + Sync,
+) -> (Vec<bool>, f64) {
+    let mut hits = vec![false; rays.len()];
+    let start = Instant::now();
+    let chunk = rays.len().div_ceil(threads.max(1));
+    std::thread::scope(|s| {
+        for (out, input) in hits.chunks_mut(chunk).zip(rays.chunks(chunk)) {
+            let occluded = &occluded;
+            s.spawn(move || {
+                for (h, r) in out.iter_mut().zip(input) {
+                    *h = occluded(r.0, r.1, r.2);
+                }
+            });
+        }
+    });
+    (hits, start.elapsed().as_secs_f64() * 1e3)
+}
+
+/// A hash of three integers to a float in [0, 1) (seeded jitter that needs no RNG state).
+fn hash01(a: u32, b: u32, c: u32) -> f32 {
+    let mut h = a.wrapping_mul(0x9E37_79B9) ^ b.wrapping_mul(0x85EB_CA6B) ^ c.wrapping_mul(0xC2B2_AE35);
+    h ^= h >> 16;
+    h = h.wrapping_mul(0x7FEB_352D);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x846C_A68B);
+    h ^= h >> 16;
+    (h >> 8) as f32 / (1u32 << 24) as f32
+}
+
+/// An orthonormal basis around unit `n` (Duff et al. 2017).
+fn basis(n: Vec3) -> (Vec3, Vec3) {
+    let sign = 1f32.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (Vec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x), Vec3::new(b, sign + n.y * n.y * a, -n.y))
+}
+
+/// The rays of the scene's camera (see the module docs): `(origin, unit direction, tmax)`.
+pub fn camera_rays(
+    scene: &Scene,
+    bvh: &ShadowBvh,
+    light: &Light,
+    width: u32,
+    height: u32,
+    kind: RayKind,
+) -> Vec<(Vec3, Vec3, f32)> {
+    let cam = &scene.camera;
+    let eye = cam.eye.as_vec3();
+    let forward = (cam.target - cam.eye).normalize().as_vec3();
+    let right = forward.cross(cam.up).normalize();
+    let up = right.cross(forward);
+    let tan = (cam.vfov_deg.to_radians() * 0.5).tan();
+    let aspect = width as f32 / height as f32;
+    let binary = bvh.binary();
+    let tris: Vec<Triangle> = caster_triangles(scene)
+        .iter()
+        .map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() })
+        .collect();
+    let mut rays = Vec::with_capacity((width * height) as usize);
+    for y in 0..height {
+        for x in 0..width {
+            let sx = (2.0 * (x as f32 + 0.5) / width as f32 - 1.0) * tan * aspect;
+            let sy = (1.0 - 2.0 * (y as f32 + 0.5) / height as f32) * tan;
+            let dir = (forward + right * sx + up * sy).normalize();
+            let mut hit = RayHit::none();
+            let ray = Ray::new(Vec3A::from(eye), Vec3A::from(dir), 0.0, f32::INFINITY);
+            if !binary.ray_traverse(ray, &mut hit, |ray, id| hit_t(&tris[binary.primitive_indices[id] as usize], ray)) {
+                continue;
+            }
+            let tri = &tris[binary.primitive_indices[hit.primitive_id as usize] as usize];
+            let mut n: Vec3 = Vec3::from((tri.v1 - tri.v0).cross(tri.v2 - tri.v0)).normalize_or_zero();
+            if n == Vec3::ZERO {
+                continue;
+            }
+            if n.dot(dir) > 0.0 {
+                n = -n; // the side the camera sees
+            }
+            let p = eye + dir * hit.t;
+            let origin = offset_ray_origin(p, n);
+            let pixel = y * width + x;
+            let ray = match kind {
+                RayKind::Ao => {
+                    let (u1, u2) = (hash01(pixel, 1, 7), hash01(pixel, 2, 7));
+                    let r = u1.sqrt();
+                    let phi = std::f32::consts::TAU * u2;
+                    let (t, b) = basis(n);
+                    let d = (t * (r * phi.cos()) + b * (r * phi.sin()) + n * (1.0 - u1).max(0.0).sqrt()).normalize();
+                    Some((origin, d, 1.0))
+                }
+                RayKind::Shadow | RayKind::Area => {
+                    let jitter = if kind == RayKind::Area { Some((hash01(pixel, 3, 9), hash01(pixel, 4, 9))) } else { None };
+                    toward_light(light, origin, n, jitter)
+                }
+            };
+            rays.extend(ray);
+        }
+    }
+    rays
+}
+
+/// A ray from `origin` toward `light` (its centre, or a point over a 1 m disk facing the
+/// origin when `jitter` is given), or none where the surface faces away from it.
+fn toward_light(light: &Light, origin: Vec3, n: Vec3, jitter: Option<(f32, f32)>) -> Option<(Vec3, Vec3, f32)> {
+    let (target, far) = match light {
+        Light::Point { position, .. } | Light::Spot { position, .. } => (position.as_vec3(), false),
+        Light::Directional { direction, .. } => (origin - *direction * 1e6, true),
+    };
+    let mut to = target - origin;
+    if let Some((u1, u2)) = jitter {
+        let axis = to.normalize();
+        let (t, b) = basis(axis);
+        let r = 0.5 * u1.sqrt() * if far { 1e6 * 0.01 } else { 1.0 };
+        let phi = std::f32::consts::TAU * u2;
+        to += (t * phi.cos() + b * phi.sin()) * r;
+    }
+    let dist = to.length();
+    let dir = to / dist;
+    if dir.dot(n) <= 0.0 {
+        return None;
+    }
+    Some((origin, dir, dist * (1.0 - 1e-5)))
+}

@@ -1,0 +1,367 @@
+//! The GPU's shadow BVH: obvhs's binary tree collapsed into a 4-wide tree whose children's boxes
+//! are quantised to 8 bits against their parent's box (Ylitie, Karras, Laine 2017 do the same
+//! for 8-wide nodes), read by the shader through uniform texel buffers. `occluded` is the
+//! line-for-line twin of `bvh_occluded` in shaders/include/bvh.glsl.
+//!
+//! Why this layout (measured with `umbra bench rays`, see the README):
+//! - 4 children per node: a node step tests four boxes in vec4 arithmetic, and the tree is half
+//!   as deep as the binary one, so a ray takes fewer dependent fetches.
+//! - 8-bit boxes: a node is 64 bytes (four RGBA32UI texels) instead of the 128 a full-precision
+//!   4-wide node takes, which keeps memory per triangle under 48 bytes (nodes and triangles)
+//!   with each triangle stored whole (36 bytes) and fetched in three texels.
+//! - Texel buffers: lavapipe turns a storage-buffer load whose address differs between the 8
+//!   lanes of a SIMD vector into a per-lane loop; a texel fetch is one gather.
+//! - Leaves are not tested in the node step: a hit leaf is pushed on the stack as a tagged entry
+//!   and tested when popped, so every loop iteration does one kind of work per lane.
+//!
+//! # Node: 64 bytes, four RGBA32UI texels
+//! - texel 0: `x, y, z`: the node box's minimum corner (f32 bits), the quantisation origin;
+//!   `w`: bytes 0-2 the biased exponents `ex, ey, ez` of the per-axis scales `2^(e - 127)`,
+//!   byte 3 the mask of children that exist (bit i: child i).
+//! - texel 1: the four child words. Inner child: its node index (bit 31 clear). Leaf child:
+//!   bit 31 set, bits 28-30 its triangle count minus 1 (1 to 8), bits 0-27 its first triangle.
+//! - texel 2: `lo x, hi x, lo y, hi y`, texel 3: `lo z, hi z, 0, 0`: each word holds the four
+//!   children's 8-bit box coordinates, child i in byte i. A coordinate decodes to
+//!   `origin + q * scale`: the product is exact (q has 8 bits, the scale is a power of two), so
+//!   the sum is the only rounding and any device, fused or not, decodes the same box.
+//!   Quantisation rounds outward: a decoded box always contains the child's true box.
+//!
+//! # Triangle: 36 bytes, three texels of `v0`, `e1 = v1 - v0`, `e2 = v2 - v0`
+//! RGB32F texels where the device reads that format from a texel buffer (lavapipe and desktop
+//! GPUs do), else RGBA32F with `w` unused (48 bytes). Triangles are in leaf order.
+//!
+//! Node 0 is the root; the tree is in depth-first order. The root of a BVH with no triangles has
+//! no children, so a ray is occluded by nothing and buffers are never empty.
+
+use glam::{UVec4, Vec3, Vec4};
+use obvhs::bvh2::Bvh2;
+
+/// Entries in the traversal stack (`BVH_STACK_SIZE` in bvh.glsl). `WideBvh::stack_need` says
+/// how many a tree can use; a build that needs more is rebuilt balanced.
+pub const STACK_SIZE: usize = 64;
+
+/// Child word bit marking a leaf.
+const LEAF: u32 = 1 << 31;
+/// Bits of a leaf's first triangle.
+const FIRST_MASK: u32 = (1 << 28) - 1;
+/// The most triangles a leaf child holds (its count is stored in 3 bits).
+pub const MAX_LEAF_TRIANGLES: u32 = 8;
+/// The most triangles a tree can index (28 bits of first triangle).
+pub const MAX_TRIANGLES: usize = 1 << 28;
+
+/// Direction components closer to zero are replaced so 1/d stays finite.
+const MIN_DIR_COMPONENT: f32 = 1e-20;
+/// Widens the far slab distance by 2 gamma(3) (Ize 2013) so rounding never culls a touched box.
+const SLAB_FAR_SCALE: f32 = 1.000_000_4;
+
+/// One 64-byte node as uploaded (four RGBA32UI texels).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct WideNode {
+    pub texels: [[u32; 4]; 4],
+}
+
+/// A 4-wide quantised BVH and its triangles in leaf order.
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    pub nodes: Vec<WideNode>,
+    /// `v0, e1, e2` per triangle, in leaf order.
+    pub triangles: Vec<[Vec3; 3]>,
+    /// For each entry of `triangles`, its index in the input.
+    pub order: Vec<u32>,
+    /// The deepest the traversal stack can get on this tree.
+    pub stack_need: usize,
+}
+
+/// A child of a node being collapsed: a binary node's index in the obvhs tree.
+#[derive(Clone, Copy)]
+struct Child(usize);
+
+impl WideBvh {
+    /// Collapses `bvh` (over `tris`, indexed through its `primitive_indices`) in one linear
+    /// pass: each wide node takes its binary node's two children and keeps opening the inner
+    /// child with the largest surface area until it has four.
+    pub fn from_bvh2(bvh: &Bvh2, tris: &[[Vec3; 3]]) -> WideBvh {
+        let mut out = WideBvh::default();
+        if tris.is_empty() || bvh.nodes.is_empty() {
+            out.nodes.push(WideNode::default()); // no children: nothing is hit
+            out.triangles.push([Vec3::ZERO; 3]);
+            out.order.push(0);
+            out.stack_need = 1;
+            return out;
+        }
+        out.triangles.reserve(tris.len());
+        out.order.reserve(tris.len());
+        out.nodes.reserve(bvh.nodes.len() / 3 + 1);
+        let root = &bvh.nodes[0];
+        let need = if root.prim_count > 0 {
+            // A single leaf: a root whose one child is that leaf.
+            out.nodes.push(WideNode::default());
+            out.emit(bvh, tris, 0, &[Child(0)])
+        } else {
+            out.nodes.push(WideNode::default());
+            let children = open(bvh, 0);
+            out.emit(bvh, tris, 0, &children)
+        };
+        out.stack_need = need;
+        out
+    }
+
+    /// Fills node `slot` with `children` (binary node indices) and recurses into inner ones;
+    /// returns the stack this subtree's traversal can need.
+    fn emit(&mut self, bvh: &Bvh2, tris: &[[Vec3; 3]], slot: usize, children: &[Child]) -> usize {
+        let boxes: Vec<(Vec3, Vec3)> =
+            children.iter().map(|c| (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into())).collect();
+        let mut words = [0u32; 4];
+        let mut need_below = 0usize;
+        for (i, child) in children.iter().enumerate() {
+            let node = &bvh.nodes[child.0];
+            if node.prim_count > 0 {
+                let first = self.triangles.len() as u32;
+                assert!(node.prim_count <= MAX_LEAF_TRIANGLES, "leaf of {} triangles", node.prim_count);
+                for &p in &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize] {
+                    let [a, b, c] = tris[p as usize];
+                    self.triangles.push([a, b - a, c - a]);
+                    self.order.push(p);
+                }
+                words[i] = LEAF | ((node.prim_count - 1) << 28) | first;
+            } else {
+                let index = self.nodes.len();
+                self.nodes.push(WideNode::default());
+                words[i] = index as u32;
+                let grandchildren = open(bvh, child.0);
+                need_below = need_below.max(self.emit(bvh, tris, index, &grandchildren));
+            }
+        }
+        self.nodes[slot] = encode(&boxes, words);
+        // Popping this node and pushing its children leaves children - 1 entries beside the
+        // deepest child's own need (a leaf needs none beyond its own entry).
+        children.len().saturating_sub(1) + need_below.max(1)
+    }
+
+    /// Any-hit query, the twin of bvh.glsl's `bvh_occluded`: true when a triangle (either
+    /// face) lies on `origin + t dir` for t in (0, tmax).
+    pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        let inv_dir = Vec3::ONE / safe_dir(dir);
+        let mut stack = [0u32; STACK_SIZE];
+        let mut len = 0usize;
+        let mut entry = 0u32;
+        loop {
+            if entry & LEAF != 0 {
+                let first = entry & FIRST_MASK;
+                let count = ((entry >> 28) & 7) + 1;
+                for i in first..first + count {
+                    if triangle_occludes(&self.triangles[i as usize], origin, dir, tmax) {
+                        return true;
+                    }
+                }
+            } else {
+                let node = &self.nodes[entry as usize];
+                let hits = child_hits(node, origin, inv_dir, tmax);
+                for (i, &word) in node.texels[1].iter().enumerate() {
+                    if hits & (1 << i) != 0 {
+                        stack[len.min(STACK_SIZE - 1)] = word;
+                        len += 1;
+                    }
+                }
+            }
+            if len == 0 {
+                return false;
+            }
+            len -= 1;
+            entry = stack[len];
+        }
+    }
+
+    /// Bytes the device holds: nodes, and triangles at `triangle_stride` floats each (9 or 12).
+    pub fn device_bytes(&self, triangle_stride: usize) -> usize {
+        self.nodes.len() * std::mem::size_of::<WideNode>() + self.triangles.len() * triangle_stride * 4
+    }
+
+    /// The triangle texels: `v0, e1, e2` with 3 floats each (RGB32F) or 4 (RGBA32F, w = 0).
+    pub fn triangle_floats(&self, components: usize) -> Vec<f32> {
+        assert!(components == 3 || components == 4);
+        let mut out = Vec::with_capacity(self.triangles.len() * 3 * components);
+        for tri in &self.triangles {
+            for v in tri {
+                out.extend_from_slice(&v.to_array());
+                if components == 4 {
+                    out.push(0.0);
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The children of binary node `index` as a wide node takes them.
+fn open(bvh: &Bvh2, index: usize) -> Vec<Child> {
+    let first = bvh.nodes[index].first_index as usize;
+    let mut children = vec![Child(first), Child(first + 1)];
+    while children.len() < 4 {
+        let widest = children
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| bvh.nodes[c.0].prim_count == 0)
+            .max_by(|a, b| bvh.nodes[a.1 .0].aabb.half_area().total_cmp(&bvh.nodes[b.1 .0].aabb.half_area()));
+        let Some((i, c)) = widest else { break };
+        let first = bvh.nodes[c.0].first_index as usize;
+        children[i] = Child(first);
+        children.insert(i + 1, Child(first + 1));
+    }
+    children
+}
+
+/// The decoded coordinate `origin + q * scale`, as the shader computes it.
+fn decode(origin: f32, q: u32, scale: f32) -> f32 {
+    origin + q as f32 * scale
+}
+
+/// A node's texels for children with true boxes `boxes` and child words `words`.
+fn encode(boxes: &[(Vec3, Vec3)], words: [u32; 4]) -> WideNode {
+    let lo = boxes.iter().fold(Vec3::splat(f32::INFINITY), |m, b| m.min(b.0));
+    let hi = boxes.iter().fold(Vec3::splat(f32::NEG_INFINITY), |m, b| m.max(b.1));
+    let mut node = WideNode::default();
+    let mut exps = [0u32; 3];
+    let mut q = [[0u32; 4]; 6]; // lo x, hi x, lo y, hi y, lo z, hi z; child i in byte i
+    for axis in 0..3 {
+        let origin = lo[axis];
+        let extent = hi[axis] - lo[axis];
+        // The smallest power of two with 255 steps covering the extent, as a normal f32.
+        let mut e: i32 = if extent > 0.0 { (extent / 255.0).log2().ceil() as i32 } else { -126 };
+        e = e.clamp(-126, 127);
+        while e < 127 && decode(origin, 255, exp2(e)) < hi[axis] {
+            e += 1;
+        }
+        let scale = exp2(e);
+        exps[axis] = (e + 127) as u32;
+        for (i, b) in boxes.iter().enumerate() {
+            let mut qlo = (((b.0[axis] - origin) / scale).floor().max(0.0) as u32).min(255);
+            while qlo > 0 && decode(origin, qlo, scale) > b.0[axis] {
+                qlo -= 1;
+            }
+            let mut qhi = (((b.1[axis] - origin) / scale).ceil().max(0.0) as u32).min(255);
+            while qhi < 255 && decode(origin, qhi, scale) < b.1[axis] {
+                qhi += 1;
+            }
+            q[2 * axis][i] = qlo;
+            q[2 * axis + 1][i] = qhi;
+        }
+    }
+    let pack = |bytes: [u32; 4]| bytes[0] | bytes[1] << 8 | bytes[2] << 16 | bytes[3] << 24;
+    let mask = (1u32 << boxes.len()) - 1;
+    node.texels[0] = [lo.x.to_bits(), lo.y.to_bits(), lo.z.to_bits(), exps[0] | exps[1] << 8 | exps[2] << 16 | mask << 24];
+    node.texels[1] = words;
+    node.texels[2] = [pack(q[0]), pack(q[1]), pack(q[2]), pack(q[3])];
+    node.texels[3] = [pack(q[4]), pack(q[5]), 0, 0];
+    node
+}
+
+fn exp2(e: i32) -> f32 {
+    f32::from_bits(((e + 127) as u32) << 23)
+}
+
+fn bytes(word: u32) -> Vec4 {
+    let w = UVec4::splat(word) >> UVec4::new(0, 8, 16, 24) & UVec4::splat(0xff);
+    w.as_vec4()
+}
+
+/// The mask of children whose decoded boxes the ray segment touches (bvh.glsl's
+/// `bvh_child_hits`, operation for operation).
+fn child_hits(node: &WideNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> u32 {
+    let t0 = node.texels[0];
+    let base = Vec3::new(f32::from_bits(t0[0]), f32::from_bits(t0[1]), f32::from_bits(t0[2]));
+    let scale = Vec3::new(
+        f32::from_bits((t0[3] & 0xff) << 23),
+        f32::from_bits((t0[3] >> 8 & 0xff) << 23),
+        f32::from_bits((t0[3] >> 16 & 0xff) << 23),
+    );
+    let mask = t0[3] >> 24;
+    let [qlx, qhx, qly, qhy] = node.texels[2];
+    let [qlz, qhz, _, _] = node.texels[3];
+    let slab = |q_lo: u32, q_hi: u32, axis: usize| {
+        let lo = Vec4::splat(base[axis]) + bytes(q_lo) * scale[axis];
+        let hi = Vec4::splat(base[axis]) + bytes(q_hi) * scale[axis];
+        let a = (lo - Vec4::splat(origin[axis])) * inv_dir[axis];
+        let b = (hi - Vec4::splat(origin[axis])) * inv_dir[axis];
+        (a.min(b), a.max(b))
+    };
+    let (nx, fx) = slab(qlx, qhx, 0);
+    let (ny, fy) = slab(qly, qhy, 1);
+    let (nz, fz) = slab(qlz, qhz, 2);
+    let enter = nx.max(ny).max(nz.max(Vec4::ZERO));
+    let exit = fx.min(fy).min(fz.min(Vec4::splat(tmax))) * SLAB_FAR_SCALE;
+    enter.cmple(exit).bitmask() & mask
+}
+
+fn safe_dir(d: Vec3) -> Vec3 {
+    let fix = |c: f32| {
+        if c.abs() < MIN_DIR_COMPONENT {
+            if c < 0.0 {
+                -MIN_DIR_COMPONENT
+            } else {
+                MIN_DIR_COMPONENT
+            }
+        } else {
+            c
+        }
+    };
+    Vec3::new(fix(d.x), fix(d.y), fix(d.z))
+}
+
+/// Möller–Trumbore without back-face culling: shadows are cast by both faces. Comparisons are
+/// written as in GLSL so a NaN (from a denormal determinant) falls through to a miss in both.
+#[allow(clippy::manual_range_contains)]
+pub(super) fn triangle_occludes(&[v0, e1, e2]: &[Vec3; 3], origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+    let p = dir.cross(e2);
+    let det = e1.dot(p);
+    if det == 0.0 {
+        return false; // ray parallel to the plane, or a degenerate triangle
+    }
+    let inv_det = 1.0 / det;
+    let s = origin - v0;
+    let u = s.dot(p) * inv_det;
+    if u < 0.0 || u > 1.0 {
+        return false;
+    }
+    let q = s.cross(e1);
+    let v = dir.dot(q) * inv_det;
+    if v < 0.0 || u + v > 1.0 {
+        return false;
+    }
+    let t = e2.dot(q) * inv_det;
+    t > 0.0 && t < tmax
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantised_boxes_contain_the_true_ones() {
+        let boxes = [
+            (Vec3::new(0.1, -3.0, 7.25), Vec3::new(0.2, -2.9, 7.5)),
+            (Vec3::new(-1e3, 5.0, 7.3), Vec3::new(-999.0, 5.0, 9.0)),
+            (Vec3::new(12.0, -1.0, 7.25), Vec3::new(12.5, 0.0, 7.26)),
+        ];
+        let node = encode(&boxes, [1, 2, 3, 0]);
+        assert_eq!(node.texels[0][3] >> 24, 0b111);
+        let t0 = node.texels[0];
+        for axis in 0..3 {
+            let base = f32::from_bits(t0[axis]);
+            let scale = f32::from_bits((t0[3] >> (8 * axis) & 0xff) << 23);
+            let (wl, wh) = match axis {
+                0 => (node.texels[2][0], node.texels[2][1]),
+                1 => (node.texels[2][2], node.texels[2][3]),
+                _ => (node.texels[3][0], node.texels[3][1]),
+            };
+            for (i, b) in boxes.iter().enumerate() {
+                let lo = decode(base, wl >> (8 * i) & 0xff, scale);
+                let hi = decode(base, wh >> (8 * i) & 0xff, scale);
+                assert!(lo <= b.0[axis] && hi >= b.1[axis], "axis {axis} child {i}: [{lo}, {hi}] vs {b:?}");
+                // Not wastefully loose: within two steps of the true box.
+                assert!(b.0[axis] - lo <= 2.0 * scale && hi - b.1[axis] <= 2.0 * scale);
+            }
+        }
+    }
+}

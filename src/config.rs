@@ -166,7 +166,7 @@ impl ShadowChoice {
 
     /// Soft `traced` shadows with `spp` rays per pixel and frame.
     pub fn soft(spp: u32) -> ShadowChoice {
-        ShadowChoice { traced: TracedParams { soft: Some(true), spp }, ..Default::default() }
+        ShadowChoice { traced: TracedParams { soft: Some(true), spp, ..Default::default() }, ..Default::default() }
     }
 
     /// Sets one parameter by its key (`map.resolution`, `traced.spp`, `cascades.count`, ...)

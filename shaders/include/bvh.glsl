@@ -17,7 +17,7 @@ layout(set = BVH_SET, binding = BVH_NODES_BINDING) uniform usamplerBuffer bvh_no
 layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform samplerBuffer bvh_triangles;
 
 // Entries in the traversal stack; the CPU build keeps every tree's need within it.
-#define BVH_STACK_SIZE 64
+#define BVH_STACK_SIZE 96
 // A child word with this bit is a leaf: bits 28-30 its triangle count - 1, 0-27 its first.
 const uint BVH_LEAF = 0x80000000u;
 const uint BVH_FIRST_MASK = 0x0FFFFFFFu;

@@ -24,7 +24,7 @@ layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visib
 // One light per dispatch: its layer of the visibility target.
 layout(push_constant) uniform Push {
     uvec4 dims;  // x: width, y: height, z: the light, w: rays per pixel (0: none, facing only)
-    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: 1 = soft
+    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: 1 = soft; w: the tile's origin, x | y << 16
 } pc;
 
 // The light's visibility at pixel `px`: the share of its rays that reach the light.
@@ -82,7 +82,8 @@ void main() {
 }
 #else
 void main() {
-    uvec2 px = gl_GlobalInvocationID.xy;
+    // One tile of the image per dispatch (long passes are cut so none runs for seconds).
+    uvec2 px = gl_GlobalInvocationID.xy + uvec2(pc.frame.w & 0xFFFFu, pc.frame.w >> 16);
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
     imageStore(visibility, ivec2(px), vec4(trace_pixel(px)));
 }

@@ -41,6 +41,12 @@ const POST_COLLAPSE_REINSERTION_MULTIPLIER: f32 = 2.0;
 const MAX_PRIMS_PER_LEAF: u32 = 8;
 const COLLAPSE_TRAVERSAL_COST: f32 = 3.0;
 
+/// Passes over this many nodes or more search on several threads (below it, starting threads
+/// costs more than it saves).
+const PARALLEL_SEARCH_MIN: usize = 32_768;
+/// At most this many build threads.
+const MAX_BUILD_THREADS: usize = 16;
+
 /// A pass over at least `GUARD_MIN_COUNT` nodes that merges fewer than 1/`GUARD_DIVISOR` of
 /// them is slow. Below `GUARD_MIN_COUNT` nodes a slow tail costs little, so it is not counted.
 const GUARD_MIN_COUNT: usize = 256;
@@ -60,12 +66,27 @@ pub struct PlocReport {
 /// Builds a Bvh2 over `triangles` as obvhs's medium preset does, guarded as the module docs say.
 pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
     let mut bvh = Bvh2::zeroed(triangles.len());
+    let mut clock = std::time::Instant::now();
+    let mut lap = || {
+        let ms = clock.elapsed().as_secs_f64() * 1e3;
+        clock = std::time::Instant::now();
+        ms
+    };
     let report = build_ploc(&mut bvh, triangles);
+    let ploc_ms = lap();
     bvh.uses_spatial_splits = false;
     let mut reinsertion = ReinsertionOptimizer::default();
     reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO, None);
+    let reinsert_ms = lap();
     collapse(&mut bvh, MAX_PRIMS_PER_LEAF, COLLAPSE_TRAVERSAL_COST);
+    let collapse_ms = lap();
     reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO * POST_COLLAPSE_REINSERTION_MULTIPLIER, None);
+    log::debug!(
+        "BVH build over {} triangles: PLOC {ploc_ms:.0} ms, reinsertion {reinsert_ms:.0} ms, leaf collapse \
+         {collapse_ms:.0} ms, reinsertion {:.0} ms",
+        triangles.len(),
+        lap()
+    );
     (bvh, report)
 }
 
@@ -100,6 +121,7 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
     std::mem::swap(&mut current_nodes, &mut next_nodes);
 
     let mut merge = vec![0i8; prim_count];
+    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(MAX_BUILD_THREADS);
     let mut cache = SearchCache::default();
     let mut report = PlocReport::default();
     let mut depth = 0usize;
@@ -117,6 +139,27 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
                 last_cost = cost;
             }
             merge[count - 1] = -1;
+        } else if count >= PARALLEL_SEARCH_MIN && threads > 1 {
+            // The search is the build's hot loop, and each node's choice depends only on the
+            // nodes: split it into one chunk per thread. A chunk's cache is first filled by
+            // searching the radius before it (results discarded), so every choice is the one
+            // the sequential loop makes.
+            let nodes = &current_nodes[..count];
+            let chunk = count.div_ceil(threads);
+            std::thread::scope(|scope| {
+                for (c, out) in merge.chunks_mut(chunk).enumerate() {
+                    scope.spawn(move || {
+                        let mut cache = SearchCache::default();
+                        let start = c * chunk;
+                        for warm in start.saturating_sub(SEARCH_DISTANCE)..start {
+                            cache.find_best_node(warm, nodes);
+                        }
+                        for (k, best) in out.iter_mut().enumerate() {
+                            *best = cache.find_best_node(start + k, nodes);
+                        }
+                    });
+                }
+            });
         } else {
             for (index, best) in merge.iter_mut().enumerate() {
                 *best = cache.find_best_node(index, &current_nodes[..count]);

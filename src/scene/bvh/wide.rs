@@ -38,7 +38,7 @@ use obvhs::bvh2::Bvh2;
 
 /// Entries in the traversal stack (`BVH_STACK_SIZE` in bvh.glsl). `WideBvh::stack_need` says
 /// how many a tree can use; a build that needs more is rebuilt balanced.
-pub const STACK_SIZE: usize = 64;
+pub const STACK_SIZE: usize = 96;
 
 /// Child word bit marking a leaf.
 const LEAF: u32 = 1 << 31;
@@ -97,7 +97,7 @@ impl WideBvh {
         let need = if root.prim_count > 0 {
             // A single leaf: a root whose one child is that leaf.
             out.nodes.push(WideNode::default());
-            out.emit(bvh, tris, 0, &[Child(0)])
+            out.emit(bvh, tris, 0, &Children { items: [Child(0); 4], len: 1 })
         } else {
             out.nodes.push(WideNode::default());
             let children = open(bvh, 0);
@@ -110,8 +110,11 @@ impl WideBvh {
     /// Fills node `slot` with `children` (binary node indices) and recurses into inner ones;
     /// returns the stack this subtree's traversal can need.
     fn emit(&mut self, bvh: &Bvh2, tris: &[[Vec3; 3]], slot: usize, children: &[Child]) -> usize {
-        let boxes: Vec<(Vec3, Vec3)> =
-            children.iter().map(|c| (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into())).collect();
+        let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
+        for (b, c) in boxes.iter_mut().zip(children) {
+            *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
+        }
+        let boxes = &boxes[..children.len()];
         let mut words = [0u32; 4];
         let mut need_below = 0usize;
         for (i, child) in children.iter().enumerate() {
@@ -133,7 +136,7 @@ impl WideBvh {
                 need_below = need_below.max(self.emit(bvh, tris, index, &grandchildren));
             }
         }
-        self.nodes[slot] = encode(&boxes, words);
+        self.nodes[slot] = encode(boxes, words);
         // Popping this node and pushing its children leaves children - 1 entries beside the
         // deepest child's own need (a leaf needs none beyond its own entry).
         children.len().saturating_sub(1) + need_below.max(1)
@@ -194,22 +197,41 @@ impl WideBvh {
     }
 }
 
-/// The children of binary node `index` as a wide node takes them.
-fn open(bvh: &Bvh2, index: usize) -> Vec<Child> {
-    let first = bvh.nodes[index].first_index as usize;
-    let mut children = vec![Child(first), Child(first + 1)];
-    while children.len() < 4 {
-        let widest = children
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| bvh.nodes[c.0].prim_count == 0)
-            .max_by(|a, b| bvh.nodes[a.1 .0].aabb.half_area().total_cmp(&bvh.nodes[b.1 .0].aabb.half_area()));
-        let Some((i, c)) = widest else { break };
-        let first = bvh.nodes[c.0].first_index as usize;
-        children[i] = Child(first);
-        children.insert(i + 1, Child(first + 1));
+/// Up to four children, without a heap allocation per node.
+#[derive(Clone, Copy)]
+struct Children {
+    items: [Child; 4],
+    len: usize,
+}
+
+impl std::ops::Deref for Children {
+    type Target = [Child];
+    fn deref(&self) -> &[Child] {
+        &self.items[..self.len]
     }
-    children
+}
+
+/// The children of binary node `index` as a wide node takes them.
+fn open(bvh: &Bvh2, index: usize) -> Children {
+    let first = bvh.nodes[index].first_index as usize;
+    let mut c = Children { items: [Child(first), Child(first + 1), Child(0), Child(0)], len: 2 };
+    while c.len < 4 {
+        let mut widest: Option<(usize, f32)> = None;
+        for (i, child) in c.items[..c.len].iter().enumerate() {
+            let node = &bvh.nodes[child.0];
+            let area = node.aabb.half_area();
+            if node.prim_count == 0 && widest.is_none_or(|(_, a)| area > a) {
+                widest = Some((i, area));
+            }
+        }
+        let Some((i, _)) = widest else { break };
+        let first = bvh.nodes[c.items[i].0].first_index as usize;
+        c.items.copy_within(i + 1..c.len, i + 2);
+        c.items[i] = Child(first);
+        c.items[i + 1] = Child(first + 1);
+        c.len += 1;
+    }
+    c
 }
 
 /// The decoded coordinate `origin + q * scale`, as the shader computes it.

@@ -145,19 +145,23 @@ pub fn add<'a>(
         }
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
-    let work: Vec<([UVec4; 2], Bound)> = served
-        .iter()
-        .map(|s| {
-            let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
-            let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
-            (push_constants(extent, frame.frame_index, s, rays), layer)
-        })
-        .collect();
+    // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.
+    let mut work: Vec<([UVec4; 2], Bound, [u32; 2])> = Vec::new();
+    for s in served {
+        let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
+        let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
+        let push = push_constants(extent, frame.frame_index, s, rays);
+        for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push[0].w) {
+            let mut push = push;
+            push[1].w = x | y << 16;
+            work.push((push, layer, [w, h]));
+        }
+    }
     pass.render(move |ctx| {
         let mut bound = bound;
-        for (push, target) in &work {
+        for (push, target, [w, h]) in &work {
             bound.push((SHADOW_VISIBILITY, *target));
-            ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(push), extent.width, extent.height)?;
+            ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(push), *w, *h)?;
             bound.pop();
         }
         Ok(())

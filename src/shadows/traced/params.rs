@@ -13,18 +13,48 @@ pub struct TracedParams {
     pub soft: Option<bool>,
     /// Soft shadows: rays per pixel in each frame (1..=256); frames accumulate.
     pub spp: u32,
+    /// The most rays one dispatch casts: a pass that would cast more (a large image, many
+    /// samples) is cut into tiles, so that no dispatch runs long enough to trip a desktop
+    /// driver's watchdog (about 2 s). The image does not change.
+    pub tile_rays: u32,
 }
 
 impl Default for TracedParams {
     fn default() -> Self {
-        TracedParams { soft: None, spp: 8 }
+        TracedParams { soft: None, spp: 8, tile_rays: DEFAULT_TILE_RAYS }
     }
 }
+
+/// 4M rays: tens of milliseconds on a desktop GPU, well under its watchdog; on lavapipe a
+/// 1920x1080 frame of hard rays is one tile.
+pub const DEFAULT_TILE_RAYS: u32 = 1 << 22;
+/// The smallest tile budget: one 8x8 workgroup of 256-sample pixels.
+pub const MIN_TILE_RAYS: u32 = 64 * MAX_SPP;
 
 /// Most soft-shadow rays per pixel and frame (the visibility target resolves 1/255 steps).
 pub const MAX_SPP: u32 = 256;
 
 impl TracedParams {
+    /// The tiles a `width` x `height` pass with `spp` rays per pixel is cut into: origin and
+    /// size of each, in rows of whole 8x8 workgroups, at most `tile_rays` rays each.
+    pub fn tiles(&self, width: u32, height: u32, spp: u32) -> Vec<[u32; 4]> {
+        let pixels = (self.tile_rays / spp.max(1)).max(64);
+        // Whole rows where they fit, else square-ish blocks of whole workgroups.
+        let (tw, th) = if pixels >= width.saturating_mul(8) {
+            (width, (pixels / width.max(1)) / 8 * 8)
+        } else {
+            let side = ((pixels as f64).sqrt() as u32 / 8 * 8).max(8);
+            (side, side)
+        };
+        let mut tiles = Vec::new();
+        for y in (0..height).step_by(th.max(8) as usize) {
+            for x in (0..width).step_by(tw.max(8) as usize) {
+                tiles.push([x, y, tw.min(width - x), th.max(8).min(height - y)]);
+            }
+        }
+        tiles
+    }
+
     /// Whether a light with (or without) a size gets soft shadows.
     pub fn is_soft(&self, light_has_size: bool) -> bool {
         self.soft.unwrap_or(light_has_size)
@@ -33,6 +63,9 @@ impl TracedParams {
     pub fn check(&self) -> Result<(), String> {
         if !(1..=MAX_SPP).contains(&self.spp) {
             return Err(format!("traced.spp is {}: it takes 1 to {MAX_SPP} rays per pixel and frame", self.spp));
+        }
+        if self.tile_rays < MIN_TILE_RAYS {
+            return Err(format!("traced.tile_rays is {}: it takes at least {MIN_TILE_RAYS}", self.tile_rays));
         }
         Ok(())
     }

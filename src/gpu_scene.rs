@@ -233,6 +233,22 @@ impl SceneGpu {
         }
         let lights = gpu_lights(&scene.lights);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        // The geometry pass reads both as storage buffers (a binding holds at most this much).
+        let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
+        for (what, bytes) in [
+            ("vertices", std::mem::size_of_val(vertices.as_slice())),
+            ("triangle indices", std::mem::size_of_val(indices.as_slice())),
+        ] {
+            if bytes as u64 > limit {
+                return Err(GpuError::Unsupported(format!(
+                    "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one storage buffer \
+                     (maxStorageBufferRange): use fewer or simpler meshes",
+                    bytes >> 20,
+                    ctx.device_name(),
+                    limit >> 20
+                )));
+            }
+        }
         let layout = BvhBuffers::layout(ctx, bvh)?;
         let triangle_floats = bvh.wide().triangle_floats(layout.components);
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;

@@ -1,0 +1,47 @@
+//! `umbra bench rays`: the device's 4-wide traversal against obvhs's CPU traversals (binary and
+//! compressed wide) and lavapipe's ray query, on the camera rays of the 100k bench scene and on
+//! each kind of ray of the default scene. Every ray must agree but those that graze an edge
+//! (counted), with validation and synchronization validation on.
+
+mod common;
+
+use std::path::PathBuf;
+
+use umbra::bench::rays::{run, Options, RayKind};
+
+fn options(scene: Option<&str>, rays: RayKind, size: (u32, u32)) -> Options {
+    common::lavapipe_env();
+    Options {
+        scene: scene.map(PathBuf::from),
+        rays,
+        threads: 2,
+        size: Some(size),
+        repeats: 1,
+        device: None,
+        validate: true,
+    }
+}
+
+#[test]
+fn the_100k_scene_traces_the_same_on_the_device_and_the_cpu() {
+    let outcome = run(&options(Some("assets/scenes/bench/sphere-100k.toml"), RayKind::Shadow, (480, 270)))
+        .unwrap_or_else(|e| panic!("{e:#}"));
+    print!("{}", outcome.report);
+    assert!(outcome.rays > 100_000, "{} rays", outcome.rays);
+    let share = outcome.occluded as f64 / outcome.rays as f64;
+    assert!((0.02..0.5).contains(&share), "{:.3} occluded: the sphere's shadow is in view", share);
+    assert_eq!(outcome.unexplained, 0);
+    assert!(outcome.mismatches * 10_000 <= outcome.rays, "{} near-edge mismatches", outcome.mismatches);
+    assert!(outcome.timings.iter().all(|t| t.ms > 0.0 && t.mrays_per_s.is_finite()));
+    assert!(outcome.report.contains("ray query differs from the compute traversal on 0"), "{}", outcome.report);
+}
+
+#[test]
+fn every_kind_of_ray_agrees_on_the_default_scene() {
+    for kind in [RayKind::Shadow, RayKind::Area, RayKind::Ao] {
+        let outcome = run(&options(None, kind, (160, 120))).unwrap_or_else(|e| panic!("{kind:?}: {e:#}"));
+        print!("{}", outcome.report);
+        assert!(outcome.rays > 5_000 && outcome.occluded > 100, "{kind:?}: {} rays, {} occluded", outcome.rays, outcome.occluded);
+        assert_eq!(outcome.unexplained, 0, "{kind:?}");
+    }
+}

@@ -418,6 +418,6 @@ fn bvh_glsl_compiles_with_the_rust_layout() {
     common::compile_shader("tests/shaders/bvh_include.comp");
     assert_eq!(size_of::<WideNode>(), 64);
     let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
-    assert!(glsl.contains("int at = int(4u * entry);"));
+    assert!(glsl.contains("int at = int(4u * node);"));
     assert!(glsl.contains("texelFetch(bvh_triangles, int(3u * i))"));
 }

@@ -16,8 +16,9 @@
 layout(set = BVH_SET, binding = BVH_NODES_BINDING) uniform usamplerBuffer bvh_nodes;
 layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform samplerBuffer bvh_triangles;
 
-// Entries in the traversal stack; the CPU build keeps every tree's need within it.
-#define BVH_STACK_SIZE 96
+// Entries in the traversal stack (one per level of the tree at most); the CPU build keeps
+// every tree's depth within it.
+#define BVH_STACK_SIZE 64
 // A child word with this bit is a leaf: bits 28-30 its triangle count - 1, 0-27 its first.
 const uint BVH_LEAF = 0x80000000u;
 const uint BVH_FIRST_MASK = 0x0FFFFFFFu;
@@ -75,54 +76,74 @@ bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
     return t > 0.0 && t < tmax;
 }
 
+// The mask of node `node`'s children whose boxes the ray segment touches (bit i: child i).
+uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax) {
+    int at = int(4u * node);
+    uvec4 head = texelFetch(bvh_nodes, at);
+    uvec4 qxy = texelFetch(bvh_nodes, at + 2);
+    uvec4 qz = texelFetch(bvh_nodes, at + 3);
+    vec3 base = uintBitsToFloat(head.xyz);
+    uvec3 exps = (uvec3(head.w) >> uvec3(0u, 8u, 16u)) & 0xFFu;
+    vec3 scale = uintBitsToFloat(exps << 23);
+    vec4 nx, fx, ny, fy, nz, fz;
+    bvh_slab(base.x, scale.x, qxy.x, qxy.y, origin.x, inv_dir.x, nx, fx);
+    bvh_slab(base.y, scale.y, qxy.z, qxy.w, origin.y, inv_dir.y, ny, fy);
+    bvh_slab(base.z, scale.z, qz.x, qz.y, origin.z, inv_dir.z, nz, fz);
+    vec4 enter = max(max(nx, ny), max(nz, vec4(0.0)));
+    vec4 exit = min(min(fx, fy), min(fz, vec4(tmax))) * BVH_SLAB_FAR_SCALE;
+    uvec4 hit = uvec4(lessThanEqual(enter, exit));
+    return (hit.x | hit.y << 1 | hit.z << 2 | hit.w << 3) & (head.w >> 24);
+}
+
 // True when a triangle (either face) lies on the ray at t in (0, tmax). dir need not be unit;
 // t is in units of |dir|.
+//
+// The walk keeps one group in registers: a node and the mask of its children the ray touches
+// that are still to visit. Each iteration visits one child of the group (its lowest): a leaf's
+// triangles are tested there; an inner node replaces the group, the rest of the old group going
+// on the stack as one entry (node index | mask << 28). A pop happens only when a group is empty.
+// So a node costs one stack write at most, never one per child: lavapipe runs each access to a
+// local array at a varying index as a loop over the SIMD lanes.
 bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
     vec3 inv_dir = 1.0 / vec3(bvh_safe_component(dir.x), bvh_safe_component(dir.y),
                               bvh_safe_component(dir.z));
     uint stack[BVH_STACK_SIZE];
     uint stack_len = 0u;
-    uint entry = 0u; // the root node
+    uint node = 0u;
+    uint mask = bvh_child_hits(0u, origin, inv_dir, tmax);
     for (;;) {
-        if ((entry & BVH_LEAF) != 0u) {
-            // A leaf popped from the stack: its triangles, one after another.
-            uint first = entry & BVH_FIRST_MASK;
-            uint end = first + ((entry >> 28) & 7u) + 1u;
+        if (mask == 0u) {
+            if (stack_len == 0u) {
+                return false;
+            }
+            stack_len--;
+            uint entry = stack[stack_len];
+            node = entry & BVH_FIRST_MASK;
+            mask = entry >> 28;
+        }
+        uint c = uint(findLSB(mask));
+        mask &= mask - 1u;
+        // Selected, not indexed: a vector indexed by a variable goes to scratch memory.
+        uvec4 words = texelFetch(bvh_nodes, int(4u * node + 1u));
+        uint word = c == 0u ? words.x : c == 1u ? words.y : c == 2u ? words.z : words.w;
+        if ((word & BVH_LEAF) != 0u) {
+            uint first = word & BVH_FIRST_MASK;
+            uint end = first + ((word >> 28) & 7u) + 1u;
             for (uint i = first; i < end; i++) {
                 if (bvh_triangle_occludes(i, origin, dir, tmax)) {
                     return true;
                 }
             }
         } else {
-            // A node: test its four children's boxes at once, push those the ray touches.
-            int at = int(4u * entry);
-            uvec4 head = texelFetch(bvh_nodes, at);
-            uvec4 words = texelFetch(bvh_nodes, at + 1);
-            uvec4 qxy = texelFetch(bvh_nodes, at + 2);
-            uvec4 qz = texelFetch(bvh_nodes, at + 3);
-            vec3 base = uintBitsToFloat(head.xyz);
-            uvec3 exps = (uvec3(head.w) >> uvec3(0u, 8u, 16u)) & 0xFFu;
-            vec3 scale = uintBitsToFloat(exps << 23);
-            vec4 nx, fx, ny, fy, nz, fz;
-            bvh_slab(base.x, scale.x, qxy.x, qxy.y, origin.x, inv_dir.x, nx, fx);
-            bvh_slab(base.y, scale.y, qxy.z, qxy.w, origin.y, inv_dir.y, ny, fy);
-            bvh_slab(base.z, scale.z, qz.x, qz.y, origin.z, inv_dir.z, nz, fz);
-            vec4 enter = max(max(nx, ny), max(nz, vec4(0.0)));
-            vec4 exit = min(min(fx, fy), min(fz, vec4(tmax))) * BVH_SLAB_FAR_SCALE;
-            bvec4 hit = lessThanEqual(enter, exit);
-            uint mask = head.w >> 24;
-            // The clamp only keeps a corrupt buffer from writing out of bounds: the build keeps
-            // every tree's need within the stack.
-            if (hit.x && (mask & 1u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.x; stack_len++; }
-            if (hit.y && (mask & 2u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.y; stack_len++; }
-            if (hit.z && (mask & 4u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.z; stack_len++; }
-            if (hit.w && (mask & 8u) != 0u) { stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = words.w; stack_len++; }
+            if (mask != 0u) {
+                // The clamp only keeps a corrupt buffer from writing out of bounds: the build
+                // keeps every tree's depth within the stack.
+                stack[min(stack_len, uint(BVH_STACK_SIZE - 1))] = node | (mask << 28);
+                stack_len++;
+            }
+            node = word;
+            mask = bvh_child_hits(node, origin, inv_dir, tmax);
         }
-        if (stack_len == 0u) {
-            return false;
-        }
-        stack_len--;
-        entry = stack[stack_len];
     }
     return false;
 }

@@ -51,7 +51,11 @@ pub struct Options {
 /// One tracer's result.
 pub struct Timing {
     pub name: String,
+    /// Wall-clock milliseconds (GPU timestamps on the device).
     pub ms: f64,
+    /// CPU milliseconds the process spent meanwhile, all threads: on lavapipe the device's work
+    /// itself. Steadier than wall clock on a machine other work shares.
+    pub cpu_ms: f64,
     pub mrays_per_s: f64,
 }
 
@@ -107,16 +111,16 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let mut batch = TimedBatch::new(&ctx, &gpu_rays)?;
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
     let pipeline = ray_batch::pipeline(&ctx)?;
-    let (gpu_hits, ms) = repeat(options.repeats, || batch.trace(&pipeline, &Target::Compute(&buffers)))?;
-    timings.push(timing("compute BVH (device)", ms, rays.len()));
+    let (gpu_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&pipeline, &Target::Compute(&buffers)))?;
+    timings.push(timing("compute BVH (device)", (ms, cpu), rays.len()));
     let mut rq_disagree = None;
     if ctx.capabilities.ray_query {
         let scene = RayQueryScene::new(&ctx, &tris)?;
         let rq_pipeline = ray_batch::ray_query_pipeline(&ctx)?;
         // The first trace builds the structures: not timed.
         batch.trace(&rq_pipeline, &Target::RayQuery(&scene))?;
-        let (rq_hits, ms) = repeat(options.repeats, || batch.trace(&rq_pipeline, &Target::RayQuery(&scene)))?;
-        timings.push(timing("ray query (device)", ms, rays.len()));
+        let (rq_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&rq_pipeline, &Target::RayQuery(&scene)))?;
+        timings.push(timing("ray query (device)", (ms, cpu), rays.len()));
         rq_disagree = Some(gpu_hits.iter().zip(&rq_hits).filter(|(a, b)| a != b).count());
     }
     if ctx.validation_messages() > 0 {
@@ -127,13 +131,13 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let obvhs_tris: Vec<Triangle> =
         tris.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
     let binary = bvh.binary();
-    let (cpu_hits, ms) = repeat(options.repeats, || {
+    let (cpu_hits, ms, cpu) = repeat(options.repeats, || {
         Ok(cpu_trace(&rays, options.threads, |o, d, t| {
             let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
             !binary.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[binary.primitive_indices[id] as usize], ray))
         }))
     })?;
-    timings.push(timing("obvhs BVH2 (CPU)", ms, rays.len()));
+    timings.push(timing("obvhs BVH2 (CPU)", (ms, cpu), rays.len()));
     let start = Instant::now();
     let cw = obvhs::cwbvh::builder::build_cwbvh_from_tris(
         &obvhs_tris,
@@ -141,13 +145,13 @@ pub fn run(options: &Options) -> Result<Outcome> {
         &mut std::time::Duration::default(),
     );
     let cw_build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let (cw_hits, ms) = repeat(options.repeats, || {
+    let (cw_hits, ms, cpu) = repeat(options.repeats, || {
         Ok(cpu_trace(&rays, options.threads, |o, d, t| {
             let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
             !cw.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[cw.primitive_indices[id] as usize], ray))
         }))
     })?;
-    timings.push(timing("obvhs CWBVH (CPU)", ms, rays.len()));
+    timings.push(timing("obvhs CWBVH (CPU)", (ms, cpu), rays.len()));
 
     // Agreement: every ray where the device and obvhs differ must graze an edge.
     let mut mismatches = 0;
@@ -161,7 +165,9 @@ pub fn run(options: &Options) -> Result<Outcome> {
         }
     }
     let occluded = gpu_hits.iter().filter(|&&h| h).count();
-    let best_cpu = timings.iter().filter(|t| t.name.contains("CPU")).map(|t| t.ms).fold(f64::INFINITY, f64::min);
+    let cpu_side = || timings.iter().filter(|t| t.name.contains("CPU"));
+    let best_cpu = cpu_side().map(|t| t.ms).fold(f64::INFINITY, f64::min);
+    let best_cpu_time = cpu_side().map(|t| t.cpu_ms).fold(f64::INFINITY, f64::min);
     let mut report = format!(
         "{name}: {} {} rays from {width}x{height} ({:.1} % occluded), {} triangles; {} lavapipe/CPU thread(s)\n\
          BVH build {build_ms:.0} ms (umbra, binary + 4-wide collapse), {cw_build_ms:.0} ms (obvhs CWBVH); device BVH {:.1} bytes per triangle\n",
@@ -172,9 +178,20 @@ pub fn run(options: &Options) -> Result<Outcome> {
         options.threads,
         buffers.bytes() as f64 / tris.len() as f64,
     );
-    report += &format!("{:<24} {:>10} {:>10} {:>14}\n", "tracer", "ms", "Mrays/s", "vs best CPU");
+    report += &format!(
+        "{:<22} {:>9} {:>8} {:>12} {:>11} {:>12}\n",
+        "tracer", "wall ms", "Mrays/s", "vs best CPU", "CPU-time ms", "vs best CPU"
+    );
     for t in &timings {
-        report += &format!("{:<24} {:>10.1} {:>10.2} {:>13.2}x\n", t.name, t.ms, t.mrays_per_s, best_cpu / t.ms);
+        report += &format!(
+            "{:<22} {:>9.1} {:>8.2} {:>11.2}x {:>11.1} {:>11.2}x\n",
+            t.name,
+            t.ms,
+            t.mrays_per_s,
+            best_cpu / t.ms,
+            t.cpu_ms,
+            best_cpu_time / t.cpu_ms
+        );
     }
     report += &format!(
         "agreement: {mismatches} of {} rays differ between tracers, {unexplained} of them away from any edge",
@@ -190,21 +207,38 @@ pub fn run(options: &Options) -> Result<Outcome> {
     Ok(Outcome { rays: rays.len(), occluded, timings, mismatches, unexplained, report })
 }
 
-fn timing(name: &str, ms: f64, rays: usize) -> Timing {
-    Timing { name: name.to_string(), ms, mrays_per_s: rays as f64 / (ms * 1e3) }
+fn timing(name: &str, (ms, cpu_ms): (f64, f64), rays: usize) -> Timing {
+    Timing { name: name.to_string(), ms, cpu_ms, mrays_per_s: rays as f64 / (ms * 1e3) }
 }
 
-/// Runs `f` `n` times (at least once) and returns the first result with the median time.
-fn repeat<T>(n: usize, mut f: impl FnMut() -> Result<(T, f64), crate::vk::GpuError>) -> Result<(T, f64)> {
+/// Milliseconds of CPU time this process has used (all its threads: lavapipe's included).
+fn process_cpu_ms() -> f64 {
+    // SAFETY: getrusage fills the struct it is given.
+    let usage = unsafe {
+        let mut usage: libc::rusage = std::mem::zeroed();
+        libc::getrusage(libc::RUSAGE_SELF, &mut usage);
+        usage
+    };
+    let ms = |t: libc::timeval| t.tv_sec as f64 * 1e3 + t.tv_usec as f64 * 1e-3;
+    ms(usage.ru_utime) + ms(usage.ru_stime)
+}
+
+/// Runs `f` `n` times (at least once) and returns the first result with the median time and
+/// the median CPU time the process spent meanwhile.
+fn repeat<T>(n: usize, mut f: impl FnMut() -> Result<(T, f64), crate::vk::GpuError>) -> Result<(T, f64, f64)> {
     let mut times = Vec::new();
+    let mut cpu = Vec::new();
     let mut first = None;
     for _ in 0..n.max(1) {
+        let before = process_cpu_ms();
         let (value, ms) = f().context("tracing on the device")?;
+        cpu.push(process_cpu_ms() - before);
         times.push(ms);
         first.get_or_insert(value);
     }
     times.sort_by(f64::total_cmp);
-    Ok((first.expect("ran at least once"), times[times.len() / 2]))
+    cpu.sort_by(f64::total_cmp);
+    Ok((first.expect("ran at least once"), times[times.len() / 2], cpu[cpu.len() / 2]))
 }
 
 /// obvhs's triangle test as a shadow query wants it: open at t = 0.

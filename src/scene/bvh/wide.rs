@@ -11,8 +11,11 @@
 //!   with each triangle stored whole (36 bytes) and fetched in three texels.
 //! - Texel buffers: lavapipe turns a storage-buffer load whose address differs between the 8
 //!   lanes of a SIMD vector into a per-lane loop; a texel fetch is one gather.
-//! - Leaves are not tested in the node step: a hit leaf is pushed on the stack as a tagged entry
-//!   and tested when popped, so every loop iteration does one kind of work per lane.
+//! - The walk keeps a group in registers (a node and the mask of its children still to visit)
+//!   and visits one child per iteration; the rest of a group goes on the stack as one entry
+//!   (Ylitie et al.'s traversal): one stack write per node at most, and a stack no deeper than
+//!   the tree. lavapipe runs every access to a local array at a varying index as a loop over the
+//!   8 lanes of a SIMD vector, so pushing each hit child (an earlier version) cost more.
 //!
 //! # Node: 64 bytes, four RGBA32UI texels
 //! - texel 0: `x, y, z`: the node box's minimum corner (f32 bits), the quantisation origin;
@@ -38,7 +41,7 @@ use obvhs::bvh2::Bvh2;
 
 /// Entries in the traversal stack (`BVH_STACK_SIZE` in bvh.glsl). `WideBvh::stack_need` says
 /// how many a tree can use; a build that needs more is rebuilt balanced.
-pub const STACK_SIZE: usize = 96;
+pub const STACK_SIZE: usize = 64;
 
 /// Child word bit marking a leaf.
 const LEAF: u32 = 1 << 31;
@@ -69,7 +72,7 @@ pub struct WideBvh {
     pub triangles: Vec<[Vec3; 3]>,
     /// For each entry of `triangles`, its index in the input.
     pub order: Vec<u32>,
-    /// The deepest the traversal stack can get on this tree.
+    /// The deepest the traversal stack can get on this tree: its depth in wide nodes.
     pub stack_need: usize,
 }
 
@@ -137,42 +140,46 @@ impl WideBvh {
             }
         }
         self.nodes[slot] = encode(boxes, words);
-        // Popping this node and pushing its children leaves children - 1 entries beside the
-        // deepest child's own need (a leaf needs none beyond its own entry).
-        children.len().saturating_sub(1) + need_below.max(1)
+        // Descending into an inner child pushes this node's group (one entry) at most.
+        1 + need_below
     }
 
-    /// Any-hit query, the twin of bvh.glsl's `bvh_occluded`: true when a triangle (either
-    /// face) lies on `origin + t dir` for t in (0, tmax).
+    /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` (whose comments explain the walk):
+    /// true when a triangle (either face) lies on `origin + t dir` for t in (0, tmax).
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let inv_dir = Vec3::ONE / safe_dir(dir);
         let mut stack = [0u32; STACK_SIZE];
         let mut len = 0usize;
-        let mut entry = 0u32;
+        let mut node = 0u32;
+        let mut mask = child_hits(&self.nodes[0], origin, inv_dir, tmax);
         loop {
-            if entry & LEAF != 0 {
-                let first = entry & FIRST_MASK;
-                let count = ((entry >> 28) & 7) + 1;
+            if mask == 0 {
+                if len == 0 {
+                    return false;
+                }
+                len -= 1;
+                node = stack[len] & FIRST_MASK;
+                mask = stack[len] >> 28;
+            }
+            let c = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            let word = self.nodes[node as usize].texels[1][c];
+            if word & LEAF != 0 {
+                let first = word & FIRST_MASK;
+                let count = ((word >> 28) & 7) + 1;
                 for i in first..first + count {
                     if triangle_occludes(&self.triangles[i as usize], origin, dir, tmax) {
                         return true;
                     }
                 }
             } else {
-                let node = &self.nodes[entry as usize];
-                let hits = child_hits(node, origin, inv_dir, tmax);
-                for (i, &word) in node.texels[1].iter().enumerate() {
-                    if hits & (1 << i) != 0 {
-                        stack[len.min(STACK_SIZE - 1)] = word;
-                        len += 1;
-                    }
+                if mask != 0 {
+                    stack[len.min(STACK_SIZE - 1)] = node | (mask << 28);
+                    len += 1;
                 }
+                node = word;
+                mask = child_hits(&self.nodes[node as usize], origin, inv_dir, tmax);
             }
-            if len == 0 {
-                return false;
-            }
-            len -= 1;
-            entry = stack[len];
         }
     }
 

@@ -4,8 +4,10 @@
 //! This is `obvhs::bvh2::builder::build_bvh2_from_tris` with `BvhBuildParams::medium_build()`
 //! (obvhs 0.4.0, without its `parallel` feature), ported line for line: the same Morton sort,
 //! the same nearest-neighbour search (radius 14, radius 1 for the first 3 passes), the same
-//! merges into the same node slots, then obvhs's own reinsertion and leaf collapse. On ordinary
-//! input it builds exactly obvhs's tree (`tests/bvh_cpu.rs` compares them node for node).
+//! merges into the same node slots, then obvhs's own reinsertion. On ordinary input it builds
+//! exactly obvhs's tree for the same settings without leaf collapse (`tests/bvh_cpu.rs` compares
+//! them node for node): leaves are chosen later, in the same linear pass that makes the 4-wide
+//! tree (`wide::LeafPlan`), which costs less than obvhs's collapse and its second reinsertion.
 //!
 //! What it adds: obvhs merges only the pairs of nodes that choose each other, and when many
 //! nodes tie (coincident triangles: every pair costs the same) or nest (a triangle fan: every box
@@ -23,7 +25,6 @@
 //! regular grids) search 0.04 n to 0.12 n nodes, so they keep obvhs's tree exactly.
 
 use obvhs::aabb::Aabb;
-use obvhs::bvh2::leaf_collapser::collapse;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH};
@@ -35,11 +36,9 @@ use rdst::{RadixKey, RadixSort};
 const SEARCH_DISTANCE: usize = 14;
 /// `medium_build().search_depth_threshold`: passes before it search only the next node.
 const SEARCH_DEPTH_THRESHOLD: usize = 3;
-/// `medium_build()`'s reinsertion and collapse settings.
+/// `medium_build()`'s reinsertion setting (its leaf collapse and the reinsertion after it are
+/// left to the wide collapse).
 const REINSERTION_BATCH_RATIO: f32 = 0.05;
-const POST_COLLAPSE_REINSERTION_MULTIPLIER: f32 = 2.0;
-const MAX_PRIMS_PER_LEAF: u32 = 8;
-const COLLAPSE_TRAVERSAL_COST: f32 = 3.0;
 
 /// Passes over this many nodes or more search on several threads (below it, starting threads
 /// costs more than it saves).
@@ -77,13 +76,8 @@ pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
     bvh.uses_spatial_splits = false;
     let mut reinsertion = ReinsertionOptimizer::default();
     reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO, None);
-    let reinsert_ms = lap();
-    collapse(&mut bvh, MAX_PRIMS_PER_LEAF, COLLAPSE_TRAVERSAL_COST);
-    let collapse_ms = lap();
-    reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO * POST_COLLAPSE_REINSERTION_MULTIPLIER, None);
     log::debug!(
-        "BVH build over {} triangles: PLOC {ploc_ms:.0} ms, reinsertion {reinsert_ms:.0} ms, leaf collapse \
-         {collapse_ms:.0} ms, reinsertion {:.0} ms",
+        "BVH build over {} triangles: PLOC {ploc_ms:.0} ms, reinsertion {:.0} ms",
         triangles.len(),
         lap()
     );

@@ -80,10 +80,61 @@ pub struct WideBvh {
 #[derive(Clone, Copy)]
 struct Child(usize);
 
+/// Intersection cost of a triangle against the cost of a wide node step, for the leaf choice:
+/// a subtree becomes one leaf where testing all its triangles is expected to cost no more than
+/// walking it (the surface-area heuristic, with obvhs's collapse weight).
+const TRAVERSAL_COST: f32 = 3.0;
+
+/// Which binary subtrees become leaves: bottom up, a subtree of at most `MAX_LEAF_TRIANGLES`
+/// whose leaf cost is no more than its tree's SAH cost. One pass in post order: linear time.
+struct LeafPlan {
+    leaf: Vec<bool>,
+}
+
+impl LeafPlan {
+    fn new(bvh: &Bvh2) -> LeafPlan {
+        let n = bvh.nodes.len();
+        let mut count = vec![0u32; n];
+        let mut cost = vec![0f32; n];
+        let mut leaf = vec![false; n];
+        // Post order without recursion: children finish before their parent.
+        let mut stack = vec![(0usize, false)];
+        while let Some((i, children_done)) = stack.pop() {
+            let node = &bvh.nodes[i];
+            if node.prim_count > 0 {
+                count[i] = node.prim_count;
+                cost[i] = node.prim_count as f32;
+                leaf[i] = node.prim_count <= MAX_LEAF_TRIANGLES;
+                continue;
+            }
+            let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+            if !children_done {
+                stack.push((i, true));
+                stack.push((l, false));
+                stack.push((r, false));
+                continue;
+            }
+            count[i] = count[l] + count[r];
+            let area = node.aabb.half_area();
+            let walk = if area > 0.0 && area.is_finite() {
+                TRAVERSAL_COST
+                    + (bvh.nodes[l].aabb.half_area() * cost[l] + bvh.nodes[r].aabb.half_area() * cost[r]) / area
+            } else {
+                TRAVERSAL_COST + cost[l] + cost[r]
+            };
+            let as_leaf = count[i] as f32;
+            leaf[i] = count[i] <= MAX_LEAF_TRIANGLES && as_leaf <= walk;
+            cost[i] = if leaf[i] { as_leaf } else { walk };
+        }
+        LeafPlan { leaf }
+    }
+}
+
 impl WideBvh {
-    /// Collapses `bvh` (over `tris`, indexed through its `primitive_indices`) in one linear
-    /// pass: each wide node takes its binary node's two children and keeps opening the inner
-    /// child with the largest surface area until it has four.
+    /// Collapses `bvh` (over `tris`, indexed through its `primitive_indices`) in linear time:
+    /// subtrees become leaves where the SAH says so (`LeafPlan`), and each wide node takes its
+    /// binary node's two children and keeps opening the inner child with the largest surface
+    /// area until it has four.
     pub fn from_bvh2(bvh: &Bvh2, tris: &[[Vec3; 3]]) -> WideBvh {
         let mut out = WideBvh::default();
         if tris.is_empty() || bvh.nodes.is_empty() {
@@ -93,18 +144,17 @@ impl WideBvh {
             out.stack_need = 1;
             return out;
         }
+        let plan = LeafPlan::new(bvh);
         out.triangles.reserve(tris.len());
         out.order.reserve(tris.len());
-        out.nodes.reserve(bvh.nodes.len() / 3 + 1);
-        let root = &bvh.nodes[0];
-        let need = if root.prim_count > 0 {
+        out.nodes.reserve(bvh.nodes.len() / 6 + 1);
+        out.nodes.push(WideNode::default());
+        let need = if plan.leaf[0] {
             // A single leaf: a root whose one child is that leaf.
-            out.nodes.push(WideNode::default());
-            out.emit(bvh, tris, 0, &Children { items: [Child(0); 4], len: 1 })
+            out.emit(bvh, &plan, tris, 0, &Children { items: [Child(0); 4], len: 1 })
         } else {
-            out.nodes.push(WideNode::default());
-            let children = open(bvh, 0);
-            out.emit(bvh, tris, 0, &children)
+            let children = open(bvh, &plan, 0);
+            out.emit(bvh, &plan, tris, 0, &children)
         };
         out.stack_need = need;
         out
@@ -112,7 +162,7 @@ impl WideBvh {
 
     /// Fills node `slot` with `children` (binary node indices) and recurses into inner ones;
     /// returns the stack this subtree's traversal can need.
-    fn emit(&mut self, bvh: &Bvh2, tris: &[[Vec3; 3]], slot: usize, children: &[Child]) -> usize {
+    fn emit(&mut self, bvh: &Bvh2, plan: &LeafPlan, tris: &[[Vec3; 3]], slot: usize, children: &[Child]) -> usize {
         let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
         for (b, c) in boxes.iter_mut().zip(children) {
             *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
@@ -121,22 +171,32 @@ impl WideBvh {
         let mut words = [0u32; 4];
         let mut need_below = 0usize;
         for (i, child) in children.iter().enumerate() {
-            let node = &bvh.nodes[child.0];
-            if node.prim_count > 0 {
+            if plan.leaf[child.0] {
                 let first = self.triangles.len() as u32;
-                assert!(node.prim_count <= MAX_LEAF_TRIANGLES, "leaf of {} triangles", node.prim_count);
-                for &p in &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize] {
-                    let [a, b, c] = tris[p as usize];
-                    self.triangles.push([a, b - a, c - a]);
-                    self.order.push(p);
+                // Every triangle of the subtree, in its leaves' order.
+                let mut pending = vec![child.0];
+                while let Some(n) = pending.pop() {
+                    let node = &bvh.nodes[n];
+                    if node.prim_count == 0 {
+                        pending.push(node.first_index as usize + 1);
+                        pending.push(node.first_index as usize);
+                        continue;
+                    }
+                    for &p in &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize] {
+                        let [a, b, c] = tris[p as usize];
+                        self.triangles.push([a, b - a, c - a]);
+                        self.order.push(p);
+                    }
                 }
-                words[i] = LEAF | ((node.prim_count - 1) << 28) | first;
+                let count = self.triangles.len() as u32 - first;
+                debug_assert!((1..=MAX_LEAF_TRIANGLES).contains(&count));
+                words[i] = LEAF | ((count - 1) << 28) | first;
             } else {
                 let index = self.nodes.len();
                 self.nodes.push(WideNode::default());
                 words[i] = index as u32;
-                let grandchildren = open(bvh, child.0);
-                need_below = need_below.max(self.emit(bvh, tris, index, &grandchildren));
+                let grandchildren = open(bvh, plan, child.0);
+                need_below = need_below.max(self.emit(bvh, plan, tris, index, &grandchildren));
             }
         }
         self.nodes[slot] = encode(boxes, words);
@@ -219,15 +279,14 @@ impl std::ops::Deref for Children {
 }
 
 /// The children of binary node `index` as a wide node takes them.
-fn open(bvh: &Bvh2, index: usize) -> Children {
+fn open(bvh: &Bvh2, plan: &LeafPlan, index: usize) -> Children {
     let first = bvh.nodes[index].first_index as usize;
     let mut c = Children { items: [Child(first), Child(first + 1), Child(0), Child(0)], len: 2 };
     while c.len < 4 {
         let mut widest: Option<(usize, f32)> = None;
         for (i, child) in c.items[..c.len].iter().enumerate() {
-            let node = &bvh.nodes[child.0];
-            let area = node.aabb.half_area();
-            if node.prim_count == 0 && widest.is_none_or(|(_, a)| area > a) {
+            let area = bvh.nodes[child.0].aabb.half_area();
+            if !plan.leaf[child.0] && widest.is_none_or(|(_, a)| area > a) {
                 widest = Some((i, area));
             }
         }

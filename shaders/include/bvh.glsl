@@ -111,7 +111,19 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
     uint stack_len = 0u;
     uint node = 0u;
     uint mask = bvh_child_hits(0u, origin, inv_dir, tmax);
+    uint leaf_next = 0u; // the next triangle of the leaf being tested
+    uint leaf_left = 0u; // and how many of its triangles are left
     for (;;) {
+        if (leaf_left > 0u) {
+            // One triangle per iteration: a lane in a big leaf does not hold the vector's
+            // other lanes for the whole leaf.
+            if (bvh_triangle_occludes(leaf_next, origin, dir, tmax)) {
+                return true;
+            }
+            leaf_next++;
+            leaf_left--;
+            continue;
+        }
         if (mask == 0u) {
             if (stack_len == 0u) {
                 return false;
@@ -127,13 +139,8 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
         uvec4 words = texelFetch(bvh_nodes, int(4u * node + 1u));
         uint word = c == 0u ? words.x : c == 1u ? words.y : c == 2u ? words.z : words.w;
         if ((word & BVH_LEAF) != 0u) {
-            uint first = word & BVH_FIRST_MASK;
-            uint end = first + ((word >> 28) & 7u) + 1u;
-            for (uint i = first; i < end; i++) {
-                if (bvh_triangle_occludes(i, origin, dir, tmax)) {
-                    return true;
-                }
-            }
+            leaf_next = word & BVH_FIRST_MASK;
+            leaf_left = ((word >> 28) & 7u) + 1u;
         } else {
             if (mask != 0u) {
                 // The clamp only keeps a corrupt buffer from writing out of bounds: the build

@@ -12,7 +12,9 @@
 //! - Texel buffers: lavapipe turns a storage-buffer load whose address differs between the 8
 //!   lanes of a SIMD vector into a per-lane loop; a texel fetch is one gather.
 //! - The walk keeps a group in registers (a node and the mask of its children still to visit)
-//!   and visits one child per iteration; the rest of a group goes on the stack as one entry
+//!   and visits one child or tests one triangle per iteration, so a lane in a big leaf does not
+//!   hold the other lanes of its vector for the whole leaf (measured about 10 % less CPU time on
+//!   the 1M scene than testing the leaf in one go); the rest of a group goes on the stack as one entry
 //!   (Ylitie et al.'s traversal): one stack write per node at most, and a stack no deeper than
 //!   the tree. lavapipe runs every access to a local array at a varying index as a loop over the
 //!   8 lanes of a SIMD vector, so pushing each hit child (an earlier version) cost more.
@@ -212,7 +214,16 @@ impl WideBvh {
         let mut len = 0usize;
         let mut node = 0u32;
         let mut mask = child_hits(&self.nodes[0], origin, inv_dir, tmax);
+        let (mut leaf_next, mut leaf_left) = (0u32, 0u32);
         loop {
+            if leaf_left > 0 {
+                if triangle_occludes(&self.triangles[leaf_next as usize], origin, dir, tmax) {
+                    return true;
+                }
+                leaf_next += 1;
+                leaf_left -= 1;
+                continue;
+            }
             if mask == 0 {
                 if len == 0 {
                     return false;
@@ -225,13 +236,8 @@ impl WideBvh {
             mask &= mask - 1;
             let word = self.nodes[node as usize].texels[1][c];
             if word & LEAF != 0 {
-                let first = word & FIRST_MASK;
-                let count = ((word >> 28) & 7) + 1;
-                for i in first..first + count {
-                    if triangle_occludes(&self.triangles[i as usize], origin, dir, tmax) {
-                        return true;
-                    }
-                }
+                leaf_next = word & FIRST_MASK;
+                leaf_left = ((word >> 28) & 7) + 1;
             } else {
                 if mask != 0 {
                     stack[len.min(STACK_SIZE - 1)] = node | (mask << 28);

@@ -54,7 +54,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
         let mut p = g.add_pass("bvh rays (undeclared read)");
         let _ = p.read(&walk.nodes, Access::ComputeShaderReadUniformTexelBuffer);
         let _ = p.read(&walk.triangles, Access::ComputeShaderReadUniformTexelBuffer);
-        let views = [(0u32, walk.node_view), (1u32, walk.triangle_view)];
+        let (node_view, triangle_view) = (walk.node_view, walk.triangle_view);
         let hr = p.write(&mut hits, Access::ComputeShaderWrite);
         let pipeline = &pipeline;
         let pool = descriptor_pool(&ctx.device);
@@ -81,8 +81,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
                             .buffer_info(info)
                     })
                     .collect();
-                let [(_, node_view), (_, triangle_view)] = &views;
-                for (binding, view) in [(RAYS_BVH_NODES, node_view), (RAYS_BVH_TRIANGLES, triangle_view)] {
+                for (binding, view) in [(RAYS_BVH_NODES, &node_view), (RAYS_BVH_TRIANGLES, &triangle_view)] {
                     writes.push(
                         vk::WriteDescriptorSet::default()
                             .dst_set(set)

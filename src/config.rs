@@ -244,13 +244,15 @@ pub enum DebugView {
     /// Light N's `hybrid` shadows: visibility in grey, the pixels rays were traced for in
     /// red-orange.
     Hybrid(u32),
+    /// Traced ambient occlusion (`[ambient_occlusion]`): 1 open, 0 enclosed.
+    AmbientOcclusion,
 }
 
 impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
     pub const NAMES: &'static str =
         "albedo, normal, geometric-normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], \
-         hybrid[:N]";
+         hybrid[:N], ao";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
@@ -288,6 +290,7 @@ impl std::str::FromStr for DebugView {
             "cascades" => Ok(DebugView::Cascades(light(arg)?)),
             "stencil" => Ok(DebugView::Stencil(light(arg)?)),
             "hybrid" => Ok(DebugView::Hybrid(light(arg)?)),
+            "ao" => plain(DebugView::AmbientOcclusion),
             "shadow-map" => {
                 let (n, c) = match arg.map(|a| a.split_once(':')) {
                     Some(Some((n, c))) => (Some(n), Some(c)),
@@ -316,6 +319,7 @@ impl std::fmt::Display for DebugView {
             DebugView::Cascades(n) => write!(f, "cascades:{n}"),
             DebugView::Stencil(n) => write!(f, "stencil:{n}"),
             DebugView::Hybrid(n) => write!(f, "hybrid:{n}"),
+            DebugView::AmbientOcclusion => f.write_str("ao"),
         }
     }
 }

@@ -75,22 +75,23 @@ impl Accumulator {
         self.frames
     }
 
-    /// Returns the history to fold this frame into, if the frame is stochastic (soft shadows)
-    /// and shaded, and offsets `settings.frame_index` by the frames already averaged so each
+    /// Returns the history to fold this frame into, if the frame is stochastic (soft shadows,
+    /// ambient occlusion) and shaded, and offsets `settings.frame_index` by the frames already averaged so each
     /// one draws fresh samples (a frame that is not accumulated keeps its seed, so it is
     /// reproducible). Call `advance` once it is recorded.
     pub fn prepare(
         &mut self,
         ctx: &Arc<GpuContext>,
         settings: &mut crate::config::RenderSettings,
-        lights: &[crate::scene::Light],
+        scene: &crate::scene::Scene,
     ) -> GpuResult<Option<History<'_>>> {
         let mut key = settings.clone();
         key.frame_index = 0;
         key.timestamps = false;
         let still = self.last.as_ref() == Some(&key);
         self.last = Some(key);
-        if settings.debug_view.is_some() || !settings.is_stochastic(lights) {
+        let occlusion = scene.lighting.occlusion_of_environment().is_some();
+        if settings.debug_view.is_some() || !(settings.is_stochastic(&scene.lights) || occlusion) {
             self.frames = 0;
             return Ok(None);
         }

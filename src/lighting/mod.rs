@@ -3,6 +3,8 @@
 //! when the scene has it: a scene without `[environment]` pays for no table, pass or image.
 
 pub mod ao;
+pub mod ltc;
+pub mod ltc_fit;
 pub mod split_sum;
 
 use std::sync::{Arc, OnceLock};

@@ -342,6 +342,11 @@ pub struct RenderSettings {
     pub shadow_backend: ShadowBackend,
     /// Seeds the soft-shadow samples, so successive frames draw fresh ones.
     pub frame_index: u32,
+    /// Anti-aliasing by accumulation: every shaded frame is averaged into the history (not only
+    /// stochastic ones), and each after the first moves its primary sample within the pixel
+    /// (`crate::passes::accumulate::jitter`: a box filter), so a still view converges to the
+    /// anti-aliased image. Frame 0 stays at the pixel centre.
+    pub antialias: bool,
     /// Tests only: adds the pass "busy" (`passes/busy.rs`, this many loop iterations) after
     /// the geometry pass, a GPU cost of known size for checking timings.
     pub busy_iterations: Option<u32>,
@@ -361,6 +366,7 @@ impl RenderSettings {
             shadows: Vec::new(),
             shadow_backend: ShadowBackend::Compute,
             frame_index: 0,
+            antialias: false,
             busy_iterations: None,
         }
     }

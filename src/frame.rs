@@ -68,6 +68,11 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         extent.width,
         extent.height,
     );
+    // Anti-aliasing: an accumulated frame after the first samples elsewhere in its pixel.
+    let camera = match history.as_ref().filter(|h| settings.antialias && h.frames > 0) {
+        Some(h) => camera.jittered(accumulate::jitter(h.frames), extent.width, extent.height),
+        None => camera,
+    };
     let mut g = RenderGraph::new();
     let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, extent);
     // Tests only: a compute pass of known cost right after the rendering pass, kept by its export.

@@ -494,6 +494,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         shadows: light_shadows(&scene, &args)?,
         shadow_backend: args.shadow_backend.or(scene.shadow_backend).unwrap_or_default(),
         frame_index: 0,
+        antialias: false,
         busy_iterations: args.busy_pass,
     };
     let auto = settings.shadows.iter().any(|c| c.method == ShadowMethod::Auto);
@@ -515,6 +516,8 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     // After auto's choice: what it chose decides whether --spp does anything.
     warn_unused_options(&args, &settings, &lights, format);
     let frames = args.frames.unwrap_or_else(|| default_frames(&settings, renderer.scene()));
+    // More than one frame: they converge to the anti-aliased image too.
+    settings.antialias = frames > 1;
     // Before the first frame, so its host time holds no calibration.
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
     let mut timings = TimingLog::default();

@@ -195,3 +195,86 @@ fn compose_scales_the_environment_by_the_occlusion() {
     drop(renderer);
     common::assert_clean(&ctx);
 }
+
+#[test]
+fn gpu_occlusion_equals_the_cpu_with_the_same_rays() {
+    use umbra::lighting::ao::ao_direction;
+    use umbra::scene::bvh::ShadowBvh;
+    use umbra::shading::Surfaces;
+    let ctx = common::gpu();
+    let (spp, frame) = (16u32, 3u32);
+    let sphere = "[[objects]]\nshape = \"sphere\"\nradius = 0.4\nsegments = 24\ntranslate = [-0.4, 0.4, -0.3]\n";
+    let text = format!("{CORNER_CAMERA}[ambient_occlusion]\nradius = 1.0\nspp = {spp}\n{CORNER}{sphere}");
+    let scene = parse(&text);
+    let mut renderer = Renderer::new(ctx.clone(), scene.clone()).expect("renderer");
+    let ao = render(&mut renderer, Some(DebugView::AmbientOcclusion), frame);
+    let position = render(&mut renderer, Some(DebugView::Position), 0);
+    let normal = render(&mut renderer, Some(DebugView::Normal), 0);
+    let depth = render(&mut renderer, Some(DebugView::Depth), 0);
+    drop(renderer);
+    common::assert_clean(&ctx);
+
+    let bvh = ShadowBvh::build(&scene);
+    let surfaces = Surfaces::new(&scene);
+    let eye = scene.camera.eye.as_vec3();
+    let (mut compared, mut near_edge, mut partial) = (0, 0, 0);
+    let mut wrong = Vec::new();
+    for i in 0..(W * H) as usize {
+        if depth[i].x <= 0.0 {
+            assert_eq!(ao[i].x, 1.0, "background pixel {i}");
+            continue;
+        }
+        let (p, n) = (position[i].truncate(), normal[i].truncate().normalize());
+        let origin = surfaces.at(p, eye, 1e-4).expect("a triangle under the pixel").ray_origin(p);
+        let mut reached = 0;
+        let mut edge = false;
+        for k in 0..spp {
+            let dir = ao_direction(n, i as u32, frame, k);
+            edge |= bvh.ray_near_edge(origin, dir, 1.0, 1e-5);
+            reached += !bvh.occluded_obvhs(origin, dir, 1.0) as u32;
+        }
+        if edge {
+            near_edge += 1;
+            continue;
+        }
+        compared += 1;
+        let expected = reached as f32 / spp as f32;
+        partial += usize::from(expected > 0.0 && expected < 1.0);
+        if ao[i].x != expected {
+            wrong.push((i, ao[i].x, expected));
+        }
+    }
+    println!("{compared} pixels compared ({partial} partly occluded), {near_edge} skipped (a ray near an edge)");
+    assert!(partial > 1000, "{partial}");
+    assert!(near_edge * 20 < compared, "{near_edge} near-edge pixels");
+    assert!(wrong.is_empty(), "{} pixels differ, first: {:?}", wrong.len(), &wrong[..wrong.len().min(5)]);
+}
+
+#[test]
+fn the_command_line_shows_ao_and_says_when_it_does_nothing() {
+    let dir = std::env::temp_dir().join(format!("umbra-ao-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("corner.toml");
+    std::fs::write(&scene, format!("{CORNER_CAMERA}[ambient_occlusion]\nradius = 1.0\n{CORNER}")).unwrap();
+    let out = dir.join("ao.png");
+    let run = common::umbra()
+        .args(["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap(), "--size", "64x64", "--validate"])
+        .args(["--debug-view", "ao"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&run.stderr).into_owned() + &String::from_utf8_lossy(&run.stdout);
+    assert!(run.status.success(), "{text}");
+    assert!(text.contains("validation: 0 messages"), "{text}");
+    // No [environment]: AO would darken nothing, and the loader says so in one line.
+    assert_eq!(text.matches("changes nothing").count(), 1, "{text}");
+    let png = image::open(&out).unwrap().to_luma8();
+    assert!(png.pixels().any(|p| p.0[0] < 128), "the corner is not occluded in the ao view");
+    // The built-in scene has no [ambient_occlusion]: the view is refused in one line.
+    let run = common::umbra().args(["render", "-o", out.to_str().unwrap(), "--debug-view", "ao"]).output().unwrap();
+    let err = String::from_utf8_lossy(&run.stderr);
+    assert!(
+        !run.status.success() && err.contains("no [ambient_occlusion]") && err.trim().lines().count() == 1,
+        "{err}"
+    );
+    std::fs::remove_dir_all(&dir).ok();
+}

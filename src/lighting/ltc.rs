@@ -71,6 +71,14 @@ pub fn inverse_matrix(p: [f32; ENTRY]) -> Mat3 {
 /// the polygon is moved by `m`. Corners in either winding; the horizon clips (z >= 0). Twin of
 /// `ltc_polygon` in ltc.glsl.
 pub fn polygon(m: Mat3, corners: [Vec3; 4]) -> f32 {
+    form_factor(m, corners).z.abs()
+}
+
+/// The polygon's vector form factor after `m` (Arvo's irradiance vector over 2 pi, horizon-
+/// clipped): its z is `polygon`'s integral (up to the sign of the winding), its direction the
+/// mean direction of the cosine over the moved polygon. `inverse(m) * it` points along the mean
+/// direction of the lobe over the light, where `fresnel_toward` evaluates Fresnel.
+pub fn form_factor(m: Mat3, corners: [Vec3; 4]) -> Vec3 {
     let p = corners.map(|c| m * c);
     // Sutherland-Hodgman against z >= 0, written out for at most 5 corners.
     let mut clipped = [Vec3::ZERO; 5];
@@ -87,23 +95,32 @@ pub fn polygon(m: Mat3, corners: [Vec3; 4]) -> f32 {
             count += 1;
         }
     }
-    let mut sum = 0.0;
+    let mut sum = Vec3::ZERO;
     for i in 0..count {
         sum += edge(clipped[i], clipped[(i + 1) % count]);
     }
-    (sum / (2.0 * std::f32::consts::PI)).abs()
+    sum / (2.0 * std::f32::consts::PI)
 }
 
-/// One edge's share of the cosine's integral: the angle it subtends times the z of the unit
-/// normal of its great circle (atan2 rather than acos: exact for short edges too).
-fn edge(a: Vec3, b: Vec3) -> f32 {
+/// One edge's share of the form factor: the angle it subtends along the unit normal of its
+/// great circle (atan2 rather than acos: exact for short edges too).
+fn edge(a: Vec3, b: Vec3) -> Vec3 {
     let (a, b) = (a.normalize_or_zero(), b.normalize_or_zero());
     let c = a.cross(b);
     let s = c.length();
     if s <= 0.0 {
-        return 0.0;
+        return Vec3::ZERO;
     }
-    s.atan2(a.dot(b)) * c.z / s
+    c * (s.atan2(a.dot(b)) / s)
+}
+
+/// Schlick's Fresnel for the view `v` and the light's mean direction `l` (both in the shading
+/// frame): the lobe over a small light sees the Fresnel of its own half vector, not the
+/// lobe's average (a dielectric's specular seen at grazing was 80 % low with the average).
+pub fn fresnel_toward(f0: f32, v: Vec3, l: Vec3) -> f32 {
+    let h = (v + l.normalize_or_zero()).normalize_or_zero();
+    let m = 1.0 - v.dot(h).clamp(0.0, 1.0);
+    f0 + (1.0 - f0) * m * m * m * m * m
 }
 
 /// The shading frame: x toward v in the tangent plane, z = n. Returns (x, y).

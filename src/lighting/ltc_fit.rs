@@ -1,8 +1,9 @@
 //! The fit behind `ltc_ggx.bin` (run by `cargo run --release --example ltc_fit`): for each
 //! table node (n.v, roughness), the linearly transformed cosine closest to umbra's GGX lobe
 //! D Vis n.l (brdf.glsl, Fresnel left to the split-sum scale and bias), normalised to integrate
-//! to 1. As in Heitz et al. 2016: M = [X Y Z] [[m11, 0, m13], [0, m22, 0], [0, 0, 1]] with Z the
-//! lobe's mean direction, (m11, m22, m13) found by Nelder-Mead from the neighbouring node's fit
+//! to 1. As in Heitz et al. 2016: M = [X Y Z] [[m11, 0, m13], [0, m22, 0], [0, 0, 1]], with Z's
+//! angle fitted too (starting at the lobe's mean direction, which Heitz et al. keep fixed),
+//! (m11, m22, m13, angle) found by Nelder-Mead from the neighbouring node's fit
 //! (from rough to smooth), minimising the cubed difference of the two distributions over a fixed
 //! set of directions drawn half from the lobe and half from the cosine.
 
@@ -12,6 +13,8 @@ use super::ltc::{node_n_dot_v, LTC_SIZE};
 use super::split_sum;
 
 type V3 = [f64; 3];
+/// (m11, m22, m13, angle of Z from the normal toward the mirror side).
+type P = [f64; 4];
 
 fn dot(a: V3, b: V3) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
@@ -72,8 +75,8 @@ fn ltc_density(m: &[V3; 3], l: V3) -> f64 {
 struct Node {
     /// (direction, normalised lobe value, weight 1 / (pdf of the mixture * count)).
     samples: Vec<(V3, f64, f64)>,
-    x_axis: V3,
-    z_axis: V3,
+    /// The lobe's mean direction as an angle from the normal toward the mirror side.
+    mean_angle: f64,
 }
 
 fn node(nv: f64, roughness: f64, count: u32) -> Node {
@@ -107,22 +110,23 @@ fn node(nv: f64, roughness: f64, count: u32) -> Node {
             mean[c] += l[c] * f * w;
         }
     }
-    let z_axis = normalize([mean[0], 0.0, mean[2].max(1e-6)]);
-    let x_axis = [z_axis[2], 0.0, -z_axis[0]];
+    let mean_angle = (-mean[0]).atan2(mean[2].max(1e-6));
     let samples = weighted.into_iter().map(|(l, f, w)| (l, f / norm, w)).collect();
-    Node { samples, x_axis, z_axis }
+    Node { samples, mean_angle }
 }
 
 impl Node {
-    /// The inverse matrix (rows) of parameters (m11, m22, m13).
-    fn inverse(&self, p: V3) -> [V3; 3] {
-        let (x, z) = (self.x_axis, self.z_axis);
+    /// The inverse matrix (rows) of parameters (m11, m22, m13, angle): M = [X Y Z] [[m11, 0,
+    /// m13], [0, m22, 0], [0, 0, 1]] with Z at `angle` from the normal toward the mirror side.
+    fn inverse(&self, p: P) -> [V3; 3] {
+        let (sin, cos) = p[3].sin_cos();
+        let (x, z) = ([cos, 0.0, sin], [-sin, 0.0, cos]);
         let (m11, m22, m13) = (p[0], p[1], p[2]);
         [[(x[0] - m13 * z[0]) / m11, 0.0, (x[2] - m13 * z[2]) / m11], [0.0, 1.0 / m22, 0.0], [z[0], 0.0, z[2]]]
     }
 
-    fn error(&self, p: V3) -> f64 {
-        if !(p[0] > 1e-5 && p[1] > 1e-5) {
+    fn error(&self, p: P) -> f64 {
+        if !(p[0] > 1e-5 && p[1] > 1e-5 && p[3].abs() < 1.55) {
             return f64::INFINITY;
         }
         let m = self.inverse(p);
@@ -150,40 +154,41 @@ fn mass_above_horizon(m: &[V3; 3]) -> f64 {
     f64::from(up) / f64::from(count)
 }
 
-/// Nelder-Mead over three parameters from `start`.
-fn minimise(f: impl Fn(V3) -> f64, start: V3, iterations: usize) -> V3 {
+/// Nelder-Mead over the four parameters from `start`.
+fn minimise(f: impl Fn(P) -> f64, start: P, iterations: usize) -> P {
     let step = |i: usize| {
         let mut p = start;
-        p[i] += 0.05 * start[i].abs().max(0.01);
+        p[i] += 0.05 * start[i].abs().max(0.1);
         p
     };
-    let mut simplex = [start, step(0), step(1), step(2)].map(|p| (f(p), p));
+    let mut simplex = [start, step(0), step(1), step(2), step(3)].map(|p| (f(p), p));
+    let last = simplex.len() - 1;
     for _ in 0..iterations {
         simplex.sort_by(|a, b| a.0.total_cmp(&b.0));
-        let centroid: V3 = std::array::from_fn(|c| (simplex[0].1[c] + simplex[1].1[c] + simplex[2].1[c]) / 3.0);
-        let along = |t: f64| -> V3 { std::array::from_fn(|c| centroid[c] + t * (simplex[3].1[c] - centroid[c])) };
+        let centroid: P = std::array::from_fn(|c| simplex[..last].iter().map(|s| s.1[c]).sum::<f64>() / last as f64);
+        let along = |t: f64| -> P { std::array::from_fn(|c| centroid[c] + t * (simplex[last].1[c] - centroid[c])) };
         let reflected = along(-1.0);
         let fr = f(reflected);
         if fr < simplex[0].0 {
             let expanded = along(-2.0);
             let fe = f(expanded);
-            simplex[3] = if fe < fr { (fe, expanded) } else { (fr, reflected) };
-        } else if fr < simplex[2].0 {
-            simplex[3] = (fr, reflected);
+            simplex[last] = if fe < fr { (fe, expanded) } else { (fr, reflected) };
+        } else if fr < simplex[last - 1].0 {
+            simplex[last] = (fr, reflected);
         } else {
             let contracted = along(0.5);
             let fc = f(contracted);
-            if fc < simplex[3].0 {
-                simplex[3] = (fc, contracted);
+            if fc < simplex[last].0 {
+                simplex[last] = (fc, contracted);
             } else {
                 let best = simplex[0].1;
                 for s in simplex.iter_mut().skip(1) {
-                    let p: V3 = std::array::from_fn(|c| best[c] + 0.5 * (s.1[c] - best[c]));
+                    let p: P = std::array::from_fn(|c| best[c] + 0.5 * (s.1[c] - best[c]));
                     *s = (f(p), p);
                 }
             }
         }
-        let spread = (simplex[3].0 - simplex[0].0).abs();
+        let spread = (simplex[last].0 - simplex[0].0).abs();
         if spread <= 1e-12 * simplex[0].0.abs().max(1e-30) {
             break;
         }
@@ -209,18 +214,29 @@ pub fn fit_table(samples: u32) -> (Vec<[f32; 5]>, Vec<f64>) {
                         .iter()
                         .map(|&i| {
                             let nv = node_n_dot_v(i as f64 / (n - 1) as f64);
-                            let mut p = [1.0, 1.0, 0.0];
+                            let mut p: Option<P> = None;
                             let mut column = vec![([0.0f32; 5], 0.0); n];
                             for j in (0..n).rev() {
                                 let roughness = j as f64 / (n - 1) as f64;
                                 let node = node(nv, roughness, samples);
-                                p = minimise(|q| node.error(q), p, 400);
-                                let m = node.inverse(p);
+                                // From the rougher neighbour's fit, and from it turned to this
+                                // lobe's mean direction; the better of the two.
+                                let starts = match p {
+                                    None => vec![[1.0, 1.0, 0.0, node.mean_angle]],
+                                    Some(q) => vec![q, [q[0], q[1], q[2], node.mean_angle]],
+                                };
+                                let best = starts
+                                    .into_iter()
+                                    .map(|start| minimise(|q| node.error(q), start, 600))
+                                    .min_by(|a, b| node.error(*a).total_cmp(&node.error(*b)))
+                                    .expect("a start");
+                                p = Some(best);
+                                let m = node.inverse(best);
                                 let s = m[2][2];
                                 let mass = mass_above_horizon(&m);
                                 let entry =
                                     [m[0][0] / s, m[0][2] / s, m[1][1] / s, m[2][0] / s, mass].map(|v| v as f32);
-                                column[j] = (entry, node.error(p));
+                                column[j] = (entry, node.error(best));
                             }
                             column
                         })

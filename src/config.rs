@@ -244,13 +244,15 @@ pub enum DebugView {
     /// Light N's `hybrid` shadows: visibility in grey, the pixels rays were traced for in
     /// red-orange.
     Hybrid(u32),
+    /// Traced ambient occlusion (`[ambient_occlusion]`): 1 open, 0 enclosed.
+    AmbientOcclusion,
 }
 
 impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
     pub const NAMES: &'static str =
         "albedo, normal, geometric-normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], \
-         hybrid[:N]";
+         hybrid[:N], ao";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
@@ -288,6 +290,7 @@ impl std::str::FromStr for DebugView {
             "cascades" => Ok(DebugView::Cascades(light(arg)?)),
             "stencil" => Ok(DebugView::Stencil(light(arg)?)),
             "hybrid" => Ok(DebugView::Hybrid(light(arg)?)),
+            "ao" => plain(DebugView::AmbientOcclusion),
             "shadow-map" => {
                 let (n, c) = match arg.map(|a| a.split_once(':')) {
                     Some(Some((n, c))) => (Some(n), Some(c)),
@@ -316,6 +319,7 @@ impl std::fmt::Display for DebugView {
             DebugView::Cascades(n) => write!(f, "cascades:{n}"),
             DebugView::Stencil(n) => write!(f, "stencil:{n}"),
             DebugView::Hybrid(n) => write!(f, "hybrid:{n}"),
+            DebugView::AmbientOcclusion => f.write_str("ao"),
         }
     }
 }
@@ -338,6 +342,11 @@ pub struct RenderSettings {
     pub shadow_backend: ShadowBackend,
     /// Seeds the soft-shadow samples, so successive frames draw fresh ones.
     pub frame_index: u32,
+    /// Anti-aliasing by accumulation: every shaded frame is averaged into the history (not only
+    /// stochastic ones), and each after the first moves its primary sample within the pixel
+    /// (`crate::passes::accumulate::jitter`: a box filter), so a still view converges to the
+    /// anti-aliased image. Frame 0 stays at the pixel centre.
+    pub antialias: bool,
     /// Tests only: adds the pass "busy" (`passes/busy.rs`, this many loop iterations) after
     /// the geometry pass, a GPU cost of known size for checking timings.
     pub busy_iterations: Option<u32>,
@@ -357,6 +366,7 @@ impl RenderSettings {
             shadows: Vec::new(),
             shadow_backend: ShadowBackend::Compute,
             frame_index: 0,
+            antialias: false,
             busy_iterations: None,
         }
     }

@@ -16,8 +16,9 @@ use crate::scene::Scene;
 use crate::shadows::{self, Prepared, ShadowPlan};
 use crate::vk::{Buffer, ComputePipeline, ImageDesc};
 
-/// Radiance of pixels no surface covers, W/(m^2 sr): a dim, neutral backdrop.
-pub const BACKGROUND: Vec3 = Vec3::new(0.02, 0.022, 0.025);
+/// Radiance of pixels no surface covers, W/(m^2 sr), unless the scene sets `background` or
+/// an environment: a dim, neutral backdrop.
+pub const BACKGROUND: Vec3 = crate::scene::DEFAULT_BACKGROUND;
 
 /// Where a frame's result goes.
 pub enum Target<'a> {
@@ -46,6 +47,8 @@ pub struct FrameParts<'a> {
     pub settings: &'a RenderSettings,
     pub shadows: ShadowPlan,
     pub prepared: Prepared<'a>,
+    /// The environment and ambient occlusion this frame uses.
+    pub lighting: crate::lighting::Prepared<'a>,
 }
 
 /// The scene's buffers as this frame's graph sees them.
@@ -57,7 +60,7 @@ struct SceneHandles {
 
 /// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
 pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<History<'a>>) -> RenderGraph<'a> {
-    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared } = parts;
+    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared, lighting } = parts;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let camera = CameraMatrices::new(
         &s.to_local(&settings.camera.unwrap_or(scene.camera)),
@@ -65,6 +68,11 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         extent.width,
         extent.height,
     );
+    // Anti-aliasing: an accumulated frame after the first samples elsewhere in its pixel.
+    let camera = match history.as_ref().filter(|h| settings.antialias && h.frames > 0) {
+        Some(h) => camera.jittered(accumulate::jitter(h.frames), extent.width, extent.height),
+        None => camera,
+    };
     let mut g = RenderGraph::new();
     let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, extent);
     // Tests only: a compute pass of known cost right after the rendering pass, kept by its export.
@@ -84,7 +92,17 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         debug_view: settings.debug_view,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan, prepared);
-    let lit = lighting_stage(&mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history);
+    let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer);
+    if let (Some(view), Some(ao)) = (lighting.view, &occlusion) {
+        let image = crate::lighting::ao::add_view(&mut g, view, ao, extent);
+        let result = post_stage(&mut g, pipelines, settings, Lit { image, debug: true, history: None });
+        target_stage(&mut g, settings, result, target);
+        return g;
+    }
+    let ambient = Ambient { background: scene.lighting.background(), lighting, occlusion };
+    let lit = lighting_stage(
+        &mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history, ambient,
+    );
     let result = post_stage(&mut g, pipelines, settings, lit);
     target_stage(&mut g, settings, result, target);
     g
@@ -102,6 +120,31 @@ fn gbuffer_stage<'a>(
     let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
     let gbuffer = geometry::add(g, &pipelines.geometry, s, &vertices, &indices, *camera, extent);
     (SceneHandles { vertices, indices, lights }, gbuffer)
+}
+
+/// Traced ambient occlusion, where the frame has the pass (`crate::lighting::ao`).
+fn occlusion_stage<'a>(
+    g: &mut RenderGraph<'a>,
+    s: &'a SceneGpu,
+    settings: &RenderSettings,
+    lighting: &crate::lighting::Prepared<'a>,
+    gbuffer: &GBuffer,
+) -> Option<Handle<ImageKind>> {
+    let (mut params, pipeline) = lighting.occlusion?;
+    let extent = vk::Extent2D { width: settings.width, height: settings.height };
+    if !s.has_casters {
+        // Nothing to hit (and no BVH to walk): radius 0 writes 1 without a ray.
+        params.radius = 0.0;
+    }
+    let bvh = s.bvh.import(g, SCENE_ACCESS);
+    Some(crate::lighting::ao::add(g, pipeline, gbuffer, &bvh, params, settings.frame_index, extent))
+}
+
+/// What compose adds beside the lights: the background, the environment and its occlusion.
+struct Ambient<'a> {
+    background: Vec3,
+    lighting: crate::lighting::Prepared<'a>,
+    occlusion: Option<Handle<ImageKind>>,
 }
 
 /// What the lighting stage hands on: the image, and what happens to the history.
@@ -125,6 +168,7 @@ fn lighting_stage<'a>(
     visibility: Option<shadows::Visibility>,
     camera: &CameraMatrices,
     history: Option<History<'a>>,
+    ambient: Ambient<'a>,
 ) -> Lit<'a> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let display = settings.output == OutputKind::Display;
@@ -150,12 +194,22 @@ fn lighting_stage<'a>(
         let image = debug_view::add(g, &pipelines.debug_view, gbuffer, inputs, extent);
         return Lit { image, debug: true, history: None };
     }
+    let table =
+        ambient.lighting.environment.map(|(env, _)| g.import_buffer("split-sum table", &env.brdf_table, SCENE_ACCESS));
     let inputs = compose::ComposeInputs {
         lights: &handles.lights,
         light_count: s.light_count,
         visibility: visibility.as_ref().map(|(v, t)| (v, t)),
         eye: camera.eye,
-        background: BACKGROUND,
+        background: ambient.background,
+        environment: ambient.lighting.environment.zip(table.as_ref()).map(|((env, pipeline), brdf_table)| {
+            compose::EnvironmentInputs {
+                radiance: env.radiance,
+                brdf_table,
+                occlusion: ambient.occlusion.as_ref(),
+                pipeline,
+            }
+        }),
     };
     let mut image = compose::add(g, pipelines, gbuffer, inputs, extent);
     if let Some(h) = &history {

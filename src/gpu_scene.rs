@@ -327,6 +327,15 @@ pub fn perspective_reversed_infinite(fov_y: f32, aspect: f32, near: f32) -> Mat4
 }
 
 impl CameraMatrices {
+    /// The same camera with its image moved by `pixels` (anti-aliasing jitter): a translation in
+    /// clip space after the projection, so every pass that draws with the matrix (the G-buffer,
+    /// shadow volumes) samples the same moved points.
+    pub fn jittered(mut self, pixels: glam::Vec2, width: u32, height: u32) -> CameraMatrices {
+        let ndc = glam::Vec3::new(2.0 * pixels.x / width as f32, 2.0 * pixels.y / height as f32, 0.0);
+        self.view_proj_relative = Mat4::from_translation(ndc) * self.view_proj_relative;
+        self
+    }
+
     /// `cam` is in the scene-local frame: its view direction is taken in f64 (so points that
     /// differ only there still look somewhere), its eye rounded to f32.
     pub fn new(cam: &Camera, bounds: (Vec3, Vec3), width: u32, height: u32) -> CameraMatrices {

@@ -6,6 +6,7 @@ pub mod config;
 pub mod frame;
 pub mod gpu_scene;
 pub mod graph;
+pub mod lighting;
 pub mod output;
 pub mod passes;
 pub mod renderer;

@@ -406,9 +406,11 @@ const CONVERGED_SPP: u32 = 64;
 
 /// One frame, or with soft shadows enough accumulated frames for `CONVERGED_SPP` samples per
 /// pixel of the light with the fewest samples per frame.
-fn default_frames(settings: &RenderSettings, lights: &[umbra::scene::Light]) -> u32 {
-    let soft_spp = soft_traced_lights(settings, lights).min();
-    soft_spp.map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
+fn default_frames(settings: &RenderSettings, scene: &Scene) -> u32 {
+    let soft_spp = soft_traced_lights(settings, &scene.lights).min();
+    // Ambient occlusion converges over the same frames.
+    let ao_spp = scene.lighting.occlusion_of_environment().filter(|_| settings.debug_view.is_none()).map(|ao| ao.spp);
+    soft_spp.into_iter().chain(ao_spp).min().map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
 }
 
 /// The scene file (or the built-in scene), its parse timed at -v.
@@ -521,6 +523,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         shadows: light_shadows(&scene, &args)?,
         shadow_backend: args.shadow_backend.or(scene.shadow_backend).unwrap_or_default(),
         frame_index: 0,
+        antialias: false,
         busy_iterations: args.busy_pass,
     };
     let auto = settings.shadows.iter().any(|c| c.method == ShadowMethod::Auto);
@@ -541,7 +544,9 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     }
     // After auto's choice: what it chose decides whether --spp does anything.
     warn_unused_options(&args, &settings, &lights, format);
-    let frames = args.frames.unwrap_or_else(|| default_frames(&settings, &lights));
+    let frames = args.frames.unwrap_or_else(|| default_frames(&settings, renderer.scene()));
+    // More than one frame: they converge to the anti-aliased image too.
+    settings.antialias = frames > 1;
     // Before the first frame, so its host time holds no calibration.
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
     let mut timings = TimingLog::default();

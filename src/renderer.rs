@@ -46,6 +46,10 @@ pub struct Renderer {
     busy: std::sync::OnceLock<ComputePipeline>,
     /// Each shadow technique's pipelines, made the first time a light uses it.
     shadow_pipelines: crate::shadows::Pipelines,
+    /// The environment's and AO's pipelines, made the first time a frame uses them.
+    lighting_pipelines: crate::lighting::Pipelines,
+    /// The scene's environment on the device (its split-sum table); `None` without one.
+    environment: Option<crate::lighting::EnvironmentGpu>,
     /// (light, method) pairs already told that the method cannot serve the light.
     fallbacks_noted: std::sync::Mutex<std::collections::BTreeSet<(usize, ShadowMethod)>>,
     /// How passes are timed on this device, found the first time timings are asked for.
@@ -104,6 +108,8 @@ impl Renderer {
             pipelines: Pipelines::new(&ctx)?,
             busy: std::sync::OnceLock::new(),
             shadow_pipelines: Default::default(),
+            lighting_pipelines: Default::default(),
+            environment: crate::lighting::EnvironmentGpu::new(&ctx, &scene.lighting)?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
             gpu_scene,
@@ -153,6 +159,13 @@ impl Renderer {
             prepared.traced = Some((pipeline, ray_query));
         }
         let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
+        let lighting = self.lighting_pipelines.prepare(
+            &self.ctx,
+            &self.scene.lighting,
+            self.environment.as_ref(),
+            settings.debug_view,
+            plan.layers.count() > 0,
+        )?;
         let parts = crate::frame::FrameParts {
             pipelines: &self.pipelines,
             busy,
@@ -161,6 +174,7 @@ impl Renderer {
             settings,
             shadows: plan,
             prepared,
+            lighting,
         };
         Ok((crate::frame::build(parts, target, history), ray_query))
     }
@@ -174,6 +188,9 @@ impl Renderer {
     /// needs the light to be served by that technique); why not.
     pub fn check_debug_view(&self, settings: &RenderSettings) -> Result<(), String> {
         let Some(view) = settings.debug_view else { return Ok(()) };
+        if view == DebugView::AmbientOcclusion && self.scene.lighting.ambient_occlusion.is_none() {
+            return Err("--debug-view ao: the scene has no [ambient_occlusion] table".to_owned());
+        }
         let plan = self.shadow_plan(settings).map_err(|e| e.to_string())?;
         crate::shadows::check_debug_view(view, &plan, &self.gpu_scene)
     }
@@ -311,7 +328,7 @@ impl Renderer {
     /// its accumulation history.
     fn record_and_submit(&self, capture: &mut Capture, settings: &RenderSettings, readback: &Buffer) -> GpuResult<()> {
         let mut settings = settings.clone();
-        let history = capture.accumulator.prepare(&self.ctx, &mut settings, &self.scene.lights)?;
+        let history = capture.accumulator.prepare(&self.ctx, &mut settings, &self.scene)?;
         let accumulated = history.is_some();
         let cache = &mut capture.cache;
         let plan =

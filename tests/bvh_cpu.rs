@@ -181,6 +181,7 @@ fn scene_build_takes_only_shadow_casters() {
         shadow_backend: None,
         light_shadows: vec![],
         sources: vec![],
+        lighting: Default::default(),
     };
     let bvh = ShadowBvh::build(&scene);
     assert_eq!(bvh.triangle_count(), 1);

@@ -38,6 +38,9 @@
 #define COMPOSE_VISIBILITY 4
 #define COMPOSE_RADIANCE 5
 #define COMPOSE_LIGHT_LAYERS 6
+// lighting/compose_environment*.comp: the split-sum table and the AO image
+#define COMPOSE_BRDF_TABLE 7
+#define COMPOSE_AMBIENT_OCCLUSION 8
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0
@@ -96,5 +99,15 @@
 #define HYBRID_ARGS 8
 // shadows/hybrid/view.comp: the hybrid:N debug view (reads HYBRID_VISIBILITY and HYBRID_LIST)
 #define HYBRID_VIEW_OUTPUT 9
+
+// lighting/ao.comp: traced ambient occlusion (one value per pixel); lighting/ao_view.comp
+// shows it (AO_OUTPUT read as a sampled image, VIEW_OUTPUT written)
+#define AO_POSITION 0
+#define AO_NORMAL 1
+#define AO_SURFACE 2
+#define AO_BVH_NODES 3
+#define AO_BVH_TRIANGLES 4
+#define AO_OUTPUT 5
+#define AO_VIEW_OUTPUT 6
 
 #endif

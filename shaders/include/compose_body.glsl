@@ -16,11 +16,19 @@ layout(set = 0, binding = COMPOSE_VISIBILITY) uniform sampler2DArray visibility;
 layout(set = 0, binding = COMPOSE_LIGHT_LAYERS, std430) readonly buffer LightLayers { uint layer_of[]; };
 const uint COMPOSE_UNSHADOWED = 0xffffffffu;
 #endif
+#ifdef WITH_ENVIRONMENT
+layout(set = 0, binding = COMPOSE_BRDF_TABLE, std430) readonly buffer BrdfTable { vec2 brdf_table[]; };
+#include "lighting/environment.glsl"
+#endif
+#ifdef WITH_AMBIENT_OCCLUSION
+layout(set = 0, binding = COMPOSE_AMBIENT_OCCLUSION) uniform sampler2D ambient_occlusion;
+#endif
 
 layout(push_constant) uniform Push {
     vec4 eye;        // xyz
     vec4 background; // rgb radiance where nothing was drawn
     uvec4 dims;      // x: width, y: height, z: light count
+    vec4 environment; // rgb: the environment's radiance (WITH_ENVIRONMENT)
 } pc;
 
 void main() {
@@ -49,5 +57,12 @@ void main() {
 #endif
         sum += brdf_times_cos(n, v, L, material.rgb, material.a, normal_metallic.w) * e * vis;
     }
+#ifdef WITH_ENVIRONMENT
+    vec3 ambient = environment_radiance(n, v, material.rgb, material.a, normal_metallic.w, pc.environment.rgb);
+#ifdef WITH_AMBIENT_OCCLUSION
+    ambient *= texelFetch(ambient_occlusion, ivec2(px), 0).r;
+#endif
+    sum += ambient;
+#endif
     imageStore(radiance, ivec2(px), vec4(sum, 1.0));
 }

@@ -34,6 +34,26 @@ pub struct History<'a> {
     pub fresh: bool,
 }
 
+/// Where accumulated frame `frame` (from 0) puts its primary sample, in pixels from the pixel
+/// centre: frame 0 at the centre, then the Halton (2, 3) sequence over the pixel square. The
+/// mean of N frames is the pixel's image under a box filter one pixel wide, its error falling
+/// about as 1 / N on an edge.
+pub fn jitter(frame: u32) -> glam::Vec2 {
+    if frame == 0 {
+        return glam::Vec2::ZERO;
+    }
+    let halton = |mut i: u32, base: u32| {
+        let (mut f, mut r) = (1.0f32, 0.0f32);
+        while i > 0 {
+            f /= base as f32;
+            r += f * (i % base) as f32;
+            i /= base;
+        }
+        r
+    };
+    glam::Vec2::new(halton(frame, 2), halton(frame, 3)) - glam::Vec2::splat(0.5)
+}
+
 /// Folds `radiance` into the history; returns the history, which now holds the mean.
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
@@ -75,22 +95,24 @@ impl Accumulator {
         self.frames
     }
 
-    /// Returns the history to fold this frame into, if the frame is stochastic (soft shadows)
-    /// and shaded, and offsets `settings.frame_index` by the frames already averaged so each
+    /// Returns the history to fold this frame into, if the frame is stochastic (soft shadows,
+    /// ambient occlusion) or anti-aliased, and shaded, and offsets `settings.frame_index` by the frames already averaged so each
     /// one draws fresh samples (a frame that is not accumulated keeps its seed, so it is
     /// reproducible). Call `advance` once it is recorded.
     pub fn prepare(
         &mut self,
         ctx: &Arc<GpuContext>,
         settings: &mut crate::config::RenderSettings,
-        lights: &[crate::scene::Light],
+        scene: &crate::scene::Scene,
     ) -> GpuResult<Option<History<'_>>> {
         let mut key = settings.clone();
         key.frame_index = 0;
         key.timestamps = false;
         let still = self.last.as_ref() == Some(&key);
         self.last = Some(key);
-        if settings.debug_view.is_some() || !settings.is_stochastic(lights) {
+        let occlusion = scene.lighting.occlusion_of_environment().is_some();
+        let accumulated = settings.is_stochastic(&scene.lights) || occlusion || settings.antialias;
+        if settings.debug_view.is_some() || !accumulated {
             self.frames = 0;
             return Ok(None);
         }

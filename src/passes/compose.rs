@@ -20,6 +20,7 @@ struct Push {
     eye: Vec4,
     background: Vec4,
     dims: UVec4,
+    environment: Vec4,
 }
 
 pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
@@ -40,7 +41,47 @@ pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipel
     ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
 }
 
-pub struct ComposeInputs<'h> {
+/// The compose variant that adds a constant environment (`crate::lighting`): the split-sum
+/// table, and the AO image when `occluded`.
+pub fn environment_pipeline(ctx: &Arc<GpuContext>, shadowed: bool, occluded: bool) -> GpuResult<ComputePipeline> {
+    let mut bindings = vec![
+        sampled(COMPOSE_POSITION),
+        sampled(COMPOSE_NORMAL),
+        sampled(COMPOSE_MATERIAL),
+        storage(COMPOSE_LIGHTS),
+        storage_image(COMPOSE_RADIANCE),
+        storage(COMPOSE_BRDF_TABLE),
+    ];
+    if shadowed {
+        bindings.push(sampled(COMPOSE_VISIBILITY));
+        bindings.push(storage(COMPOSE_LIGHT_LAYERS));
+    }
+    if occluded {
+        bindings.push(sampled(COMPOSE_AMBIENT_OCCLUSION));
+    }
+    let (name, spv) = match (shadowed, occluded) {
+        (true, false) => ("compose (environment)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_COMP),
+        (false, false) => ("compose (environment, unshadowed)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_COMP),
+        (true, true) => ("compose (environment, AO)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
+        (false, true) => {
+            ("compose (environment, AO, unshadowed)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_COMP)
+        }
+    };
+    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
+}
+
+/// The environment's part of compose's inputs.
+pub struct EnvironmentInputs<'h, 'a> {
+    /// Radiance from every direction, W/(m^2 sr).
+    pub radiance: glam::Vec3,
+    pub brdf_table: &'h Handle<BufferKind>,
+    /// Ambient occlusion (1 open, 0 enclosed), scaling the environment term.
+    pub occlusion: Option<&'h Handle<ImageKind>>,
+    /// `crate::lighting::Pipelines::compose` for this frame's shadowed and occluded.
+    pub pipeline: &'a ComputePipeline,
+}
+
+pub struct ComposeInputs<'h, 'a> {
     pub lights: &'h Handle<BufferKind>,
     pub light_count: u32,
     /// The visibility target and the light table (each light's layer), where any light has
@@ -48,13 +89,14 @@ pub struct ComposeInputs<'h> {
     pub visibility: Option<(&'h Handle<ImageKind>, &'h Handle<BufferKind>)>,
     pub eye: glam::Vec3,
     pub background: glam::Vec3,
+    pub environment: Option<EnvironmentInputs<'h, 'a>>,
 }
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipelines: &'a super::Pipelines,
     gbuffer: &GBuffer,
-    inputs: ComposeInputs<'_>,
+    inputs: ComposeInputs<'_, 'a>,
     extent: vk::Extent2D,
 ) -> Handle<ImageKind> {
     let mut radiance = graph.create_image("radiance", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
@@ -66,7 +108,7 @@ pub fn add<'a>(
         (COMPOSE_LIGHTS, Bound::Buffer(pass.read(inputs.lights, Access::ComputeShaderReadStorageBuffer))),
         (COMPOSE_RADIANCE, Bound::Image(pass.write(&mut radiance, Access::ComputeShaderWrite))),
     ];
-    let pipeline = match inputs.visibility {
+    let mut pipeline = match inputs.visibility {
         Some((v, table)) => {
             bound.push((COMPOSE_VISIBILITY, Bound::Image(pass.read(v, Access::ComputeShaderReadSampledImage))));
             bound.push((COMPOSE_LIGHT_LAYERS, Bound::Buffer(pass.read(table, Access::ComputeShaderReadStorageBuffer))));
@@ -74,10 +116,22 @@ pub fn add<'a>(
         }
         None => &pipelines.compose_unshadowed,
     };
+    let mut environment = glam::Vec3::ZERO;
+    if let Some(env) = &inputs.environment {
+        let table = pass.read(env.brdf_table, Access::ComputeShaderReadStorageBuffer);
+        bound.push((COMPOSE_BRDF_TABLE, Bound::Buffer(table)));
+        if let Some(ao) = env.occlusion {
+            let ao = pass.read(ao, Access::ComputeShaderReadSampledImage);
+            bound.push((COMPOSE_AMBIENT_OCCLUSION, Bound::Image(ao)));
+        }
+        environment = env.radiance;
+        pipeline = env.pipeline;
+    }
     let push = Push {
         eye: inputs.eye.extend(0.0),
         background: inputs.background.extend(0.0),
         dims: UVec4::new(extent.width, extent.height, inputs.light_count, 0),
+        environment: environment.extend(0.0),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     radiance

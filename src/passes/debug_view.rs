@@ -72,7 +72,11 @@ fn shader_view(view: DebugView) -> u32 {
         // Its own shader (debug_geometric_normal.comp), which reads no view number.
         DebugView::GeometricNormal => 5,
         // Written by the technique itself (`shadows::add`), never by this pass.
-        DebugView::ShadowMap { .. } | DebugView::Cascades(_) | DebugView::Stencil(_) | DebugView::Hybrid(_) => {
+        DebugView::ShadowMap { .. }
+        | DebugView::Cascades(_)
+        | DebugView::Stencil(_)
+        | DebugView::Hybrid(_)
+        | DebugView::AmbientOcclusion => {
             unreachable!("a technique's own view")
         }
     }

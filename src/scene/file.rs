@@ -23,6 +23,9 @@ struct SceneFile {
     #[serde(default)]
     objects: Vec<ObjectDesc>,
     render: Option<RenderDesc>,
+    background: Option<Xyz>,
+    environment: Option<super::environment::EnvironmentDesc>,
+    ambient_occlusion: Option<super::environment::AmbientOcclusionDesc>,
 }
 
 /// `[render]`: how the scene asks to be rendered, where the command line says nothing.
@@ -117,10 +120,10 @@ struct MaterialDesc {
 
 /// A TOML array of exactly `N` values. serde's own `[T; N]` stops reading after `N` and drops
 /// the rest without a word, so `eye = [0, 1, 5, 7]` would pass as `[0, 1, 5]`.
-struct Exact<T, const N: usize>([T; N]);
+pub(super) struct Exact<T, const N: usize>(pub(super) [T; N]);
 
 /// `[x, y, z]`.
-type Xyz = Exact<f64, 3>;
+pub(super) type Xyz = Exact<f64, 3>;
 
 impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> {
     fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
@@ -264,7 +267,13 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         .enumerate()
         .map(|(i, light)| check.shadows(&format!("lights[{i}]"), light))
         .collect::<Result<Vec<_>, _>>()?;
-    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend, sources, light_shadows })
+    let lighting = super::environment::check(
+        file.background.as_ref(),
+        file.environment.as_ref(),
+        file.ambient_occlusion.as_ref(),
+        |key_path, message| check.fail(key_path, message),
+    )?;
+    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend, sources, light_shadows, lighting })
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.

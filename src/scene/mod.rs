@@ -2,6 +2,7 @@
 //! materials. Loaded from a TOML scene file (see docs/scene-format.md) or built in.
 
 pub mod bvh;
+mod environment;
 mod error;
 mod file;
 mod input;
@@ -14,6 +15,7 @@ use std::path::{Path, PathBuf};
 
 use glam::{DVec3, Vec3};
 
+pub use environment::{AmbientOcclusion, Environment, SceneLighting, DEFAULT_BACKGROUND};
 pub use error::SceneError;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 pub use local::MAX_LOCAL_DISTANCE;
@@ -129,6 +131,8 @@ pub struct Scene {
     /// object's OBJ file and the MTL libraries it names, as paths to open (so that an output
     /// file is never one of them). Empty for the built-in scene.
     pub sources: Vec<PathBuf>,
+    /// `background`, `[environment]` and `[ambient_occlusion]` (scene/environment.rs).
+    pub lighting: SceneLighting,
 }
 
 /// The built-in scene: built-in shapes only, so it needs no file beside the binary.

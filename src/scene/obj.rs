@@ -33,6 +33,7 @@ pub(super) struct LoadedObj {
 /// of its MTL libraries looked up next to it. A missing or broken MTL only costs the materials.
 pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
     let bytes = input::read(path).map_err(ObjError::Read)?;
+    check_is_obj(&bytes).map_err(ObjError::Parse)?;
     check_indices(&bytes).map_err(ObjError::Parse)?;
     let short_faces = count_short_faces(&bytes);
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
@@ -68,6 +69,34 @@ pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
         })
         .collect();
     Ok(LoadedObj { meshes, short_faces, material_files: material_files.into_inner() })
+}
+
+/// Statements that make a file an OBJ file; tobj skips any other line without a word, so a text
+/// file (or a renamed PNG) named `.obj` would otherwise load as an empty mesh.
+const OBJ_KEYWORDS: &[&[u8]] =
+    &[b"v", b"vt", b"vn", b"vp", b"f", b"l", b"p", b"o", b"g", b"s", b"usemtl", b"mtllib", b"cstype", b"curv", b"surf"];
+
+/// Refuses content that is not OBJ text: binary data (a NUL byte), or lines none of which is an
+/// OBJ statement. A file of comments and blank lines only is an empty OBJ, not a wrong one.
+fn check_is_obj(bytes: &[u8]) -> Result<(), String> {
+    if bytes.contains(&0) {
+        return Err("binary data (a NUL byte), not OBJ text".to_owned());
+    }
+    let mut content = None;
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let Some(first) = line.split(|b| b.is_ascii_whitespace()).find(|w| !w.is_empty()) else { continue };
+        if first.starts_with(b"#") {
+            continue;
+        }
+        if OBJ_KEYWORDS.contains(&first) {
+            return Ok(());
+        }
+        content.get_or_insert(n + 1);
+    }
+    match content {
+        Some(line) => Err(format!("line {line}: no OBJ statement (v, f, o, ...) anywhere in the file")),
+        None => Ok(()),
+    }
 }
 
 /// Refuses a face corner whose index names no vertex, texture coordinate or normal: a positive
@@ -263,6 +292,17 @@ mod tests {
         let past = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 18446744073709551\n";
         assert!(check_indices(past).unwrap_err().starts_with("line 4: f index 18446744073709551 names no vertex"));
         assert!(check_indices(b"v 0 0 0\nf 0 1 1\n").unwrap_err().contains("index 0 names no vertex"));
+    }
+
+    #[test]
+    fn text_and_binary_that_are_not_obj_are_refused() {
+        assert_eq!(check_is_obj(b"# only a comment\n\n"), Ok(()));
+        assert_eq!(check_is_obj(b"v 0 0 0\nwhatever\n"), Ok(()));
+        assert_eq!(
+            check_is_obj(b"# notes\nhello world\nsecond line\n").unwrap_err(),
+            "line 2: no OBJ statement (v, f, o, ...) anywhere in the file"
+        );
+        assert!(check_is_obj(b"\x89PNG\r\n\x1a\n\0\0").unwrap_err().starts_with("binary data"));
     }
 
     #[test]

@@ -4,6 +4,7 @@
 pub mod bvh;
 mod error;
 mod file;
+mod gltf;
 mod input;
 mod local;
 mod mesh;
@@ -15,6 +16,7 @@ use std::path::{Path, PathBuf};
 use glam::{DVec3, Vec3};
 
 pub use error::SceneError;
+pub use gltf::LUMENS_PER_WATT;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 pub use local::MAX_LOCAL_DISTANCE;
 

@@ -4,8 +4,10 @@
 
 use std::sync::Arc;
 
+use std::collections::HashMap;
+
 use ash::vk;
-use glam::{DVec3, Mat4, Vec3};
+use glam::{DMat3, DMat4, DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
@@ -71,11 +73,50 @@ pub struct Vertex {
     pub normal: [f32; 3],
 }
 
+/// Per-instance vertex data (vertex binding 1, read per instance): the rows of the
+/// object-to-local-frame matrix and of its normal matrix (inverse transpose). Instance 0 is the
+/// identity, which every mesh drawn once uses: its vertices are already in the local frame, and
+/// multiplying by exact ones and zeros leaves them bit for bit as they are.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct InstanceRows {
+    pub model: [[f32; 4]; 3],
+    pub normal: [[f32; 4]; 3],
+}
+
+impl InstanceRows {
+    pub const IDENTITY: InstanceRows = InstanceRows {
+        model: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+        normal: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+    };
+
+    /// The rows of `to_local` (affine, computed in f64 and rounded once).
+    fn of(to_local: &DMat4) -> InstanceRows {
+        let normal = DMat3::from_mat4(*to_local).inverse().transpose();
+        let row4 = |r: usize| [0, 1, 2, 3].map(|c| to_local.col(c)[r] as f32);
+        let row3 = |r: usize| [normal.col(0)[r] as f32, normal.col(1)[r] as f32, normal.col(2)[r] as f32, 0.0];
+        InstanceRows { model: [row4(0), row4(1), row4(2)], normal: [row3(0), row3(1), row3(2)] }
+    }
+}
+
+/// The geometry passes' vertex inputs: `Vertex` at binding 0, `InstanceRows` at binding 1
+/// (locations 2-4 the model rows, 5-7 the normal rows).
+pub const INSTANCE_ATTRIBUTES: [(u32, vk::Format, u32); 6] = [
+    (2, vk::Format::R32G32B32A32_SFLOAT, 0),
+    (3, vk::Format::R32G32B32A32_SFLOAT, 16),
+    (4, vk::Format::R32G32B32A32_SFLOAT, 32),
+    (5, vk::Format::R32G32B32A32_SFLOAT, 48),
+    (6, vk::Format::R32G32B32A32_SFLOAT, 64),
+    (7, vk::Format::R32G32B32A32_SFLOAT, 80),
+];
+
 /// One mesh's slice of the shared vertex and index buffers.
 pub struct Draw {
     pub first_index: u32,
     pub index_count: u32,
     pub vertex_offset: i32,
+    /// Its `InstanceRows` (0: the identity).
+    pub instance: u32,
     pub material: Material,
     pub cast_shadows: bool,
     /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
@@ -84,7 +125,11 @@ pub struct Draw {
 
 /// The scene on the device: uploaded once, imported into every frame's graph.
 pub struct SceneGpu {
+    /// `vertex_count` `Vertex`es, then the `InstanceRows` from byte `instance_offset`: one
+    /// buffer, so every pass that binds the vertices has the instances too.
     pub vertices: Buffer,
+    pub vertex_count: u32,
+    pub instance_offset: u64,
     pub indices: Buffer,
     pub draws: Vec<Draw>,
     pub lights: Buffer,
@@ -109,27 +154,56 @@ impl SceneGpu {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         let mut draws = Vec::new();
+        let mut instances = vec![InstanceRows::IDENTITY];
+        // Shared geometry already uploaded: its first index and vertex offset.
+        let mut shared = HashMap::new();
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
             let mut bounds = Bounds::EMPTY;
-            // The local frame's f32: where the GPU's triangles are.
+            // The local frame's f32: where the GPU's triangles are (for an instance, where its
+            // world-space copy is).
             let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
             positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
+            for p in &positions {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+            }
+            let (first_index, index_count, vertex_offset, instance) = match &mesh.instance {
+                Some(instance) => {
+                    let g = &instance.geometry;
+                    let (first, offset) = *shared.entry(std::sync::Arc::as_ptr(g)).or_insert_with(|| {
+                        let at = (indices.len() as u32, vertices.len() as i32);
+                        vertices.extend(
+                            g.positions
+                                .iter()
+                                .zip(&g.normals)
+                                .map(|(p, n)| Vertex { position: p.to_array(), normal: n.to_array() }),
+                        );
+                        indices.extend_from_slice(&g.indices);
+                        at
+                    });
+                    instances.push(InstanceRows::of(&instance.to_world));
+                    (first, g.indices.len() as u32, offset, instances.len() as u32 - 1)
+                }
+                None => {
+                    let at = (indices.len() as u32, mesh.indices.len() as u32, vertices.len() as i32, 0);
+                    for (p, n) in positions.iter().zip(&mesh.normals) {
+                        vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
+                    }
+                    indices.extend_from_slice(&mesh.indices);
+                    at
+                }
+            };
             draws.push(Draw {
-                first_index: indices.len() as u32,
-                index_count: mesh.indices.len() as u32,
-                vertex_offset: vertices.len() as i32,
+                first_index,
+                index_count,
+                vertex_offset,
+                instance,
                 material: mesh.material,
                 cast_shadows: mesh.cast_shadows,
                 bounds,
             });
-            for (p, n) in positions.iter().zip(&mesh.normals) {
-                lo = lo.min(*p);
-                hi = hi.max(*p);
-                vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
-            }
-            indices.extend_from_slice(&mesh.indices);
         }
         if draws.is_empty() {
             lo = Vec3::ZERO;
@@ -137,10 +211,14 @@ impl SceneGpu {
         }
         let lights = gpu_lights(&scene.lights);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let vertex_count = vertices.len() as u32;
+        let mut vertex_bytes: Vec<u8> = bytemuck::cast_slice(&vertices).to_vec();
+        let instance_offset = vertex_bytes.len() as u64;
+        vertex_bytes.extend_from_slice(bytemuck::cast_slice(&instances));
         let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
             ctx,
             [
-                ("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER | storage),
+                ("vertices", &vertex_bytes, vk::BufferUsageFlags::VERTEX_BUFFER | storage),
                 ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | storage),
                 ("lights", bytemuck::cast_slice(&lights), storage),
                 ("bvh nodes", bytemuck::cast_slice(bvh.nodes()), storage),
@@ -149,6 +227,8 @@ impl SceneGpu {
         )?;
         Ok(SceneGpu {
             vertices,
+            vertex_count,
+            instance_offset,
             indices,
             draws,
             lights,

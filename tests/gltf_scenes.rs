@@ -325,3 +325,57 @@ fn gltf_scene_renders_as_the_cpu_twin_predicts() {
     assert!(compared > (W * H / 3) as usize, "the quad covers {compared} pixels only");
     common::assert_clean(&ctx);
 }
+
+/// A mesh drawn by three nodes (two rotated and scaled, one mirrored) over a floor: the two
+/// that keep their winding share one upload (the vertex buffer holds the quad's 4 vertices once,
+/// beside the mirrored copy's and the floor's), and the frame, with `traced` and with `map`
+/// shadows, matches the same scene drawn from world-space copies only.
+#[test]
+fn instances_are_uploaded_once_and_render_like_copies() {
+    use umbra::config::ShadowMethod;
+    use umbra::gpu_scene::{InstanceRows, Vertex};
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U16));
+    let (s, c) = (0.4f32).sin_cos();
+    g.nodes[0] = json!({ "mesh": 0, "translation": [-1.0, 1.0, 0.0], "rotation": [0.0, s, 0.0, c] });
+    g.node(json!({ "mesh": 0, "translation": [1.0, 0.8, 0.0], "scale": [1.5, 1.0, 0.7] }), true);
+    g.node(json!({ "mesh": 0, "translation": [0.0, 1.2, -1.5], "scale": [-1.0, 1.0, 1.0] }), true);
+    g.write_glb(&dir.path().join("three.glb"));
+    let text = "[camera]\neye = [0.0, 4.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 50.0\n\
+        [[lights]]\ntype = \"directional\"\ndirection = [0.2, -1.0, -0.1]\nirradiance = [2.0, 2.0, 2.0]\n\
+        [[objects]]\nmesh = \"three.glb\"\n[[objects]]\nshape = \"plane\"\nsize = 6.0\n";
+    let scene = parse_in(dir.path(), text).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.meshes.len(), 4);
+    assert_eq!(scene.meshes.iter().filter(|m| m.instance.is_some()).count(), 2, "the mirrored node is a copy");
+    let mut copies = scene.clone();
+    copies.meshes.iter_mut().for_each(|m| m.instance = None);
+
+    let ctx = common::gpu();
+    let mut instanced = Renderer::new(ctx.clone(), scene).expect("renderer");
+    let mut copied = Renderer::new(ctx.clone(), copies).expect("renderer");
+    // The quad once (4), the mirrored copy (4), the floor (4); identity + two instances.
+    let gpu = &instanced.gpu_scene;
+    assert_eq!(gpu.vertex_count, 12);
+    let (vertex, rows) = (std::mem::size_of::<Vertex>() as u64, std::mem::size_of::<InstanceRows>() as u64);
+    assert_eq!(gpu.vertices.size, 12 * vertex + 3 * rows);
+    assert_eq!(copied.gpu_scene.vertex_count, 16);
+
+    for method in [ShadowMethod::Traced, ShadowMethod::Map] {
+        let render = |r: &mut Renderer| {
+            let choice = ShadowChoice { method, ..ShadowChoice::hard() };
+            let settings = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(1, choice);
+            match r.render(&settings).unwrap_or_else(|e| panic!("{method:?}: {e}")) {
+                Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect::<Vec<_>>(),
+                Frame::Rgba8 { .. } => unreachable!(),
+            }
+        };
+        let (a, b) = (render(&mut instanced), render(&mut copied));
+        let differ = a.iter().zip(&b).filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * b.max_element() + 1e-5);
+        let differ = differ.count();
+        // Rounding differs between the instance's f32 matrix and the f64 copy: edge pixels only.
+        assert!(differ <= (W * H / 100) as usize, "{method:?}: {differ} pixels differ");
+        let dark = a.iter().filter(|p| p.w > 0.0 && p.truncate().max_element() < 1e-4).count();
+        assert!(dark > 20, "{method:?}: the quads cast shadows ({dark} dark pixels)");
+    }
+    common::assert_clean(&ctx);
+}

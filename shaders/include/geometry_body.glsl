@@ -10,6 +10,10 @@
 
 layout(location = 0) in vec3 in_position;
 layout(location = 1) in vec3 in_normal;
+// The draw's instance (instance.glsl; used where the triangle's corners are read, in their own
+// space, and declared in both variants so that the vertex stage's outputs always have a reader).
+layout(location = 2) flat in vec4 in_model[3];
+layout(location = 5) flat in vec4 in_normal_rows[3];
 
 layout(location = GBUFFER_POSITION_LOCATION) out vec4 out_position;
 layout(location = GBUFFER_NORMAL_LOCATION) out vec4 out_normal;
@@ -39,8 +43,11 @@ void main() {
     vec3 corner_normal[3];
     for (int k = 0; k < 3; k++) {
         GeometryVertex v = vertices[int(indices[first + uint(k)]) + base];
-        corner[k] = vec3(v.position[0], v.position[1], v.position[2]);
-        corner_normal[k] = normalize(vec3(v.normal[0], v.normal[1], v.normal[2]));
+        vec4 c = vec4(v.position[0], v.position[1], v.position[2], 1.0);
+        vec3 cn = vec3(v.normal[0], v.normal[1], v.normal[2]);
+        corner[k] = vec3(dot(in_model[0], c), dot(in_model[1], c), dot(in_model[2], c));
+        corner_normal[k] = normalize(vec3(dot(in_normal_rows[0].xyz, cn), dot(in_normal_rows[1].xyz, cn),
+                                          dot(in_normal_rows[2].xyz, cn)));
     }
     vec3 e1 = corner[1] - corner[0];
     vec3 e2 = corner[2] - corner[0];

@@ -12,9 +12,11 @@ use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
 use super::{storage, GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
-use crate::gpu_scene::{CameraMatrices, SceneGpu, Vertex};
+use crate::gpu_scene::{CameraMatrices, InstanceRows, SceneGpu, Vertex, INSTANCE_ATTRIBUTES};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
-use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
+use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc};
+
+const INSTANCE_STRIDE: u32 = std::mem::size_of::<InstanceRows>() as u32;
 
 // The colour attachments below are listed in the order gbuffer.glsl gives their locations.
 const _: () = assert!(
@@ -61,9 +63,12 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
     };
     let buffers = [storage(bindings::GEOMETRY_VERTICES), storage(bindings::GEOMETRY_INDICES)];
     let reads_triangles = ctx.capabilities.geometry_shader;
+    let extras = GraphicsExtras { instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)), ..Default::default() };
     let pipeline = match reads_triangles {
-        true => GraphicsPipeline::new(ctx, &desc("geometry", spirv::GEOMETRY_FRAG, &buffers))?,
-        false => GraphicsPipeline::new(ctx, &desc("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG, &[]))?,
+        true => GraphicsPipeline::with_extras(ctx, &desc("geometry", spirv::GEOMETRY_FRAG, &buffers), &extras)?,
+        false => {
+            GraphicsPipeline::with_extras(ctx, &desc("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG, &[]), &extras)?
+        }
     };
     Ok(GeometryPipelines { pipeline, reads_triangles })
 }
@@ -146,7 +151,8 @@ pub fn add<'a>(
             d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
             d.cmd_set_scissor(ctx.cmd, 0, &[area]);
             if !scene.draws.is_empty() {
-                d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
+                let vb = ctx.buffer(vb);
+                d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]);
                 d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
             }
             for draw in &scene.draws {
@@ -165,7 +171,7 @@ pub fn add<'a>(
                     0,
                     bytemuck::bytes_of(&push),
                 );
-                d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, 0);
+                d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, draw.instance);
             }
             d.cmd_end_rendering(ctx.cmd);
         }

@@ -278,11 +278,19 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         let mut dropped = LoadStats::default();
         let meshes_before = meshes.len();
         let cast_shadows = object.and_then(|o| o.cast_shadows).unwrap_or(true);
+        let shared = mesh::shared_geometry(&placed.meshes, &placed.instances);
         for (k, instance) in &placed.instances {
             let local = &placed.meshes[*k];
             let material = placed.material.apply(local.material.unwrap_or_default());
             let to_world = placed.transform * *instance;
-            meshes.extend(mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped));
+            let mut placed_mesh = mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped);
+            if let (Some(m), Some(geometry)) = (&mut placed_mesh, &shared[*k]) {
+                // A mirroring instance would need the other winding: it stays a copy.
+                if to_world.determinant() > 0.0 {
+                    m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
+                }
+            }
+            meshes.extend(placed_mesh);
         }
         let source = &placed.source;
         if dropped.degenerate_triangles + dropped.non_finite_triangles > 0 {

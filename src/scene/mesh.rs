@@ -2,9 +2,11 @@
 //! positions in f64, normals by the inverse-transpose, keeps front faces counter-clockwise under
 //! mirroring, and drops triangles the renderer cannot use, counting them.
 
+use std::sync::Arc;
+
 use glam::{DMat3, DMat4, DVec3, Vec3};
 
-use super::{LoadStats, Material, Mesh};
+use super::{InstanceGeometry, LoadStats, Material, Mesh};
 
 /// A mesh as loaded, before placement. Without `normals` it is shaded flat.
 #[derive(Clone, Debug)]
@@ -126,7 +128,36 @@ pub(super) fn place(
         indices: out.indices,
         material,
         cast_shadows,
+        instance: None,
     })
+}
+
+/// The geometry of each mesh that more than one instance draws, placed at the identity once
+/// (`None` for a mesh drawn once, or with no usable triangle).
+pub(super) fn shared_geometry(
+    meshes: &[ObjectMesh],
+    instances: &[(usize, DMat4)],
+) -> Vec<Option<Arc<InstanceGeometry>>> {
+    let mut uses = vec![0usize; meshes.len()];
+    for (k, _) in instances {
+        uses[*k] += 1;
+    }
+    meshes
+        .iter()
+        .zip(uses)
+        .map(|(mesh, uses)| {
+            if uses < 2 {
+                return None;
+            }
+            let mut stats = LoadStats::default();
+            let placed = place("", mesh, &DMat4::IDENTITY, Material::default(), true, &mut stats)?;
+            Some(Arc::new(InstanceGeometry {
+                positions: placed.positions.iter().map(|p| p.as_vec3()).collect(),
+                normals: placed.normals,
+                indices: placed.indices,
+            }))
+        })
+        .collect()
 }
 
 /// Unit normal of a counter-clockwise triangle, or `None` when it has no area (repeated

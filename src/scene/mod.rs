@@ -12,8 +12,9 @@ mod obj;
 mod shapes;
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use glam::{DVec3, Vec3};
+use glam::{DMat4, DVec3, Vec3};
 
 pub use error::SceneError;
 pub use gltf::LUMENS_PER_WATT;
@@ -98,6 +99,27 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     pub material: Material,
     pub cast_shadows: bool,
+    /// Set when several nodes of a glTF file draw this mesh: the renderer uploads the shared
+    /// geometry once and draws it per instance. Everything else (the BVH, shadow volumes, ray
+    /// query) uses the world-space copy above.
+    pub instance: Option<Instance>,
+}
+
+/// One use of geometry that several meshes share: the geometry in its own space, and where
+/// this use puts it (object to world, not mirroring).
+#[derive(Clone, Debug)]
+pub struct Instance {
+    pub geometry: Arc<InstanceGeometry>,
+    pub to_world: DMat4,
+}
+
+/// Shared geometry in its own space, already checked as a placed mesh is (the same triangles,
+/// vertices and normals `mesh::place` gives at the identity).
+#[derive(Debug)]
+pub struct InstanceGeometry {
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub indices: Vec<u32>,
 }
 
 impl Mesh {
@@ -185,6 +207,9 @@ impl Scene {
         for mesh in &mut scene.meshes {
             for p in &mut mesh.positions {
                 *p = shift(*p);
+            }
+            if let Some(instance) = &mut mesh.instance {
+                instance.to_world = DMat4::from_translation(offset) * instance.to_world;
             }
         }
         scene

@@ -221,6 +221,9 @@ pub struct GraphicsExtras<'a> {
     /// Multiview: each draw is rendered once per set bit, into that layer of the attachments
     /// (`gl_ViewIndex` tells the shaders which); 0 is plain rendering.
     pub view_mask: u32,
+    /// A second vertex binding (1), read per instance: its stride and (location, format,
+    /// offset) attributes.
+    pub instance: Option<(u32, &'a [(u32, vk::Format, u32)])>,
 }
 
 pub struct GraphicsPipeline {
@@ -282,21 +285,28 @@ impl GraphicsPipeline {
                 vk::PipelineShaderStageCreateInfo::default().stage(stage).module(module).name(c"main")
             })
             .collect();
-        let vb = [vk::VertexInputBindingDescription {
+        let mut vb = vec![vk::VertexInputBindingDescription {
             binding: 0,
             stride: desc.vertex_stride,
             input_rate: vk::VertexInputRate::VERTEX,
         }];
-        let attrs: Vec<_> = desc
-            .attributes
-            .iter()
-            .map(|&(location, format, offset)| vk::VertexInputAttributeDescription {
+        let attribute = |binding| {
+            move |&(location, format, offset): &(u32, vk::Format, u32)| vk::VertexInputAttributeDescription {
                 location,
-                binding: 0,
+                binding,
                 format,
                 offset,
-            })
-            .collect();
+            }
+        };
+        let mut attrs: Vec<_> = desc.attributes.iter().map(attribute(0)).collect();
+        if let Some((stride, per_instance)) = extras.instance {
+            vb.push(vk::VertexInputBindingDescription {
+                binding: 1,
+                stride,
+                input_rate: vk::VertexInputRate::INSTANCE,
+            });
+            attrs.extend(per_instance.iter().map(attribute(1)));
+        }
         let bindings: &[_] = if attrs.is_empty() { &[] } else { &vb };
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
             .vertex_binding_descriptions(bindings)

@@ -17,13 +17,14 @@ pub mod params;
 pub use self::params::MapParams;
 use super::light_space::{cube_face_view_proj, depth_range, directional_view_proj, spot_view_proj, Bounds};
 use super::{FrameInputs, Served};
-use crate::gpu_scene::{SceneGpu, Vertex};
+use crate::gpu_scene::{InstanceRows, SceneGpu, Vertex, INSTANCE_ATTRIBUTES};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, TILE};
 use crate::scene::Light;
 use crate::vk::bindings::*;
 use crate::vk::{
-    spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc,
+    spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline,
+    GraphicsPipelineDesc,
 };
 
 /// Most layers one light's map has (cube faces, cascades); `MAP_MAX_LAYERS` in map_layers.glsl.
@@ -190,7 +191,9 @@ impl MapPipelines {
                 cull_back_faces: false,
                 dynamic_depth_bias: true,
             };
-            GraphicsPipeline::multiview(&self.ctx, &desc, 1u32 << k)
+            let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
+            let extras = GraphicsExtras { view_mask: 1u32 << k, instance, ..Default::default() };
+            GraphicsPipeline::with_extras(&self.ctx, &desc, &extras)
         })
     }
 
@@ -397,12 +400,20 @@ pub fn add_depth<'a>(
                 // Reversed depth: away from the light is smaller, so the bias is negative.
                 d.cmd_set_depth_bias(ctx.cmd, -params.constant_bias, 0.0, -params.slope_bias);
                 if !draws.is_empty() {
-                    d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
+                    let vb = ctx.buffer(vb);
+                    d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]);
                     d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
                 }
                 for &i in draws {
                     let draw = &scene.draws[i];
-                    d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, 0);
+                    d.cmd_draw_indexed(
+                        ctx.cmd,
+                        draw.index_count,
+                        1,
+                        draw.first_index,
+                        draw.vertex_offset,
+                        draw.instance,
+                    );
                 }
                 d.cmd_end_rendering(ctx.cmd);
             }

@@ -110,6 +110,19 @@ pub const INSTANCE_ATTRIBUTES: [(u32, vk::Format, u32); 6] = [
     (7, vk::Format::R32G32B32A32_SFLOAT, 80),
 ];
 
+/// Per-vertex data of textured meshes (vertex binding 2, parallel to the `Vertex`es: zeros for
+/// meshes without textures): texture coordinates (locations 8) and the tangent with the
+/// bitangent's sign in w (9; zeros without a normal map).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SurfaceVertex {
+    pub uv: [f32; 2],
+    pub tangent: [f32; 4],
+}
+
+pub const SURFACE_ATTRIBUTES: [(u32, vk::Format, u32); 2] =
+    [(8, vk::Format::R32G32_SFLOAT, 0), (9, vk::Format::R32G32B32A32_SFLOAT, 8)];
+
 /// One mesh's slice of the shared vertex and index buffers.
 pub struct Draw {
     pub first_index: u32,
@@ -117,6 +130,8 @@ pub struct Draw {
     pub vertex_offset: i32,
     /// Its `InstanceRows` (0: the identity).
     pub instance: u32,
+    /// Its material's textures (`SceneGpu::materials`), where it has any.
+    pub maps: Option<crate::gpu_textures::DrawMaps>,
     pub material: Material,
     pub cast_shadows: bool,
     /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
@@ -130,6 +145,11 @@ pub struct SceneGpu {
     pub vertices: Buffer,
     pub vertex_count: u32,
     pub instance_offset: u64,
+    /// Where the `SurfaceVertex`es start in `vertices` (after the instances), in a scene with
+    /// textures; they are bound at vertex binding 2 by textured draws.
+    pub surface_offset: Option<u64>,
+    /// The material textures and their pipeline; `None` in a scene without textures.
+    pub materials: Option<crate::gpu_textures::MaterialSets>,
     pub indices: Buffer,
     pub draws: Vec<Draw>,
     pub lights: Buffer,
@@ -157,6 +177,10 @@ impl SceneGpu {
         let mut instances = vec![InstanceRows::IDENTITY];
         // Shared geometry already uploaded: its first index and vertex offset.
         let mut shared = HashMap::new();
+        // Parallel to `vertices` once any mesh has textures.
+        let textured = scene.meshes.iter().any(|m| m.surface.is_some());
+        let mut surface_vertices: Vec<SurfaceVertex> = Vec::new();
+        let mut materials: Vec<std::sync::Arc<crate::scene::MaterialTextures>> = Vec::new();
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
@@ -191,15 +215,33 @@ impl SceneGpu {
                     for (p, n) in positions.iter().zip(&mesh.normals) {
                         vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
                     }
+                    if let Some(surface) = &mesh.surface {
+                        surface_vertices.resize(at.2 as usize, SurfaceVertex::default());
+                        for (k, uv) in surface.uvs.iter().enumerate() {
+                            let tangent = surface.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                            surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+                        }
+                    }
                     indices.extend_from_slice(&mesh.indices);
                     at
                 }
             };
+            let maps = mesh.surface.as_ref().map(|surface| {
+                let set = match materials.iter().position(|m| std::sync::Arc::ptr_eq(m, &surface.textures)) {
+                    Some(set) => set,
+                    None => {
+                        materials.push(surface.textures.clone());
+                        materials.len() - 1
+                    }
+                };
+                crate::gpu_textures::draw_maps(set, &surface.textures)
+            });
             draws.push(Draw {
                 first_index,
                 index_count,
                 vertex_offset,
                 instance,
+                maps,
                 material: mesh.material,
                 cast_shadows: mesh.cast_shadows,
                 bounds,
@@ -215,6 +257,18 @@ impl SceneGpu {
         let mut vertex_bytes: Vec<u8> = bytemuck::cast_slice(&vertices).to_vec();
         let instance_offset = vertex_bytes.len() as u64;
         vertex_bytes.extend_from_slice(bytemuck::cast_slice(&instances));
+        let surface_offset = textured.then(|| {
+            surface_vertices.resize(vertices.len(), SurfaceVertex::default());
+            let at = vertex_bytes.len() as u64;
+            vertex_bytes.extend_from_slice(bytemuck::cast_slice(&surface_vertices));
+            at
+        });
+        let materials = match textured {
+            true => Some(crate::gpu_textures::upload(ctx, &materials, |layout| {
+                crate::passes::geometry::textured_pipeline(ctx, layout)
+            })?),
+            false => None,
+        };
         let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
             ctx,
             [
@@ -229,6 +283,8 @@ impl SceneGpu {
             vertices,
             vertex_count,
             instance_offset,
+            surface_offset,
+            materials,
             indices,
             draws,
             lights,

@@ -172,6 +172,7 @@ fn scene_build_takes_only_shadow_casters() {
         material: Material::default(),
         cast_shadows,
         instance: None,
+        surface: None,
     };
     let scene = Scene {
         image_size: None,

@@ -241,6 +241,7 @@ fn fins() -> Mesh {
         material: Default::default(),
         cast_shadows: true,
         instance: None,
+        surface: None,
     }
 }
 

@@ -81,6 +81,12 @@
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
+// geometry_textured*.frag, descriptor set 1 (one set per material, src/gpu_textures.rs): its
+// textures, each a 1x1 white texel where the material has no such map
+#define MATERIAL_BASE_COLOR 0
+#define MATERIAL_ROUGHNESS 1
+#define MATERIAL_METALLIC 2
+#define MATERIAL_NORMAL 3
 
 // shadows/hybrid/classify.comp: a light's layer where its shadow map is sure, and the list of
 // the pixels where it is not (traced next by shadows/traced/trace_list.comp)

@@ -3,7 +3,8 @@
 // needs the device's geometryShader feature) from the scene's vertex and index buffers for the
 // geometric normal and the shadow-terminator offset. geometry_plain.frag, for devices without
 // that feature, takes the geometric normal from the position's screen derivatives and stores no
-// terminator offset.
+// terminator offset. The textured variants (geometry_textured*.frag) define TEXTURED: the
+// material's textures multiply its constants, and a normal map bends the shading normal.
 #include "gbuffer.glsl"
 #include "geometry_push.glsl"
 #include "ray_offset.glsl"
@@ -19,6 +20,36 @@ layout(location = GBUFFER_POSITION_LOCATION) out vec4 out_position;
 layout(location = GBUFFER_NORMAL_LOCATION) out vec4 out_normal;
 layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
 layout(location = GBUFFER_SURFACE_LOCATION) out uvec4 out_surface;
+
+#ifdef TEXTURED
+layout(location = 8) in vec2 in_uv;
+layout(location = 9) in vec4 in_tangent;
+layout(set = 1, binding = MATERIAL_BASE_COLOR) uniform sampler2D material_base_color;
+layout(set = 1, binding = MATERIAL_ROUGHNESS) uniform sampler2D material_roughness;
+layout(set = 1, binding = MATERIAL_METALLIC) uniform sampler2D material_metallic;
+layout(set = 1, binding = MATERIAL_NORMAL) uniform sampler2D material_normal;
+
+// A one-hot mask: the texture channel a map reads (0..3 = R, G, B, A), without indexing a
+// vector by a variable (which lavapipe moves to scratch memory).
+vec4 material_channel(uint c) {
+    return vec4(equal(uvec4(0u, 1u, 2u, 3u), uvec4(c)));
+}
+
+// The shading normal bent by the tangent-space normal map (OpenGL convention: +Y along the
+// bitangent cross(n, t) * w, MikkTSpace's). Without a usable tangent, n as it is.
+vec3 material_mapped_normal(vec3 n, vec4 tangent, vec2 uv, float scale) {
+    vec3 t = tangent.xyz - n * dot(n, tangent.xyz);
+    float len = length(t);
+    if (!(len > 1e-6)) return n;
+    t /= len;
+    vec3 b = cross(n, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
+    vec3 m = texture(material_normal, uv).xyz * 2.0 - 1.0;
+    m.xy *= scale;
+    vec3 mapped = t * m.x + b * m.y + n * m.z;
+    float mapped_len = length(mapped);
+    return mapped_len > 1e-6 ? mapped / mapped_len : n;
+}
+#endif
 
 #ifdef GEOMETRY_TRIANGLES
 // gpu_scene::Vertex: position, then normal, 24 bytes.
@@ -63,8 +94,19 @@ void main() {
 #endif
     // Back faces are culled, but a smooth normal can still lean away from the eye at grazing
     // angles; it is kept as is, and shading clamps n.v.
+    vec4 material = pc.base_color_roughness;
+    float metallic = pc.metallic.x;
+#ifdef TEXTURED
+    // pc.draw.z: the maps present (8: a normal map); pc.draw.w: the roughness channel, and the
+    // metallic channel 8 bits up; pc.metallic.y: the normal map's scale. Absent colour maps are
+    // a white texel, so every product below is the constant alone.
+    material.rgb *= texture(material_base_color, in_uv).rgb;
+    material.a *= dot(texture(material_roughness, in_uv), material_channel(pc.draw.w & 3u));
+    metallic *= dot(texture(material_metallic, in_uv), material_channel((pc.draw.w >> 8) & 3u));
+    if ((pc.draw.z & 8u) != 0u) n = material_mapped_normal(n, in_tangent, in_uv, pc.metallic.y);
+#endif
     out_position = vec4(p, 1.0);
-    out_normal = vec4(n, pc.metallic.x);
-    out_material = pc.base_color_roughness;
+    out_normal = vec4(n, metallic);
+    out_material = material;
     out_surface = gbuffer_surface_encode(offset, geometric);
 }

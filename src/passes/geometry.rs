@@ -11,8 +11,10 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use super::{storage, GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
-use crate::gpu_scene::{CameraMatrices, InstanceRows, SceneGpu, Vertex, INSTANCE_ATTRIBUTES};
+use super::{GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
+use crate::gpu_scene::{
+    CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES,
+};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
 use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc};
 
@@ -47,10 +49,16 @@ pub struct GeometryPipelines {
     reads_triangles: bool,
 }
 
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
-    let desc = |name, fragment, bindings| GraphicsPipelineDesc {
+/// The geometry pipeline's description with `vertex` and `fragment` stages.
+fn desc<'a>(
+    name: &'static str,
+    vertex: &'a [u8],
+    fragment: &'a [u8],
+    bindings: &'a [(u32, crate::vk::DescriptorKind)],
+) -> GraphicsPipelineDesc<'a> {
+    GraphicsPipelineDesc {
         name,
-        vertex: spirv::GEOMETRY_VERT,
+        vertex,
         fragment: Some(fragment),
         vertex_stride: std::mem::size_of::<Vertex>() as u32,
         attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0), (1, vk::Format::R32G32B32_SFLOAT, 12)],
@@ -60,17 +68,49 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
         push_bytes: std::mem::size_of::<Push>() as u32,
         cull_back_faces: true,
         dynamic_depth_bias: false,
-    };
-    let buffers = [storage(bindings::GEOMETRY_VERTICES), storage(bindings::GEOMETRY_INDICES)];
+    }
+}
+
+const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
+    (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::StorageBuffer),
+    (bindings::GEOMETRY_INDICES, crate::vk::DescriptorKind::StorageBuffer),
+];
+
+pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
     let reads_triangles = ctx.capabilities.geometry_shader;
     let extras = GraphicsExtras { instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)), ..Default::default() };
+    let vertex = spirv::GEOMETRY_VERT;
     let pipeline = match reads_triangles {
-        true => GraphicsPipeline::with_extras(ctx, &desc("geometry", spirv::GEOMETRY_FRAG, &buffers), &extras)?,
-        false => {
-            GraphicsPipeline::with_extras(ctx, &desc("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG, &[]), &extras)?
-        }
+        true => GraphicsPipeline::with_extras(
+            ctx,
+            &desc("geometry", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS),
+            &extras,
+        )?,
+        false => GraphicsPipeline::with_extras(
+            ctx,
+            &desc("geometry (plain)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[]),
+            &extras,
+        )?,
     };
     Ok(GeometryPipelines { pipeline, reads_triangles })
+}
+
+/// The geometry pipeline for textured draws: texture coordinates and tangents at vertex binding
+/// 2, the material's textures in descriptor set 1 (`material_set`, see gpu_textures.rs). Made
+/// per scene, only for a scene with textures.
+pub fn textured_pipeline(ctx: &Arc<GpuContext>, material_set: vk::DescriptorSetLayout) -> GpuResult<GraphicsPipeline> {
+    let extras = GraphicsExtras {
+        instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
+        per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES)),
+        set_1: Some(material_set),
+        ..Default::default()
+    };
+    let vertex = spirv::GEOMETRY_TEXTURED_VERT;
+    let desc = match ctx.capabilities.geometry_shader {
+        true => desc("geometry (textured)", vertex, spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS),
+        false => desc("geometry (textured, plain)", vertex, spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[]),
+    };
+    GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
 
 pub fn add<'a>(
@@ -133,13 +173,9 @@ pub fn add<'a>(
             .color_attachments(&color_attachments)
             .depth_attachment(&depth_attachment);
         let d = ctx.device;
-        if !bound.is_empty() {
-            ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &pipeline.layout, &bound)?;
-        }
         // SAFETY: recording state; every object is resolved for this frame and outlives it.
         unsafe {
             d.cmd_begin_rendering(ctx.cmd, &rendering);
-            d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
             let viewport = vk::Viewport {
                 x: 0.0,
                 y: 0.0,
@@ -152,29 +188,66 @@ pub fn add<'a>(
             d.cmd_set_scissor(ctx.cmd, 0, &[area]);
             if !scene.draws.is_empty() {
                 let vb = ctx.buffer(vb);
-                d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]);
+                match scene.surface_offset {
+                    Some(surface) => {
+                        d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb, vb], &[0, scene.instance_offset, surface])
+                    }
+                    None => d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]),
+                }
                 d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
             }
-            for draw in &scene.draws {
-                let m = draw.material;
-                let push = Push {
-                    view_proj: camera.view_proj_relative,
-                    eye: camera.eye.extend(0.0),
-                    base_color_roughness: m.base_color.extend(m.roughness),
-                    metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
-                    draw: UVec4::new(draw.first_index, draw.vertex_offset as u32, 0, 0),
-                };
+        }
+        // The pipeline bound (textured or not), switched as the draws need.
+        let mut current: Option<bool> = None;
+        for draw in &scene.draws {
+            let textured = scene.materials.as_ref().zip(draw.maps);
+            let used = match textured {
+                Some((materials, _)) => &materials.pipeline,
+                None => pipeline,
+            };
+            if current != Some(textured.is_some()) {
+                current = Some(textured.is_some());
+                if !bound.is_empty() {
+                    ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &used.layout, &bound)?;
+                }
+                // SAFETY: recording state, inside the rendering begun above.
+                unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline) };
+            }
+            let m = draw.material;
+            let mut push = Push {
+                view_proj: camera.view_proj_relative,
+                eye: camera.eye.extend(0.0),
+                base_color_roughness: m.base_color.extend(m.roughness),
+                metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
+                draw: UVec4::new(draw.first_index, draw.vertex_offset as u32, 0, 0),
+            };
+            // SAFETY: recording state; the set is the scene's, alive as long as it is.
+            unsafe {
+                if let Some((materials, maps)) = textured {
+                    push.metallic.y = maps.normal_scale;
+                    push.draw.z = maps.present;
+                    push.draw.w = maps.channels;
+                    d.cmd_bind_descriptor_sets(
+                        ctx.cmd,
+                        vk::PipelineBindPoint::GRAPHICS,
+                        used.layout.layout,
+                        1,
+                        &[materials.sets[maps.set]],
+                        &[],
+                    );
+                }
                 d.cmd_push_constants(
                     ctx.cmd,
-                    pipeline.layout.layout,
+                    used.layout.layout,
                     vk::ShaderStageFlags::ALL_GRAPHICS,
                     0,
                     bytemuck::bytes_of(&push),
                 );
                 d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, draw.instance);
             }
-            d.cmd_end_rendering(ctx.cmd);
         }
+        // SAFETY: recording state; ends the rendering begun above.
+        unsafe { d.cmd_end_rendering(ctx.cmd) };
         Ok(())
     });
     gbuffer

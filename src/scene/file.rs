@@ -246,7 +246,7 @@ fn short_numbers(values: &[f64]) -> String {
 /// `base_dir`.
 pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Scene, SceneError> {
     let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::from_toml(source_name, text, &e))?;
-    let check = Check { file: source_name };
+    let check = Check { file: source_name, textures: Default::default() };
 
     let image_size = file.image.map(|image| check.image(&image)).transpose()?;
     let whole = match &file.scene {
@@ -285,8 +285,9 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
             let to_world = placed.transform * *instance;
             let mut placed_mesh = mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped);
             if let (Some(m), Some(geometry)) = (&mut placed_mesh, &shared[*k]) {
-                // A mirroring instance would need the other winding: it stays a copy.
-                if to_world.determinant() > 0.0 {
+                // A mirroring instance would need the other winding, and a textured one its
+                // texture coordinates uploaded with the shared geometry: each stays a copy.
+                if to_world.determinant() > 0.0 && m.surface.is_none() {
                     m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
                 }
             }
@@ -312,6 +313,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.non_finite_triangles += dropped.non_finite_triangles;
         stats.short_faces += placed.short_faces;
     }
+    sources.extend(check.textures.borrow().files().iter().cloned());
     if !meshes.is_empty() && lights.is_empty() {
         // Nothing else lights a surface yet (no environment light, no emission): say why the
         // picture is black before the user looks for a bug.
@@ -364,6 +366,8 @@ impl MaterialOverride {
 /// Validation helpers that know the file name for their errors.
 struct Check<'a> {
     file: &'a str,
+    /// Every texture the scene's materials name, read once.
+    textures: std::cell::RefCell<super::texture::TextureCache>,
 }
 
 impl Check<'_> {
@@ -592,7 +596,7 @@ impl Check<'_> {
         let file = base_dir.join(name);
         let mesh = shorten(name, MAX_MESSAGE_CHARS);
         let (file_name, key_path) = (self.file.to_owned(), key_path.to_owned());
-        let mut loaded = gltf::load(&file).map_err(|error| match error {
+        let mut loaded = gltf::load(&file, &mut self.textures.borrow_mut()).map_err(|error| match error {
             gltf::GltfError::Read(error) => SceneError::MeshRead { file: file_name, key_path, mesh, error },
             gltf::GltfError::Parse(reason) => {
                 let reason = shorten(&reason, MAX_MESSAGE_CHARS);
@@ -654,7 +658,7 @@ impl Check<'_> {
             );
             return Err(self.fail(&key_path, message));
         }
-        obj::load(&file).map_err(|error| match error {
+        obj::load(&file, &mut self.textures.borrow_mut()).map_err(|error| match error {
             obj::ObjError::Read(error) => {
                 SceneError::MeshRead { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), error }
             }

@@ -11,8 +11,9 @@ use glam::{DMat4, DVec3, Vec3};
 
 use super::error::IoReason;
 use super::input;
-use super::mesh::ObjectMesh;
-use super::{Camera, Light, Material};
+use super::mesh::{ObjectMesh, ObjectSurface};
+use super::texture::{ChannelMap, MaterialTextures, TextureCache};
+use super::{tangents, Camera, Light, Material};
 
 /// Extensions whose data umbra reads. A file that requires any other is refused by name;
 /// one that only uses another is loaded without it, with a notice.
@@ -49,7 +50,7 @@ pub(super) struct LoadedGltf {
     pub files: Vec<PathBuf>,
 }
 
-pub(super) fn load(path: &Path) -> Result<LoadedGltf, GltfError> {
+pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGltf, GltfError> {
     let bytes = input::read(path).map_err(GltfError::Read)?;
     let parse = |e: gltf::Error| GltfError::Parse(one_line(&e.to_string()));
     let binary = bytes.starts_with(b"glTF");
@@ -85,10 +86,12 @@ pub(super) fn load(path: &Path) -> Result<LoadedGltf, GltfError> {
     let mut primitives = Vec::new();
     let mut first_primitive = Vec::new();
     let mut skipped_modes = 0;
+    let mut maps = MaterialMaps { file: path, name: &name, buffers: &buffers, cache: textures, read: Vec::new() };
     for mesh in document.meshes() {
         first_primitive.push(primitives.len());
         for primitive in mesh.primitives() {
-            let object_mesh = read_primitive(&name, &mesh, &primitive, &buffers).map_err(GltfError::Parse)?;
+            let object_mesh =
+                read_primitive(&name, &mesh, &primitive, &buffers, &mut maps).map_err(GltfError::Parse)?;
             if object_mesh.is_none() {
                 skipped_modes += 1;
             }
@@ -240,6 +243,7 @@ fn read_primitive(
     mesh: &gltf::Mesh,
     primitive: &gltf::Primitive,
     buffers: &[gltf::buffer::Data],
+    maps: &mut MaterialMaps,
 ) -> Result<Option<ObjectMesh>, String> {
     use gltf::mesh::Mode;
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
@@ -270,10 +274,113 @@ fn read_primitive(
         Some(n) => format!("{file}/{n}/{}", primitive.index()),
         None => format!("{file}/mesh{}/{}", mesh.index(), primitive.index()),
     };
-    Ok(Some(ObjectMesh { name, positions, normals, indices, material: Some(material(&primitive.material())) }))
+    let gltf_material = primitive.material();
+    let material = Some(material(&gltf_material));
+    let mut surface = ObjectSurface::default();
+    if let Some((textures, set)) = maps.of(&gltf_material) {
+        let uvs = reader.read_tex_coords(set).map(|uv| uv.into_f32().map(glam::Vec2::from).collect::<Vec<_>>());
+        // Without texture coordinates there is nothing to map: the constants stay.
+        if let Some(uvs) = uvs.filter(|uv| uv.len() == positions.len()) {
+            let tangents = reader.read_tangents().map(|t| t.map(glam::Vec4::from).collect::<Vec<_>>());
+            surface = ObjectSurface {
+                uvs: Some(uvs),
+                tangents: tangents.filter(|t| t.len() == positions.len() && textures.normal.is_some()),
+                textures: Some(textures),
+            };
+        }
+    }
+    let mut object_mesh = ObjectMesh { name, positions, normals, indices, material, surface };
+    let needs_tangents = object_mesh.surface.textures.as_ref().is_some_and(|t| t.normal.is_some());
+    if needs_tangents && object_mesh.surface.tangents.is_none() && !tangents::generate(&mut object_mesh) {
+        log::warn!(
+            "{}: no tangent frame for its normal map (degenerate texture coordinates?); it is flat",
+            object_mesh.name
+        );
+    }
+    Ok(Some(object_mesh))
 }
 
-/// The metallic-roughness factors (textures come with the texture support).
+/// Reads a glTF file's materials' textures through the scene's texture cache, once per material.
+struct MaterialMaps<'a> {
+    file: &'a Path,
+    name: &'a str,
+    buffers: &'a [gltf::buffer::Data],
+    cache: &'a mut TextureCache,
+    /// By material index: its textures and the texture coordinate set they use.
+    read: Vec<(Option<usize>, Option<(std::sync::Arc<MaterialTextures>, u32)>)>,
+}
+
+impl MaterialMaps<'_> {
+    /// The textures of `material` (None when it has none that umbra reads).
+    fn of(&mut self, material: &gltf::Material) -> Option<(std::sync::Arc<MaterialTextures>, u32)> {
+        if let Some((_, found)) = self.read.iter().find(|(i, _)| *i == material.index()) {
+            return found.clone();
+        }
+        let label = format!(
+            "{}: material {}",
+            self.name,
+            material.name().map_or_else(|| format!("{:?}", material.index()), |n| format!("{n:?}"))
+        );
+        let pbr = material.pbr_metallic_roughness();
+        let mut sets = Vec::new();
+        let mut texture = |info: Option<(gltf::Texture, u32)>, srgb: bool, sets: &mut Vec<u32>| {
+            let (texture, set) = info?;
+            sets.push(set);
+            self.image(&texture.source(), srgb, &label)
+        };
+        let base_color = texture(pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
+        let metal_rough =
+            texture(pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())), false, &mut sets);
+        let normal = material.normal_texture().and_then(|n| {
+            let scale = n.scale();
+            texture(Some((n.texture(), n.tex_coord())), false, &mut sets).map(|t| (t, scale))
+        });
+        if material.occlusion_texture().is_some() || material.emissive_texture().is_some() {
+            log::warn!("{label}: occlusion and emissive textures are not rendered yet; ignored");
+        }
+        let textures = MaterialTextures {
+            base_color,
+            // glTF packs roughness in G and metalness in B.
+            roughness: metal_rough.clone().map(|texture| ChannelMap { texture, channel: 1 }),
+            metallic: metal_rough.map(|texture| ChannelMap { texture, channel: 2 }),
+            normal,
+        };
+        let set = sets.first().copied().unwrap_or(0);
+        if sets.iter().any(|&s| s != set) {
+            log::warn!("{label}: its textures use different texture coordinate sets; all are read with set {set}");
+        }
+        let found = (!textures.is_empty()).then(|| (std::sync::Arc::new(textures), set));
+        self.read.push((material.index(), found.clone()));
+        found
+    }
+
+    fn image(&mut self, image: &gltf::Image, srgb: bool, label: &str) -> Option<std::sync::Arc<super::Texture>> {
+        match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let key = self.file.join(format!("#image{}", image.index()));
+                let name = format!("image {}", image.index());
+                let bytes = self
+                    .buffers
+                    .get(view.buffer().index())
+                    .and_then(|b| b.0.get(view.offset()..view.offset() + view.length()));
+                match bytes {
+                    Some(bytes) => self.cache.get_bytes(&key, bytes, &name, srgb, label),
+                    None => None,
+                }
+            }
+            gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                log::warn!("{label}: an image in a data URI is not read yet; the material's constant is used instead");
+                None
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                let file = self.file.parent().unwrap_or(Path::new("")).join(uri);
+                self.cache.get(&file, uri, srgb, label)
+            }
+        }
+    }
+}
+
+/// The metallic-roughness factors (textures multiply them: `MaterialMaps`).
 fn material(m: &gltf::Material) -> Material {
     let pbr = m.pbr_metallic_roughness();
     let unit = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };

@@ -10,6 +10,8 @@ mod local;
 mod mesh;
 mod obj;
 mod shapes;
+mod tangents;
+mod texture;
 
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -20,6 +22,7 @@ pub use error::SceneError;
 pub use gltf::LUMENS_PER_WATT;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 pub use local::MAX_LOCAL_DISTANCE;
+pub use texture::{mip_chain as texture_mip_chain, srgb_to_linear, ChannelMap, MaterialTextures, Texture};
 
 /// Pinhole camera. `vfov_deg` is the full vertical field of view. Points are in f64, like every
 /// world position (see `Mesh`); the renderer rounds them to f32 only in its scene-local frame.
@@ -103,6 +106,19 @@ pub struct Mesh {
     /// geometry once and draws it per instance. Everything else (the BVH, shadow volumes, ray
     /// query) uses the world-space copy above.
     pub instance: Option<Instance>,
+    /// Texture coordinates, tangents and textures, for a mesh whose material has textures.
+    pub surface: Option<MeshSurface>,
+}
+
+/// Per vertex (parallel to `Mesh::positions`): texture coordinates, and with a normal map the
+/// world-space tangent with the bitangent's sign in w (MikkTSpace's, or the glTF file's); and the
+/// textures they map.
+#[derive(Clone, Debug)]
+pub struct MeshSurface {
+    pub uvs: Vec<glam::Vec2>,
+    /// Empty without a normal map.
+    pub tangents: Vec<glam::Vec4>,
+    pub textures: Arc<MaterialTextures>,
 }
 
 /// One use of geometry that several meshes share: the geometry in its own space, and where

@@ -13,6 +13,8 @@ pub struct Capabilities {
     pub ray_query: bool,
     pub geometry_shader: bool,
     pub depth_clamp: bool,
+    /// Anisotropic texture filtering (material textures use it where offered).
+    pub sampler_anisotropy: bool,
     /// The chosen queue family writes timestamps.
     pub timestamps: bool,
 }
@@ -68,6 +70,7 @@ pub(crate) fn detect(instance: &ash::Instance, pd: vk::PhysicalDevice, family: O
                 && f12.buffer_device_address == vk::TRUE,
             geometry_shader: base.geometry_shader == vk::TRUE,
             depth_clamp: base.depth_clamp == vk::TRUE,
+            sampler_anisotropy: base.sampler_anisotropy == vk::TRUE,
             timestamps,
         }
     }

@@ -18,6 +18,7 @@ pub struct Gltf {
     pub nodes: Vec<Value>,
     pub cameras: Vec<Value>,
     pub lights: Vec<Value>,
+    pub images: Vec<Value>,
     /// The default scene's root nodes.
     pub roots: Vec<usize>,
     pub extensions_used: Vec<String>,
@@ -130,6 +131,11 @@ impl Gltf {
         }
         if !self.materials.is_empty() {
             doc["materials"] = json!(self.materials);
+        }
+        if !self.images.is_empty() {
+            let textures: Vec<Value> = (0..self.images.len()).map(|k| json!({ "source": k })).collect();
+            doc["images"] = json!(self.images);
+            doc["textures"] = json!(textures);
         }
         if !self.cameras.is_empty() {
             doc["cameras"] = json!(self.cameras);

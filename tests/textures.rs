@@ -144,14 +144,15 @@ fn srgb_base_colour_and_a_flat_normal_map() {
     common::assert_clean(&ctx);
 }
 
-/// A normal map of a known slope (every texel tilts the normal toward +u by atan 0.5) shades
-/// the quad as the CPU twin does with the mapped normal, built from the mesh's own tangent frame
-/// (MikkTSpace's: the tangent along +u, unit and perpendicular to the normal).
+/// A normal map of a known slope (every texel tilts the normal toward +u and toward the top of
+/// the image) shades the quad as the CPU twin does with the mapped normal. The frame is
+/// MikkTSpace's in glTF's convention: the tangent along +u, the bitangent up the image (toward
+/// -v, here -Z), each unit and perpendicular to the normal.
 #[test]
 fn a_sloped_normal_map_shifts_the_shading_as_predicted() {
     let dir = tempfile::tempdir().unwrap();
     let ctx = common::gpu();
-    let m = Vec3::new(0.5, 0.0, 1.0).normalize();
+    let m = Vec3::new(0.5, 0.3, 1.0).normalize();
     let texel = (m * 0.5 + 0.5) * 255.0;
     let texel = [texel.x.round() as u8, texel.y.round() as u8, texel.z.round() as u8, 255];
     let material = json!({ "pbrMetallicRoughness": { "baseColorFactor": [0.7, 0.6, 0.5, 1.0],
@@ -169,6 +170,7 @@ fn a_sloped_normal_map_shifts_the_shading_as_predicted() {
     let decoded = Vec3::new(texel[0] as f32, texel[1] as f32, texel[2] as f32) / 255.0 * 2.0 - 1.0;
     let n = Vec3::Y;
     let b = n.cross(t.truncate()) * t.w.signum();
+    assert!((b - Vec3::NEG_Z).length() < 1e-5, "the bitangent points up the image (-v): {b}");
     let mapped = (t.truncate() * decoded.x + b * decoded.y + n * decoded.z).normalize();
 
     let mut renderer = Renderer::new(ctx.clone(), scene.clone()).unwrap();

@@ -2,6 +2,12 @@
 //! frame glTF assets and most bakers assume, so a baked normal map lands as it was baked. Run in
 //! the mesh's own space, before placement, only for meshes with texture coordinates and a normal
 //! map that bring no tangents of their own.
+//!
+//! Texture coordinates are in glTF's convention here (v from the top of the image; OBJ's are
+//! flipped on load), where MikkTSpace's bitangent (increasing v) points down the image; normal
+//! maps are "+Y up". So the sign is negated, as glTF's TANGENT attributes have it (exported from
+//! a v-up space) and as three.js does for glTF (`computeMikkTSpaceTangents(.., negateSign)`):
+//! the bitangent cross(n, t) * w then points up the image.
 
 use glam::{Vec2, Vec3, Vec4};
 
@@ -32,7 +38,8 @@ impl mikktspace::Geometry for Corners {
         self.uvs[face * 3 + vert]
     }
     fn set_tangent_encoded(&mut self, tangent: [f32; 4], face: usize, vert: usize) {
-        self.tangents[face * 3 + vert] = tangent;
+        let [x, y, z, w] = tangent;
+        self.tangents[face * 3 + vert] = [x, y, z, -w];
     }
 }
 
@@ -77,12 +84,12 @@ mod tests {
     use super::*;
     use glam::DVec3;
 
-    /// A quad in the XY plane facing +Z with u along +X and v along +Y: the tangent is +X, and
-    /// the bitangent cross(n, t) * w = +Y needs w = +1. Mirroring the texture (u along -X)
-    /// turns the tangent to -X and keeps cross(n, t) * w = +Y, so w = -1.
+    /// A quad in the XY plane facing +Z with u along +X and v along +Y (so up the image is -Y):
+    /// the tangent is +X, and the bitangent cross(n, t) * w = -Y needs w = -1. Mirroring the
+    /// texture (u along -X) turns the tangent to -X and keeps cross(n, t) * w = -Y, so w = +1.
     #[test]
     fn tangent_frames_follow_the_uv_directions_with_their_handedness() {
-        for (flip_u, tangent, w) in [(false, Vec3::X, 1.0), (true, Vec3::NEG_X, -1.0)] {
+        for (flip_u, tangent, w) in [(false, Vec3::X, -1.0), (true, Vec3::NEG_X, 1.0)] {
             let u = |x: f32| if flip_u { 1.0 - x } else { x };
             let mut mesh = ObjectMesh {
                 name: "quad".into(),
@@ -113,7 +120,7 @@ mod tests {
                 assert_eq!(t.w, w, "flip {flip_u}");
                 // Orthonormal frame: unit tangent perpendicular to the normal.
                 assert!((t.truncate().length() - 1.0).abs() < 1e-5 && t.truncate().dot(*n).abs() < 1e-5);
-                assert!((n.cross(t.truncate()) * t.w - Vec3::Y).length() < 1e-5);
+                assert!((n.cross(t.truncate()) * t.w - Vec3::NEG_Y).length() < 1e-5);
             }
         }
     }

@@ -76,8 +76,10 @@ impl Builder {
         let view = self.view(&bytes);
         let mut a = json!({ "bufferView": view, "componentType": 5126, "count": data.len(), "type": kind });
         if bounds {
-            a["min"] = json!((0..N).map(|k| data.iter().map(|v| v[k]).fold(f32::INFINITY, f32::min)).collect::<Vec<_>>());
-            a["max"] = json!((0..N).map(|k| data.iter().map(|v| v[k]).fold(f32::NEG_INFINITY, f32::max)).collect::<Vec<_>>());
+            a["min"] =
+                json!((0..N).map(|k| data.iter().map(|v| v[k]).fold(f32::INFINITY, f32::min)).collect::<Vec<_>>());
+            a["max"] =
+                json!((0..N).map(|k| data.iter().map(|v| v[k]).fold(f32::NEG_INFINITY, f32::max)).collect::<Vec<_>>());
         }
         self.accessors.push(a);
         self.accessors.len() - 1
@@ -86,7 +88,8 @@ impl Builder {
     fn indices(&mut self, data: &[u32]) -> usize {
         let bytes: Vec<u8> = data.iter().flat_map(|i| (*i as u16).to_le_bytes()).collect();
         let view = self.view(&bytes);
-        self.accessors.push(json!({ "bufferView": view, "componentType": 5123, "count": data.len(), "type": "SCALAR" }));
+        self.accessors
+            .push(json!({ "bufferView": view, "componentType": 5123, "count": data.len(), "type": "SCALAR" }));
         self.accessors.len() - 1
     }
 
@@ -211,7 +214,8 @@ fn main() {
 
     // Columns: pale marble, fluted by the normal map alone (24 flutes round).
     let column_color = g.image(&texture(size, |u, v| {
-        let vein = (((u * 7.0 + v * 3.0) * PI * 2.0 + 4.0 * hash((u * 16.0) as i32, (v * 16.0) as i32)).sin() * 0.5 + 0.5)
+        let vein = (((u * 7.0 + v * 3.0) * PI * 2.0 + 4.0 * hash((u * 16.0) as i32, (v * 16.0) as i32)).sin() * 0.5
+            + 0.5)
             .powf(8.0);
         let c = 0.86 - 0.25 * vein;
         [c, c * 0.97, c * 0.93, 1.0]
@@ -270,7 +274,9 @@ fn main() {
         [yc * ps, ys * pc, -ys * ps, yc * pc]
     };
     nodes.push(json!({ "name": "sun", "rotation": sun_q, "extensions": light(0) }));
-    nodes.push(json!({ "name": "spot", "translation": [1.5, 3.5, 2.5], "rotation": pitch(-70.0), "extensions": light(1) }));
+    nodes.push(
+        json!({ "name": "spot", "translation": [1.5, 3.5, 2.5], "rotation": pitch(-70.0), "extensions": light(1) }),
+    );
     nodes.push(json!({ "name": "lamp", "translation": [-1.8, 1.6, 2.4], "extensions": light(2) }));
     let roots: Vec<usize> = (0..nodes.len()).collect();
 

@@ -227,7 +227,8 @@ impl SceneGpu {
                 }
             };
             let maps = mesh.surface.as_ref().map(|surface| {
-                let set = match materials.iter().position(|m| std::sync::Arc::ptr_eq(m, &surface.textures)) {
+                // Set 0 is for meshes without textures (gpu_textures::upload).
+                let set = 1 + match materials.iter().position(|m| std::sync::Arc::ptr_eq(m, &surface.textures)) {
                     Some(set) => set,
                     None => {
                         materials.push(surface.textures.clone());

@@ -25,16 +25,22 @@ pub struct DrawMaps {
     pub set: usize,
     /// geometry_body.glsl's pc.draw.z: 1 base colour, 2 roughness, 4 metallic, 8 normal map.
     pub present: u32,
-    /// pc.draw.w: the roughness channel, and the metallic channel 8 bits up.
+    /// pc.draw.w: the roughness channel, the metallic channel 8 bits up, the occlusion channel
+    /// 16 bits up.
     pub channels: u32,
     pub normal_scale: f32,
 }
 
 /// The scene's material textures, their sets and the pipeline that reads them.
 pub struct MaterialSets {
-    /// The textured variant of the geometry pipeline (`passes::geometry`), made for this scene.
+    /// The textured variant of the geometry pipeline (`passes::geometry`), made for this scene;
+    /// it draws every mesh of the scene (those without textures with `untextured`'s set), since
+    /// its rendering has the emission attachment as well.
     pub pipeline: GraphicsPipeline,
     pub sets: Vec<vk::DescriptorSet>,
+    /// The set of a mesh without textures: white texels, no emission.
+    pub untextured: DrawMaps,
+    _constants: Buffer,
     /// Bytes of texels on the device (all mips).
     pub bytes: u64,
     _images: Vec<Image>,
@@ -66,7 +72,7 @@ impl MaterialSets {
 
 /// Uploads every texture of `materials` (distinct `Arc`s; each `Texture` once however many
 /// materials share it) and makes a set per material; `pipeline` makes the textured geometry
-/// pipeline with the set layout. Returns the sets in `materials` order.
+/// pipeline with the set layout. Set k + 1 is `materials[k]`'s (set 0: `untextured`).
 pub fn upload(
     ctx: &Arc<GpuContext>,
     materials: &[Arc<MaterialTextures>],
@@ -93,8 +99,10 @@ pub fn upload(
         bindings::MATERIAL_ROUGHNESS,
         bindings::MATERIAL_METALLIC,
         bindings::MATERIAL_NORMAL,
+        bindings::MATERIAL_EMISSION,
+        bindings::MATERIAL_OCCLUSION,
     ];
-    let layout_bindings: Vec<_> = slots
+    let mut layout_bindings: Vec<_> = slots
         .iter()
         .map(|&b| {
             vk::DescriptorSetLayoutBinding::default()
@@ -105,9 +113,21 @@ pub fn upload(
                 .immutable_samplers(&samplers)
         })
         .collect();
-    let count = materials.len().max(1) as u32;
-    let sizes =
-        [vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 4 * count }];
+    layout_bindings.push(
+        vk::DescriptorSetLayoutBinding::default()
+            .binding(bindings::MATERIAL_CONSTANTS)
+            .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+            .descriptor_count(1)
+            .stage_flags(vk::ShaderStageFlags::FRAGMENT),
+    );
+    // The first set is for meshes without textures.
+    let untextured = Arc::new(MaterialTextures::default());
+    let materials: Vec<Arc<MaterialTextures>> = std::iter::once(untextured).chain(materials.iter().cloned()).collect();
+    let count = materials.len() as u32;
+    let sizes = [
+        vk::DescriptorPoolSize { ty: vk::DescriptorType::COMBINED_IMAGE_SAMPLER, descriptor_count: 6 * count },
+        vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: count },
+    ];
     // SAFETY: valid device and create infos; the objects are owned by `SetObjects` from here.
     let objects = unsafe {
         let layout = device
@@ -133,12 +153,14 @@ pub fn upload(
     let mut textures: Vec<Arc<Texture>> = vec![white.clone()];
     let mut index_of: HashMap<*const Texture, usize> = HashMap::from([(Arc::as_ptr(&white), 0)]);
     let mut slots_of = Vec::new();
-    for m in materials {
+    for m in &materials {
         let maps = [
             m.base_color.clone(),
             m.roughness.as_ref().map(|c| c.texture.clone()),
             m.metallic.as_ref().map(|c| c.texture.clone()),
             m.normal.as_ref().map(|(t, _)| t.clone()),
+            m.emission_map.clone(),
+            m.occlusion.as_ref().map(|(c, _)| c.texture.clone()),
         ];
         slots_of.push(maps.map(|t| {
             let t = t.unwrap_or_else(|| white.clone());
@@ -149,6 +171,15 @@ pub fn upload(
         }));
     }
     let (images, bytes) = upload_images(ctx, &textures)?;
+    // Each material's constants at its own aligned offset of one uniform buffer.
+    let stride = 16u64.max(ctx.properties.limits.min_uniform_buffer_offset_alignment).next_multiple_of(16);
+    let mut constants = vec![0u8; (stride * count as u64) as usize];
+    for (k, m) in materials.iter().enumerate() {
+        let strength = m.occlusion.as_ref().map_or(0.0, |(_, s)| *s);
+        let values = m.emission.extend(strength).to_array();
+        constants[k * stride as usize..][..16].copy_from_slice(bytemuck::cast_slice(&values));
+    }
+    let constants = Buffer::with_data(ctx, "material constants", &constants, vk::BufferUsageFlags::UNIFORM_BUFFER)?;
 
     let alloc_layouts = vec![objects.layout; materials.len()];
     // SAFETY: the pool has room for one set per material.
@@ -163,12 +194,14 @@ pub fn upload(
         .vk("vkAllocateDescriptorSets (materials)")?
     };
     let layout = Access::FragmentShaderReadSampledImage.info().layout;
-    for (set, slot_images) in sets.iter().zip(&slots_of) {
+    for (k, (set, slot_images)) in sets.iter().zip(&slots_of).enumerate() {
+        let buffer_info =
+            [vk::DescriptorBufferInfo::default().buffer(constants.raw).offset(k as u64 * stride).range(16)];
         let infos: Vec<[vk::DescriptorImageInfo; 1]> = slot_images
             .iter()
             .map(|&i| [vk::DescriptorImageInfo::default().image_view(images[i].view).image_layout(layout)])
             .collect();
-        let writes: Vec<_> = slots
+        let mut writes: Vec<_> = slots
             .iter()
             .zip(&infos)
             .map(|(&binding, info)| {
@@ -179,10 +212,25 @@ pub fn upload(
                     .image_info(info)
             })
             .collect();
+        writes.push(
+            vk::WriteDescriptorSet::default()
+                .dst_set(*set)
+                .dst_binding(bindings::MATERIAL_CONSTANTS)
+                .descriptor_type(vk::DescriptorType::UNIFORM_BUFFER)
+                .buffer_info(&buffer_info),
+        );
         // SAFETY: the sets are not in use; the views outlive them (both owned here).
         unsafe { device.update_descriptor_sets(&writes, &[]) };
     }
-    Ok(MaterialSets { pipeline: pipeline(objects.layout)?, sets, bytes, _images: images, objects })
+    Ok(MaterialSets {
+        pipeline: pipeline(objects.layout)?,
+        sets,
+        untextured: draw_maps(0, &materials[0]),
+        _constants: constants,
+        bytes,
+        _images: images,
+        objects,
+    })
 }
 
 /// Each texture as a mipmapped image, uploaded in one small graph (staging copies, then every
@@ -266,10 +314,11 @@ pub fn draw_maps(set: usize, textures: &MaterialTextures) -> DrawMaps {
     .enumerate()
     .fold(0, |bits, (k, &on)| bits | (u32::from(on) << k));
     let channel = |c: &Option<crate::scene::ChannelMap>| c.as_ref().map_or(0, |c| u32::from(c.channel & 3));
+    let occlusion = textures.occlusion.as_ref().map_or(0, |(c, _)| u32::from(c.channel & 3));
     DrawMaps {
         set,
         present,
-        channels: channel(&textures.roughness) | (channel(&textures.metallic) << 8),
+        channels: channel(&textures.roughness) | (channel(&textures.metallic) << 8) | (occlusion << 16),
         normal_scale: textures.normal.as_ref().map_or(1.0, |(_, s)| *s),
     }
 }

@@ -251,6 +251,63 @@ fn missing_and_corrupt_textures_warn_and_keep_the_constant() {
     let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
     let frame = render(&mut renderer, None);
     assert!(frame.iter().any(|p| p.truncate().max_element() > 0.0));
-    assert_eq!(renderer.gpu_scene.materials.as_ref().map(|m| m.sets.len()), Some(2));
+    // The two textured materials, and the white set of meshes without textures.
+    assert_eq!(renderer.gpu_scene.materials.as_ref().map(|m| m.sets.len()), Some(3));
+    common::assert_clean(&ctx);
+}
+
+/// Emission: a glTF emissive factor times an sRGB emissive texture adds that radiance where the
+/// quad is (here without any light, so it is all there is), an OBJ material's `Ke` alone (no
+/// texture coordinates) emits its constant, and `map_Ke` on a face whose corners share one
+/// texture coordinate (zero derivatives, which lavapipe's anisotropic filter turned into NaN)
+/// emits the texel.
+#[test]
+fn emission_adds_its_radiance() {
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let material = json!({ "emissiveFactor": [0.5, 0.25, 1.0], "pbrMetallicRoughness": { "metallicFactor": 0.0 } });
+    let g = textured_quad(material, &[]);
+    let mut g = g;
+    let view = g.view(&png(4, 4, [128, 128, 128, 255]), None);
+    g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
+    g.materials[0]["emissiveTexture"] = json!({ "index": 0 });
+    g.write_glb(&dir.path().join("glow.glb"));
+    std::fs::write(
+        dir.path().join("ke.obj"),
+        "mtllib ke.mtl\nusemtl hot\nv -1 0.01 -1\nv -1 0.01 1\nv 1 0.01 1\nf 1 2 3\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.path().join("ke.mtl"),
+        "newmtl hot\nKd 0 0 0\nKe 2 1 0.5\nnewmtl map\nKe 3 3 3\nmap_Ke grey.png\n",
+    )
+    .unwrap();
+    std::fs::write(dir.path().join("grey.png"), png(2, 2, [128, 128, 128, 255])).unwrap();
+    std::fs::write(
+        dir.path().join("one_uv.obj"),
+        "mtllib ke.mtl\nusemtl map\nv -1 0.01 -1\nv -1 0.01 1\nv 1 0.01 1\nvt 0.5 0.5\nf 1/1 2/1 3/1\n",
+    )
+    .unwrap();
+    let grey = srgb_to_linear(128.0 / 255.0);
+    let cases = [
+        ("glow.glb", Vec3::new(0.5, 0.25, 1.0) * grey),
+        ("ke.obj", Vec3::new(2.0, 1.0, 0.5)),
+        ("one_uv.obj", Vec3::splat(3.0 * grey)),
+    ];
+    for (mesh, expected) in cases {
+        let scene = parse_in(dir.path(), &format!("{CAMERA}[[objects]]\nmesh = \"{mesh}\"\n"));
+        let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+        let frame = render(&mut renderer, None);
+        let depth = render(&mut renderer, Some(DebugView::Depth));
+        let lit = covered(&frame, &depth);
+        assert!(lit.len() > 50, "{mesh}: {} pixels", lit.len());
+        for i in lit {
+            let gpu = frame[i].truncate();
+            assert!(
+                (gpu - expected).abs().max_element() <= 0.01 * expected.max_element(),
+                "{mesh} pixel {i}: {gpu} vs {expected}"
+            );
+        }
+    }
     common::assert_clean(&ctx);
 }

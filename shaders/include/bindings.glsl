@@ -38,6 +38,9 @@
 #define COMPOSE_VISIBILITY 4
 #define COMPOSE_RADIANCE 5
 #define COMPOSE_LIGHT_LAYERS 6
+// compose_emissive*.comp: the G-buffer's emission and occlusion (scenes with textures or
+// emission only)
+#define COMPOSE_EMISSION 7
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0
@@ -87,6 +90,10 @@
 #define MATERIAL_ROUGHNESS 1
 #define MATERIAL_METALLIC 2
 #define MATERIAL_NORMAL 3
+#define MATERIAL_EMISSION 4
+#define MATERIAL_OCCLUSION 5
+// the material's constants (gpu_textures::MaterialConstants)
+#define MATERIAL_CONSTANTS 6
 
 // shadows/hybrid/classify.comp: a light's layer where its shadow map is sure, and the list of
 // the pixels where it is not (traced next by shadows/traced/trace_list.comp)

@@ -16,6 +16,10 @@ layout(set = 0, binding = COMPOSE_VISIBILITY) uniform sampler2DArray visibility;
 layout(set = 0, binding = COMPOSE_LIGHT_LAYERS, std430) readonly buffer LightLayers { uint layer_of[]; };
 const uint COMPOSE_UNSHADOWED = 0xffffffffu;
 #endif
+#ifdef WITH_EMISSION
+// rgb: emitted radiance; a: ambient occlusion, for environment lighting (gbuffer.glsl).
+layout(set = 0, binding = COMPOSE_EMISSION) uniform sampler2D gbuffer_emission;
+#endif
 
 layout(push_constant) uniform Push {
     vec4 eye;        // xyz
@@ -49,5 +53,8 @@ void main() {
 #endif
         sum += brdf_times_cos(n, v, L, material.rgb, material.a, normal_metallic.w) * e * vis;
     }
+#ifdef WITH_EMISSION
+    sum += texelFetch(gbuffer_emission, ivec2(px), 0).rgb;
+#endif
     imageStore(radiance, ivec2(px), vec4(sum, 1.0));
 }

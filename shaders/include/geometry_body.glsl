@@ -28,6 +28,24 @@ layout(set = 1, binding = MATERIAL_BASE_COLOR) uniform sampler2D material_base_c
 layout(set = 1, binding = MATERIAL_ROUGHNESS) uniform sampler2D material_roughness;
 layout(set = 1, binding = MATERIAL_METALLIC) uniform sampler2D material_metallic;
 layout(set = 1, binding = MATERIAL_NORMAL) uniform sampler2D material_normal;
+layout(set = 1, binding = MATERIAL_EMISSION) uniform sampler2D material_emission;
+layout(set = 1, binding = MATERIAL_OCCLUSION) uniform sampler2D material_occlusion;
+layout(set = 1, binding = MATERIAL_CONSTANTS, std140) uniform MaterialConstants {
+    vec4 emission_occlusion; // rgb: emission factor, a: occlusion strength
+} material_constants;
+layout(location = GBUFFER_EMISSION_LOCATION) out vec4 out_emission;
+
+// Texture-space footprint of the pixel, for every material lookup (textureGrad). Each
+// derivative gets 1e-6 of a texture added across the other's axis: lavapipe's anisotropic filter
+// divides by the footprint's minor axis, and a face whose corners share a texture coordinate
+// (common for flat-coloured parts of a model) or whose coordinates vary along one axis only has
+// none, which made its texels NaN.
+vec2 material_dx;
+vec2 material_dy;
+
+vec4 material_sample(sampler2D map, vec2 uv) {
+    return textureGrad(map, uv, material_dx, material_dy);
+}
 
 // A one-hot mask: the texture channel a map reads (0..3 = R, G, B, A), without indexing a
 // vector by a variable (which lavapipe moves to scratch memory).
@@ -43,7 +61,7 @@ vec3 material_mapped_normal(vec3 n, vec4 tangent, vec2 uv, float scale) {
     if (!(len > 1e-6)) return n;
     t /= len;
     vec3 b = cross(n, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
-    vec3 m = texture(material_normal, uv).xyz * 2.0 - 1.0;
+    vec3 m = material_sample(material_normal, uv).xyz * 2.0 - 1.0;
     m.xy *= scale;
     vec3 mapped = t * m.x + b * m.y + n * m.z;
     float mapped_len = length(mapped);
@@ -100,10 +118,15 @@ void main() {
     // pc.draw.z: the maps present (8: a normal map); pc.draw.w: the roughness channel, and the
     // metallic channel 8 bits up; pc.metallic.y: the normal map's scale. Absent colour maps are
     // a white texel, so every product below is the constant alone.
-    material.rgb *= texture(material_base_color, in_uv).rgb;
-    material.a *= dot(texture(material_roughness, in_uv), material_channel(pc.draw.w & 3u));
-    metallic *= dot(texture(material_metallic, in_uv), material_channel((pc.draw.w >> 8) & 3u));
+    material_dx = dFdx(in_uv) + vec2(1e-6, 0.0);
+    material_dy = dFdy(in_uv) + vec2(0.0, 1e-6);
+    material.rgb *= material_sample(material_base_color, in_uv).rgb;
+    material.a *= dot(material_sample(material_roughness, in_uv), material_channel(pc.draw.w & 3u));
+    metallic *= dot(material_sample(material_metallic, in_uv), material_channel((pc.draw.w >> 8) & 3u));
     if ((pc.draw.z & 8u) != 0u) n = material_mapped_normal(n, in_tangent, in_uv, pc.metallic.y);
+    vec4 constants = material_constants.emission_occlusion;
+    float occluded = dot(material_sample(material_occlusion, in_uv), material_channel((pc.draw.w >> 16) & 3u));
+    out_emission = vec4(constants.rgb * material_sample(material_emission, in_uv).rgb, mix(1.0, occluded, constants.a));
 #endif
     out_position = vec4(p, 1.0);
     out_normal = vec4(n, metallic);

@@ -40,6 +40,26 @@ pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipel
     ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
 }
 
+/// The compose pipelines that also add the G-buffer's emission (`Pipelines::prepare_emissive`).
+pub fn emissive_pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
+    let mut bindings = vec![
+        sampled(COMPOSE_POSITION),
+        sampled(COMPOSE_NORMAL),
+        sampled(COMPOSE_MATERIAL),
+        storage(COMPOSE_LIGHTS),
+        storage_image(COMPOSE_RADIANCE),
+        sampled(COMPOSE_EMISSION),
+    ];
+    let (name, spv) = if shadowed {
+        bindings.push(sampled(COMPOSE_VISIBILITY));
+        bindings.push(storage(COMPOSE_LIGHT_LAYERS));
+        ("compose (emissive)", spirv::COMPOSE_EMISSIVE_COMP)
+    } else {
+        ("compose (unshadowed, emissive)", spirv::COMPOSE_UNSHADOWED_EMISSIVE_COMP)
+    };
+    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
+}
+
 pub struct ComposeInputs<'h> {
     pub lights: &'h Handle<BufferKind>,
     pub light_count: u32,
@@ -73,6 +93,13 @@ pub fn add<'a>(
             &pipelines.compose
         }
         None => &pipelines.compose_unshadowed,
+    };
+    let pipeline = match &gbuffer.emission {
+        Some(emission) => {
+            bound.push((COMPOSE_EMISSION, Bound::Image(pass.read(emission, Access::ComputeShaderReadSampledImage))));
+            pipelines.compose_emissive(inputs.visibility.is_some())
+        }
+        None => pipeline,
     };
     let push = Push {
         eye: inputs.eye.extend(0.0),

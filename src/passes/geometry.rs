@@ -11,7 +11,7 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use super::{GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
+use super::{GBuffer, DEPTH_FORMAT, EMISSION_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
 use crate::gpu_scene::{
     CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES,
 };
@@ -55,6 +55,7 @@ fn desc<'a>(
     vertex: &'a [u8],
     fragment: &'a [u8],
     bindings: &'a [(u32, crate::vk::DescriptorKind)],
+    color_formats: &'a [vk::Format],
 ) -> GraphicsPipelineDesc<'a> {
     GraphicsPipelineDesc {
         name,
@@ -62,7 +63,7 @@ fn desc<'a>(
         fragment: Some(fragment),
         vertex_stride: std::mem::size_of::<Vertex>() as u32,
         attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0), (1, vk::Format::R32G32B32_SFLOAT, 12)],
-        color_formats: &[POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT],
+        color_formats,
         depth_format: Some(DEPTH_FORMAT),
         bindings,
         push_bytes: std::mem::size_of::<Push>() as u32,
@@ -70,6 +71,12 @@ fn desc<'a>(
         dynamic_depth_bias: false,
     }
 }
+
+/// The G-buffer's colour attachments in gbuffer.glsl's location order; textured scenes add the
+/// emission attachment.
+const FORMATS: [vk::Format; 4] = [POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT];
+const TEXTURED_FORMATS: [vk::Format; 5] =
+    [POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT, EMISSION_FORMAT];
 
 const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
     (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::StorageBuffer),
@@ -83,12 +90,12 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
     let pipeline = match reads_triangles {
         true => GraphicsPipeline::with_extras(
             ctx,
-            &desc("geometry", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS),
+            &desc("geometry", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS, &FORMATS),
             &extras,
         )?,
         false => GraphicsPipeline::with_extras(
             ctx,
-            &desc("geometry (plain)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[]),
+            &desc("geometry (plain)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[], &FORMATS),
             &extras,
         )?,
     };
@@ -107,8 +114,12 @@ pub fn textured_pipeline(ctx: &Arc<GpuContext>, material_set: vk::DescriptorSetL
     };
     let vertex = spirv::GEOMETRY_TEXTURED_VERT;
     let desc = match ctx.capabilities.geometry_shader {
-        true => desc("geometry (textured)", vertex, spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS),
-        false => desc("geometry (textured, plain)", vertex, spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[]),
+        true => {
+            desc("geometry (textured)", vertex, spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS, &TEXTURED_FORMATS)
+        }
+        false => {
+            desc("geometry (textured, plain)", vertex, spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[], &TEXTURED_FORMATS)
+        }
     };
     GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
@@ -129,6 +140,7 @@ pub fn add<'a>(
         normal: graph.create_image("gbuffer normal", image(NORMAL_FORMAT)),
         material: graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
         surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
+        emission: scene.materials.as_ref().map(|_| graph.create_image("gbuffer emission", image(EMISSION_FORMAT))),
     };
     let (pipeline, reads_triangles) = (&pipelines.pipeline, pipelines.reads_triangles);
     let mut pass = graph.add_pass("geometry");
@@ -142,12 +154,15 @@ pub fn add<'a>(
         false => Vec::new(),
     };
     let depth = pass.write(&mut gbuffer.depth, Access::DepthAttachmentWrite);
-    let colors = [
+    let mut colors = vec![
         pass.write(&mut gbuffer.position, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.normal, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.material, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.surface, Access::ColorAttachmentWrite),
     ];
+    if let Some(emission) = &mut gbuffer.emission {
+        colors.push(pass.write(emission, Access::ColorAttachmentWrite));
+    }
     pass.render(move |ctx| {
         let attachment = |view, clear| {
             vk::RenderingAttachmentInfo::default()
@@ -200,7 +215,9 @@ pub fn add<'a>(
         // The pipeline bound (textured or not), switched as the draws need.
         let mut current: Option<bool> = None;
         for draw in &scene.draws {
-            let textured = scene.materials.as_ref().zip(draw.maps);
+            // In a textured scene every draw is textured (its rendering has the emission
+            // attachment); a mesh without textures reads the white set.
+            let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));
             let used = match textured {
                 Some((materials, _)) => &materials.pipeline,
                 None => pipeline,

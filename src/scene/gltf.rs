@@ -279,7 +279,14 @@ fn read_primitive(
     let mut surface = ObjectSurface::default();
     if let Some((textures, set)) = maps.of(&gltf_material) {
         let uvs = reader.read_tex_coords(set).map(|uv| uv.into_f32().map(glam::Vec2::from).collect::<Vec<_>>());
-        // Without texture coordinates there is nothing to map: the constants stay.
+        // Without texture coordinates there is nothing to map: the constants stay (emission
+        // from its factor alone reads no texel: zero coordinates do).
+        let constant_only = textures.emission_map.is_none()
+            && textures.base_color.is_none()
+            && textures.roughness.is_none()
+            && textures.normal.is_none()
+            && textures.occlusion.is_none();
+        let uvs = uvs.or_else(|| constant_only.then(|| vec![glam::Vec2::ZERO; positions.len()]));
         if let Some(uvs) = uvs.filter(|uv| uv.len() == positions.len()) {
             let tangents = reader.read_tangents().map(|t| t.map(glam::Vec4::from).collect::<Vec<_>>());
             surface = ObjectSurface {
@@ -335,10 +342,17 @@ impl MaterialMaps<'_> {
             let scale = n.scale();
             texture(Some((n.texture(), n.tex_coord())), false, &mut sets).map(|t| (t, scale))
         });
-        if material.occlusion_texture().is_some() || material.emissive_texture().is_some() {
-            log::warn!("{label}: occlusion and emissive textures are not rendered yet; ignored");
-        }
+        let occlusion = material.occlusion_texture().and_then(|o| {
+            let strength = o.strength();
+            let texture = texture(Some((o.texture(), o.tex_coord())), false, &mut sets)?;
+            Some((ChannelMap { texture, channel: 0 }, strength.clamp(0.0, 1.0)))
+        });
+        let emission_map = texture(material.emissive_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
+        let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO);
         let textures = MaterialTextures {
+            emission: if emission.is_finite() { emission } else { glam::Vec3::ZERO },
+            emission_map,
+            occlusion,
             base_color,
             // glTF packs roughness in G and metalness in B.
             roughness: metal_rough.clone().map(|texture| ChannelMap { texture, channel: 1 }),

@@ -77,6 +77,16 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
             let textures = mesh.material_id.and_then(|id| material_textures.get(id).cloned().flatten());
             // OBJ's v runs up from the image's bottom; umbra samples with glTF's (from the top).
             let uvs: Vec<Vec2> = mesh.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect();
+            // Emission from Ke alone reads no texel: zero coordinates do where the file has none.
+            let constant_only = textures.as_ref().is_some_and(|t| {
+                t.base_color.is_none()
+                    && t.roughness.is_none()
+                    && t.metallic.is_none()
+                    && t.normal.is_none()
+                    && t.emission_map.is_none()
+            });
+            let uvs =
+                if uvs.len() != positions.len() && constant_only { vec![Vec2::ZERO; positions.len()] } else { uvs };
             let surface = match textures {
                 Some(textures) if uvs.len() == positions.len() => {
                     ObjectSurface { uvs: Some(uvs), tangents: None, textures: Some(textures) }
@@ -292,9 +302,9 @@ fn texture_statement(value: &str) -> (String, Option<f32>) {
 }
 
 /// The texture maps a material names: `map_Kd` (sRGB), `map_Pr` and `map_Pm` (linear, red
-/// channel), `map_RMA` (R roughness, G metalness; B occlusion is not rendered yet), and the normal
+/// channel), `map_RMA` (R roughness, G metalness, B occlusion), `Ke`/`map_Ke` emission, and the normal
 /// map from `norm`, `map_Kn` or `map_bump`/`bump` with its `-bm` scale (tangent space, OpenGL
-/// convention). `map_Ke` is not rendered yet (a notice).
+/// convention).
 fn texture_maps(mtl: &tobj::Material, dir: &Path, cache: &mut TextureCache, label: &str) -> MaterialTextures {
     let param = |key: &str| mtl.unknown_param.get(key).map(String::as_str).filter(|v| !v.trim().is_empty());
     let mut load = |value: Option<&str>, srgb: bool| {
@@ -310,10 +320,18 @@ fn texture_maps(mtl: &tobj::Material, dir: &Path, cache: &mut TextureCache, labe
     let metallic = load(param("map_Pm"), false).map(|(texture, _)| ChannelMap { texture, channel: 0 });
     let normal_statement = param("norm").or(param("map_Kn")).or(mtl.normal_texture.as_deref());
     let normal = load(normal_statement, false).map(|(t, bump)| (t, bump.unwrap_or(1.0)));
-    if param("map_Ke").is_some() {
-        log::warn!("{label}: emission maps (map_Ke) are not rendered yet; ignored");
-    }
+    let emission_map = load(param("map_Ke"), true).map(|(t, _)| t);
+    // Ke multiplies map_Ke; a map alone emits as it is.
+    let emission = match (mtl.emissive.map(Vec3::from).filter(|e| e.is_finite()), &emission_map) {
+        (Some(ke), _) => ke.max(Vec3::ZERO),
+        (None, Some(_)) => Vec3::ONE,
+        (None, None) => Vec3::ZERO,
+    };
+    let occlusion = rma.clone().map(|texture| (ChannelMap { texture, channel: 2 }, 1.0));
     MaterialTextures {
+        emission,
+        emission_map,
+        occlusion,
         base_color,
         roughness: roughness.or_else(|| rma.clone().map(|texture| ChannelMap { texture, channel: 0 })),
         metallic: metallic.or_else(|| rma.map(|texture| ChannelMap { texture, channel: 1 })),

@@ -42,11 +42,24 @@ pub struct MaterialTextures {
     /// Tangent space, OpenGL convention (+Y up, as glTF and most OBJ exporters bake), and the
     /// scale of its X and Y (glTF `normalTexture.scale`, MTL `-bm`).
     pub normal: Option<(Arc<Texture>, f32)>,
+    /// Emitted radiance (W/(m^2 sr), linear RGB): glTF `emissiveFactor`, MTL `Ke`; zero for
+    /// none. Not a map, but it goes with them: only the textured path writes emission.
+    pub emission: glam::Vec3,
+    /// sRGB; multiplies `emission`.
+    pub emission_map: Option<Arc<Texture>>,
+    /// Ambient occlusion (a channel) and its strength: 1 - strength + strength * texel. Stored
+    /// in the G-buffer for the lighting that uses it (environment light, ambient occlusion).
+    pub occlusion: Option<(ChannelMap, f32)>,
 }
 
 impl MaterialTextures {
     pub fn is_empty(&self) -> bool {
-        self.base_color.is_none() && self.roughness.is_none() && self.metallic.is_none() && self.normal.is_none()
+        self.base_color.is_none()
+            && self.roughness.is_none()
+            && self.metallic.is_none()
+            && self.normal.is_none()
+            && self.emission == glam::Vec3::ZERO
+            && self.occlusion.is_none()
     }
 }
 

@@ -28,6 +28,8 @@ pub struct DrawMaps {
     /// pc.draw.w: the roughness channel, the metallic channel 8 bits up, the occlusion channel
     /// 16 bits up.
     pub channels: u32,
+    /// The material is alpha-masked: shadow maps draw it with the masked depth pipeline.
+    pub masked: bool,
     pub normal_scale: f32,
 }
 
@@ -40,6 +42,8 @@ pub struct MaterialSets {
     pub sets: Vec<vk::DescriptorSet>,
     /// The set of a mesh without textures: white texels, no emission.
     pub untextured: DrawMaps,
+    /// Whether any material is alpha-masked (shadow maps then draw those casters masked).
+    pub masked: bool,
     _constants: Buffer,
     /// Bytes of texels on the device (all mips).
     pub bytes: u64,
@@ -172,12 +176,14 @@ pub fn upload(
     }
     let (images, bytes) = upload_images(ctx, &textures)?;
     // Each material's constants at its own aligned offset of one uniform buffer.
-    let stride = 16u64.max(ctx.properties.limits.min_uniform_buffer_offset_alignment).next_multiple_of(16);
+    let stride = 32u64.max(ctx.properties.limits.min_uniform_buffer_offset_alignment).next_multiple_of(16);
     let mut constants = vec![0u8; (stride * count as u64) as usize];
     for (k, m) in materials.iter().enumerate() {
         let strength = m.occlusion.as_ref().map_or(0.0, |(_, s)| *s);
-        let values = m.emission.extend(strength).to_array();
-        constants[k * stride as usize..][..16].copy_from_slice(bytemuck::cast_slice(&values));
+        // A cutoff of 0 never discards: opaque.
+        let mask = m.alpha_mask.map_or([1.0, 0.0], |a| [a.factor, a.cutoff]);
+        let values = [m.emission.extend(strength).to_array(), [mask[0], mask[1], 0.0, 0.0]];
+        constants[k * stride as usize..][..32].copy_from_slice(bytemuck::cast_slice(&values));
     }
     let constants = Buffer::with_data(ctx, "material constants", &constants, vk::BufferUsageFlags::UNIFORM_BUFFER)?;
 
@@ -196,7 +202,7 @@ pub fn upload(
     let layout = Access::FragmentShaderReadSampledImage.info().layout;
     for (k, (set, slot_images)) in sets.iter().zip(&slots_of).enumerate() {
         let buffer_info =
-            [vk::DescriptorBufferInfo::default().buffer(constants.raw).offset(k as u64 * stride).range(16)];
+            [vk::DescriptorBufferInfo::default().buffer(constants.raw).offset(k as u64 * stride).range(32)];
         let infos: Vec<[vk::DescriptorImageInfo; 1]> = slot_images
             .iter()
             .map(|&i| [vk::DescriptorImageInfo::default().image_view(images[i].view).image_layout(layout)])
@@ -226,6 +232,7 @@ pub fn upload(
         pipeline: pipeline(objects.layout)?,
         sets,
         untextured: draw_maps(0, &materials[0]),
+        masked: materials.iter().any(|m| m.alpha_mask.is_some()),
         _constants: constants,
         bytes,
         _images: images,
@@ -319,6 +326,7 @@ pub fn draw_maps(set: usize, textures: &MaterialTextures) -> DrawMaps {
         set,
         present,
         channels: channel(&textures.roughness) | (channel(&textures.metallic) << 8) | (occlusion << 16),
+        masked: textures.alpha_mask.is_some(),
         normal_scale: textures.normal.as_ref().map_or(1.0, |(_, s)| *s),
     }
 }

@@ -311,3 +311,85 @@ fn emission_adds_its_radiance() {
     }
     common::assert_clean(&ctx);
 }
+
+/// An alpha-masked quad (glTF MASK, cutoff 0.5; the texture's left half has alpha 0) 1 m above
+/// a floor under a sun from straight above: the G-buffer shows the floor through the cut-out
+/// half, and the `map` shadow has the mask's shape (the floor under the kept half is shadowed,
+/// under the cut half lit). The traced pass does not read masks yet (the BVH is being rewritten).
+#[test]
+fn an_alpha_masked_quad_is_cut_out_and_so_is_its_map_shadow() {
+    use umbra::config::ShadowMethod;
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let image = image::RgbaImage::from_fn(8, 8, |x, _| image::Rgba([200, 200, 200, if x < 4 { 0 } else { 255 }]));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut bytes, image::ImageFormat::Png).unwrap();
+    let material = json!({ "alphaMode": "MASK", "alphaCutoff": 0.5,
+        "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8 } });
+    let mut g = textured_quad(material, &[("baseColorTexture", bytes.into_inner())]);
+    g.nodes[0]["translation"] = json!([0.0, 1.0, 0.0]);
+    g.write_glb(&dir.path().join("leaf.glb"));
+    let text = "[camera]\neye = [0.0, 5.0, 0.01]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 50.0\n\
+        [[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\nirradiance = [2.0, 2.0, 2.0]\n\
+        [[objects]]\nmesh = \"leaf.glb\"\n[[objects]]\nshape = \"plane\"\nsize = 8.0\n";
+    let scene = parse_in(dir.path(), text);
+    let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+    let frame = |r: &mut Renderer, method: ShadowMethod, view: Option<DebugView>| {
+        let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear)
+            .all_lights(1, ShadowChoice { method, ..ShadowChoice::hard() });
+        settings.debug_view = view;
+        match r.render(&settings).unwrap_or_else(|e| panic!("{e}")) {
+            Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect::<Vec<_>>(),
+            Frame::Rgba8 { .. } => unreachable!(),
+        }
+    };
+    let position = frame(&mut renderer, ShadowMethod::Map, Some(DebugView::Position));
+    let visibility = frame(&mut renderer, ShadowMethod::Map, Some(DebugView::Visibility(0)));
+    // Pixels whose ray from the eye passes over the quad's halves (|x|, |z| < 0.9 at y = 1,
+    // away from the mask's edge at x = 0).
+    let (mut cut, mut kept, mut shadowed_floor, mut lit_floor) = (0, 0, 0, 0);
+    for i in 0..position.len() {
+        let p = position[i].truncate();
+        let on_floor = p.y.abs() < 1e-3;
+        let on_quad = (p.y - 1.0).abs() < 1e-3;
+        // Where the eye's ray crosses y = 1 (the camera is at y = 5 over the origin).
+        let t = (5.0 - 1.0) / (5.0 - p.y);
+        let cross = Vec3::new(p.x * t, 1.0, p.z * t);
+        if cross.z.abs() > 0.9 || cross.x.abs() > 0.9 || cross.x.abs() < 0.15 {
+            continue;
+        }
+        if cross.x < 0.0 {
+            assert!(on_floor, "pixel {i}: the cut-out half shows {p}, not the floor");
+            cut += 1;
+        } else {
+            assert!(on_quad, "pixel {i}: the kept half shows {p}");
+            kept += 1;
+        }
+        // The floor straight below the quad, seen through the cut half.
+        if on_floor && p.x.abs() > 0.15 && p.x.abs() < 0.9 && p.z.abs() < 0.9 {
+            if p.x < 0.0 {
+                assert!(visibility[i].x > 0.99, "pixel {i}: the floor under the cut half is lit ({})", visibility[i].x);
+                lit_floor += 1;
+            }
+        }
+    }
+    assert!(cut > 30 && kept > 30, "cut {cut}, kept {kept}");
+    assert!(lit_floor > 30, "{lit_floor} floor pixels under the cut half");
+    // The floor under the kept half, seen from beside the quad: from a camera off to the side.
+    let mut side = renderer.scene().clone();
+    side.camera.eye = glam::DVec3::new(3.5, 2.0, 0.0);
+    let mut side = Renderer::new(ctx.clone(), side).unwrap();
+    let position = frame(&mut side, ShadowMethod::Map, Some(DebugView::Position));
+    let visibility = frame(&mut side, ShadowMethod::Map, Some(DebugView::Visibility(0)));
+    for i in 0..position.len() {
+        let p = position[i].truncate();
+        if p.y.abs() < 1e-3 && p.z.abs() < 0.85 && p.x > 0.15 && p.x < 0.85 {
+            assert!(visibility[i].x < 0.01, "pixel {i} at {p}: the floor under the kept half is shadowed");
+            shadowed_floor += 1;
+        } else if p.y.abs() < 1e-3 && p.z.abs() < 0.85 && p.x < -0.15 && p.x > -0.85 {
+            assert!(visibility[i].x > 0.99, "pixel {i} at {p}: the floor under the cut half is lit");
+        }
+    }
+    assert!(shadowed_floor > 10, "{shadowed_floor} floor pixels under the kept half");
+    common::assert_clean(&ctx);
+}

@@ -30,9 +30,7 @@ layout(set = 1, binding = MATERIAL_METALLIC) uniform sampler2D material_metallic
 layout(set = 1, binding = MATERIAL_NORMAL) uniform sampler2D material_normal;
 layout(set = 1, binding = MATERIAL_EMISSION) uniform sampler2D material_emission;
 layout(set = 1, binding = MATERIAL_OCCLUSION) uniform sampler2D material_occlusion;
-layout(set = 1, binding = MATERIAL_CONSTANTS, std140) uniform MaterialConstants {
-    vec4 emission_occlusion; // rgb: emission factor, a: occlusion strength
-} material_constants;
+#include "material_constants.glsl"
 layout(location = GBUFFER_EMISSION_LOCATION) out vec4 out_emission;
 
 // Texture-space footprint of the pixel, for every material lookup (textureGrad). Each
@@ -120,7 +118,10 @@ void main() {
     // a white texel, so every product below is the constant alone.
     material_dx = dFdx(in_uv) + vec2(1e-6, 0.0);
     material_dy = dFdy(in_uv) + vec2(0.0, 1e-6);
-    material.rgb *= material_sample(material_base_color, in_uv).rgb;
+    vec4 base_color = material_sample(material_base_color, in_uv);
+    // Alpha-masked materials (a cutoff of 0 never discards).
+    if (base_color.a * material_constants.alpha.x < material_constants.alpha.y) discard;
+    material.rgb *= base_color.rgb;
     material.a *= dot(material_sample(material_roughness, in_uv), material_channel(pc.draw.w & 3u));
     metallic *= dot(material_sample(material_metallic, in_uv), material_channel((pc.draw.w >> 8) & 3u));
     if ((pc.draw.z & 8u) != 0u) n = material_mapped_normal(n, in_tangent, in_uv, pc.metallic.y);

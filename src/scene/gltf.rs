@@ -349,7 +349,20 @@ impl MaterialMaps<'_> {
         });
         let emission_map = texture(material.emissive_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
         let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO);
+        let [.., alpha] = pbr.base_color_factor();
+        let alpha_mask = match material.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => None,
+            gltf::material::AlphaMode::Mask => Some(super::AlphaMask {
+                factor: alpha.clamp(0.0, 1.0),
+                cutoff: material.alpha_cutoff().unwrap_or(0.5).clamp(0.0, 1.0),
+            }),
+            gltf::material::AlphaMode::Blend => {
+                log::warn!("{label}: alpha blending is drawn as an alpha mask at 0.5");
+                Some(super::AlphaMask { factor: alpha.clamp(0.0, 1.0), cutoff: 0.5 })
+            }
+        };
         let textures = MaterialTextures {
+            alpha_mask,
             emission: if emission.is_finite() { emission } else { glam::Vec3::ZERO },
             emission_map,
             occlusion,

@@ -50,6 +50,16 @@ pub struct MaterialTextures {
     /// Ambient occlusion (a channel) and its strength: 1 - strength + strength * texel. Stored
     /// in the G-buffer for the lighting that uses it (environment light, ambient occlusion).
     pub occlusion: Option<(ChannelMap, f32)>,
+    /// Alpha testing (glTF alphaMode MASK; BLEND is drawn as MASK at 0.5): a fragment whose
+    /// base colour alpha (texture alpha times `factor`) is below `cutoff` is not drawn, in the
+    /// G-buffer and in shadow maps.
+    pub alpha_mask: Option<AlphaMask>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlphaMask {
+    pub factor: f32,
+    pub cutoff: f32,
 }
 
 impl MaterialTextures {
@@ -60,6 +70,7 @@ impl MaterialTextures {
             && self.normal.is_none()
             && self.emission == glam::Vec3::ZERO
             && self.occlusion.is_none()
+            && self.alpha_mask.is_none()
     }
 }
 

@@ -307,6 +307,9 @@ fn read_primitive(
     Ok(Some(object_mesh))
 }
 
+/// A material's textures and the texture coordinate set they use.
+type MaterialRead = (std::sync::Arc<MaterialTextures>, u32);
+
 /// Reads a glTF file's materials' textures through the scene's texture cache, once per material.
 struct MaterialMaps<'a> {
     file: &'a Path,
@@ -314,12 +317,12 @@ struct MaterialMaps<'a> {
     buffers: &'a [gltf::buffer::Data],
     cache: &'a mut TextureCache,
     /// By material index: its textures and the texture coordinate set they use.
-    read: Vec<(Option<usize>, Option<(std::sync::Arc<MaterialTextures>, u32)>)>,
+    read: Vec<(Option<usize>, Option<MaterialRead>)>,
 }
 
 impl MaterialMaps<'_> {
     /// The textures of `material` (None when it has none that umbra reads).
-    fn of(&mut self, material: &gltf::Material) -> Option<(std::sync::Arc<MaterialTextures>, u32)> {
+    fn of(&mut self, material: &gltf::Material) -> Option<MaterialRead> {
         if let Some((_, found)) = self.read.iter().find(|(i, _)| *i == material.index()) {
             return found.clone();
         }

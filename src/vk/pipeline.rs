@@ -198,6 +198,9 @@ pub struct StencilState {
     pub back: vk::StencilOpState,
 }
 
+/// A vertex binding's stride and its (location, format, offset) attributes.
+pub type VertexBinding<'a> = (u32, &'a [(u32, vk::Format, u32)]);
+
 /// The rest of a graphics pipeline's state, for the pipelines that need more than
 /// `GraphicsPipelineDesc` says (shadow volumes: a geometry stage with adjacency, a two-sided
 /// stencil test, depth tested but not written). `Default` is what `GraphicsPipeline::new` builds.
@@ -224,9 +227,9 @@ pub struct GraphicsExtras<'a> {
     pub view_mask: u32,
     /// A second vertex binding (1), read per instance: its stride and (location, format,
     /// offset) attributes.
-    pub instance: Option<(u32, &'a [(u32, vk::Format, u32)])>,
+    pub instance: Option<VertexBinding<'a>>,
     /// A third vertex binding (2), read per vertex like binding 0: stride and attributes.
-    pub per_vertex_2: Option<(u32, &'a [(u32, vk::Format, u32)])>,
+    pub per_vertex_2: Option<VertexBinding<'a>>,
     /// Descriptor set 1's layout (owned by the caller, who keeps it alive while the pipeline
     /// lives): material textures.
     pub set_1: Option<vk::DescriptorSetLayout>,

@@ -188,6 +188,7 @@ impl Gltf {
 
 /// A unit quad in the XZ plane facing +Y (corners at ±0.5), as positions, normals, UVs and the
 /// two counter-clockwise triangles (seen from above).
+#[allow(clippy::type_complexity)]
 pub fn quad_xz() -> ([[f32; 3]; 4], [[f32; 3]; 4], [[f32; 2]; 4], [u32; 6]) {
     let p = [[-0.5, 0.0, -0.5], [-0.5, 0.0, 0.5], [0.5, 0.0, 0.5], [0.5, 0.0, -0.5]];
     let n = [[0.0, 1.0, 0.0]; 4];

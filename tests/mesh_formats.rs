@@ -98,7 +98,8 @@ fn objects_without_lights_get_a_notice() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(dir.path().join("tri.obj"), TRIANGLE).unwrap();
     parse_in(dir.path(), &object("tri.obj"), "unlit.toml").unwrap();
-    let notice = "unlit.toml: the scene has objects but no lights; they are unlit (only the background shows)";
+    let notice =
+        "unlit.toml: the scene has objects but no lights; they are unlit (only the background and emission show)";
     assert!(logged(notice), "{:?}", captured_log().lock().unwrap());
     parse_in(dir.path(), &format!("{LIGHT}{}", object("tri.obj")), "lamp.toml").unwrap();
     parse_in(dir.path(), "", "empty.toml").unwrap();

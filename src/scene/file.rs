@@ -315,9 +315,11 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
     }
     sources.extend(check.textures.borrow().files().iter().cloned());
     if !meshes.is_empty() && lights.is_empty() {
-        // Nothing else lights a surface yet (no environment light, no emission): say why the
-        // picture is black before the user looks for a bug.
-        log::warn!("{source_name}: the scene has objects but no lights; they are unlit (only the background shows)");
+        // Nothing else lights a surface yet (no environment light): say why the picture is
+        // black before the user looks for a bug.
+        log::warn!(
+            "{source_name}: the scene has objects but no lights; they are unlit (only the background and emission show)"
+        );
     }
     let shadow_backend = file.render.and_then(|r| r.shadow_backend);
     let light_shadows = file

@@ -379,3 +379,45 @@ fn instances_are_uploaded_once_and_render_like_copies() {
     }
     common::assert_clean(&ctx);
 }
+
+/// Through the binary: a truncated .glb, a glTF with an out-of-range accessor, a required
+/// unknown extension and a text file named .obj each exit 1 with one `error:` line naming the
+/// file, no panic, and no output file.
+#[test]
+fn bad_meshes_fail_the_render_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let glb = quad_file(Some(U16)).glb();
+    std::fs::write(d.join("cut.glb"), &glb[..glb.len() / 2]).unwrap();
+    let mut range = quad_file(Some(U16));
+    range.accessors[0]["count"] = json!(1000);
+    range.write_glb(&d.join("range.glb"));
+    let mut required = quad_file(Some(U16));
+    required.extensions_used = vec!["EXT_unknown".into()];
+    required.extensions_required = vec!["EXT_unknown".into()];
+    required.write_glb(&d.join("required.glb"));
+    std::fs::write(d.join("text.obj"), "just words\n").unwrap();
+    for (mesh, needle) in [
+        ("cut.glb", "\"cut.glb\" is not a valid glTF file: truncated or corrupt binary glTF"),
+        ("range.glb", "\"range.glb\" is not a valid glTF file: accessor 0 reads 1000 elements"),
+        ("required.glb", "requires the extension EXT_unknown"),
+        ("text.obj", "\"text.obj\" is not a valid OBJ file: line 1: no OBJ statement"),
+    ] {
+        let scene = d.join(format!("{mesh}.toml"));
+        std::fs::write(&scene, format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"{mesh}\"\n")).unwrap();
+        let out = d.join(format!("{mesh}.png"));
+        let o =
+            common::umbra().args(["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{mesh}: {err}");
+        let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+        assert_eq!(errors.len(), 1, "{mesh}: {err}");
+        assert!(
+            errors[0].contains(&format!("{mesh}.toml: objects[0].mesh: ")) && errors[0].contains(needle),
+            "{}",
+            errors[0]
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{mesh}: an output was written");
+    }
+}

@@ -204,6 +204,13 @@ impl SceneGpu {
                                 .zip(&g.normals)
                                 .map(|(p, n)| Vertex { position: p.to_array(), normal: n.to_array() }),
                         );
+                        if !g.uvs.is_empty() {
+                            surface_vertices.resize(at.1 as usize, SurfaceVertex::default());
+                            for (k, uv) in g.uvs.iter().enumerate() {
+                                let tangent = g.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                                surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+                            }
+                        }
                         indices.extend_from_slice(&g.indices);
                         at
                     });

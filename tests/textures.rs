@@ -391,3 +391,38 @@ fn an_alpha_masked_quad_is_cut_out_and_so_is_its_map_shadow() {
     assert!(shadowed_floor > 10, "{shadowed_floor} floor pixels under the kept half");
     common::assert_clean(&ctx);
 }
+
+/// A textured, normal-mapped mesh drawn by two nodes is uploaded once (texture coordinates and
+/// tangents with it) and renders as its world-space copies do.
+#[test]
+fn textured_instances_share_their_upload() {
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let m = Vec3::new(0.4, -0.3, 1.0).normalize() * 0.5 + 0.5;
+    let texel = [(m.x * 255.0) as u8, (m.y * 255.0) as u8, (m.z * 255.0) as u8, 255];
+    let material = json!({ "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.5 } });
+    let maps = [("baseColorTexture", png(4, 4, [90, 160, 220, 255])), ("normalTexture", png(4, 4, texel))];
+    let mut g = textured_quad(material, &maps);
+    let (s, c) = (0.3f32).sin_cos();
+    g.nodes[0] = json!({ "mesh": 0, "translation": [-0.6, 0.0, 0.0], "scale": [0.5, 1.0, 0.5] });
+    g.node(
+        json!({ "mesh": 0, "translation": [0.6, 0.2, 0.0], "rotation": [0.0, s, 0.0, c], "scale": [0.4, 1.0, 0.6] }),
+        true,
+    );
+    g.write_glb(&dir.path().join("pair.glb"));
+    let scene = parse_in(dir.path(), &format!("{CAMERA}{SUN}[[objects]]\nmesh = \"pair.glb\"\n"));
+    assert!(scene.meshes.iter().all(|m| m.instance.is_some() && m.surface.is_some()));
+    let mut copies = scene.clone();
+    copies.meshes.iter_mut().for_each(|m| m.instance = None);
+    let mut shared = Renderer::new(ctx.clone(), scene).unwrap();
+    let mut copied = Renderer::new(ctx.clone(), copies).unwrap();
+    // MikkTSpace unwelds the quad to one vertex per triangle corner: 6, held once.
+    assert_eq!(shared.gpu_scene.vertex_count, 6);
+    assert_eq!(copied.gpu_scene.vertex_count, 12);
+    let (a, b) = (render(&mut shared, None), render(&mut copied, None));
+    let differ =
+        a.iter().zip(&b).filter(|(a, b)| (**a - **b).abs().max_element() > 2e-3 * b.max_element() + 1e-5).count();
+    assert!(differ <= (W * H / 100) as usize, "{differ} pixels differ");
+    assert!(a.iter().filter(|p| p.truncate().max_element() > 0.05).count() > 100, "the quads are lit");
+    common::assert_clean(&ctx);
+}

@@ -285,9 +285,8 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
             let to_world = placed.transform * *instance;
             let mut placed_mesh = mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped);
             if let (Some(m), Some(geometry)) = (&mut placed_mesh, &shared[*k]) {
-                // A mirroring instance would need the other winding, and a textured one its
-                // texture coordinates uploaded with the shared geometry: each stays a copy.
-                if to_world.determinant() > 0.0 && m.surface.is_none() {
+                // A mirroring instance would need the other winding: it stays a copy.
+                if to_world.determinant() > 0.0 {
                     m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
                 }
             }

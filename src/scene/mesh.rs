@@ -193,10 +193,13 @@ pub(super) fn shared_geometry(
             }
             let mut stats = LoadStats::default();
             let placed = place("", mesh, &DMat4::IDENTITY, Material::default(), true, &mut stats)?;
+            let (uvs, tangents) = placed.surface.map_or((Vec::new(), Vec::new()), |s| (s.uvs, s.tangents));
             Some(Arc::new(InstanceGeometry {
                 positions: placed.positions.iter().map(|p| p.as_vec3()).collect(),
                 normals: placed.normals,
                 indices: placed.indices,
+                uvs,
+                tangents,
             }))
         })
         .collect()

@@ -136,6 +136,10 @@ pub struct InstanceGeometry {
     pub positions: Vec<Vec3>,
     pub normals: Vec<Vec3>,
     pub indices: Vec<u32>,
+    /// A textured mesh's texture coordinates and own-space tangents (`MeshSurface`'s); empty
+    /// otherwise (tangents also without a normal map).
+    pub uvs: Vec<glam::Vec2>,
+    pub tangents: Vec<glam::Vec4>,
 }
 
 impl Mesh {

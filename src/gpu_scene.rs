@@ -4,8 +4,10 @@
 
 use std::sync::Arc;
 
+use std::collections::HashMap;
+
 use ash::vk;
-use glam::{DVec3, Mat4, Vec3};
+use glam::{DMat3, DMat4, DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
@@ -168,11 +170,65 @@ pub struct Vertex {
     pub normal: [f32; 3],
 }
 
+/// Per-instance vertex data (vertex binding 1, read per instance): the rows of the
+/// object-to-local-frame matrix and of its normal matrix (inverse transpose). Instance 0 is the
+/// identity, which every mesh drawn once uses: its vertices are already in the local frame, and
+/// multiplying by exact ones and zeros leaves them bit for bit as they are.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct InstanceRows {
+    pub model: [[f32; 4]; 3],
+    pub normal: [[f32; 4]; 3],
+}
+
+impl InstanceRows {
+    pub const IDENTITY: InstanceRows = InstanceRows {
+        model: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+        normal: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+    };
+
+    /// The rows of `to_local` (affine, computed in f64 and rounded once).
+    fn of(to_local: &DMat4) -> InstanceRows {
+        let normal = DMat3::from_mat4(*to_local).inverse().transpose();
+        let row4 = |r: usize| [0, 1, 2, 3].map(|c| to_local.col(c)[r] as f32);
+        let row3 = |r: usize| [normal.col(0)[r] as f32, normal.col(1)[r] as f32, normal.col(2)[r] as f32, 0.0];
+        InstanceRows { model: [row4(0), row4(1), row4(2)], normal: [row3(0), row3(1), row3(2)] }
+    }
+}
+
+/// The geometry passes' vertex inputs: `Vertex` at binding 0, `InstanceRows` at binding 1
+/// (locations 2-4 the model rows, 5-7 the normal rows).
+pub const INSTANCE_ATTRIBUTES: [(u32, vk::Format, u32); 6] = [
+    (2, vk::Format::R32G32B32A32_SFLOAT, 0),
+    (3, vk::Format::R32G32B32A32_SFLOAT, 16),
+    (4, vk::Format::R32G32B32A32_SFLOAT, 32),
+    (5, vk::Format::R32G32B32A32_SFLOAT, 48),
+    (6, vk::Format::R32G32B32A32_SFLOAT, 64),
+    (7, vk::Format::R32G32B32A32_SFLOAT, 80),
+];
+
+/// Per-vertex data of textured meshes (vertex binding 2, parallel to the `Vertex`es: zeros for
+/// meshes without textures): texture coordinates (locations 8) and the tangent with the
+/// bitangent's sign in w (9; zeros without a normal map).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SurfaceVertex {
+    pub uv: [f32; 2],
+    pub tangent: [f32; 4],
+}
+
+pub const SURFACE_ATTRIBUTES: [(u32, vk::Format, u32); 2] =
+    [(8, vk::Format::R32G32_SFLOAT, 0), (9, vk::Format::R32G32B32A32_SFLOAT, 8)];
+
 /// One mesh's slice of the shared vertex and index buffers.
 pub struct Draw {
     pub first_index: u32,
     pub index_count: u32,
     pub vertex_offset: i32,
+    /// Its `InstanceRows` (0: the identity).
+    pub instance: u32,
+    /// Its material's textures (`SceneGpu::materials`), where it has any.
+    pub maps: Option<crate::gpu_textures::DrawMaps>,
     pub material: Material,
     pub cast_shadows: bool,
     /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
@@ -181,7 +237,16 @@ pub struct Draw {
 
 /// The scene on the device: uploaded once, imported into every frame's graph.
 pub struct SceneGpu {
+    /// `vertex_count` `Vertex`es, then the `InstanceRows` from byte `instance_offset`: one
+    /// buffer, so every pass that binds the vertices has the instances too.
     pub vertices: Buffer,
+    pub vertex_count: u32,
+    pub instance_offset: u64,
+    /// Where the `SurfaceVertex`es start in `vertices` (after the instances), in a scene with
+    /// textures; they are bound at vertex binding 2 by textured draws.
+    pub surface_offset: Option<u64>,
+    /// The material textures and their pipeline; `None` in a scene without textures.
+    pub materials: Option<crate::gpu_textures::MaterialSets>,
     pub indices: Buffer,
     pub draws: Vec<Draw>,
     pub lights: Buffer,
@@ -205,27 +270,86 @@ impl SceneGpu {
         let mut vertices = Vec::new();
         let mut indices = Vec::new();
         let mut draws = Vec::new();
+        let mut instances = vec![InstanceRows::IDENTITY];
+        // Shared geometry already uploaded: its first index and vertex offset.
+        let mut shared = HashMap::new();
+        // Parallel to `vertices` once any mesh has textures.
+        let textured = scene.meshes.iter().any(|m| m.surface.is_some());
+        let mut surface_vertices: Vec<SurfaceVertex> = Vec::new();
+        let mut materials: Vec<std::sync::Arc<crate::scene::MaterialTextures>> = Vec::new();
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
             let mut bounds = Bounds::EMPTY;
-            // The local frame's f32: where the GPU's triangles are.
+            // The local frame's f32: where the GPU's triangles are (for an instance, where its
+            // world-space copy is).
             let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
             positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
+            for p in &positions {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+            }
+            let (first_index, index_count, vertex_offset, instance) = match &mesh.instance {
+                Some(instance) => {
+                    let g = &instance.geometry;
+                    let (first, offset) = *shared.entry(std::sync::Arc::as_ptr(g)).or_insert_with(|| {
+                        let at = (indices.len() as u32, vertices.len() as i32);
+                        vertices.extend(
+                            g.positions
+                                .iter()
+                                .zip(&g.normals)
+                                .map(|(p, n)| Vertex { position: p.to_array(), normal: n.to_array() }),
+                        );
+                        if !g.uvs.is_empty() {
+                            surface_vertices.resize(at.1 as usize, SurfaceVertex::default());
+                            for (k, uv) in g.uvs.iter().enumerate() {
+                                let tangent = g.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                                surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+                            }
+                        }
+                        indices.extend_from_slice(&g.indices);
+                        at
+                    });
+                    instances.push(InstanceRows::of(&instance.to_world));
+                    (first, g.indices.len() as u32, offset, instances.len() as u32 - 1)
+                }
+                None => {
+                    let at = (indices.len() as u32, mesh.indices.len() as u32, vertices.len() as i32, 0);
+                    for (p, n) in positions.iter().zip(&mesh.normals) {
+                        vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
+                    }
+                    if let Some(surface) = &mesh.surface {
+                        surface_vertices.resize(at.2 as usize, SurfaceVertex::default());
+                        for (k, uv) in surface.uvs.iter().enumerate() {
+                            let tangent = surface.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                            surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+                        }
+                    }
+                    indices.extend_from_slice(&mesh.indices);
+                    at
+                }
+            };
+            let maps = mesh.surface.as_ref().map(|surface| {
+                // Set 0 is for meshes without textures (gpu_textures::upload).
+                let set = 1 + match materials.iter().position(|m| std::sync::Arc::ptr_eq(m, &surface.textures)) {
+                    Some(set) => set,
+                    None => {
+                        materials.push(surface.textures.clone());
+                        materials.len() - 1
+                    }
+                };
+                crate::gpu_textures::draw_maps(set, &surface.textures)
+            });
             draws.push(Draw {
-                first_index: indices.len() as u32,
-                index_count: mesh.indices.len() as u32,
-                vertex_offset: vertices.len() as i32,
+                first_index,
+                index_count,
+                vertex_offset,
+                instance,
+                maps,
                 material: mesh.material,
                 cast_shadows: mesh.cast_shadows,
                 bounds,
             });
-            for (p, n) in positions.iter().zip(&mesh.normals) {
-                lo = lo.min(*p);
-                hi = hi.max(*p);
-                vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
-            }
-            indices.extend_from_slice(&mesh.indices);
         }
         if draws.is_empty() {
             lo = Vec3::ZERO;
@@ -233,10 +357,26 @@ impl SceneGpu {
         }
         let lights = gpu_lights(&scene.lights);
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let vertex_count = vertices.len() as u32;
+        let mut vertex_bytes: Vec<u8> = bytemuck::cast_slice(&vertices).to_vec();
+        let instance_offset = vertex_bytes.len() as u64;
+        vertex_bytes.extend_from_slice(bytemuck::cast_slice(&instances));
+        let surface_offset = textured.then(|| {
+            surface_vertices.resize(vertices.len(), SurfaceVertex::default());
+            let at = vertex_bytes.len() as u64;
+            vertex_bytes.extend_from_slice(bytemuck::cast_slice(&surface_vertices));
+            at
+        });
+        let materials = match textured {
+            true => Some(crate::gpu_textures::upload(ctx, &materials, |layout| {
+                crate::passes::geometry::textured_pipeline(ctx, layout)
+            })?),
+            false => None,
+        };
         // The geometry pass reads both as storage buffers (a binding holds at most this much).
         let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
         for (what, bytes) in [
-            ("vertices", std::mem::size_of_val(vertices.as_slice())),
+            ("vertices", vertex_bytes.len()),
             ("triangle indices", std::mem::size_of_val(indices.as_slice())),
         ] {
             if bytes as u64 > limit {
@@ -255,7 +395,7 @@ impl SceneGpu {
         let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
             ctx,
             [
-                ("vertices", bytemuck::cast_slice(&vertices), vk::BufferUsageFlags::VERTEX_BUFFER | storage),
+                ("vertices", &vertex_bytes, vk::BufferUsageFlags::VERTEX_BUFFER | storage),
                 ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | storage),
                 ("lights", bytemuck::cast_slice(&lights), storage),
                 ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
@@ -265,6 +405,10 @@ impl SceneGpu {
         let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles)?;
         Ok(SceneGpu {
             vertices,
+            vertex_count,
+            instance_offset,
+            surface_offset,
+            materials,
             indices,
             draws,
             lights,

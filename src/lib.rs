@@ -5,6 +5,7 @@ pub mod bench;
 pub mod config;
 pub mod frame;
 pub mod gpu_scene;
+pub mod gpu_textures;
 pub mod graph;
 pub mod lighting;
 pub mod output;

@@ -82,6 +82,10 @@ impl Renderer {
         );
         let start = std::time::Instant::now();
         let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
+        let pipelines = Pipelines::new(&ctx)?;
+        if gpu_scene.materials.is_some() {
+            pipelines.prepare_emissive(&ctx)?;
+        }
         log::info!(
             "upload: {} KiB of scene buffers in {:.1} ms",
             gpu_scene.bytes() >> 10,
@@ -105,7 +109,7 @@ impl Renderer {
             }),
             ray_query: std::sync::OnceLock::new(),
             volume_scene: std::sync::OnceLock::new(),
-            pipelines: Pipelines::new(&ctx)?,
+            pipelines,
             busy: std::sync::OnceLock::new(),
             shadow_pipelines: Default::default(),
             lighting_pipelines: Default::default(),
@@ -165,6 +169,7 @@ impl Renderer {
             self.environment.as_ref(),
             settings.debug_view,
             plan.layers.count() > 0,
+            self.gpu_scene.materials.is_some(),
         )?;
         let parts = crate::frame::FrameParts {
             pipelines: &self.pipelines,

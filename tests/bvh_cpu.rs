@@ -171,6 +171,8 @@ fn scene_build_takes_only_shadow_casters() {
         indices: vec![0, 1, 2],
         material: Material::default(),
         cast_shadows,
+        instance: None,
+        surface: None,
     };
     let scene = Scene {
         image_size: None,

@@ -240,6 +240,8 @@ fn fins() -> Mesh {
         indices: vec![0, 1, 2, 1, 0, 3, 1, 0, 4],
         material: Default::default(),
         cast_shadows: true,
+        instance: None,
+        surface: None,
     }
 }
 

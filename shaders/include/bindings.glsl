@@ -41,6 +41,9 @@
 // lighting/compose_environment*.comp: the split-sum table and the AO image
 #define COMPOSE_BRDF_TABLE 7
 #define COMPOSE_AMBIENT_OCCLUSION 8
+// compose_emissive*.comp: the G-buffer's emission and occlusion (scenes with textures or
+// emission only)
+#define COMPOSE_EMISSION 9
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0
@@ -85,6 +88,16 @@
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
+// geometry_textured*.frag, descriptor set 1 (one set per material, src/gpu_textures.rs): its
+// textures, each a 1x1 white texel where the material has no such map
+#define MATERIAL_BASE_COLOR 0
+#define MATERIAL_ROUGHNESS 1
+#define MATERIAL_METALLIC 2
+#define MATERIAL_NORMAL 3
+#define MATERIAL_EMISSION 4
+#define MATERIAL_OCCLUSION 5
+// the material's constants (gpu_textures::MaterialConstants)
+#define MATERIAL_CONSTANTS 6
 
 // shadows/hybrid/classify.comp: a light's layer where its shadow map is sure, and the list of
 // the pixels where it is not (traced next by shadows/traced/trace_list.comp)

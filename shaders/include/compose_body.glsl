@@ -23,6 +23,10 @@ layout(set = 0, binding = COMPOSE_BRDF_TABLE, std430) readonly buffer BrdfTable 
 #ifdef WITH_AMBIENT_OCCLUSION
 layout(set = 0, binding = COMPOSE_AMBIENT_OCCLUSION) uniform sampler2D ambient_occlusion;
 #endif
+#ifdef WITH_EMISSION
+// rgb: emitted radiance; a: ambient occlusion, for environment lighting (gbuffer.glsl).
+layout(set = 0, binding = COMPOSE_EMISSION) uniform sampler2D gbuffer_emission;
+#endif
 
 layout(push_constant) uniform Push {
     vec4 eye;        // xyz
@@ -62,7 +66,14 @@ void main() {
 #ifdef WITH_AMBIENT_OCCLUSION
     ambient *= texelFetch(ambient_occlusion, ivec2(px), 0).r;
 #endif
+#ifdef WITH_EMISSION
+    // The material's occlusion (its texture times strength), stored beside the emission.
+    ambient *= texelFetch(gbuffer_emission, ivec2(px), 0).a;
+#endif
     sum += ambient;
+#endif
+#ifdef WITH_EMISSION
+    sum += texelFetch(gbuffer_emission, ivec2(px), 0).rgb;
 #endif
     imageStore(radiance, ivec2(px), vec4(sum, 1.0));
 }

@@ -9,6 +9,9 @@
 //                  0 on flat-shaded surfaces
 //             w    the unit geometric (face) normal, front-facing like the shading normal,
 //                  octahedral, 8 bits per axis (254 steps: axes exact, all within 1 degree)
+//   emission: RGBA16F  (scenes with material textures or emission only; gpu_textures.rs)
+//             rgb  emitted radiance, W/(m^2 sr); a  ambient occlusion (1: none), for the
+//                  environment and ambient lighting that read it
 // Position is stored rather than rebuilt from depth so that scenes far from the origin keep
 // every bit the rasteriser gives them. CPU twin of the surface channel: src/shading.rs
 // (`Surfaces`).
@@ -18,6 +21,7 @@
 #define GBUFFER_NORMAL_LOCATION 1
 #define GBUFFER_MATERIAL_LOCATION 2
 #define GBUFFER_SURFACE_LOCATION 3
+#define GBUFFER_EMISSION_LOCATION 4
 
 // Octahedral map of a unit vector (Meyer et al. 2010; Cigolle et al. 2014) into [0,1]^2.
 vec2 gbuffer_oct_encode(vec3 n) {

@@ -3,18 +3,69 @@
 // needs the device's geometryShader feature) from the scene's vertex and index buffers for the
 // geometric normal and the shadow-terminator offset. geometry_plain.frag, for devices without
 // that feature, takes the geometric normal from the position's screen derivatives and stores no
-// terminator offset.
+// terminator offset. The textured variants (geometry_textured*.frag) define TEXTURED: the
+// material's textures multiply its constants, and a normal map bends the shading normal.
 #include "gbuffer.glsl"
 #include "geometry_push.glsl"
 #include "ray_offset.glsl"
 
 layout(location = 0) in vec3 in_position;
 layout(location = 1) in vec3 in_normal;
+// The draw's instance (instance.glsl; used where the triangle's corners are read, in their own
+// space, and declared in both variants so that the vertex stage's outputs always have a reader).
+layout(location = 2) flat in vec4 in_model[3];
+layout(location = 5) flat in vec4 in_normal_rows[3];
 
 layout(location = GBUFFER_POSITION_LOCATION) out vec4 out_position;
 layout(location = GBUFFER_NORMAL_LOCATION) out vec4 out_normal;
 layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
 layout(location = GBUFFER_SURFACE_LOCATION) out uvec4 out_surface;
+
+#ifdef TEXTURED
+layout(location = 8) in vec2 in_uv;
+layout(location = 9) in vec4 in_tangent;
+layout(set = 1, binding = MATERIAL_BASE_COLOR) uniform sampler2D material_base_color;
+layout(set = 1, binding = MATERIAL_ROUGHNESS) uniform sampler2D material_roughness;
+layout(set = 1, binding = MATERIAL_METALLIC) uniform sampler2D material_metallic;
+layout(set = 1, binding = MATERIAL_NORMAL) uniform sampler2D material_normal;
+layout(set = 1, binding = MATERIAL_EMISSION) uniform sampler2D material_emission;
+layout(set = 1, binding = MATERIAL_OCCLUSION) uniform sampler2D material_occlusion;
+#include "material_constants.glsl"
+layout(location = GBUFFER_EMISSION_LOCATION) out vec4 out_emission;
+
+// Texture-space footprint of the pixel, for every material lookup (textureGrad). Each
+// derivative gets 1e-6 of a texture added across the other's axis: lavapipe's anisotropic filter
+// divides by the footprint's minor axis, and a face whose corners share a texture coordinate
+// (common for flat-coloured parts of a model) or whose coordinates vary along one axis only has
+// none, which made its texels NaN.
+vec2 material_dx;
+vec2 material_dy;
+
+vec4 material_sample(sampler2D map, vec2 uv) {
+    return textureGrad(map, uv, material_dx, material_dy);
+}
+
+// A one-hot mask: the texture channel a map reads (0..3 = R, G, B, A), without indexing a
+// vector by a variable (which lavapipe moves to scratch memory).
+vec4 material_channel(uint c) {
+    return vec4(equal(uvec4(0u, 1u, 2u, 3u), uvec4(c)));
+}
+
+// The shading normal bent by the tangent-space normal map (OpenGL convention: +Y along the
+// bitangent cross(n, t) * w, MikkTSpace's). Without a usable tangent, n as it is.
+vec3 material_mapped_normal(vec3 n, vec4 tangent, vec2 uv, float scale) {
+    vec3 t = tangent.xyz - n * dot(n, tangent.xyz);
+    float len = length(t);
+    if (!(len > 1e-6)) return n;
+    t /= len;
+    vec3 b = cross(n, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
+    vec3 m = material_sample(material_normal, uv).xyz * 2.0 - 1.0;
+    m.xy *= scale;
+    vec3 mapped = t * m.x + b * m.y + n * m.z;
+    float mapped_len = length(mapped);
+    return mapped_len > 1e-6 ? mapped / mapped_len : n;
+}
+#endif
 
 #ifdef GEOMETRY_TRIANGLES
 // gpu_scene::Vertex: position, then normal, 24 bytes.
@@ -39,8 +90,11 @@ void main() {
     vec3 corner_normal[3];
     for (int k = 0; k < 3; k++) {
         GeometryVertex v = vertices[int(indices[first + uint(k)]) + base];
-        corner[k] = vec3(v.position[0], v.position[1], v.position[2]);
-        corner_normal[k] = normalize(vec3(v.normal[0], v.normal[1], v.normal[2]));
+        vec4 c = vec4(v.position[0], v.position[1], v.position[2], 1.0);
+        vec3 cn = vec3(v.normal[0], v.normal[1], v.normal[2]);
+        corner[k] = vec3(dot(in_model[0], c), dot(in_model[1], c), dot(in_model[2], c));
+        corner_normal[k] = normalize(vec3(dot(in_normal_rows[0].xyz, cn), dot(in_normal_rows[1].xyz, cn),
+                                          dot(in_normal_rows[2].xyz, cn)));
     }
     vec3 e1 = corner[1] - corner[0];
     vec3 e2 = corner[2] - corner[0];
@@ -56,8 +110,27 @@ void main() {
 #endif
     // Back faces are culled, but a smooth normal can still lean away from the eye at grazing
     // angles; it is kept as is, and shading clamps n.v.
+    vec4 material = pc.base_color_roughness;
+    float metallic = pc.metallic.x;
+#ifdef TEXTURED
+    // pc.draw.z: the maps present (8: a normal map); pc.draw.w: the roughness channel, and the
+    // metallic channel 8 bits up; pc.metallic.y: the normal map's scale. Absent colour maps are
+    // a white texel, so every product below is the constant alone.
+    material_dx = dFdx(in_uv) + vec2(1e-6, 0.0);
+    material_dy = dFdy(in_uv) + vec2(0.0, 1e-6);
+    vec4 base_color = material_sample(material_base_color, in_uv);
+    // Alpha-masked materials (a cutoff of 0 never discards).
+    if (base_color.a * material_constants.alpha.x < material_constants.alpha.y) discard;
+    material.rgb *= base_color.rgb;
+    material.a *= dot(material_sample(material_roughness, in_uv), material_channel(pc.draw.w & 3u));
+    metallic *= dot(material_sample(material_metallic, in_uv), material_channel((pc.draw.w >> 8) & 3u));
+    if ((pc.draw.z & 8u) != 0u) n = material_mapped_normal(n, in_tangent, in_uv, pc.metallic.y);
+    vec4 constants = material_constants.emission_occlusion;
+    float occluded = dot(material_sample(material_occlusion, in_uv), material_channel((pc.draw.w >> 16) & 3u));
+    out_emission = vec4(constants.rgb * material_sample(material_emission, in_uv).rgb, mix(1.0, occluded, constants.a));
+#endif
     out_position = vec4(p, 1.0);
-    out_normal = vec4(n, pc.metallic.x);
-    out_material = pc.base_color_roughness;
+    out_normal = vec4(n, metallic);
+    out_material = material;
     out_surface = gbuffer_surface_encode(offset, geometric);
 }

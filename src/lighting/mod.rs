@@ -57,18 +57,26 @@ impl EnvironmentGpu {
 /// a frame uses it.
 #[derive(Default)]
 pub struct Pipelines {
-    /// Indexed by `shadowed as usize + 2 * occluded as usize`.
-    compose: [OnceLock<ComputePipeline>; 4],
+    /// Indexed by `shadowed as usize + 2 * occluded as usize + 4 * emissive as usize`.
+    compose: [OnceLock<ComputePipeline>; 8],
     pub(crate) ao: OnceLock<ComputePipeline>,
     pub(crate) ao_view: OnceLock<ComputePipeline>,
 }
 
 impl Pipelines {
-    /// Compose with the environment term, reading the visibility target when `shadowed` and
-    /// the AO image when `occluded`.
-    pub fn compose(&self, ctx: &Arc<GpuContext>, shadowed: bool, occluded: bool) -> GpuResult<&ComputePipeline> {
-        let slot = &self.compose[shadowed as usize + 2 * occluded as usize];
-        crate::vk::get_or_make(slot, || crate::passes::compose::environment_pipeline(ctx, shadowed, occluded))
+    /// Compose with the environment term, reading the visibility target when `shadowed`, the
+    /// AO image when `occluded` and the G-buffer's emission and occlusion when `emissive`.
+    pub fn compose(
+        &self,
+        ctx: &Arc<GpuContext>,
+        shadowed: bool,
+        occluded: bool,
+        emissive: bool,
+    ) -> GpuResult<&ComputePipeline> {
+        let slot = &self.compose[shadowed as usize + 2 * occluded as usize + 4 * emissive as usize];
+        crate::vk::get_or_make(slot, || {
+            crate::passes::compose::environment_pipeline(ctx, shadowed, occluded, emissive)
+        })
     }
 }
 
@@ -85,7 +93,7 @@ pub struct Prepared<'a> {
 
 impl Pipelines {
     /// What a frame with `view` needs for `lighting` (`environment` on the device), compose
-    /// reading visibility when `shadowed`.
+    /// reading visibility when `shadowed` and the G-buffer's emission when `emissive`.
     pub fn prepare<'a>(
         &'a self,
         ctx: &Arc<GpuContext>,
@@ -93,6 +101,7 @@ impl Pipelines {
         environment: Option<&'a EnvironmentGpu>,
         view: Option<crate::config::DebugView>,
         shadowed: bool,
+        emissive: bool,
     ) -> GpuResult<Prepared<'a>> {
         let mut prepared = Prepared::default();
         let ao_pipeline = || crate::vk::get_or_make(&self.ao, || ao::pipeline(ctx));
@@ -110,7 +119,7 @@ impl Pipelines {
             None => {
                 if let Some(environment) = environment {
                     let occlusion = lighting.occlusion_of_environment();
-                    prepared.environment = Some((environment, self.compose(ctx, shadowed, occlusion.is_some())?));
+                    prepared.environment = Some((environment, self.compose(ctx, shadowed, occlusion.is_some(), emissive)?));
                     if let Some(params) = occlusion {
                         prepared.occlusion = Some((params, ao_pipeline()?));
                     }

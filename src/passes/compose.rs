@@ -42,8 +42,15 @@ pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipel
 }
 
 /// The compose variant that adds a constant environment (`crate::lighting`): the split-sum
-/// table, and the AO image when `occluded`.
-pub fn environment_pipeline(ctx: &Arc<GpuContext>, shadowed: bool, occluded: bool) -> GpuResult<ComputePipeline> {
+/// table, the AO image when `occluded`, and the G-buffer's emission (and the material's
+/// occlusion beside it) when `emissive`.
+pub fn environment_pipeline(
+    ctx: &Arc<GpuContext>,
+    shadowed: bool,
+    occluded: bool,
+    emissive: bool,
+) -> GpuResult<ComputePipeline> {
+    use spirv::*;
     let mut bindings = vec![
         sampled(COMPOSE_POSITION),
         sampled(COMPOSE_NORMAL),
@@ -59,13 +66,45 @@ pub fn environment_pipeline(ctx: &Arc<GpuContext>, shadowed: bool, occluded: boo
     if occluded {
         bindings.push(sampled(COMPOSE_AMBIENT_OCCLUSION));
     }
-    let (name, spv) = match (shadowed, occluded) {
-        (true, false) => ("compose (environment)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_COMP),
-        (false, false) => ("compose (environment, unshadowed)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_COMP),
-        (true, true) => ("compose (environment, AO)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
-        (false, true) => {
-            ("compose (environment, AO, unshadowed)", spirv::LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_COMP)
+    if emissive {
+        bindings.push(sampled(COMPOSE_EMISSION));
+    }
+    let (name, spv) = match (shadowed, occluded, emissive) {
+        (true, false, false) => ("compose (environment)", LIGHTING_COMPOSE_ENVIRONMENT_COMP),
+        (false, false, false) => ("compose (environment, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_COMP),
+        (true, true, false) => ("compose (environment, AO)", LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
+        (false, true, false) => {
+            ("compose (environment, AO, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_COMP)
         }
+        (true, false, true) => ("compose (environment, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_EMISSIVE_COMP),
+        (false, false, true) => {
+            ("compose (environment, unshadowed, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_EMISSIVE_COMP)
+        }
+        (true, true, true) => ("compose (environment, AO, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_AO_EMISSIVE_COMP),
+        (false, true, true) => (
+            "compose (environment, AO, unshadowed, emissive)",
+            LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_EMISSIVE_COMP,
+        ),
+    };
+    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
+}
+
+/// The compose pipelines that also add the G-buffer's emission (`Pipelines::prepare_emissive`).
+pub fn emissive_pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
+    let mut bindings = vec![
+        sampled(COMPOSE_POSITION),
+        sampled(COMPOSE_NORMAL),
+        sampled(COMPOSE_MATERIAL),
+        storage(COMPOSE_LIGHTS),
+        storage_image(COMPOSE_RADIANCE),
+        sampled(COMPOSE_EMISSION),
+    ];
+    let (name, spv) = if shadowed {
+        bindings.push(sampled(COMPOSE_VISIBILITY));
+        bindings.push(storage(COMPOSE_LIGHT_LAYERS));
+        ("compose (emissive)", spirv::COMPOSE_EMISSIVE_COMP)
+    } else {
+        ("compose (unshadowed, emissive)", spirv::COMPOSE_UNSHADOWED_EMISSIVE_COMP)
     };
     ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
 }
@@ -77,7 +116,8 @@ pub struct EnvironmentInputs<'h, 'a> {
     pub brdf_table: &'h Handle<BufferKind>,
     /// Ambient occlusion (1 open, 0 enclosed), scaling the environment term.
     pub occlusion: Option<&'h Handle<ImageKind>>,
-    /// `crate::lighting::Pipelines::compose` for this frame's shadowed and occluded.
+    /// `crate::lighting::Pipelines::compose` for this frame's shadowed, occluded and
+    /// emissive.
     pub pipeline: &'a ComputePipeline,
 }
 
@@ -117,6 +157,10 @@ pub fn add<'a>(
         None => &pipelines.compose_unshadowed,
     };
     let mut environment = glam::Vec3::ZERO;
+    if let Some(emission) = &gbuffer.emission {
+        bound.push((COMPOSE_EMISSION, Bound::Image(pass.read(emission, Access::ComputeShaderReadSampledImage))));
+        pipeline = pipelines.compose_emissive(inputs.visibility.is_some());
+    }
     if let Some(env) = &inputs.environment {
         let table = pass.read(env.brdf_table, Access::ComputeShaderReadStorageBuffer);
         bound.push((COMPOSE_BRDF_TABLE, Bound::Buffer(table)));
@@ -125,6 +169,7 @@ pub fn add<'a>(
             bound.push((COMPOSE_AMBIENT_OCCLUSION, Bound::Image(ao)));
         }
         environment = env.radiance;
+        // The variant made for this frame's emission too (`lighting::Pipelines::prepare`).
         pipeline = env.pipeline;
     }
     let push = Push {

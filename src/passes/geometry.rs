@@ -11,10 +11,14 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use super::{storage, GBuffer, DEPTH_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
-use crate::gpu_scene::{CameraMatrices, SceneGpu, Vertex};
+use super::{GBuffer, DEPTH_FORMAT, EMISSION_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
+use crate::gpu_scene::{
+    CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES,
+};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
-use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc};
+use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc};
+
+const INSTANCE_STRIDE: u32 = std::mem::size_of::<InstanceRows>() as u32;
 
 // The colour attachments below are listed in the order gbuffer.glsl gives their locations.
 const _: () = assert!(
@@ -45,27 +49,79 @@ pub struct GeometryPipelines {
     reads_triangles: bool,
 }
 
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
-    let desc = |name, fragment, bindings| GraphicsPipelineDesc {
+/// The geometry pipeline's description with `vertex` and `fragment` stages.
+fn desc<'a>(
+    name: &'static str,
+    vertex: &'a [u8],
+    fragment: &'a [u8],
+    bindings: &'a [(u32, crate::vk::DescriptorKind)],
+    color_formats: &'a [vk::Format],
+) -> GraphicsPipelineDesc<'a> {
+    GraphicsPipelineDesc {
         name,
-        vertex: spirv::GEOMETRY_VERT,
+        vertex,
         fragment: Some(fragment),
         vertex_stride: std::mem::size_of::<Vertex>() as u32,
         attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0), (1, vk::Format::R32G32B32_SFLOAT, 12)],
-        color_formats: &[POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT],
+        color_formats,
         depth_format: Some(DEPTH_FORMAT),
         bindings,
         push_bytes: std::mem::size_of::<Push>() as u32,
         cull_back_faces: true,
         dynamic_depth_bias: false,
-    };
-    let buffers = [storage(bindings::GEOMETRY_VERTICES), storage(bindings::GEOMETRY_INDICES)];
+    }
+}
+
+/// The G-buffer's colour attachments in gbuffer.glsl's location order; textured scenes add the
+/// emission attachment.
+const FORMATS: [vk::Format; 4] = [POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT];
+const TEXTURED_FORMATS: [vk::Format; 5] =
+    [POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT, EMISSION_FORMAT];
+
+const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
+    (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::StorageBuffer),
+    (bindings::GEOMETRY_INDICES, crate::vk::DescriptorKind::StorageBuffer),
+];
+
+pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
     let reads_triangles = ctx.capabilities.geometry_shader;
+    let extras = GraphicsExtras { instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)), ..Default::default() };
+    let vertex = spirv::GEOMETRY_VERT;
     let pipeline = match reads_triangles {
-        true => GraphicsPipeline::new(ctx, &desc("geometry", spirv::GEOMETRY_FRAG, &buffers))?,
-        false => GraphicsPipeline::new(ctx, &desc("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG, &[]))?,
+        true => GraphicsPipeline::with_extras(
+            ctx,
+            &desc("geometry", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS, &FORMATS),
+            &extras,
+        )?,
+        false => GraphicsPipeline::with_extras(
+            ctx,
+            &desc("geometry (plain)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[], &FORMATS),
+            &extras,
+        )?,
     };
     Ok(GeometryPipelines { pipeline, reads_triangles })
+}
+
+/// The geometry pipeline for textured draws: texture coordinates and tangents at vertex binding
+/// 2, the material's textures in descriptor set 1 (`material_set`, see gpu_textures.rs). Made
+/// per scene, only for a scene with textures.
+pub fn textured_pipeline(ctx: &Arc<GpuContext>, material_set: vk::DescriptorSetLayout) -> GpuResult<GraphicsPipeline> {
+    let extras = GraphicsExtras {
+        instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
+        per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES)),
+        set_1: Some(material_set),
+        ..Default::default()
+    };
+    let vertex = spirv::GEOMETRY_TEXTURED_VERT;
+    let desc = match ctx.capabilities.geometry_shader {
+        true => {
+            desc("geometry (textured)", vertex, spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS, &TEXTURED_FORMATS)
+        }
+        false => {
+            desc("geometry (textured, plain)", vertex, spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[], &TEXTURED_FORMATS)
+        }
+    };
+    GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
 
 pub fn add<'a>(
@@ -84,6 +140,7 @@ pub fn add<'a>(
         normal: graph.create_image("gbuffer normal", image(NORMAL_FORMAT)),
         material: graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
         surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
+        emission: scene.materials.as_ref().map(|_| graph.create_image("gbuffer emission", image(EMISSION_FORMAT))),
     };
     let (pipeline, reads_triangles) = (&pipelines.pipeline, pipelines.reads_triangles);
     let mut pass = graph.add_pass("geometry");
@@ -97,12 +154,15 @@ pub fn add<'a>(
         false => Vec::new(),
     };
     let depth = pass.write(&mut gbuffer.depth, Access::DepthAttachmentWrite);
-    let colors = [
+    let mut colors = vec![
         pass.write(&mut gbuffer.position, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.normal, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.material, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.surface, Access::ColorAttachmentWrite),
     ];
+    if let Some(emission) = &mut gbuffer.emission {
+        colors.push(pass.write(emission, Access::ColorAttachmentWrite));
+    }
     pass.render(move |ctx| {
         let attachment = |view, clear| {
             vk::RenderingAttachmentInfo::default()
@@ -128,13 +188,9 @@ pub fn add<'a>(
             .color_attachments(&color_attachments)
             .depth_attachment(&depth_attachment);
         let d = ctx.device;
-        if !bound.is_empty() {
-            ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &pipeline.layout, &bound)?;
-        }
         // SAFETY: recording state; every object is resolved for this frame and outlives it.
         unsafe {
             d.cmd_begin_rendering(ctx.cmd, &rendering);
-            d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
             let viewport = vk::Viewport {
                 x: 0.0,
                 y: 0.0,
@@ -146,29 +202,69 @@ pub fn add<'a>(
             d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
             d.cmd_set_scissor(ctx.cmd, 0, &[area]);
             if !scene.draws.is_empty() {
-                d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
+                let vb = ctx.buffer(vb);
+                match scene.surface_offset {
+                    Some(surface) => {
+                        d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb, vb], &[0, scene.instance_offset, surface])
+                    }
+                    None => d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]),
+                }
                 d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
             }
-            for draw in &scene.draws {
-                let m = draw.material;
-                let push = Push {
-                    view_proj: camera.view_proj_relative,
-                    eye: camera.eye.extend(0.0),
-                    base_color_roughness: m.base_color.extend(m.roughness),
-                    metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
-                    draw: UVec4::new(draw.first_index, draw.vertex_offset as u32, 0, 0),
-                };
+        }
+        // The pipeline bound (textured or not), switched as the draws need.
+        let mut current: Option<bool> = None;
+        for draw in &scene.draws {
+            // In a textured scene every draw is textured (its rendering has the emission
+            // attachment); a mesh without textures reads the white set.
+            let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));
+            let used = match textured {
+                Some((materials, _)) => &materials.pipeline,
+                None => pipeline,
+            };
+            if current != Some(textured.is_some()) {
+                current = Some(textured.is_some());
+                if !bound.is_empty() {
+                    ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &used.layout, &bound)?;
+                }
+                // SAFETY: recording state, inside the rendering begun above.
+                unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline) };
+            }
+            let m = draw.material;
+            let mut push = Push {
+                view_proj: camera.view_proj_relative,
+                eye: camera.eye.extend(0.0),
+                base_color_roughness: m.base_color.extend(m.roughness),
+                metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
+                draw: UVec4::new(draw.first_index, draw.vertex_offset as u32, 0, 0),
+            };
+            // SAFETY: recording state; the set is the scene's, alive as long as it is.
+            unsafe {
+                if let Some((materials, maps)) = textured {
+                    push.metallic.y = maps.normal_scale;
+                    push.draw.z = maps.present;
+                    push.draw.w = maps.channels;
+                    d.cmd_bind_descriptor_sets(
+                        ctx.cmd,
+                        vk::PipelineBindPoint::GRAPHICS,
+                        used.layout.layout,
+                        1,
+                        &[materials.sets[maps.set]],
+                        &[],
+                    );
+                }
                 d.cmd_push_constants(
                     ctx.cmd,
-                    pipeline.layout.layout,
+                    used.layout.layout,
                     vk::ShaderStageFlags::ALL_GRAPHICS,
                     0,
                     bytemuck::bytes_of(&push),
                 );
-                d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, 0);
+                d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, draw.instance);
             }
-            d.cmd_end_rendering(ctx.cmd);
         }
+        // SAFETY: recording state; ends the rendering begun above.
+        unsafe { d.cmd_end_rendering(ctx.cmd) };
         Ok(())
     });
     gbuffer

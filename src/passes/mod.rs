@@ -28,6 +28,7 @@ pub const NORMAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 pub const MATERIAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 /// The terminator offset (three f16) and the octahedral geometric normal (two u8), as integers.
 pub const SURFACE_FORMAT: vk::Format = vk::Format::R16G16B16A16_UINT;
+pub const EMISSION_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 pub const RADIANCE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const DISPLAY_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
@@ -42,6 +43,9 @@ pub struct GBuffer {
     /// normal (an unsigned-integer image: read it with a `usampler2D` and gbuffer.glsl's
     /// `gbuffer_terminator_offset` and `gbuffer_geometric_normal`).
     pub surface: Handle<ImageKind>,
+    /// Emitted radiance and ambient occlusion (gbuffer.glsl), in scenes with material textures
+    /// or emission only.
+    pub emission: Option<Handle<ImageKind>>,
 }
 
 /// Every pipeline, built once per device and shared by all frames.
@@ -52,6 +56,9 @@ pub struct Pipelines {
     pub tonemap: ComputePipeline,
     pub debug_view: debug_view::DebugPipelines,
     pub accumulate: ComputePipeline,
+    /// Compose with the G-buffer's emission (shadowed, unshadowed): made for the first scene
+    /// that has it (`prepare_emissive`).
+    compose_emissive: std::sync::OnceLock<[ComputePipeline; 2]>,
 }
 
 impl Pipelines {
@@ -63,7 +70,21 @@ impl Pipelines {
             tonemap: tonemap::pipeline(ctx)?,
             debug_view: debug_view::pipelines(ctx)?,
             accumulate: accumulate::pipeline(ctx)?,
+            compose_emissive: std::sync::OnceLock::new(),
         })
+    }
+
+    /// Makes the compose pipelines that add the G-buffer's emission, once.
+    pub fn prepare_emissive(&self, ctx: &Arc<GpuContext>) -> GpuResult<()> {
+        crate::vk::get_or_make(&self.compose_emissive, || {
+            Ok([compose::emissive_pipeline(ctx, true)?, compose::emissive_pipeline(ctx, false)?])
+        })
+        .map(|_| ())
+    }
+
+    /// The emissive compose pipeline (`prepare_emissive` made it).
+    pub fn compose_emissive(&self, shadowed: bool) -> &ComputePipeline {
+        &self.compose_emissive.get().expect("prepare_emissive runs for scenes with emission")[usize::from(!shadowed)]
     }
 }
 

@@ -23,9 +23,9 @@ pub enum SceneError {
     /// A mesh file named by an object could not be read.
     #[error("{file}: {key_path}: cannot read \"{mesh}\": {}", IoReason(error))]
     MeshRead { file: String, key_path: String, mesh: String, error: io::Error },
-    /// A mesh file was read but is not a usable OBJ file.
-    #[error("{file}: {key_path}: \"{mesh}\" is not a valid OBJ file: {reason}")]
-    MeshParse { file: String, key_path: String, mesh: String, reason: String },
+    /// A mesh file was read but is not a usable file of its kind (`format`: OBJ, glTF).
+    #[error("{file}: {key_path}: \"{mesh}\" is not a valid {format} file: {reason}")]
+    MeshParse { file: String, key_path: String, mesh: String, format: &'static str, reason: String },
 }
 
 /// `key_path: ` when there is one, nothing otherwise.

@@ -10,14 +10,16 @@ use serde::Deserialize;
 
 use super::error::{short_number, shorten, SceneError, MAX_MESSAGE_CHARS};
 use super::mesh::{self, ObjectMesh};
-use super::{obj, shapes, Camera, Light, LoadStats, Material, Scene};
+use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, Scene};
 use crate::config::ShadowBackend;
 
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct SceneFile {
     image: Option<ImageDesc>,
-    camera: Option<CameraDesc>,
+    /// A glTF file whose whole default scene (meshes, cameras, lights) joins this one.
+    scene: Option<String>,
+    camera: Option<CameraChoice>,
     #[serde(default)]
     lights: Vec<LightDesc>,
     #[serde(default)]
@@ -49,6 +51,36 @@ struct CameraDesc {
     target: Xyz,
     up: Option<Xyz>,
     vfov_deg: f64,
+}
+
+/// `[camera]`, or `camera = N`: the glTF `scene`'s camera N.
+enum CameraChoice {
+    Table(CameraDesc),
+    Index(u64),
+}
+
+impl<'de> Deserialize<'de> for CameraChoice {
+    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
+        struct ChoiceVisitor;
+        impl<'de> Visitor<'de> for ChoiceVisitor {
+            type Value = CameraChoice;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a [camera] table, or the index of a camera of `scene`")
+            }
+            fn visit_u64<E: de::Error>(self, n: u64) -> Result<CameraChoice, E> {
+                Ok(CameraChoice::Index(n))
+            }
+            fn visit_i64<E: de::Error>(self, n: i64) -> Result<CameraChoice, E> {
+                u64::try_from(n)
+                    .map(CameraChoice::Index)
+                    .map_err(|_| E::custom(format!("camera index {n} is negative")))
+            }
+            fn visit_map<A: de::MapAccess<'de>>(self, map: A) -> Result<CameraChoice, A::Error> {
+                CameraDesc::deserialize(de::value::MapAccessDeserializer::new(map)).map(CameraChoice::Table)
+            }
+        }
+        deserializer.deserialize_any(ChoiceVisitor)
+    }
 }
 
 #[derive(Clone, Copy, Deserialize, PartialEq)]
@@ -202,6 +234,11 @@ const DEFAULT_PLANE_SEGMENTS: u32 = 1;
 const DEFAULT_SIZE: f64 = 1.0;
 const DEFAULT_RADIUS: f64 = 0.5;
 
+/// Whether `name` has a glTF extension (.gltf, .glb; any case).
+fn is_gltf(name: &str) -> bool {
+    Path::new(name).extension().is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
+}
+
 /// `[1, 2.5, 1e300]`: numbers as `short_number` writes them.
 fn short_numbers(values: &[f64]) -> String {
     let parts: Vec<String> = values.iter().map(|&v| short_number(v)).collect();
@@ -212,33 +249,51 @@ fn short_numbers(values: &[f64]) -> String {
 /// `base_dir`.
 pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Scene, SceneError> {
     let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::from_toml(source_name, text, &e))?;
-    let check = Check { file: source_name };
+    let check = Check { file: source_name, textures: Default::default() };
 
     let image_size = file.image.map(|image| check.image(&image)).transpose()?;
-    let camera = match &file.camera {
-        Some(camera) => check.camera(camera)?,
-        None => return Err(check.fail("camera", "missing [camera] table; every scene needs one")),
+    let whole = match &file.scene {
+        Some(scene) => Some(check.whole_scene(scene, base_dir)?),
+        None => None,
     };
-    let lights = file
+    let camera = check.camera_choice(file.camera.as_ref(), whole.as_ref().map(|(s, g)| (s.as_str(), g)))?;
+    let mut lights = file
         .lights
         .iter()
         .enumerate()
         .map(|(i, light)| check.light(&format!("lights[{i}]"), light))
         .collect::<Result<Vec<_>, _>>()?;
+    // The glTF scene's lights come after the file's, so `lights[i]` keeps naming the same light.
+    let gltf_lights = whole.as_ref().map_or(0, |(_, g)| g.lights.len());
+    lights.extend(whole.iter().flat_map(|(_, g)| g.lights.iter().copied()));
 
     let mut meshes = Vec::new();
     let mut stats = LoadStats::default();
     let mut sources = Vec::new();
-    for (i, object) in file.objects.iter().enumerate() {
+    let whole_object = whole.map(|(source, loaded)| ("scene".to_owned(), None, check.gltf_object(source, loaded)));
+    let objects = file.objects.iter().enumerate().map(|(i, object)| {
         let path = format!("objects[{i}]");
-        let placed = check.object(&path, object, base_dir)?;
+        check.object(&path, object, base_dir).map(|placed| (path, Some(object), placed))
+    });
+    for next in whole_object.into_iter().map(Ok).chain(objects) {
+        let (path, object, placed) = next?;
         sources.extend(placed.files.iter().cloned());
         let mut dropped = LoadStats::default();
         let meshes_before = meshes.len();
-        for local in &placed.meshes {
+        let cast_shadows = object.and_then(|o| o.cast_shadows).unwrap_or(true);
+        let shared = mesh::shared_geometry(&placed.meshes, &placed.instances);
+        for (k, instance) in &placed.instances {
+            let local = &placed.meshes[*k];
             let material = placed.material.apply(local.material.unwrap_or_default());
-            let cast_shadows = object.cast_shadows.unwrap_or(true);
-            meshes.extend(mesh::place(&path, local, &placed.transform, material, cast_shadows, &mut dropped));
+            let to_world = placed.transform * *instance;
+            let mut placed_mesh = mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped);
+            if let (Some(m), Some(geometry)) = (&mut placed_mesh, &shared[*k]) {
+                // A mirroring instance would need the other winding: it stays a copy.
+                if to_world.determinant() > 0.0 {
+                    m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
+                }
+            }
+            meshes.extend(placed_mesh);
         }
         let source = &placed.source;
         if dropped.degenerate_triangles + dropped.non_finite_triangles > 0 {
@@ -260,12 +315,21 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.non_finite_triangles += dropped.non_finite_triangles;
         stats.short_faces += placed.short_faces;
     }
+    sources.extend(check.textures.borrow().files().iter().cloned());
+    if !meshes.is_empty() && lights.is_empty() {
+        // Nothing else lights a surface yet (no environment light): say why the picture is
+        // black before the user looks for a bug.
+        log::warn!(
+            "{source_name}: the scene has objects but no lights; they are unlit (only the background and emission show)"
+        );
+    }
     let shadow_backend = file.render.and_then(|r| r.shadow_backend);
     let light_shadows = file
         .lights
         .iter()
         .enumerate()
         .map(|(i, light)| check.shadows(&format!("lights[{i}]"), light))
+        .chain((0..gltf_lights).map(|_| Ok(Default::default())))
         .collect::<Result<Vec<_>, _>>()?;
     let lighting = super::environment::check(
         file.background.as_ref(),
@@ -281,7 +345,10 @@ struct PlacedObject {
     /// What the object is made from, for messages: the mesh path or the shape name.
     source: String,
     meshes: Vec<ObjectMesh>,
-    /// The files read for it: the OBJ file and the material libraries it names.
+    /// Where each mesh is drawn, in the object's space: one identity per mesh of an OBJ file
+    /// or shape; a glTF file's nodes, each naming the mesh it draws.
+    instances: Vec<(usize, DMat4)>,
+    /// The files read for it: the OBJ or glTF file, its material libraries or buffers.
     files: Vec<PathBuf>,
     /// OBJ faces with one or two corners, left out.
     short_faces: usize,
@@ -309,6 +376,8 @@ impl MaterialOverride {
 /// Validation helpers that know the file name for their errors.
 struct Check<'a> {
     file: &'a str,
+    /// Every texture the scene's materials name, read once.
+    textures: std::cell::RefCell<super::texture::TextureCache>,
 }
 
 impl Check<'_> {
@@ -488,6 +557,13 @@ impl Check<'_> {
                 if let Some((key, _)) = shape_keys.iter().find(|(_, present)| *present) {
                     return Err(self.fail(&format!("{path}.{key}"), "only built-in shapes take it"));
                 }
+                if is_gltf(mesh) {
+                    let loaded = self.gltf_file(&format!("{path}.mesh"), mesh, base_dir)?;
+                    let mut placed = self.gltf_object(mesh.clone(), loaded);
+                    placed.transform = self.transform(path, object)?;
+                    placed.material = self.material(&format!("{path}.material"), object.material.as_ref())?;
+                    return Ok(placed);
+                }
                 (mesh.clone(), self.mesh_file(path, mesh, base_dir)?)
             }
             (None, Some(shape)) => {
@@ -502,6 +578,7 @@ impl Check<'_> {
         files.extend(loaded.material_files);
         Ok(PlacedObject {
             source,
+            instances: (0..loaded.meshes.len()).map(|k| (k, DMat4::IDENTITY)).collect(),
             meshes: loaded.meshes,
             files,
             short_faces: loaded.short_faces,
@@ -510,21 +587,98 @@ impl Check<'_> {
         })
     }
 
+    /// A loaded glTF file as an object at the identity, with no material override.
+    fn gltf_object(&self, source: String, loaded: gltf::LoadedGltf) -> PlacedObject {
+        PlacedObject {
+            source,
+            instances: loaded.instances.iter().map(|i| (i.primitive, i.transform)).collect(),
+            meshes: loaded.primitives,
+            files: loaded.files,
+            short_faces: 0,
+            transform: DMat4::IDENTITY,
+            material: MaterialOverride { base_color: None, roughness: None, metallic: None },
+        }
+    }
+
+    /// Loads `name` (a .gltf or .glb path from key `key_path`); the file itself heads its list
+    /// of files read.
+    fn gltf_file(&self, key_path: &str, name: &str, base_dir: &Path) -> Result<gltf::LoadedGltf, SceneError> {
+        let file = base_dir.join(name);
+        let mesh = shorten(name, MAX_MESSAGE_CHARS);
+        let (file_name, key_path) = (self.file.to_owned(), key_path.to_owned());
+        let mut loaded = gltf::load(&file, &mut self.textures.borrow_mut()).map_err(|error| match error {
+            gltf::GltfError::Read(error) => SceneError::MeshRead { file: file_name, key_path, mesh, error },
+            gltf::GltfError::Parse(reason) => {
+                let reason = shorten(&reason, MAX_MESSAGE_CHARS);
+                SceneError::MeshParse { file: file_name, key_path, mesh, format: "glTF", reason }
+            }
+        })?;
+        loaded.files.insert(0, file);
+        Ok(loaded)
+    }
+
+    /// The top-level `scene`: a glTF file, loaded whole.
+    fn whole_scene(&self, scene: &str, base_dir: &Path) -> Result<(String, gltf::LoadedGltf), SceneError> {
+        if !is_gltf(scene) {
+            let scene = shorten(scene, MAX_MESSAGE_CHARS);
+            return Err(self.fail("scene", format!("{scene:?} is not a glTF file (.gltf, .glb)")));
+        }
+        Ok((scene.to_owned(), self.gltf_file("scene", scene, base_dir)?))
+    }
+
+    /// `[camera]` wins; `camera = N` picks camera N of the glTF `scene`; without either, that
+    /// scene's first camera.
+    fn camera_choice(
+        &self,
+        choice: Option<&CameraChoice>,
+        whole: Option<(&str, &gltf::LoadedGltf)>,
+    ) -> Result<Camera, SceneError> {
+        let cameras = whole.map(|(name, g)| (shorten(name, MAX_MESSAGE_CHARS), &g.cameras));
+        match (choice, cameras) {
+            (Some(CameraChoice::Table(camera)), _) => self.camera(camera),
+            (Some(CameraChoice::Index(n)), Some((name, cameras))) => {
+                let found = usize::try_from(*n).ok().and_then(|n| cameras.get(n)).copied().flatten();
+                found.ok_or_else(|| {
+                    let placed = cameras.iter().filter(|c| c.is_some()).count();
+                    let message = format!(
+                        "{name:?} has no perspective camera {n} placed by a node (it has {} cameras, {placed} usable)",
+                        cameras.len()
+                    );
+                    self.fail("camera", message)
+                })
+            }
+            (Some(CameraChoice::Index(_)), None) => {
+                Err(self
+                    .fail("camera", "a camera index picks a camera of `scene`; without `scene` give a [camera] table"))
+            }
+            (None, Some((name, cameras))) => cameras.iter().flatten().next().copied().ok_or_else(|| {
+                self.fail("camera", format!("missing [camera] table, and {name:?} places no perspective camera"))
+            }),
+            (None, None) => Err(self.fail("camera", "missing [camera] table; every scene needs one")),
+        }
+    }
+
     fn mesh_file(&self, path: &str, mesh: &str, base_dir: &Path) -> Result<obj::LoadedObj, SceneError> {
         let key_path = format!("{path}.mesh");
         let file = base_dir.join(mesh);
         let mesh = &shorten(mesh, MAX_MESSAGE_CHARS);
         if !file.extension().is_some_and(|e| e.eq_ignore_ascii_case("obj")) {
-            let message = format!("{mesh:?} is not an OBJ file: only .obj meshes can be loaded");
+            let message = format!(
+                "{mesh:?} is not an OBJ file (.obj) or a glTF file (.gltf, .glb), the mesh formats umbra reads"
+            );
             return Err(self.fail(&key_path, message));
         }
-        obj::load(&file).map_err(|error| match error {
+        obj::load(&file, &mut self.textures.borrow_mut()).map_err(|error| match error {
             obj::ObjError::Read(error) => {
                 SceneError::MeshRead { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), error }
             }
-            obj::ObjError::Parse(reason) => {
-                SceneError::MeshParse { file: self.file.to_owned(), key_path, mesh: mesh.to_owned(), reason }
-            }
+            obj::ObjError::Parse(reason) => SceneError::MeshParse {
+                file: self.file.to_owned(),
+                key_path,
+                mesh: mesh.to_owned(),
+                format: "OBJ",
+                reason,
+            },
         })
     }
 

@@ -2,9 +2,12 @@
 //! positions in f64, normals by the inverse-transpose, keeps front faces counter-clockwise under
 //! mirroring, and drops triangles the renderer cannot use, counting them.
 
-use glam::{DMat3, DMat4, DVec3, Vec3};
+use std::sync::Arc;
 
-use super::{LoadStats, Material, Mesh};
+use glam::{DMat3, DMat4, DVec3, Vec2, Vec3, Vec4};
+
+use super::texture::MaterialTextures;
+use super::{InstanceGeometry, LoadStats, Material, Mesh, MeshSurface};
 
 /// A mesh as loaded, before placement. Without `normals` it is shaded flat.
 #[derive(Clone, Debug)]
@@ -16,6 +19,18 @@ pub(super) struct ObjectMesh {
     pub indices: Vec<u32>,
     /// From the MTL file, before the scene's overrides.
     pub material: Option<Material>,
+    pub surface: ObjectSurface,
+}
+
+/// What a textured mesh has beside its geometry; empty (the default) for a mesh without
+/// textures, whatever texture coordinates its file had.
+#[derive(Clone, Debug, Default)]
+pub(super) struct ObjectSurface {
+    /// One per position.
+    pub uvs: Option<Vec<Vec2>>,
+    /// One per position: the tangent (object space) and the bitangent's sign (w).
+    pub tangents: Option<Vec<Vec4>>,
+    pub textures: Option<Arc<MaterialTextures>>,
 }
 
 /// Below this sine of the angle between two edges a triangle has no usable plane: its face
@@ -28,16 +43,19 @@ struct Builder {
     positions: Vec<DVec3>,
     normals: Vec<Vec3>,
     indices: Vec<u32>,
+    /// The source vertex of each output vertex (for its texture coordinate and tangent).
+    sources: Vec<usize>,
     /// Output index of each source vertex already emitted as a smooth vertex.
     smooth_slot: Vec<Option<u32>>,
 }
 
 impl Builder {
-    fn push_vertex(&mut self, position: DVec3, normal: Vec3) -> u32 {
+    fn push_vertex(&mut self, source: usize, position: DVec3, normal: Vec3) -> u32 {
         // Meshes over 4G vertices are far beyond what the loader is asked to handle.
         let index = self.positions.len() as u32;
         self.positions.push(position);
         self.normals.push(normal);
+        self.sources.push(source);
         index
     }
 
@@ -45,7 +63,7 @@ impl Builder {
         if let Some(index) = self.smooth_slot[source] {
             return index;
         }
-        let index = self.push_vertex(position, normal);
+        let index = self.push_vertex(source, position, normal);
         self.smooth_slot[source] = Some(index);
         index
     }
@@ -73,6 +91,7 @@ pub(super) fn place(
         positions: Vec::new(),
         normals: Vec::new(),
         indices: Vec::with_capacity(mesh.indices.len()),
+        sources: Vec::new(),
         smooth_slot: vec![None; mesh.positions.len()],
     };
     for tri in mesh.indices.chunks_exact(3) {
@@ -107,8 +126,8 @@ pub(super) fn place(
             }
             // Flat, or a smooth mesh with an unusable normal here: use the face's own.
             None => {
-                for corner in &corners {
-                    let v = out.push_vertex(*corner, face_normal.as_vec3());
+                for (&source, corner) in tri.iter().zip(&corners) {
+                    let v = out.push_vertex(source, *corner, face_normal.as_vec3());
                     out.indices.push(v);
                 }
             }
@@ -118,6 +137,7 @@ pub(super) fn place(
     if out.indices.is_empty() {
         return None;
     }
+    let surface = place_surface(&mesh.surface, &out.sources, object_to_world, mirrored);
     Some(Mesh {
         name: mesh.name.clone(),
         object: object.to_owned(),
@@ -126,7 +146,63 @@ pub(super) fn place(
         indices: out.indices,
         material,
         cast_shadows,
+        instance: None,
+        surface,
     })
+}
+
+/// The placed mesh's texture coordinates and world-space tangents, where it has textures and
+/// texture coordinates; tangents only with a normal map.
+fn place_surface(surface: &ObjectSurface, sources: &[usize], to_world: &DMat4, mirrored: bool) -> Option<MeshSurface> {
+    let textures = surface.textures.clone()?;
+    let uvs = surface.uvs.as_ref()?;
+    let uvs: Vec<Vec2> = sources.iter().map(|&s| uvs.get(s).copied().unwrap_or(Vec2::ZERO)).collect();
+    let linear = DMat3::from_mat4(*to_world);
+    // A mirror turns the bitangent (cross(n, t) * w) around: flip w to keep it.
+    let sign = if mirrored { -1.0 } else { 1.0 };
+    let tangents = match (&surface.tangents, &textures.normal) {
+        (Some(tangents), Some(_)) => sources
+            .iter()
+            .map(|&s| {
+                let t = tangents.get(s).copied().unwrap_or(Vec4::X);
+                let world = (linear * t.truncate().as_dvec3()).try_normalize().unwrap_or(DVec3::X).as_vec3();
+                world.extend(if t.w < 0.0 { -sign } else { sign })
+            })
+            .collect(),
+        _ => Vec::new(),
+    };
+    Some(MeshSurface { uvs, tangents, textures })
+}
+
+/// The geometry of each mesh that more than one instance draws, placed at the identity once
+/// (`None` for a mesh drawn once, or with no usable triangle).
+pub(super) fn shared_geometry(
+    meshes: &[ObjectMesh],
+    instances: &[(usize, DMat4)],
+) -> Vec<Option<Arc<InstanceGeometry>>> {
+    let mut uses = vec![0usize; meshes.len()];
+    for (k, _) in instances {
+        uses[*k] += 1;
+    }
+    meshes
+        .iter()
+        .zip(uses)
+        .map(|(mesh, uses)| {
+            if uses < 2 {
+                return None;
+            }
+            let mut stats = LoadStats::default();
+            let placed = place("", mesh, &DMat4::IDENTITY, Material::default(), true, &mut stats)?;
+            let (uvs, tangents) = placed.surface.map_or((Vec::new(), Vec::new()), |s| (s.uvs, s.tangents));
+            Some(Arc::new(InstanceGeometry {
+                positions: placed.positions.iter().map(|p| p.as_vec3()).collect(),
+                normals: placed.normals,
+                indices: placed.indices,
+                uvs,
+                tangents,
+            }))
+        })
+        .collect()
 }
 
 /// Unit normal of a counter-clockwise triangle, or `None` when it has no area (repeated
@@ -160,6 +236,7 @@ mod tests {
             normals: Some(vec![Vec3::Z; 4]),
             indices: vec![0, 1, 2, 0, 2, 3],
             material: None,
+            surface: Default::default(),
         }
     }
 

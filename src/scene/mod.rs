@@ -5,20 +5,26 @@ pub mod bvh;
 mod environment;
 mod error;
 mod file;
+mod gltf;
 mod input;
 mod local;
 mod mesh;
 mod obj;
 mod shapes;
+mod tangents;
+mod texture;
 
 use std::path::{Path, PathBuf};
+use std::sync::Arc;
 
-use glam::{DVec3, Vec3};
+use glam::{DMat4, DVec3, Vec3};
 
 pub use environment::{AmbientOcclusion, Environment, SceneLighting, DEFAULT_BACKGROUND};
 pub use error::SceneError;
+pub use gltf::LUMENS_PER_WATT;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 pub use local::MAX_LOCAL_DISTANCE;
+pub use texture::{mip_chain as texture_mip_chain, srgb_to_linear, AlphaMask, ChannelMap, MaterialTextures, Texture};
 
 /// Pinhole camera. `vfov_deg` is the full vertical field of view. Points are in f64, like every
 /// world position (see `Mesh`); the renderer rounds them to f32 only in its scene-local frame.
@@ -98,6 +104,44 @@ pub struct Mesh {
     pub indices: Vec<u32>,
     pub material: Material,
     pub cast_shadows: bool,
+    /// Set when several nodes of a glTF file draw this mesh: the renderer uploads the shared
+    /// geometry once and draws it per instance. Everything else (the BVH, shadow volumes, ray
+    /// query) uses the world-space copy above.
+    pub instance: Option<Instance>,
+    /// Texture coordinates, tangents and textures, for a mesh whose material has textures.
+    pub surface: Option<MeshSurface>,
+}
+
+/// Per vertex (parallel to `Mesh::positions`): texture coordinates, and with a normal map the
+/// world-space tangent with the bitangent's sign in w (MikkTSpace's, or the glTF file's); and the
+/// textures they map.
+#[derive(Clone, Debug)]
+pub struct MeshSurface {
+    pub uvs: Vec<glam::Vec2>,
+    /// Empty without a normal map.
+    pub tangents: Vec<glam::Vec4>,
+    pub textures: Arc<MaterialTextures>,
+}
+
+/// One use of geometry that several meshes share: the geometry in its own space, and where
+/// this use puts it (object to world, not mirroring).
+#[derive(Clone, Debug)]
+pub struct Instance {
+    pub geometry: Arc<InstanceGeometry>,
+    pub to_world: DMat4,
+}
+
+/// Shared geometry in its own space, already checked as a placed mesh is (the same triangles,
+/// vertices and normals `mesh::place` gives at the identity).
+#[derive(Debug)]
+pub struct InstanceGeometry {
+    pub positions: Vec<Vec3>,
+    pub normals: Vec<Vec3>,
+    pub indices: Vec<u32>,
+    /// A textured mesh's texture coordinates and own-space tangents (`MeshSurface`'s); empty
+    /// otherwise (tangents also without a normal map).
+    pub uvs: Vec<glam::Vec2>,
+    pub tangents: Vec<glam::Vec4>,
 }
 
 impl Mesh {
@@ -187,6 +231,9 @@ impl Scene {
         for mesh in &mut scene.meshes {
             for p in &mut mesh.positions {
                 *p = shift(*p);
+            }
+            if let Some(instance) = &mut mesh.instance {
+                instance.to_world = DMat4::from_translation(offset) * instance.to_world;
             }
         }
         scene

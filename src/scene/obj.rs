@@ -6,11 +6,14 @@ use std::cell::RefCell;
 use std::io::{self, BufRead, Read};
 use std::path::{Path, PathBuf};
 
-use glam::{DVec3, Vec3};
+use std::sync::Arc;
+
+use glam::{DVec3, Vec2, Vec3};
 
 use super::input;
-use super::mesh::ObjectMesh;
-use super::Material;
+use super::mesh::{ObjectMesh, ObjectSurface};
+use super::texture::{ChannelMap, MaterialTextures, TextureCache};
+use super::{tangents, Material};
 
 /// Why an OBJ file could not be used.
 #[derive(Debug)]
@@ -31,8 +34,9 @@ pub(super) struct LoadedObj {
 
 /// Loads every model of the OBJ file at `path` (one `ObjectMesh` per model), with the materials
 /// of its MTL libraries looked up next to it. A missing or broken MTL only costs the materials.
-pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
+pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj, ObjError> {
     let bytes = input::read(path).map_err(ObjError::Read)?;
+    check_is_obj(&bytes).map_err(ObjError::Parse)?;
     check_indices(&bytes).map_err(ObjError::Parse)?;
     let short_faces = count_short_faces(&bytes);
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
@@ -51,6 +55,17 @@ pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
     });
 
     let file_name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
+    // Texture paths are relative to the material library (the first one, when there are several).
+    let texture_dir = material_files.borrow().first().and_then(|m| m.parent().map(Path::to_path_buf));
+    let texture_dir = texture_dir.unwrap_or_else(|| dir.to_path_buf());
+    let material_textures: Vec<Option<Arc<MaterialTextures>>> = materials
+        .iter()
+        .map(|m| {
+            let label = format!("{file_name}: material {:?}", m.name);
+            let maps = texture_maps(m, &texture_dir, textures, &label);
+            (!maps.is_empty()).then(|| Arc::new(maps))
+        })
+        .collect();
     let meshes = models
         .into_iter()
         .map(|model| {
@@ -58,16 +73,73 @@ pub(super) fn load(path: &Path) -> Result<LoadedObj, ObjError> {
             let positions = to_dvec3(&mesh.positions);
             // tobj leaves normals short when only some faces have `vn`; shade such a mesh flat.
             let normals = Some(to_vec3(&mesh.normals)).filter(|n| n.len() == positions.len());
-            ObjectMesh {
+            let mtl = mesh.material_id.and_then(|id| materials.get(id));
+            let textures = mesh.material_id.and_then(|id| material_textures.get(id).cloned().flatten());
+            // OBJ's v runs up from the image's bottom; umbra samples with glTF's (from the top).
+            let uvs: Vec<Vec2> = mesh.texcoords.chunks_exact(2).map(|t| Vec2::new(t[0], 1.0 - t[1])).collect();
+            // Emission from Ke alone reads no texel: zero coordinates do where the file has none.
+            let constant_only = textures.as_ref().is_some_and(|t| {
+                t.base_color.is_none()
+                    && t.roughness.is_none()
+                    && t.metallic.is_none()
+                    && t.normal.is_none()
+                    && t.emission_map.is_none()
+            });
+            let uvs =
+                if uvs.len() != positions.len() && constant_only { vec![Vec2::ZERO; positions.len()] } else { uvs };
+            let surface = match textures {
+                Some(textures) if uvs.len() == positions.len() => {
+                    ObjectSurface { uvs: Some(uvs), tangents: None, textures: Some(textures) }
+                }
+                _ => ObjectSurface::default(),
+            };
+            let mut object_mesh = ObjectMesh {
                 name: format!("{file_name}/{}", model.name),
                 positions,
                 normals,
                 indices: mesh.indices,
-                material: mesh.material_id.and_then(|id| materials.get(id)).map(convert_material),
+                material: mtl.map(|m| textured_constants(convert_material(m), surface.textures.as_deref())),
+                surface,
+            };
+            let normal_map = object_mesh.surface.textures.as_ref().is_some_and(|t| t.normal.is_some());
+            if normal_map && !tangents::generate(&mut object_mesh) {
+                log::warn!(
+                    "{}: no tangent frame for its normal map (degenerate texture coordinates?)",
+                    object_mesh.name
+                );
             }
+            object_mesh
         })
         .collect();
     Ok(LoadedObj { meshes, short_faces, material_files: material_files.into_inner() })
+}
+
+/// Statements that make a file an OBJ file; tobj skips any other line without a word, so a text
+/// file (or a renamed PNG) named `.obj` would otherwise load as an empty mesh.
+const OBJ_KEYWORDS: &[&[u8]] =
+    &[b"v", b"vt", b"vn", b"vp", b"f", b"l", b"p", b"o", b"g", b"s", b"usemtl", b"mtllib", b"cstype", b"curv", b"surf"];
+
+/// Refuses content that is not OBJ text: binary data (a NUL byte), or lines none of which is an
+/// OBJ statement. A file of comments and blank lines only is an empty OBJ, not a wrong one.
+fn check_is_obj(bytes: &[u8]) -> Result<(), String> {
+    if bytes.contains(&0) {
+        return Err("binary data (a NUL byte), not OBJ text".to_owned());
+    }
+    let mut content = None;
+    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
+        let Some(first) = line.split(|b| b.is_ascii_whitespace()).find(|w| !w.is_empty()) else { continue };
+        if first.starts_with(b"#") {
+            continue;
+        }
+        if OBJ_KEYWORDS.contains(&first) {
+            return Ok(());
+        }
+        content.get_or_insert(n + 1);
+    }
+    match content {
+        Some(line) => Err(format!("line {line}: no OBJ statement (v, f, o, ...) anywhere in the file")),
+        None => Ok(()),
+    }
 }
 
 /// Refuses a face corner whose index names no vertex, texture coordinate or normal: a positive
@@ -207,6 +279,85 @@ fn convert_material(mtl: &tobj::Material) -> Material {
     Material { base_color, roughness, metallic }
 }
 
+/// An MTL texture statement's file and its `-bm` scale: tobj keeps the options in front of the
+/// file name (`-bm 0.5 -clamp on normal.png`). Options take the arguments the MTL format gives
+/// them; the file name is what follows (it may contain spaces).
+fn texture_statement(value: &str) -> (String, Option<f32>) {
+    let words: Vec<&str> = value.split_whitespace().collect();
+    let mut bump = None;
+    let mut at = 0;
+    while at < words.len() && words[at].starts_with('-') {
+        let arguments = match words[at] {
+            "-o" | "-s" | "-t" => words[at + 1..].iter().take(3).take_while(|w| w.parse::<f32>().is_ok()).count(),
+            "-mm" => 2,
+            "-bm" => {
+                bump = words.get(at + 1).and_then(|w| w.parse::<f32>().ok());
+                1
+            }
+            _ => 1, // -blendu, -blendv, -clamp, -cc, -imfchan, -texres, -boost, -type
+        };
+        at += 1 + arguments;
+    }
+    (words.get(at..).map_or_else(String::new, |rest| rest.join(" ")), bump)
+}
+
+/// The texture maps a material names: `map_Kd` (sRGB), `map_Pr` and `map_Pm` (linear, red
+/// channel), `map_RMA` (R roughness, G metalness, B occlusion), `Ke`/`map_Ke` emission, and the normal
+/// map from `norm`, `map_Kn` or `map_bump`/`bump` with its `-bm` scale (tangent space, OpenGL
+/// convention).
+fn texture_maps(mtl: &tobj::Material, dir: &Path, cache: &mut TextureCache, label: &str) -> MaterialTextures {
+    let param = |key: &str| mtl.unknown_param.get(key).map(String::as_str).filter(|v| !v.trim().is_empty());
+    let mut load = |value: Option<&str>, srgb: bool| {
+        let (file, bump) = texture_statement(value?);
+        if file.is_empty() {
+            return None;
+        }
+        cache.get(&dir.join(&file), &file, srgb, label).map(|t| (t, bump))
+    };
+    let base_color = load(mtl.diffuse_texture.as_deref(), true).map(|(t, _)| t);
+    let rma = load(param("map_RMA"), false).map(|(t, _)| t);
+    let roughness = load(param("map_Pr"), false).map(|(texture, _)| ChannelMap { texture, channel: 0 });
+    let metallic = load(param("map_Pm"), false).map(|(texture, _)| ChannelMap { texture, channel: 0 });
+    let normal_statement = param("norm").or(param("map_Kn")).or(mtl.normal_texture.as_deref());
+    let normal = load(normal_statement, false).map(|(t, bump)| (t, bump.unwrap_or(1.0)));
+    let emission_map = load(param("map_Ke"), true).map(|(t, _)| t);
+    // Ke multiplies map_Ke; a map alone emits as it is.
+    let emission = match (mtl.emissive.map(Vec3::from).filter(|e| e.is_finite()), &emission_map) {
+        (Some(ke), _) => ke.max(Vec3::ZERO),
+        (None, Some(_)) => Vec3::ONE,
+        (None, None) => Vec3::ZERO,
+    };
+    let occlusion = rma.clone().map(|texture| (ChannelMap { texture, channel: 2 }, 1.0));
+    MaterialTextures {
+        alpha_mask: None,
+        emission,
+        emission_map,
+        occlusion,
+        base_color,
+        roughness: roughness.or_else(|| rma.clone().map(|texture| ChannelMap { texture, channel: 0 })),
+        metallic: metallic.or_else(|| rma.map(|texture| ChannelMap { texture, channel: 1 })),
+        normal,
+    }
+}
+
+/// A map replaces its MTL constant (a `Kd` beside `map_Kd` is usually the exporter's default
+/// grey): the constant becomes 1, which the texture multiplies. A map that failed to load is
+/// not a map, so the constant stays.
+fn textured_constants(mut material: Material, textures: Option<&MaterialTextures>) -> Material {
+    if let Some(t) = textures {
+        if t.base_color.is_some() {
+            material.base_color = Vec3::ONE;
+        }
+        if t.roughness.is_some() {
+            material.roughness = 1.0;
+        }
+        if t.metallic.is_some() {
+            material.metallic = 1.0;
+        }
+    }
+    material
+}
+
 /// An in-memory `BufRead` that counts the lines handed out, so a parse error can name its line.
 struct LineCounter<'a> {
     rest: &'a [u8],
@@ -263,6 +414,17 @@ mod tests {
         let past = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 18446744073709551\n";
         assert!(check_indices(past).unwrap_err().starts_with("line 4: f index 18446744073709551 names no vertex"));
         assert!(check_indices(b"v 0 0 0\nf 0 1 1\n").unwrap_err().contains("index 0 names no vertex"));
+    }
+
+    #[test]
+    fn text_and_binary_that_are_not_obj_are_refused() {
+        assert_eq!(check_is_obj(b"# only a comment\n\n"), Ok(()));
+        assert_eq!(check_is_obj(b"v 0 0 0\nwhatever\n"), Ok(()));
+        assert_eq!(
+            check_is_obj(b"# notes\nhello world\nsecond line\n").unwrap_err(),
+            "line 2: no OBJ statement (v, f, o, ...) anywhere in the file"
+        );
+        assert!(check_is_obj(b"\x89PNG\r\n\x1a\n\0\0").unwrap_err().starts_with("binary data"));
     }
 
     #[test]

@@ -41,7 +41,14 @@ pub(super) fn plane(size: f64, segments: u32) -> ObjectMesh {
             indices.extend([a, b, c, a, c, d]);
         }
     }
-    ObjectMesh { name: "plane".into(), positions, normals: Some(vec![Vec3::Y; vertex_count]), indices, material: None }
+    ObjectMesh {
+        name: "plane".into(),
+        positions,
+        normals: Some(vec![Vec3::Y; vertex_count]),
+        indices,
+        material: None,
+        surface: Default::default(),
+    }
 }
 
 /// Cube of edge `size`; each face has its own four vertices so its normals stay sharp.
@@ -67,7 +74,14 @@ pub(super) fn cube(size: f64) -> ObjectMesh {
         }
         indices.extend([0, 1, 2, 0, 2, 3].map(|i| base + i));
     }
-    ObjectMesh { name: "cube".into(), positions, normals: Some(normals), indices, material: None }
+    ObjectMesh {
+        name: "cube".into(),
+        positions,
+        normals: Some(normals),
+        indices,
+        material: None,
+        surface: Default::default(),
+    }
 }
 
 /// UV sphere with `segments` around the equator and `segments / 2` rings from pole to pole,
@@ -117,6 +131,7 @@ pub(super) fn sphere(radius: f64, segments: u32) -> ObjectMesh {
         normals: Some(normals.iter().map(|n| n.as_vec3()).collect()),
         indices,
         material: None,
+        surface: Default::default(),
     }
 }
 

@@ -254,10 +254,10 @@ impl Pipelines {
                 let pipelines = crate::vk::get_or_make(&self.map, || map::pipelines(ctx))?;
                 for s in plan.map.iter().chain(&plan.hybrid) {
                     let cube = matches!(scene.local_lights[s.light as usize], Light::Point { .. });
-                    pipelines.prepare_depth(if cube { 6 } else { 1 })?;
+                    pipelines.prepare_for(scene, if cube { 6 } else { 1 })?;
                 }
                 for s in &plan.cascades {
-                    pipelines.prepare_depth(s.choice.cascades.count as usize)?;
+                    pipelines.prepare_for(scene, s.choice.cascades.count as usize)?;
                 }
                 Some(pipelines)
             }

@@ -13,6 +13,8 @@ pub struct Capabilities {
     pub ray_query: bool,
     pub geometry_shader: bool,
     pub depth_clamp: bool,
+    /// Anisotropic texture filtering (material textures use it where offered).
+    pub sampler_anisotropy: bool,
     /// The chosen queue family writes timestamps.
     pub timestamps: bool,
     /// RGB32F is readable from a uniform texel buffer (the BVH's triangles take 36 bytes, not 48).
@@ -72,6 +74,7 @@ pub(crate) fn detect(instance: &ash::Instance, pd: vk::PhysicalDevice, family: O
                 && f12.buffer_device_address == vk::TRUE,
             geometry_shader: base.geometry_shader == vk::TRUE,
             depth_clamp: base.depth_clamp == vk::TRUE,
+            sampler_anisotropy: base.sampler_anisotropy == vk::TRUE,
             timestamps,
             rgb32f_texel_buffer: instance
                 .get_physical_device_format_properties(pd, vk::Format::R32G32B32_SFLOAT)

@@ -140,8 +140,11 @@ impl GpuContext {
         // cascades) in one rendering pass.
         let mut f11 = vk::PhysicalDeviceVulkan11Features::default().multiview(true);
         // Shadow volumes extrude silhouettes in a geometry shader; depth clamp where offered.
-        let core =
-            vk::PhysicalDeviceFeatures::default().geometry_shader(caps.geometry_shader).depth_clamp(caps.depth_clamp);
+        // Material textures filter anisotropically where offered.
+        let core = vk::PhysicalDeviceFeatures::default()
+            .geometry_shader(caps.geometry_shader)
+            .depth_clamp(caps.depth_clamp)
+            .sampler_anisotropy(caps.sampler_anisotropy);
         let mut accel = vk::PhysicalDeviceAccelerationStructureFeaturesKHR::default().acceleration_structure(true);
         let mut ray_query = vk::PhysicalDeviceRayQueryFeaturesKHR::default().ray_query(true);
         let priorities = [1.0];

@@ -52,6 +52,7 @@ impl PipelineLayout {
         bindings: &[(u32, DescriptorKind)],
         stages: vk::ShaderStageFlags,
         push_bytes: u32,
+        set_1: Option<vk::DescriptorSetLayout>,
     ) -> GpuResult<Self> {
         let device = &ctx.device;
         // One sampler for every layout: shared through the context's cache.
@@ -80,7 +81,7 @@ impl PipelineLayout {
                     None,
                 )
                 .vk("vkCreateDescriptorSetLayout")?;
-            let set_layouts = [set_layout];
+            let set_layouts: Vec<_> = std::iter::once(set_layout).chain(set_1).collect();
             let ranges = [vk::PushConstantRange { stage_flags: stages, offset: 0, size: push_bytes }];
             let mut info = vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts);
             if push_bytes > 0 {
@@ -130,7 +131,7 @@ impl ComputePipeline {
         push_bytes: u32,
         local_size: [u32; 2],
     ) -> GpuResult<ComputePipeline> {
-        let layout = PipelineLayout::new(ctx, bindings, vk::ShaderStageFlags::COMPUTE, push_bytes)?;
+        let layout = PipelineLayout::new(ctx, bindings, vk::ShaderStageFlags::COMPUTE, push_bytes, None)?;
         let module = shader_module(ctx, spirv)?;
         let entries = [
             vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 },
@@ -200,6 +201,9 @@ pub struct StencilState {
     pub back: vk::StencilOpState,
 }
 
+/// A vertex binding's stride and its (location, format, offset) attributes.
+pub type VertexBinding<'a> = (u32, &'a [(u32, vk::Format, u32)]);
+
 /// The rest of a graphics pipeline's state, for the pipelines that need more than
 /// `GraphicsPipelineDesc` says (shadow volumes: a geometry stage with adjacency, a two-sided
 /// stencil test, depth tested but not written). `Default` is what `GraphicsPipeline::new` builds.
@@ -224,6 +228,14 @@ pub struct GraphicsExtras<'a> {
     /// Multiview: each draw is rendered once per set bit, into that layer of the attachments
     /// (`gl_ViewIndex` tells the shaders which); 0 is plain rendering.
     pub view_mask: u32,
+    /// A second vertex binding (1), read per instance: its stride and (location, format,
+    /// offset) attributes.
+    pub instance: Option<VertexBinding<'a>>,
+    /// A third vertex binding (2), read per vertex like binding 0: stride and attributes.
+    pub per_vertex_2: Option<VertexBinding<'a>>,
+    /// Descriptor set 1's layout (owned by the caller, who keeps it alive while the pipeline
+    /// lives): material textures.
+    pub set_1: Option<vk::DescriptorSetLayout>,
 }
 
 pub struct GraphicsPipeline {
@@ -255,7 +267,8 @@ impl GraphicsPipeline {
         desc: &GraphicsPipelineDesc<'_>,
         extras: &GraphicsExtras<'_>,
     ) -> GpuResult<GraphicsPipeline> {
-        let layout = PipelineLayout::new(ctx, desc.bindings, vk::ShaderStageFlags::ALL_GRAPHICS, desc.push_bytes)?;
+        let layout =
+            PipelineLayout::new(ctx, desc.bindings, vk::ShaderStageFlags::ALL_GRAPHICS, desc.push_bytes, extras.set_1)?;
         // Every module made so far, destroyed whether or not creation succeeds.
         let mut modules: Vec<(vk::ShaderStageFlags, vk::ShaderModule)> = Vec::new();
         let destroy = |modules: &[(vk::ShaderStageFlags, vk::ShaderModule)]| {
@@ -285,21 +298,32 @@ impl GraphicsPipeline {
                 vk::PipelineShaderStageCreateInfo::default().stage(stage).module(module).name(c"main")
             })
             .collect();
-        let vb = [vk::VertexInputBindingDescription {
+        let mut vb = vec![vk::VertexInputBindingDescription {
             binding: 0,
             stride: desc.vertex_stride,
             input_rate: vk::VertexInputRate::VERTEX,
         }];
-        let attrs: Vec<_> = desc
-            .attributes
-            .iter()
-            .map(|&(location, format, offset)| vk::VertexInputAttributeDescription {
+        let attribute = |binding| {
+            move |&(location, format, offset): &(u32, vk::Format, u32)| vk::VertexInputAttributeDescription {
                 location,
-                binding: 0,
+                binding,
                 format,
                 offset,
-            })
-            .collect();
+            }
+        };
+        let mut attrs: Vec<_> = desc.attributes.iter().map(attribute(0)).collect();
+        if let Some((stride, per_instance)) = extras.instance {
+            vb.push(vk::VertexInputBindingDescription {
+                binding: 1,
+                stride,
+                input_rate: vk::VertexInputRate::INSTANCE,
+            });
+            attrs.extend(per_instance.iter().map(attribute(1)));
+        }
+        if let Some((stride, per_vertex)) = extras.per_vertex_2 {
+            vb.push(vk::VertexInputBindingDescription { binding: 2, stride, input_rate: vk::VertexInputRate::VERTEX });
+            attrs.extend(per_vertex.iter().map(attribute(2)));
+        }
         let bindings: &[_] = if attrs.is_empty() { &[] } else { &vb };
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()
             .vertex_binding_descriptions(bindings)

@@ -116,21 +116,23 @@ pub struct ImageDesc {
     /// Viewed as a 2D array (shaders declare `image2DArray` / `sampler2DArray`), even with one
     /// layer.
     pub array: bool,
+    /// Mip levels (1 but for material textures).
+    pub mips: u32,
 }
 
 impl ImageDesc {
     pub fn new(format: vk::Format, width: u32, height: u32) -> ImageDesc {
-        ImageDesc { format, width, height, layers: 1, array: false }
+        ImageDesc { format, width, height, layers: 1, array: false, mips: 1 }
     }
 
     /// A 2D array image of `layers` layers, viewed as an array.
     pub fn array(format: vk::Format, width: u32, height: u32, layers: u32) -> ImageDesc {
-        ImageDesc { format, width, height, layers: layers.max(1), array: true }
+        ImageDesc { format, width, height, layers: layers.max(1), array: true, mips: 1 }
     }
 
     /// Every mip and layer of the image, for barriers and its view.
     pub fn subresource_range(&self) -> vk::ImageSubresourceRange {
-        subresource_range(self.aspect()).layer_count(self.layers)
+        subresource_range(self.aspect()).layer_count(self.layers).level_count(self.mips)
     }
 
     pub fn extent(&self) -> vk::Extent2D {
@@ -187,7 +189,7 @@ impl Image {
             .image_type(vk::ImageType::TYPE_2D)
             .format(desc.format)
             .extent(vk::Extent3D { width: desc.width, height: desc.height, depth: 1 })
-            .mip_levels(1)
+            .mip_levels(desc.mips)
             .array_layers(desc.layers)
             .samples(vk::SampleCountFlags::TYPE_1)
             .tiling(vk::ImageTiling::OPTIMAL)

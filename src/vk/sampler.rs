@@ -18,23 +18,33 @@ use super::{GpuResult, VkContext};
 pub struct SamplerDesc {
     pub filter: vk::Filter,
     pub address: vk::SamplerAddressMode,
+    /// Linear between mip levels over the whole chain (else level 0 only).
+    pub mipmaps: bool,
+    /// Most anisotropy (0: off; needs the device's samplerAnisotropy feature).
+    pub max_anisotropy: u32,
 }
 
 impl SamplerDesc {
     /// Nearest texels, clamped at the edges: what every `texelFetch`-style read in umbra uses.
-    pub const NEAREST_CLAMP: SamplerDesc =
-        SamplerDesc { filter: vk::Filter::NEAREST, address: vk::SamplerAddressMode::CLAMP_TO_EDGE };
+    pub const NEAREST_CLAMP: SamplerDesc = SamplerDesc {
+        filter: vk::Filter::NEAREST,
+        address: vk::SamplerAddressMode::CLAMP_TO_EDGE,
+        mipmaps: false,
+        max_anisotropy: 0,
+    };
 
     fn create_info(self) -> vk::SamplerCreateInfo<'static> {
         vk::SamplerCreateInfo::default()
             .mag_filter(self.filter)
             .min_filter(self.filter)
-            .mipmap_mode(vk::SamplerMipmapMode::NEAREST)
             .address_mode_u(self.address)
             .address_mode_v(self.address)
             .address_mode_w(self.address)
             .compare_enable(false)
-            .max_lod(0.0)
+            .mipmap_mode(if self.mipmaps { vk::SamplerMipmapMode::LINEAR } else { vk::SamplerMipmapMode::NEAREST })
+            .max_lod(if self.mipmaps { vk::LOD_CLAMP_NONE } else { 0.0 })
+            .anisotropy_enable(self.max_anisotropy > 0)
+            .max_anisotropy(self.max_anisotropy.max(1) as f32)
     }
 }
 

@@ -7,9 +7,10 @@
 #include "bindings.glsl"
 #define MAP_LAYERS_BINDING MAP_DEPTH_LAYERS
 #include "map_layers.glsl"
+#include "instance.glsl"
 
 layout(location = 0) in vec3 in_position;
 
 void main() {
-    gl_Position = layers[gl_ViewIndex].view_proj * vec4(in_position, 1.0);
+    gl_Position = layers[gl_ViewIndex].view_proj * vec4(instance_point(in_position), 1.0);
 }

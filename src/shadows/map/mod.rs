@@ -17,13 +17,14 @@ pub mod params;
 pub use self::params::MapParams;
 use super::light_space::{cube_face_view_proj, depth_range, directional_view_proj, spot_view_proj, Bounds};
 use super::{FrameInputs, Served};
-use crate::gpu_scene::{SceneGpu, Vertex};
+use crate::gpu_scene::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, TILE};
 use crate::scene::Light;
 use crate::vk::bindings::*;
 use crate::vk::{
-    spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsPipeline, GraphicsPipelineDesc,
+    spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline,
+    GraphicsPipelineDesc,
 };
 
 /// Most layers one light's map has (cube faces, cascades); `MAP_MAX_LAYERS` in map_layers.glsl.
@@ -104,6 +105,9 @@ pub struct LightMap {
 pub struct MapPipelines {
     /// The depth pass for 1..=MAX_LAYERS layers (multiview masks), each made on first use.
     depth: [OnceLock<GraphicsPipeline>; MAX_LAYERS],
+    /// The same for alpha-masked casters (texture coordinates, the material's set 1), made for
+    /// scenes that have them (`prepare_masked`).
+    masked: [OnceLock<GraphicsPipeline>; MAX_LAYERS],
     resolve: ComputePipeline,
     /// The `shadow-map` and `cascades` debug views.
     debug: ComputePipeline,
@@ -159,7 +163,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
         std::mem::size_of::<DebugPush>() as u32,
         TILE,
     )?;
-    Ok(MapPipelines { depth: Default::default(), resolve, debug, ctx: ctx.clone() })
+    Ok(MapPipelines { depth: Default::default(), masked: Default::default(), resolve, debug, ctx: ctx.clone() })
 }
 
 impl MapPipelines {
@@ -190,12 +194,58 @@ impl MapPipelines {
                 cull_back_faces: false,
                 dynamic_depth_bias: true,
             };
-            GraphicsPipeline::multiview(&self.ctx, &desc, 1u32 << k)
+            let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
+            let extras = GraphicsExtras { view_mask: 1u32 << k, instance, ..Default::default() };
+            GraphicsPipeline::with_extras(&self.ctx, &desc, &extras)
+        })
+    }
+
+    /// The masked depth pipelines for layers 0..`layers`, with the scene's material set layout
+    /// (one scene per renderer, so one layout per `MapPipelines`).
+    pub fn prepare_masked(&self, layers: usize, material_set: vk::DescriptorSetLayout) -> GpuResult<()> {
+        (0..layers).try_for_each(|k| {
+            crate::vk::get_or_make(&self.masked[k], || {
+                let desc = GraphicsPipelineDesc {
+                    name: "shadow map (alpha-masked)",
+                    vertex: spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
+                    fragment: Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
+                    vertex_stride: std::mem::size_of::<Vertex>() as u32,
+                    attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
+                    color_formats: &[],
+                    depth_format: Some(DEPTH_FORMAT),
+                    bindings: &[(MAP_DEPTH_LAYERS, DescriptorKind::UniformBuffer)],
+                    push_bytes: 0,
+                    cull_back_faces: false,
+                    dynamic_depth_bias: true,
+                };
+                let extras = GraphicsExtras {
+                    view_mask: 1u32 << k,
+                    instance: Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..])),
+                    per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES[..])),
+                    set_1: Some(material_set),
+                    ..Default::default()
+                };
+                GraphicsPipeline::with_extras(&self.ctx, &desc, &extras)
+            })
+            .map(|_| ())
         })
     }
 
     fn depth(&self, layer: usize) -> &GraphicsPipeline {
         self.depth[layer].get().expect("made by prepare_depth")
+    }
+
+    fn masked_depth(&self, layer: usize) -> &GraphicsPipeline {
+        self.masked[layer].get().expect("made by prepare_masked")
+    }
+
+    /// `prepare_depth`, and `prepare_masked` where `scene` has alpha-masked materials.
+    pub fn prepare_for(&self, scene: &SceneGpu, layers: usize) -> GpuResult<()> {
+        self.prepare_depth(layers)?;
+        match scene.materials.as_ref().filter(|m| m.masked) {
+            Some(materials) => self.prepare_masked(layers, materials.set_layout()),
+            None => Ok(()),
+        }
     }
 }
 
@@ -397,15 +447,56 @@ pub fn add_depth<'a>(
                 // Reversed depth: away from the light is smaller, so the bias is negative.
                 d.cmd_set_depth_bias(ctx.cmd, -params.constant_bias, 0.0, -params.slope_bias);
                 if !draws.is_empty() {
-                    d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
+                    let vb = ctx.buffer(vb);
+                    match scene.surface_offset {
+                        Some(surface) => {
+                            d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb, vb], &[0, scene.instance_offset, surface])
+                        }
+                        None => d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]),
+                    }
                     d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
                 }
-                for &i in draws {
-                    let draw = &scene.draws[i];
-                    d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, 0);
-                }
-                d.cmd_end_rendering(ctx.cmd);
             }
+            // Alpha-masked casters draw with the masked pipeline and their material's set.
+            let mut masked_now = false;
+            for &i in draws {
+                let draw = &scene.draws[i];
+                let masked = scene.materials.as_ref().zip(draw.maps.filter(|m| m.masked));
+                if masked.is_some() != masked_now {
+                    masked_now = masked.is_some();
+                    let used = if masked_now { pipelines.masked_depth(k) } else { pipeline };
+                    ctx.bind_set(
+                        vk::PipelineBindPoint::GRAPHICS,
+                        &used.layout,
+                        &[(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))],
+                    )?;
+                    // SAFETY: recording state, inside the rendering begun above.
+                    unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline) };
+                }
+                // SAFETY: recording state; the material's set lives as long as the scene.
+                unsafe {
+                    if let Some((materials, maps)) = masked {
+                        d.cmd_bind_descriptor_sets(
+                            ctx.cmd,
+                            vk::PipelineBindPoint::GRAPHICS,
+                            pipelines.masked_depth(k).layout.layout,
+                            1,
+                            &[materials.sets[maps.set]],
+                            &[],
+                        );
+                    }
+                    d.cmd_draw_indexed(
+                        ctx.cmd,
+                        draw.index_count,
+                        1,
+                        draw.first_index,
+                        draw.vertex_offset,
+                        draw.instance,
+                    );
+                }
+            }
+            // SAFETY: recording state; ends the rendering begun above.
+            unsafe { d.cmd_end_rendering(ctx.cmd) };
         }
         Ok(())
     });

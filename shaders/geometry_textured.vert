@@ -1,0 +1,6 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Geometry pass vertex stage for textured draws: also texture coordinates and tangents
+// (geometry_vertex.glsl).
+#define TEXTURED
+#include "geometry_vertex.glsl"

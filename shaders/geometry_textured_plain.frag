@@ -1,0 +1,7 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Geometry pass for textured draws without the triangle under each fragment (devices without
+// geometryShader): material textures and normal maps (geometry_body.glsl).
+#include "bindings.glsl"
+#define TEXTURED
+#include "geometry_body.glsl"

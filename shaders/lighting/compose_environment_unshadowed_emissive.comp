@@ -1,0 +1,6 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// Compose with the environment term and the G-buffer's emission and occlusion.
+#define WITH_ENVIRONMENT
+#define WITH_EMISSION
+#include "compose_body.glsl"

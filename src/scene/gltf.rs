@@ -1,0 +1,455 @@
+//! glTF 2.0 loading through the `gltf` crate (.gltf with its buffers, or .glb): every mesh
+//! primitive once, in its mesh's object space, and every node that draws one as an instance with
+//! its node-to-file transform; cameras and KHR_lights_punctual lights placed by their nodes.
+//! What the file asks for and umbra cannot do is an error naming it (a required extension,
+//! an accessor reading past its buffer); what it can skip is a notice.
+
+use std::io;
+use std::path::{Path, PathBuf};
+
+use glam::{DMat4, DVec3, Vec3};
+
+use super::error::IoReason;
+use super::input;
+use super::mesh::{ObjectMesh, ObjectSurface};
+use super::texture::{ChannelMap, MaterialTextures, TextureCache};
+use super::{tangents, Camera, Light, Material};
+
+/// Extensions whose data umbra reads. A file that requires any other is refused by name;
+/// one that only uses another is loaded without it, with a notice.
+const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_lights_punctual"];
+
+/// Lumens per watt used to turn glTF's photometric light units (candela for point and spot
+/// lights, lux for directional ones) into umbra's radiometric ones (W/sr, W/m^2): 683 lm/W, the
+/// peak of the photopic curve (555 nm), as Blender's glTF exporter assumes.
+pub const LUMENS_PER_WATT: f32 = 683.0;
+
+#[derive(Debug)]
+pub(super) enum GltfError {
+    Read(io::Error),
+    Parse(String),
+}
+
+/// One node's use of a primitive: which one and where (node-to-file transform).
+pub(super) struct GltfInstance {
+    pub primitive: usize,
+    pub transform: DMat4,
+}
+
+/// A glTF file as loaded, in the file's own space (the scene places it).
+pub(super) struct LoadedGltf {
+    /// Every triangle primitive of every mesh, in its mesh's space, once.
+    pub primitives: Vec<ObjectMesh>,
+    /// Every node that draws a primitive, in the default scene's node order.
+    pub instances: Vec<GltfInstance>,
+    /// Perspective cameras by glTF camera index, placed by the first node that uses each;
+    /// `None` for a camera no node places (or an orthographic one).
+    pub cameras: Vec<Option<Camera>>,
+    pub lights: Vec<Light>,
+    /// Buffers read from files beside it.
+    pub files: Vec<PathBuf>,
+}
+
+pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGltf, GltfError> {
+    let bytes = input::read(path).map_err(GltfError::Read)?;
+    let parse = |e: gltf::Error| GltfError::Parse(one_line(&e.to_string()));
+    let binary = bytes.starts_with(b"glTF");
+    if !binary && path.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb")) {
+        return Err(GltfError::Parse("no binary glTF header (a .glb starts with \"glTF\")".to_owned()));
+    }
+    let gltf = gltf::Gltf::from_slice_without_validation(&bytes).map_err(|e| match binary {
+        true => GltfError::Parse(format!("truncated or corrupt binary glTF: {}", one_line(&e.to_string()))),
+        false => parse(e),
+    })?;
+    // Before the crate's validation, which reports an unknown required extension as a bare
+    // "Unsupported" at a JSON path.
+    for ext in gltf.extensions_required() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) {
+            return Err(GltfError::Parse(format!("requires the extension {ext}, which umbra does not support")));
+        }
+    }
+    let gltf::Gltf { document, blob } = gltf;
+    let document = gltf::Document::from_json(document.into_json()).map_err(parse)?;
+    let name = file_name(path);
+    for ext in document.extensions_used() {
+        if !SUPPORTED_EXTENSIONS.contains(&ext) && !document.extensions_required().any(|r| r == ext) {
+            log::warn!("{name}: uses the optional extension {ext}, which umbra ignores");
+        }
+    }
+    let base = path.parent().unwrap_or(Path::new(""));
+    let (buffers, files) = read_buffers(&document, base, blob)?;
+    for accessor in document.accessors() {
+        check_accessor(&accessor, &buffers).map_err(GltfError::Parse)?;
+    }
+
+    // Primitives by (mesh, primitive) index, so instances share them.
+    let mut primitives = Vec::new();
+    let mut first_primitive = Vec::new();
+    let mut skipped_modes = 0;
+    let mut maps = MaterialMaps { file: path, name: &name, buffers: &buffers, cache: textures, read: Vec::new() };
+    for mesh in document.meshes() {
+        first_primitive.push(primitives.len());
+        for primitive in mesh.primitives() {
+            let object_mesh =
+                read_primitive(&name, &mesh, &primitive, &buffers, &mut maps).map_err(GltfError::Parse)?;
+            if object_mesh.is_none() {
+                skipped_modes += 1;
+            }
+            primitives.push(object_mesh);
+        }
+    }
+    if skipped_modes > 0 {
+        log::warn!("{name}: {skipped_modes} primitives of points or lines have no triangles; they are skipped");
+    }
+
+    let mut loaded = LoadedGltf {
+        primitives: Vec::new(),
+        instances: Vec::new(),
+        cameras: vec![None; document.cameras().len()],
+        lights: Vec::new(),
+        files,
+    };
+    let scene = document.default_scene().or_else(|| document.scenes().next());
+    let mut stack: Vec<(gltf::Node, DMat4)> = match &scene {
+        Some(scene) => scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect(),
+        None => Vec::new(),
+    };
+    stack.reverse();
+    let mut ignored_ranges = 0;
+    let mut visited = 0usize;
+    while let Some((node, parent)) = stack.pop() {
+        // Validation does not reject cycles in the node graph; a DAG can still be huge.
+        visited += 1;
+        if visited > 1 << 22 {
+            return Err(GltfError::Parse("the node hierarchy has a cycle or over 4M nodes".to_owned()));
+        }
+        let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
+        let world = parent * local;
+        if let Some(mesh) = node.mesh() {
+            let first = first_primitive[mesh.index()];
+            for k in 0..mesh.primitives().len() {
+                if primitives[first + k].is_some() {
+                    loaded.instances.push(GltfInstance { primitive: first + k, transform: world });
+                }
+            }
+        }
+        if let Some(camera) = node.camera() {
+            if let gltf::camera::Projection::Perspective(p) = camera.projection() {
+                let slot = &mut loaded.cameras[camera.index()];
+                if slot.is_none() {
+                    *slot = camera_at(&world, p.yfov());
+                }
+            }
+        }
+        if let Some(light) = node.light() {
+            if light.range().is_some() {
+                ignored_ranges += 1;
+            }
+            loaded.lights.extend(light_at(&world, &light));
+        }
+        let children: Vec<_> = node.children().map(|c| (c, world)).collect();
+        stack.extend(children.into_iter().rev());
+    }
+    if ignored_ranges > 0 {
+        log::warn!("{name}: {ignored_ranges} lights give a `range`, which umbra has no equivalent for; ignored");
+    }
+    // Keep only the primitives some node draws, renumbered.
+    let mut renumber = vec![usize::MAX; primitives.len()];
+    for instance in &mut loaded.instances {
+        if renumber[instance.primitive] == usize::MAX {
+            renumber[instance.primitive] = loaded.primitives.len();
+            loaded.primitives.push(primitives[instance.primitive].take().expect("drawn primitives are triangles"));
+        }
+        instance.primitive = renumber[instance.primitive];
+    }
+    Ok(loaded)
+}
+
+/// Every buffer's bytes (the GLB's own chunk, a data URI or a file beside the glTF, read as the
+/// scene's other inputs are), and the files read.
+fn read_buffers(
+    document: &gltf::Document,
+    base: &Path,
+    mut blob: Option<Vec<u8>>,
+) -> Result<(Vec<gltf::buffer::Data>, Vec<PathBuf>), GltfError> {
+    let mut buffers = Vec::new();
+    let mut files = Vec::new();
+    for buffer in document.buffers() {
+        let index = buffer.index();
+        let mut data = match buffer.source() {
+            gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
+                let file = base.join(uri);
+                let bytes = input::read(&file)
+                    .map_err(|e| GltfError::Parse(format!("buffer {index}: cannot read {uri:?}: {}", IoReason(&e))))?;
+                files.push(file);
+                gltf::buffer::Data(bytes)
+            }
+            source => gltf::buffer::Data::from_source_and_blob(source, Some(base), &mut blob)
+                .map_err(|e| GltfError::Parse(format!("buffer {index}: {}", one_line(&e.to_string()))))?,
+        };
+        if data.len() < buffer.length() {
+            let (want, have) = (buffer.length(), data.len());
+            return Err(GltfError::Parse(format!("buffer {index} holds {have} bytes, not the {want} it declares")));
+        }
+        data.0.truncate(buffer.length());
+        buffers.push(data);
+    }
+    Ok((buffers, files))
+}
+
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned())
+}
+
+/// serde_json's and the crate's messages can span lines.
+fn one_line(text: &str) -> String {
+    text.split_whitespace().collect::<Vec<_>>().join(" ")
+}
+
+/// Refuses an accessor whose elements do not all lie inside its buffer view, or a view outside
+/// its buffer: the crate's reader would give up silently there (or overflow on a count of 0).
+fn check_accessor(accessor: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
+    let index = accessor.index();
+    let element = accessor.size();
+    let count = accessor.count();
+    if count == 0 {
+        return Err(format!("accessor {index} has no elements"));
+    }
+    let Some(view) = accessor.view() else { return Ok(()) }; // all zeros (or sparse): nothing to read
+    let stride = view.stride().unwrap_or(element);
+    let end = (count - 1)
+        .checked_mul(stride)
+        .and_then(|e| e.checked_add(element))
+        .and_then(|e| e.checked_add(accessor.offset()));
+    if end.is_none_or(|end| end > view.length()) {
+        return Err(format!(
+            "accessor {index} reads {count} elements of {element} bytes past the end of buffer view {} ({} bytes)",
+            view.index(),
+            view.length()
+        ));
+    }
+    let buffer = view.buffer().index();
+    let have = buffers.get(buffer).map_or(0, |b| b.len());
+    if view.offset().checked_add(view.length()).is_none_or(|end| end > have) {
+        return Err(format!("buffer view {} reaches past the end of buffer {buffer} ({have} bytes)", view.index()));
+    }
+    Ok(())
+}
+
+/// A triangle primitive as an object mesh (strips and fans made lists), or `None` for points
+/// and lines.
+fn read_primitive(
+    file: &str,
+    mesh: &gltf::Mesh,
+    primitive: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    maps: &mut MaterialMaps,
+) -> Result<Option<ObjectMesh>, String> {
+    use gltf::mesh::Mode;
+    let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let where_ = || format!("mesh {} primitive {}", mesh.index(), primitive.index());
+    let positions: Vec<DVec3> = reader
+        .read_positions()
+        .ok_or_else(|| format!("{} has no POSITION attribute", where_()))?
+        .map(|p| Vec3::from(p).as_dvec3())
+        .collect();
+    let normals = reader.read_normals().map(|n| n.map(Vec3::from).collect::<Vec<_>>());
+    let normals = normals.filter(|n| n.len() == positions.len());
+    let list: Vec<u32> = match reader.read_indices() {
+        Some(indices) => indices.into_u32().collect(),
+        None => (0..positions.len() as u32).collect(),
+    };
+    let indices = match primitive.mode() {
+        Mode::Triangles => list[..list.len() / 3 * 3].to_vec(),
+        Mode::TriangleStrip => (2..list.len())
+            .flat_map(|i| match i % 2 {
+                0 => [list[i - 2], list[i - 1], list[i]],
+                _ => [list[i - 1], list[i - 2], list[i]],
+            })
+            .collect(),
+        Mode::TriangleFan => (2..list.len()).flat_map(|i| [list[0], list[i - 1], list[i]]).collect(),
+        Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip => return Ok(None),
+    };
+    let name = match mesh.name() {
+        Some(n) => format!("{file}/{n}/{}", primitive.index()),
+        None => format!("{file}/mesh{}/{}", mesh.index(), primitive.index()),
+    };
+    let gltf_material = primitive.material();
+    let material = Some(material(&gltf_material));
+    let mut surface = ObjectSurface::default();
+    if let Some((textures, set)) = maps.of(&gltf_material) {
+        let uvs = reader.read_tex_coords(set).map(|uv| uv.into_f32().map(glam::Vec2::from).collect::<Vec<_>>());
+        // Without texture coordinates there is nothing to map: the constants stay (emission
+        // from its factor alone reads no texel: zero coordinates do).
+        let constant_only = textures.emission_map.is_none()
+            && textures.base_color.is_none()
+            && textures.roughness.is_none()
+            && textures.normal.is_none()
+            && textures.occlusion.is_none();
+        let uvs = uvs.or_else(|| constant_only.then(|| vec![glam::Vec2::ZERO; positions.len()]));
+        if let Some(uvs) = uvs.filter(|uv| uv.len() == positions.len()) {
+            let tangents = reader.read_tangents().map(|t| t.map(glam::Vec4::from).collect::<Vec<_>>());
+            surface = ObjectSurface {
+                uvs: Some(uvs),
+                tangents: tangents.filter(|t| t.len() == positions.len() && textures.normal.is_some()),
+                textures: Some(textures),
+            };
+        }
+    }
+    let mut object_mesh = ObjectMesh { name, positions, normals, indices, material, surface };
+    let needs_tangents = object_mesh.surface.textures.as_ref().is_some_and(|t| t.normal.is_some());
+    if needs_tangents && object_mesh.surface.tangents.is_none() && !tangents::generate(&mut object_mesh) {
+        log::warn!(
+            "{}: no tangent frame for its normal map (degenerate texture coordinates?); it is flat",
+            object_mesh.name
+        );
+    }
+    Ok(Some(object_mesh))
+}
+
+/// A material's textures and the texture coordinate set they use.
+type MaterialRead = (std::sync::Arc<MaterialTextures>, u32);
+
+/// Reads a glTF file's materials' textures through the scene's texture cache, once per material.
+struct MaterialMaps<'a> {
+    file: &'a Path,
+    name: &'a str,
+    buffers: &'a [gltf::buffer::Data],
+    cache: &'a mut TextureCache,
+    /// By material index: its textures and the texture coordinate set they use.
+    read: Vec<(Option<usize>, Option<MaterialRead>)>,
+}
+
+impl MaterialMaps<'_> {
+    /// The textures of `material` (None when it has none that umbra reads).
+    fn of(&mut self, material: &gltf::Material) -> Option<MaterialRead> {
+        if let Some((_, found)) = self.read.iter().find(|(i, _)| *i == material.index()) {
+            return found.clone();
+        }
+        let label = format!(
+            "{}: material {}",
+            self.name,
+            material.name().map_or_else(|| format!("{:?}", material.index()), |n| format!("{n:?}"))
+        );
+        let pbr = material.pbr_metallic_roughness();
+        let mut sets = Vec::new();
+        let mut texture = |info: Option<(gltf::Texture, u32)>, srgb: bool, sets: &mut Vec<u32>| {
+            let (texture, set) = info?;
+            sets.push(set);
+            self.image(&texture.source(), srgb, &label)
+        };
+        let base_color = texture(pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
+        let metal_rough =
+            texture(pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())), false, &mut sets);
+        let normal = material.normal_texture().and_then(|n| {
+            let scale = n.scale();
+            texture(Some((n.texture(), n.tex_coord())), false, &mut sets).map(|t| (t, scale))
+        });
+        let occlusion = material.occlusion_texture().and_then(|o| {
+            let strength = o.strength();
+            let texture = texture(Some((o.texture(), o.tex_coord())), false, &mut sets)?;
+            Some((ChannelMap { texture, channel: 0 }, strength.clamp(0.0, 1.0)))
+        });
+        let emission_map = texture(material.emissive_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
+        let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO);
+        let [.., alpha] = pbr.base_color_factor();
+        let alpha_mask = match material.alpha_mode() {
+            gltf::material::AlphaMode::Opaque => None,
+            gltf::material::AlphaMode::Mask => Some(super::AlphaMask {
+                factor: alpha.clamp(0.0, 1.0),
+                cutoff: material.alpha_cutoff().unwrap_or(0.5).clamp(0.0, 1.0),
+            }),
+            gltf::material::AlphaMode::Blend => {
+                log::warn!("{label}: alpha blending is drawn as an alpha mask at 0.5");
+                Some(super::AlphaMask { factor: alpha.clamp(0.0, 1.0), cutoff: 0.5 })
+            }
+        };
+        let textures = MaterialTextures {
+            alpha_mask,
+            emission: if emission.is_finite() { emission } else { glam::Vec3::ZERO },
+            emission_map,
+            occlusion,
+            base_color,
+            // glTF packs roughness in G and metalness in B.
+            roughness: metal_rough.clone().map(|texture| ChannelMap { texture, channel: 1 }),
+            metallic: metal_rough.map(|texture| ChannelMap { texture, channel: 2 }),
+            normal,
+        };
+        let set = sets.first().copied().unwrap_or(0);
+        if sets.iter().any(|&s| s != set) {
+            log::warn!("{label}: its textures use different texture coordinate sets; all are read with set {set}");
+        }
+        let found = (!textures.is_empty()).then(|| (std::sync::Arc::new(textures), set));
+        self.read.push((material.index(), found.clone()));
+        found
+    }
+
+    fn image(&mut self, image: &gltf::Image, srgb: bool, label: &str) -> Option<std::sync::Arc<super::Texture>> {
+        match image.source() {
+            gltf::image::Source::View { view, .. } => {
+                let key = self.file.join(format!("#image{}", image.index()));
+                let name = format!("image {}", image.index());
+                let bytes = self
+                    .buffers
+                    .get(view.buffer().index())
+                    .and_then(|b| b.0.get(view.offset()..view.offset() + view.length()));
+                match bytes {
+                    Some(bytes) => self.cache.get_bytes(&key, bytes, &name, srgb, label),
+                    None => None,
+                }
+            }
+            gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+                log::warn!("{label}: an image in a data URI is not read yet; the material's constant is used instead");
+                None
+            }
+            gltf::image::Source::Uri { uri, .. } => {
+                let file = self.file.parent().unwrap_or(Path::new("")).join(uri);
+                self.cache.get(&file, uri, srgb, label)
+            }
+        }
+    }
+}
+
+/// The metallic-roughness factors (textures multiply them: `MaterialMaps`).
+fn material(m: &gltf::Material) -> Material {
+    let pbr = m.pbr_metallic_roughness();
+    let unit = |v: f32| if v.is_finite() { v.clamp(0.0, 1.0) } else { 0.0 };
+    let [r, g, b, _] = pbr.base_color_factor();
+    Material {
+        base_color: Vec3::new(unit(r), unit(g), unit(b)),
+        roughness: unit(pbr.roughness_factor()),
+        metallic: unit(pbr.metallic_factor()),
+    }
+}
+
+/// A glTF camera looks down its node's -Z with +Y up.
+fn camera_at(world: &DMat4, yfov: f32) -> Option<Camera> {
+    let eye = world.transform_point3(DVec3::ZERO);
+    let forward = world.transform_vector3(DVec3::NEG_Z).try_normalize()?;
+    let up = world.transform_vector3(DVec3::Y).try_normalize()?.as_vec3();
+    let vfov_deg = yfov.to_degrees();
+    let usable = eye.is_finite() && vfov_deg > 0.0 && vfov_deg < 180.0 && forward.as_vec3().cross(up).length() > 1e-6;
+    usable.then_some(Camera { eye, target: eye + forward, up, vfov_deg })
+}
+
+/// A KHR_lights_punctual light placed by its node (it shines down the node's -Z), in umbra's
+/// radiometric units (see `LUMENS_PER_WATT`).
+fn light_at(world: &DMat4, light: &gltf::khr_lights_punctual::Light) -> Option<Light> {
+    use gltf::khr_lights_punctual::Kind;
+    let position = world.transform_point3(DVec3::ZERO);
+    let direction = world.transform_vector3(DVec3::NEG_Z).try_normalize()?.as_vec3();
+    let power = Vec3::from(light.color()).max(Vec3::ZERO) * light.intensity().max(0.0) / LUMENS_PER_WATT;
+    if !power.is_finite() || !position.is_finite() {
+        return None;
+    }
+    Some(match light.kind() {
+        Kind::Point => Light::Point { position, intensity: power, radius: 0.0 },
+        Kind::Directional => Light::Directional { direction, irradiance: power, angular_diameter_deg: 0.0 },
+        Kind::Spot { inner_cone_angle, outer_cone_angle } => {
+            let outer = outer_cone_angle.to_degrees().clamp(0.01, 90.0);
+            // umbra needs inner < outer; glTF files sometimes give them equal (a hard edge).
+            let inner = inner_cone_angle.to_degrees().clamp(0.0, outer * 0.999);
+            Light::Spot { position, direction, intensity: power, inner_deg: inner, outer_deg: outer, radius: 0.0 }
+        }
+    })
+}

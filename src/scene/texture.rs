@@ -1,0 +1,228 @@
+//! Material textures: image files (PNG, JPEG, TGA, HDR through `image`; EXR through `exr`)
+//! decoded once per file and colour space, however many materials name them, to 8-bit RGBA
+//! (float images are clamped to [0, 1]: umbra's maps are colours and fractions). A texture that
+//! cannot be read is a warning naming the material and the file, and the material keeps its
+//! constant.
+
+use std::collections::HashMap;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use super::input;
+
+/// A decoded texture. `srgb`: the texels are sRGB-encoded colour (base colour, emission), which
+/// the GPU decodes when it samples them; otherwise linear data (roughness, metallic, normals).
+#[derive(Debug)]
+pub struct Texture {
+    /// The file, as the material named it (for messages).
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// Row-major RGBA, 4 bytes a texel, from the top row.
+    pub rgba8: Vec<u8>,
+    pub srgb: bool,
+}
+
+/// One channel of a texture, with the factor it is multiplied by.
+#[derive(Clone, Debug)]
+pub struct ChannelMap {
+    pub texture: Arc<Texture>,
+    /// 0..=3: R, G, B, A.
+    pub channel: u8,
+}
+
+/// The textures of a material. Each multiplies the material's constant: a map that is absent
+/// (or failed to load) leaves the constant as it is.
+#[derive(Clone, Debug, Default)]
+pub struct MaterialTextures {
+    /// sRGB; multiplies `Material::base_color`.
+    pub base_color: Option<Arc<Texture>>,
+    pub roughness: Option<ChannelMap>,
+    pub metallic: Option<ChannelMap>,
+    /// Tangent space, OpenGL convention (+Y up, as glTF and most OBJ exporters bake), and the
+    /// scale of its X and Y (glTF `normalTexture.scale`, MTL `-bm`).
+    pub normal: Option<(Arc<Texture>, f32)>,
+    /// Emitted radiance (W/(m^2 sr), linear RGB): glTF `emissiveFactor`, MTL `Ke`; zero for
+    /// none. Not a map, but it goes with them: only the textured path writes emission.
+    pub emission: glam::Vec3,
+    /// sRGB; multiplies `emission`.
+    pub emission_map: Option<Arc<Texture>>,
+    /// Ambient occlusion (a channel) and its strength: 1 - strength + strength * texel. Stored
+    /// in the G-buffer for the lighting that uses it (environment light, ambient occlusion).
+    pub occlusion: Option<(ChannelMap, f32)>,
+    /// Alpha testing (glTF alphaMode MASK; BLEND is drawn as MASK at 0.5): a fragment whose
+    /// base colour alpha (texture alpha times `factor`) is below `cutoff` is not drawn, in the
+    /// G-buffer and in shadow maps.
+    pub alpha_mask: Option<AlphaMask>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AlphaMask {
+    pub factor: f32,
+    pub cutoff: f32,
+}
+
+impl MaterialTextures {
+    pub fn is_empty(&self) -> bool {
+        self.base_color.is_none()
+            && self.roughness.is_none()
+            && self.metallic.is_none()
+            && self.normal.is_none()
+            && self.emission == glam::Vec3::ZERO
+            && self.occlusion.is_none()
+            && self.alpha_mask.is_none()
+    }
+}
+
+/// Textures already read while loading one scene, by file and colour space.
+#[derive(Default)]
+pub(super) struct TextureCache {
+    loaded: HashMap<(PathBuf, bool), Option<Arc<Texture>>>,
+    /// Image files read (not the images inside a glTF buffer).
+    files: Vec<PathBuf>,
+}
+
+impl TextureCache {
+    /// The texture in `file` (`name` as the material wrote it), read on first use. `None`, with a
+    /// warning naming `material` and the file, when it cannot be read or decoded.
+    pub fn get(&mut self, file: &Path, name: &str, srgb: bool, material: &str) -> Option<Arc<Texture>> {
+        if !self.files.iter().any(|f| f == file) {
+            self.files.push(file.to_owned());
+        }
+        self.get_with(file, name, srgb, material, || {
+            let bytes = input::read(file).map_err(|e| super::error::IoReason(&e).to_string())?;
+            let is_exr = file.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
+            decode(&bytes, is_exr)
+        })
+    }
+
+    /// As `get`, for an image whose bytes are in hand (a glTF buffer view); `key` names it
+    /// uniquely (the glTF file and the image's index).
+    pub fn get_bytes(
+        &mut self,
+        key: &Path,
+        bytes: &[u8],
+        name: &str,
+        srgb: bool,
+        material: &str,
+    ) -> Option<Arc<Texture>> {
+        self.get_with(key, name, srgb, material, || decode(bytes, false))
+    }
+
+    fn get_with(
+        &mut self,
+        file: &Path,
+        name: &str,
+        srgb: bool,
+        material: &str,
+        decode: impl FnOnce() -> Result<(u32, u32, Vec<u8>), String>,
+    ) -> Option<Arc<Texture>> {
+        let key = (file.to_owned(), srgb);
+        if let Some(found) = self.loaded.get(&key) {
+            return found.clone();
+        }
+        let texture = match decode() {
+            Ok((width, height, rgba8)) => Some(Arc::new(Texture { name: name.to_owned(), width, height, rgba8, srgb })),
+            Err(reason) => {
+                log::warn!("{material}: texture {name:?} unusable ({reason}); the material's constant is used instead");
+                None
+            }
+        };
+        self.loaded.insert(key, texture.clone());
+        texture
+    }
+
+    /// Every image file read (for the scene's list of inputs).
+    pub fn files(&self) -> &[PathBuf] {
+        &self.files
+    }
+}
+
+/// Width, height and RGBA8 texels of an image file's bytes.
+fn decode(bytes: &[u8], is_exr: bool) -> Result<(u32, u32, Vec<u8>), String> {
+    let (width, height, rgba8) = if is_exr {
+        decode_exr(bytes)?
+    } else {
+        let image = image::load_from_memory(bytes).map_err(|e| e.to_string())?;
+        let rgba = image.to_rgba8();
+        (rgba.width(), rgba.height(), rgba.into_raw())
+    };
+    if width == 0 || height == 0 || width > 16384 || height > 16384 {
+        return Err(format!("{width}x{height} is outside 1x1 to 16384x16384"));
+    }
+    Ok((width, height, rgba8))
+}
+
+/// The first RGBA layer of an EXR file, clamped to [0, 1] and quantised to 8 bits.
+fn decode_exr(bytes: &[u8]) -> Result<(u32, u32, Vec<u8>), String> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |resolution, _| (resolution.width(), vec![0u8; resolution.width() * resolution.height() * 4]),
+            |(width, texels), position, (r, g, b, a): (f32, f32, f32, f32)| {
+                let at = (position.y() * *width + position.x()) * 4;
+                for (k, v) in [r, g, b, a].into_iter().enumerate() {
+                    texels[at + k] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+                }
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| e.to_string())?;
+    let size = image.layer_data.size;
+    let (_, texels) = image.layer_data.channel_data.pixels;
+    Ok((size.width() as u32, size.height() as u32, texels))
+}
+
+/// The mip chain of `texture` below level 0, each a 2x2 box filter of the level above (halving
+/// odd sizes down, to 1x1), averaged in linear light for sRGB textures so that a mip's
+/// brightness matches the texels it covers.
+pub fn mip_chain(texture: &Texture) -> Vec<(u32, u32, Vec<u8>)> {
+    let to_linear: Vec<f32> = (0..256).map(|v| srgb_to_linear(v as f32 / 255.0)).collect();
+    let decode = |v: u8, k: usize| if texture.srgb && k < 3 { to_linear[v as usize] } else { v as f32 / 255.0 };
+    let encode = |v: f32, k: usize| {
+        let v = if texture.srgb && k < 3 { linear_to_srgb(v) } else { v };
+        (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    };
+    let mut levels = Vec::new();
+    let (mut w, mut h, mut texels) = (texture.width, texture.height, texture.rgba8.clone());
+    while w > 1 || h > 1 {
+        let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+        let mut next = vec![0u8; (nw * nh * 4) as usize];
+        for y in 0..nh {
+            for x in 0..nw {
+                for k in 0..4 {
+                    let mut sum = 0.0;
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (sx, sy) = ((2 * x + dx).min(w - 1), (2 * y + dy).min(h - 1));
+                        sum += decode(texels[((sy * w + sx) * 4) as usize + k], k);
+                    }
+                    next[((y * nw + x) * 4) as usize + k] = encode(sum / 4.0, k);
+                }
+            }
+        }
+        levels.push((nw, nh, next.clone()));
+        (w, h, texels) = (nw, nh, next);
+    }
+    levels
+}
+
+/// The sRGB EOTF (IEC 61966-2-1): an 8-bit 128 decodes to 0.2158.
+pub fn srgb_to_linear(v: f32) -> f32 {
+    if v <= 0.04045 {
+        v / 12.92
+    } else {
+        ((v + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+fn linear_to_srgb(v: f32) -> f32 {
+    if v <= 0.0031308 {
+        v * 12.92
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}

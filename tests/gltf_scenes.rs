@@ -1,0 +1,423 @@
+//! glTF 2.0 scenes (issue 12), from files the tests write themselves (tests/gltf_builder): the
+//! node hierarchy under an object's transform, primitives with u8/u16/u32 and no indices, a
+//! whole-file `scene` with its cameras and KHR_lights_punctual lights (units converted at
+//! `LUMENS_PER_WATT`), and bad files refused with one line naming them.
+
+mod gltf_builder;
+
+use std::path::Path;
+use std::sync::{Mutex, OnceLock};
+
+use glam::{DVec3, Vec3};
+use gltf_builder::{quad_xz, Gltf, U16, U32, U8};
+use serde_json::json;
+use umbra::scene::{Light, Scene, LUMENS_PER_WATT};
+
+const CAMERA: &str = "[camera]\neye = [0.0, 3.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
+const LIGHT: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\nirradiance = [1.0, 1.0, 1.0]\n";
+
+fn captured_log() -> &'static Mutex<Vec<String>> {
+    static LINES: OnceLock<Mutex<Vec<String>>> = OnceLock::new();
+    static LOGGER: Capture = Capture;
+    struct Capture;
+    impl log::Log for Capture {
+        fn enabled(&self, m: &log::Metadata) -> bool {
+            m.level() <= log::Level::Warn
+        }
+        fn log(&self, record: &log::Record) {
+            if self.enabled(record.metadata()) {
+                captured_log().lock().unwrap().push(record.args().to_string());
+            }
+        }
+        fn flush(&self) {}
+    }
+    let lines = LINES.get_or_init(|| Mutex::new(Vec::new()));
+    if log::set_logger(&LOGGER).is_ok() {
+        log::set_max_level(log::LevelFilter::Warn);
+    }
+    lines
+}
+
+fn logged(needle: &str) -> bool {
+    captured_log().lock().unwrap().iter().any(|l| l.contains(needle))
+}
+
+fn parse_in(dir: &Path, text: &str) -> Result<Scene, String> {
+    captured_log();
+    Scene::parse(text, "s.toml", dir).map_err(|e| {
+        let message = e.to_string();
+        assert!(!message.contains('\n') && !message.contains("panicked"), "{message:?}");
+        message
+    })
+}
+
+/// One quad mesh with a material of base colour (0.2, 0.4, 0.6), roughness 0.3, metallic 0.1,
+/// indexed with `kind` (None: not indexed, six vertices).
+fn quad_file(kind: Option<u32>) -> Gltf {
+    let mut g = Gltf::default();
+    let (p, n, _, idx) = quad_xz();
+    let (positions, normals, indices) = match kind {
+        Some(kind) => (g.vec3(&p), g.vec3(&n), Some(g.indices(&idx, kind))),
+        None => {
+            let p: Vec<[f32; 3]> = idx.iter().map(|&i| p[i as usize]).collect();
+            (g.vec3(&p), g.vec3(&[n[0]; 6]), None)
+        }
+    };
+    let material = g.material(json!({
+        "pbrMetallicRoughness": { "baseColorFactor": [0.2, 0.4, 0.6, 1.0], "roughnessFactor": 0.3, "metallicFactor": 0.1 }
+    }));
+    let mut primitive = json!({ "attributes": { "POSITION": positions, "NORMAL": normals }, "material": material });
+    if let Some(i) = indices {
+        primitive["indices"] = json!(i);
+    }
+    let mesh = g.mesh(vec![primitive]);
+    g.node(json!({ "mesh": mesh }), true);
+    g
+}
+
+#[test]
+fn every_index_type_and_none_give_the_same_quad() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, kind) in [("u8", Some(U8)), ("u16", Some(U16)), ("u32", Some(U32)), ("flat", None)] {
+        quad_file(kind).write_glb(&dir.path().join(format!("{name}.glb")));
+        let scene = parse_in(dir.path(), &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"{name}.glb\"\n"))
+            .unwrap_or_else(|e| panic!("{name}: {e}"));
+        assert_eq!(scene.meshes.len(), 1, "{name}");
+        let mesh = &scene.meshes[0];
+        assert_eq!(mesh.triangle_count(), 2, "{name}");
+        let m = mesh.material;
+        assert!((m.base_color - Vec3::new(0.2, 0.4, 0.6)).abs().max_element() < 1e-6, "{name}: {m:?}");
+        assert!((m.roughness - 0.3).abs() < 1e-6 && (m.metallic - 0.1).abs() < 1e-6, "{name}: {m:?}");
+        // Counter-clockwise seen from above, as glTF's front faces are.
+        let t = &mesh.indices[..3];
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+        assert!((b - a).cross(c - a).y > 0.0, "{name}");
+        assert!(scene.sources.iter().any(|s| s.ends_with(format!("{name}.glb"))), "{:?}", scene.sources);
+    }
+}
+
+/// A child node's transform composes with its parent's, and the object's own transform goes on
+/// top of both; a .gltf with its .bin beside it loads the same as a .glb, the .bin among the
+/// scene's sources.
+#[test]
+fn node_hierarchy_sits_under_the_object_transform() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U16));
+    g.nodes[0] = json!({ "translation": [1.0, 0.0, 0.0], "scale": [2.0, 2.0, 2.0], "children": [1] });
+    g.node(json!({ "mesh": 0, "translation": [0.0, 1.0, 0.0] }), false);
+    g.write_gltf(dir.path(), "tree");
+    let text = format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"tree.gltf\"\ntranslate = [0.0, 0.0, -3.0]\n");
+    let scene = parse_in(dir.path(), &text).unwrap_or_else(|e| panic!("{e}"));
+    let mesh = &scene.meshes[0];
+    // (-0.5, 0, -0.5) -> child (-0.5, 1, -0.5) -> parent *2 + (1,0,0) = (0, 2, -1) -> object z - 3.
+    assert!(mesh.positions.iter().any(|p| (*p - DVec3::new(0.0, 2.0, -4.0)).length() < 1e-9), "{:?}", mesh.positions);
+    assert!(mesh.positions.iter().all(|p| (p.y - 2.0).abs() < 1e-9));
+    assert!(scene.sources.iter().any(|s| s.ends_with("tree.bin")), "{:?}", scene.sources);
+}
+
+/// A whole-file `scene` brings its meshes, its first camera (or `camera = N`; a `[camera]`
+/// table wins) and its three punctual lights, converted from candela and lux to W/sr and W/m^2.
+#[test]
+fn whole_scene_brings_cameras_and_punctual_lights() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U32));
+    g.cameras = vec![
+        json!({ "type": "perspective", "perspective": { "yfov": 0.8, "znear": 0.1 } }),
+        json!({ "type": "perspective", "perspective": { "yfov": 0.5, "znear": 0.1 } }),
+    ];
+    // Camera 0 at (0, 2, 4) looking down -Z (no rotation); camera 1 at (0, 5, 0) looking down
+    // (rotated -90 degrees about X).
+    let h = std::f32::consts::FRAC_1_SQRT_2;
+    g.node(json!({ "camera": 0, "translation": [0.0, 2.0, 4.0] }), true);
+    g.node(json!({ "camera": 1, "translation": [0.0, 5.0, 0.0], "rotation": [-h, 0.0, 0.0, h] }), true);
+    let point = g.light(json!({ "type": "point", "color": [1.0, 0.5, 0.25], "intensity": 683.0, "range": 10.0 }));
+    let sun = g.light(json!({ "type": "directional", "intensity": 1366.0 }));
+    let spot = g.light(json!({ "type": "spot", "intensity": 68.3,
+        "spot": { "innerConeAngle": 0.2, "outerConeAngle": 0.6 } }));
+    g.node(
+        json!({ "translation": [1.0, 3.0, 0.0], "extensions": { "KHR_lights_punctual": { "light": point } } }),
+        true,
+    );
+    g.node(json!({ "rotation": [-h, 0.0, 0.0, h], "extensions": { "KHR_lights_punctual": { "light": sun } } }), true);
+    g.node(
+        json!({ "translation": [0.0, 4.0, 0.0], "rotation": [-h, 0.0, 0.0, h],
+            "extensions": { "KHR_lights_punctual": { "light": spot } } }),
+        true,
+    );
+    g.write_glb(&dir.path().join("whole.glb"));
+
+    let scene = parse_in(dir.path(), "scene = \"whole.glb\"\n").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.triangle_count(), 2);
+    assert_eq!(scene.camera.eye, DVec3::new(0.0, 2.0, 4.0));
+    assert!((scene.camera.target - DVec3::new(0.0, 2.0, 3.0)).length() < 1e-6);
+    assert!((scene.camera.vfov_deg - 0.8f32.to_degrees()).abs() < 1e-4);
+    assert_eq!(scene.lights.len(), 3);
+    assert_eq!(scene.light_shadows.len(), 3);
+    let down = |d: Vec3| (d - Vec3::NEG_Y).length() < 1e-5;
+    match scene.lights[0] {
+        Light::Point { position, intensity, .. } => {
+            assert!((position - DVec3::new(1.0, 3.0, 0.0)).length() < 1e-6);
+            assert!((intensity - Vec3::new(1.0, 0.5, 0.25)).length() < 1e-6, "683 cd is 1 W/sr: {intensity}");
+        }
+        other => panic!("{other:?}"),
+    }
+    match scene.lights[1] {
+        Light::Directional { direction, irradiance, .. } => {
+            assert!(down(direction), "{direction}");
+            assert!((irradiance - Vec3::splat(1366.0 / LUMENS_PER_WATT)).length() < 1e-5);
+        }
+        other => panic!("{other:?}"),
+    }
+    match scene.lights[2] {
+        Light::Spot { direction, intensity, inner_deg, outer_deg, .. } => {
+            assert!(down(direction), "{direction}");
+            assert!((intensity - Vec3::splat(0.1)).length() < 1e-6);
+            assert!((inner_deg - 0.2f32.to_degrees()).abs() < 1e-4 && (outer_deg - 0.6f32.to_degrees()).abs() < 1e-4);
+        }
+        other => panic!("{other:?}"),
+    }
+    assert!(logged("whole.glb: 1 lights give a `range`"));
+
+    let second = parse_in(dir.path(), "scene = \"whole.glb\"\ncamera = 1\n").unwrap_or_else(|e| panic!("{e}"));
+    assert!((second.camera.eye - DVec3::new(0.0, 5.0, 0.0)).length() < 1e-6);
+    assert!((second.camera.target - DVec3::new(0.0, 4.0, 0.0)).length() < 1e-6, "{:?}", second.camera);
+    let table = parse_in(dir.path(), &format!("scene = \"whole.glb\"\n{CAMERA}{LIGHT}")).unwrap();
+    assert_eq!(table.camera.eye, DVec3::new(0.0, 3.0, 5.0), "[camera] wins");
+    assert_eq!(table.lights.len(), 4, "the file's light, then the glTF's three");
+    assert!(matches!(table.lights[0], Light::Directional { irradiance, .. } if irradiance == Vec3::ONE));
+
+    let missing = parse_in(dir.path(), "scene = \"whole.glb\"\ncamera = 7\n").unwrap_err();
+    assert_eq!(
+        missing,
+        "s.toml: camera: \"whole.glb\" has no perspective camera 7 placed by a node (it has 2 cameras, 2 usable)"
+    );
+    let without = parse_in(dir.path(), "camera = 0\n").unwrap_err();
+    assert!(without.starts_with("s.toml: camera: a camera index picks a camera of `scene`"), "{without}");
+}
+
+#[test]
+fn extensions_required_and_optional() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U16));
+    g.extensions_used = vec!["KHR_materials_sheen".into(), "EXT_mystery".into()];
+    g.extensions_required = vec!["EXT_mystery".into()];
+    g.write_glb(&dir.path().join("required.glb"));
+    let message = parse_in(dir.path(), &format!("{CAMERA}[[objects]]\nmesh = \"required.glb\"\n")).unwrap_err();
+    assert_eq!(
+        message,
+        "s.toml: objects[0].mesh: \"required.glb\" is not a valid glTF file: requires the extension EXT_mystery, \
+         which umbra does not support"
+    );
+    g.extensions_required.clear();
+    g.write_glb(&dir.path().join("optional.glb"));
+    parse_in(dir.path(), &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"optional.glb\"\n")).unwrap();
+    assert!(logged("optional.glb: uses the optional extension KHR_materials_sheen, which umbra ignores"));
+    assert!(logged("optional.glb: uses the optional extension EXT_mystery, which umbra ignores"));
+}
+
+/// A truncated .glb, an accessor reading past its buffer view, a .gltf whose .bin is missing or
+/// short, JSON that is not glTF, a text file named .glb: each one line naming the file.
+#[test]
+fn bad_gltf_files_are_refused_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let glb = quad_file(Some(U16)).glb();
+    std::fs::write(d.join("truncated.glb"), &glb[..glb.len() - 20]).unwrap();
+    let mut out_of_range = quad_file(Some(U16));
+    out_of_range.accessors[2]["count"] = json!(600);
+    out_of_range.write_glb(&d.join("range.glb"));
+    quad_file(None).write_gltf(d, "nobin");
+    std::fs::remove_file(d.join("nobin.bin")).unwrap();
+    quad_file(None).write_gltf(d, "short");
+    std::fs::write(d.join("short.bin"), [0u8; 8]).unwrap();
+    std::fs::write(d.join("json.gltf"), "{\"hello\": 1}").unwrap();
+    std::fs::write(d.join("text.glb"), "not a binary glTF").unwrap();
+    let cases = [
+        ("truncated.glb", "\"truncated.glb\" is not a valid glTF file: "),
+        ("range.glb", "\"range.glb\" is not a valid glTF file: accessor 2 reads 600 elements of 2 bytes past the end of buffer view 2 (12 bytes)"),
+        ("nobin.gltf", "\"nobin.gltf\" is not a valid glTF file: "),
+        ("short.gltf", "\"short.gltf\" is not a valid glTF file: "),
+        ("json.gltf", "\"json.gltf\" is not a valid glTF file: "),
+        ("text.glb", "\"text.glb\" is not a valid glTF file: "),
+    ];
+    for (file, expected) in cases {
+        let message = parse_in(d, &format!("{CAMERA}[[objects]]\nmesh = \"{file}\"\n")).unwrap_err();
+        println!("{message}");
+        assert!(message.starts_with(&format!("s.toml: objects[0].mesh: {expected}")), "{file}: {message}");
+    }
+    let message = parse_in(d, "scene = \"truncated.glb\"\n").unwrap_err();
+    assert!(message.starts_with("s.toml: scene: \"truncated.glb\" is not a valid glTF file: "), "{message}");
+    let message = parse_in(d, "scene = \"tri.obj\"\n").unwrap_err();
+    assert_eq!(message, "s.toml: scene: \"tri.obj\" is not a glTF file (.gltf, .glb)");
+    let message = parse_in(d, &format!("{CAMERA}[[objects]]\nmesh = \"model.fbx\"\n")).unwrap_err();
+    assert_eq!(
+        message,
+        "s.toml: objects[0].mesh: \"model.fbx\" is not an OBJ file (.obj) or a glTF file (.gltf, .glb), the mesh \
+         formats umbra reads"
+    );
+}
+
+mod common;
+
+use glam::Vec4;
+use umbra::config::DebugView;
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
+use umbra::shading::{gpu_lights, shade_point};
+
+const W: u32 = 64;
+const H: u32 = 48;
+
+fn frame(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
+    let lights = renderer.scene().lights.len();
+    let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(lights, ShadowChoice::hard());
+    settings.debug_view = view;
+    match renderer.render(&settings).unwrap_or_else(|e| panic!("render {view:?}: {e}")) {
+        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
+        Frame::Rgba8 { .. } => panic!("SceneLinear read back as 8-bit"),
+    }
+}
+
+/// A whole-file glTF scene (a 4 m quad drawn by a scaled node, its camera, a sun and a spot)
+/// renders what the CPU twin computes at every pixel it covers, from the material factors and
+/// the lights converted from lux and candela.
+#[test]
+fn gltf_scene_renders_as_the_cpu_twin_predicts() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U8));
+    g.nodes[0]["scale"] = json!([4.0, 1.0, 4.0]);
+    g.cameras = vec![json!({ "type": "perspective", "perspective": { "yfov": 0.9, "znear": 0.1 } })];
+    // At (0, 2, 3), pitched down 35 degrees about X.
+    let (s, c) = (-35f32.to_radians() / 2.0).sin_cos();
+    g.node(json!({ "camera": 0, "translation": [0.0, 2.0, 3.0], "rotation": [s, 0.0, 0.0, c] }), true);
+    let sun = g.light(json!({ "type": "directional", "color": [1.0, 0.9, 0.8], "intensity": 1366.0 }));
+    let spot = g.light(json!({ "type": "spot", "intensity": 6830.0, "spot": { "outerConeAngle": 0.7 } }));
+    let (s, c) = (-60f32.to_radians() / 2.0).sin_cos();
+    g.node(json!({ "rotation": [s, 0.0, 0.0, c], "extensions": { "KHR_lights_punctual": { "light": sun } } }), true);
+    let (s, c) = (-90f32.to_radians() / 2.0).sin_cos();
+    g.node(
+        json!({ "translation": [0.5, 2.0, 0.0], "rotation": [s, 0.0, 0.0, c],
+            "extensions": { "KHR_lights_punctual": { "light": spot } } }),
+        true,
+    );
+    g.write_glb(&dir.path().join("lit.glb"));
+    let scene = parse_in(dir.path(), "scene = \"lit.glb\"\n").unwrap_or_else(|e| panic!("{e}"));
+    let material = scene.meshes[0].material;
+    let lights = gpu_lights(&scene.lights);
+    let eye = scene.camera.eye.as_vec3();
+
+    let ctx = common::gpu();
+    let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
+    let radiance = frame(&mut renderer, None);
+    let position = frame(&mut renderer, Some(DebugView::Position));
+    let normal = frame(&mut renderer, Some(DebugView::Normal));
+    let depth = frame(&mut renderer, Some(DebugView::Depth));
+    let mut compared = 0;
+    for i in 0..radiance.len() {
+        if depth[i].x <= 0.0 {
+            continue;
+        }
+        let (p, n) = (position[i].truncate(), normal[i].truncate().normalize());
+        let cpu = shade_point(p, n, (eye - p).normalize(), &material, &lights, |_| 1.0);
+        let gpu = radiance[i].truncate();
+        assert!((gpu - cpu).abs().max_element() <= 0.01 * cpu.max_element() + 1e-5, "pixel {i}: gpu {gpu} cpu {cpu}");
+        compared += 1;
+    }
+    assert!(compared > (W * H / 3) as usize, "the quad covers {compared} pixels only");
+    common::assert_clean(&ctx);
+}
+
+/// A mesh drawn by three nodes (two rotated and scaled, one mirrored) over a floor: the two
+/// that keep their winding share one upload (the vertex buffer holds the quad's 4 vertices once,
+/// beside the mirrored copy's and the floor's), and the frame, with `traced` and with `map`
+/// shadows, matches the same scene drawn from world-space copies only.
+#[test]
+fn instances_are_uploaded_once_and_render_like_copies() {
+    use umbra::config::ShadowMethod;
+    use umbra::gpu_scene::{InstanceRows, Vertex};
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U16));
+    let (s, c) = (0.4f32).sin_cos();
+    g.nodes[0] = json!({ "mesh": 0, "translation": [-1.0, 1.0, 0.0], "rotation": [0.0, s, 0.0, c] });
+    g.node(json!({ "mesh": 0, "translation": [1.0, 0.8, 0.0], "scale": [1.5, 1.0, 0.7] }), true);
+    g.node(json!({ "mesh": 0, "translation": [0.0, 1.2, -1.5], "scale": [-1.0, 1.0, 1.0] }), true);
+    g.write_glb(&dir.path().join("three.glb"));
+    let text = "[camera]\neye = [0.0, 4.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 50.0\n\
+        [[lights]]\ntype = \"directional\"\ndirection = [0.2, -1.0, -0.1]\nirradiance = [2.0, 2.0, 2.0]\n\
+        [[objects]]\nmesh = \"three.glb\"\n[[objects]]\nshape = \"plane\"\nsize = 6.0\n";
+    let scene = parse_in(dir.path(), text).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.meshes.len(), 4);
+    assert_eq!(scene.meshes.iter().filter(|m| m.instance.is_some()).count(), 2, "the mirrored node is a copy");
+    let mut copies = scene.clone();
+    copies.meshes.iter_mut().for_each(|m| m.instance = None);
+
+    let ctx = common::gpu();
+    let mut instanced = Renderer::new(ctx.clone(), scene).expect("renderer");
+    let mut copied = Renderer::new(ctx.clone(), copies).expect("renderer");
+    // The quad once (4), the mirrored copy (4), the floor (4); identity + two instances.
+    let gpu = &instanced.gpu_scene;
+    assert_eq!(gpu.vertex_count, 12);
+    let (vertex, rows) = (std::mem::size_of::<Vertex>() as u64, std::mem::size_of::<InstanceRows>() as u64);
+    assert_eq!(gpu.vertices.size, 12 * vertex + 3 * rows);
+    assert_eq!(copied.gpu_scene.vertex_count, 16);
+
+    for method in [ShadowMethod::Traced, ShadowMethod::Map] {
+        let render = |r: &mut Renderer| {
+            let choice = ShadowChoice { method, ..ShadowChoice::hard() };
+            let settings = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(1, choice);
+            match r.render(&settings).unwrap_or_else(|e| panic!("{method:?}: {e}")) {
+                Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect::<Vec<_>>(),
+                Frame::Rgba8 { .. } => unreachable!(),
+            }
+        };
+        let (a, b) = (render(&mut instanced), render(&mut copied));
+        let differ = a.iter().zip(&b).filter(|(a, b)| (**a - **b).abs().max_element() > 1e-3 * b.max_element() + 1e-5);
+        let differ = differ.count();
+        // Rounding differs between the instance's f32 matrix and the f64 copy: edge pixels only.
+        assert!(differ <= (W * H / 100) as usize, "{method:?}: {differ} pixels differ");
+        let dark = a.iter().filter(|p| p.w > 0.0 && p.truncate().max_element() < 1e-4).count();
+        assert!(dark > 20, "{method:?}: the quads cast shadows ({dark} dark pixels)");
+    }
+    common::assert_clean(&ctx);
+}
+
+/// Through the binary: a truncated .glb, a glTF with an out-of-range accessor, a required
+/// unknown extension and a text file named .obj each exit 1 with one `error:` line naming the
+/// file, no panic, and no output file.
+#[test]
+fn bad_meshes_fail_the_render_cleanly() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let glb = quad_file(Some(U16)).glb();
+    std::fs::write(d.join("cut.glb"), &glb[..glb.len() / 2]).unwrap();
+    let mut range = quad_file(Some(U16));
+    range.accessors[0]["count"] = json!(1000);
+    range.write_glb(&d.join("range.glb"));
+    let mut required = quad_file(Some(U16));
+    required.extensions_used = vec!["EXT_unknown".into()];
+    required.extensions_required = vec!["EXT_unknown".into()];
+    required.write_glb(&d.join("required.glb"));
+    std::fs::write(d.join("text.obj"), "just words\n").unwrap();
+    for (mesh, needle) in [
+        ("cut.glb", "\"cut.glb\" is not a valid glTF file: truncated or corrupt binary glTF"),
+        ("range.glb", "\"range.glb\" is not a valid glTF file: accessor 0 reads 1000 elements"),
+        ("required.glb", "requires the extension EXT_unknown"),
+        ("text.obj", "\"text.obj\" is not a valid OBJ file: line 1: no OBJ statement"),
+    ] {
+        let scene = d.join(format!("{mesh}.toml"));
+        std::fs::write(&scene, format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"{mesh}\"\n")).unwrap();
+        let out = d.join(format!("{mesh}.png"));
+        let o =
+            common::umbra().args(["render", scene.to_str().unwrap(), "-o", out.to_str().unwrap()]).output().unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{mesh}: {err}");
+        let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+        assert_eq!(errors.len(), 1, "{mesh}: {err}");
+        assert!(
+            errors[0].contains(&format!("{mesh}.toml: objects[0].mesh: ")) && errors[0].contains(needle),
+            "{}",
+            errors[0]
+        );
+        assert!(!err.contains("panicked"), "{err}");
+        assert!(!out.exists(), "{mesh}: an output was written");
+    }
+}

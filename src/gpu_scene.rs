@@ -105,7 +105,8 @@ impl BvhBuffers {
 
     /// Wraps the uploaded buffers (filled as `layout` says) in their views.
     pub fn new(ctx: &Arc<GpuContext>, layout: BvhLayout, nodes: Buffer, triangles: Buffer) -> GpuResult<BvhBuffers> {
-        let format = if layout.components == 3 { vk::Format::R32G32B32_SFLOAT } else { vk::Format::R32G32B32A32_SFLOAT };
+        let format =
+            if layout.components == 3 { vk::Format::R32G32B32_SFLOAT } else { vk::Format::R32G32B32A32_SFLOAT };
         Ok(BvhBuffers {
             nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
             triangles: TexelBuffer::new(ctx, triangles, format)?,
@@ -154,7 +155,12 @@ pub struct BvhHandles {
 
 impl BvhHandles {
     /// Declares `pass`'s reads of both and returns them bound at `nodes` and `triangles`.
-    pub fn bind(&self, pass: &mut crate::graph::PassBuilder<'_, '_>, nodes: u32, triangles: u32) -> [(u32, crate::graph::Bound); 2] {
+    pub fn bind(
+        &self,
+        pass: &mut crate::graph::PassBuilder<'_, '_>,
+        nodes: u32,
+        triangles: u32,
+    ) -> [(u32, crate::graph::Bound); 2] {
         let read = Access::ComputeShaderReadUniformTexelBuffer;
         [
             (nodes, crate::graph::Bound::TexelBuffer(pass.read(&self.nodes, read), self.node_view)),
@@ -375,10 +381,9 @@ impl SceneGpu {
         };
         // The geometry pass reads both as storage buffers (a binding holds at most this much).
         let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
-        for (what, bytes) in [
-            ("vertices", vertex_bytes.len()),
-            ("triangle indices", std::mem::size_of_val(indices.as_slice())),
-        ] {
+        for (what, bytes) in
+            [("vertices", vertex_bytes.len()), ("triangle indices", std::mem::size_of_val(indices.as_slice()))]
+        {
             if bytes as u64 > limit {
                 return Err(GpuError::Unsupported(format!(
                     "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one storage buffer \

@@ -41,7 +41,12 @@ fn every_kind_of_ray_agrees_on_the_default_scene() {
     for kind in [RayKind::Shadow, RayKind::Area, RayKind::Ao] {
         let outcome = run(&options(None, kind, (160, 120))).unwrap_or_else(|e| panic!("{kind:?}: {e:#}"));
         print!("{}", outcome.report);
-        assert!(outcome.rays > 5_000 && outcome.occluded > 100, "{kind:?}: {} rays, {} occluded", outcome.rays, outcome.occluded);
+        assert!(
+            outcome.rays > 5_000 && outcome.occluded > 100,
+            "{kind:?}: {} rays, {} occluded",
+            outcome.rays,
+            outcome.occluded
+        );
         assert_eq!(outcome.unexplained, 0, "{kind:?}");
     }
 }

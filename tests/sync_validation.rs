@@ -70,7 +70,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
                     )
                     .unwrap()[0];
                 let infos = [(RAYS_INPUT, undeclared), (RAYS_OUTPUT, pctx.buffer(hr))]
-                .map(|(b, buf)| (b, [vk::DescriptorBufferInfo { buffer: buf, offset: 0, range: vk::WHOLE_SIZE }]));
+                    .map(|(b, buf)| (b, [vk::DescriptorBufferInfo { buffer: buf, offset: 0, range: vk::WHOLE_SIZE }]));
                 let mut writes: Vec<_> = infos
                     .iter()
                     .map(|(b, info)| {

@@ -355,7 +355,8 @@ pub fn camera_rays(
                     Some((origin, d, 1.0))
                 }
                 RayKind::Shadow | RayKind::Area => {
-                    let jitter = if kind == RayKind::Area { Some((hash01(pixel, 3, 9), hash01(pixel, 4, 9))) } else { None };
+                    let jitter =
+                        if kind == RayKind::Area { Some((hash01(pixel, 3, 9), hash01(pixel, 4, 9))) } else { None };
                     toward_light(light, origin, n, jitter)
                 }
             };

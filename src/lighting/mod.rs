@@ -74,9 +74,7 @@ impl Pipelines {
         emissive: bool,
     ) -> GpuResult<&ComputePipeline> {
         let slot = &self.compose[shadowed as usize + 2 * occluded as usize + 4 * emissive as usize];
-        crate::vk::get_or_make(slot, || {
-            crate::passes::compose::environment_pipeline(ctx, shadowed, occluded, emissive)
-        })
+        crate::vk::get_or_make(slot, || crate::passes::compose::environment_pipeline(ctx, shadowed, occluded, emissive))
     }
 }
 
@@ -119,7 +117,8 @@ impl Pipelines {
             None => {
                 if let Some(environment) = environment {
                     let occlusion = lighting.occlusion_of_environment();
-                    prepared.environment = Some((environment, self.compose(ctx, shadowed, occlusion.is_some(), emissive)?));
+                    prepared.environment =
+                        Some((environment, self.compose(ctx, shadowed, occlusion.is_some(), emissive)?));
                     if let Some(params) = occlusion {
                         prepared.occlusion = Some((params, ao_pipeline()?));
                     }

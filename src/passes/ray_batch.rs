@@ -8,10 +8,10 @@ use glam::{UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
 use super::storage;
+use crate::gpu_scene::{BvhBuffers, BvhHandles};
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
 use crate::scene::bvh::ShadowBvh;
 use crate::vk::bindings::*;
-use crate::gpu_scene::{BvhBuffers, BvhHandles};
 use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
 
 const GROUP: [u32; 2] = [64, 1];

@@ -15,8 +15,8 @@ use super::Scene;
 mod ploc;
 mod ray_offset;
 pub mod wide;
-pub use wide::{WideBvh, WideNode};
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};
+pub use wide::{WideBvh, WideNode};
 
 /// Entries in the traversal stack of `bvh.glsl` (`BVH_STACK_SIZE` there). A tree whose
 /// traversal could need more (`ShadowBvh::stack_need`) is rebuilt balanced.
@@ -259,4 +259,3 @@ fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
     split(tris, &mut order, 0, 0, &mut nodes);
     Bvh2 { nodes, primitive_indices: order, ..Bvh2::default() }
 }
-

@@ -90,7 +90,8 @@ impl TexelBuffer {
     /// A view of all of `buffer` as texels of `format` (the buffer needs UNIFORM_TEXEL_BUFFER
     /// usage; the caller checks `maxTexelBufferElements`).
     pub fn new(ctx: &Arc<GpuContext>, buffer: Buffer, format: vk::Format) -> GpuResult<TexelBuffer> {
-        let info = vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(vk::WHOLE_SIZE);
+        let info =
+            vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(vk::WHOLE_SIZE);
         // SAFETY: valid buffer created with texel-buffer usage.
         let view = unsafe { ctx.device.create_buffer_view(&info, None) }.vk("vkCreateBufferView")?;
         Ok(TexelBuffer { view, buffer, format, ctx: ctx.clone() })

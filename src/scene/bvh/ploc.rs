@@ -76,11 +76,7 @@ pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
     bvh.uses_spatial_splits = false;
     let mut reinsertion = ReinsertionOptimizer::default();
     reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO, None);
-    log::debug!(
-        "BVH build over {} triangles: PLOC {ploc_ms:.0} ms, reinsertion {:.0} ms",
-        triangles.len(),
-        lap()
-    );
+    log::debug!("BVH build over {} triangles: PLOC {ploc_ms:.0} ms, reinsertion {:.0} ms", triangles.len(), lap());
     (bvh, report)
 }
 

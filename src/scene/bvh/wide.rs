@@ -344,7 +344,8 @@ fn encode(boxes: &[(Vec3, Vec3)], words: [u32; 4]) -> WideNode {
     }
     let pack = |bytes: [u32; 4]| bytes[0] | bytes[1] << 8 | bytes[2] << 16 | bytes[3] << 24;
     let mask = (1u32 << boxes.len()) - 1;
-    node.texels[0] = [lo.x.to_bits(), lo.y.to_bits(), lo.z.to_bits(), exps[0] | exps[1] << 8 | exps[2] << 16 | mask << 24];
+    node.texels[0] =
+        [lo.x.to_bits(), lo.y.to_bits(), lo.z.to_bits(), exps[0] | exps[1] << 8 | exps[2] << 16 | mask << 24];
     node.texels[1] = words;
     node.texels[2] = [pack(q[0]), pack(q[1]), pack(q[2]), pack(q[3])];
     node.texels[3] = [pack(q[4]), pack(q[5]), 0, 0];

@@ -1,0 +1,168 @@
+//! Rect lights (issue 11): the scene file's `type = "rect"` and its errors, and the CPU twin of
+//! their unshadowed shading (`shading::shade_rect`, LTC) against numerical integration of
+//! umbra's own BRDF (`shading::brdf_times_cos`) over the rectangle.
+
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+use umbra::scene::{Material, RectLight, Scene};
+use umbra::shading::{brdf_times_cos, shade_rect, RectLightF32};
+
+const CAMERA: &str = "[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
+
+fn parse(text: &str) -> Result<Scene, String> {
+    Scene::parse(&format!("{CAMERA}{text}"), "inline.toml", Path::new(".")).map_err(|e| e.to_string())
+}
+
+const RECT: &str = "[[lights]]\ntype = \"rect\"\ncenter = [0, 2, 0]\nhalf_edge_u = [0.5, 0, 0]\n\
+                    half_edge_v = [0, 0, 0.25]\nradiance = [10, 10, 10]\n";
+
+#[test]
+fn a_rect_light_parses_beside_the_other_lights() {
+    let text = format!(
+        "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\nshadows = \"map\"\n\
+         {RECT}two_sided = true\n\
+         [[lights]]\ntype = \"spot\"\nposition = [0, 3, 0]\ndirection = [0, -1, 0]\nintensity = [1, 1, 1]\n\
+         inner_deg = 10\nouter_deg = 20\nshadows = \"volumes\"\n"
+    );
+    let scene = parse(&text).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.lights.len(), 2, "the rect is not one of `lights`");
+    assert_eq!(scene.light_shadows.len(), 2, "shadow choices stay in step with `lights`");
+    assert_eq!(scene.light_shadows[0].method, umbra::config::ShadowMethod::Map);
+    assert_eq!(scene.light_shadows[1].method, umbra::config::ShadowMethod::Volumes);
+    let expected = RectLight {
+        center: DVec3::new(0.0, 2.0, 0.0),
+        half_edge_u: Vec3::new(0.5, 0.0, 0.0),
+        half_edge_v: Vec3::new(0.0, 0.0, 0.25),
+        radiance: Vec3::splat(10.0),
+        two_sided: true,
+    };
+    assert_eq!(scene.rect_lights, vec![expected]);
+    // u x v = x x z = -y: this rect faces down.
+    assert_eq!(expected.normal(), Vec3::NEG_Y);
+    assert!((expected.area() - 0.5).abs() < 1e-6);
+    let moved = scene.translated(DVec3::new(1.0, 0.0, 0.0));
+    assert_eq!(moved.rect_lights[0].center, DVec3::new(1.0, 2.0, 0.0));
+    assert!(!parse(RECT).unwrap().rect_lights[0].two_sided, "one-sided by default");
+}
+
+#[test]
+fn bad_rects_are_errors_naming_the_light() {
+    let point = "[[lights]]\ntype = \"point\"\nposition = [0, 1, 0]\nintensity = [1, 1, 1]\n";
+    let rect = |u: &str, v: &str| {
+        format!("{point}[[lights]]\ntype = \"rect\"\ncenter = [0, 2, 0]\nhalf_edge_u = {u}\nhalf_edge_v = {v}\nradiance = [1, 1, 1]\n")
+    };
+    let cases = [
+        (rect("[0.5, 0, 0]", "[0, 0, 0]"), "lights[1]: the rect has zero area"),
+        (rect("[0.5, 0, 0]", "[1, 0, 0]"), "lights[1]: the rect has zero area"),
+        (rect("[1e-30, 0, 0]", "[0, 0, 1e-30]"), "lights[1]: the rect has zero area"),
+        (rect("[1e30, 0, 0]", "[0, 0, 1e30]"), "lights[1]: the rect has zero area"),
+        (rect("[inf, 0, 0]", "[0, 0, 1]"), "lights[1].half_edge_u: "),
+        (rect("[1, 0, 0]", "[0, nan, 1]"), "lights[1].half_edge_v: "),
+        (rect("[1, 0, 0]", "[0.5, 0, 1]"), "lights[1]: half_edge_u and half_edge_v must be perpendicular"),
+        (format!("{RECT}radius = 1\n"), "lights[0].radius: not used by a rect light"),
+        (format!("{RECT}shadows = \"map\"\n"), "lights[0].shadows: a rect light takes no shadow settings"),
+        (format!("{RECT}[lights.traced]\nspp = 4\n"), "lights[0].traced: a rect light takes no shadow settings"),
+        (RECT.replace("radiance = [10, 10, 10]", "radiance = [-1, 1, 1]"), "lights[0].radiance: "),
+        (RECT.replace("radiance = [10, 10, 10]\n", ""), "lights[0]: a rect light needs `radiance`"),
+        (format!("{point}center = [0, 0, 0]\n"), "lights[0].center: not used by a point light"),
+    ];
+    for (text, expected) in cases {
+        let message = parse(&text).err().unwrap_or_else(|| panic!("parsed:\n{text}"));
+        assert!(message.contains(expected), "{message}\nexpected: {expected}");
+        assert!(!message.contains('\n'), "{message:?}");
+    }
+}
+
+/// The outgoing radiance toward `v` at the origin (normal +z) from `rect`, by the midpoint
+/// rule over a `k` x `k` grid of its area, with umbra's BRDF.
+fn numerical(v: Vec3, material: &Material, rect: &RectLightF32, k: usize) -> DVec3 {
+    let (u, w) = (rect.half_edge_u.as_dvec3(), rect.half_edge_v.as_dvec3());
+    let normal = u.cross(w).normalize();
+    let area = 4.0 * u.cross(w).length() / (k * k) as f64;
+    let mut sum = DVec3::ZERO;
+    for i in 0..k {
+        for j in 0..k {
+            let s = (i as f64 + 0.5) / k as f64 * 2.0 - 1.0;
+            let t = (j as f64 + 0.5) / k as f64 * 2.0 - 1.0;
+            let q = rect.center.as_dvec3() + u * s + w * t;
+            let d2 = q.length_squared();
+            let l = q / d2.sqrt();
+            let cos_light = normal.dot(-l);
+            let cos_light = if rect.two_sided { cos_light.abs() } else { cos_light.max(0.0) };
+            let f = brdf_times_cos(Vec3::Z, v, l.as_vec3(), material.base_color, material.roughness, material.metallic);
+            sum += f.as_dvec3() * rect.radiance.as_dvec3() * (cos_light * area / d2);
+        }
+    }
+    sum
+}
+
+/// A 1 m x 0.6 m rect 2 m away along `dir` (from the origin), facing it.
+fn rect_toward(dir: Vec3) -> RectLightF32 {
+    let dir = dir.normalize();
+    let side = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
+    let u = side.cross(dir).normalize() * 0.5;
+    let w = u.cross(dir).normalize() * 0.3;
+    let rect = RectLightF32 { center: dir * 2.0, half_edge_u: u, half_edge_v: w, radiance: Vec3::new(1.0, 2.0, 3.0), two_sided: false };
+    assert!(rect.half_edge_u.cross(rect.half_edge_v).dot(dir) < 0.0, "faces the origin");
+    rect
+}
+
+#[test]
+fn lambert_from_a_rect_matches_numerical_integration() {
+    let material = Material { base_color: Vec3::new(0.8, 0.5, 0.2), roughness: 1.0, metallic: 0.0 };
+    let mut worst = 0.0f64;
+    for light_deg in [0.0f32, 30.0, 60.0, 80.0] {
+        let a = light_deg.to_radians();
+        let rect = rect_toward(Vec3::new(a.sin(), 0.3 * a.sin(), a.cos()));
+        let v = Vec3::new(-0.3, 0.1, 1.0).normalize();
+        // Diffuse only: subtract the specular that both sides share, by a black-diffuse material.
+        let black = Material { base_color: Vec3::ZERO, ..material };
+        let ltc = shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &rect) - shade_rect(Vec3::ZERO, Vec3::Z, v, &black, &rect);
+        let num = numerical(v, &material, &rect, 300) - numerical(v, &black, &rect, 300);
+        let error = ((ltc.as_dvec3() - num).abs() / num).max_element();
+        println!("lambert, light at {light_deg:>4} deg: ltc {ltc:?} numerical {num:?} error {:.4} %", 100.0 * error);
+        worst = worst.max(error);
+    }
+    assert!(worst < 0.005, "Lambert off by {:.3} %", 100.0 * worst);
+}
+
+#[test]
+fn ggx_from_a_rect_matches_numerical_integration() {
+    // Where the fitted table holds (tests/ltc.rs): up to 45 degrees for roughness 0.2..0.7.
+    let mut worst = 0.0f64;
+    for roughness in [0.2f32, 0.4, 0.7] {
+        for view_deg in [0.0f32, 20.0, 45.0] {
+            for metallic in [0.0f32, 1.0] {
+                let material = Material { base_color: Vec3::new(0.9, 0.6, 0.3), roughness, metallic };
+                let t = view_deg.to_radians();
+                let v = Vec3::new(t.sin(), 0.0, t.cos());
+                // The light around the mirror direction, off the plane of incidence.
+                let rect = rect_toward(Vec3::new(-t.sin(), 0.2, t.cos()));
+                let ltc = shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &rect).as_dvec3();
+                let num = numerical(v, &material, &rect, 400);
+                let error = ((ltc - num).abs() / num).max_element();
+                println!("roughness {roughness} metallic {metallic} view {view_deg:>2}: error {:.2} %", 100.0 * error);
+                worst = worst.max(error);
+            }
+        }
+    }
+    assert!(worst < 0.02, "GGX + Lambert off by {:.2} %", 100.0 * worst);
+}
+
+#[test]
+fn one_sided_rects_light_only_their_front() {
+    let material = Material::default();
+    let v = Vec3::Z;
+    let front = rect_toward(Vec3::new(0.2, 0.1, 1.0));
+    let back = RectLightF32 { half_edge_v: -front.half_edge_v, ..front };
+    assert!(shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &front).min_element() > 0.0);
+    assert_eq!(shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &back), Vec3::ZERO);
+    let two_sided = RectLightF32 { two_sided: true, ..back };
+    let lit = shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &front);
+    let both = shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &two_sided);
+    assert!((lit - both).abs().max_element() <= 1e-5 * lit.max_element(), "{lit} {both}");
+    // A rect below the horizon lights nothing, from either side.
+    let below = RectLightF32 { center: -front.center, two_sided: true, ..front };
+    assert_eq!(shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &below), Vec3::ZERO);
+}

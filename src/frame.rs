@@ -212,6 +212,9 @@ fn lighting_stage<'a>(
         }),
     };
     let mut image = compose::add(g, pipelines, gbuffer, inputs, extent);
+    if let Some((rects, pipeline)) = ambient.lighting.rects {
+        image = crate::lighting::rects::add(g, pipeline, rects, gbuffer, &image, camera, extent);
+    }
     if let Some(h) = &history {
         image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);
     }

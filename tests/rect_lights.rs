@@ -1,10 +1,16 @@
 //! Rect lights (issue 11): the scene file's `type = "rect"` and its errors, and the CPU twin of
 //! their unshadowed shading (`shading::shade_rect`, LTC) against numerical integration of
-//! umbra's own BRDF (`shading::brdf_times_cos`) over the rectangle.
+//! umbra's own BRDF (`shading::brdf_times_cos`) over the rectangle; on lavapipe, the GPU's
+//! shading against that twin, the emitter as the camera sees it, and a scene without a rect
+//! light paying nothing for it.
+
+mod common;
 
 use std::path::Path;
 
-use glam::{DVec3, Vec3};
+use glam::{DVec3, Vec3, Vec4};
+use umbra::config::DebugView;
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
 use umbra::scene::{Material, RectLight, Scene};
 use umbra::shading::{brdf_times_cos, shade_rect, RectLightF32};
 
@@ -165,4 +171,123 @@ fn one_sided_rects_light_only_their_front() {
     // A rect below the horizon lights nothing, from either side.
     let below = RectLightF32 { center: -front.center, two_sided: true, ..front };
     assert_eq!(shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &below), Vec3::ZERO);
+}
+
+const W: u32 = 96;
+const H: u32 = 72;
+
+fn floats(frame: Frame) -> Vec<Vec4> {
+    match frame {
+        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
+        Frame::Rgba8 { .. } => panic!("expected float output"),
+    }
+}
+
+fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
+    let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
+    settings.debug_view = view;
+    floats(renderer.render(&settings).expect("render"))
+}
+
+/// A floor and a sphere of one material (exact in the G-buffer's f16) under a downward rect
+/// light the camera also sees, black background, no other light.
+fn rect_scene(material: &str, two_sided: bool) -> String {
+    format!(
+        "background = [0, 0, 0]\n\
+         [camera]\neye = [0.0, 1.6, 4.5]\ntarget = [0.0, 0.8, 0.0]\nvfov_deg = 55.0\n\
+         [[lights]]\ntype = \"rect\"\ncenter = [0.3, 2.2, -0.8]\nhalf_edge_u = [0.8, 0, 0]\n\
+         half_edge_v = [0, 0, 0.4]\nradiance = [3.0, 2.5, 2.0]\ntwo_sided = {two_sided}\n\
+         [[objects]]\nshape = \"plane\"\nsize = 8.0\nmaterial = {material}\n\
+         [[objects]]\nshape = \"sphere\"\nradius = 0.6\nsegments = 128\ntranslate = [0.0, 0.6, 0.0]\n\
+         material = {material}\n"
+    )
+}
+
+#[test]
+fn gpu_rect_shading_matches_the_cpu_twin() {
+    let ctx = common::gpu();
+    let materials = [(Vec3::new(0.75, 0.5, 0.25), 0.5f32, 0.0f32), (Vec3::new(1.0, 0.75, 0.5), 0.25, 1.0)];
+    for two_sided in [false, true] {
+        for (base, roughness, metallic) in materials {
+            let material = format!(
+                "{{ base_color = [{}, {}, {}], roughness = {roughness}, metallic = {metallic} }}",
+                base.x, base.y, base.z
+            );
+            let scene = Scene::parse(&rect_scene(&material, two_sided), "rect.toml", Path::new(".")).unwrap();
+            let eye = scene.camera.eye.as_vec3();
+            let rect = RectLightF32::from(&scene.rect_lights[0]);
+            let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
+            let radiance = render(&mut renderer, None);
+            let position = render(&mut renderer, Some(DebugView::Position));
+            let normal = render(&mut renderer, Some(DebugView::Normal));
+            let depth = render(&mut renderer, Some(DebugView::Depth));
+            let material = Material { base_color: base, roughness, metallic };
+            let (mut lit, mut emitter, mut worst) = (0, 0, 0.0f32);
+            for i in 0..radiance.len() {
+                let got = radiance[i].truncate();
+                if got == rect.radiance {
+                    emitter += 1;
+                    continue;
+                }
+                if depth[i].x <= 0.0 {
+                    assert_eq!(got, Vec3::ZERO, "pixel {i}: background");
+                    continue;
+                }
+                let p = position[i].truncate();
+                let n = normal[i].truncate().normalize();
+                let twin = shade_rect(p, n, (eye - p).normalize(), &material, &rect);
+                // The G-buffer's position and normal, read back, are the twin's inputs: both
+                // sides shade the same point to float rounding (dim grazing pixels aside).
+                let bound = twin * 2e-3 + Vec3::splat(1e-5);
+                assert!((got - twin).abs().cmple(bound).all(), "pixel {i}: GPU {got} CPU {twin}");
+                if twin.max_element() > 1e-2 {
+                    worst = worst.max((got - twin).abs().max_element() / twin.max_element());
+                }
+                lit += (twin.max_element() > 1e-3) as usize;
+            }
+            println!(
+                "two_sided {two_sided}, {material:?}: {lit} lit pixels, GPU within {worst:.1e} of the CPU twin, \
+                 {emitter} emitter pixels"
+            );
+            assert!(lit > 1000, "{lit}");
+            // The camera, below the rect, sees its emitting side.
+            assert!(emitter > 15, "{emitter}");
+        }
+    }
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn only_the_emitting_side_is_seen() {
+    let ctx = common::gpu();
+    let count = |text: String| {
+        let mut renderer = Renderer::new(ctx.clone(), Scene::parse(&text, "rect.toml", Path::new(".")).unwrap()).unwrap();
+        render(&mut renderer, None).iter().filter(|p| p.truncate() == Vec3::new(3.0, 2.5, 2.0)).count()
+    };
+    // The rect turned over (v negated: it emits upward, away from the camera below it).
+    let front = rect_scene("{ roughness = 0.5 }", false);
+    let back = front.replace("half_edge_v = [0, 0, 0.4]", "half_edge_v = [0, 0, -0.4]");
+    let both = back.replace("two_sided = false", "two_sided = true");
+    let (front, back, both) = (count(front), count(back), count(both));
+    println!("emitter pixels: front {front}, back {back}, back of a two-sided rect {both}");
+    assert!(front > 15 && back == 0 && both == front, "{front} {back} {both}");
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn a_scene_without_rect_lights_pays_nothing_for_them() {
+    let ctx = common::gpu();
+    let plan = |text: String| {
+        let renderer = Renderer::new(ctx.clone(), Scene::parse(&text, "rect.toml", Path::new(".")).unwrap()).unwrap();
+        let settings = RenderSettings::new(W, H, OutputKind::Display);
+        renderer.plan(&settings).expect("plan").to_string()
+    };
+    let with = plan(rect_scene("{ roughness = 0.5 }", false));
+    assert!(with.contains("rect lights") && with.contains("LTC table"), "{with}");
+    let without = rect_scene("{ roughness = 0.5 }", false).replace("type = \"rect\"", "type = \"point\"");
+    let without = without
+        .replace("center = [0.3, 2.2, -0.8]\nhalf_edge_u = [0.8, 0, 0]\nhalf_edge_v = [0, 0, 0.4]\nradiance = [3.0, 2.5, 2.0]\ntwo_sided = false", "position = [0, 2, 0]\nintensity = [1, 1, 1]");
+    let without = plan(without);
+    assert!(!without.contains("rect") && !without.contains("LTC"), "{without}");
+    common::assert_clean(&ctx);
 }

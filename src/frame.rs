@@ -213,7 +213,8 @@ fn lighting_stage<'a>(
     };
     let mut image = compose::add(g, pipelines, gbuffer, inputs, extent);
     if let Some((rects, pipeline)) = ambient.lighting.rects {
-        image = crate::lighting::rects::add(g, pipeline, rects, gbuffer, &image, camera, extent);
+        let bvh = s.bvh.import(g, SCENE_ACCESS);
+        image = crate::lighting::rects::add(g, pipeline, rects, gbuffer, &image, &bvh, camera, settings.frame_index, extent);
     }
     if let Some(h) = &history {
         image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);

@@ -112,7 +112,7 @@ impl Renderer {
             shadow_pipelines: Default::default(),
             lighting_pipelines: Default::default(),
             environment: crate::lighting::EnvironmentGpu::new(&ctx, &scene.lighting)?,
-            rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights)?,
+            rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
             gpu_scene,

@@ -42,6 +42,7 @@ fn a_rect_light_parses_beside_the_other_lights() {
         half_edge_v: Vec3::new(0.0, 0.0, 0.25),
         radiance: Vec3::splat(10.0),
         two_sided: true,
+        spp: 4,
     };
     assert_eq!(scene.rect_lights, vec![expected]);
     // u x v = x x z = -y: this rect faces down.
@@ -190,13 +191,13 @@ fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
 }
 
 /// A floor and a sphere of one material (exact in the G-buffer's f16) under a downward rect
-/// light the camera also sees, black background, no other light.
+/// light the camera also sees, black background, no other light, no shadow rays.
 fn rect_scene(material: &str, two_sided: bool) -> String {
     format!(
         "background = [0, 0, 0]\n\
          [camera]\neye = [0.0, 1.6, 4.5]\ntarget = [0.0, 0.8, 0.0]\nvfov_deg = 55.0\n\
          [[lights]]\ntype = \"rect\"\ncenter = [0.3, 2.2, -0.8]\nhalf_edge_u = [0.8, 0, 0]\n\
-         half_edge_v = [0, 0, 0.4]\nradiance = [3.0, 2.5, 2.0]\ntwo_sided = {two_sided}\n\
+         half_edge_v = [0, 0, 0.4]\nradiance = [3.0, 2.5, 2.0]\ntwo_sided = {two_sided}\nspp = 0\n\
          [[objects]]\nshape = \"plane\"\nsize = 8.0\nmaterial = {material}\n\
          [[objects]]\nshape = \"sphere\"\nradius = 0.6\nsegments = 128\ntranslate = [0.0, 0.6, 0.0]\n\
          material = {material}\n"
@@ -286,8 +287,132 @@ fn a_scene_without_rect_lights_pays_nothing_for_them() {
     assert!(with.contains("rect lights") && with.contains("LTC table"), "{with}");
     let without = rect_scene("{ roughness = 0.5 }", false).replace("type = \"rect\"", "type = \"point\"");
     let without = without
-        .replace("center = [0.3, 2.2, -0.8]\nhalf_edge_u = [0.8, 0, 0]\nhalf_edge_v = [0, 0, 0.4]\nradiance = [3.0, 2.5, 2.0]\ntwo_sided = false", "position = [0, 2, 0]\nintensity = [1, 1, 1]");
+        .replace("center = [0.3, 2.2, -0.8]\nhalf_edge_u = [0.8, 0, 0]\nhalf_edge_v = [0, 0, 0.4]\nradiance = [3.0, 2.5, 2.0]\ntwo_sided = false\nspp = 0", "position = [0, 2, 0]\nintensity = [1, 1, 1]");
     let without = plan(without);
     assert!(!without.contains("rect") && !without.contains("LTC"), "{without}");
+    common::assert_clean(&ctx);
+}
+
+/// A white floor, a sphere above it and a 1 m x 1 m rect light above that, facing down; the
+/// rect's shadow rays are `spp` a pixel.
+fn shadow_scene(spp: u32) -> String {
+    format!(
+        "background = [0, 0, 0]\n\
+         [camera]\neye = [0.0, 3.0, 3.2]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 50.0\n\
+         [[lights]]\ntype = \"rect\"\ncenter = [0.0, 2.0, 0.0]\nhalf_edge_u = [0.5, 0, 0]\n\
+         half_edge_v = [0, 0, 0.5]\nradiance = [4.0, 4.0, 4.0]\nspp = {spp}\n\
+         [[objects]]\nshape = \"plane\"\nsize = 8.0\nmaterial = {{ base_color = [1, 1, 1], roughness = 1.0 }}\n\
+         [[objects]]\nshape = \"sphere\"\nradius = 0.5\nsegments = 64\ntranslate = [0.0, 0.7, 0.0]\n"
+    )
+}
+
+fn render_seeded(renderer: &mut Renderer, frame_index: u32) -> Vec<Vec4> {
+    let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
+    settings.frame_index = frame_index;
+    floats(renderer.render(&settings).expect("render"))
+}
+
+/// Per floor pixel: (index, visibility the CPU finds with a 32 x 32 grid over the rect,
+/// weighted as the ratio estimator weighs its points, and whether a rect 15 % larger is
+/// wholly hidden or wholly seen: the umbra and the lit region, away from every penumbra).
+struct Reference {
+    pixels: Vec<(usize, f32, Option<bool>)>,
+}
+
+fn reference(ctx: &std::sync::Arc<umbra::vk::GpuContext>) -> Reference {
+    let scene = Scene::parse(&shadow_scene(0), "shadow.toml", Path::new(".")).unwrap();
+    let (local, origin) = scene.local_frame();
+    let bvh = umbra::scene::bvh::ShadowBvh::build(&local);
+    let rect = RectLightF32::from(&local.rect_lights[0]);
+    let eye = local.camera.eye.as_vec3();
+    let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+    let position = render(&mut renderer, Some(DebugView::Position));
+    let normal = render(&mut renderer, Some(DebugView::Normal));
+    let unshadowed = render(&mut renderer, None);
+    let light_normal = rect.half_edge_u.cross(rect.half_edge_v).normalize();
+    let material = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0 };
+    let mut pixels = Vec::new();
+    for i in 0..position.len() {
+        let p = (position[i].truncate().as_dvec3() - origin).as_vec3();
+        let n = normal[i].truncate();
+        if position[i].w <= 0.0 || n.y < 0.999 || position[i].y.abs() > 1e-3 || unshadowed[i].truncate() == rect.radiance {
+            continue;
+        }
+        let from = p + Vec3::Y * 1e-3;
+        let v = (eye - p).normalize();
+        let k = 32;
+        let (mut all, mut seen) = (0.0f64, 0.0f64);
+        let (mut any_hidden, mut any_seen) = (false, false);
+        for a in 0..k {
+            for b in 0..k {
+                let s = (a as f32 + 0.5) / k as f32 * 2.0 - 1.0;
+                let t = (b as f32 + 0.5) / k as f32 * 2.0 - 1.0;
+                for grow in [1.0f32, 1.15] {
+                    let q = rect.center + rect.half_edge_u * (s * grow) + rect.half_edge_v * (t * grow);
+                    let to = q - from;
+                    let dist = to.length();
+                    let open = !bvh.occluded_gpu_layout(from, to / dist, dist * (1.0 - 1e-4));
+                    if grow == 1.0 {
+                        let l = (q - p).normalize();
+                        let f = brdf_times_cos(Vec3::Y, v, l, material.base_color, 1.0, 0.0);
+                        let weight = f64::from(f.dot(Vec3::new(0.2126, 0.7152, 0.0722)) * light_normal.dot(-l).max(0.0))
+                            / f64::from((q - p).length_squared());
+                        all += weight;
+                        seen += if open { weight } else { 0.0 };
+                    } else {
+                        any_hidden |= !open;
+                        any_seen |= open;
+                    }
+                }
+            }
+        }
+        let class = match (any_hidden, any_seen) {
+            (false, true) => Some(true),
+            (true, false) => Some(false),
+            _ => None,
+        };
+        pixels.push((i, (seen / all) as f32, class));
+    }
+    Reference { pixels }
+}
+
+#[test]
+fn rect_shadows_converge_with_an_exact_umbra_and_no_noise_outside_penumbrae() {
+    let ctx = common::gpu();
+    let reference = reference(&ctx);
+    let scene = |spp| Scene::parse(&shadow_scene(spp), "shadow.toml", Path::new(".")).unwrap();
+    let unshadowed = render(&mut Renderer::new(ctx.clone(), scene(0)).unwrap(), None);
+    let mut errors = Vec::new();
+    for spp in [4u32, 16, 64] {
+        let mut renderer = Renderer::new(ctx.clone(), scene(spp)).unwrap();
+        let first = render_seeded(&mut renderer, 0);
+        let second = render_seeded(&mut renderer, 1);
+        let (mut squared, mut umbra, mut lit, mut noisy) = (0.0f64, 0, 0, 0);
+        for &(i, expected, class) in &reference.pixels {
+            let visibility = first[i].x / unshadowed[i].x;
+            squared += f64::from(visibility - expected).powi(2);
+            match class {
+                Some(false) => {
+                    umbra += 1;
+                    assert_eq!(first[i].truncate(), Vec3::ZERO, "pixel {i}: umbra, spp {spp}");
+                }
+                Some(true) => {
+                    lit += 1;
+                    assert_eq!(first[i], second[i], "pixel {i}: lit, spp {spp}");
+                    assert_eq!(first[i], unshadowed[i], "pixel {i}: lit, spp {spp}");
+                }
+                None => noisy += (first[i] != second[i]) as usize,
+            }
+        }
+        let rmse = (squared / reference.pixels.len() as f64).sqrt();
+        println!(
+            "spp {spp}: visibility RMSE {rmse:.4} over {} floor pixels ({umbra} umbra, exactly 0; {lit} lit, \
+             identical across seeds; {noisy} penumbra pixels differ between seeds)",
+            reference.pixels.len()
+        );
+        assert!(umbra > 30 && lit > 1000 && noisy > 30, "{umbra} {lit} {noisy}");
+        errors.push(rmse);
+    }
+    assert!(errors[2] <= errors[0] / 3.0, "{errors:?}");
     common::assert_clean(&ctx);
 }

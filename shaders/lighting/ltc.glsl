@@ -8,7 +8,8 @@
 const uint LTC_SIZE = 32u;
 const float LTC_PI = 3.14159265358979;
 
-// One rect light: center.xyz, w: 1 when two-sided; the half edges; radiance.
+// One rect light: center.xyz, w: 1 when two-sided; the half edges (u.w: shadow rays per
+// pixel, 0 for none); radiance.
 struct GpuRect {
     vec4 center_two_sided;
     vec4 half_edge_u;

@@ -9,6 +9,15 @@
 #include "lights.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
+#define BVH_SET 0
+#define BVH_NODES_BINDING RECT_BVH_NODES
+#define BVH_TRIANGLES_BINDING RECT_BVH_TRIANGLES
+#include "bvh.glsl"
+#include "gbuffer.glsl"
+#include "random.glsl"
+#include "ray_offset.glsl"
+layout(set = 0, binding = RECT_SURFACE) uniform usampler2D gbuffer_surface;
+
 layout(set = 0, binding = RECT_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = RECT_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = RECT_MATERIAL) uniform sampler2D gbuffer_material;
@@ -23,8 +32,51 @@ layout(set = 0, binding = RECT_RADIANCE_OUT, rgba32f) uniform writeonly image2D 
 layout(push_constant) uniform Push {
     mat4 clip_to_eye; // inverse of the (jittered) eye-relative view-projection
     vec4 eye;         // xyz
-    uvec4 dims;       // x: width, y: height, z: rect count
+    uvec4 dims;       // x: width, y: height, z: rect count, w: frame index (seeds the rays)
 } pc;
+
+// Shadow-ray samples of rect i: RECT_SAMPLE_SALT + 256 i + k, apart from other rays' streams.
+const uint RECT_SAMPLE_SALT = 0x40000000u;
+
+// The ratio estimator (Heitz, Hill, McGuire 2018): with the same spp points on the rect
+// (stratified on a grid when spp is a square, else uniform), the BRDF-and-geometry-weighted sum
+// over the points a shadow ray reaches, over the sum over all of them. Exactly 1 where every
+// ray arrives, 0 where none does, so noise stays in penumbrae. The weight is the luminance of
+// f cos(surface) cos(light) / d^2 (constant radiance and pdf cancel).
+float rect_visibility(GpuRect rect, uint i, vec3 p, vec3 origin, vec3 n, vec3 v, vec4 material, float metallic,
+                      uint pixel) {
+    uint spp = uint(rect.half_edge_u.w);
+    if (spp == 0u) return 1.0;
+    vec3 u = rect.half_edge_u.xyz;
+    vec3 w = rect.half_edge_v.xyz;
+    vec3 normal = normalize(cross(u, w));
+    bool two_sided = rect.center_two_sided.w != 0.0;
+    uint grid = uint(sqrt(float(spp)) + 0.5);
+    bool stratified = grid * grid == spp;
+    float all_weight = 0.0;
+    float reached = 0.0;
+    for (uint k = 0u; k < spp; k++) {
+        vec2 s = random2(uvec3(pixel, pc.dims.w, RECT_SAMPLE_SALT + 256u * i + k));
+        if (stratified) s = (vec2(float(k % grid), float(k / grid)) + s) / float(grid);
+        vec3 q = rect.center_two_sided.xyz + u * (2.0 * s.x - 1.0) + w * (2.0 * s.y - 1.0);
+        vec3 to = q - p;
+        float d2 = dot(to, to);
+        if (!(d2 > 0.0)) continue;
+        vec3 l = to * inversesqrt(d2);
+        float cos_light = dot(-l, normal);
+        cos_light = two_sided ? abs(cos_light) : max(cos_light, 0.0);
+        vec3 f = brdf_times_cos(n, v, l, material.rgb, material.a, metallic);
+        float weight = dot(f, vec3(0.2126, 0.7152, 0.0722)) * cos_light / d2;
+        if (!(weight > 0.0)) continue;
+        all_weight += weight;
+        vec3 to_origin = q - origin;
+        float dist = length(to_origin);
+        if (!bvh_occluded(origin, to_origin / dist, dist * (1.0 - 1e-4))) reached += weight;
+    }
+    // No point of the rect weighs anything here (its sliver above the horizon was missed):
+    // the analytic term alone, which is about 0 there anyway.
+    return all_weight > 0.0 ? reached / all_weight : 1.0;
+}
 
 // Distance along the unit ray (eye, d) to the emitting side of `rect`, or -1.
 float hit_emitter(GpuRect rect, vec3 d) {
@@ -52,8 +104,15 @@ void main() {
         vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
         vec3 n = normalize(normal_metallic.xyz);
         vec3 v = normalize(pc.eye.xyz - position.xyz);
+        uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);
+        vec3 start = position.xyz + gbuffer_terminator_offset(surface);
+        vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
+        uint pixel = px.y * pc.dims.x + px.x;
         for (uint i = 0u; i < pc.dims.z; i++) {
-            sum += rect_radiance(rects[i], position.xyz, n, v, material.rgb, material.a, normal_metallic.w);
+            vec3 unshadowed = rect_radiance(rects[i], position.xyz, n, v, material.rgb, material.a, normal_metallic.w);
+            if (unshadowed == vec3(0.0)) continue;
+            float visible = rect_visibility(rects[i], i, position.xyz, origin, n, v, material, normal_metallic.w, pixel);
+            sum += unshadowed * visible;
         }
     }
     // The camera ray through this pixel (the G-buffer's own, jitter included).

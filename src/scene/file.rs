@@ -80,6 +80,7 @@ struct LightDesc {
     half_edge_v: Option<Xyz>,
     radiance: Option<Xyz>,
     two_sided: Option<bool>,
+    spp: Option<u32>,
     /// The shadow method's id (`crate::config::ShadowMethod::parse`).
     shadows: Option<String>,
     /// Soft or hard traced shadows; unset: soft when the light has a size.
@@ -406,7 +407,7 @@ impl Check<'_> {
             LightKind::Point => ("point", &["position", "intensity"], &["radius"]),
             LightKind::Directional => ("directional", &["direction", "irradiance"], &["angular_diameter_deg"]),
             LightKind::Spot => ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"], &["radius"]),
-            LightKind::Rect => ("rect", &["center", "half_edge_u", "half_edge_v", "radiance"], &["two_sided"]),
+            LightKind::Rect => ("rect", &["center", "half_edge_u", "half_edge_v", "radiance"], &["two_sided", "spp"]),
         };
         let given = [
             ("position", light.position.is_some()),
@@ -422,6 +423,7 @@ impl Check<'_> {
             ("half_edge_v", light.half_edge_v.is_some()),
             ("radiance", light.radiance.is_some()),
             ("two_sided", light.two_sided.is_some()),
+            ("spp", light.spp.is_some()),
         ];
         for (key, present) in given {
             if present && !needs.contains(&key) && !optional.contains(&key) {
@@ -468,7 +470,12 @@ impl Check<'_> {
         if u.dot(v).abs() > 1e-3 * u.length() * v.length() {
             return Err(self.fail(path, "half_edge_u and half_edge_v must be perpendicular"));
         }
-        let rect = RectLight { center, half_edge_u: u, half_edge_v: v, radiance, two_sided: light.two_sided.unwrap_or(false) };
+        let spp = light.spp.unwrap_or(RectLight::DEFAULT_SPP);
+        if spp > RectLight::MAX_SPP {
+            return Err(self.fail(&format!("{path}.spp"), format!("{spp} is outside [0, {}]", RectLight::MAX_SPP)));
+        }
+        let two_sided = light.two_sided.unwrap_or(false);
+        let rect = RectLight { center, half_edge_u: u, half_edge_v: v, radiance, two_sided, spp };
         Ok(rect)
     }
 

@@ -80,9 +80,16 @@ pub struct RectLight {
     pub half_edge_v: Vec3,
     pub radiance: Vec3,
     pub two_sided: bool,
+    /// Shadow rays per pixel and frame (the scene file's `spp`, default 4); 0 casts no shadow.
+    pub spp: u32,
 }
 
 impl RectLight {
+    /// Shadow rays per pixel and frame unless the file says.
+    pub const DEFAULT_SPP: u32 = 4;
+    /// At most (each rect's rays draw from their own 256 sample indices).
+    pub const MAX_SPP: u32 = 256;
+
     /// Unit normal of the emitting side: `half_edge_u × half_edge_v`, normalised.
     pub fn normal(&self) -> Vec3 {
         self.half_edge_u.cross(self.half_edge_v).normalize()

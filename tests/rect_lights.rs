@@ -383,7 +383,7 @@ fn rect_shadows_converge_with_an_exact_umbra_and_no_noise_outside_penumbrae() {
     let scene = |spp| Scene::parse(&shadow_scene(spp), "shadow.toml", Path::new(".")).unwrap();
     let unshadowed = render(&mut Renderer::new(ctx.clone(), scene(0)).unwrap(), None);
     let mut errors = Vec::new();
-    for spp in [4u32, 16, 64] {
+    for spp in [4u32, 16, 64, 256] {
         let mut renderer = Renderer::new(ctx.clone(), scene(spp)).unwrap();
         let first = render_seeded(&mut renderer, 0);
         let second = render_seeded(&mut renderer, 1);

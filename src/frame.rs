@@ -214,7 +214,8 @@ fn lighting_stage<'a>(
     let mut image = compose::add(g, pipelines, gbuffer, inputs, extent);
     if let Some((rects, pipeline)) = ambient.lighting.rects {
         let bvh = s.bvh.import(g, SCENE_ACCESS);
-        image = crate::lighting::rects::add(g, pipeline, rects, gbuffer, &image, &bvh, camera, settings.frame_index, extent);
+        let frame = settings.frame_index;
+        image = crate::lighting::rects::add(g, pipeline, rects, gbuffer, &image, &bvh, camera, frame, extent);
     }
     if let Some(h) = &history {
         image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);

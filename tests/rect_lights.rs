@@ -110,7 +110,13 @@ fn rect_toward(dir: Vec3) -> RectLightF32 {
     let side = if dir.y.abs() < 0.9 { Vec3::Y } else { Vec3::X };
     let u = side.cross(dir).normalize() * 0.5;
     let w = u.cross(dir).normalize() * 0.3;
-    let rect = RectLightF32 { center: dir * 2.0, half_edge_u: u, half_edge_v: w, radiance: Vec3::new(1.0, 2.0, 3.0), two_sided: false };
+    let rect = RectLightF32 {
+        center: dir * 2.0,
+        half_edge_u: u,
+        half_edge_v: w,
+        radiance: Vec3::new(1.0, 2.0, 3.0),
+        two_sided: false,
+    };
     assert!(rect.half_edge_u.cross(rect.half_edge_v).dot(dir) < 0.0, "faces the origin");
     rect
 }
@@ -125,7 +131,8 @@ fn lambert_from_a_rect_matches_numerical_integration() {
         let v = Vec3::new(-0.3, 0.1, 1.0).normalize();
         // Diffuse only: subtract the specular that both sides share, by a black-diffuse material.
         let black = Material { base_color: Vec3::ZERO, ..material };
-        let ltc = shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &rect) - shade_rect(Vec3::ZERO, Vec3::Z, v, &black, &rect);
+        let ltc =
+            shade_rect(Vec3::ZERO, Vec3::Z, v, &material, &rect) - shade_rect(Vec3::ZERO, Vec3::Z, v, &black, &rect);
         let num = numerical(v, &material, &rect, 300) - numerical(v, &black, &rect, 300);
         let error = ((ltc.as_dvec3() - num).abs() / num).max_element();
         println!("lambert, light at {light_deg:>4} deg: ltc {ltc:?} numerical {num:?} error {:.4} %", 100.0 * error);
@@ -262,7 +269,8 @@ fn gpu_rect_shading_matches_the_cpu_twin() {
 fn only_the_emitting_side_is_seen() {
     let ctx = common::gpu();
     let count = |text: String| {
-        let mut renderer = Renderer::new(ctx.clone(), Scene::parse(&text, "rect.toml", Path::new(".")).unwrap()).unwrap();
+        let mut renderer =
+            Renderer::new(ctx.clone(), Scene::parse(&text, "rect.toml", Path::new(".")).unwrap()).unwrap();
         render(&mut renderer, None).iter().filter(|p| p.truncate() == Vec3::new(3.0, 2.5, 2.0)).count()
     };
     // The rect turned over (v negated: it emits upward, away from the camera below it).
@@ -335,7 +343,11 @@ fn reference(ctx: &std::sync::Arc<umbra::vk::GpuContext>) -> Reference {
     for i in 0..position.len() {
         let p = (position[i].truncate().as_dvec3() - origin).as_vec3();
         let n = normal[i].truncate();
-        if position[i].w <= 0.0 || n.y < 0.999 || position[i].y.abs() > 1e-3 || unshadowed[i].truncate() == rect.radiance {
+        if position[i].w <= 0.0
+            || n.y < 0.999
+            || position[i].y.abs() > 1e-3
+            || unshadowed[i].truncate() == rect.radiance
+        {
             continue;
         }
         let from = p + Vec3::Y * 1e-3;
@@ -355,8 +367,9 @@ fn reference(ctx: &std::sync::Arc<umbra::vk::GpuContext>) -> Reference {
                     if grow == 1.0 {
                         let l = (q - p).normalize();
                         let f = brdf_times_cos(Vec3::Y, v, l, material.base_color, 1.0, 0.0);
-                        let weight = f64::from(f.dot(Vec3::new(0.2126, 0.7152, 0.0722)) * light_normal.dot(-l).max(0.0))
-                            / f64::from((q - p).length_squared());
+                        let weight =
+                            f64::from(f.dot(Vec3::new(0.2126, 0.7152, 0.0722)) * light_normal.dot(-l).max(0.0))
+                                / f64::from((q - p).length_squared());
                         all += weight;
                         seen += if open { weight } else { 0.0 };
                     } else {

@@ -281,7 +281,18 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         file.ambient_occlusion.as_ref(),
         |key_path, message| check.fail(key_path, message),
     )?;
-    Ok(Scene { image_size, camera, lights, rect_lights, meshes, stats, shadow_backend, sources, light_shadows, lighting })
+    Ok(Scene {
+        image_size,
+        camera,
+        lights,
+        rect_lights,
+        meshes,
+        stats,
+        shadow_backend,
+        sources,
+        light_shadows,
+        lighting,
+    })
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.

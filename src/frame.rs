@@ -212,6 +212,11 @@ fn lighting_stage<'a>(
         }),
     };
     let mut image = compose::add(g, pipelines, gbuffer, inputs, extent);
+    if let Some((rects, pipeline)) = ambient.lighting.rects {
+        let bvh = s.bvh.import(g, SCENE_ACCESS);
+        let frame = settings.frame_index;
+        image = crate::lighting::rects::add(g, pipeline, rects, gbuffer, &image, &bvh, camera, frame, extent);
+    }
     if let Some(h) = &history {
         image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);
     }

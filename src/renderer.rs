@@ -50,6 +50,8 @@ pub struct Renderer {
     lighting_pipelines: crate::lighting::Pipelines,
     /// The scene's environment on the device (its split-sum table); `None` without one.
     environment: Option<crate::lighting::EnvironmentGpu>,
+    /// The scene's rect lights on the device; `None` without one.
+    rects: Option<crate::lighting::rects::RectsGpu>,
     /// (light, method) pairs already told that the method cannot serve the light.
     fallbacks_noted: std::sync::Mutex<std::collections::BTreeSet<(usize, ShadowMethod)>>,
     /// How passes are timed on this device, found the first time timings are asked for.
@@ -114,6 +116,7 @@ impl Renderer {
             shadow_pipelines: Default::default(),
             lighting_pipelines: Default::default(),
             environment: crate::lighting::EnvironmentGpu::new(&ctx, &scene.lighting)?,
+            rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
             gpu_scene,
@@ -167,6 +170,7 @@ impl Renderer {
             &self.ctx,
             &self.scene.lighting,
             self.environment.as_ref(),
+            self.rects.as_ref(),
             settings.debug_view,
             plan.layers.count() > 0,
             self.gpu_scene.materials.is_some(),

@@ -300,6 +300,62 @@ pub fn shade_point(
     })
 }
 
+/// Unshadowed outgoing radiance toward `v` at `p` (unit normal `n`) from a rect light, by
+/// linearly transformed cosines (`lighting::ltc`): Lambert exactly (the cosine's integral over
+/// the horizon-clipped rect), GGX through the fitted table, with the split-sum table's scale and
+/// bias of F0 and Fresnel at the light's mean direction under the lobe. Zero behind a one-sided
+/// light. `p`, `center` in the same frame.
+pub fn shade_rect(p: Vec3, n: Vec3, v: Vec3, material: &Material, rect: &RectLightF32) -> Vec3 {
+    use crate::lighting::{ltc, split_sum};
+    let normal = rect.half_edge_u.cross(rect.half_edge_v);
+    if !rect.two_sided && normal.dot(p - rect.center) <= 0.0 {
+        return Vec3::ZERO;
+    }
+    let n_dot_v = n.dot(v).max(BRDF_MIN_N_DOT_V);
+    let (x, y) = ltc::frame(n, v);
+    let corners = ltc::corners_in_frame(rect.center, rect.half_edge_u, rect.half_edge_v, p, x, y, n);
+    let diffuse_share = ltc::polygon(glam::Mat3::IDENTITY, corners);
+    let roughness = material.roughness.clamp(0.0, 1.0);
+    let node = ltc::lookup(ltc::table(), n_dot_v, roughness);
+    let m = ltc::inverse_matrix(node);
+    let form = ltc::form_factor(m, corners);
+    let ab = split_sum::lookup(split_sum::table(), n_dot_v, roughness);
+    let metallic = material.metallic.clamp(0.0, 1.0);
+    let f0 = Vec3::splat(0.04).lerp(material.base_color, metallic);
+    let v_frame = Vec3::new(v.dot(x), 0.0, v.dot(n));
+    let mean = m.inverse() * form * form.z.signum();
+    let fresnel = Vec3::new(
+        ltc::fresnel_toward(f0.x, v_frame, mean),
+        ltc::fresnel_toward(f0.y, v_frame, mean),
+        ltc::fresnel_toward(f0.z, v_frame, mean),
+    );
+    let specular = fresnel * ((ab.x + ab.y) * form.z.abs() / node[4]);
+    let diffuse = material.base_color * (1.0 - metallic) * diffuse_share;
+    (diffuse + specular) * rect.radiance
+}
+
+/// A rect light in the renderer's f32 frame (`scene::RectLight` after the scene-local shift).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RectLightF32 {
+    pub center: Vec3,
+    pub half_edge_u: Vec3,
+    pub half_edge_v: Vec3,
+    pub radiance: Vec3,
+    pub two_sided: bool,
+}
+
+impl From<&crate::scene::RectLight> for RectLightF32 {
+    fn from(r: &crate::scene::RectLight) -> Self {
+        RectLightF32 {
+            center: r.center.as_vec3(),
+            half_edge_u: r.half_edge_u,
+            half_edge_v: r.half_edge_v,
+            radiance: r.radiance,
+            two_sided: r.two_sided,
+        }
+    }
+}
+
 /// Display-linear colour in [0, 1] from scene radiance: scale by 2^exposure_ev, then the ACES
 /// filmic fit of Narkowicz (2015), `x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14)`, applied per
 /// channel to the exposed value as is (no extra 0.6 pre-scale), clamped. The sRGB OETF

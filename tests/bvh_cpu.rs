@@ -178,6 +178,7 @@ fn scene_build_takes_only_shadow_casters() {
         image_size: None,
         camera: Camera { eye: DVec3::Z, target: DVec3::ZERO, up: Vec3::Y, vfov_deg: 60.0 },
         lights: vec![],
+        rect_lights: vec![],
         meshes: vec![mesh("caster", 1.0, true), mesh("receiver", 2.0, false)],
         stats: LoadStats::default(),
         shadow_backend: None,

@@ -4,7 +4,7 @@
 //! (it is exact); GGX holds up to 45 degrees for roughness up to 0.7, up to 70 for 0.2, and to
 //! 85 for 0.1, and is printed for the rest, which the fit does not reach yet. Fresnel is taken
 //! at the half vector of the light's mean direction under the lobe (`ltc::fresnel_toward`).
-//! CPU only: no shader uses the table yet.
+//! CPU only here: tests/rect_lights.rs checks the GPU's rect shading against its CPU twin.
 
 use glam::{DVec3, Vec3};
 use umbra::lighting::{ltc, split_sum};

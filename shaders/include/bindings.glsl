@@ -123,4 +123,19 @@
 #define AO_OUTPUT 5
 #define AO_VIEW_OUTPUT 6
 
+// lighting/rect_lights.comp: rect lights' unshadowed LTC shading added to compose's radiance,
+// times their traced visibility (ratio estimator), and their emitters where the camera sees
+// them (RADIANCE_IN read, RADIANCE_OUT written)
+#define RECT_POSITION 0
+#define RECT_NORMAL 1
+#define RECT_MATERIAL 2
+#define RECT_LIGHTS 3
+#define RECT_LTC_TABLE 4
+#define RECT_BRDF_TABLE 5
+#define RECT_RADIANCE_IN 6
+#define RECT_RADIANCE_OUT 7
+#define RECT_SURFACE 8
+#define RECT_BVH_NODES 9
+#define RECT_BVH_TRIANGLES 10
+
 #endif

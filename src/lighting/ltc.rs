@@ -7,7 +7,8 @@
 //! The inverse matrices come from `ltc_ggx.bin`, fitted by umbra's own tool
 //! (`cargo run --release --example ltc_fit`, src/lighting/ltc_fit.rs) to umbra's BRDF. The scale
 //! and bias of F0 that the lobe integrates to are the split-sum table's (`split_sum`).
-//! CPU only so far (tests/ltc.rs measures it): no shader reads the table yet.
+//! tests/ltc.rs measures it on the CPU; shaders/lighting/ltc.glsl is its twin on the GPU
+//! (rect lights, `lighting::rects`).
 
 use std::sync::OnceLock;
 

@@ -5,6 +5,7 @@
 pub mod ao;
 pub mod ltc;
 pub mod ltc_fit;
+pub mod rects;
 pub mod split_sum;
 
 use std::sync::{Arc, OnceLock};
@@ -61,6 +62,7 @@ pub struct Pipelines {
     compose: [OnceLock<ComputePipeline>; 8],
     pub(crate) ao: OnceLock<ComputePipeline>,
     pub(crate) ao_view: OnceLock<ComputePipeline>,
+    rects: OnceLock<ComputePipeline>,
 }
 
 impl Pipelines {
@@ -87,6 +89,8 @@ pub struct Prepared<'a> {
     pub occlusion: Option<(crate::scene::AmbientOcclusion, &'a ComputePipeline)>,
     /// The `ao` view's pipeline, when the frame shows it.
     pub view: Option<&'a ComputePipeline>,
+    /// The rect lights and their pass, in shaded frames of scenes that have any.
+    pub rects: Option<(&'a rects::RectsGpu, &'a ComputePipeline)>,
 }
 
 impl Pipelines {
@@ -97,6 +101,7 @@ impl Pipelines {
         ctx: &Arc<GpuContext>,
         lighting: &SceneLighting,
         environment: Option<&'a EnvironmentGpu>,
+        rect_lights: Option<&'a rects::RectsGpu>,
         view: Option<crate::config::DebugView>,
         shadowed: bool,
         emissive: bool,
@@ -115,6 +120,9 @@ impl Pipelines {
             }
             Some(_) => {}
             None => {
+                if let Some(r) = rect_lights {
+                    prepared.rects = Some((r, crate::vk::get_or_make(&self.rects, || rects::pipeline(ctx))?));
+                }
                 if let Some(environment) = environment {
                     let occlusion = lighting.occlusion_of_environment();
                     prepared.environment =

@@ -111,7 +111,8 @@ impl Accumulator {
         let still = self.last.as_ref() == Some(&key);
         self.last = Some(key);
         let occlusion = scene.lighting.occlusion_of_environment().is_some();
-        let accumulated = settings.is_stochastic(&scene.lights) || occlusion || settings.antialias;
+        let rect_shadows = scene.rect_lights.iter().any(|r| r.spp > 0);
+        let accumulated = settings.is_stochastic(&scene.lights) || occlusion || rect_shadows || settings.antialias;
         if settings.debug_view.is_some() || !accumulated {
             self.frames = 0;
             return Ok(None);

@@ -10,7 +10,7 @@ use serde::Deserialize;
 
 use super::error::{short_number, shorten, SceneError, MAX_MESSAGE_CHARS};
 use super::mesh::{self, ObjectMesh};
-use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, Scene};
+use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, RectLight, Scene};
 use crate::config::ShadowBackend;
 
 #[derive(Deserialize)]
@@ -89,6 +89,7 @@ enum LightKind {
     Point,
     Directional,
     Spot,
+    Rect,
 }
 
 /// One struct for every light type rather than a tagged enum: serde's tagged enums buffer their
@@ -106,6 +107,12 @@ struct LightDesc {
     outer_deg: Option<f64>,
     radius: Option<f64>,
     angular_diameter_deg: Option<f64>,
+    center: Option<Xyz>,
+    half_edge_u: Option<Xyz>,
+    half_edge_v: Option<Xyz>,
+    radiance: Option<Xyz>,
+    two_sided: Option<bool>,
+    spp: Option<u32>,
     /// The shadow method's id (`crate::config::ShadowMethod::parse`).
     shadows: Option<String>,
     /// Soft or hard traced shadows; unset: soft when the light has a size.
@@ -257,12 +264,17 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         None => None,
     };
     let camera = check.camera_choice(file.camera.as_ref(), whole.as_ref().map(|(s, g)| (s.as_str(), g)))?;
-    let mut lights = file
-        .lights
-        .iter()
-        .enumerate()
-        .map(|(i, light)| check.light(&format!("lights[{i}]"), light))
-        .collect::<Result<Vec<_>, _>>()?;
+    // Rect lights go to their own list; the others keep their shadow choices in step.
+    let (mut lights, mut rect_lights, mut shadowed) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, light) in file.lights.iter().enumerate() {
+        let path = format!("lights[{i}]");
+        if light.kind == LightKind::Rect {
+            rect_lights.push(check.rect(&path, light)?);
+        } else {
+            lights.push(check.light(&path, light)?);
+            shadowed.push((path, light));
+        }
+    }
     // The glTF scene's lights come after the file's, so `lights[i]` keeps naming the same light.
     let gltf_lights = whole.as_ref().map_or(0, |(_, g)| g.lights.len());
     lights.extend(whole.iter().flat_map(|(_, g)| g.lights.iter().copied()));
@@ -316,7 +328,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.short_faces += placed.short_faces;
     }
     sources.extend(check.textures.borrow().files().iter().cloned());
-    if !meshes.is_empty() && lights.is_empty() {
+    if !meshes.is_empty() && lights.is_empty() && rect_lights.is_empty() {
         // Nothing else lights a surface yet (no environment light): say why the picture is
         // black before the user looks for a bug.
         log::warn!(
@@ -324,11 +336,9 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         );
     }
     let shadow_backend = file.render.and_then(|r| r.shadow_backend);
-    let light_shadows = file
-        .lights
+    let light_shadows = shadowed
         .iter()
-        .enumerate()
-        .map(|(i, light)| check.shadows(&format!("lights[{i}]"), light))
+        .map(|(path, light)| check.shadows(path, light))
         .chain((0..gltf_lights).map(|_| Ok(Default::default())))
         .collect::<Result<Vec<_>, _>>()?;
     let lighting = super::environment::check(
@@ -337,7 +347,18 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         file.ambient_occlusion.as_ref(),
         |key_path, message| check.fail(key_path, message),
     )?;
-    Ok(Scene { image_size, camera, lights, meshes, stats, shadow_backend, sources, light_shadows, lighting })
+    Ok(Scene {
+        image_size,
+        camera,
+        lights,
+        rect_lights,
+        meshes,
+        stats,
+        shadow_backend,
+        sources,
+        light_shadows,
+        lighting,
+    })
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.
@@ -462,11 +483,13 @@ impl Check<'_> {
         Ok(choice)
     }
 
-    fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {
+    /// Refuses a key the light's type does not take and a missing one it needs.
+    fn light_keys(&self, path: &str, light: &LightDesc) -> Result<(), SceneError> {
         let (name, needs, optional): (&str, &[&str], &[&str]) = match light.kind {
             LightKind::Point => ("point", &["position", "intensity"], &["radius"]),
             LightKind::Directional => ("directional", &["direction", "irradiance"], &["angular_diameter_deg"]),
             LightKind::Spot => ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"], &["radius"]),
+            LightKind::Rect => ("rect", &["center", "half_edge_u", "half_edge_v", "radiance"], &["two_sided", "spp"]),
         };
         let given = [
             ("position", light.position.is_some()),
@@ -477,6 +500,12 @@ impl Check<'_> {
             ("outer_deg", light.outer_deg.is_some()),
             ("radius", light.radius.is_some()),
             ("angular_diameter_deg", light.angular_diameter_deg.is_some()),
+            ("center", light.center.is_some()),
+            ("half_edge_u", light.half_edge_u.is_some()),
+            ("half_edge_v", light.half_edge_v.is_some()),
+            ("radiance", light.radiance.is_some()),
+            ("two_sided", light.two_sided.is_some()),
+            ("spp", light.spp.is_some()),
         ];
         for (key, present) in given {
             if present && !needs.contains(&key) && !optional.contains(&key) {
@@ -489,6 +518,51 @@ impl Check<'_> {
                 return Err(self.fail(path, format!("a {name} light needs `{key}`")));
             }
         }
+        Ok(())
+    }
+
+    /// A rect light: keys, finite values, perpendicular edges and a nonzero area (in f32).
+    /// Its shadows are not a per-light technique choice, so the shadow keys are refused.
+    fn rect(&self, path: &str, light: &LightDesc) -> Result<RectLight, SceneError> {
+        self.light_keys(path, light)?;
+        let shadow_keys = [
+            ("shadows", light.shadows.is_some()),
+            ("soft", light.soft.is_some()),
+            ("traced", light.traced.is_some()),
+            ("map", light.map.is_some()),
+            ("cascades", light.cascades.is_some()),
+            ("hybrid", light.hybrid.is_some()),
+            ("auto", light.auto.is_some()),
+            ("volumes", light.volumes.is_some()),
+        ];
+        if let Some((key, _)) = shadow_keys.iter().find(|(_, present)| *present) {
+            let message = "a rect light takes no shadow settings (its shadows are always traced)";
+            return Err(self.fail(&format!("{path}.{key}"), message));
+        }
+        let field = |v: &Option<Xyz>| v.as_ref().map_or([0.0; 3], |v| v.0);
+        let center = self.point(&format!("{path}.center"), field(&light.center))?;
+        let u = self.point(&format!("{path}.half_edge_u"), field(&light.half_edge_u))?.as_vec3();
+        let v = self.point(&format!("{path}.half_edge_v"), field(&light.half_edge_v))?.as_vec3();
+        let radiance = self.power(&format!("{path}.radiance"), field(&light.radiance))?;
+        let cross = u.cross(v);
+        if !(cross.is_finite() && cross.length() > 0.0) {
+            let message = "the rect has zero area (half_edge_u x half_edge_v is zero or not finite)";
+            return Err(self.fail(path, message));
+        }
+        if u.dot(v).abs() > 1e-3 * u.length() * v.length() {
+            return Err(self.fail(path, "half_edge_u and half_edge_v must be perpendicular"));
+        }
+        let spp = light.spp.unwrap_or(RectLight::DEFAULT_SPP);
+        if spp > RectLight::MAX_SPP {
+            return Err(self.fail(&format!("{path}.spp"), format!("{spp} is outside [0, {}]", RectLight::MAX_SPP)));
+        }
+        let two_sided = light.two_sided.unwrap_or(false);
+        let rect = RectLight { center, half_edge_u: u, half_edge_v: v, radiance, two_sided, spp };
+        Ok(rect)
+    }
+
+    fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {
+        self.light_keys(path, light)?;
         // Presence is checked above; these defaults are never used.
         let field = |v: &Option<Xyz>| v.as_ref().map_or([0.0; 3], |v| v.0);
         let position = || self.point(&format!("{path}.position"), field(&light.position));
@@ -540,6 +614,7 @@ impl Check<'_> {
                     radius: radius()?,
                 }
             }
+            LightKind::Rect => unreachable!("rect lights are checked by Check::rect"),
         })
     }
 

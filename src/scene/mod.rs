@@ -73,6 +73,46 @@ impl Light {
     }
 }
 
+/// A rectangular area light of constant `radiance` (W/(m^2 sr), linear RGB): corners at
+/// `center ± half_edge_u ± half_edge_v` (metres; the edges are perpendicular), emitting toward
+/// `half_edge_u × half_edge_v`, and toward both sides when `two_sided`. Kept beside `Light`
+/// rather than in it: the per-light shadow techniques (maps, cascades, volumes, their
+/// `ShadowChoice` and visibility layer) have nothing to serve it with, and a scene without one
+/// must carry nothing for it.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct RectLight {
+    pub center: DVec3,
+    pub half_edge_u: Vec3,
+    pub half_edge_v: Vec3,
+    pub radiance: Vec3,
+    pub two_sided: bool,
+    /// Shadow rays per pixel and frame (the scene file's `spp`, default 4); 0 casts no shadow.
+    pub spp: u32,
+}
+
+impl RectLight {
+    /// Shadow rays per pixel and frame unless the file says.
+    pub const DEFAULT_SPP: u32 = 4;
+    /// At most (each rect's rays draw from their own 256 sample indices).
+    pub const MAX_SPP: u32 = 256;
+
+    /// Unit normal of the emitting side: `half_edge_u × half_edge_v`, normalised.
+    pub fn normal(&self) -> Vec3 {
+        self.half_edge_u.cross(self.half_edge_v).normalize()
+    }
+
+    /// Area in m^2.
+    pub fn area(&self) -> f32 {
+        4.0 * self.half_edge_u.cross(self.half_edge_v).length()
+    }
+
+    /// The four corners, counter-clockwise seen from the emitting side.
+    pub fn corners(&self) -> [DVec3; 4] {
+        let (u, v) = (self.half_edge_u.as_dvec3(), self.half_edge_v.as_dvec3());
+        [self.center - u - v, self.center + u - v, self.center + u + v, self.center - u + v]
+    }
+}
+
 /// Metalness/roughness material; `base_color` is linear RGB.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
@@ -165,6 +205,8 @@ pub struct Scene {
     pub image_size: Option<(u32, u32)>,
     pub camera: Camera,
     pub lights: Vec<Light>,
+    /// `type = "rect"` lights, in file order (not counted by `lights` or its indices).
+    pub rect_lights: Vec<RectLight>,
     pub meshes: Vec<Mesh>,
     pub stats: LoadStats,
     /// `[render] shadow_backend`, if the file names one (the command line overrides it).
@@ -227,6 +269,9 @@ impl Scene {
                 }
                 Light::Directional { .. } => {}
             }
+        }
+        for rect in &mut scene.rect_lights {
+            rect.center = shift(rect.center);
         }
         for mesh in &mut scene.meshes {
             for p in &mut mesh.positions {

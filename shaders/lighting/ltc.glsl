@@ -1,0 +1,131 @@
+// Linearly transformed cosines over a rect light: twin of src/lighting/ltc.rs (`lookup`,
+// `form_factor`, `fresnel_toward`, `frame`) and of `shade_rect` in src/shading.rs.
+// Contract: before including, declare `float ltc_table[]` (ltc::table(), 5 floats a node, x
+// fastest) and `vec2 brdf_table[]`, and include brdf.glsl and lighting/environment.glsl.
+#ifndef UMBRA_LTC_GLSL
+#define UMBRA_LTC_GLSL
+
+const uint LTC_SIZE = 32u;
+const float LTC_PI = 3.14159265358979;
+
+// One rect light: center.xyz, w: 1 when two-sided; the half edges (u.w: shadow rays per
+// pixel, 0 for none); radiance.
+struct GpuRect {
+    vec4 center_two_sided;
+    vec4 half_edge_u;
+    vec4 half_edge_v;
+    vec4 radiance;
+};
+
+float ltc_node(uint i, uint k) { return ltc_table[i * 5u + k]; }
+
+// The inverse matrix at (n_dot_v, roughness), bilinear between nodes, and its share above the
+// horizon (`share`).
+mat3 ltc_lookup(float n_dot_v, float roughness, out float share) {
+    float last = float(LTC_SIZE - 1u);
+    float x = sqrt(1.0 - clamp(n_dot_v, 0.0, 1.0)) * last;
+    float y = clamp(roughness, 0.0, 1.0) * last;
+    float x0 = min(floor(x), last - 1.0);
+    float y0 = min(floor(y), last - 1.0);
+    float tx = x - x0;
+    float ty = y - y0;
+    uint i = uint(y0) * LTC_SIZE + uint(x0);
+    float p[5];
+    for (uint k = 0u; k < 5u; k++) {
+        float bottom = ltc_node(i, k) * (1.0 - tx) + ltc_node(i + 1u, k) * tx;
+        float top = ltc_node(i + LTC_SIZE, k) * (1.0 - tx) + ltc_node(i + LTC_SIZE + 1u, k) * tx;
+        p[k] = bottom * (1.0 - ty) + top * ty;
+    }
+    share = p[4];
+    return mat3(vec3(p[0], 0.0, p[3]), vec3(0.0, p[2], 0.0), vec3(p[1], 0.0, 1.0));
+}
+
+vec3 ltc_edge(vec3 a, vec3 b) {
+    float la = length(a);
+    float lb = length(b);
+    if (la <= 0.0 || lb <= 0.0) return vec3(0.0);
+    a /= la;
+    b /= lb;
+    vec3 c = cross(a, b);
+    float s = length(c);
+    if (s <= 0.0) return vec3(0.0);
+    return c * (atan(s, dot(a, b)) / s);
+}
+
+// Edge a -> b of a convex polygon clipped to z >= 0: its kept part, remembering where the
+// polygon leaves the upper half (exit) and comes back (entry) for the horizon edge.
+vec3 ltc_clipped_edge(vec3 a, vec3 b, inout vec3 exit_point, inout vec3 entry_point) {
+    bool a_up = a.z >= 0.0;
+    bool b_up = b.z >= 0.0;
+    if (a_up && b_up) return ltc_edge(a, b);
+    if (!a_up && !b_up) return vec3(0.0);
+    vec3 crossing = a + (b - a) * (a.z / (a.z - b.z));
+    if (a_up) {
+        exit_point = crossing;
+        return ltc_edge(a, crossing);
+    }
+    entry_point = crossing;
+    return ltc_edge(crossing, b);
+}
+
+// The polygon's vector form factor after `m` (ltc::form_factor).
+vec3 ltc_form_factor(mat3 m, vec3 c0, vec3 c1, vec3 c2, vec3 c3) {
+    vec3 p0 = m * c0, p1 = m * c1, p2 = m * c2, p3 = m * c3;
+    vec3 exit_point = vec3(0.0), entry_point = vec3(0.0);
+    vec3 sum = ltc_clipped_edge(p0, p1, exit_point, entry_point);
+    sum += ltc_clipped_edge(p1, p2, exit_point, entry_point);
+    sum += ltc_clipped_edge(p2, p3, exit_point, entry_point);
+    sum += ltc_clipped_edge(p3, p0, exit_point, entry_point);
+    bool any_up = p0.z >= 0.0 || p1.z >= 0.0 || p2.z >= 0.0 || p3.z >= 0.0;
+    bool any_down = p0.z < 0.0 || p1.z < 0.0 || p2.z < 0.0 || p3.z < 0.0;
+    if (any_up && any_down) sum += ltc_edge(exit_point, entry_point);
+    return sum / (2.0 * LTC_PI);
+}
+
+vec3 ltc_fresnel_toward(vec3 f0, vec3 v, vec3 l) {
+    vec3 h = normalize(v + normalize(l));
+    float m = 1.0 - clamp(dot(v, h), 0.0, 1.0);
+    float m5 = m * m * m * m * m;
+    return f0 + (vec3(1.0) - f0) * m5;
+}
+
+// Unshadowed radiance toward v at p (normal n) from `rect`: shading::shade_rect.
+vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float roughness, float metallic) {
+    vec3 center = rect.center_two_sided.xyz;
+    vec3 u = rect.half_edge_u.xyz;
+    vec3 w = rect.half_edge_v.xyz;
+    if (rect.center_two_sided.w == 0.0 && dot(cross(u, w), p - center) <= 0.0) return vec3(0.0);
+    float n_dot_v = max(dot(n, v), BRDF_MIN_N_DOT_V);
+    vec3 t = v - n * dot(n, v);
+    vec3 x;
+    if (dot(t, t) > 1e-12) {
+        x = normalize(t);
+    } else {
+        vec3 b;
+        orthonormal_basis(n, x, b);
+    }
+    vec3 y = cross(n, x);
+    mat3 to_frame = transpose(mat3(x, y, n));
+    vec3 c0 = to_frame * (center - u - w - p);
+    vec3 c1 = to_frame * (center + u - w - p);
+    vec3 c2 = to_frame * (center + u + w - p);
+    vec3 c3 = to_frame * (center - u + w - p);
+    float diffuse_share = abs(ltc_form_factor(mat3(1.0), c0, c1, c2, c3).z);
+    roughness = clamp(roughness, 0.0, 1.0);
+    float share;
+    mat3 m = ltc_lookup(n_dot_v, roughness, share);
+    vec3 form = ltc_form_factor(m, c0, c1, c2, c3);
+    metallic = clamp(metallic, 0.0, 1.0);
+    vec3 specular = vec3(0.0);
+    if (form.z != 0.0) {
+        vec2 ab = split_sum_lookup(n_dot_v, roughness);
+        vec3 f0 = mix(vec3(0.04), base_color, metallic);
+        vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
+        vec3 mean = inverse(m) * form * sign(form.z);
+        specular = ltc_fresnel_toward(f0, v_frame, mean) * ((ab.x + ab.y) * abs(form.z) / share);
+    }
+    vec3 diffuse = base_color * (1.0 - metallic) * diffuse_share;
+    return (diffuse + specular) * rect.radiance.rgb;
+}
+
+#endif

@@ -1,0 +1,140 @@
+//! Rect lights on the device (issue 11): their unshadowed LTC shading (shaders/lighting/ltc.glsl,
+//! twin of `shading::shade_rect`) added to compose's radiance by one pass, which also shows each
+//! rect's emitting side to the camera. Its shadows are traced through the shadow BVH and combined
+//! with the analytic result by the ratio estimator (`rect_visibility` in rect_lights.comp). Only
+//! a scene with a rect light has the pass, the rect buffer and the LTC table on the device.
+
+use std::sync::Arc;
+
+use ash::vk;
+use glam::{Mat4, UVec4, Vec4};
+
+use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use crate::scene::RectLight;
+use crate::vk::bindings::*;
+use crate::vk::{spirv, Buffer, ComputePipeline, GpuContext, GpuResult};
+
+/// One rect as rect_lights.comp reads it (`GpuRect` in ltc.glsl).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct GpuRect {
+    /// xyz: centre in the scene-local frame; w: 1 when two-sided.
+    pub center_two_sided: [f32; 4],
+    /// w: shadow rays per pixel (0: none).
+    pub half_edge_u: [f32; 4],
+    pub half_edge_v: [f32; 4],
+    pub radiance: [f32; 4],
+}
+
+impl From<&RectLight> for GpuRect {
+    fn from(r: &RectLight) -> Self {
+        GpuRect {
+            center_two_sided: r.center.as_vec3().extend(if r.two_sided { 1.0 } else { 0.0 }).to_array(),
+            half_edge_u: r.half_edge_u.extend(r.spp as f32).to_array(),
+            half_edge_v: r.half_edge_v.extend(0.0).to_array(),
+            radiance: r.radiance.extend(0.0).to_array(),
+        }
+    }
+}
+
+/// The scene's rect lights on the device, with the LTC and split-sum tables.
+pub struct RectsGpu {
+    pub rects: Buffer,
+    pub ltc_table: Buffer,
+    pub brdf_table: Buffer,
+    pub count: u32,
+}
+
+impl RectsGpu {
+    /// `rects` in the scene-local frame; `None` (nothing made) when there are none. Without
+    /// casters (`has_casters` false: no BVH to walk) no shadow ray is traced.
+    pub fn new(ctx: &Arc<GpuContext>, rects: &[RectLight], has_casters: bool) -> GpuResult<Option<RectsGpu>> {
+        if rects.is_empty() {
+            return Ok(None);
+        }
+        let packed: Vec<GpuRect> = rects
+            .iter()
+            .map(|r| GpuRect::from(&RectLight { spp: if has_casters { r.spp } else { 0 }, ..*r }))
+            .collect();
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let [rects_buffer, ltc_table, brdf_table] = crate::gpu_scene::upload(
+            ctx,
+            [
+                ("rect lights", bytemuck::cast_slice(&packed), usage),
+                ("LTC table", bytemuck::cast_slice(super::ltc::table()), usage),
+                ("split-sum table (rects)", bytemuck::cast_slice(super::split_sum::table()), usage),
+            ],
+        )?;
+        Ok(Some(RectsGpu { rects: rects_buffer, ltc_table, brdf_table, count: packed.len() as u32 }))
+    }
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    clip_to_eye: Mat4,
+    eye: Vec4,
+    dims: UVec4,
+}
+
+pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    let bindings = [
+        sampled(RECT_POSITION),
+        sampled(RECT_NORMAL),
+        sampled(RECT_MATERIAL),
+        storage(RECT_LIGHTS),
+        storage(RECT_LTC_TABLE),
+        storage(RECT_BRDF_TABLE),
+        sampled(RECT_RADIANCE_IN),
+        storage_image(RECT_RADIANCE_OUT),
+        (RECT_SURFACE, crate::vk::DescriptorKind::SampledImage),
+        (RECT_BVH_NODES, crate::vk::DescriptorKind::UniformTexelBuffer),
+        (RECT_BVH_TRIANGLES, crate::vk::DescriptorKind::UniformTexelBuffer),
+    ];
+    let size = std::mem::size_of::<Push>() as u32;
+    ComputePipeline::new(ctx, "rect lights", spirv::LIGHTING_RECT_LIGHTS_COMP, &bindings, size, TILE)
+}
+
+/// `radiance` with the rect lights added (a new image).
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipeline: &'a ComputePipeline,
+    rects: &'a RectsGpu,
+    gbuffer: &GBuffer,
+    radiance: &Handle<ImageKind>,
+    bvh: &crate::gpu_scene::BvhHandles,
+    camera: &crate::gpu_scene::CameraMatrices,
+    frame_index: u32,
+    extent: vk::Extent2D,
+) -> Handle<ImageKind> {
+    let scene = crate::gpu_scene::SCENE_ACCESS;
+    let lights = graph.import_buffer("rect lights", &rects.rects, scene);
+    let ltc = graph.import_buffer("LTC table", &rects.ltc_table, scene);
+    let brdf = graph.import_buffer("split-sum table (rects)", &rects.brdf_table, scene);
+    let access = Access::ComputeShaderReadStorageBuffer;
+    let mut out = graph.create_image("radiance (rects)", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
+    let mut pass = graph.add_pass("rect lights");
+    let read = Access::ComputeShaderReadSampledImage;
+    let [nodes, triangles] = bvh.bind(&mut pass, RECT_BVH_NODES, RECT_BVH_TRIANGLES);
+    let bound = [
+        (RECT_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
+        nodes,
+        triangles,
+        (RECT_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
+        (RECT_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
+        (RECT_MATERIAL, Bound::Image(pass.read(&gbuffer.material, read))),
+        (RECT_LIGHTS, Bound::Buffer(pass.read(&lights, access))),
+        (RECT_LTC_TABLE, Bound::Buffer(pass.read(&ltc, access))),
+        (RECT_BRDF_TABLE, Bound::Buffer(pass.read(&brdf, access))),
+        (RECT_RADIANCE_IN, Bound::Image(pass.read(radiance, read))),
+        (RECT_RADIANCE_OUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
+    ];
+    let push = Push {
+        clip_to_eye: camera.view_proj_relative.inverse(),
+        eye: camera.eye.extend(0.0),
+        dims: UVec4::new(extent.width, extent.height, rects.count, frame_index),
+    };
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    out
+}

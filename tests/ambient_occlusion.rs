@@ -9,24 +9,18 @@ use std::path::Path;
 use glam::Vec4;
 use umbra::config::DebugView;
 use umbra::lighting::{environment_radiance, split_sum};
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer};
 use umbra::scene::Scene;
 
 const W: u32 = 128;
 const H: u32 = 128;
 
-fn floats(frame: Frame) -> Vec<Vec4> {
-    match frame {
-        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
-        Frame::Rgba8 { .. } => panic!("expected float output"),
-    }
-}
 
 fn render(renderer: &mut Renderer, view: Option<DebugView>, frame_index: u32) -> Vec<Vec4> {
     let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
     settings.debug_view = view;
     settings.frame_index = frame_index;
-    floats(renderer.render(&settings).expect("render"))
+    common::floats(renderer.render(&settings).expect("render"))
 }
 
 fn parse(text: &str) -> Scene {
@@ -189,8 +183,8 @@ fn compose_scales_the_environment_by_the_occlusion() {
     // Accumulated frames draw fresh rays, so the shaded image converges (a second frame with
     // the same settings is the mean of two).
     let settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
-    let first = floats(renderer.render(&settings).unwrap());
-    let second = floats(renderer.render(&settings).unwrap());
+    let first = common::floats(renderer.render(&settings).unwrap());
+    let second = common::floats(renderer.render(&settings).unwrap());
     assert!(first.iter().zip(&second).any(|(a, b)| a != b), "the second frame drew the same rays");
     drop(renderer);
     common::assert_clean(&ctx);

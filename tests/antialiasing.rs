@@ -7,7 +7,7 @@ use std::path::Path;
 
 use glam::{Vec3, Vec4};
 use umbra::lighting::{environment_radiance, split_sum};
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer};
 use umbra::scene::Scene;
 
 const W: u32 = 64;
@@ -22,12 +22,6 @@ const SCENE: &str = "background = [0.0, 0.0, 0.0]\n\
     [[objects]]\nshape = \"plane\"\nsize = 1.0\nrotate_deg = [90.0, 0.0, 20.0]\n\
     material = { base_color = [0.5, 0.5, 0.5], roughness = 1.0, metallic = 0.0 }\n";
 
-fn floats(frame: Frame) -> Vec<Vec4> {
-    match frame {
-        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
-        Frame::Rgba8 { .. } => panic!("expected float output"),
-    }
-}
 
 /// The pixel's radiance under a box filter: 32 x 32 rays traced on the CPU.
 fn reference() -> Vec<f32> {
@@ -70,13 +64,13 @@ fn accumulated_frames_converge_to_the_antialiased_edge() {
     let scene = Scene::parse(SCENE, "aa.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
     let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
     let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
-    let single = floats(renderer.render(&settings).unwrap());
+    let single = common::floats(renderer.render(&settings).unwrap());
     settings.antialias = true;
     let reference = reference();
     let mut errors = Vec::new();
     let mut image = Vec::new();
     for n in 1..=64u32 {
-        image = floats(renderer.render(&settings).unwrap());
+        image = common::floats(renderer.render(&settings).unwrap());
         if n == 1 {
             // Frame 0 is the pixel centre: the single-frame image, bit for bit.
             assert_eq!(image, single, "frame 0 moved");

@@ -9,7 +9,7 @@ use std::path::Path;
 use glam::{Vec3, Vec4};
 use umbra::config::DebugView;
 use umbra::lighting::{environment_radiance, split_sum};
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, BACKGROUND};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer, BACKGROUND};
 use umbra::scene::Scene;
 
 /// SplitMix64: a seeded stream of f64 in [0, 1), independent of the table's Hammersley set.
@@ -109,17 +109,9 @@ fn importance_sampling_matches_cosine_sampling_of_the_same_brdf() {
 const W: u32 = 96;
 const H: u32 = 96;
 
-fn floats(frame: Frame) -> Vec<Vec4> {
-    match frame {
-        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
-        Frame::Rgba8 { .. } => panic!("expected float output"),
-    }
-}
 
 fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
-    let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
-    settings.debug_view = view;
-    floats(renderer.render(&settings).expect("render"))
+    common::render_linear(renderer, W, H, view)
 }
 
 fn parse(text: &str) -> Scene {

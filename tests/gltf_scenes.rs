@@ -6,7 +6,6 @@
 mod gltf_builder;
 
 use std::path::Path;
-use std::sync::{Mutex, OnceLock};
 
 use glam::{DVec3, Vec3};
 use gltf_builder::{quad_xz, Gltf, U16, U32, U8};
@@ -16,34 +15,10 @@ use umbra::scene::{Light, Scene, LUMENS_PER_WATT};
 const CAMERA: &str = "[camera]\neye = [0.0, 3.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
 const LIGHT: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\nirradiance = [1.0, 1.0, 1.0]\n";
 
-fn captured_log() -> &'static Mutex<Vec<String>> {
-    static LINES: OnceLock<Mutex<Vec<String>>> = OnceLock::new();
-    static LOGGER: Capture = Capture;
-    struct Capture;
-    impl log::Log for Capture {
-        fn enabled(&self, m: &log::Metadata) -> bool {
-            m.level() <= log::Level::Warn
-        }
-        fn log(&self, record: &log::Record) {
-            if self.enabled(record.metadata()) {
-                captured_log().lock().unwrap().push(record.args().to_string());
-            }
-        }
-        fn flush(&self) {}
-    }
-    let lines = LINES.get_or_init(|| Mutex::new(Vec::new()));
-    if log::set_logger(&LOGGER).is_ok() {
-        log::set_max_level(log::LevelFilter::Warn);
-    }
-    lines
-}
 
-fn logged(needle: &str) -> bool {
-    captured_log().lock().unwrap().iter().any(|l| l.contains(needle))
-}
 
 fn parse_in(dir: &Path, text: &str) -> Result<Scene, String> {
-    captured_log();
+    common::captured_log();
     Scene::parse(text, "s.toml", dir).map_err(|e| {
         let message = e.to_string();
         assert!(!message.contains('\n') && !message.contains("panicked"), "{message:?}");
@@ -176,7 +151,7 @@ fn whole_scene_brings_cameras_and_punctual_lights() {
         }
         other => panic!("{other:?}"),
     }
-    assert!(logged("whole.glb: 1 lights give a `range`"));
+    assert!(common::logged("whole.glb: 1 lights give a `range`"));
 
     let second = parse_in(dir.path(), "scene = \"whole.glb\"\ncamera = 1\n").unwrap_or_else(|e| panic!("{e}"));
     assert!((second.camera.eye - DVec3::new(0.0, 5.0, 0.0)).length() < 1e-6);
@@ -211,8 +186,8 @@ fn extensions_required_and_optional() {
     g.extensions_required.clear();
     g.write_glb(&dir.path().join("optional.glb"));
     parse_in(dir.path(), &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"optional.glb\"\n")).unwrap();
-    assert!(logged("optional.glb: uses the optional extension KHR_materials_sheen, which umbra ignores"));
-    assert!(logged("optional.glb: uses the optional extension EXT_mystery, which umbra ignores"));
+    assert!(common::logged("optional.glb: uses the optional extension KHR_materials_sheen, which umbra ignores"));
+    assert!(common::logged("optional.glb: uses the optional extension EXT_mystery, which umbra ignores"));
 }
 
 /// A truncated .glb, an accessor reading past its buffer view, a .gltf whose .bin is missing or

@@ -2,8 +2,9 @@
 //! for, content that does not parse as its extension says (a text file or a PNG named `.obj`),
 //! and the warnings and notices that explain an empty or unlit picture.
 
+mod common;
+
 use std::path::Path;
-use std::sync::{Mutex, OnceLock};
 
 use umbra::scene::{Scene, SceneError};
 
@@ -11,33 +12,7 @@ const CAMERA: &str = "[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\
 const LIGHT: &str = "[[lights]]\ntype = \"point\"\nposition = [0.0, 3.0, 3.0]\nintensity = [10.0, 10.0, 10.0]\n";
 const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
 
-/// Warnings logged by the loader, as one line each (shared by the tests of this file, which
-/// tell theirs apart by the file names they use).
-fn captured_log() -> &'static Mutex<Vec<String>> {
-    static LINES: OnceLock<Mutex<Vec<String>>> = OnceLock::new();
-    static LOGGER: Capture = Capture;
-    struct Capture;
-    impl log::Log for Capture {
-        fn enabled(&self, m: &log::Metadata) -> bool {
-            m.level() <= log::Level::Warn
-        }
-        fn log(&self, record: &log::Record) {
-            if self.enabled(record.metadata()) {
-                captured_log().lock().unwrap().push(record.args().to_string());
-            }
-        }
-        fn flush(&self) {}
-    }
-    let lines = LINES.get_or_init(|| Mutex::new(Vec::new()));
-    if log::set_logger(&LOGGER).is_ok() {
-        log::set_max_level(log::LevelFilter::Warn);
-    }
-    lines
-}
 
-fn logged(needle: &str) -> bool {
-    captured_log().lock().unwrap().iter().any(|l| l.contains(needle))
-}
 
 fn one_line(error: &SceneError) -> String {
     let message = error.to_string();
@@ -47,7 +22,7 @@ fn one_line(error: &SceneError) -> String {
 
 /// Parses `scene` (the camera is added) with mesh paths relative to `dir`.
 fn parse_in(dir: &Path, scene: &str, name: &str) -> Result<Scene, String> {
-    captured_log();
+    common::captured_log();
     Scene::parse(&format!("{CAMERA}{scene}"), name, dir).map_err(|e| one_line(&e))
 }
 
@@ -87,8 +62,8 @@ fn an_obj_without_triangles_is_a_warning_naming_it() {
         parse_in(dir.path(), &format!("{LIGHT}{}{}", object("points.obj"), object("comments.obj")), "zero.toml")
             .unwrap_or_else(|e| panic!("{e}"));
     assert!(scene.meshes.is_empty());
-    assert!(logged("zero.toml: objects[0] (points.obj): no triangles to draw; the object is skipped"));
-    assert!(logged("zero.toml: objects[1] (comments.obj): no triangles to draw; the object is skipped"));
+    assert!(common::logged("zero.toml: objects[0] (points.obj): no triangles to draw; the object is skipped"));
+    assert!(common::logged("zero.toml: objects[1] (comments.obj): no triangles to draw; the object is skipped"));
 }
 
 /// Objects without a light render black but for the background: a one-line notice says so.
@@ -100,9 +75,9 @@ fn objects_without_lights_get_a_notice() {
     parse_in(dir.path(), &object("tri.obj"), "unlit.toml").unwrap();
     let notice =
         "unlit.toml: the scene has objects but no lights; they are unlit (only the background and emission show)";
-    assert!(logged(notice), "{:?}", captured_log().lock().unwrap());
+    assert!(common::logged(notice), "{:?}", common::captured_log().lock().unwrap());
     parse_in(dir.path(), &format!("{LIGHT}{}", object("tri.obj")), "lamp.toml").unwrap();
     parse_in(dir.path(), "", "empty.toml").unwrap();
-    assert!(!logged("lamp.toml: the scene has objects but no lights"));
-    assert!(!logged("empty.toml: the scene has objects but no lights"));
+    assert!(!common::logged("lamp.toml: the scene has objects but no lights"));
+    assert!(!common::logged("empty.toml: the scene has objects but no lights"));
 }

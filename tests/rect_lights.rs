@@ -10,7 +10,7 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3, Vec4};
 use umbra::config::DebugView;
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer};
 use umbra::scene::{Material, RectLight, Scene};
 use umbra::shading::{brdf_times_cos, shade_rect, RectLightF32};
 
@@ -184,17 +184,9 @@ fn one_sided_rects_light_only_their_front() {
 const W: u32 = 96;
 const H: u32 = 72;
 
-fn floats(frame: Frame) -> Vec<Vec4> {
-    match frame {
-        Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
-        Frame::Rgba8 { .. } => panic!("expected float output"),
-    }
-}
 
 fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
-    let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
-    settings.debug_view = view;
-    floats(renderer.render(&settings).expect("render"))
+    common::render_linear(renderer, W, H, view)
 }
 
 /// A floor and a sphere of one material (exact in the G-buffer's f16) under a downward rect
@@ -317,7 +309,7 @@ fn shadow_scene(spp: u32) -> String {
 fn render_seeded(renderer: &mut Renderer, frame_index: u32) -> Vec<Vec4> {
     let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
     settings.frame_index = frame_index;
-    floats(renderer.render(&settings).expect("render"))
+    common::floats(renderer.render(&settings).expect("render"))
 }
 
 /// Per floor pixel: (index, visibility the CPU finds with a 32 x 32 grid over the rect,

@@ -8,7 +8,7 @@
 mod common;
 
 use std::path::Path;
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::Arc;
 
 use glam::Vec3;
 use umbra::config::DebugView;
@@ -200,28 +200,6 @@ fn with_the_camera_inside_a_volume_z_fail_stays_right_and_z_pass_goes_wrong() {
     common::assert_clean(&ctx);
 }
 
-/// Log lines, kept so a test can look for the renderer's fallback notice.
-fn captured_log() -> &'static Mutex<Vec<String>> {
-    static LINES: OnceLock<Mutex<Vec<String>>> = OnceLock::new();
-    static LOGGER: Capture = Capture;
-    struct Capture;
-    impl log::Log for Capture {
-        fn enabled(&self, m: &log::Metadata) -> bool {
-            m.level() <= log::Level::Warn
-        }
-        fn log(&self, record: &log::Record) {
-            if self.enabled(record.metadata()) {
-                captured_log().lock().unwrap().push(record.args().to_string());
-            }
-        }
-        fn flush(&self) {}
-    }
-    let lines = LINES.get_or_init(|| Mutex::new(Vec::new()));
-    if log::set_logger(&LOGGER).is_ok() {
-        log::set_max_level(log::LevelFilter::Warn);
-    }
-    lines
-}
 
 /// Three triangles on one edge (a fin on a fin): closed nowhere, and not a 2-manifold.
 fn fins() -> Mesh {
@@ -247,7 +225,7 @@ fn fins() -> Mesh {
 
 #[test]
 fn open_and_non_manifold_casters_fall_back_to_traced_naming_the_mesh() {
-    let log = captured_log();
+    let log = common::captured_log();
     let ctx = common::gpu();
     let casting_floor = load(&BOX_SCENE.replace("cast_shadows = false", "cast_shadows = true"));
     let mut with_fins = load(BOX_SCENE);

@@ -6,7 +6,6 @@ mod common;
 mod gltf_builder;
 
 use std::path::Path;
-use std::sync::{Mutex, OnceLock};
 
 use glam::{Vec3, Vec4};
 use gltf_builder::{quad_xz, Gltf, U16};
@@ -21,34 +20,10 @@ const H: u32 = 36;
 const CAMERA: &str = "[camera]\neye = [0.0, 2.0, 1.5]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
 const SUN: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.3, -1.0, -0.2]\nirradiance = [3.0, 3.0, 3.0]\n";
 
-fn captured_log() -> &'static Mutex<Vec<String>> {
-    static LINES: OnceLock<Mutex<Vec<String>>> = OnceLock::new();
-    static LOGGER: Capture = Capture;
-    struct Capture;
-    impl log::Log for Capture {
-        fn enabled(&self, m: &log::Metadata) -> bool {
-            m.level() <= log::Level::Warn
-        }
-        fn log(&self, record: &log::Record) {
-            if self.enabled(record.metadata()) {
-                captured_log().lock().unwrap().push(record.args().to_string());
-            }
-        }
-        fn flush(&self) {}
-    }
-    let lines = LINES.get_or_init(|| Mutex::new(Vec::new()));
-    if log::set_logger(&LOGGER).is_ok() {
-        log::set_max_level(log::LevelFilter::Warn);
-    }
-    lines
-}
 
-fn logged(needle: &str) -> bool {
-    captured_log().lock().unwrap().iter().any(|l| l.contains(needle))
-}
 
 fn parse_in(dir: &Path, text: &str) -> Scene {
-    captured_log();
+    common::captured_log();
     Scene::parse(text, "t.toml", dir).unwrap_or_else(|e| panic!("{e}"))
 }
 
@@ -232,8 +207,8 @@ fn missing_and_corrupt_textures_warn_and_keep_the_constant() {
     );
     std::fs::write(d.join("quads.obj"), obj).unwrap();
     let scene = parse_in(d, &format!("{CAMERA}{SUN}[[objects]]\nmesh = \"quads.obj\"\n"));
-    assert!(logged("quads.obj: material \"gone\": texture \"missing.png\" unusable (No such file or directory)"));
-    assert!(logged("quads.obj: material \"broken\": texture \"corrupt.png\" unusable"));
+    assert!(common::logged("quads.obj: material \"gone\": texture \"missing.png\" unusable (No such file or directory)"));
+    assert!(common::logged("quads.obj: material \"broken\": texture \"corrupt.png\" unusable"));
     let by_name = |n: &str| scene.meshes.iter().find(|m| m.name == format!("quads.obj/{n}")).unwrap();
     assert!(by_name("gone").surface.is_none() && by_name("gone").material.base_color == Vec3::new(0.3, 0.4, 0.5));
     assert!(by_name("broken").surface.is_none());

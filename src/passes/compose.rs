@@ -24,21 +24,7 @@ struct Push {
 }
 
 pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
-    let mut bindings = vec![
-        sampled(COMPOSE_POSITION),
-        sampled(COMPOSE_NORMAL),
-        sampled(COMPOSE_MATERIAL),
-        storage(COMPOSE_LIGHTS),
-        storage_image(COMPOSE_RADIANCE),
-    ];
-    let (name, spv) = if shadowed {
-        bindings.push(sampled(COMPOSE_VISIBILITY));
-        bindings.push(storage(COMPOSE_LIGHT_LAYERS));
-        ("compose", spirv::COMPOSE_COMP)
-    } else {
-        ("compose (unshadowed)", spirv::COMPOSE_UNSHADOWED_COMP)
-    };
-    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
+    variant(ctx, shadowed, None, false)
 }
 
 /// The compose variant that adds a constant environment (`crate::lighting`): the split-sum
@@ -50,6 +36,23 @@ pub fn environment_pipeline(
     occluded: bool,
     emissive: bool,
 ) -> GpuResult<ComputePipeline> {
+    variant(ctx, shadowed, Some(occluded), emissive)
+}
+
+/// The compose pipelines that also add the G-buffer's emission (`Pipelines::prepare_emissive`).
+pub fn emissive_pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
+    variant(ctx, shadowed, None, true)
+}
+
+/// One compose variant: its bindings follow from what it reads (visibility when `shadowed`;
+/// the split-sum table with `environment`, and the AO image when that is `Some(true)`; the
+/// G-buffer's emission when `emissive`), its shader from the same flags.
+fn variant(
+    ctx: &Arc<GpuContext>,
+    shadowed: bool,
+    environment: Option<bool>,
+    emissive: bool,
+) -> GpuResult<ComputePipeline> {
     use spirv::*;
     let mut bindings = vec![
         sampled(COMPOSE_POSITION),
@@ -57,54 +60,42 @@ pub fn environment_pipeline(
         sampled(COMPOSE_MATERIAL),
         storage(COMPOSE_LIGHTS),
         storage_image(COMPOSE_RADIANCE),
-        storage(COMPOSE_BRDF_TABLE),
     ];
     if shadowed {
         bindings.push(sampled(COMPOSE_VISIBILITY));
         bindings.push(storage(COMPOSE_LIGHT_LAYERS));
     }
-    if occluded {
+    if environment.is_some() {
+        bindings.push(storage(COMPOSE_BRDF_TABLE));
+    }
+    if environment == Some(true) {
         bindings.push(sampled(COMPOSE_AMBIENT_OCCLUSION));
     }
     if emissive {
         bindings.push(sampled(COMPOSE_EMISSION));
     }
-    let (name, spv) = match (shadowed, occluded, emissive) {
-        (true, false, false) => ("compose (environment)", LIGHTING_COMPOSE_ENVIRONMENT_COMP),
-        (false, false, false) => ("compose (environment, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_COMP),
-        (true, true, false) => ("compose (environment, AO)", LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
-        (false, true, false) => {
+    let (name, spv) = match (environment, shadowed, emissive) {
+        (None, true, false) => ("compose", COMPOSE_COMP),
+        (None, false, false) => ("compose (unshadowed)", COMPOSE_UNSHADOWED_COMP),
+        (None, true, true) => ("compose (emissive)", COMPOSE_EMISSIVE_COMP),
+        (None, false, true) => ("compose (unshadowed, emissive)", COMPOSE_UNSHADOWED_EMISSIVE_COMP),
+        (Some(false), true, false) => ("compose (environment)", LIGHTING_COMPOSE_ENVIRONMENT_COMP),
+        (Some(false), false, false) => {
+            ("compose (environment, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_COMP)
+        }
+        (Some(true), true, false) => ("compose (environment, AO)", LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
+        (Some(true), false, false) => {
             ("compose (environment, AO, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_COMP)
         }
-        (true, false, true) => ("compose (environment, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_EMISSIVE_COMP),
-        (false, false, true) => {
+        (Some(false), true, true) => ("compose (environment, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_EMISSIVE_COMP),
+        (Some(false), false, true) => {
             ("compose (environment, unshadowed, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_EMISSIVE_COMP)
         }
-        (true, true, true) => ("compose (environment, AO, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_AO_EMISSIVE_COMP),
-        (false, true, true) => (
+        (Some(true), true, true) => ("compose (environment, AO, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_AO_EMISSIVE_COMP),
+        (Some(true), false, true) => (
             "compose (environment, AO, unshadowed, emissive)",
             LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_EMISSIVE_COMP,
         ),
-    };
-    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
-}
-
-/// The compose pipelines that also add the G-buffer's emission (`Pipelines::prepare_emissive`).
-pub fn emissive_pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
-    let mut bindings = vec![
-        sampled(COMPOSE_POSITION),
-        sampled(COMPOSE_NORMAL),
-        sampled(COMPOSE_MATERIAL),
-        storage(COMPOSE_LIGHTS),
-        storage_image(COMPOSE_RADIANCE),
-        sampled(COMPOSE_EMISSION),
-    ];
-    let (name, spv) = if shadowed {
-        bindings.push(sampled(COMPOSE_VISIBILITY));
-        bindings.push(storage(COMPOSE_LIGHT_LAYERS));
-        ("compose (emissive)", spirv::COMPOSE_EMISSIVE_COMP)
-    } else {
-        ("compose (unshadowed, emissive)", spirv::COMPOSE_UNSHADOWED_EMISSIVE_COMP)
     };
     ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
 }

@@ -143,3 +143,53 @@ pub const SPHERE: &str = "[[objects]]\nshape = \"sphere\"\nradius = 0.4\ntransla
 pub fn scene(parts: &[&str]) -> String {
     parts.join("\n")
 }
+
+/// Warnings and errors logged in this test process, one line each (the first call installs the
+/// logger). Tests of one file share it and tell theirs apart by the names in the lines.
+pub fn captured_log() -> &'static std::sync::Mutex<Vec<String>> {
+    use std::sync::{Mutex, OnceLock};
+    static LINES: OnceLock<Mutex<Vec<String>>> = OnceLock::new();
+    static LOGGER: Capture = Capture;
+    struct Capture;
+    impl log::Log for Capture {
+        fn enabled(&self, m: &log::Metadata) -> bool {
+            m.level() <= log::Level::Warn
+        }
+        fn log(&self, record: &log::Record) {
+            if self.enabled(record.metadata()) {
+                captured_log().lock().unwrap().push(record.args().to_string());
+            }
+        }
+        fn flush(&self) {}
+    }
+    let lines = LINES.get_or_init(|| Mutex::new(Vec::new()));
+    if log::set_logger(&LOGGER).is_ok() {
+        log::set_max_level(log::LevelFilter::Warn);
+    }
+    lines
+}
+
+/// Whether a captured log line contains `needle`.
+pub fn logged(needle: &str) -> bool {
+    captured_log().lock().unwrap().iter().any(|l| l.contains(needle))
+}
+
+/// A float frame's pixels (scene-linear output), as RGBA.
+pub fn floats(frame: umbra::renderer::Frame) -> Vec<glam::Vec4> {
+    match frame {
+        umbra::renderer::Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(glam::Vec4::from_slice).collect(),
+        umbra::renderer::Frame::Rgba8 { .. } => panic!("expected float output"),
+    }
+}
+
+/// One scene-linear `w` x `h` frame of `renderer`, or its debug `view`.
+pub fn render_linear(
+    renderer: &mut umbra::renderer::Renderer,
+    w: u32,
+    h: u32,
+    view: Option<umbra::config::DebugView>,
+) -> Vec<glam::Vec4> {
+    let mut settings = umbra::renderer::RenderSettings::new(w, h, umbra::renderer::OutputKind::SceneLinear);
+    settings.debug_view = view;
+    floats(renderer.render(&settings).expect("render"))
+}

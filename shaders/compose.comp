@@ -1,5 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// Compose with ray-traced visibility.
-#define WITH_VISIBILITY
+// Compose: every light's BRDF * cos * irradiance (times its visibility), plus what the frame
+// has of the environment, ambient occlusion, emission and area lights. build.rs compiles one
+// variant per subset of these flags; passes::compose::Variant picks the frame's.
+// variants: WITH_VISIBILITY WITH_ENVIRONMENT WITH_AMBIENT_OCCLUSION WITH_EMISSION WITH_AREA_LIGHTS
 #include "compose_body.glsl"

@@ -49,6 +49,8 @@ pub struct FrameParts<'a> {
     pub prepared: Prepared<'a>,
     /// The environment and ambient occlusion this frame uses.
     pub lighting: crate::lighting::Prepared<'a>,
+    /// Compose's variant and pipeline (shaded frames; `None` for a debug view).
+    pub compose: Option<(compose::Variant, &'a ComputePipeline)>,
 }
 
 /// The scene's buffers as this frame's graph sees them.
@@ -60,7 +62,7 @@ struct SceneHandles {
 
 /// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
 pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<History<'a>>) -> RenderGraph<'a> {
-    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared, lighting } = parts;
+    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared, lighting, compose } = parts;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let camera = CameraMatrices::new(
         &s.to_local(&settings.camera.unwrap_or(scene.camera)),
@@ -99,7 +101,7 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         target_stage(&mut g, settings, result, target);
         return g;
     }
-    let ambient = Ambient { background: scene.lighting.background(), lighting, occlusion };
+    let ambient = Ambient { background: scene.lighting.background(), lighting, occlusion, compose };
     let lit = lighting_stage(
         &mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history, ambient,
     );
@@ -145,6 +147,7 @@ struct Ambient<'a> {
     background: Vec3,
     lighting: crate::lighting::Prepared<'a>,
     occlusion: Option<Handle<ImageKind>>,
+    compose: Option<(compose::Variant, &'a ComputePipeline)>,
 }
 
 /// What the lighting stage hands on: the image, and what happens to the history.
@@ -194,28 +197,35 @@ fn lighting_stage<'a>(
         let image = debug_view::add(g, &pipelines.debug_view, gbuffer, inputs, extent);
         return Lit { image, debug: true, history: None };
     }
-    let table =
-        ambient.lighting.environment.map(|(env, _)| g.import_buffer("split-sum table", &env.brdf_table, SCENE_ACCESS));
+    let lighting = &ambient.lighting;
+    let area = lighting.area.map(|t| {
+        let ltc = g.import_buffer("LTC table", &t.ltc, SCENE_ACCESS);
+        let split_sum = g.import_buffer("split-sum table (area lights)", &t.split_sum, SCENE_ACCESS);
+        (t, ltc, split_sum)
+    });
+    // Compose reads one split-sum table: the area lights' where they have one.
+    let environment_table = match (&area, lighting.environment) {
+        (Some(_), _) | (None, None) => None,
+        (None, Some(env)) => Some(g.import_buffer("split-sum table", &env.brdf_table, SCENE_ACCESS)),
+    };
     let inputs = compose::ComposeInputs {
+        pipeline: ambient.compose.expect("the renderer prepares compose for shaded frames"),
         lights: &handles.lights,
         light_count: s.light_count,
         visibility: visibility.as_ref().map(|(v, t)| (v, t)),
         eye: camera.eye,
         background: ambient.background,
-        environment: ambient.lighting.environment.zip(table.as_ref()).map(|((env, pipeline), brdf_table)| {
-            compose::EnvironmentInputs {
-                radiance: env.radiance,
-                brdf_table,
-                occlusion: ambient.occlusion.as_ref(),
-                pipeline,
-            }
-        }),
+        environment: lighting
+            .environment
+            .map(|env| compose::EnvironmentInputs { radiance: env.radiance, occlusion: ambient.occlusion.as_ref() }),
+        brdf_table: area.as_ref().map(|(_, _, t)| t).or(environment_table.as_ref()),
+        ltc_table: area.as_ref().filter(|_| lighting.sized_lights).map(|(_, ltc, _)| ltc),
     };
-    let mut image = compose::add(g, pipelines, gbuffer, inputs, extent);
-    if let Some((rects, pipeline)) = ambient.lighting.rects {
+    let mut image = compose::add(g, gbuffer, inputs, extent);
+    if let (Some((rects, pipeline)), Some((tables, _, _))) = (lighting.rects, &area) {
         let bvh = s.bvh.import(g, SCENE_ACCESS);
         let frame = settings.frame_index;
-        image = crate::lighting::rects::add(g, pipeline, rects, gbuffer, &image, &bvh, camera, frame, extent);
+        image = crate::lighting::rects::add(g, pipeline, rects, tables, gbuffer, &image, &bvh, camera, frame, extent);
     }
     if let Some(h) = &history {
         image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);

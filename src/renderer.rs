@@ -52,6 +52,10 @@ pub struct Renderer {
     environment: Option<crate::lighting::EnvironmentGpu>,
     /// The scene's rect lights on the device; `None` without one.
     rects: Option<crate::lighting::rects::RectsGpu>,
+    /// The LTC and split-sum tables, in scenes with rect lights or lights with a size.
+    area_tables: Option<crate::lighting::AreaTables>,
+    /// Some light has a size: compose shades it as a sphere or disk light.
+    sized_lights: bool,
     /// (light, method) pairs already told that the method cannot serve the light.
     fallbacks_noted: std::sync::Mutex<std::collections::BTreeSet<(usize, ShadowMethod)>>,
     /// How passes are timed on this device, found the first time timings are asked for.
@@ -85,9 +89,7 @@ impl Renderer {
         let start = std::time::Instant::now();
         let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
         let pipelines = Pipelines::new(&ctx)?;
-        if gpu_scene.materials.is_some() {
-            pipelines.prepare_emissive(&ctx)?;
-        }
+        let sized_lights = crate::shading::gpu_lights(&local.lights).iter().any(|l| l.size[0] > 0.0);
         log::info!(
             "upload: {} KiB of scene buffers in {:.1} ms",
             gpu_scene.bytes() >> 10,
@@ -117,6 +119,8 @@ impl Renderer {
             lighting_pipelines: Default::default(),
             environment: crate::lighting::EnvironmentGpu::new(&ctx, &scene.lighting)?,
             rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
+            area_tables: crate::lighting::AreaTables::new(&ctx, sized_lights || !local.rect_lights.is_empty())?,
+            sized_lights,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
             gpu_scene,
@@ -166,15 +170,28 @@ impl Renderer {
             prepared.traced = Some((pipeline, ray_query));
         }
         let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
-        let lighting = self.lighting_pipelines.prepare(
+        let mut lighting = self.lighting_pipelines.prepare(
             &self.ctx,
             &self.scene.lighting,
             self.environment.as_ref(),
             self.rects.as_ref(),
+            self.area_tables.as_ref(),
             settings.debug_view,
-            plan.layers.count() > 0,
-            self.gpu_scene.materials.is_some(),
         )?;
+        lighting.sized_lights = self.sized_lights && lighting.area.is_some();
+        let compose = match settings.debug_view {
+            Some(_) => None,
+            None => {
+                let variant = crate::passes::compose::Variant {
+                    shadowed: plan.layers.count() > 0,
+                    environment: lighting.environment.is_some(),
+                    occluded: lighting.environment.is_some() && lighting.occlusion.is_some(),
+                    emissive: self.gpu_scene.materials.is_some(),
+                    area_lights: lighting.sized_lights,
+                };
+                Some((variant, self.pipelines.compose(&self.ctx, variant)?))
+            }
+        };
         let parts = crate::frame::FrameParts {
             pipelines: &self.pipelines,
             busy,
@@ -184,6 +201,7 @@ impl Renderer {
             shadows: plan,
             prepared,
             lighting,
+            compose,
         };
         Ok((crate::frame::build(parts, target, history), ray_query))
     }

@@ -38,12 +38,14 @@
 #define COMPOSE_VISIBILITY 4
 #define COMPOSE_RADIANCE 5
 #define COMPOSE_LIGHT_LAYERS 6
-// lighting/compose_environment*.comp: the split-sum table and the AO image
+// WITH_ENVIRONMENT or WITH_AREA_LIGHTS: the split-sum table; WITH_AMBIENT_OCCLUSION: the AO
+// image
 #define COMPOSE_BRDF_TABLE 7
 #define COMPOSE_AMBIENT_OCCLUSION 8
-// compose_emissive*.comp: the G-buffer's emission and occlusion (scenes with textures or
-// emission only)
+// WITH_EMISSION: the G-buffer's emission and occlusion (scenes with textures or emission only)
 #define COMPOSE_EMISSION 9
+// WITH_AREA_LIGHTS: the LTC table (lights with a size shaded as sphere and disk lights)
+#define COMPOSE_LTC_TABLE 10
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0

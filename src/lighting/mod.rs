@@ -54,57 +54,68 @@ impl EnvironmentGpu {
     }
 }
 
-/// The compose variants that add the environment, and the AO passes: each made the first time
-/// a frame uses it.
+/// The tables area lights shade with: the LTC table (`ltc`) and the split-sum table
+/// (`split_sum`). On the device only in scenes with a rect light or a light with a size (a
+/// sphere or disk light, which compose shades by LTC), uploaded once and shared by both.
+pub struct AreaTables {
+    pub ltc: Buffer,
+    pub split_sum: Buffer,
+}
+
+impl AreaTables {
+    /// `None` (nothing made) unless `needed`.
+    pub fn new(ctx: &Arc<GpuContext>, needed: bool) -> GpuResult<Option<AreaTables>> {
+        if !needed {
+            return Ok(None);
+        }
+        let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let [ltc, split_sum] = crate::gpu_scene::upload(
+            ctx,
+            [
+                ("LTC table", bytemuck::cast_slice(ltc::table()), usage),
+                ("split-sum table (area lights)", bytemuck::cast_slice(split_sum::table()), usage),
+            ],
+        )?;
+        Ok(Some(AreaTables { ltc, split_sum }))
+    }
+}
+
+/// The AO passes and the rect lights' pass: each made the first time a frame uses it.
 #[derive(Default)]
 pub struct Pipelines {
-    /// Indexed by `shadowed as usize + 2 * occluded as usize + 4 * emissive as usize`.
-    compose: [OnceLock<ComputePipeline>; 8],
     pub(crate) ao: OnceLock<ComputePipeline>,
     pub(crate) ao_view: OnceLock<ComputePipeline>,
     rects: OnceLock<ComputePipeline>,
 }
 
-impl Pipelines {
-    /// Compose with the environment term, reading the visibility target when `shadowed`, the
-    /// AO image when `occluded` and the G-buffer's emission and occlusion when `emissive`.
-    pub fn compose(
-        &self,
-        ctx: &Arc<GpuContext>,
-        shadowed: bool,
-        occluded: bool,
-        emissive: bool,
-    ) -> GpuResult<&ComputePipeline> {
-        let slot = &self.compose[shadowed as usize + 2 * occluded as usize + 4 * emissive as usize];
-        crate::vk::get_or_make(slot, || crate::passes::compose::environment_pipeline(ctx, shadowed, occluded, emissive))
-    }
-}
-
 /// What a frame's lighting needs of this module, made before its graph is built (frame.rs).
 #[derive(Default)]
 pub struct Prepared<'a> {
-    /// The environment and the compose variant that adds it.
-    pub environment: Option<(&'a EnvironmentGpu, &'a ComputePipeline)>,
+    /// The environment, which compose adds.
+    pub environment: Option<&'a EnvironmentGpu>,
     /// The AO pass and its parameters.
     pub occlusion: Option<(crate::scene::AmbientOcclusion, &'a ComputePipeline)>,
     /// The `ao` view's pipeline, when the frame shows it.
     pub view: Option<&'a ComputePipeline>,
     /// The rect lights and their pass, in shaded frames of scenes that have any.
     pub rects: Option<(&'a rects::RectsGpu, &'a ComputePipeline)>,
+    /// The LTC and split-sum tables, in shaded frames of scenes with rect or sized lights.
+    pub area: Option<&'a AreaTables>,
+    /// Compose shades the lights with a size as sphere and disk lights (`area` is set; the
+    /// renderer sets this for scenes that have such a light).
+    pub sized_lights: bool,
 }
 
 impl Pipelines {
-    /// What a frame with `view` needs for `lighting` (`environment` on the device), compose
-    /// reading visibility when `shadowed` and the G-buffer's emission when `emissive`.
+    /// What a frame with `view` needs for `lighting` (`environment` on the device).
     pub fn prepare<'a>(
         &'a self,
         ctx: &Arc<GpuContext>,
         lighting: &SceneLighting,
         environment: Option<&'a EnvironmentGpu>,
         rect_lights: Option<&'a rects::RectsGpu>,
+        area: Option<&'a AreaTables>,
         view: Option<crate::config::DebugView>,
-        shadowed: bool,
-        emissive: bool,
     ) -> GpuResult<Prepared<'a>> {
         let mut prepared = Prepared::default();
         let ao_pipeline = || crate::vk::get_or_make(&self.ao, || ao::pipeline(ctx));
@@ -120,13 +131,13 @@ impl Pipelines {
             }
             Some(_) => {}
             None => {
+                prepared.area = area;
                 if let Some(r) = rect_lights {
                     prepared.rects = Some((r, crate::vk::get_or_make(&self.rects, || rects::pipeline(ctx))?));
                 }
                 if let Some(environment) = environment {
                     let occlusion = lighting.occlusion_of_environment();
-                    prepared.environment =
-                        Some((environment, self.compose(ctx, shadowed, occlusion.is_some(), emissive)?));
+                    prepared.environment = Some(environment);
                     if let Some(params) = occlusion {
                         prepared.occlusion = Some((params, ao_pipeline()?));
                     }

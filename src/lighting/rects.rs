@@ -2,7 +2,7 @@
 //! twin of `shading::shade_rect`) added to compose's radiance by one pass, which also shows each
 //! rect's emitting side to the camera. Its shadows are traced through the shadow BVH and combined
 //! with the analytic result by the ratio estimator (`rect_visibility` in rect_lights.comp). Only
-//! a scene with a rect light has the pass, the rect buffer and the LTC table on the device.
+//! a scene with a rect light has the pass and the rect buffer on the device (and `AreaTables`).
 
 use std::sync::Arc;
 
@@ -38,11 +38,9 @@ impl From<&RectLight> for GpuRect {
     }
 }
 
-/// The scene's rect lights on the device, with the LTC and split-sum tables.
+/// The scene's rect lights on the device (they shade with `super::AreaTables`).
 pub struct RectsGpu {
     pub rects: Buffer,
-    pub ltc_table: Buffer,
-    pub brdf_table: Buffer,
     pub count: u32,
 }
 
@@ -58,15 +56,9 @@ impl RectsGpu {
             .map(|r| GpuRect::from(&RectLight { spp: if has_casters { r.spp } else { 0 }, ..*r }))
             .collect();
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let [rects_buffer, ltc_table, brdf_table] = crate::gpu_scene::upload(
-            ctx,
-            [
-                ("rect lights", bytemuck::cast_slice(&packed), usage),
-                ("LTC table", bytemuck::cast_slice(super::ltc::table()), usage),
-                ("split-sum table (rects)", bytemuck::cast_slice(super::split_sum::table()), usage),
-            ],
-        )?;
-        Ok(Some(RectsGpu { rects: rects_buffer, ltc_table, brdf_table, count: packed.len() as u32 }))
+        let [rects_buffer] =
+            crate::gpu_scene::upload(ctx, [("rect lights", bytemuck::cast_slice(&packed), usage)])?;
+        Ok(Some(RectsGpu { rects: rects_buffer, count: packed.len() as u32 }))
     }
 }
 
@@ -101,6 +93,7 @@ pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
     rects: &'a RectsGpu,
+    tables: &'a super::AreaTables,
     gbuffer: &GBuffer,
     radiance: &Handle<ImageKind>,
     bvh: &crate::gpu_scene::BvhHandles,
@@ -110,8 +103,8 @@ pub fn add<'a>(
 ) -> Handle<ImageKind> {
     let scene = crate::gpu_scene::SCENE_ACCESS;
     let lights = graph.import_buffer("rect lights", &rects.rects, scene);
-    let ltc = graph.import_buffer("LTC table", &rects.ltc_table, scene);
-    let brdf = graph.import_buffer("split-sum table (rects)", &rects.brdf_table, scene);
+    let ltc = graph.import_buffer("LTC table", &tables.ltc, scene);
+    let brdf = graph.import_buffer("split-sum table (area lights)", &tables.split_sum, scene);
     let access = Access::ComputeShaderReadStorageBuffer;
     let mut out = graph.create_image("radiance (rects)", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("rect lights");

@@ -2,7 +2,8 @@
 //! summed into scene-referred radiance (W/(m^2 sr)). Visibility comes from the visibility
 //! target, whatever technique wrote a light's layer; the light table says which layer is whose.
 //! Where no light has a layer, a variant that reads no visibility runs instead, so no shadow
-//! pass or target is needed.
+//! pass or target is needed; likewise for the environment, AO, emission and area lights
+//! (`Variant`).
 
 use std::sync::Arc;
 
@@ -23,37 +24,56 @@ struct Push {
     environment: Vec4,
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
-    variant(ctx, shadowed, None, false)
+/// What a compose variant reads beside the G-buffer and the lights; each flag is a `#define`
+/// of shaders/compose.comp (build.rs compiles every subset), so a frame runs no code and binds
+/// nothing for what it lacks.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Variant {
+    /// The visibility target and the light table (some light has a layer).
+    pub shadowed: bool,
+    /// A constant environment: the split-sum table.
+    pub environment: bool,
+    /// Ambient occlusion scaling the environment (only with `environment`).
+    pub occluded: bool,
+    /// The G-buffer's emission and material occlusion.
+    pub emissive: bool,
+    /// Lights with a size, shaded as sphere and disk lights: the LTC and split-sum tables.
+    pub area_lights: bool,
 }
 
-/// The compose variant that adds a constant environment (`crate::lighting`): the split-sum
-/// table, the AO image when `occluded`, and the G-buffer's emission (and the material's
-/// occlusion beside it) when `emissive`.
-pub fn environment_pipeline(
-    ctx: &Arc<GpuContext>,
-    shadowed: bool,
-    occluded: bool,
-    emissive: bool,
-) -> GpuResult<ComputePipeline> {
-    variant(ctx, shadowed, Some(occluded), emissive)
+impl Variant {
+    /// Index into `spirv::COMPOSE_COMP` and the pipeline cache: the flags in the order of
+    /// compose.comp's `// variants:` line.
+    pub fn index(self) -> usize {
+        [self.shadowed, self.environment, self.occluded, self.emissive, self.area_lights]
+            .iter()
+            .enumerate()
+            .map(|(i, &on)| usize::from(on) << i)
+            .sum()
+    }
+
+    fn name(self) -> String {
+        let parts = [
+            (!self.shadowed, "unshadowed"),
+            (self.environment, "environment"),
+            (self.occluded, "AO"),
+            (self.emissive, "emissive"),
+            (self.area_lights, "area lights"),
+        ];
+        let on: Vec<&str> = parts.iter().filter(|(on, _)| *on).map(|(_, name)| *name).collect();
+        if on.is_empty() {
+            "compose".to_owned()
+        } else {
+            format!("compose ({})", on.join(", "))
+        }
+    }
 }
 
-/// The compose pipelines that also add the G-buffer's emission (`Pipelines::prepare_emissive`).
-pub fn emissive_pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
-    variant(ctx, shadowed, None, true)
-}
+/// Number of compose variants (`Variant::index` is below it).
+pub const VARIANTS: usize = spirv::COMPOSE_COMP.len();
 
-/// One compose variant: its bindings follow from what it reads (visibility when `shadowed`;
-/// the split-sum table with `environment`, and the AO image when that is `Some(true)`; the
-/// G-buffer's emission when `emissive`), its shader from the same flags.
-fn variant(
-    ctx: &Arc<GpuContext>,
-    shadowed: bool,
-    environment: Option<bool>,
-    emissive: bool,
-) -> GpuResult<ComputePipeline> {
-    use spirv::*;
+/// One compose variant: its bindings follow from the same flags that pick its shader.
+pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePipeline> {
     let mut bindings = vec![
         sampled(COMPOSE_POSITION),
         sampled(COMPOSE_NORMAL),
@@ -61,58 +81,40 @@ fn variant(
         storage(COMPOSE_LIGHTS),
         storage_image(COMPOSE_RADIANCE),
     ];
-    if shadowed {
+    if variant.shadowed {
         bindings.push(sampled(COMPOSE_VISIBILITY));
         bindings.push(storage(COMPOSE_LIGHT_LAYERS));
     }
-    if environment.is_some() {
+    if variant.environment || variant.area_lights {
         bindings.push(storage(COMPOSE_BRDF_TABLE));
     }
-    if environment == Some(true) {
+    if variant.environment && variant.occluded {
         bindings.push(sampled(COMPOSE_AMBIENT_OCCLUSION));
     }
-    if emissive {
+    if variant.emissive {
         bindings.push(sampled(COMPOSE_EMISSION));
     }
-    let (name, spv) = match (environment, shadowed, emissive) {
-        (None, true, false) => ("compose", COMPOSE_COMP),
-        (None, false, false) => ("compose (unshadowed)", COMPOSE_UNSHADOWED_COMP),
-        (None, true, true) => ("compose (emissive)", COMPOSE_EMISSIVE_COMP),
-        (None, false, true) => ("compose (unshadowed, emissive)", COMPOSE_UNSHADOWED_EMISSIVE_COMP),
-        (Some(false), true, false) => ("compose (environment)", LIGHTING_COMPOSE_ENVIRONMENT_COMP),
-        (Some(false), false, false) => {
-            ("compose (environment, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_COMP)
-        }
-        (Some(true), true, false) => ("compose (environment, AO)", LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
-        (Some(true), false, false) => {
-            ("compose (environment, AO, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_COMP)
-        }
-        (Some(false), true, true) => ("compose (environment, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_EMISSIVE_COMP),
-        (Some(false), false, true) => {
-            ("compose (environment, unshadowed, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_EMISSIVE_COMP)
-        }
-        (Some(true), true, true) => ("compose (environment, AO, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_AO_EMISSIVE_COMP),
-        (Some(true), false, true) => (
-            "compose (environment, AO, unshadowed, emissive)",
-            LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_EMISSIVE_COMP,
-        ),
-    };
+    if variant.area_lights {
+        bindings.push(storage(COMPOSE_LTC_TABLE));
+    }
+    let spv = spirv::COMPOSE_COMP[variant.index()];
+    // Pipelines keep a 'static name; each variant is made at most once per device.
+    let name: &'static str = Box::leak(variant.name().into_boxed_str());
     ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
 }
 
 /// The environment's part of compose's inputs.
-pub struct EnvironmentInputs<'h, 'a> {
+pub struct EnvironmentInputs<'h> {
     /// Radiance from every direction, W/(m^2 sr).
     pub radiance: glam::Vec3,
-    pub brdf_table: &'h Handle<BufferKind>,
     /// Ambient occlusion (1 open, 0 enclosed), scaling the environment term.
     pub occlusion: Option<&'h Handle<ImageKind>>,
-    /// `crate::lighting::Pipelines::compose` for this frame's shadowed, occluded and
-    /// emissive.
-    pub pipeline: &'a ComputePipeline,
 }
 
 pub struct ComposeInputs<'h, 'a> {
+    /// The variant this frame runs and its pipeline (`Pipelines::compose`); the inputs below
+    /// must be those its flags name.
+    pub pipeline: (Variant, &'a ComputePipeline),
     pub lights: &'h Handle<BufferKind>,
     pub light_count: u32,
     /// The visibility target and the light table (each light's layer), where any light has
@@ -120,49 +122,61 @@ pub struct ComposeInputs<'h, 'a> {
     pub visibility: Option<(&'h Handle<ImageKind>, &'h Handle<BufferKind>)>,
     pub eye: glam::Vec3,
     pub background: glam::Vec3,
-    pub environment: Option<EnvironmentInputs<'h, 'a>>,
+    pub environment: Option<EnvironmentInputs<'h>>,
+    /// The split-sum table (with an environment or area lights).
+    pub brdf_table: Option<&'h Handle<BufferKind>>,
+    /// The LTC table (with area lights).
+    pub ltc_table: Option<&'h Handle<BufferKind>>,
 }
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipelines: &'a super::Pipelines,
     gbuffer: &GBuffer,
     inputs: ComposeInputs<'_, 'a>,
     extent: vk::Extent2D,
 ) -> Handle<ImageKind> {
+    let (variant, pipeline) = inputs.pipeline;
+    let occlusion = inputs.environment.as_ref().and_then(|e| e.occlusion);
+    assert_eq!(
+        variant,
+        Variant {
+            shadowed: inputs.visibility.is_some(),
+            environment: inputs.environment.is_some(),
+            occluded: occlusion.is_some(),
+            emissive: gbuffer.emission.is_some(),
+            area_lights: inputs.ltc_table.is_some(),
+        },
+        "compose's inputs are those of its variant"
+    );
     let mut radiance = graph.create_image("radiance", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("compose");
+    let sampled = Access::ComputeShaderReadSampledImage;
+    let buffer = Access::ComputeShaderReadStorageBuffer;
     let mut bound = vec![
-        (COMPOSE_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
-        (COMPOSE_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
-        (COMPOSE_MATERIAL, Bound::Image(pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage))),
-        (COMPOSE_LIGHTS, Bound::Buffer(pass.read(inputs.lights, Access::ComputeShaderReadStorageBuffer))),
+        (COMPOSE_POSITION, Bound::Image(pass.read(&gbuffer.position, sampled))),
+        (COMPOSE_NORMAL, Bound::Image(pass.read(&gbuffer.normal, sampled))),
+        (COMPOSE_MATERIAL, Bound::Image(pass.read(&gbuffer.material, sampled))),
+        (COMPOSE_LIGHTS, Bound::Buffer(pass.read(inputs.lights, buffer))),
         (COMPOSE_RADIANCE, Bound::Image(pass.write(&mut radiance, Access::ComputeShaderWrite))),
     ];
-    let mut pipeline = match inputs.visibility {
-        Some((v, table)) => {
-            bound.push((COMPOSE_VISIBILITY, Bound::Image(pass.read(v, Access::ComputeShaderReadSampledImage))));
-            bound.push((COMPOSE_LIGHT_LAYERS, Bound::Buffer(pass.read(table, Access::ComputeShaderReadStorageBuffer))));
-            &pipelines.compose
-        }
-        None => &pipelines.compose_unshadowed,
-    };
-    let mut environment = glam::Vec3::ZERO;
+    if let Some((v, table)) = inputs.visibility {
+        bound.push((COMPOSE_VISIBILITY, Bound::Image(pass.read(v, sampled))));
+        bound.push((COMPOSE_LIGHT_LAYERS, Bound::Buffer(pass.read(table, buffer))));
+    }
     if let Some(emission) = &gbuffer.emission {
-        bound.push((COMPOSE_EMISSION, Bound::Image(pass.read(emission, Access::ComputeShaderReadSampledImage))));
-        pipeline = pipelines.compose_emissive(inputs.visibility.is_some());
+        bound.push((COMPOSE_EMISSION, Bound::Image(pass.read(emission, sampled))));
     }
-    if let Some(env) = &inputs.environment {
-        let table = pass.read(env.brdf_table, Access::ComputeShaderReadStorageBuffer);
-        bound.push((COMPOSE_BRDF_TABLE, Bound::Buffer(table)));
-        if let Some(ao) = env.occlusion {
-            let ao = pass.read(ao, Access::ComputeShaderReadSampledImage);
-            bound.push((COMPOSE_AMBIENT_OCCLUSION, Bound::Image(ao)));
-        }
-        environment = env.radiance;
-        // The variant made for this frame's emission too (`lighting::Pipelines::prepare`).
-        pipeline = env.pipeline;
+    if variant.environment || variant.area_lights {
+        let table = inputs.brdf_table.expect("the split-sum table comes with an environment or area lights");
+        bound.push((COMPOSE_BRDF_TABLE, Bound::Buffer(pass.read(table, buffer))));
     }
+    if let Some(ao) = occlusion {
+        bound.push((COMPOSE_AMBIENT_OCCLUSION, Bound::Image(pass.read(ao, sampled))));
+    }
+    if let Some(ltc) = inputs.ltc_table {
+        bound.push((COMPOSE_LTC_TABLE, Bound::Buffer(pass.read(ltc, buffer))));
+    }
+    let environment = inputs.environment.as_ref().map_or(glam::Vec3::ZERO, |e| e.radiance);
     let push = Push {
         eye: inputs.eye.extend(0.0),
         background: inputs.background.extend(0.0),

@@ -51,40 +51,27 @@ pub struct GBuffer {
 /// Every pipeline, built once per device and shared by all frames.
 pub struct Pipelines {
     pub geometry: geometry::GeometryPipelines,
-    pub compose: ComputePipeline,
-    pub compose_unshadowed: ComputePipeline,
+    /// Compose's variants, each made the first time a frame needs it (`compose`).
+    compose: [std::sync::OnceLock<ComputePipeline>; compose::VARIANTS],
     pub tonemap: ComputePipeline,
     pub debug_view: debug_view::DebugPipelines,
     pub accumulate: ComputePipeline,
-    /// Compose with the G-buffer's emission (shadowed, unshadowed): made for the first scene
-    /// that has it (`prepare_emissive`).
-    compose_emissive: std::sync::OnceLock<[ComputePipeline; 2]>,
 }
 
 impl Pipelines {
     pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
         Ok(Pipelines {
             geometry: geometry::pipelines(ctx)?,
-            compose: compose::pipeline(ctx, true)?,
-            compose_unshadowed: compose::pipeline(ctx, false)?,
+            compose: std::array::from_fn(|_| std::sync::OnceLock::new()),
             tonemap: tonemap::pipeline(ctx)?,
             debug_view: debug_view::pipelines(ctx)?,
             accumulate: accumulate::pipeline(ctx)?,
-            compose_emissive: std::sync::OnceLock::new(),
         })
     }
 
-    /// Makes the compose pipelines that add the G-buffer's emission, once.
-    pub fn prepare_emissive(&self, ctx: &Arc<GpuContext>) -> GpuResult<()> {
-        crate::vk::get_or_make(&self.compose_emissive, || {
-            Ok([compose::emissive_pipeline(ctx, true)?, compose::emissive_pipeline(ctx, false)?])
-        })
-        .map(|_| ())
-    }
-
-    /// The emissive compose pipeline (`prepare_emissive` made it).
-    pub fn compose_emissive(&self, shadowed: bool) -> &ComputePipeline {
-        &self.compose_emissive.get().expect("prepare_emissive runs for scenes with emission")[usize::from(!shadowed)]
+    /// The compose variant's pipeline, made the first time it is asked for.
+    pub fn compose(&self, ctx: &Arc<GpuContext>, variant: compose::Variant) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.compose[variant.index()], || compose::pipeline(ctx, variant))
     }
 }
 

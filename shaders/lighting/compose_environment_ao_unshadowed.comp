@@ -1,6 +1,0 @@
-#version 460
-#extension GL_GOOGLE_include_directive : require
-// Compose with the environment term (lighting/environment.glsl), scaled by traced ambient occlusion; no light has a visibility layer.
-#define WITH_ENVIRONMENT
-#define WITH_AMBIENT_OCCLUSION
-#include "compose_body.glsl"

@@ -62,7 +62,8 @@ struct SceneHandles {
 
 /// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
 pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<History<'a>>) -> RenderGraph<'a> {
-    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared, lighting, compose } = parts;
+    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared, lighting, compose } =
+        parts;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let camera = CameraMatrices::new(
         &s.to_local(&settings.camera.unwrap_or(scene.camera)),
@@ -222,10 +223,10 @@ fn lighting_stage<'a>(
         ltc_table: area.as_ref().filter(|_| lighting.sized_lights).map(|(_, ltc, _)| ltc),
     };
     let mut image = compose::add(g, gbuffer, inputs, extent);
-    if let (Some((rects, pipeline)), Some((tables, _, _))) = (lighting.rects, &area) {
+    if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
         let bvh = s.bvh.import(g, SCENE_ACCESS);
         let frame = settings.frame_index;
-        image = crate::lighting::rects::add(g, pipeline, rects, tables, gbuffer, &image, &bvh, camera, frame, extent);
+        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &bvh, camera, frame, extent);
     }
     if let Some(h) = &history {
         image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);

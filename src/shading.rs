@@ -279,9 +279,11 @@ pub fn brdf_times_cos(n: Vec3, v: Vec3, l: Vec3, base_color: Vec3, roughness: f3
     (diffuse + specular) * n_dot_l
 }
 
-/// Outgoing radiance toward `v` at `p` (unit normal `n`) summed over `lights`.
-/// `visibility(i)` is light i's unoccluded fraction (0 or 1 for a shadow ray); it is asked only
-/// for lights in front of the surface, so a shadow ray is never traced for nothing.
+/// Outgoing radiance toward `v` at `p` (unit normal `n`) summed over `lights`: a hard light as
+/// a point (`brdf_times_cos` times its irradiance), a light with a size as the sphere or disk
+/// it is (`shade_cap`). `visibility(i)` is light i's unoccluded fraction (0 or 1 for a shadow
+/// ray); it is asked only for lights in front of the surface (`light_faces`), so a shadow ray
+/// is never traced for nothing. Twin of compose.comp.
 pub fn shade_point(
     p: Vec3,
     n: Vec3,
@@ -291,6 +293,13 @@ pub fn shade_point(
     visibility: impl Fn(usize) -> f32,
 ) -> Vec3 {
     lights.iter().enumerate().fold(Vec3::ZERO, |radiance, (i, light)| {
+        // A light with a size: the sphere or disk it is (`shade_cap`).
+        if let Some(cap) = light_cap(light, p) {
+            if !light_faces(light, p, n) {
+                return radiance;
+            }
+            return radiance + shade_cap(n, v, material, &cap) * visibility(i);
+        }
         let sample = light_sample(light, p);
         let f = brdf_times_cos(n, v, sample.l, material.base_color, material.roughness, material.metallic);
         if f == Vec3::ZERO {
@@ -306,19 +315,27 @@ pub fn shade_point(
 /// bias of F0 and Fresnel at the light's mean direction under the lobe. Zero behind a one-sided
 /// light. `p`, `center` in the same frame.
 pub fn shade_rect(p: Vec3, n: Vec3, v: Vec3, material: &Material, rect: &RectLightF32) -> Vec3 {
-    use crate::lighting::{ltc, split_sum};
+    use crate::lighting::ltc;
     let normal = rect.half_edge_u.cross(rect.half_edge_v);
     if !rect.two_sided && normal.dot(p - rect.center) <= 0.0 {
         return Vec3::ZERO;
     }
-    let n_dot_v = n.dot(v).max(BRDF_MIN_N_DOT_V);
     let (x, y) = ltc::frame(n, v);
     let corners = ltc::corners_in_frame(rect.center, rect.half_edge_u, rect.half_edge_v, p, x, y, n);
-    let diffuse_share = ltc::polygon(glam::Mat3::IDENTITY, corners);
+    shade_lobe(n, v, x, material, |m| ltc::convex_form_factor(m, &corners)) * rect.radiance
+}
+
+/// Outgoing radiance toward `v` (unit normal `n`, `x` the frame's `ltc::frame`) from a light
+/// of unit radiance whose vector form factor after a matrix `form` gives (in that frame):
+/// `shade_rect`'s LTC evaluation.
+fn shade_lobe(n: Vec3, v: Vec3, x: Vec3, material: &Material, form: impl Fn(glam::Mat3) -> Vec3) -> Vec3 {
+    use crate::lighting::{ltc, split_sum};
+    let n_dot_v = n.dot(v).max(BRDF_MIN_N_DOT_V);
+    let diffuse_share = form(glam::Mat3::IDENTITY).z.abs();
     let roughness = material.roughness.clamp(0.0, 1.0);
     let node = ltc::lookup(ltc::table(), n_dot_v, roughness);
     let m = ltc::inverse_matrix(node);
-    let form = ltc::form_factor(m, corners);
+    let form = form(m);
     let ab = split_sum::lookup(split_sum::table(), n_dot_v, roughness);
     let metallic = material.metallic.clamp(0.0, 1.0);
     let f0 = Vec3::splat(0.04).lerp(material.base_color, metallic);
@@ -331,7 +348,75 @@ pub fn shade_rect(p: Vec3, n: Vec3, v: Vec3, material: &Material, rect: &RectLig
     );
     let specular = fresnel * ((ab.x + ab.y) * form.z.abs() / node[4]);
     let diffuse = material.base_color * (1.0 - metallic) * diffuse_share;
-    (diffuse + specular) * rect.radiance
+    diffuse + specular
+}
+
+/// The directions a light with a size fills as seen from a point: a cap of half-angle theta
+/// around `axis`, given as 1 - cos(theta) (`one_minus_cos`: cos(theta) itself rounds to 1 in
+/// f32 for a small light far away), of uniform `radiance` (W/(m^2 sr)).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Cap {
+    pub axis: Vec3,
+    pub one_minus_cos: f32,
+    pub radiance: Vec3,
+}
+
+/// The cap a light with a size fills as seen from `p`, `None` for a hard light (size 0) or at a
+/// sphere's centre. Its radiance keeps the light's intensity meaning from afar:
+/// - a sphere of radius R (point, spot) sends I / (pi R^2): a disk of that radiance and area
+///   pi R^2 seen face on from afar has intensity I. A spot's cone scales it by its smoothstep at
+///   the direction to the centre (the sphere clipped by the cone, evaluated at its centre).
+///   Within the sphere the cap is the hemisphere around the direction to the centre.
+/// - a disk of angular radius alpha (directional) sends E / (pi sin^2 alpha): its irradiance on
+///   a surface facing it is E, as the hard light's is.
+///
+/// Twin of `light_cap` in lights.glsl.
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+pub fn light_cap(light: &GpuLight, p: Vec3) -> Option<Cap> {
+    let size = light.size[0];
+    if !(size > 0.0) {
+        return None;
+    }
+    let sample = light_sample(light, p);
+    // 1 - cos = sin^2 / (1 + cos), without cancellation.
+    let cap = |sin2: f32, radiance: Vec3| {
+        let one_minus_cos = sin2 / (1.0 + (1.0 - sin2).max(0.0).sqrt());
+        Some(Cap { axis: sample.l, one_minus_cos, radiance })
+    };
+    if light.position_kind[3] == LIGHT_DIRECTIONAL {
+        let sin2 = size * size / (1.0 + size * size);
+        return cap(sin2, sample.e_normal / (PI * sin2));
+    }
+    if !(sample.dist > 0.0) {
+        return None;
+    }
+    let d2 = sample.dist * sample.dist;
+    // e_normal = I s / max(d^2, min): undo the distance to get I s / (pi R^2).
+    let radiance = sample.e_normal * (d2.max(LIGHT_MIN_DISTANCE_SQUARED) / (PI * size * size));
+    cap((size * size / d2).min(1.0), radiance)
+}
+
+/// Unshadowed outgoing radiance toward `v` at a point of unit normal `n` from `cap`: the cap
+/// as the solid-angle-matched polygon of `ltc::cap_polygon`, shaded by LTC as a rect is.
+/// Twin of `cap_radiance` in ltc.glsl.
+pub fn shade_cap(n: Vec3, v: Vec3, material: &Material, cap: &Cap) -> Vec3 {
+    use crate::lighting::ltc;
+    let (x, y) = ltc::frame(n, v);
+    let to_frame = |c: Vec3| Vec3::new(c.dot(x), c.dot(y), c.dot(n));
+    let (centre, offsets) = ltc::cap_polygon(cap.axis, cap.one_minus_cos);
+    let (centre, offsets) = (to_frame(centre), offsets.map(to_frame));
+    let form = |m| ltc::cap_form_factor(m, centre, &offsets);
+    shade_lobe(n, v, x, material, form) * cap.radiance
+}
+
+/// Whether `light` can reach a point `p` of unit normal `n`: the direction to it above the
+/// horizon, or for a light with a size any of its cap. Twin of `light_faces` in lights.glsl
+/// (the traced pass's facing test).
+pub fn light_faces(light: &GpuLight, p: Vec3, n: Vec3) -> bool {
+    match light_cap(light, p) {
+        Some(cap) => n.dot(cap.axis) > -(cap.one_minus_cos * (2.0 - cap.one_minus_cos)).max(0.0).sqrt(),
+        None => n.dot(light_sample(light, p).l) > 0.0,
+    }
 }
 
 /// A rect light in the renderer's f32 frame (`scene::RectLight` after the scene-local shift).

@@ -15,7 +15,6 @@ use umbra::scene::Scene;
 const W: u32 = 128;
 const H: u32 = 128;
 
-
 fn render(renderer: &mut Renderer, view: Option<DebugView>, frame_index: u32) -> Vec<Vec4> {
     let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);
     settings.debug_view = view;

@@ -22,7 +22,6 @@ const SCENE: &str = "background = [0.0, 0.0, 0.0]\n\
     [[objects]]\nshape = \"plane\"\nsize = 1.0\nrotate_deg = [90.0, 0.0, 20.0]\n\
     material = { base_color = [0.5, 0.5, 0.5], roughness = 1.0, metallic = 0.0 }\n";
 
-
 /// The pixel's radiance under a box filter: 32 x 32 rays traced on the CPU.
 fn reference() -> Vec<f32> {
     let (eye, half) = (Vec3::new(0.0, 0.0, 10.0), (5.0f32).to_radians().tan());

@@ -109,7 +109,6 @@ fn importance_sampling_matches_cosine_sampling_of_the_same_brdf() {
 const W: u32 = 96;
 const H: u32 = 96;
 
-
 fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
     common::render_linear(renderer, W, H, view)
 }

@@ -15,8 +15,6 @@ use umbra::scene::{Light, Scene, LUMENS_PER_WATT};
 const CAMERA: &str = "[camera]\neye = [0.0, 3.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
 const LIGHT: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\nirradiance = [1.0, 1.0, 1.0]\n";
 
-
-
 fn parse_in(dir: &Path, text: &str) -> Result<Scene, String> {
     common::captured_log();
     Scene::parse(text, "s.toml", dir).map_err(|e| {

@@ -12,8 +12,6 @@ const CAMERA: &str = "[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\
 const LIGHT: &str = "[[lights]]\ntype = \"point\"\nposition = [0.0, 3.0, 3.0]\nintensity = [10.0, 10.0, 10.0]\n";
 const TRIANGLE: &str = "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n";
 
-
-
 fn one_line(error: &SceneError) -> String {
     let message = error.to_string();
     assert!(!message.contains('\n') && !message.contains("panicked"), "{message:?}");

@@ -184,7 +184,6 @@ fn one_sided_rects_light_only_their_front() {
 const W: u32 = 96;
 const H: u32 = 72;
 
-
 fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
     common::render_linear(renderer, W, H, view)
 }

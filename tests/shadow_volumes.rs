@@ -200,7 +200,6 @@ fn with_the_camera_inside_a_volume_z_fail_stays_right_and_z_pass_goes_wrong() {
     common::assert_clean(&ctx);
 }
 
-
 /// Three triangles on one edge (a fin on a fin): closed nowhere, and not a 2-manifold.
 fn fins() -> Mesh {
     let positions = [

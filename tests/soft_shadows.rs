@@ -11,7 +11,7 @@ use umbra::config::DebugView;
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
 use umbra::scene::bvh::ShadowBvh;
 use umbra::scene::Scene;
-use umbra::shading::{gpu_lights, light_sample, light_sample_point, random2, Surfaces};
+use umbra::shading::{gpu_lights, light_faces, light_sample, light_sample_point, random2, Surfaces};
 
 const W: u32 = 128;
 const H: u32 = 96;
@@ -83,17 +83,22 @@ fn soft_visibility_matches_the_cpu_with_the_same_samples() {
         }
         let (p, n) = (pos[i].truncate(), nrm[i].truncate());
         let centre = light_sample(&light, p);
-        let expected = if n.dot(centre.l) <= 0.0 || centre.e_normal.max_element() <= 0.0 {
+        let expected = if !light_faces(&light, p, n) || centre.e_normal.max_element() <= 0.0 {
             0.0
         } else {
             // Where the traced pass starts its rays (the geometry pass's surface channel, by its twin).
             let origin =
                 surfaces.at(p, scene.camera.eye.as_vec3(), 1e-4).expect("a triangle under the pixel").ray_origin(p);
-            let mut reached = 0;
+            let (mut reached, mut counted) = (0, 0);
             let mut edge = false;
             for k in 0..SPP {
                 let u = random2(UVec3::new(i as u32, 0, k)); // light 0: seed z = 0 * SPP + k
                 let (l, dist) = light_sample_point(&light, origin, u);
+                // A point of the light below the horizon sends nothing: its ray does not count.
+                if n.dot(l) <= 0.0 {
+                    continue;
+                }
+                counted += 1;
                 let tmax = dist * (1.0 - 1e-5);
                 edge |= bvh.ray_near_edge(origin, l, tmax, 1e-6);
                 reached += !bvh.occluded_obvhs(origin, l, tmax) as u32;
@@ -102,7 +107,11 @@ fn soft_visibility_matches_the_cpu_with_the_same_samples() {
                 near_edge += 1;
                 continue;
             }
-            reached as f32 / SPP as f32
+            if counted == 0 {
+                0.0
+            } else {
+                reached as f32 / counted as f32
+            }
         };
         compared += 1;
         if expected > 0.0 && expected < 1.0 {

@@ -20,8 +20,6 @@ const H: u32 = 36;
 const CAMERA: &str = "[camera]\neye = [0.0, 2.0, 1.5]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
 const SUN: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.3, -1.0, -0.2]\nirradiance = [3.0, 3.0, 3.0]\n";
 
-
-
 fn parse_in(dir: &Path, text: &str) -> Scene {
     common::captured_log();
     Scene::parse(text, "t.toml", dir).unwrap_or_else(|e| panic!("{e}"))
@@ -207,7 +205,9 @@ fn missing_and_corrupt_textures_warn_and_keep_the_constant() {
     );
     std::fs::write(d.join("quads.obj"), obj).unwrap();
     let scene = parse_in(d, &format!("{CAMERA}{SUN}[[objects]]\nmesh = \"quads.obj\"\n"));
-    assert!(common::logged("quads.obj: material \"gone\": texture \"missing.png\" unusable (No such file or directory)"));
+    assert!(common::logged(
+        "quads.obj: material \"gone\": texture \"missing.png\" unusable (No such file or directory)"
+    ));
     assert!(common::logged("quads.obj: material \"broken\": texture \"corrupt.png\" unusable"));
     let by_name = |n: &str| scene.meshes.iter().find(|m| m.name == format!("quads.obj/{n}")).unwrap();
     assert!(by_name("gone").surface.is_none() && by_name("gone").material.base_color == Vec3::new(0.3, 0.4, 0.5));

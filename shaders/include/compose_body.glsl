@@ -1,5 +1,6 @@
-// Compose pass body (compose.comp defines WITH_VISIBILITY; compose_unshadowed.comp does not):
-// sum over lights of BRDF * cos * irradiance * visibility, as scene-referred radiance.
+// Compose pass body (compose.comp, one variant per subset of its flags): sum over lights of
+// BRDF * cos * irradiance * visibility (a light with a size, WITH_AREA_LIGHTS: its sphere or
+// disk by LTC, times visibility), as scene-referred radiance. Twin of shading::shade_point.
 #include "bindings.glsl"
 #include "brdf.glsl"
 #include "lights.glsl"
@@ -16,9 +17,13 @@ layout(set = 0, binding = COMPOSE_VISIBILITY) uniform sampler2DArray visibility;
 layout(set = 0, binding = COMPOSE_LIGHT_LAYERS, std430) readonly buffer LightLayers { uint layer_of[]; };
 const uint COMPOSE_UNSHADOWED = 0xffffffffu;
 #endif
-#ifdef WITH_ENVIRONMENT
+#if defined(WITH_ENVIRONMENT) || defined(WITH_AREA_LIGHTS)
 layout(set = 0, binding = COMPOSE_BRDF_TABLE, std430) readonly buffer BrdfTable { vec2 brdf_table[]; };
 #include "lighting/environment.glsl"
+#endif
+#ifdef WITH_AREA_LIGHTS
+layout(set = 0, binding = COMPOSE_LTC_TABLE, std430) readonly buffer LtcTable { float ltc_table[]; };
+#include "lighting/ltc.glsl"
 #endif
 #ifdef WITH_AMBIENT_OCCLUSION
 layout(set = 0, binding = COMPOSE_AMBIENT_OCCLUSION) uniform sampler2D ambient_occlusion;
@@ -58,6 +63,19 @@ void main() {
         float vis = layer == COMPOSE_UNSHADOWED ? 1.0 : texelFetch(visibility, ivec3(px, layer), 0).r;
 #else
         float vis = 1.0;
+#endif
+#ifdef WITH_AREA_LIGHTS
+        // A light with a size: the sphere or disk it is, by LTC (the branch is the same for
+        // every invocation, so a hard light pays no more than the test).
+        vec3 axis;
+        float one_minus_cos;
+        vec3 cap;
+        if (light_cap(lights[i], position.xyz, axis, one_minus_cos, cap)) {
+            if (cap_faces(n, axis, one_minus_cos)) {
+                sum += cap_radiance(axis, one_minus_cos, cap, n, v, material.rgb, material.a, normal_metallic.w) * vis;
+            }
+            continue;
+        }
 #endif
         sum += brdf_times_cos(n, v, L, material.rgb, material.a, normal_metallic.w) * e * vis;
     }

@@ -53,6 +53,50 @@ void light_sample(GpuLight l, vec3 p, out vec3 L, out float dist, out vec3 E_nor
     }
 }
 
+// A light with a size as seen from p: the cap of half-angle theta around axis, given as
+// one_minus_cos = 1 - cos(theta) (cos itself rounds to 1 in f32 for a small light far away), of
+// uniform radiance (W/(m^2 sr)): a sphere (point, spot) sends I / (pi R^2), times a spot's cone
+// factor toward its centre; a disk (directional) sends E / (pi sin^2(alpha)). False for a hard
+// light or at a sphere's centre. Twin of shading::light_cap.
+bool light_cap(GpuLight l, vec3 p, out vec3 axis, out float one_minus_cos, out vec3 radiance) {
+    float size = l.size.x;
+    vec3 L;
+    float dist;
+    vec3 e;
+    light_sample(l, p, L, dist, e);
+    axis = L;
+    one_minus_cos = 0.0;
+    radiance = vec3(0.0);
+    if (!(size > 0.0)) return false;
+    float sin2;
+    if (l.position_kind.w == LIGHT_DIRECTIONAL) {
+        sin2 = size * size / (1.0 + size * size);
+        radiance = e / (3.14159265358979 * sin2);
+    } else {
+        if (!(dist > 0.0)) return false;
+        float d2 = dist * dist;
+        radiance = e * (max(d2, LIGHT_MIN_DISTANCE_SQUARED) / (3.14159265358979 * size * size));
+        sin2 = min(size * size / d2, 1.0);
+    }
+    one_minus_cos = sin2 / (1.0 + sqrt(max(1.0 - sin2, 0.0)));
+    return true;
+}
+
+// Whether a cap (light_cap) reaches above the horizon of unit normal n.
+bool cap_faces(vec3 n, vec3 axis, float one_minus_cos) {
+    return dot(n, axis) > -sqrt(max(one_minus_cos * (2.0 - one_minus_cos), 0.0));
+}
+
+// Whether light l can reach a point of unit normal n: the direction to it (light_sample's L)
+// above the horizon, or for a light with a size any of its cap. Twin of shading::light_faces.
+bool light_faces(GpuLight l, vec3 p, vec3 n, vec3 L) {
+    vec3 axis;
+    float one_minus_cos;
+    vec3 radiance;
+    if (!light_cap(l, p, axis, one_minus_cos, radiance)) return dot(n, L) > 0.0;
+    return cap_faces(n, axis, one_minus_cos);
+}
+
 // Shirley and Chiu's concentric map from u in [0, 1)^2 to the unit disk (Shirley's 2011 form):
 // area-uniform and stratum-preserving.
 vec2 concentric_disk(vec2 u) {

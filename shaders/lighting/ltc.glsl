@@ -1,7 +1,9 @@
-// Linearly transformed cosines over a rect light: twin of src/lighting/ltc.rs (`lookup`,
-// `form_factor`, `fresnel_toward`, `frame`) and of `shade_rect` in src/shading.rs.
+// Linearly transformed cosines over a rect light or a cap (a sphere or disk light): twin of
+// src/lighting/ltc.rs (`lookup`, `form_factor`, `cap_polygon`, `cap_form_factor`, `fresnel_toward`, `frame`) and of
+// `shade_rect` and `shade_cap` in src/shading.rs.
 // Contract: before including, declare `float ltc_table[]` (ltc::table(), 5 floats a node, x
-// fastest) and `vec2 brdf_table[]`, and include brdf.glsl and lighting/environment.glsl.
+// fastest) and `vec2 brdf_table[]`, and include brdf.glsl, lights.glsl and
+// lighting/environment.glsl.
 #ifndef UMBRA_LTC_GLSL
 #define UMBRA_LTC_GLSL
 
@@ -89,13 +91,26 @@ vec3 ltc_fresnel_toward(vec3 f0, vec3 v, vec3 l) {
     return f0 + (vec3(1.0) - f0) * m5;
 }
 
-// Unshadowed radiance toward v at p (normal n) from `rect`: shading::shade_rect.
-vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float roughness, float metallic) {
-    vec3 center = rect.center_two_sided.xyz;
-    vec3 u = rect.half_edge_u.xyz;
-    vec3 w = rect.half_edge_v.xyz;
-    if (rect.center_two_sided.w == 0.0 && dot(cross(u, w), p - center) <= 0.0) return vec3(0.0);
-    float n_dot_v = max(dot(n, v), BRDF_MIN_N_DOT_V);
+// Radiance toward v from a convex polygon of unit radiance: the diffuse share (the cosine's
+// integral over it), and after the LTC matrix `m` (with its share above the horizon) its vector
+// form factor `form`, in the frame (x, y = n x x, n). shading::shade_polygon.
+vec3 ltc_shade(float diffuse_share, vec3 form, mat3 m, float share, vec3 x, vec3 n, vec3 v, float n_dot_v,
+               vec3 base_color, float roughness, float metallic) {
+    metallic = clamp(metallic, 0.0, 1.0);
+    vec3 specular = vec3(0.0);
+    if (form.z != 0.0) {
+        vec2 ab = split_sum_lookup(n_dot_v, roughness);
+        vec3 f0 = mix(vec3(0.04), base_color, metallic);
+        vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
+        vec3 mean = inverse(m) * form * sign(form.z);
+        specular = ltc_fresnel_toward(f0, v_frame, mean) * ((ab.x + ab.y) * abs(form.z) / share);
+    }
+    vec3 diffuse = base_color * (1.0 - metallic) * diffuse_share;
+    return diffuse + specular;
+}
+
+// The shading frame's x: toward v in the tangent plane (ltc::frame).
+vec3 ltc_frame_x(vec3 n, vec3 v) {
     vec3 t = v - n * dot(n, v);
     vec3 x;
     if (dot(t, t) > 1e-12) {
@@ -104,6 +119,17 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
         vec3 b;
         orthonormal_basis(n, x, b);
     }
+    return x;
+}
+
+// Unshadowed radiance toward v at p (normal n) from `rect`: shading::shade_rect.
+vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float roughness, float metallic) {
+    vec3 center = rect.center_two_sided.xyz;
+    vec3 u = rect.half_edge_u.xyz;
+    vec3 w = rect.half_edge_v.xyz;
+    if (rect.center_two_sided.w == 0.0 && dot(cross(u, w), p - center) <= 0.0) return vec3(0.0);
+    float n_dot_v = max(dot(n, v), BRDF_MIN_N_DOT_V);
+    vec3 x = ltc_frame_x(n, v);
     vec3 y = cross(n, x);
     mat3 to_frame = transpose(mat3(x, y, n));
     vec3 c0 = to_frame * (center - u - w - p);
@@ -115,17 +141,89 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);
     vec3 form = ltc_form_factor(m, c0, c1, c2, c3);
-    metallic = clamp(metallic, 0.0, 1.0);
-    vec3 specular = vec3(0.0);
-    if (form.z != 0.0) {
-        vec2 ab = split_sum_lookup(n_dot_v, roughness);
-        vec3 f0 = mix(vec3(0.04), base_color, metallic);
-        vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
-        vec3 mean = inverse(m) * form * sign(form.z);
-        specular = ltc_fresnel_toward(f0, v_frame, mean) * ((ab.x + ab.y) * abs(form.z) / share);
+    return ltc_shade(diffuse_share, form, m, share, x, n, v, n_dot_v, base_color, roughness, metallic)
+        * rect.radiance.rgb;
+}
+
+// A cap (a sphere or disk light seen from the shading point) stands in as the regular
+// LTC_CAP_CORNERS-gon of the same solid angle: its centre and its corners' offsets from it,
+// kept apart so that a small cap loses nothing to rounding (ltc::cap_polygon).
+const uint LTC_CAP_CORNERS = 8u;
+
+// Corner k's offset from the centre (t, b: the basis around the axis; sin_rho: the corners'
+// distance from it).
+vec3 ltc_cap_offset(uint k, vec3 t, vec3 b, float sin_rho) {
+    float phi = 2.0 * LTC_PI * float(k) / float(LTC_CAP_CORNERS);
+    return (t * cos(phi) + b * sin(phi)) * sin_rho;
+}
+
+// ltc_edge(c + a, c + b) with its cross product taken on the offsets (ltc::offset_edge).
+vec3 ltc_offset_edge(vec3 c, vec3 a, vec3 b) {
+    vec3 pa = c + a;
+    vec3 pb = c + b;
+    float scale = length(pa) * length(pb);
+    if (scale <= 0.0) return vec3(0.0);
+    vec3 x = (cross(c, b - a) + cross(a, b)) / scale;
+    float s = length(x);
+    if (s <= 0.0) return vec3(0.0);
+    return x * (atan(s, dot(pa, pb) / scale) / s);
+}
+
+// The cap polygon's vector form factor after `m`, horizon-clipped (ltc::cap_form_factor);
+// `centre` and the offsets already in the shading frame (to_frame).
+vec3 ltc_cap_form_factor(mat3 m, vec3 centre, mat3 to_frame, vec3 t, vec3 b, float sin_rho) {
+    vec3 c = m * centre;
+    mat3 mf = m * to_frame;
+    vec3 exit_point = vec3(0.0), entry_point = vec3(0.0);
+    vec3 first = mf * ltc_cap_offset(0u, t, b, sin_rho);
+    vec3 a = first;
+    vec3 sum = vec3(0.0);
+    bool any_up = false, any_down = false;
+    for (uint k = 1u; k <= LTC_CAP_CORNERS; k++) {
+        vec3 o = k == LTC_CAP_CORNERS ? first : mf * ltc_cap_offset(k, t, b, sin_rho);
+        bool a_up = c.z + a.z >= 0.0;
+        bool o_up = c.z + o.z >= 0.0;
+        any_up = any_up || a_up;
+        any_down = any_down || !a_up;
+        if (a_up && o_up) {
+            sum += ltc_offset_edge(c, a, o);
+        } else if (a_up != o_up) {
+            vec3 crossing = a + (o - a) * ((c.z + a.z) / (a.z - o.z));
+            if (a_up) {
+                exit_point = crossing;
+                sum += ltc_offset_edge(c, a, crossing);
+            } else {
+                entry_point = crossing;
+                sum += ltc_offset_edge(c, crossing, o);
+            }
+        }
+        a = o;
     }
-    vec3 diffuse = base_color * (1.0 - metallic) * diffuse_share;
-    return (diffuse + specular) * rect.radiance.rgb;
+    if (any_up && any_down) sum += ltc_offset_edge(c, exit_point, entry_point);
+    return sum / (2.0 * LTC_PI);
+}
+
+// Unshadowed radiance toward v at a point of normal n from the cap of half-angle theta
+// (one_minus_cos = 1 - cos(theta)) around `axis` with `radiance`: shading::shade_cap.
+vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v, vec3 base_color, float roughness,
+                  float metallic) {
+    const float N = float(LTC_CAP_CORNERS);
+    float e = clamp(one_minus_cos, 0.0, 1.0);
+    float omc_rho = clamp(sin(LTC_PI * e / N) / (sin(LTC_PI / N) * cos(LTC_PI * (1.0 - e) / N)), 0.0, 1.0);
+    float sin_rho = sqrt(max(omc_rho * (2.0 - omc_rho), 0.0));
+    vec3 t;
+    vec3 b;
+    orthonormal_basis(axis, t, b);
+    float n_dot_v = max(dot(n, v), BRDF_MIN_N_DOT_V);
+    vec3 x = ltc_frame_x(n, v);
+    mat3 to_frame = transpose(mat3(x, cross(n, x), n));
+    vec3 centre = to_frame * (axis * (1.0 - omc_rho));
+    float diffuse_share = abs(ltc_cap_form_factor(mat3(1.0), centre, to_frame, t, b, sin_rho).z);
+    roughness = clamp(roughness, 0.0, 1.0);
+    float share;
+    mat3 m = ltc_lookup(n_dot_v, roughness, share);
+    vec3 form = ltc_cap_form_factor(m, centre, to_frame, t, b, sin_rho);
+    return ltc_shade(diffuse_share, form, m, share, x, n, v, n_dot_v, base_color, roughness, metallic) * radiance;
 }
 
 #endif

@@ -56,8 +56,7 @@ impl RectsGpu {
             .map(|r| GpuRect::from(&RectLight { spp: if has_casters { r.spp } else { 0 }, ..*r }))
             .collect();
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let [rects_buffer] =
-            crate::gpu_scene::upload(ctx, [("rect lights", bytemuck::cast_slice(&packed), usage)])?;
+        let [rects_buffer] = crate::gpu_scene::upload(ctx, [("rect lights", bytemuck::cast_slice(&packed), usage)])?;
         Ok(Some(RectsGpu { rects: rects_buffer, count: packed.len() as u32 }))
     }
 }
@@ -89,10 +88,10 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
 }
 
 /// `radiance` with the rect lights added (a new image).
+#[allow(clippy::too_many_arguments)]
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a ComputePipeline,
-    rects: &'a RectsGpu,
+    (rects, pipeline): (&'a RectsGpu, &'a ComputePipeline),
     tables: &'a super::AreaTables,
     gbuffer: &GBuffer,
     radiance: &Handle<ImageKind>,

@@ -40,7 +40,10 @@ float trace_pixel(uvec2 px) {
         float dist;
         vec3 e;
         light_sample(l, position.xyz, L, dist, e);
-        if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
+        // Soft: any of a light with a size above the horizon lights the point; hard: the one
+        // ray toward the centre must leave above it.
+        bool faces = pc.frame.z != 0u ? light_faces(l, position.xyz, n, L) : dot(n, L) > 0.0;
+        if (!faces || max(e.r, max(e.g, e.b)) <= 0.0) {
             v = 0.0;
         } else if (pc.dims.w > 0u) {
             // Off the facet onto the smooth surface its vertex normals describe, then off that
@@ -49,20 +52,25 @@ float trace_pixel(uvec2 px) {
             uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);
             vec3 start = position.xyz + gbuffer_terminator_offset(surface);
             vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
-            // Hard: one ray toward the centre. Soft: spp rays toward points over the light.
-            // The light's own position is not an occluder: rays stop just short of it.
+            // Hard: one ray toward the centre. Soft: spp rays toward points over the light; a
+            // point below the horizon sends no light, so its ray does not count (a light
+            // straddling the horizon is shaded for its part above it). The light's own
+            // position is not an occluder: rays stop just short of it.
             uint spp = pc.dims.w;
             uint reached = 0u;
+            uint counted = 0u;
             for (uint k = 0u; k < spp; k++) {
                 vec3 dir = L;
                 float d = dist;
                 if (pc.frame.z != 0u) {
                     vec2 u = random2(uvec3(pixel, pc.frame.x, light * spp + k));
                     dir = light_sample_point(l, origin, u, d);
+                    if (dot(n, dir) <= 0.0) continue;
                 }
+                counted++;
                 if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) reached++;
             }
-            v = float(reached) / float(spp);
+            v = counted > 0u ? float(reached) / float(counted) : 0.0;
         }
     }
     return v;

@@ -340,13 +340,13 @@ fn shade_lobe(n: Vec3, v: Vec3, x: Vec3, material: &Material, form: impl Fn(glam
     let metallic = material.metallic.clamp(0.0, 1.0);
     let f0 = Vec3::splat(0.04).lerp(material.base_color, metallic);
     let v_frame = Vec3::new(v.dot(x), 0.0, v.dot(n));
-    let mean = m.inverse() * form * form.z.signum();
+    let (lobe, mean) = ltc::lobe_integral(node, m, form, v_frame, n_dot_v, roughness, ab);
     let fresnel = Vec3::new(
         ltc::fresnel_toward(f0.x, v_frame, mean),
         ltc::fresnel_toward(f0.y, v_frame, mean),
         ltc::fresnel_toward(f0.z, v_frame, mean),
     );
-    let specular = fresnel * ((ab.x + ab.y) * form.z.abs() / node[4]);
+    let specular = fresnel * lobe;
     let diffuse = material.base_color * (1.0 - metallic) * diffuse_share;
     diffuse + specular
 }

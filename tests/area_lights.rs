@@ -138,7 +138,8 @@ fn a_large_sphere_close_to_a_floor_lights_it_as_a_sphere_does() {
 
 #[test]
 fn from_afar_a_sphere_or_disk_light_shades_as_its_point() {
-    // Intensity keeps its meaning: W/sr from afar (sphere), W/m^2 on a surface facing it (disk).
+    // Intensity keeps its meaning: W/sr from afar (sphere), W/m^2 on a surface facing it (disk),
+    // so scenes that exist render the same from far away.
     let material = Material { base_color: Vec3::new(0.7, 0.5, 0.3), roughness: 0.5, metallic: 0.3 };
     let p = Vec3::new(0.3, 0.0, -0.2);
     let v = Vec3::new(0.1, 1.0, 0.4).normalize();
@@ -184,7 +185,9 @@ fn from_afar_a_sphere_or_disk_light_shades_as_its_point() {
         let error = ((area - point).abs() / point).max_element();
         println!("{sized:?}: point {point} area {area} error {:.3} %", 100.0 * error);
         assert!(point.min_element() > 0.0, "{point}");
-        assert!(error < 0.01, "{sized:?}: {point} as a point, {area} as an area light");
+        // The LTC corrected by the true lobe at the light's direction (ltc::lobe_integral) is
+        // the point light's value for a light this small: measured 0.001 %.
+        assert!(error < 1e-4, "{sized:?}: {point} as a point, {area} as an area light");
     }
 }
 

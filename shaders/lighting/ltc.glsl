@@ -91,6 +91,43 @@ vec3 ltc_fresnel_toward(vec3 f0, vec3 v, vec3 l) {
     return f0 + (vec3(1.0) - f0) * m5;
 }
 
+// n.v where the correction of ltc_lobe_integral is gone (75 degrees) and where it is whole (60).
+const vec2 LTC_RATIO_FADE_N_DOT_V = vec2(0.258819, 0.5);
+// n.l of the light's mean direction below which the correction fades to none.
+const float LTC_RATIO_FADE_HORIZON = 0.2;
+
+// The integral of umbra's GGX lobe D Vis n.l over a light whose form factor after m is `form`,
+// (A + B) |form.z| / share corrected by the true lobe over the fitted one at the light's mean
+// direction (`mean`), faded out as the light covers the lobe, at grazing views and near the
+// horizon:
+// ltc::lobe_integral.
+float ltc_lobe_integral(mat3 m, float share, vec3 form, vec3 v, float n_dot_v, float roughness, vec2 ab,
+                        out vec3 mean) {
+    float magnitude = (ab.x + ab.y) / share;
+    mean = inverse(m) * form * sign(form.z);
+    float plain = magnitude * abs(form.z);
+    float mean_len = length(mean);
+    vec3 l = mean_len > 0.0 ? mean / mean_len : vec3(0.0);
+    vec3 lo = m * l;
+    float len = length(lo);
+    float fitted = 0.0;
+    float exact = 0.0;
+    if (l.z > 0.0 && len > 0.0) {
+        fitted = magnitude * max(lo.z / len, 0.0) / LTC_PI * abs(determinant(m)) / (len * len * len);
+        vec3 half_vector = v + l;
+        float half_len = length(half_vector);
+        vec3 h = half_len > 0.0 ? half_vector / half_len : vec3(0.0);
+        float alpha = max(roughness * roughness, BRDF_MIN_ALPHA);
+        exact = ggx_d(clamp(h.z, 0.0, 1.0), alpha) * smith_vis(l.z, n_dot_v, alpha) * l.z;
+    }
+    float ratio = fitted > 1e-30 ? clamp(exact / fitted, 0.0, 4.0) : 1.0;
+    float trust = light_smoothstep(LTC_RATIO_FADE_N_DOT_V.x, LTC_RATIO_FADE_N_DOT_V.y, n_dot_v)
+        * light_smoothstep(0.0, LTC_RATIO_FADE_HORIZON, min(l.z, len > 0.0 ? lo.z / len : 0.0));
+    ratio = 1.0 + (ratio - 1.0) * trust;
+    float coverage = clamp(abs(form.z) / share, 0.0, 1.0);
+    return plain * (ratio + (1.0 - ratio) * coverage);
+}
+
 // Radiance toward v from a convex polygon of unit radiance: the diffuse share (the cosine's
 // integral over it), and after the LTC matrix `m` (with its share above the horizon) its vector
 // form factor `form`, in the frame (x, y = n x x, n). shading::shade_polygon.
@@ -102,8 +139,9 @@ vec3 ltc_shade(float diffuse_share, vec3 form, mat3 m, float share, vec3 x, vec3
         vec2 ab = split_sum_lookup(n_dot_v, roughness);
         vec3 f0 = mix(vec3(0.04), base_color, metallic);
         vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
-        vec3 mean = inverse(m) * form * sign(form.z);
-        specular = ltc_fresnel_toward(f0, v_frame, mean) * ((ab.x + ab.y) * abs(form.z) / share);
+        vec3 mean;
+        float lobe = ltc_lobe_integral(m, share, form, v_frame, n_dot_v, roughness, ab, mean);
+        specular = ltc_fresnel_toward(f0, v_frame, mean) * lobe;
     }
     vec3 diffuse = base_color * (1.0 - metallic) * diffuse_share;
     return diffuse + specular;

@@ -199,6 +199,69 @@ fn edge(a: Vec3, b: Vec3) -> Vec3 {
     c * (s.atan2(a.dot(b)) / s)
 }
 
+/// The integral of umbra's GGX lobe D Vis n.l (no Fresnel) over a light whose vector form factor
+/// after the node's inverse matrix `m` is `form`, for the view `v` (in the shading frame, n.v
+/// `n_dot_v`) and the split-sum scale and bias `ab`; and the light's mean direction under the
+/// lobe (where `fresnel_toward` evaluates Fresnel).
+///
+/// The LTC alone gives (A + B) |form.z| / share: exact in magnitude for a light that covers the
+/// whole lobe, but for a light covering little of it only as good as the fitted density is
+/// pointwise, which for rough lobes seen from 45 degrees on is 3-20 % off. So the LTC result is
+/// scaled by the ratio of the true lobe to the fitted one at the light's mean direction,
+/// blended out as the light covers more of the lobe (|form.z| / share): a small light gets the
+/// exact lobe at its direction (what a point light gets), a sky-filling one the plain LTC.
+/// From 60 to 75 degrees from the normal (and for a light near the horizon) the correction fades out: there the fitted lobe's
+/// shape is so far from GGX's that the ratio at one direction misleads (tests/ltc.rs measures
+/// both sides). Twin of `ltc_lobe_integral` in ltc.glsl.
+#[allow(clippy::too_many_arguments)]
+pub fn lobe_integral(
+    node: [f32; ENTRY],
+    m: Mat3,
+    form: Vec3,
+    v: Vec3,
+    n_dot_v: f32,
+    roughness: f32,
+    ab: glam::Vec2,
+) -> (f32, Vec3) {
+    let share = node[4];
+    let magnitude = (ab.x + ab.y) / share;
+    let mean = m.inverse() * form * form.z.signum();
+    let plain = magnitude * form.z.abs();
+    let l = mean.normalize_or_zero();
+    // The fitted density at l: the cosine's at m l / |m l|, times the Jacobian |det m| / |m l|^3.
+    let lo = m * l;
+    let len = lo.length();
+    let fitted = if l.z > 0.0 && len > 0.0 {
+        magnitude * (lo.z / len).max(0.0) / std::f32::consts::PI * m.determinant().abs() / (len * len * len)
+    } else {
+        0.0
+    };
+    let alpha = (roughness * roughness).max(crate::shading::BRDF_MIN_ALPHA);
+    let h = (v + l).normalize_or_zero();
+    let exact = if l.z > 0.0 {
+        crate::shading::ggx_d(h.z.clamp(0.0, 1.0), alpha) * crate::shading::smith_vis(l.z, n_dot_v, alpha) * l.z
+    } else {
+        0.0
+    };
+    let ratio = if fitted > 1e-30 { (exact / fitted).clamp(0.0, 4.0) } else { 1.0 };
+    // Near the horizon both lobes go to 0 and their ratio is ill-conditioned (f32 noise on the
+    // GPU against the CPU), and likewise near the fitted cosine's own horizon: no correction
+    // for a light whose mean direction lies within about 12 degrees of either.
+    let cosine = if len > 0.0 { lo.z / len } else { 0.0 };
+    let trust = crate::shading::smoothstep(RATIO_FADE_N_DOT_V[0], RATIO_FADE_N_DOT_V[1], n_dot_v)
+        * crate::shading::smoothstep(0.0, RATIO_FADE_HORIZON, l.z.min(cosine));
+    let ratio = 1.0 + (ratio - 1.0) * trust;
+    let coverage = (form.z.abs() / share).clamp(0.0, 1.0);
+    (plain * (ratio + (1.0 - ratio) * coverage), mean)
+}
+
+/// n.v where `lobe_integral`'s correction is gone (75 degrees) and where it is whole (60).
+pub const RATIO_FADE_N_DOT_V: [f32; 2] = [0.258_819, 0.5];
+
+/// n.l of the light's mean direction (and the fitted cosine's z there) below which
+/// `lobe_integral`'s correction fades to none.
+pub const RATIO_FADE_HORIZON: f32 = 0.2;
+
 /// Schlick's Fresnel for the view `v` and the light's mean direction `l` (both in the shading
 /// frame): the lobe over a small light sees the Fresnel of its own half vector, not the
 /// lobe's average (a dielectric's specular seen at grazing was 80 % low with the average).

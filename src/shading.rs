@@ -322,16 +322,23 @@ pub fn shade_rect(p: Vec3, n: Vec3, v: Vec3, material: &Material, rect: &RectLig
     }
     let (x, y) = ltc::frame(n, v);
     let corners = ltc::corners_in_frame(rect.center, rect.half_edge_u, rect.half_edge_v, p, x, y, n);
-    shade_lobe(n, v, x, material, |m| ltc::convex_form_factor(m, &corners)) * rect.radiance
+    let diffuse_share = ltc::convex_form_factor(glam::Mat3::IDENTITY, &corners).z.abs();
+    shade_lobe(n, v, x, material, diffuse_share, |m| ltc::convex_form_factor(m, &corners)) * rect.radiance
 }
 
 /// Outgoing radiance toward `v` (unit normal `n`, `x` the frame's `ltc::frame`) from a light
-/// of unit radiance whose vector form factor after a matrix `form` gives (in that frame):
-/// `shade_rect`'s LTC evaluation.
-fn shade_lobe(n: Vec3, v: Vec3, x: Vec3, material: &Material, form: impl Fn(glam::Mat3) -> Vec3) -> Vec3 {
+/// of unit radiance covering `diffuse_share` of the cosine and whose vector form factor after a
+/// matrix `form` gives (in that frame): `shade_rect`'s LTC evaluation.
+fn shade_lobe(
+    n: Vec3,
+    v: Vec3,
+    x: Vec3,
+    material: &Material,
+    diffuse_share: f32,
+    form: impl Fn(glam::Mat3) -> Vec3,
+) -> Vec3 {
     use crate::lighting::{ltc, split_sum};
     let n_dot_v = n.dot(v).max(BRDF_MIN_N_DOT_V);
-    let diffuse_share = form(glam::Mat3::IDENTITY).z.abs();
     let roughness = material.roughness.clamp(0.0, 1.0);
     let node = ltc::lookup(ltc::table(), n_dot_v, roughness);
     let m = ltc::inverse_matrix(node);
@@ -396,8 +403,9 @@ pub fn light_cap(light: &GpuLight, p: Vec3) -> Option<Cap> {
     cap((size * size / d2).min(1.0), radiance)
 }
 
-/// Unshadowed outgoing radiance toward `v` at a point of unit normal `n` from `cap`: the cap
-/// as the solid-angle-matched polygon of `ltc::cap_polygon`, shaded by LTC as a rect is.
+/// Unshadowed outgoing radiance toward `v` at a point of unit normal `n` from `cap`: Lambert
+/// exactly (`ltc::cap_diffuse`), GGX by LTC over the solid-angle-matched polygon of
+/// `ltc::cap_polygon`, as a rect's is.
 /// Twin of `cap_radiance` in ltc.glsl.
 pub fn shade_cap(n: Vec3, v: Vec3, material: &Material, cap: &Cap) -> Vec3 {
     use crate::lighting::ltc;
@@ -406,7 +414,9 @@ pub fn shade_cap(n: Vec3, v: Vec3, material: &Material, cap: &Cap) -> Vec3 {
     let (centre, offsets) = ltc::cap_polygon(cap.axis, cap.one_minus_cos);
     let (centre, offsets) = (to_frame(centre), offsets.map(to_frame));
     let form = |m| ltc::cap_form_factor(m, centre, &offsets);
-    shade_lobe(n, v, x, material, form) * cap.radiance
+    let sin2 = cap.one_minus_cos * (2.0 - cap.one_minus_cos);
+    let diffuse_share = ltc::cap_diffuse(n.dot(cap.axis), sin2);
+    shade_lobe(n, v, x, material, diffuse_share, form) * cap.radiance
 }
 
 /// Whether `light` can reach a point `p` of unit normal `n`: the direction to it above the

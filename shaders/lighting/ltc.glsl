@@ -188,11 +188,28 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
 // kept apart so that a small cap loses nothing to rounding (ltc::cap_polygon).
 const uint LTC_CAP_CORNERS = 8u;
 
+// (cos, sin) of the corners' angles 2 pi k / 8 (ltc::CAP_DIRECTIONS).
+const float LTC_H = 0.70710678;
+const vec2 LTC_CAP_DIRECTIONS[8] = vec2[8](vec2(1.0, 0.0), vec2(LTC_H, LTC_H), vec2(0.0, 1.0), vec2(-LTC_H, LTC_H),
+                                           vec2(-1.0, 0.0), vec2(-LTC_H, -LTC_H), vec2(0.0, -1.0), vec2(LTC_H, -LTC_H));
+
 // Corner k's offset from the centre (t, b: the basis around the axis; sin_rho: the corners'
 // distance from it).
 vec3 ltc_cap_offset(uint k, vec3 t, vec3 b, float sin_rho) {
-    float phi = 2.0 * LTC_PI * float(k) / float(LTC_CAP_CORNERS);
-    return (t * cos(phi) + b * sin(phi)) * sin_rho;
+    vec2 d = LTC_CAP_DIRECTIONS[k];
+    return (t * d.x + b * d.y) * sin_rho;
+}
+
+// The cosine's integral over a cap (sin^2 of its half-angle `sin2`, cos_beta = n . axis) over
+// pi, horizon-clipped, exact (Snyder 1996): ltc::cap_diffuse.
+float ltc_cap_diffuse(float cos_beta, float sin2) {
+    if (cos_beta * cos_beta >= sin2) return sin2 * max(cos_beta, 0.0);
+    float sin_beta = sqrt(max(1.0 - cos_beta * cos_beta, 0.0));
+    float x = sqrt(max(1.0 / sin2 - 1.0, 0.0));
+    float y = clamp(-x * cos_beta / max(sin_beta, 1e-30), -1.0, 1.0);
+    float sin_beta_sqrt_y = sin_beta * sqrt(max(1.0 - y * y, 0.0));
+    float irradiance = (cos_beta * acos(y) - x * sin_beta_sqrt_y) * sin2 + atan(sin_beta_sqrt_y, x);
+    return max(irradiance / LTC_PI, 0.0);
 }
 
 // ltc_edge(c + a, c + b) with its cross product taken on the offsets (ltc::offset_edge).
@@ -223,18 +240,14 @@ vec3 ltc_cap_form_factor(mat3 m, vec3 centre, mat3 to_frame, vec3 t, vec3 b, flo
         bool o_up = c.z + o.z >= 0.0;
         any_up = any_up || a_up;
         any_down = any_down || !a_up;
-        if (a_up && o_up) {
-            sum += ltc_offset_edge(c, a, o);
-        } else if (a_up != o_up) {
-            vec3 crossing = a + (o - a) * ((c.z + a.z) / (a.z - o.z));
-            if (a_up) {
-                exit_point = crossing;
-                sum += ltc_offset_edge(c, a, crossing);
-            } else {
-                entry_point = crossing;
-                sum += ltc_offset_edge(c, crossing, o);
-            }
-        }
+        // One edge call per corner, its ends chosen by the clip (lavapipe runs every side of a
+        // branch its lanes disagree on, so three calls in branches cost three). The crossing
+        // is only used where the edge crosses the horizon (elsewhere it may divide by 0).
+        vec3 crossing = a + (o - a) * ((c.z + a.z) / (a.z - o.z));
+        if (a_up && !o_up) exit_point = crossing;
+        if (!a_up && o_up) entry_point = crossing;
+        vec3 edge = ltc_offset_edge(c, a_up ? a : crossing, o_up ? o : crossing);
+        sum += (a_up || o_up) ? edge : vec3(0.0);
         a = o;
     }
     if (any_up && any_down) sum += ltc_offset_edge(c, exit_point, entry_point);
@@ -256,7 +269,7 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
     vec3 x = ltc_frame_x(n, v);
     mat3 to_frame = transpose(mat3(x, cross(n, x), n));
     vec3 centre = to_frame * (axis * (1.0 - omc_rho));
-    float diffuse_share = abs(ltc_cap_form_factor(mat3(1.0), centre, to_frame, t, b, sin_rho).z);
+    float diffuse_share = ltc_cap_diffuse(dot(n, axis), e * (2.0 - e));
     roughness = clamp(roughness, 0.0, 1.0);
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);

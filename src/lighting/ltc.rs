@@ -136,12 +136,33 @@ pub fn cap_polygon(axis: Vec3, one_minus_cos: f32) -> (Vec3, [Vec3; CAP_CORNERS]
     let omc_rho = ((pi * e / n).sin() / ((pi / n).sin() * (pi * (1.0 - e) / n).cos())).clamp(0.0, 1.0);
     let sin_rho = (omc_rho * (2.0 - omc_rho)).max(0.0).sqrt();
     let (t, b) = crate::shading::orthonormal_basis(axis);
-    let offsets = std::array::from_fn(|k| {
-        let phi = 2.0 * pi * k as f32 / n;
-        (t * phi.cos() + b * phi.sin()) * sin_rho
-    });
+    let offsets = CAP_DIRECTIONS.map(|[c, s]| (t * c + b * s) * sin_rho);
     (axis * (1.0 - omc_rho), offsets)
 }
+
+/// The cosine's integral over a cap of half-angle sigma (sin^2 sigma `sin2`) whose axis makes
+/// cos(beta) = `cos_beta` with the normal, over pi, horizon-clipped: exact (Snyder 1996, in the
+/// form of Lagarde and de Rousiers 2014, "Moving Frostbite to PBR", eq. 18). It is a sphere
+/// light's diffuse share: cheaper than the octagon's eight edges and exact where the octagon is
+/// within 0.2 %. Twin of `ltc_cap_diffuse` in ltc.glsl.
+pub fn cap_diffuse(cos_beta: f32, sin2: f32) -> f32 {
+    let pi = std::f32::consts::PI;
+    if cos_beta * cos_beta >= sin2 {
+        return sin2 * cos_beta.max(0.0);
+    }
+    let sin_beta = (1.0 - cos_beta * cos_beta).max(0.0).sqrt();
+    let x = (1.0 / sin2 - 1.0).max(0.0).sqrt();
+    let y = (-x * cos_beta / sin_beta.max(1e-30)).clamp(-1.0, 1.0);
+    let sin_beta_sqrt_y = sin_beta * (1.0 - y * y).max(0.0).sqrt();
+    let irradiance = (cos_beta * y.acos() - x * sin_beta_sqrt_y) * sin2 + sin_beta_sqrt_y.atan2(x);
+    (irradiance / pi).max(0.0)
+}
+
+/// (cos, sin) of the octagon's corner angles, 2 pi k / 8 (ltc.glsl has the same table).
+const CAP_DIRECTIONS: [[f32; 2]; CAP_CORNERS] = {
+    const H: f32 = std::f32::consts::FRAC_1_SQRT_2;
+    [[1.0, 0.0], [H, H], [0.0, 1.0], [-H, H], [-1.0, 0.0], [-H, -H], [0.0, -1.0], [H, -H]]
+};
 
 /// `convex_form_factor` of the polygon whose corners are `centre + offsets[i]`, with every
 /// cross product taken as centre x (b - a) + a' x b' on the offsets: the corners of a small cap

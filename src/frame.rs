@@ -99,7 +99,12 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         target_stage(&mut g, settings, result, target);
         return g;
     }
-    let ambient = Ambient { background: scene.lighting.background(), lighting, occlusion };
+    let ambient = Ambient {
+        background: scene.lighting.background(),
+        background_given: scene.lighting.background.is_some(),
+        lighting,
+        occlusion,
+    };
     let lit = lighting_stage(
         &mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history, ambient,
     );
@@ -143,6 +148,8 @@ fn occlusion_stage<'a>(
 /// What compose adds beside the lights: the background, the environment and its occlusion.
 struct Ambient<'a> {
     background: Vec3,
+    /// The scene gave `background` (else an environment map is the background).
+    background_given: bool,
     lighting: crate::lighting::Prepared<'a>,
     occlusion: Option<Handle<ImageKind>>,
 }
@@ -196,18 +203,35 @@ fn lighting_stage<'a>(
     }
     let table =
         ambient.lighting.environment.map(|(env, _)| g.import_buffer("split-sum table", &env.brdf_table, SCENE_ACCESS));
+    // An environment map's results, computed at load (`crate::lighting::envmap`).
+    let map = ambient.lighting.environment.and_then(|(env, _)| env.map.as_ref()).map(|m| {
+        let read = Access::ComputeShaderReadSampledImage;
+        (
+            g.import_buffer("environment SH", &m.sh, SCENE_ACCESS),
+            g.import_owned_image("prefiltered environment", &m.prefiltered, read),
+            g.import_owned_image("environment map", &m.source, read),
+        )
+    });
     let inputs = compose::ComposeInputs {
         lights: &handles.lights,
         light_count: s.light_count,
         visibility: visibility.as_ref().map(|(v, t)| (v, t)),
         eye: camera.eye,
         background: ambient.background,
+        background_given: ambient.background_given,
         environment: ambient.lighting.environment.zip(table.as_ref()).map(|((env, pipeline), brdf_table)| {
             compose::EnvironmentInputs {
                 radiance: env.radiance,
                 brdf_table,
                 occlusion: ambient.occlusion.as_ref(),
                 pipeline,
+                map: map.as_ref().map(|(sh, prefiltered, source)| compose::MapInputs {
+                    sh,
+                    prefiltered,
+                    source,
+                    layers: crate::lighting::envmap::PREFILTER_LAYERS,
+                    clip_to_eye: camera.view_proj_relative.inverse(),
+                }),
             }
         }),
     };

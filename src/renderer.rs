@@ -115,7 +115,11 @@ impl Renderer {
             busy: std::sync::OnceLock::new(),
             shadow_pipelines: Default::default(),
             lighting_pipelines: Default::default(),
-            environment: crate::lighting::EnvironmentGpu::new(&ctx, &scene.lighting)?,
+            environment: crate::lighting::EnvironmentGpu::new(
+                &ctx,
+                &scene.lighting,
+                scene.lighting.environment_map.as_deref(),
+            )?,
             rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),

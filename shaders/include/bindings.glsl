@@ -44,6 +44,11 @@
 // compose_emissive*.comp: the G-buffer's emission and occlusion (scenes with textures or
 // emission only)
 #define COMPOSE_EMISSION 9
+// lighting/compose_environment_map*.comp: an environment map's irradiance (SH), its prefiltered
+// layers and the map itself (for the background)
+#define COMPOSE_ENV_SH 10
+#define COMPOSE_ENV_PREFILTERED 11
+#define COMPOSE_ENV_MAP 12
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0
@@ -137,5 +142,12 @@
 #define RECT_SURFACE 8
 #define RECT_BVH_NODES 9
 #define RECT_BVH_TRIANGLES 10
+
+// lighting/envmap_*.comp: an environment map's precompute at load (src/lighting/envmap.rs)
+#define ENVMAP_SOURCE 0
+#define ENVMAP_PREFILTERED 1
+#define ENVMAP_SH_ROWS 2
+#define ENVMAP_SH 3
+#define ENVMAP_BRDF_TABLE 4
 
 #endif

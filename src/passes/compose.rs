@@ -7,7 +7,7 @@
 use std::sync::Arc;
 
 use ash::vk;
-use glam::{UVec4, Vec4};
+use glam::{Mat4, UVec4, Vec4};
 
 use super::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
@@ -21,22 +21,33 @@ struct Push {
     background: Vec4,
     dims: UVec4,
     environment: Vec4,
+    clip_to_eye: Mat4,
 }
 
 pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
     variant(ctx, shadowed, None, false)
 }
 
-/// The compose variant that adds a constant environment (`crate::lighting`): the split-sum
-/// table, the AO image when `occluded`, and the G-buffer's emission (and the material's
-/// occlusion beside it) when `emissive`.
+/// What a compose variant with an environment reads beside the split-sum table.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct EnvironmentVariant {
+    /// The AO image, scaling the environment term.
+    pub occluded: bool,
+    /// An environment map (`crate::lighting::envmap`): its SH irradiance, prefiltered layers and
+    /// the map itself for the background; without it the environment is constant.
+    pub map: bool,
+}
+
+/// The compose variant that adds the environment (`crate::lighting`): the split-sum table, the
+/// AO image when `occluded`, the map's data with `map`, and the G-buffer's emission (and the
+/// material's occlusion beside it) when `emissive`.
 pub fn environment_pipeline(
     ctx: &Arc<GpuContext>,
     shadowed: bool,
-    occluded: bool,
+    environment: EnvironmentVariant,
     emissive: bool,
 ) -> GpuResult<ComputePipeline> {
-    variant(ctx, shadowed, Some(occluded), emissive)
+    variant(ctx, shadowed, Some(environment), emissive)
 }
 
 /// The compose pipelines that also add the G-buffer's emission (`Pipelines::prepare_emissive`).
@@ -45,12 +56,13 @@ pub fn emissive_pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<Com
 }
 
 /// One compose variant: its bindings follow from what it reads (visibility when `shadowed`;
-/// the split-sum table with `environment`, and the AO image when that is `Some(true)`; the
-/// G-buffer's emission when `emissive`), its shader from the same flags.
+/// the split-sum table with `environment`, the AO image when it is `occluded`, the map's SH,
+/// prefiltered layers and texels with `map`; the G-buffer's emission when `emissive`), its
+/// shader from the same flags.
 fn variant(
     ctx: &Arc<GpuContext>,
     shadowed: bool,
-    environment: Option<bool>,
+    environment: Option<EnvironmentVariant>,
     emissive: bool,
 ) -> GpuResult<ComputePipeline> {
     use spirv::*;
@@ -68,36 +80,74 @@ fn variant(
     if environment.is_some() {
         bindings.push(storage(COMPOSE_BRDF_TABLE));
     }
-    if environment == Some(true) {
+    if environment.is_some_and(|e| e.occluded) {
         bindings.push(sampled(COMPOSE_AMBIENT_OCCLUSION));
+    }
+    if environment.is_some_and(|e| e.map) {
+        bindings.push(storage(COMPOSE_ENV_SH));
+        bindings.push((COMPOSE_ENV_PREFILTERED, crate::vk::DescriptorKind::FilteredImage));
+        bindings.push((COMPOSE_ENV_MAP, crate::vk::DescriptorKind::FilteredImage));
     }
     if emissive {
         bindings.push(sampled(COMPOSE_EMISSION));
     }
+    let environment = environment.map(|e| (e.occluded, e.map));
     let (name, spv) = match (environment, shadowed, emissive) {
+        (Some((occluded, true)), _, _) => map_variant(occluded, shadowed, emissive),
         (None, true, false) => ("compose", COMPOSE_COMP),
         (None, false, false) => ("compose (unshadowed)", COMPOSE_UNSHADOWED_COMP),
         (None, true, true) => ("compose (emissive)", COMPOSE_EMISSIVE_COMP),
         (None, false, true) => ("compose (unshadowed, emissive)", COMPOSE_UNSHADOWED_EMISSIVE_COMP),
-        (Some(false), true, false) => ("compose (environment)", LIGHTING_COMPOSE_ENVIRONMENT_COMP),
-        (Some(false), false, false) => {
+        (Some((false, false)), true, false) => ("compose (environment)", LIGHTING_COMPOSE_ENVIRONMENT_COMP),
+        (Some((false, false)), false, false) => {
             ("compose (environment, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_COMP)
         }
-        (Some(true), true, false) => ("compose (environment, AO)", LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
-        (Some(true), false, false) => {
+        (Some((true, false)), true, false) => ("compose (environment, AO)", LIGHTING_COMPOSE_ENVIRONMENT_AO_COMP),
+        (Some((true, false)), false, false) => {
             ("compose (environment, AO, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_COMP)
         }
-        (Some(false), true, true) => ("compose (environment, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_EMISSIVE_COMP),
-        (Some(false), false, true) => {
+        (Some((false, false)), true, true) => {
+            ("compose (environment, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_EMISSIVE_COMP)
+        }
+        (Some((false, false)), false, true) => {
             ("compose (environment, unshadowed, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_UNSHADOWED_EMISSIVE_COMP)
         }
-        (Some(true), true, true) => ("compose (environment, AO, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_AO_EMISSIVE_COMP),
-        (Some(true), false, true) => (
+        (Some((true, false)), true, true) => {
+            ("compose (environment, AO, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_AO_EMISSIVE_COMP)
+        }
+        (Some((true, false)), false, true) => (
             "compose (environment, AO, unshadowed, emissive)",
             LIGHTING_COMPOSE_ENVIRONMENT_AO_UNSHADOWED_EMISSIVE_COMP,
         ),
     };
     ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
+}
+
+/// The name and shader of the variant with an environment map.
+fn map_variant(occluded: bool, shadowed: bool, emissive: bool) -> (&'static str, &'static [u8]) {
+    use spirv::*;
+    match (occluded, shadowed, emissive) {
+        (false, true, false) => ("compose (environment map)", LIGHTING_COMPOSE_ENVIRONMENT_MAP_COMP),
+        (false, false, false) => {
+            ("compose (environment map, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_MAP_UNSHADOWED_COMP)
+        }
+        (true, true, false) => ("compose (environment map, AO)", LIGHTING_COMPOSE_ENVIRONMENT_MAP_AO_COMP),
+        (true, false, false) => {
+            ("compose (environment map, AO, unshadowed)", LIGHTING_COMPOSE_ENVIRONMENT_MAP_AO_UNSHADOWED_COMP)
+        }
+        (false, true, true) => ("compose (environment map, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_MAP_EMISSIVE_COMP),
+        (false, false, true) => (
+            "compose (environment map, unshadowed, emissive)",
+            LIGHTING_COMPOSE_ENVIRONMENT_MAP_UNSHADOWED_EMISSIVE_COMP,
+        ),
+        (true, true, true) => {
+            ("compose (environment map, AO, emissive)", LIGHTING_COMPOSE_ENVIRONMENT_MAP_AO_EMISSIVE_COMP)
+        }
+        (true, false, true) => (
+            "compose (environment map, AO, unshadowed, emissive)",
+            LIGHTING_COMPOSE_ENVIRONMENT_MAP_AO_UNSHADOWED_EMISSIVE_COMP,
+        ),
+    }
 }
 
 /// The environment's part of compose's inputs.
@@ -110,6 +160,18 @@ pub struct EnvironmentInputs<'h, 'a> {
     /// `crate::lighting::Pipelines::compose` for this frame's shadowed, occluded and
     /// emissive.
     pub pipeline: &'a ComputePipeline,
+    /// With an environment map, its data on the device (`radiance` then scales it).
+    pub map: Option<MapInputs<'h>>,
+}
+
+/// An environment map's part of compose's inputs (`crate::lighting::envmap`).
+pub struct MapInputs<'h> {
+    pub sh: &'h Handle<BufferKind>,
+    pub prefiltered: &'h Handle<ImageKind>,
+    pub source: &'h Handle<ImageKind>,
+    pub layers: u32,
+    /// The inverse of the eye-relative view-projection: background pixels' view directions.
+    pub clip_to_eye: Mat4,
 }
 
 pub struct ComposeInputs<'h, 'a> {
@@ -120,6 +182,8 @@ pub struct ComposeInputs<'h, 'a> {
     pub visibility: Option<(&'h Handle<ImageKind>, &'h Handle<BufferKind>)>,
     pub eye: glam::Vec3,
     pub background: glam::Vec3,
+    /// The scene gave `background` (else a map variant shows the map there).
+    pub background_given: bool,
     pub environment: Option<EnvironmentInputs<'h, 'a>>,
 }
 
@@ -148,6 +212,7 @@ pub fn add<'a>(
         None => &pipelines.compose_unshadowed,
     };
     let mut environment = glam::Vec3::ZERO;
+    let (mut layers, mut clip_to_eye) = (0, Mat4::IDENTITY);
     if let Some(emission) = &gbuffer.emission {
         bound.push((COMPOSE_EMISSION, Bound::Image(pass.read(emission, Access::ComputeShaderReadSampledImage))));
         pipeline = pipelines.compose_emissive(inputs.visibility.is_some());
@@ -160,14 +225,23 @@ pub fn add<'a>(
             bound.push((COMPOSE_AMBIENT_OCCLUSION, Bound::Image(ao)));
         }
         environment = env.radiance;
+        if let Some(map) = &env.map {
+            let read = Access::ComputeShaderReadSampledImage;
+            bound.push((COMPOSE_ENV_SH, Bound::Buffer(pass.read(map.sh, Access::ComputeShaderReadStorageBuffer))));
+            bound.push((COMPOSE_ENV_PREFILTERED, Bound::Image(pass.read(map.prefiltered, read))));
+            bound.push((COMPOSE_ENV_MAP, Bound::Image(pass.read(map.source, read))));
+            layers = map.layers;
+            clip_to_eye = map.clip_to_eye;
+        }
         // The variant made for this frame's emission too (`lighting::Pipelines::prepare`).
         pipeline = env.pipeline;
     }
     let push = Push {
         eye: inputs.eye.extend(0.0),
-        background: inputs.background.extend(0.0),
-        dims: UVec4::new(extent.width, extent.height, inputs.light_count, 0),
+        background: inputs.background.extend(if inputs.background_given { 1.0 } else { 0.0 }),
+        dims: UVec4::new(extent.width, extent.height, inputs.light_count, layers),
         environment: environment.extend(0.0),
+        clip_to_eye,
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     radiance

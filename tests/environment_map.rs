@@ -362,9 +362,10 @@ fn prefiltered_specular_reflects_the_map() {
     // blur of this smooth map moves it by about half a percent (measured 0.57 %): tolerance
     // 1.5 %.
     assert!(worst_mirror < 0.015, "{worst_mirror}");
-    // Filtered importance sampling reads box-filtered mips where the twin reads level 0 with
-    // 128 times the samples (measured 1.3 %): tolerance 2.5 %.
-    assert!(worst_twin < 0.025, "{worst_twin}");
+    // Filtered importance sampling reads box-filtered mips, half a level coarser than the
+    // samples' share of the lobe, where the twin reads level 0 with 128 times the samples
+    // (measured 2.6 %; 1.3 % without the half level, 5.0 % with a whole one): tolerance 3.5 %.
+    assert!(worst_twin < 0.035, "{worst_twin}");
     // The split-sum's n = v = r lobe differs from the true one by what it ignores (the lobe's
     // shift and stretch with the view, Karis's n.l weights): measured 8.5 % facing the camera
     // on this map with a bright off-axis lobe, 18 % at n.v 0.6. Bounds 12 % and 25 %: this

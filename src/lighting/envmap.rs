@@ -8,7 +8,8 @@
 //!   equirectangular array, layer k the map under GGX of roughness k / (layers - 1) with
 //!   n = v = r (the split-sum assumption of Karis 2013), each of `PREFILTER_SAMPLES`
 //!   importance-sampled directions read from the map's mip that matches its share of the lobe
-//!   (filtered importance sampling, Krivanek & Colbert 2008), so few samples make no fireflies;
+//!   (filtered importance sampling, Krivanek & Colbert 2008, with half a level of bias), so
+//!   few samples make no fireflies;
 //! - the split-sum BRDF table, the GPU twin of `split_sum::table` (same nodes and points, f32).
 //!
 //! The map's mip chain (a 2x2 box per level) is made on the CPU when it is uploaded, as material

@@ -154,14 +154,21 @@ impl EnvironmentMapGpu {
         g.export(table_h, crate::gpu_scene::SCENE_ACCESS);
         let plan = CompiledGraph::compile(&g);
         let mut cache = TransientCache::new(ctx)?;
-        ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
+        // With -v, each pass's GPU time too (stamps flushed after each, which lavapipe needs
+        // and which costs nothing that matters once).
+        let timed = log::log_enabled!(log::Level::Info) && ctx.timestamp_period_ns.is_some();
+        let mode = timed.then_some(crate::graph::TimingMode::Flushed);
+        ctx.submit_and_wait(|cmd| cache.execute_timed(g, &plan, cmd, mode))?;
         let bake_ms = start.elapsed().as_secs_f64() * 1e3;
+        let passes: Vec<String> = cache.read_timings()?.iter().map(|(name, ms)| format!("{name} {ms:.1} ms")).collect();
         log::info!(
             "environment map {:?} ({}x{}): SH irradiance, {PREFILTER_LAYERS} prefiltered layers of {width}x{height} \
-             and the split-sum table on the GPU in {bake_ms:.1} ms",
+             and the split-sum table on the GPU in {bake_ms:.1} ms{}{}",
             map.name,
             map.width,
-            map.height
+            map.height,
+            if passes.is_empty() { "" } else { " (GPU: " },
+            if passes.is_empty() { String::new() } else { passes.join(", ") + ")" }
         );
         Ok((EnvironmentMapGpu { source, prefiltered, sh, bake_ms }, brdf_table))
     }

@@ -1,7 +1,8 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 // Compose: every light's BRDF * cos * irradiance (times its visibility), plus what the frame
-// has of the environment, ambient occlusion, emission and area lights. build.rs compiles one
-// variant per subset of these flags; passes::compose::Variant picks the frame's.
-// variants: WITH_VISIBILITY WITH_ENVIRONMENT WITH_AMBIENT_OCCLUSION WITH_EMISSION WITH_AREA_LIGHTS
+// has of the environment (a constant or a map), ambient occlusion, emission and area lights.
+// build.rs compiles one variant per subset of these flags; passes::compose::Variant picks the
+// frame's.
+// variants: WITH_VISIBILITY WITH_ENVIRONMENT WITH_AMBIENT_OCCLUSION WITH_EMISSION WITH_AREA_LIGHTS WITH_ENVIRONMENT_MAP
 #include "compose_body.glsl"

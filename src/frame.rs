@@ -102,7 +102,13 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         target_stage(&mut g, settings, result, target);
         return g;
     }
-    let ambient = Ambient { background: scene.lighting.background(), lighting, occlusion, compose };
+    let ambient = Ambient {
+        background: scene.lighting.background(),
+        background_given: scene.lighting.background.is_some(),
+        lighting,
+        occlusion,
+        compose,
+    };
     let lit = lighting_stage(
         &mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history, ambient,
     );
@@ -146,6 +152,8 @@ fn occlusion_stage<'a>(
 /// What compose adds beside the lights: the background, the environment and its occlusion.
 struct Ambient<'a> {
     background: Vec3,
+    /// The scene gave `background` (else an environment map is the background).
+    background_given: bool,
     lighting: crate::lighting::Prepared<'a>,
     occlusion: Option<Handle<ImageKind>>,
     compose: Option<(compose::Variant, &'a ComputePipeline)>,
@@ -209,6 +217,15 @@ fn lighting_stage<'a>(
         (Some(_), _) | (None, None) => None,
         (None, Some(env)) => Some(g.import_buffer("split-sum table", &env.brdf_table, SCENE_ACCESS)),
     };
+    // An environment map's results, computed at load (`crate::lighting::envmap`).
+    let map = lighting.environment.and_then(|env| env.map.as_ref()).map(|m| {
+        let read = Access::ComputeShaderReadSampledImage;
+        (
+            g.import_buffer("environment SH", &m.sh, SCENE_ACCESS),
+            g.import_owned_image("prefiltered environment", &m.prefiltered, read),
+            g.import_owned_image("environment map", &m.source, read),
+        )
+    });
     let inputs = compose::ComposeInputs {
         pipeline: ambient.compose.expect("the renderer prepares compose for shaded frames"),
         lights: &handles.lights,
@@ -216,9 +233,18 @@ fn lighting_stage<'a>(
         visibility: visibility.as_ref().map(|(v, t)| (v, t)),
         eye: camera.eye,
         background: ambient.background,
-        environment: lighting
-            .environment
-            .map(|env| compose::EnvironmentInputs { radiance: env.radiance, occlusion: ambient.occlusion.as_ref() }),
+        background_given: ambient.background_given,
+        environment: lighting.environment.map(|env| compose::EnvironmentInputs {
+            radiance: env.radiance,
+            occlusion: ambient.occlusion.as_ref(),
+            map: map.as_ref().map(|(sh, prefiltered, source)| compose::MapInputs {
+                sh,
+                prefiltered,
+                source,
+                layers: crate::lighting::envmap::PREFILTER_LAYERS,
+                clip_to_eye: camera.view_proj_relative.inverse(),
+            }),
+        }),
         brdf_table: area.as_ref().map(|(_, _, t)| t).or(environment_table.as_ref()),
         ltc_table: area.as_ref().filter(|_| lighting.sized_lights).map(|(_, ltc, _)| ltc),
     };

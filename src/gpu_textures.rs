@@ -95,6 +95,7 @@ pub fn upload(
             address: vk::SamplerAddressMode::REPEAT,
             mipmaps: true,
             max_anisotropy,
+            clamp_v: false,
         },
     )?;
     let samplers = [sampler];

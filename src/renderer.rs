@@ -117,7 +117,11 @@ impl Renderer {
             busy: std::sync::OnceLock::new(),
             shadow_pipelines: Default::default(),
             lighting_pipelines: Default::default(),
-            environment: crate::lighting::EnvironmentGpu::new(&ctx, &scene.lighting)?,
+            environment: crate::lighting::EnvironmentGpu::new(
+                &ctx,
+                &scene.lighting,
+                scene.lighting.environment_map.as_deref(),
+            )?,
             rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
             area_tables: crate::lighting::AreaTables::new(&ctx, sized_lights || !local.rect_lights.is_empty())?,
             sized_lights,
@@ -188,6 +192,7 @@ impl Renderer {
                     occluded: lighting.environment.is_some() && lighting.occlusion.is_some(),
                     emissive: self.gpu_scene.materials.is_some(),
                     area_lights: lighting.sized_lights,
+                    environment_map: lighting.environment.is_some_and(|e| e.map.is_some()),
                 };
                 Some((variant, self.pipelines.compose(&self.ctx, variant)?))
             }

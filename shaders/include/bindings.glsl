@@ -44,8 +44,13 @@
 #define COMPOSE_AMBIENT_OCCLUSION 8
 // WITH_EMISSION: the G-buffer's emission and occlusion (scenes with textures or emission only)
 #define COMPOSE_EMISSION 9
+// lighting/compose_environment_map*.comp: an environment map's irradiance (SH), its prefiltered
+// layers and the map itself (for the background)
+#define COMPOSE_ENV_SH 10
+#define COMPOSE_ENV_PREFILTERED 11
+#define COMPOSE_ENV_MAP 12
 // WITH_AREA_LIGHTS: the LTC table (lights with a size shaded as sphere and disk lights)
-#define COMPOSE_LTC_TABLE 10
+#define COMPOSE_LTC_TABLE 13
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0
@@ -139,5 +144,12 @@
 #define RECT_SURFACE 8
 #define RECT_BVH_NODES 9
 #define RECT_BVH_TRIANGLES 10
+
+// lighting/envmap_*.comp: an environment map's precompute at load (src/lighting/envmap.rs)
+#define ENVMAP_SOURCE 0
+#define ENVMAP_PREFILTERED 1
+#define ENVMAP_SH_ROWS 2
+#define ENVMAP_SH 3
+#define ENVMAP_BRDF_TABLE 4
 
 #endif

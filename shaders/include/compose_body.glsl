@@ -1,6 +1,10 @@
 // Compose pass body (compose.comp, one variant per subset of its flags): sum over lights of
 // BRDF * cos * irradiance * visibility (a light with a size, WITH_AREA_LIGHTS: its sphere or
 // disk by LTC, times visibility), as scene-referred radiance. Twin of shading::shade_point.
+#if defined(WITH_ENVIRONMENT_MAP) && !defined(WITH_ENVIRONMENT)
+// A map is an environment (build.rs also compiles the subset that names the map alone).
+#define WITH_ENVIRONMENT
+#endif
 #include "bindings.glsl"
 #include "brdf.glsl"
 #include "lights.glsl"
@@ -25,6 +29,15 @@ layout(set = 0, binding = COMPOSE_BRDF_TABLE, std430) readonly buffer BrdfTable 
 layout(set = 0, binding = COMPOSE_LTC_TABLE, std430) readonly buffer LtcTable { float ltc_table[]; };
 #include "lighting/ltc.glsl"
 #endif
+#ifdef WITH_ENVIRONMENT_MAP
+// An environment map (lighting/envmap.glsl): its irradiance's SH coefficients, its prefiltered
+// layers and the map itself, which the camera sees where nothing is drawn.
+layout(set = 0, binding = COMPOSE_ENV_SH, std430) readonly buffer EnvSh { vec4 env_sh[9]; };
+layout(set = 0, binding = COMPOSE_ENV_PREFILTERED) uniform sampler2DArray env_prefiltered;
+layout(set = 0, binding = COMPOSE_ENV_MAP) uniform sampler2D env_map;
+#define ENVMAP_SHADING
+#include "lighting/envmap.glsl"
+#endif
 #ifdef WITH_AMBIENT_OCCLUSION
 layout(set = 0, binding = COMPOSE_AMBIENT_OCCLUSION) uniform sampler2D ambient_occlusion;
 #endif
@@ -35,9 +48,10 @@ layout(set = 0, binding = COMPOSE_EMISSION) uniform sampler2D gbuffer_emission;
 
 layout(push_constant) uniform Push {
     vec4 eye;        // xyz
-    vec4 background; // rgb radiance where nothing was drawn
-    uvec4 dims;      // x: width, y: height, z: light count
-    vec4 environment; // rgb: the environment's radiance (WITH_ENVIRONMENT)
+    vec4 background; // rgb radiance where nothing was drawn; w: 1 when the scene gave it
+    uvec4 dims;      // x: width, y: height, z: light count, w: prefiltered layers (map)
+    vec4 environment; // rgb: the environment's radiance (WITH_ENVIRONMENT), or the map's scale
+    mat4 clip_to_eye; // inverse of the eye-relative view-projection (WITH_ENVIRONMENT_MAP)
 } pc;
 
 void main() {
@@ -45,7 +59,17 @@ void main() {
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
     if (position.w <= 0.0) {
-        imageStore(radiance, ivec2(px), vec4(pc.background.rgb, 1.0));
+        vec3 background = pc.background.rgb;
+#ifdef WITH_ENVIRONMENT_MAP
+        if (pc.background.w == 0.0) {
+            // The camera ray through this pixel, as the G-buffer's (jitter included).
+            vec2 ndc = (vec2(px) + 0.5) / vec2(pc.dims.xy) * 2.0 - 1.0;
+            vec4 near = pc.clip_to_eye * vec4(ndc, 1.0, 1.0);
+            vec3 d = normalize(near.xyz / near.w);
+            background = textureLod(env_map, envmap_uv(d), 0.0).rgb * pc.environment.rgb;
+        }
+#endif
+        imageStore(radiance, ivec2(px), vec4(background, 1.0));
         return;
     }
     vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
@@ -80,7 +104,12 @@ void main() {
         sum += brdf_times_cos(n, v, L, material.rgb, material.a, normal_metallic.w) * e * vis;
     }
 #ifdef WITH_ENVIRONMENT
+#ifdef WITH_ENVIRONMENT_MAP
+    vec3 ambient = environment_map_radiance(n, v, material.rgb, material.a, normal_metallic.w, pc.dims.w)
+        * pc.environment.rgb;
+#else
     vec3 ambient = environment_radiance(n, v, material.rgb, material.a, normal_metallic.w, pc.environment.rgb);
+#endif
 #ifdef WITH_AMBIENT_OCCLUSION
     ambient *= texelFetch(ambient_occlusion, ivec2(px), 0).r;
 #endif

@@ -3,6 +3,7 @@
 //! when the scene has it: a scene without `[environment]` pays for no table, pass or image.
 
 pub mod ao;
+pub mod envmap;
 pub mod ltc;
 pub mod ltc_fit;
 pub mod rects;
@@ -35,22 +36,40 @@ pub fn environment_radiance(
     (diffuse + f0 * ab.x + Vec3::splat(ab.y)) * radiance
 }
 
-/// The scene's environment on the device: the split-sum table, uploaded once.
+/// The scene's environment on the device: the split-sum table, uploaded once (a constant
+/// environment) or computed on the GPU with the map's irradiance and prefiltered layers.
 pub struct EnvironmentGpu {
+    /// The constant environment's radiance, or the map's scale (`intensity`) in each channel.
     pub radiance: Vec3,
     pub brdf_table: Buffer,
+    /// The map and what was computed from it (`envmap`), where the scene has one.
+    pub map: Option<envmap::EnvironmentMapGpu>,
 }
 
 impl EnvironmentGpu {
-    /// `None` when the scene has no environment (nothing is made).
-    pub fn new(ctx: &Arc<GpuContext>, lighting: &SceneLighting) -> GpuResult<Option<EnvironmentGpu>> {
+    /// `None` when the scene has no environment (nothing is made). With `map`, the precompute
+    /// runs here, once.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        lighting: &SceneLighting,
+        map: Option<&crate::scene::EnvironmentMap>,
+    ) -> GpuResult<Option<EnvironmentGpu>> {
         let Some(environment) = lighting.environment else { return Ok(None) };
+        if let Some(map) = map {
+            // Compose reads the split-sum table the GPU made beside the map's results.
+            let (baked, brdf_table) = envmap::EnvironmentMapGpu::new(ctx, map)?;
+            return Ok(Some(EnvironmentGpu {
+                radiance: Vec3::splat(environment.intensity),
+                brdf_table,
+                map: Some(baked),
+            }));
+        }
         let table = split_sum::table();
         let [brdf_table] = crate::gpu_scene::upload(
             ctx,
             [("split-sum table", bytemuck::cast_slice(table), vk::BufferUsageFlags::STORAGE_BUFFER)],
         )?;
-        Ok(Some(EnvironmentGpu { radiance: environment.radiance(), brdf_table }))
+        Ok(Some(EnvironmentGpu { radiance: environment.radiance(), brdf_table, map: None }))
     }
 }
 

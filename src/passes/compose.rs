@@ -8,7 +8,7 @@
 use std::sync::Arc;
 
 use ash::vk;
-use glam::{UVec4, Vec4};
+use glam::{Mat4, UVec4, Vec4};
 
 use super::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
@@ -22,6 +22,7 @@ struct Push {
     background: Vec4,
     dims: UVec4,
     environment: Vec4,
+    clip_to_eye: Mat4,
 }
 
 /// What a compose variant reads beside the G-buffer and the lights; each flag is a `#define`
@@ -39,13 +40,16 @@ pub struct Variant {
     pub emissive: bool,
     /// Lights with a size, shaded as sphere and disk lights: the LTC and split-sum tables.
     pub area_lights: bool,
+    /// The environment is a map (`crate::lighting::envmap`, only with `environment`): its SH
+    /// irradiance, prefiltered layers and the map itself for the background.
+    pub environment_map: bool,
 }
 
 impl Variant {
     /// Index into `spirv::COMPOSE_COMP` and the pipeline cache: the flags in the order of
     /// compose.comp's `// variants:` line.
     pub fn index(self) -> usize {
-        [self.shadowed, self.environment, self.occluded, self.emissive, self.area_lights]
+        [self.shadowed, self.environment, self.occluded, self.emissive, self.area_lights, self.environment_map]
             .iter()
             .enumerate()
             .map(|(i, &on)| usize::from(on) << i)
@@ -55,7 +59,8 @@ impl Variant {
     fn name(self) -> String {
         let parts = [
             (!self.shadowed, "unshadowed"),
-            (self.environment, "environment"),
+            (self.environment && !self.environment_map, "environment"),
+            (self.environment_map, "environment map"),
             (self.occluded, "AO"),
             (self.emissive, "emissive"),
             (self.area_lights, "area lights"),
@@ -97,6 +102,11 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePip
     if variant.area_lights {
         bindings.push(storage(COMPOSE_LTC_TABLE));
     }
+    if variant.environment && variant.environment_map {
+        bindings.push(storage(COMPOSE_ENV_SH));
+        bindings.push((COMPOSE_ENV_PREFILTERED, crate::vk::DescriptorKind::FilteredImage));
+        bindings.push((COMPOSE_ENV_MAP, crate::vk::DescriptorKind::FilteredImage));
+    }
     let spv = spirv::COMPOSE_COMP[variant.index()];
     // Pipelines keep a 'static name; each variant is made at most once per device.
     let name: &'static str = Box::leak(variant.name().into_boxed_str());
@@ -109,6 +119,18 @@ pub struct EnvironmentInputs<'h> {
     pub radiance: glam::Vec3,
     /// Ambient occlusion (1 open, 0 enclosed), scaling the environment term.
     pub occlusion: Option<&'h Handle<ImageKind>>,
+    /// With an environment map, its data on the device (`radiance` then scales it).
+    pub map: Option<MapInputs<'h>>,
+}
+
+/// An environment map's part of compose's inputs (`crate::lighting::envmap`).
+pub struct MapInputs<'h> {
+    pub sh: &'h Handle<BufferKind>,
+    pub prefiltered: &'h Handle<ImageKind>,
+    pub source: &'h Handle<ImageKind>,
+    pub layers: u32,
+    /// The inverse of the eye-relative view-projection: background pixels' view directions.
+    pub clip_to_eye: Mat4,
 }
 
 pub struct ComposeInputs<'h, 'a> {
@@ -122,6 +144,8 @@ pub struct ComposeInputs<'h, 'a> {
     pub visibility: Option<(&'h Handle<ImageKind>, &'h Handle<BufferKind>)>,
     pub eye: glam::Vec3,
     pub background: glam::Vec3,
+    /// The scene gave `background` (else a map variant shows the map there).
+    pub background_given: bool,
     pub environment: Option<EnvironmentInputs<'h>>,
     /// The split-sum table (with an environment or area lights).
     pub brdf_table: Option<&'h Handle<BufferKind>>,
@@ -137,6 +161,7 @@ pub fn add<'a>(
 ) -> Handle<ImageKind> {
     let (variant, pipeline) = inputs.pipeline;
     let occlusion = inputs.environment.as_ref().and_then(|e| e.occlusion);
+    let map = inputs.environment.as_ref().and_then(|e| e.map.as_ref());
     assert_eq!(
         variant,
         Variant {
@@ -145,6 +170,7 @@ pub fn add<'a>(
             occluded: occlusion.is_some(),
             emissive: gbuffer.emission.is_some(),
             area_lights: inputs.ltc_table.is_some(),
+            environment_map: map.is_some(),
         },
         "compose's inputs are those of its variant"
     );
@@ -176,12 +202,21 @@ pub fn add<'a>(
     if let Some(ltc) = inputs.ltc_table {
         bound.push((COMPOSE_LTC_TABLE, Bound::Buffer(pass.read(ltc, buffer))));
     }
+    let (mut layers, mut clip_to_eye) = (0, Mat4::IDENTITY);
+    if let Some(map) = map {
+        bound.push((COMPOSE_ENV_SH, Bound::Buffer(pass.read(map.sh, buffer))));
+        bound.push((COMPOSE_ENV_PREFILTERED, Bound::Image(pass.read(map.prefiltered, sampled))));
+        bound.push((COMPOSE_ENV_MAP, Bound::Image(pass.read(map.source, sampled))));
+        layers = map.layers;
+        clip_to_eye = map.clip_to_eye;
+    }
     let environment = inputs.environment.as_ref().map_or(glam::Vec3::ZERO, |e| e.radiance);
     let push = Push {
         eye: inputs.eye.extend(0.0),
-        background: inputs.background.extend(0.0),
-        dims: UVec4::new(extent.width, extent.height, inputs.light_count, 0),
+        background: inputs.background.extend(if inputs.background_given { 1.0 } else { 0.0 }),
+        dims: UVec4::new(extent.width, extent.height, inputs.light_count, layers),
         environment: environment.extend(0.0),
+        clip_to_eye,
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     radiance

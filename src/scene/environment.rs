@@ -3,8 +3,13 @@
 //! it reaches a point past nearby geometry (`[ambient_occlusion]`). Parsed here, beside the
 //! scene file, so that file.rs only names the three keys.
 
+use std::path::Path;
+use std::sync::Arc;
+
 use glam::Vec3;
 use serde::Deserialize;
+
+use super::envmap::EnvironmentMap;
 
 use super::error::{short_number, SceneError};
 use super::file::Xyz;
@@ -22,6 +27,15 @@ pub const MAX_AO_SPP: u32 = 256;
 pub(super) struct EnvironmentDesc {
     color: Option<Xyz>,
     intensity: Option<f64>,
+    /// An equirectangular image (path relative to the scene file), `scene::EnvironmentMap`.
+    map: Option<String>,
+}
+
+impl EnvironmentDesc {
+    /// The `map` file as the scene names it.
+    pub(super) fn map_name(&self) -> Option<&str> {
+        self.map.as_deref()
+    }
 }
 
 /// `[ambient_occlusion]`.
@@ -62,12 +76,15 @@ impl Default for AmbientOcclusion {
 
 /// The scene's background, environment and ambient occlusion, each absent unless the file
 /// gives it.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct SceneLighting {
     /// Top-level `background`: radiance the camera sees where no surface is drawn.
     pub background: Option<Vec3>,
     pub environment: Option<Environment>,
     pub ambient_occlusion: Option<AmbientOcclusion>,
+    /// `[environment] map`, read (`environment`'s `intensity` scales it); `None` without one,
+    /// or when a missing map fell back to `color`.
+    pub environment_map: Option<Arc<EnvironmentMap>>,
 }
 
 impl SceneLighting {
@@ -83,11 +100,15 @@ impl SceneLighting {
     }
 }
 
-/// Checks the three keys; `fail(key_path, message)` makes the scene file's error.
+/// Checks the three keys; `fail(key_path, message)` makes the scene file's error. An
+/// environment `map` is read from `base_dir` (with a map and no `color`, `color` is white: the
+/// map's radiance times `intensity`).
 pub(super) fn check(
     background: Option<&Xyz>,
     environment: Option<&EnvironmentDesc>,
     ambient_occlusion: Option<&AmbientOcclusionDesc>,
+    base_dir: &Path,
+    source_name: &str,
     fail: impl Fn(&str, String) -> SceneError,
 ) -> Result<SceneLighting, SceneError> {
     let radiance = |key: &str, v: &Xyz| {
@@ -100,13 +121,41 @@ pub(super) fn check(
         }
     };
     let background = background.map(|b| radiance("background", b)).transpose()?;
+    let mut map = None;
     let environment = match environment {
         None => None,
         Some(e) => {
-            let Some(color) = &e.color else {
-                return Err(fail("environment", "needs `color = [r, g, b]`".into()));
-            };
-            let color = radiance("environment.color", color)?;
+            if e.color.is_none() && e.map.is_none() {
+                return Err(fail("environment", "needs `color = [r, g, b]` or `map = \"sky.exr\"`".into()));
+            }
+            let color = e.color.as_ref().map(|c| radiance("environment.color", c)).transpose()?;
+            if let Some(name) = &e.map {
+                let shown = super::error::shorten(name, super::error::MAX_MESSAGE_CHARS);
+                match super::envmap::load(&base_dir.join(name)) {
+                    Ok(m) => map = Some(Arc::new(m)),
+                    // A missing file with a `color` to fall back to is a warning; anything else
+                    // (no `color`, or a file that is there but wrong) is an error.
+                    Err(super::envmap::MapError::Read(error)) if color.is_some() => {
+                        let reason = super::error::IoReason(&error);
+                        log::warn!(
+                            "{source_name}: environment.map: cannot read {shown:?} ({reason}); the constant `color` lights the scene instead"
+                        );
+                    }
+                    Err(super::envmap::MapError::Read(error)) => {
+                        let reason = super::error::IoReason(&error);
+                        return Err(fail(
+                            "environment.map",
+                            format!(
+                                "cannot read {shown:?}: {reason} (give `color` to fall back to a constant environment)"
+                            ),
+                        ));
+                    }
+                    Err(super::envmap::MapError::Invalid(reason)) => {
+                        return Err(fail("environment.map", format!("{shown:?} {reason}")));
+                    }
+                }
+            }
+            let color = color.unwrap_or(Vec3::ONE);
             let intensity = e.intensity.unwrap_or(1.0);
             if !(intensity >= 0.0 && (intensity as f32).is_finite()) {
                 let message = format!("{} must be finite and >= 0", short_number(intensity));
@@ -132,5 +181,5 @@ pub(super) fn check(
             Some(AmbientOcclusion { radius: a.radius as f32, spp })
         }
     };
-    Ok(SceneLighting { background, environment, ambient_occlusion })
+    Ok(SceneLighting { background, environment, ambient_occlusion, environment_map: map })
 }

@@ -328,9 +328,9 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.short_faces += placed.short_faces;
     }
     sources.extend(check.textures.borrow().files().iter().cloned());
-    if !meshes.is_empty() && lights.is_empty() && rect_lights.is_empty() {
-        // Nothing else lights a surface yet (no environment light): say why the picture is
-        // black before the user looks for a bug.
+    if !meshes.is_empty() && lights.is_empty() && rect_lights.is_empty() && file.environment.is_none() {
+        // Nothing else lights a surface: say why the picture is black before the user looks
+        // for a bug.
         log::warn!(
             "{source_name}: the scene has objects but no lights; they are unlit (only the background and emission show)"
         );
@@ -345,8 +345,13 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         file.background.as_ref(),
         file.environment.as_ref(),
         file.ambient_occlusion.as_ref(),
+        base_dir,
+        source_name,
         |key_path, message| check.fail(key_path, message),
     )?;
+    if let (Some(name), Some(_)) = (file.environment.as_ref().and_then(|e| e.map_name()), &lighting.environment_map) {
+        sources.push(base_dir.join(name));
+    }
     Ok(Scene {
         image_size,
         camera,

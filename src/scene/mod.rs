@@ -3,6 +3,7 @@
 
 pub mod bvh;
 mod environment;
+pub mod envmap;
 mod error;
 mod file;
 mod gltf;
@@ -20,6 +21,7 @@ use std::sync::Arc;
 use glam::{DMat4, DVec3, Vec3};
 
 pub use environment::{AmbientOcclusion, Environment, SceneLighting, DEFAULT_BACKGROUND};
+pub use envmap::EnvironmentMap;
 pub use error::SceneError;
 pub use gltf::LUMENS_PER_WATT;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};

@@ -18,6 +18,9 @@ pub enum DescriptorKind {
     UniformTexelBuffer,
     /// A combined image sampler with the pipeline's nearest-filtering sampler (used with texelFetch).
     SampledImage,
+    /// A combined image sampler with the linear, mipmapped sampler that wraps in u and clamps in v
+    /// (`SamplerDesc::LINEAR_WRAP_U_MIPMAPS`): environment maps, read with `textureLod`.
+    FilteredImage,
     StorageImage,
     /// A top-level acceleration structure for ray queries.
     AccelerationStructure,
@@ -29,7 +32,7 @@ impl DescriptorKind {
             DescriptorKind::StorageBuffer => vk::DescriptorType::STORAGE_BUFFER,
             DescriptorKind::UniformBuffer => vk::DescriptorType::UNIFORM_BUFFER,
             DescriptorKind::UniformTexelBuffer => vk::DescriptorType::UNIFORM_TEXEL_BUFFER,
-            DescriptorKind::SampledImage => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
+            DescriptorKind::SampledImage | DescriptorKind::FilteredImage => vk::DescriptorType::COMBINED_IMAGE_SAMPLER,
             DescriptorKind::StorageImage => vk::DescriptorType::STORAGE_IMAGE,
             DescriptorKind::AccelerationStructure => vk::DescriptorType::ACCELERATION_STRUCTURE_KHR,
         }
@@ -57,9 +60,15 @@ impl PipelineLayout {
         let device = &ctx.device;
         // One sampler for every layout: shared through the context's cache.
         let sampler = ctx.samplers.get(device, super::SamplerDesc::NEAREST_CLAMP)?;
+        let filtered = if bindings.iter().any(|b| b.1 == DescriptorKind::FilteredImage) {
+            ctx.samplers.get(device, super::SamplerDesc::LINEAR_WRAP_U_MIPMAPS)?
+        } else {
+            vk::Sampler::null()
+        };
         // SAFETY: valid device; create infos outlive the calls.
         unsafe {
             let samplers = [sampler];
+            let filtered = [filtered];
             let vk_bindings: Vec<_> = bindings
                 .iter()
                 .map(|&(binding, kind)| {
@@ -68,10 +77,10 @@ impl PipelineLayout {
                         .descriptor_type(kind.vk())
                         .descriptor_count(1)
                         .stage_flags(stages);
-                    if kind == DescriptorKind::SampledImage {
-                        b.immutable_samplers(&samplers)
-                    } else {
-                        b
+                    match kind {
+                        DescriptorKind::SampledImage => b.immutable_samplers(&samplers),
+                        DescriptorKind::FilteredImage => b.immutable_samplers(&filtered),
+                        _ => b,
                     }
                 })
                 .collect();

@@ -22,6 +22,9 @@ pub struct SamplerDesc {
     pub mipmaps: bool,
     /// Most anisotropy (0: off; needs the device's samplerAnisotropy feature).
     pub max_anisotropy: u32,
+    /// Clamp v to the edge whatever `address` says (equirectangular maps wrap around in u
+    /// only).
+    pub clamp_v: bool,
 }
 
 impl SamplerDesc {
@@ -31,6 +34,17 @@ impl SamplerDesc {
         address: vk::SamplerAddressMode::CLAMP_TO_EDGE,
         mipmaps: false,
         max_anisotropy: 0,
+        clamp_v: false,
+    };
+
+    /// Linear within and between mip levels, wrapping around in u and clamped in v:
+    /// equirectangular environment maps, whose u = 0 and u = 1 are the same azimuth.
+    pub const LINEAR_WRAP_U_MIPMAPS: SamplerDesc = SamplerDesc {
+        filter: vk::Filter::LINEAR,
+        address: vk::SamplerAddressMode::REPEAT,
+        mipmaps: true,
+        max_anisotropy: 0,
+        clamp_v: true,
     };
 
     fn create_info(self) -> vk::SamplerCreateInfo<'static> {
@@ -38,7 +52,7 @@ impl SamplerDesc {
             .mag_filter(self.filter)
             .min_filter(self.filter)
             .address_mode_u(self.address)
-            .address_mode_v(self.address)
+            .address_mode_v(if self.clamp_v { vk::SamplerAddressMode::CLAMP_TO_EDGE } else { self.address })
             .address_mode_w(self.address)
             .compare_enable(false)
             .mipmap_mode(if self.mipmaps { vk::SamplerMipmapMode::LINEAR } else { vk::SamplerMipmapMode::NEAREST })

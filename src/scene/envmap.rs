@@ -1,0 +1,174 @@
+//! Environment maps (`[environment] map = "sky.exr"`): equirectangular images of linear
+//! radiance, read from OpenEXR (through `exr`) or Radiance HDR (through `image`), with the
+//! mapping between directions and the image that the shaders share
+//! (shaders/lighting/envmap.glsl). CPU only: the device's copy and its prefiltering live in
+//! `crate::lighting::envmap`.
+
+use std::f32::consts::PI;
+use std::path::Path;
+
+use glam::{Vec2, Vec3};
+
+/// The largest map edge read (as for textures).
+pub const MAX_MAP_EDGE: u32 = 16384;
+
+/// An equirectangular environment: `width` = 2 `height` texels of linear RGB radiance, row 0
+/// at the zenith (+Y), column 0 at azimuth -pi (see `direction_to_uv`).
+#[derive(Clone, PartialEq)]
+pub struct EnvironmentMap {
+    /// The file as the scene names it (relative to the scene file), for messages.
+    pub name: String,
+    pub width: u32,
+    pub height: u32,
+    /// Row-major, row 0 at the top.
+    pub texels: Vec<Vec3>,
+}
+
+impl std::fmt::Debug for EnvironmentMap {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "EnvironmentMap({:?}, {}x{})", self.name, self.width, self.height)
+    }
+}
+
+/// Why a map could not be used: the file could not be read (missing, not a regular file), or
+/// it was read and is not a usable map (a one-line reason that follows the file's name).
+#[derive(Debug)]
+pub enum MapError {
+    Read(std::io::Error),
+    Invalid(String),
+}
+
+/// Reads the map at `path`.
+pub fn load(path: &Path) -> Result<EnvironmentMap, MapError> {
+    let extension = path.extension().map(|e| e.to_string_lossy().to_ascii_lowercase()).unwrap_or_default();
+    if extension != "exr" && extension != "hdr" {
+        return Err(MapError::Invalid("is not an OpenEXR (.exr) or Radiance HDR (.hdr) file".into()));
+    }
+    let bytes = super::input::read(path).map_err(MapError::Read)?;
+    let (width, height, texels) = match extension.as_str() {
+        "exr" => decode_exr(&bytes).map_err(|e| MapError::Invalid(format!("is not a valid OpenEXR file: {e}")))?,
+        "hdr" => decode_hdr(&bytes).map_err(|e| MapError::Invalid(format!("is not a valid Radiance HDR file: {e}")))?,
+        _ => unreachable!("checked above"),
+    };
+    from_texels(path.display().to_string(), width, height, texels).map_err(MapError::Invalid)
+}
+
+/// A map from texels, checked: 2:1, at most `MAX_MAP_EDGE` wide, every value finite and >= 0.
+pub fn from_texels(name: String, width: u32, height: u32, texels: Vec<Vec3>) -> Result<EnvironmentMap, String> {
+    if width != 2 * height || height == 0 {
+        return Err(format!("is {width}x{height}, not 2:1 (an equirectangular map is twice as wide as it is high)"));
+    }
+    if width > MAX_MAP_EDGE {
+        return Err(format!("is {width}x{height}, wider than {MAX_MAP_EDGE}"));
+    }
+    if let Some(k) = texels.iter().position(|t| !(t.is_finite() && t.min_element() >= 0.0)) {
+        let (x, y) = (k as u32 % width, k as u32 / width);
+        return Err(format!("has a texel that is negative or not finite at ({x}, {y}): {}", texels[k]));
+    }
+    Ok(EnvironmentMap { name, width, height, texels })
+}
+
+fn decode_exr(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>), String> {
+    use exr::prelude::*;
+    let image = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .rgba_channels(
+            |resolution, _| (resolution.width(), vec![Vec3::ZERO; resolution.width() * resolution.height()]),
+            |(width, texels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
+                texels[position.y() * *width + position.x()] = Vec3::new(r, g, b);
+            },
+        )
+        .first_valid_layer()
+        .all_attributes()
+        .from_buffered(std::io::Cursor::new(bytes))
+        .map_err(|e| e.to_string())?;
+    let size = image.layer_data.size;
+    let (_, texels) = image.layer_data.channel_data.pixels;
+    Ok((size.width() as u32, size.height() as u32, texels))
+}
+
+fn decode_hdr(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>), String> {
+    let image = image::load_from_memory_with_format(bytes, image::ImageFormat::Hdr).map_err(|e| e.to_string())?;
+    let rgb = image.to_rgb32f();
+    let (width, height) = (rgb.width(), rgb.height());
+    let texels = rgb.into_raw().chunks_exact(3).map(Vec3::from_slice).collect();
+    Ok((width, height, texels))
+}
+
+/// Where direction `d` (unit) lands in the map, u and v in [0, 1]: u = 1/2 + atan2(x, -z) / 2pi
+/// (u = 1/2 looks down -Z, u grows toward +X), v = acos(y) / pi (v = 0 at +Y). Twin of
+/// `envmap_uv` in envmap.glsl.
+pub fn direction_to_uv(d: Vec3) -> Vec2 {
+    Vec2::new(0.5 + d.x.atan2(-d.z) / (2.0 * PI), d.y.clamp(-1.0, 1.0).acos() / PI)
+}
+
+/// The direction at (u, v): inverse of `direction_to_uv`.
+pub fn uv_to_direction(uv: Vec2) -> Vec3 {
+    let (theta, phi) = (uv.y * PI, (uv.x - 0.5) * 2.0 * PI);
+    Vec3::new(theta.sin() * phi.sin(), theta.cos(), -theta.sin() * phi.cos())
+}
+
+impl EnvironmentMap {
+    pub fn texel(&self, x: u32, y: u32) -> Vec3 {
+        self.texels[(y * self.width + x) as usize]
+    }
+
+    /// The direction through texel (x, y)'s centre.
+    pub fn texel_direction(&self, x: u32, y: u32) -> Vec3 {
+        uv_to_direction(Vec2::new((x as f32 + 0.5) / self.width as f32, (y as f32 + 0.5) / self.height as f32))
+    }
+
+    /// The solid angle texel row `y` covers per texel, sr (they sum to 4 pi).
+    pub fn texel_solid_angle(&self, y: u32) -> f64 {
+        let h = f64::from(self.height);
+        let (t0, t1) = (std::f64::consts::PI * f64::from(y) / h, std::f64::consts::PI * f64::from(y + 1) / h);
+        2.0 * std::f64::consts::PI / f64::from(self.width) * (t0.cos() - t1.cos())
+    }
+
+    /// The radiance toward direction `d`, bilinear between texel centres, wrapping around in u
+    /// and clamped in v, as umbra's environment sampler reads level 0.
+    pub fn radiance(&self, d: Vec3) -> Vec3 {
+        let uv = direction_to_uv(d.normalize());
+        let x = uv.x * self.width as f32 - 0.5;
+        let y = uv.y * self.height as f32 - 0.5;
+        let (x0, y0) = (x.floor(), y.floor());
+        let (tx, ty) = (x - x0, y - y0);
+        let at = |x: f32, y: f32| {
+            self.texel(
+                x.rem_euclid(self.width as f32) as u32 % self.width,
+                y.clamp(0.0, (self.height - 1) as f32) as u32,
+            )
+        };
+        let top = at(x0, y0) * (1.0 - tx) + at(x0 + 1.0, y0) * tx;
+        let bottom = at(x0, y0 + 1.0) * (1.0 - tx) + at(x0 + 1.0, y0 + 1.0) * tx;
+        top * (1.0 - ty) + bottom * ty
+    }
+
+    /// The mip chain below level 0 (each a 2x2 box of the level above, to 1x1), RGBA f32.
+    pub fn mip_chain(&self) -> Vec<(u32, u32, Vec<[f32; 4]>)> {
+        let mut levels = Vec::new();
+        let (mut w, mut h) = (self.width, self.height);
+        let mut texels: Vec<[f32; 4]> = self.texels.iter().map(|t| t.extend(1.0).to_array()).collect();
+        while w > 1 || h > 1 {
+            let (nw, nh) = ((w / 2).max(1), (h / 2).max(1));
+            let mut next = vec![[0.0f32; 4]; (nw * nh) as usize];
+            for y in 0..nh {
+                for x in 0..nw {
+                    let mut sum = [0.0f32; 4];
+                    for (dx, dy) in [(0, 0), (1, 0), (0, 1), (1, 1)] {
+                        let (sx, sy) = ((2 * x + dx).min(w - 1), (2 * y + dy).min(h - 1));
+                        let t = texels[(sy * w + sx) as usize];
+                        for k in 0..4 {
+                            sum[k] += t[k] / 4.0;
+                        }
+                    }
+                    next[(y * nw + x) as usize] = sum;
+                }
+            }
+            levels.push((nw, nh, next.clone()));
+            (w, h, texels) = (nw, nh, next);
+        }
+        levels
+    }
+}

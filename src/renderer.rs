@@ -161,7 +161,7 @@ impl Renderer {
             let traced = &self.shadow_pipelines.traced;
             let pipeline = match ray_query {
                 Some(_) => traced.ray_query(&self.ctx)?,
-                None => traced.compute(&self.ctx)?,
+                None => traced.compute(&self.ctx, self.gpu_scene.bvh.masked())?,
             };
             prepared.traced = Some((pipeline, ray_query));
         }
@@ -174,6 +174,7 @@ impl Renderer {
             settings.debug_view,
             plan.layers.count() > 0,
             self.gpu_scene.materials.is_some(),
+            self.gpu_scene.bvh.masked(),
         )?;
         let parts = crate::frame::FrameParts {
             pipelines: &self.pipelines,

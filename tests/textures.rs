@@ -20,8 +20,6 @@ const H: u32 = 36;
 const CAMERA: &str = "[camera]\neye = [0.0, 2.0, 1.5]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
 const SUN: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.3, -1.0, -0.2]\nirradiance = [3.0, 3.0, 3.0]\n";
 
-
-
 fn parse_in(dir: &Path, text: &str) -> Scene {
     common::captured_log();
     Scene::parse(text, "t.toml", dir).unwrap_or_else(|e| panic!("{e}"))
@@ -207,7 +205,9 @@ fn missing_and_corrupt_textures_warn_and_keep_the_constant() {
     );
     std::fs::write(d.join("quads.obj"), obj).unwrap();
     let scene = parse_in(d, &format!("{CAMERA}{SUN}[[objects]]\nmesh = \"quads.obj\"\n"));
-    assert!(common::logged("quads.obj: material \"gone\": texture \"missing.png\" unusable (No such file or directory)"));
+    assert!(common::logged(
+        "quads.obj: material \"gone\": texture \"missing.png\" unusable (No such file or directory)"
+    ));
     assert!(common::logged("quads.obj: material \"broken\": texture \"corrupt.png\" unusable"));
     let by_name = |n: &str| scene.meshes.iter().find(|m| m.name == format!("quads.obj/{n}")).unwrap();
     assert!(by_name("gone").surface.is_none() && by_name("gone").material.base_color == Vec3::new(0.3, 0.4, 0.5));
@@ -290,7 +290,7 @@ fn emission_adds_its_radiance() {
 /// An alpha-masked quad (glTF MASK, cutoff 0.5; the texture's left half has alpha 0) 1 m above
 /// a floor under a sun from straight above: the G-buffer shows the floor through the cut-out
 /// half, and the `map` shadow has the mask's shape (the floor under the kept half is shadowed,
-/// under the cut half lit). The traced pass does not read masks yet (the BVH is being rewritten).
+/// under the cut half lit). Traced shadows of masked casters: tests/alpha_masked_shadows.rs.
 #[test]
 fn an_alpha_masked_quad_is_cut_out_and_so_is_its_map_shadow() {
     use umbra::config::ShadowMethod;

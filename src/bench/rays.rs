@@ -110,7 +110,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let gpu_rays: Vec<GpuRay> = rays.iter().map(|r| GpuRay::new(r.0, r.1, r.2)).collect();
     let mut batch = TimedBatch::new(&ctx, &gpu_rays)?;
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
-    let pipeline = ray_batch::pipeline(&ctx)?;
+    let pipeline = ray_batch::pipeline(&ctx, buffers.masked())?;
     let (gpu_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&pipeline, &Target::Compute(&buffers)))?;
     timings.push(timing("compute BVH (device)", (ms, cpu), rays.len()));
     let mut rq_disagree = None;

@@ -95,7 +95,9 @@ pub struct Prepared<'a> {
 
 impl Pipelines {
     /// What a frame with `view` needs for `lighting` (`environment` on the device), compose
-    /// reading visibility when `shadowed` and the G-buffer's emission when `emissive`.
+    /// reading visibility when `shadowed` and the G-buffer's emission when `emissive`; AO and
+    /// rect-light rays read alpha masks when `masked`.
+    #[allow(clippy::too_many_arguments)]
     pub fn prepare<'a>(
         &'a self,
         ctx: &Arc<GpuContext>,
@@ -105,9 +107,10 @@ impl Pipelines {
         view: Option<crate::config::DebugView>,
         shadowed: bool,
         emissive: bool,
+        masked: bool,
     ) -> GpuResult<Prepared<'a>> {
         let mut prepared = Prepared::default();
-        let ao_pipeline = || crate::vk::get_or_make(&self.ao, || ao::pipeline(ctx));
+        let ao_pipeline = || crate::vk::get_or_make(&self.ao, || ao::pipeline(ctx, masked));
         match view {
             Some(crate::config::DebugView::AmbientOcclusion) => {
                 let params = lighting.ambient_occlusion.ok_or_else(|| {
@@ -121,7 +124,7 @@ impl Pipelines {
             Some(_) => {}
             None => {
                 if let Some(r) = rect_lights {
-                    prepared.rects = Some((r, crate::vk::get_or_make(&self.rects, || rects::pipeline(ctx))?));
+                    prepared.rects = Some((r, crate::vk::get_or_make(&self.rects, || rects::pipeline(ctx, masked))?));
                 }
                 if let Some(environment) = environment {
                     let occlusion = lighting.occlusion_of_environment();

@@ -36,10 +36,11 @@ fn main() {
         run_tool("spirv-val", Command::new("spirv-val").args(["--target-env", "vulkan1.3"]).arg(&spv));
         let ident = file.replace('.', "_").to_uppercase();
         writeln!(index, "pub const {ident}: &[u8] = include_bytes!({:?});", spv.display().to_string()).unwrap();
-        // A shader that walks the BVH gets a second build for scenes with alpha-masked casters
-        // (bvh.glsl's BVH_MASKED), so scenes without them run exactly the unmasked walk.
+        // A shader that traces shadow rays (it includes bvh.glsl or bvh_mask.glsl) gets a second
+        // build for scenes with alpha-masked casters (BVH_MASKED), so scenes without them run
+        // exactly the unmasked code.
         let text = fs::read_to_string(src).unwrap_or_else(|e| panic!("{}: {e}", src.display()));
-        if text.contains("#include \"bvh.glsl\"") {
+        if text.contains("#include \"bvh.glsl\"") || text.contains("#include \"bvh_mask.glsl\"") {
             let masked = out.join(format!("{file}.masked.spv"));
             run_tool(
                 "glslangValidator",

@@ -9,7 +9,7 @@ mod gltf_builder;
 use glam::{Vec2, Vec3, Vec4};
 use gltf_builder::{quad_xz, Gltf, U16};
 use serde_json::json;
-use umbra::config::{DebugView, ShadowMethod};
+use umbra::config::{DebugView, ShadowBackend, ShadowMethod};
 use umbra::passes::ray_batch::{self, GpuRay};
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
 use umbra::scene::bvh::mask::{triangle_hit, BvhMasks};
@@ -87,9 +87,14 @@ fn expected_shadow(p: Vec3) -> Option<bool> {
 }
 
 fn frame(r: &mut Renderer, method: ShadowMethod, view: DebugView) -> Vec<Vec4> {
+    frame_with(r, method, view, ShadowBackend::Compute)
+}
+
+fn frame_with(r: &mut Renderer, method: ShadowMethod, view: DebugView, backend: ShadowBackend) -> Vec<Vec4> {
     let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear)
         .all_lights(1, ShadowChoice { method, ..ShadowChoice::hard() });
     settings.debug_view = Some(view);
+    settings.shadow_backend = backend;
     match r.render(&settings).unwrap_or_else(|e| panic!("{e}")) {
         Frame::Rgba32F { pixels, .. } => pixels.chunks_exact(4).map(Vec4::from_slice).collect(),
         Frame::Rgba8 { .. } => unreachable!(),
@@ -107,8 +112,17 @@ fn traced_hybrid_and_map_shadows_have_the_masks_shape() {
     let scene = scene(dir.path());
     let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
     let position = frame(&mut renderer, ShadowMethod::Traced, DebugView::Position);
-    for method in [ShadowMethod::Traced, ShadowMethod::Hybrid, ShadowMethod::Map] {
-        let visibility = frame(&mut renderer, method, DebugView::Visibility(0));
+    let mut runs = vec![
+        (ShadowMethod::Traced, ShadowBackend::Compute),
+        (ShadowMethod::Hybrid, ShadowBackend::Compute),
+        (ShadowMethod::Map, ShadowBackend::Compute),
+    ];
+    if ctx.capabilities.ray_query {
+        runs.push((ShadowMethod::Traced, ShadowBackend::RayQuery));
+    }
+    for (method, backend) in runs {
+        let visibility = frame_with(&mut renderer, method, DebugView::Visibility(0), backend);
+        let method = format!("{method:?} ({backend:?})");
         let (mut shadowed, mut lit_in_square, mut unsure, mut wrong) = (0, 0, 0, Vec::new());
         for (i, (p, v)) in position.iter().zip(&visibility).enumerate() {
             let p = p.truncate();
@@ -132,7 +146,7 @@ fn traced_hybrid_and_map_shadows_have_the_masks_shape() {
         }
         assert!(
             wrong.is_empty(),
-            "{method:?}: {} sure floor pixels disagree with the mask, e.g. {:?}",
+            "{method}: {} sure floor pixels disagree with the mask, e.g. {:?}",
             wrong.len(),
             &wrong[..wrong.len().min(5)]
         );
@@ -140,9 +154,9 @@ fn traced_hybrid_and_map_shadows_have_the_masks_shape() {
         // and about 1.6 m^2 of disk: both are hundreds of pixels at this size.
         assert!(
             shadowed > 300 && lit_in_square > 200,
-            "{method:?}: {shadowed} shadowed, {lit_in_square} lit in the square"
+            "{method}: {shadowed} shadowed, {lit_in_square} lit in the square"
         );
-        eprintln!("{method:?}: {shadowed} shadowed, {lit_in_square} lit under the square's cut-outs, {unsure} near edges skipped");
+        eprintln!("{method}: {shadowed} shadowed, {lit_in_square} lit under the square's cut-outs, {unsure} near edges skipped");
     }
     common::assert_clean(&ctx);
 }
@@ -208,6 +222,63 @@ fn the_gpu_walk_equals_its_cpu_twin_with_masks() {
     );
     assert!(masked_through > 5_000, "only {masked_through} rays pass through the cut-out parts");
     assert!(differ * 1000 < rays.len(), "{differ} of {} rays differ", rays.len());
+    common::assert_clean(&ctx);
+}
+
+/// The ray-query backend (masked casters in a non-opaque geometry, their candidates tested in
+/// the shader) answers the same rays as the compute walk with masks, but where a ray passes
+/// within 1e-6 of a triangle's edge or its alpha lands within 1e-3 of the cutoff (the driver's
+/// barycentrics come from its own intersection test, not Möller–Trumbore's).
+#[test]
+fn ray_query_reads_the_masks_too() {
+    use umbra::passes::ray_batch::{Target, TimedBatch};
+    use umbra::shadows::traced::accel::RayQueryScene;
+    let ctx = common::gpu();
+    if !ctx.capabilities.ray_query {
+        eprintln!("skipped: {} has no ray query", ctx.device_name());
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scene(dir.path());
+    let bvh = ShadowBvh::build(&scene);
+    let masks = bvh.masks().unwrap();
+    let tris = umbra::scene::bvh::caster_triangles(&scene);
+    let source = umbra::scene::bvh::mask::caster_masks(&scene);
+    let rq = RayQueryScene::with_masks(&ctx, &tris, source.as_ref()).unwrap();
+    assert!(rq.masked());
+    let to_sun = -SUN_DIR.normalize();
+    let rays: Vec<GpuRay> = (0..40_000)
+        .map(|k| {
+            let (i, j) = (k % 200, k / 200);
+            let p = Vec3::new(-0.5 + 3.0 * i as f32 / 199.0, 1e-3, -1.5 + 3.0 * j as f32 / 199.0);
+            GpuRay::new(p, to_sun, 100.0)
+        })
+        .collect();
+    let mut batch = TimedBatch::new(&ctx, &rays).unwrap();
+    let pipeline = ray_batch::ray_query_pipeline(&ctx, true).unwrap();
+    let (rq_hits, _) = batch.trace(&pipeline, &Target::RayQuery(&rq)).unwrap();
+    let (mut differ, mut passed) = (0, 0);
+    for (ray, &hit) in rays.iter().zip(&rq_hits) {
+        let (o, d, t) = (ray.origin.truncate(), ray.dir.truncate(), ray.origin.w);
+        let cpu = bvh.occluded_gpu_layout(o, d, t);
+        passed += usize::from(!cpu && bvh.wide().occluded(o, d, t));
+        if cpu != hit {
+            let near_cutoff = bvh.wide().triangles.iter().enumerate().any(|(i, tri)| {
+                triangle_hit(tri, o, d, t)
+                    .and_then(|(u, v)| masks.alpha(i as u32, u, v))
+                    .is_some_and(|(alpha, cutoff)| (alpha - cutoff).abs() < 1e-3)
+            });
+            assert!(near_cutoff || bvh.ray_near_edge(o, d, t, 1e-6), "ray {o} {d} {t}: ray query {hit}, CPU {cpu}");
+            differ += 1;
+        }
+    }
+    eprintln!(
+        "ray query: {} rays, {differ} differ near an edge or the cutoff, {passed} pass through the mask",
+        rays.len()
+    );
+    assert!(passed > 5_000, "{passed}");
+    drop(batch);
+    drop(rq);
     common::assert_clean(&ctx);
 }
 

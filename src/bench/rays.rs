@@ -115,8 +115,9 @@ pub fn run(options: &Options) -> Result<Outcome> {
     timings.push(timing("compute BVH (device)", (ms, cpu), rays.len()));
     let mut rq_disagree = None;
     if ctx.capabilities.ray_query {
-        let scene = RayQueryScene::new(&ctx, &tris)?;
-        let rq_pipeline = ray_batch::ray_query_pipeline(&ctx)?;
+        let masks = crate::scene::bvh::mask::caster_masks(&local);
+        let scene = RayQueryScene::with_masks(&ctx, &tris, masks.as_ref())?;
+        let rq_pipeline = ray_batch::ray_query_pipeline(&ctx, scene.masked())?;
         // The first trace builds the structures: not timed.
         batch.trace(&rq_pipeline, &Target::RayQuery(&scene))?;
         let (rq_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&rq_pipeline, &Target::RayQuery(&scene)))?;

@@ -98,16 +98,13 @@ pub enum Target<'s> {
     RayQuery(&'s crate::shadows::traced::accel::RayQueryScene),
 }
 
-/// The ray-query twin of `pipeline`; only on devices with ray query.
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "bvh rays (ray query)",
-        spirv::BVH_RAYS_RQ_COMP,
-        &[storage(RAYS_INPUT), (RAYS_TLAS, DescriptorKind::AccelerationStructure), storage(RAYS_OUTPUT)],
-        16,
-        GROUP,
-    )
+/// The ray-query twin of `pipeline`; only on devices with ray query. `masked`: the variant for
+/// a `RayQueryScene` with alpha-masked casters.
+pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+    let bindings = [storage(RAYS_INPUT), (RAYS_TLAS, DescriptorKind::AccelerationStructure), storage(RAYS_OUTPUT)];
+    let bindings = crate::shadows::traced::bvh_bindings(&bindings, RAYS_BVH_MASKS, masked);
+    let spirv = if masked { spirv::BVH_RAYS_RQ_COMP_MASKED } else { spirv::BVH_RAYS_RQ_COMP };
+    ComputePipeline::new(ctx, "bvh rays (ray query)", spirv, &bindings, 16, GROUP)
 }
 
 /// Rays on the device, traced again and again for timing.
@@ -163,6 +160,10 @@ impl TimedBatch {
             let read = Access::ComputeShaderReadAccelerationStructure;
             bound.push((RAYS_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));
             let _ = pass.read(&rq.bottom, read);
+            if let Some((masks, view)) = &rq.masks {
+                let texel = Access::ComputeShaderReadUniformTexelBuffer;
+                bound.push((RAYS_BVH_MASKS, Bound::TexelBuffer(pass.read(masks, texel), *view)));
+            }
         }
         bound.push((RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))));
         let push = UVec4::new(count, 0, 0, 0);

@@ -33,8 +33,8 @@ impl Pipelines {
     }
 
     /// Only on devices with ray query.
-    pub fn ray_query(&self, ctx: &Arc<GpuContext>) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.ray_query, || ray_query_pipeline(ctx))
+    pub fn ray_query(&self, ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.ray_query, || ray_query_pipeline(ctx, masked))
     }
 }
 
@@ -82,22 +82,21 @@ pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32, masked: bool) -> Gp
 }
 
 /// The same pass over a top-level acceleration structure; only on devices with ray query.
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "shadow trace (ray query)",
-        spirv::SHADOWS_TRACED_TRACE_RQ_COMP,
-        &[
-            sampled(SHADOW_POSITION),
-            sampled(SHADOW_NORMAL),
-            sampled(SHADOW_SURFACE),
-            storage(SHADOW_LIGHTS),
-            (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
-            storage_image(SHADOW_VISIBILITY),
-        ],
-        32,
-        TILE,
-    )
+/// `masked`: the variant that tests alpha-masked casters' candidates against their masks.
+pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+    let bindings = [
+        sampled(SHADOW_POSITION),
+        sampled(SHADOW_NORMAL),
+        sampled(SHADOW_SURFACE),
+        storage(SHADOW_LIGHTS),
+        (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
+        storage_image(SHADOW_VISIBILITY),
+    ];
+    let (name, spirv) = match masked {
+        false => ("shadow trace (ray query)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP),
+        true => ("shadow trace (ray query, alpha masks)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED),
+    };
+    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&bindings, SHADOW_BVH_MASKS, masked), 32, TILE)
 }
 
 /// What the rays traverse.
@@ -158,6 +157,10 @@ pub fn add<'a>(
             bound.push((SHADOW_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));
             // Not bound, but traversed through the top level: its build must be visible too.
             let _ = pass.read(&rq.bottom, read);
+            if let Some((masks, view)) = &rq.masks {
+                let texel = Access::ComputeShaderReadUniformTexelBuffer;
+                bound.push((SHADOW_BVH_MASKS, Bound::TexelBuffer(pass.read(masks, texel), *view)));
+            }
         }
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.

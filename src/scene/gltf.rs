@@ -17,7 +17,7 @@ use super::{tangents, Camera, Light, Material};
 
 /// Extensions whose data umbra reads. A file that requires any other is refused by name;
 /// one that only uses another is loaded without it, with a notice.
-const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_lights_punctual"];
+const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_lights_punctual", "KHR_texture_transform"];
 
 /// Lumens per watt used to turn glTF's photometric light units (candela for point and spot
 /// lights, lux for directional ones) into umbra's radiometric ones (W/sr, W/m^2): 683 lm/W, the
@@ -68,6 +68,13 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
             return Err(GltfError::Parse(format!("requires the extension {ext}, which umbra does not support")));
         }
     }
+    // The JSON as written, for what the crate does not expose (KHR_texture_transform on normal
+    // and occlusion textures).
+    let raw: serde_json::Value = match binary {
+        true => gltf::binary::Glb::from_slice(&bytes).ok().and_then(|glb| serde_json::from_slice(&glb.json).ok()),
+        false => serde_json::from_slice(&bytes).ok(),
+    }
+    .unwrap_or_default();
     let gltf::Gltf { document, blob } = gltf;
     let document = gltf::Document::from_json(document.into_json()).map_err(parse)?;
     let name = file_name(path);
@@ -86,7 +93,8 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
     let mut primitives = Vec::new();
     let mut first_primitive = Vec::new();
     let mut skipped_modes = 0;
-    let mut maps = MaterialMaps { file: path, name: &name, buffers: &buffers, cache: textures, read: Vec::new() };
+    let mut maps =
+        MaterialMaps { file: path, name: &name, buffers: &buffers, cache: textures, raw: &raw, read: Vec::new() };
     for mesh in document.meshes() {
         first_primitive.push(primitives.len());
         for primitive in mesh.primitives() {
@@ -316,6 +324,8 @@ struct MaterialMaps<'a> {
     name: &'a str,
     buffers: &'a [gltf::buffer::Data],
     cache: &'a mut TextureCache,
+    /// The file's JSON, for KHR_texture_transform.
+    raw: &'a serde_json::Value,
     /// By material index: its textures and the texture coordinate set they use.
     read: Vec<(Option<usize>, Option<MaterialRead>)>,
 }
@@ -333,24 +343,63 @@ impl MaterialMaps<'_> {
         );
         let pbr = material.pbr_metallic_roughness();
         let mut sets = Vec::new();
-        let mut texture = |info: Option<(gltf::Texture, u32)>, srgb: bool, sets: &mut Vec<u32>| {
-            let (texture, set) = info?;
+        let mut uv_transforms = super::UvTransforms::default();
+        // Each texture reference's KHR_texture_transform (its JSON under the material at `slot`),
+        // whose texCoord overrides the reference's.
+        let json = material.index().and_then(|i| self.raw.get("materials")?.get(i)).cloned().unwrap_or_default();
+        let mut texture = |info: Option<(gltf::Texture, u32)>,
+                           slot: &[&str],
+                           srgb: bool,
+                           sets: &mut Vec<u32>,
+                           transform: &mut super::UvTransform| {
+            let (texture, mut set) = info?;
+            let reference = slot.iter().try_fold(&json, |v, key| v.get(key));
+            if let Some(ext) = reference.and_then(|r| r.get("extensions")?.get("KHR_texture_transform")) {
+                match texture_transform(ext) {
+                    Ok((t, tex_coord)) => {
+                        *transform = t;
+                        set = tex_coord.unwrap_or(set);
+                    }
+                    Err(reason) => {
+                        log::warn!("{label}: {}'s KHR_texture_transform {reason}; it is ignored", slot.join("."))
+                    }
+                }
+            }
             sets.push(set);
             self.image(&texture.source(), srgb, &label)
         };
-        let base_color = texture(pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
-        let metal_rough =
-            texture(pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())), false, &mut sets);
+        let base_color = texture(
+            pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord())),
+            &["pbrMetallicRoughness", "baseColorTexture"],
+            true,
+            &mut sets,
+            &mut uv_transforms.base_color,
+        );
+        let metal_rough = texture(
+            pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())),
+            &["pbrMetallicRoughness", "metallicRoughnessTexture"],
+            false,
+            &mut sets,
+            &mut uv_transforms.metal_rough,
+        );
         let normal = material.normal_texture().and_then(|n| {
             let scale = n.scale();
-            texture(Some((n.texture(), n.tex_coord())), false, &mut sets).map(|t| (t, scale))
+            let info = Some((n.texture(), n.tex_coord()));
+            texture(info, &["normalTexture"], false, &mut sets, &mut uv_transforms.normal).map(|t| (t, scale))
         });
         let occlusion = material.occlusion_texture().and_then(|o| {
             let strength = o.strength();
-            let texture = texture(Some((o.texture(), o.tex_coord())), false, &mut sets)?;
+            let info = Some((o.texture(), o.tex_coord()));
+            let texture = texture(info, &["occlusionTexture"], false, &mut sets, &mut uv_transforms.occlusion)?;
             Some((ChannelMap { texture, channel: 0 }, strength.clamp(0.0, 1.0)))
         });
-        let emission_map = texture(material.emissive_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
+        let emission_map = texture(
+            material.emissive_texture().map(|i| (i.texture(), i.tex_coord())),
+            &["emissiveTexture"],
+            true,
+            &mut sets,
+            &mut uv_transforms.emission,
+        );
         let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO);
         let [.., alpha] = pbr.base_color_factor();
         let alpha_mask = match material.alpha_mode() {
@@ -366,6 +415,7 @@ impl MaterialMaps<'_> {
         };
         let textures = MaterialTextures {
             alpha_mask,
+            uv_transforms,
             emission: if emission.is_finite() { emission } else { glam::Vec3::ZERO },
             emission_map,
             occlusion,
@@ -408,6 +458,38 @@ impl MaterialMaps<'_> {
             }
         }
     }
+}
+
+/// A KHR_texture_transform object: its transform and texCoord override, or what is wrong with it.
+fn texture_transform(ext: &serde_json::Value) -> Result<(super::UvTransform, Option<u32>), String> {
+    let pair = |key: &str, default: [f32; 2]| -> Result<[f32; 2], String> {
+        match ext.get(key) {
+            None => Ok(default),
+            Some(v) => {
+                let a = v.as_array().filter(|a| a.len() == 2);
+                let xy = a.and_then(|a| Some([a[0].as_f64()? as f32, a[1].as_f64()? as f32]));
+                xy.filter(|xy| xy.iter().all(|c| c.is_finite()))
+                    .ok_or_else(|| format!("has a `{key}` that is not two finite numbers"))
+            }
+        }
+    };
+    let offset = pair("offset", [0.0, 0.0])?;
+    let scale = pair("scale", [1.0, 1.0])?;
+    let rotation = match ext.get("rotation") {
+        None => 0.0,
+        Some(v) => v
+            .as_f64()
+            .map(|r| r as f32)
+            .filter(|r| r.is_finite())
+            .ok_or("has a `rotation` that is not a finite number")?,
+    };
+    let tex_coord = match ext.get("texCoord") {
+        None => None,
+        Some(v) => {
+            Some(v.as_u64().and_then(|c| u32::try_from(c).ok()).ok_or("has a `texCoord` that is not a set index")?)
+        }
+    };
+    Ok((super::UvTransform::from_khr(offset, rotation, scale), tex_coord))
 }
 
 /// The metallic-roughness factors (textures multiply them: `MaterialMaps`).

@@ -330,6 +330,7 @@ fn texture_maps(mtl: &tobj::Material, dir: &Path, cache: &mut TextureCache, labe
     let occlusion = rma.clone().map(|texture| (ChannelMap { texture, channel: 2 }, 1.0));
     MaterialTextures {
         alpha_mask: None,
+        uv_transforms: Default::default(),
         emission,
         emission_map,
         occlusion,

@@ -179,8 +179,13 @@ pub fn caster_masks(scene: &Scene) -> Option<MaskSource> {
             if !finite {
                 continue;
             }
+            // The base colour's texture-coordinate transform is affine, so it can be applied at
+            // the corners: interpolating the transformed corners gives the transformed point.
             triangles.push(match (material, &mesh.surface) {
-                (Some(m), Some(s)) => Some((idx.map(|k| s.uvs.get(k as usize).copied().unwrap_or(Vec2::ZERO)), m)),
+                (Some(m), Some(s)) => {
+                    let t = s.textures.uv_transforms.base_color;
+                    Some((idx.map(|k| t.apply(s.uvs.get(k as usize).copied().unwrap_or(Vec2::ZERO))), m))
+                }
                 _ => None,
             });
         }

@@ -271,6 +271,8 @@ pub struct Draw {
     pub maps: Option<crate::gpu_textures::DrawMaps>,
     pub material: Material,
     pub cast_shadows: bool,
+    /// Drawn without back-face culling (glTF doubleSided).
+    pub double_sided: bool,
     /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
     pub bounds: Bounds,
 }
@@ -287,6 +289,9 @@ pub struct SceneGpu {
     pub surface_offset: Option<u64>,
     /// The material textures and their pipeline; `None` in a scene without textures.
     pub materials: Option<crate::gpu_textures::MaterialSets>,
+    /// The untextured geometry pipeline without back-face culling, in a scene without textures
+    /// that has double-sided meshes (a textured scene's is in `materials`).
+    pub two_sided: Option<crate::vk::GraphicsPipeline>,
     pub indices: Buffer,
     pub draws: Vec<Draw>,
     pub lights: Buffer,
@@ -388,6 +393,7 @@ impl SceneGpu {
                 maps,
                 material: mesh.material,
                 cast_shadows: mesh.cast_shadows,
+                double_sided: mesh.double_sided,
                 bounds,
             });
         }
@@ -407,10 +413,19 @@ impl SceneGpu {
             vertex_bytes.extend_from_slice(bytemuck::cast_slice(&surface_vertices));
             at
         });
+        // Pipelines without back-face culling only for scenes with double-sided meshes.
+        let two_sided = draws.iter().any(|d| d.double_sided);
         let materials = match textured {
-            true => Some(crate::gpu_textures::upload(ctx, &materials, |layout| {
-                crate::passes::geometry::textured_pipeline(ctx, layout)
-            })?),
+            true => Some(crate::gpu_textures::upload(
+                ctx,
+                &materials,
+                |layout, two_sided| crate::passes::geometry::textured_pipeline(ctx, layout, two_sided),
+                two_sided,
+            )?),
+            false => None,
+        };
+        let two_sided = match two_sided && !textured {
+            true => Some(crate::passes::geometry::untextured_pipeline(ctx, true)?),
             false => None,
         };
         // The geometry pass reads both as storage buffers (a binding holds at most this much).
@@ -448,6 +463,7 @@ impl SceneGpu {
             instance_offset,
             surface_offset,
             materials,
+            two_sided,
             indices,
             draws,
             lights,

@@ -39,6 +39,8 @@ pub struct MaterialSets {
     /// it draws every mesh of the scene (those without textures with `untextured`'s set), since
     /// its rendering has the emission attachment as well.
     pub pipeline: GraphicsPipeline,
+    /// The same without back-face culling, in a scene with double-sided meshes.
+    pub pipeline_two_sided: Option<GraphicsPipeline>,
     pub sets: Vec<vk::DescriptorSet>,
     /// The set of a mesh without textures: white texels, no emission.
     pub untextured: DrawMaps,
@@ -80,7 +82,8 @@ impl MaterialSets {
 pub fn upload(
     ctx: &Arc<GpuContext>,
     materials: &[Arc<MaterialTextures>],
-    pipeline: impl FnOnce(vk::DescriptorSetLayout) -> GpuResult<GraphicsPipeline>,
+    pipeline: impl Fn(vk::DescriptorSetLayout, bool) -> GpuResult<GraphicsPipeline>,
+    two_sided: bool,
 ) -> GpuResult<MaterialSets> {
     let device = &ctx.device;
     let max_anisotropy = if ctx.capabilities.sampler_anisotropy {
@@ -234,7 +237,8 @@ pub fn upload(
         unsafe { device.update_descriptor_sets(&writes, &[]) };
     }
     Ok(MaterialSets {
-        pipeline: pipeline(objects.layout)?,
+        pipeline: pipeline(objects.layout, false)?,
+        pipeline_two_sided: two_sided.then(|| pipeline(objects.layout, true)).transpose()?,
         sets,
         untextured: draw_maps(0, &materials[0]),
         masked: materials.iter().any(|m| m.alpha_mask.is_some()),

@@ -220,6 +220,7 @@ fn fins() -> Mesh {
         cast_shadows: true,
         instance: None,
         surface: None,
+        double_sided: false,
     }
 }
 

@@ -101,7 +101,11 @@ void main() {
     vec3 e2 = corner[2] - corner[0];
     // Counter-clockwise is front: the winding's normal faces the eye on a front face.
     geometric = normalize(cross(e1, e2));
-    if (!gl_FrontFacing) geometric = -geometric;
+    if (!gl_FrontFacing) {
+        // A double-sided mesh's back face (others are culled): its normals turn toward the eye.
+        geometric = -geometric;
+        for (int k = 0; k < 3; k++) corner_normal[k] = -corner_normal[k];
+    }
     offset = terminator_offset(p, corner, corner_normal, triangle_barycentrics(p, corner[0], e1, e2));
     // A degenerate triangle rasterises nothing, but a sliver may lose its barycentrics.
     if (any(isnan(offset)) || any(isinf(offset))) offset = vec3(0.0);
@@ -109,8 +113,8 @@ void main() {
     geometric = normalize(cross(dFdx(p), dFdy(p)));
     if (dot(geometric, pc.eye.xyz - p) < 0.0) geometric = -geometric;
 #endif
-    // Back faces are culled, but a smooth normal can still lean away from the eye at grazing
-    // angles; it is kept as is, and shading clamps n.v.
+    // Back faces are culled (but double-sided meshes'), and a smooth normal can still lean away
+    // from the eye at grazing angles; it is kept as is, and shading clamps n.v.
     vec4 material = pc.base_color_roughness;
     float metallic = pc.metallic.x;
 #ifdef TEXTURED
@@ -131,6 +135,9 @@ void main() {
     out_emission =
         vec4(constants.rgb * material_sample(material_emission, UV_OF_EMISSION).rgb, mix(1.0, occluded, constants.a));
 #endif
+    // A double-sided mesh's back face shades with its normal reversed (glTF doubleSided), after
+    // any normal map: the whole tangent frame turns, as if the face were mirrored.
+    if (!gl_FrontFacing) n = -n;
     out_position = vec4(p, 1.0);
     out_normal = vec4(n, metallic);
     out_material = material;

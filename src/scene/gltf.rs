@@ -304,7 +304,8 @@ fn read_primitive(
             };
         }
     }
-    let mut object_mesh = ObjectMesh { name, positions, normals, indices, material, surface };
+    let double_sided = gltf_material.double_sided();
+    let mut object_mesh = ObjectMesh { name, positions, normals, indices, material, surface, double_sided };
     let needs_tangents = object_mesh.surface.textures.as_ref().is_some_and(|t| t.normal.is_some());
     if needs_tangents && object_mesh.surface.tangents.is_none() && !tangents::generate(&mut object_mesh) {
         log::warn!(

@@ -150,6 +150,9 @@ pub struct Mesh {
     pub instance: Option<Instance>,
     /// Texture coordinates, tangents and textures, for a mesh whose material has textures.
     pub surface: Option<MeshSurface>,
+    /// Both faces are drawn, a back face with its normals turned toward the viewer (glTF
+    /// `doubleSided`); otherwise back faces are culled (glTF's default, and every other source's).
+    pub double_sided: bool,
 }
 
 /// Per vertex (parallel to `Mesh::positions`): texture coordinates, and with a normal map the

@@ -100,6 +100,7 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
                 indices: mesh.indices,
                 material: mtl.map(|m| textured_constants(convert_material(m), surface.textures.as_deref())),
                 surface,
+                double_sided: false,
             };
             let normal_map = object_mesh.surface.textures.as_ref().is_some_and(|t| t.normal.is_some());
             if normal_map && !tangents::generate(&mut object_mesh) {

@@ -192,6 +192,9 @@ fn read_buffers(
                 files.push(file);
                 gltf::buffer::Data(bytes)
             }
+            gltf::buffer::Source::Uri(uri) => gltf::buffer::Data(
+                data_uri(uri).map_err(|reason| GltfError::Parse(format!("buffer {index}: {reason}")))?,
+            ),
             source => gltf::buffer::Data::from_source_and_blob(source, Some(base), &mut blob)
                 .map_err(|e| GltfError::Parse(format!("buffer {index}: {}", one_line(&e.to_string()))))?,
         };
@@ -285,7 +288,7 @@ fn read_primitive(
     let gltf_material = primitive.material();
     let material = Some(material(&gltf_material));
     let mut surface = ObjectSurface::default();
-    if let Some((textures, set)) = maps.of(&gltf_material) {
+    if let Some((textures, set)) = maps.of(&gltf_material)? {
         let uvs = reader.read_tex_coords(set).map(|uv| uv.into_f32().map(glam::Vec2::from).collect::<Vec<_>>());
         // Without texture coordinates there is nothing to map: the constants stay (emission
         // from its factor alone reads no texel: zero coordinates do).
@@ -332,10 +335,11 @@ struct MaterialMaps<'a> {
 }
 
 impl MaterialMaps<'_> {
-    /// The textures of `material` (None when it has none that umbra reads).
-    fn of(&mut self, material: &gltf::Material) -> Option<MaterialRead> {
+    /// The textures of `material` (None when it has none that umbra reads); an error for an
+    /// image whose data URI is malformed.
+    fn of(&mut self, material: &gltf::Material) -> Result<Option<MaterialRead>, String> {
         if let Some((_, found)) = self.read.iter().find(|(i, _)| *i == material.index()) {
-            return found.clone();
+            return Ok(found.clone());
         }
         let label = format!(
             "{}: material {}",
@@ -352,8 +356,9 @@ impl MaterialMaps<'_> {
                            slot: &[&str],
                            srgb: bool,
                            sets: &mut Vec<u32>,
-                           transform: &mut super::UvTransform| {
-            let (texture, mut set) = info?;
+                           transform: &mut super::UvTransform|
+         -> Result<Option<std::sync::Arc<super::Texture>>, String> {
+            let Some((texture, mut set)) = info else { return Ok(None) };
             let reference = slot.iter().try_fold(&json, |v, key| v.get(key));
             if let Some(ext) = reference.and_then(|r| r.get("extensions")?.get("KHR_texture_transform")) {
                 match texture_transform(ext) {
@@ -375,32 +380,36 @@ impl MaterialMaps<'_> {
             true,
             &mut sets,
             &mut uv_transforms.base_color,
-        );
+        )?;
         let metal_rough = texture(
             pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())),
             &["pbrMetallicRoughness", "metallicRoughnessTexture"],
             false,
             &mut sets,
             &mut uv_transforms.metal_rough,
-        );
-        let normal = material.normal_texture().and_then(|n| {
-            let scale = n.scale();
-            let info = Some((n.texture(), n.tex_coord()));
-            texture(info, &["normalTexture"], false, &mut sets, &mut uv_transforms.normal).map(|t| (t, scale))
-        });
-        let occlusion = material.occlusion_texture().and_then(|o| {
-            let strength = o.strength();
-            let info = Some((o.texture(), o.tex_coord()));
-            let texture = texture(info, &["occlusionTexture"], false, &mut sets, &mut uv_transforms.occlusion)?;
-            Some((ChannelMap { texture, channel: 0 }, strength.clamp(0.0, 1.0)))
-        });
+        )?;
+        let normal = match material.normal_texture() {
+            Some(n) => {
+                let info = Some((n.texture(), n.tex_coord()));
+                texture(info, &["normalTexture"], false, &mut sets, &mut uv_transforms.normal)?.map(|t| (t, n.scale()))
+            }
+            None => None,
+        };
+        let occlusion = match material.occlusion_texture() {
+            Some(o) => {
+                let info = Some((o.texture(), o.tex_coord()));
+                let map = texture(info, &["occlusionTexture"], false, &mut sets, &mut uv_transforms.occlusion)?;
+                map.map(|texture| (ChannelMap { texture, channel: 0 }, o.strength().clamp(0.0, 1.0)))
+            }
+            None => None,
+        };
         let emission_map = texture(
             material.emissive_texture().map(|i| (i.texture(), i.tex_coord())),
             &["emissiveTexture"],
             true,
             &mut sets,
             &mut uv_transforms.emission,
-        );
+        )?;
         let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO);
         let [.., alpha] = pbr.base_color_factor();
         let alpha_mask = match material.alpha_mode() {
@@ -432,11 +441,18 @@ impl MaterialMaps<'_> {
         }
         let found = (!textures.is_empty()).then(|| (std::sync::Arc::new(textures), set));
         self.read.push((material.index(), found.clone()));
-        found
+        Ok(found)
     }
 
-    fn image(&mut self, image: &gltf::Image, srgb: bool, label: &str) -> Option<std::sync::Arc<super::Texture>> {
-        match image.source() {
+    /// The texture of `image`: `None` (with a warning) where its bytes cannot be decoded; an error
+    /// where its data URI is malformed (the file itself is then broken).
+    fn image(
+        &mut self,
+        image: &gltf::Image,
+        srgb: bool,
+        label: &str,
+    ) -> Result<Option<std::sync::Arc<super::Texture>>, String> {
+        Ok(match image.source() {
             gltf::image::Source::View { view, .. } => {
                 let key = self.file.join(format!("#image{}", image.index()));
                 let name = format!("image {}", image.index());
@@ -450,15 +466,30 @@ impl MaterialMaps<'_> {
                 }
             }
             gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                log::warn!("{label}: an image in a data URI is not read yet; the material's constant is used instead");
-                None
+                let bytes = data_uri(uri).map_err(|reason| format!("image {}: {reason}", image.index()))?;
+                let key = self.file.join(format!("#image{}", image.index()));
+                let name = format!("image {} (data URI)", image.index());
+                self.cache.get_bytes(&key, &bytes, &name, srgb, label)
             }
             gltf::image::Source::Uri { uri, .. } => {
                 let file = self.file.parent().unwrap_or(Path::new("")).join(uri);
                 self.cache.get(&file, uri, srgb, label)
             }
-        }
+        })
     }
+}
+
+/// The bytes of a base64 data URI (`data:[<media type>];base64,<data>`), or what is wrong with
+/// it. The glTF crate decodes buffers' data URIs the same way (`read_buffers`).
+fn data_uri(uri: &str) -> Result<Vec<u8>, String> {
+    let rest = uri.strip_prefix("data:").ok_or("not a data URI")?;
+    if !rest.contains(";base64,") {
+        return Err("its data URI is not base64 (`data:<media type>;base64,<data>`)".to_owned());
+    }
+    let mut none = None;
+    gltf::buffer::Data::from_source_and_blob(gltf::buffer::Source::Uri(uri), Some(Path::new("")), &mut none)
+        .map(|data| data.0)
+        .map_err(|e| format!("malformed data URI: {}", one_line(&e.to_string())))
 }
 
 /// A KHR_texture_transform object: its transform and texCoord override, or what is wrong with it.

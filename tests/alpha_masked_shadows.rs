@@ -43,6 +43,11 @@ fn mask_png() -> Vec<u8> {
 /// A 2 m quad at y = 1 (x, z in [-1, 1]; u = (x + 1) / 2, v = (z + 1) / 2) with the mask as its
 /// base colour, alphaMode MASK at cutoff 0.5; a floor; the sun; a camera above the shadow.
 fn scene(dir: &std::path::Path) -> Scene {
+    scene_with(dir, json!({ "index": 0 }))
+}
+
+/// `scene` with `base_color` as the base colour's texture reference.
+fn scene_with(dir: &std::path::Path, base_color: serde_json::Value) -> Scene {
     let mut g = Gltf::default();
     let (p, n, uv, idx) = quad_xz();
     let p: Vec<[f32; 3]> = p.iter().map(|v| [v[0] * 2.0, 1.0, v[2] * 2.0]).collect();
@@ -51,7 +56,7 @@ fn scene(dir: &std::path::Path) -> Scene {
     g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
     let material = g.material(json!({ "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
         "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8,
-            "baseColorTexture": { "index": 0 } } }));
+            "baseColorTexture": base_color } }));
     let mesh = g.mesh(vec![json!({
         "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
         "indices": indices, "material": material
@@ -73,10 +78,19 @@ fn scene(dir: &std::path::Path) -> Scene {
 /// where that answer changes within 1.5 texels of the crossing (bilinear filtering puts the
 /// 0.5 contour anywhere between a kept and a cut texel's centres, one texel apart).
 fn expected_shadow(p: Vec3) -> Option<bool> {
+    expected_shadow_through(p, |uv| uv)
+}
+
+/// `expected_shadow` with the mask looked up at `transform(uv)`, repeating (a transform that
+/// does not scale, so the 1.5-texel margin stays 1.5 texels).
+fn expected_shadow_through(p: Vec3, transform: impl Fn(Vec2) -> Vec2) -> Option<bool> {
     let to_sun = -SUN_DIR.normalize();
     let q = p + to_sun * ((1.0 - p.y) / to_sun.y);
     let uv = Vec2::new((q.x + 1.0) / 2.0, (q.z + 1.0) / 2.0);
-    let inside = |uv: Vec2| uv.cmpge(Vec2::ZERO).all() && uv.cmple(Vec2::ONE).all() && shape(uv);
+    let inside = |uv: Vec2| {
+        let t = transform(uv);
+        uv.cmpge(Vec2::ZERO).all() && uv.cmple(Vec2::ONE).all() && shape(t - t.floor())
+    };
     let here = inside(uv);
     let r = 1.5 / N as f32;
     let sure = (0..24).all(|k| {
@@ -157,6 +171,46 @@ fn traced_hybrid_and_map_shadows_have_the_masks_shape() {
             "{method}: {shadowed} shadowed, {lit_in_square} lit in the square"
         );
         eprintln!("{method}: {shadowed} shadowed, {lit_in_square} lit under the square's cut-outs, {unsure} near edges skipped");
+    }
+    common::assert_clean(&ctx);
+}
+
+/// With KHR_texture_transform on the base colour (an offset of half the texture along u and a
+/// quarter along v, repeating), the mask's shadow moves with it: traced rays (their masks take
+/// the transform at the corners) and the shadow map (depth_masked.frag applies it per fragment)
+/// both match the CPU evaluation through the same transform on every sure floor pixel.
+#[test]
+fn the_masks_shadow_follows_the_texture_transform() {
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let offset = Vec2::new(0.5, 0.25);
+    let info = json!({ "index": 0, "extensions": { "KHR_texture_transform": { "offset": [offset.x, offset.y] } } });
+    let scene = scene_with(dir.path(), info);
+    let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+    let position = frame(&mut renderer, ShadowMethod::Traced, DebugView::Position);
+    for method in [ShadowMethod::Traced, ShadowMethod::Map] {
+        let visibility = frame(&mut renderer, method, DebugView::Visibility(0));
+        let (mut shadowed, mut moved, mut wrong) = (0, 0, Vec::new());
+        for (i, (p, v)) in position.iter().zip(&visibility).enumerate() {
+            let p = p.truncate();
+            if p.y.abs() > 1e-3 {
+                continue;
+            }
+            let Some(dark) = expected_shadow_through(p, |uv| uv + offset) else { continue };
+            shadowed += usize::from(dark);
+            // Pixels where the untransformed mask would say otherwise.
+            moved += usize::from(expected_shadow(p).is_some_and(|plain| plain != dark));
+            if (v.x < 0.5) != dark {
+                wrong.push((i, p, v.x));
+            }
+        }
+        assert!(
+            wrong.is_empty(),
+            "{method:?}: {} pixels disagree, e.g. {:?}",
+            wrong.len(),
+            &wrong[..wrong.len().min(5)]
+        );
+        assert!(shadowed > 150 && moved > 200, "{method:?}: {shadowed} shadowed, {moved} moved by the transform");
     }
     common::assert_clean(&ctx);
 }

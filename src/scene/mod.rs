@@ -24,7 +24,10 @@ pub use error::SceneError;
 pub use gltf::LUMENS_PER_WATT;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 pub use local::MAX_LOCAL_DISTANCE;
-pub use texture::{mip_chain as texture_mip_chain, srgb_to_linear, AlphaMask, ChannelMap, MaterialTextures, Texture, UvTransform, UvTransforms};
+pub use texture::{
+    mip_chain as texture_mip_chain, srgb_to_linear, AlphaMask, ChannelMap, MaterialTextures, Texture, UvTransform,
+    UvTransforms,
+};
 
 /// Pinhole camera. `vfov_deg` is the full vertical field of view. Points are in f64, like every
 /// world position (see `Mesh`); the renderer rounds them to f32 only in its scene-local frame.

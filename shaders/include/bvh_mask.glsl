@@ -8,7 +8,7 @@
 #error "define BVH_MASKS_BINDING before including bvh_mask.glsl"
 #endif
 layout(set = BVH_SET, binding = BVH_MASKS_BINDING) uniform usamplerBuffer bvh_masks;
-// A triangle's material texel word when the triangle is not masked.
+// A triangle's record word when the triangle is not masked.
 const uint BVH_UNMASKED = 0xFFFFFFFFu;
 
 // The alpha byte at `index` of the masks buffer (16 bytes a texel, little end first), as unorm.
@@ -23,11 +23,14 @@ float bvh_mask_byte(uint index) {
 // level) times the material's factor is below its cutoff at barycentrics (u, v): the ray
 // passes through. Twin of BvhMasks::passes.
 bool bvh_mask_passes(uint i, float u, float v) {
-    uvec4 t1 = texelFetch(bvh_masks, int(2u * i + 1u));
-    if (t1.z == BVH_UNMASKED) {
+    uvec4 words = texelFetch(bvh_masks, int(i >> 2));
+    uint c = i & 3u;
+    uint record = c == 0u ? words.x : c == 1u ? words.y : c == 2u ? words.z : words.w;
+    if (record == BVH_UNMASKED) {
         return false;
     }
-    uvec4 t0 = texelFetch(bvh_masks, int(2u * i));
+    uvec4 t0 = texelFetch(bvh_masks, int(record));
+    uvec4 t1 = texelFetch(bvh_masks, int(record + 1u));
     uvec4 m = texelFetch(bvh_masks, int(t1.z));
     vec2 uv = uintBitsToFloat(t0.xy) * (1.0 - u - v) + uintBitsToFloat(t0.zw) * u + uintBitsToFloat(t1.xy) * v;
     uvec2 size = uvec2(m.y & 0xFFFFu, m.y >> 16);

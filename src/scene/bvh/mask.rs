@@ -4,10 +4,12 @@
 //! shaders' unmasked variant (bvh.glsl without BVH_MASKED).
 //!
 //! # Layout: one RGBA32UI texel buffer, `bvh_masks` in bvh.glsl
-//! - texels `2i, 2i + 1` for triangle `i` in leaf order (every triangle of the BVH, masked or
-//!   not): `uv0.x, uv0.y, uv1.x, uv1.y` and `uv2.x, uv2.y, m, 0` (f32 bits), where `m` is the
-//!   texel of the triangle's material, or `UNMASKED` for a triangle that is not masked: 32 bytes
-//!   a triangle.
+//! - one word per triangle `i` in leaf order (every triangle of the BVH), four to a texel: the
+//!   texel of its record, or `UNMASKED` for a triangle that is not masked: 4 bytes a triangle.
+//! - then a record of two texels per masked triangle: `uv0.x, uv0.y, uv1.x, uv1.y` and
+//!   `uv2.x, uv2.y, m, 0` (f32 bits), where `m` is the texel of its material: 32 bytes a masked
+//!   triangle. A scene of a few masked leaves among many opaque triangles so pays 4 bytes for
+//!   each opaque one.
 //! - then one texel per masked material: `x` the byte of its first alpha value, `y` its width and
 //!   height (16 bits each), `z` the alpha factor and `w` the cutoff (f32 bits).
 //! - then the alpha values: one byte a texel of each distinct base-colour texture (rows from the
@@ -51,7 +53,10 @@ pub struct BvhMasks {
 impl BvhMasks {
     /// The masks of triangles in leaf order: entry `k` is input triangle `order[k]`.
     pub fn new(source: &MaskSource, order: &[u32]) -> BvhMasks {
-        let triangle_texels = 2 * order.len();
+        let masked = |p: u32| source.triangles.get(p as usize).copied().flatten();
+        let index_texels = order.len().div_ceil(4);
+        let record_texels = 2 * order.iter().filter(|&&p| masked(p).is_some()).count();
+        let triangle_texels = index_texels + record_texels;
         let material_texels = source.materials.len();
         // Distinct textures' alpha bytes, after the triangle and material texels.
         let mut alpha: Vec<u8> = Vec::new();
@@ -77,19 +82,22 @@ impl BvhMasks {
             materials.push([first, w | h << 16, m.mask.factor.to_bits(), m.mask.cutoff.to_bits()]);
         }
         let mut texels = Vec::with_capacity(triangle_texels + material_texels + alpha.len().div_ceil(16));
+        let mut words = Vec::with_capacity(4 * index_texels);
+        let mut records = Vec::with_capacity(record_texels);
         for &p in order {
-            match source.triangles.get(p as usize).copied().flatten() {
+            match masked(p) {
                 Some((uv, m)) => {
+                    words.push((index_texels + records.len()) as u32);
                     let b = |v: f32| v.to_bits();
-                    texels.push([b(uv[0].x), b(uv[0].y), b(uv[1].x), b(uv[1].y)]);
-                    texels.push([b(uv[2].x), b(uv[2].y), (triangle_texels as u32) + m, 0]);
+                    records.push([b(uv[0].x), b(uv[0].y), b(uv[1].x), b(uv[1].y)]);
+                    records.push([b(uv[2].x), b(uv[2].y), (triangle_texels as u32) + m, 0]);
                 }
-                None => {
-                    texels.push([0; 4]);
-                    texels.push([0, 0, UNMASKED, 0]);
-                }
+                None => words.push(UNMASKED),
             }
         }
+        words.resize(4 * index_texels, UNMASKED);
+        texels.extend(words.chunks_exact(4).map(|w| [w[0], w[1], w[2], w[3]]));
+        texels.extend(records);
         texels.extend(materials);
         for chunk in alpha.chunks(16) {
             let mut bytes = [0u8; 16];
@@ -116,11 +124,12 @@ impl BvhMasks {
     /// triangle `i` (leaf order); `None` when it is not masked. Operation for operation as
     /// bvh.glsl's `bvh_mask_passes`.
     pub fn alpha(&self, i: u32, u: f32, v: f32) -> Option<(f32, f32)> {
-        let t1 = self.texels[2 * i as usize + 1];
-        if t1[2] == UNMASKED {
+        let record = self.texels[(i >> 2) as usize][(i & 3) as usize];
+        if record == UNMASKED {
             return None;
         }
-        let t0 = self.texels[2 * i as usize];
+        let t0 = self.texels[record as usize];
+        let t1 = self.texels[record as usize + 1];
         let m = self.texels[t1[2] as usize];
         let f = f32::from_bits;
         let uv0 = Vec2::new(f(t0[0]), f(t0[1]));

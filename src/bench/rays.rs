@@ -97,6 +97,12 @@ pub fn run(options: &Options) -> Result<Outcome> {
     if tris.is_empty() {
         bail!("{name}: no shadow-casting triangles to trace");
     }
+    if crate::scene::bvh::mask::caster_masks(&local).is_some() {
+        bail!(
+            "{name}: has alpha-masked casters; bench rays checks every tracer against obvhs, which has no alpha \
+             masks (tests/alpha_masked_shadows.rs checks the masked traversal)"
+        );
+    }
     let start = Instant::now();
     let bvh = ShadowBvh::build(&local);
     let build_ms = start.elapsed().as_secs_f64() * 1e3;

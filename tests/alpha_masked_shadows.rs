@@ -85,7 +85,16 @@ fn expected_shadow(p: Vec3) -> Option<bool> {
 /// does not scale, so the 1.5-texel margin stays 1.5 texels).
 fn expected_shadow_through(p: Vec3, transform: impl Fn(Vec2) -> Vec2) -> Option<bool> {
     let to_sun = -SUN_DIR.normalize();
-    let q = p + to_sun * ((1.0 - p.y) / to_sun.y);
+    expected_at(p + to_sun * ((1.0 - p.y) / to_sun.y), transform)
+}
+
+/// As `expected_shadow`, for the ray from `p` toward a point light at `light` (above the quad).
+fn expected_shadow_toward(p: Vec3, light: Vec3) -> Option<bool> {
+    expected_at(p + (light - p) * ((1.0 - p.y) / (light.y - p.y)), |uv| uv)
+}
+
+/// Whether the shadow ray crossing the quad's plane at `q` is stopped, where that is sure.
+fn expected_at(q: Vec3, transform: impl Fn(Vec2) -> Vec2) -> Option<bool> {
     let uv = Vec2::new((q.x + 1.0) / 2.0, (q.z + 1.0) / 2.0);
     let inside = |uv: Vec2| {
         let t = transform(uv);
@@ -212,6 +221,50 @@ fn the_masks_shadow_follows_the_texture_transform() {
         );
         assert!(shadowed > 150 && moved > 200, "{method:?}: {shadowed} shadowed, {moved} moved by the transform");
     }
+    common::assert_clean(&ctx);
+}
+
+/// Rect-light shadow rays read the masks too: a rect light 10 cm across, 3 m up and 3 m to the
+/// side, leaves every floor pixel whose ray toward its centre is surely stopped by the mask
+/// (`expected_shadow_toward`: 1.5 texels from any edge, 12 cm on the floor, while the light's
+/// penumbra is about 3 cm wide) at exactly 0 (the ratio estimator's umbra), and lights every
+/// sure pixel under the square's cut-outs.
+#[test]
+fn rect_light_shadows_respect_the_masks() {
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let mut scene = scene(dir.path());
+    scene.lights.clear();
+    scene.light_shadows.clear();
+    let rect =
+        "[camera]\neye = [0.0, 1.0, 0.0]\ntarget = [1.0, 0.0, 0.0]\nvfov_deg = 40.0\n[[lights]]\ntype = \"rect\"\n\
+                center = [-3.0, 4.0, 0.0]\nhalf_edge_u = [0.035, 0.035, 0.0]\nhalf_edge_v = [0.0, 0.0, 0.05]\n\
+                radiance = [400.0, 400.0, 400.0]\nspp = 16\n";
+    scene.rect_lights = Scene::parse(rect, "rect.toml", dir.path()).unwrap().rect_lights;
+    let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+    let position = frame(&mut renderer, ShadowMethod::Traced, DebugView::Position);
+    let radiance = common::render_linear(&mut renderer, W, H, None);
+    let (mut dark, mut lit) = (0, 0);
+    for (i, (p, c)) in position.iter().zip(&radiance).enumerate() {
+        let p = p.truncate();
+        if p.y.abs() > 1e-3 {
+            continue;
+        }
+        let light = Vec3::new(-3.0, 4.0, 0.0);
+        let q = p + (light - p) * ((1.0 - p.y) / (light.y - p.y));
+        match expected_shadow_toward(p, light) {
+            Some(true) => {
+                assert!(c.truncate() == Vec3::ZERO, "pixel {i} at {p}: {c} in the umbra");
+                dark += 1;
+            }
+            Some(false) if q.x.abs() < 1.0 && q.z.abs() < 1.0 => {
+                assert!(c.x > 0.0, "pixel {i} at {p}: dark under a cut-out");
+                lit += 1;
+            }
+            _ => {}
+        }
+    }
+    assert!(dark > 300 && lit > 200, "{dark} dark, {lit} lit");
     common::assert_clean(&ctx);
 }
 

@@ -34,6 +34,16 @@ fn main() {
             let spv = out.join(format!("{file}.spv"));
             writeln!(index, "pub const {ident}: &[u8] = include_bytes!({:?});", spv.display().to_string()).unwrap();
             jobs.push((src.clone(), spv, Vec::new()));
+            // A shader that traces shadow rays (it includes bvh.glsl or bvh_mask.glsl) gets a
+            // second build for scenes with alpha-masked casters (BVH_MASKED), so scenes without
+            // them run exactly the unmasked code.
+            let text = fs::read_to_string(src).unwrap_or_else(|e| panic!("{}: {e}", src.display()));
+            if text.contains("#include \"bvh.glsl\"") || text.contains("#include \"bvh_mask.glsl\"") {
+                let masked = out.join(format!("{file}.masked.spv"));
+                let path = masked.display().to_string();
+                writeln!(index, "pub const {ident}_MASKED: &[u8] = include_bytes!({path:?});").unwrap();
+                jobs.push((src.clone(), masked, vec!["BVH_MASKED".to_owned()]));
+            }
             continue;
         }
         // A shader with a `// variants:` line: one SPIR-V per subset of its flags, indexed by

@@ -8,6 +8,7 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 #define BVH_SET 0
 #define BVH_NODES_BINDING RAYS_BVH_NODES
 #define BVH_TRIANGLES_BINDING RAYS_BVH_TRIANGLES
+#define BVH_MASKS_BINDING RAYS_BVH_MASKS
 #include "bvh.glsl"
 
 struct Ray {

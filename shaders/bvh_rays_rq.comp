@@ -7,6 +7,11 @@
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = RAYS_TLAS) uniform accelerationStructureEXT tlas;
+#ifdef BVH_MASKED
+#define BVH_SET 0
+#define BVH_MASKS_BINDING RAYS_BVH_MASKS
+#include "bvh_mask.glsl"
+#endif
 
 struct Ray {
     vec4 origin; // w: tmax
@@ -24,9 +29,24 @@ void main() {
     if (i >= pc.count.x) return;
     Ray r = rays[i];
     rayQueryEXT query;
+#ifdef BVH_MASKED
+    // Alpha-masked casters are the non-opaque geometry: their candidates come here (as in
+    // shadows/traced/trace_rq.comp).
+    rayQueryInitializeEXT(query, tlas, gl_RayFlagsTerminateOnFirstHitEXT, 0xFFu, r.origin.xyz, 0.0, r.dir.xyz,
+                          r.origin.w);
+    while (rayQueryProceedEXT(query)) {
+        if (rayQueryGetIntersectionTypeEXT(query, false) == gl_RayQueryCandidateIntersectionTriangleEXT) {
+            vec2 b = rayQueryGetIntersectionBarycentricsEXT(query, false);
+            if (!bvh_mask_passes(uint(rayQueryGetIntersectionPrimitiveIndexEXT(query, false)), b.x, b.y)) {
+                rayQueryConfirmIntersectionEXT(query);
+            }
+        }
+    }
+#else
     rayQueryInitializeEXT(query, tlas, gl_RayFlagsTerminateOnFirstHitEXT | gl_RayFlagsOpaqueEXT, 0xFFu,
                           r.origin.xyz, 0.0, r.dir.xyz, r.origin.w);
     while (rayQueryProceedEXT(query)) {
     }
+#endif
     hits[i] = rayQueryGetIntersectionTypeEXT(query, true) != gl_RayQueryCommittedIntersectionNoneEXT ? 1u : 0u;
 }

@@ -72,6 +72,9 @@ pub fn upload<const N: usize>(
 pub struct BvhBuffers {
     pub nodes: TexelBuffer,
     pub triangles: TexelBuffer,
+    /// The alpha masks of masked casters (RGBA32UI, `crate::scene::bvh::mask`), only in scenes
+    /// that have them: the passes that walk the BVH then take their masked variant.
+    pub masks: Option<TexelBuffer>,
 }
 
 /// How a device takes a BVH's triangles.
@@ -90,7 +93,8 @@ impl BvhBuffers {
         let wide = bvh.wide();
         let node_texels = wide.nodes.len() as u64 * 4;
         let triangle_texels = wide.triangles.len() as u64 * 3;
-        for (what, texels) in [("nodes", node_texels), ("triangles", triangle_texels)] {
+        let mask_texels = bvh.masks().map_or(0, |m| m.texels.len() as u64);
+        for (what, texels) in [("nodes", node_texels), ("triangles", triangle_texels), ("alpha masks", mask_texels)] {
             if texels > limit {
                 return Err(GpuError::Unsupported(format!(
                     "the shadow BVH's {what} need {texels} texels in one texel buffer ({} triangles); {} allows at \
@@ -103,14 +107,35 @@ impl BvhBuffers {
         Ok(BvhLayout { components: if caps.rgb32f_texel_buffer { 3 } else { 4 } })
     }
 
-    /// Wraps the uploaded buffers (filled as `layout` says) in their views.
-    pub fn new(ctx: &Arc<GpuContext>, layout: BvhLayout, nodes: Buffer, triangles: Buffer) -> GpuResult<BvhBuffers> {
+    /// Wraps the uploaded buffers (filled as `layout` says) in their views, and uploads `bvh`'s
+    /// alpha masks where it has them.
+    pub fn new(
+        ctx: &Arc<GpuContext>,
+        layout: BvhLayout,
+        nodes: Buffer,
+        triangles: Buffer,
+        bvh: &ShadowBvh,
+    ) -> GpuResult<BvhBuffers> {
         let format =
             if layout.components == 3 { vk::Format::R32G32B32_SFLOAT } else { vk::Format::R32G32B32A32_SFLOAT };
+        let masks = match bvh.masks() {
+            Some(masks) => {
+                let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+                let [buffer] = upload(ctx, [("bvh alpha masks", bytemuck::cast_slice(&masks.texels), texel)])?;
+                Some(TexelBuffer::new(ctx, buffer, vk::Format::R32G32B32A32_UINT)?)
+            }
+            None => None,
+        };
         Ok(BvhBuffers {
             nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
             triangles: TexelBuffer::new(ctx, triangles, format)?,
+            masks,
         })
+    }
+
+    /// Whether the passes that walk this BVH need their masked variant (and bind `masks`).
+    pub fn masked(&self) -> bool {
+        self.masks.is_some()
     }
 
     /// Uploads `bvh` alone (the ray benchmark and tests; a scene uploads it with its other
@@ -126,12 +151,12 @@ impl BvhBuffers {
                 ("bvh triangles", bytemuck::cast_slice(&floats), texel),
             ],
         )?;
-        BvhBuffers::new(ctx, layout, nodes, triangles)
+        BvhBuffers::new(ctx, layout, nodes, triangles, bvh)
     }
 
-    /// Device bytes of nodes and triangles.
+    /// Device bytes of nodes and triangles (and alpha masks, where there are some).
     pub fn bytes(&self) -> u64 {
-        self.nodes.buffer.size + self.triangles.buffer.size
+        self.nodes.buffer.size + self.triangles.buffer.size + self.masks.as_ref().map_or(0, |m| m.buffer.size)
     }
 
     /// Imports both into `g` for a frame's passes to read.
@@ -141,6 +166,7 @@ impl BvhBuffers {
             triangles: g.import_buffer("bvh triangles", &self.triangles.buffer, access),
             node_view: self.nodes.view,
             triangle_view: self.triangles.view,
+            masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view)),
         }
     }
 }
@@ -151,21 +177,29 @@ pub struct BvhHandles {
     pub triangles: crate::graph::Handle<crate::graph::BufferKind>,
     pub node_view: vk::BufferView,
     pub triangle_view: vk::BufferView,
+    /// The alpha masks, in scenes with masked casters.
+    pub masks: Option<(crate::graph::Handle<crate::graph::BufferKind>, vk::BufferView)>,
 }
 
 impl BvhHandles {
-    /// Declares `pass`'s reads of both and returns them bound at `nodes` and `triangles`.
+    /// Declares `pass`'s reads of both and returns them bound at `nodes` and `triangles`, and
+    /// the alpha masks at `masks` where the scene has them (the masked variant's binding).
     pub fn bind(
         &self,
         pass: &mut crate::graph::PassBuilder<'_, '_>,
         nodes: u32,
         triangles: u32,
-    ) -> [(u32, crate::graph::Bound); 2] {
+        masks: u32,
+    ) -> Vec<(u32, crate::graph::Bound)> {
         let read = Access::ComputeShaderReadUniformTexelBuffer;
-        [
+        let mut bound = vec![
             (nodes, crate::graph::Bound::TexelBuffer(pass.read(&self.nodes, read), self.node_view)),
             (triangles, crate::graph::Bound::TexelBuffer(pass.read(&self.triangles, read), self.triangle_view)),
-        ]
+        ];
+        if let Some((buffer, view)) = &self.masks {
+            bound.push((masks, crate::graph::Bound::TexelBuffer(pass.read(buffer, read), *view)));
+        }
+        bound
     }
 }
 
@@ -237,6 +271,8 @@ pub struct Draw {
     pub maps: Option<crate::gpu_textures::DrawMaps>,
     pub material: Material,
     pub cast_shadows: bool,
+    /// Drawn without back-face culling (glTF doubleSided).
+    pub double_sided: bool,
     /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
     pub bounds: Bounds,
 }
@@ -253,6 +289,9 @@ pub struct SceneGpu {
     pub surface_offset: Option<u64>,
     /// The material textures and their pipeline; `None` in a scene without textures.
     pub materials: Option<crate::gpu_textures::MaterialSets>,
+    /// The untextured geometry pipeline without back-face culling, in a scene without textures
+    /// that has double-sided meshes (a textured scene's is in `materials`).
+    pub two_sided: Option<crate::vk::GraphicsPipeline>,
     pub indices: Buffer,
     pub draws: Vec<Draw>,
     pub lights: Buffer,
@@ -354,6 +393,7 @@ impl SceneGpu {
                 maps,
                 material: mesh.material,
                 cast_shadows: mesh.cast_shadows,
+                double_sided: mesh.double_sided,
                 bounds,
             });
         }
@@ -373,10 +413,19 @@ impl SceneGpu {
             vertex_bytes.extend_from_slice(bytemuck::cast_slice(&surface_vertices));
             at
         });
+        // Pipelines without back-face culling only for scenes with double-sided meshes.
+        let two_sided = draws.iter().any(|d| d.double_sided);
         let materials = match textured {
-            true => Some(crate::gpu_textures::upload(ctx, &materials, |layout| {
-                crate::passes::geometry::textured_pipeline(ctx, layout)
-            })?),
+            true => Some(crate::gpu_textures::upload(
+                ctx,
+                &materials,
+                |layout, two_sided| crate::passes::geometry::textured_pipeline(ctx, layout, two_sided),
+                two_sided,
+            )?),
+            false => None,
+        };
+        let two_sided = match two_sided && !textured {
+            true => Some(crate::passes::geometry::untextured_pipeline(ctx, true)?),
             false => None,
         };
         // The geometry pass reads both as storage buffers (a binding holds at most this much).
@@ -407,13 +456,14 @@ impl SceneGpu {
                 ("bvh triangles", bytemuck::cast_slice(&triangle_floats), texel),
             ],
         )?;
-        let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles)?;
+        let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles, bvh)?;
         Ok(SceneGpu {
             vertices,
             vertex_count,
             instance_offset,
             surface_offset,
             materials,
+            two_sided,
             indices,
             draws,
             lights,
@@ -432,7 +482,8 @@ impl SceneGpu {
         [&self.vertices, &self.indices, &self.lights, &self.bvh.nodes.buffer, &self.bvh.triangles.buffer]
             .iter()
             .map(|b| b.size)
-            .sum()
+            .sum::<u64>()
+            + self.bvh.masks.as_ref().map_or(0, |m| m.buffer.size)
     }
 
     /// A world-space camera in the scene-local frame (subtracted in f64).

@@ -39,6 +39,8 @@ pub struct MaterialSets {
     /// it draws every mesh of the scene (those without textures with `untextured`'s set), since
     /// its rendering has the emission attachment as well.
     pub pipeline: GraphicsPipeline,
+    /// The same without back-face culling, in a scene with double-sided meshes.
+    pub pipeline_two_sided: Option<GraphicsPipeline>,
     pub sets: Vec<vk::DescriptorSet>,
     /// The set of a mesh without textures: white texels, no emission.
     pub untextured: DrawMaps,
@@ -80,7 +82,8 @@ impl MaterialSets {
 pub fn upload(
     ctx: &Arc<GpuContext>,
     materials: &[Arc<MaterialTextures>],
-    pipeline: impl FnOnce(vk::DescriptorSetLayout) -> GpuResult<GraphicsPipeline>,
+    pipeline: impl Fn(vk::DescriptorSetLayout, bool) -> GpuResult<GraphicsPipeline>,
+    two_sided: bool,
 ) -> GpuResult<MaterialSets> {
     let device = &ctx.device;
     let max_anisotropy = if ctx.capabilities.sampler_anisotropy {
@@ -177,14 +180,19 @@ pub fn upload(
     }
     let (images, bytes) = upload_images(ctx, &textures)?;
     // Each material's constants at its own aligned offset of one uniform buffer.
-    let stride = 32u64.max(ctx.properties.limits.min_uniform_buffer_offset_alignment).next_multiple_of(16);
+    // material_constants.glsl: emission and occlusion, the alpha mask, 10 rows of transforms.
+    const SIZE: usize = 32 + 160;
+    let stride = (SIZE as u64).max(ctx.properties.limits.min_uniform_buffer_offset_alignment).next_multiple_of(16);
     let mut constants = vec![0u8; (stride * count as u64) as usize];
     for (k, m) in materials.iter().enumerate() {
         let strength = m.occlusion.as_ref().map_or(0.0, |(_, s)| *s);
         // A cutoff of 0 never discards: opaque.
         let mask = m.alpha_mask.map_or([1.0, 0.0], |a| [a.factor, a.cutoff]);
-        let values = [m.emission.extend(strength).to_array(), [mask[0], mask[1], 0.0, 0.0]];
-        constants[k * stride as usize..][..32].copy_from_slice(bytemuck::cast_slice(&values));
+        let mut values = vec![m.emission.extend(strength).to_array(), [mask[0], mask[1], 0.0, 0.0]];
+        for t in m.uv_transforms.in_order() {
+            values.extend(t.rows.map(|[a, b, c]| [a, b, c, 0.0]));
+        }
+        constants[k * stride as usize..][..SIZE].copy_from_slice(bytemuck::cast_slice(&values));
     }
     let constants = Buffer::with_data(ctx, "material constants", &constants, vk::BufferUsageFlags::UNIFORM_BUFFER)?;
 
@@ -203,7 +211,7 @@ pub fn upload(
     let layout = Access::FragmentShaderReadSampledImage.info().layout;
     for (k, (set, slot_images)) in sets.iter().zip(&slots_of).enumerate() {
         let buffer_info =
-            [vk::DescriptorBufferInfo::default().buffer(constants.raw).offset(k as u64 * stride).range(32)];
+            [vk::DescriptorBufferInfo::default().buffer(constants.raw).offset(k as u64 * stride).range(SIZE as u64)];
         let infos: Vec<[vk::DescriptorImageInfo; 1]> = slot_images
             .iter()
             .map(|&i| [vk::DescriptorImageInfo::default().image_view(images[i].view).image_layout(layout)])
@@ -230,7 +238,8 @@ pub fn upload(
         unsafe { device.update_descriptor_sets(&writes, &[]) };
     }
     Ok(MaterialSets {
-        pipeline: pipeline(objects.layout)?,
+        pipeline: pipeline(objects.layout, false)?,
+        pipeline_two_sided: two_sided.then(|| pipeline(objects.layout, true)).transpose()?,
         sets,
         untextured: draw_maps(0, &materials[0]),
         masked: materials.iter().any(|m| m.alpha_mask.is_some()),

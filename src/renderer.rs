@@ -168,8 +168,8 @@ impl Renderer {
         if !plan.traced.is_empty() {
             let traced = &self.shadow_pipelines.traced;
             let pipeline = match ray_query {
-                Some(_) => traced.ray_query(&self.ctx)?,
-                None => traced.compute(&self.ctx)?,
+                Some(rq) => traced.ray_query(&self.ctx, rq.masked())?,
+                None => traced.compute(&self.ctx, self.gpu_scene.bvh.masked())?,
             };
             prepared.traced = Some((pipeline, ray_query));
         }
@@ -181,6 +181,7 @@ impl Renderer {
             self.rects.as_ref(),
             self.area_tables.as_ref(),
             settings.debug_view,
+            self.gpu_scene.bvh.masked(),
         )?;
         lighting.sized_lights = self.sized_lights && lighting.area.is_some();
         let compose = match settings.debug_view {
@@ -284,8 +285,10 @@ impl Renderer {
         if !self.gpu_scene.has_casters {
             return Ok(None);
         }
-        let scene =
-            crate::vk::get_or_make(&self.ray_query, || RayQueryScene::new(&self.ctx, &caster_triangles(&self.local)))?;
+        let scene = crate::vk::get_or_make(&self.ray_query, || {
+            let masks = crate::scene::bvh::mask::caster_masks(&self.local);
+            RayQueryScene::with_masks(&self.ctx, &caster_triangles(&self.local), masks.as_ref())
+        })?;
         Ok(Some(scene))
     }
 

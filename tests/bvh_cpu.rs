@@ -173,6 +173,7 @@ fn scene_build_takes_only_shadow_casters() {
         cast_shadows,
         instance: None,
         surface: None,
+        double_sided: false,
     };
     let scene = Scene {
         image_size: None,

@@ -219,6 +219,7 @@ fn fins() -> Mesh {
         cast_shadows: true,
         instance: None,
         surface: None,
+        double_sided: false,
     }
 }
 

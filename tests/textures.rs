@@ -290,7 +290,7 @@ fn emission_adds_its_radiance() {
 /// An alpha-masked quad (glTF MASK, cutoff 0.5; the texture's left half has alpha 0) 1 m above
 /// a floor under a sun from straight above: the G-buffer shows the floor through the cut-out
 /// half, and the `map` shadow has the mask's shape (the floor under the kept half is shadowed,
-/// under the cut half lit). The traced pass does not read masks yet (the BVH is being rewritten).
+/// under the cut half lit). Traced shadows of masked casters: tests/alpha_masked_shadows.rs.
 #[test]
 fn an_alpha_masked_quad_is_cut_out_and_so_is_its_map_shadow() {
     use umbra::config::ShadowMethod;

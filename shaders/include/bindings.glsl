@@ -63,6 +63,7 @@
 #define RAYS_BVH_TRIANGLES 2
 #define RAYS_OUTPUT 3
 #define RAYS_TLAS 4
+#define RAYS_BVH_MASKS 5
 
 // overlay.comp: text over the presented image
 #define OVERLAY_CANVAS 0
@@ -92,6 +93,8 @@
 #define SHADOW_SURFACE 7
 // shadows/traced/trace_list.comp: the pixels to trace (a count, then pixel indices)
 #define SHADOW_LIST 8
+// shadows/traced/trace*.comp's masked variants: the alpha masks of masked casters (bvh.glsl)
+#define SHADOW_BVH_MASKS 9
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
@@ -129,6 +132,7 @@
 #define AO_BVH_TRIANGLES 4
 #define AO_OUTPUT 5
 #define AO_VIEW_OUTPUT 6
+#define AO_BVH_MASKS 7
 
 // lighting/rect_lights.comp: rect lights' unshadowed LTC shading added to compose's radiance,
 // times their traced visibility (ratio estimator), and their emitters where the camera sees
@@ -144,6 +148,7 @@
 #define RECT_SURFACE 8
 #define RECT_BVH_NODES 9
 #define RECT_BVH_TRIANGLES 10
+#define RECT_BVH_MASKS 11
 
 // lighting/envmap_*.comp: an environment map's precompute at load (src/lighting/envmap.rs)
 #define ENVMAP_SOURCE 0

@@ -4,6 +4,13 @@
 // Contract: before including, #define BVH_SET, BVH_NODES_BINDING and BVH_TRIANGLES_BINDING;
 // this file declares the two uniform texel buffers `bvh_nodes` (RGBA32UI, four texels a node)
 // and `bvh_triangles` (RGB32F or RGBA32F, three texels a triangle: v0, e1, e2) there.
+//
+// Alpha-masked casters: build.rs compiles every shader that includes this file a second time
+// with BVH_MASKED defined (its `..._MASKED` SPIR-V), used only for scenes with alpha-masked
+// casters; that variant also needs BVH_MASKS_BINDING, the texel buffer `bvh_masks` (RGBA32UI,
+// src/scene/bvh/mask.rs gives the layout), and a hit on a masked triangle whose base-colour alpha
+// at the hit is below the material's cutoff is no hit. Without BVH_MASKED the walk compiles
+// exactly as it did before masks existed.
 #ifndef UMBRA_BVH_GLSL
 #define UMBRA_BVH_GLSL
 
@@ -50,6 +57,10 @@ void bvh_slab(float base, float scale, uint q_lo, uint q_hi, float o, float inv,
     far = max(a, b);
 }
 
+#ifdef BVH_MASKED
+#include "bvh_mask.glsl"
+#endif
+
 // Möller–Trumbore without back-face culling: shadows are cast by both faces. A NaN (from a
 // denormal determinant) falls through every comparison to a miss.
 bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
@@ -73,7 +84,11 @@ bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
         return false;
     }
     float t = dot(e2, q) * inv_det;
+#ifdef BVH_MASKED
+    return t > 0.0 && t < tmax && !bvh_mask_passes(i, u, v);
+#else
     return t > 0.0 && t < tmax;
+#endif
 }
 
 // The mask of node `node`'s children whose boxes the ray segment touches (bit i: child i).

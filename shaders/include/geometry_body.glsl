@@ -41,8 +41,9 @@ layout(location = GBUFFER_EMISSION_LOCATION) out vec4 out_emission;
 vec2 material_dx;
 vec2 material_dy;
 
-vec4 material_sample(sampler2D map, vec2 uv) {
-    return textureGrad(map, uv, material_dx, material_dy);
+// Map `k` (UV_OF_*) of the material at the fragment's texture coordinates, through its transform.
+vec4 material_sample(sampler2D map, uint k) {
+    return textureGrad(map, material_uv(k, in_uv), material_uv_delta(k, material_dx), material_uv_delta(k, material_dy));
 }
 
 // A one-hot mask: the texture channel a map reads (0..3 = R, G, B, A), without indexing a
@@ -53,13 +54,13 @@ vec4 material_channel(uint c) {
 
 // The shading normal bent by the tangent-space normal map (OpenGL convention: +Y along the
 // bitangent cross(n, t) * w, MikkTSpace's). Without a usable tangent, n as it is.
-vec3 material_mapped_normal(vec3 n, vec4 tangent, vec2 uv, float scale) {
+vec3 material_mapped_normal(vec3 n, vec4 tangent, float scale) {
     vec3 t = tangent.xyz - n * dot(n, tangent.xyz);
     float len = length(t);
     if (!(len > 1e-6)) return n;
     t /= len;
     vec3 b = cross(n, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
-    vec3 m = material_sample(material_normal, uv).xyz * 2.0 - 1.0;
+    vec3 m = material_sample(material_normal, UV_OF_NORMAL).xyz * 2.0 - 1.0;
     m.xy *= scale;
     vec3 mapped = t * m.x + b * m.y + n * m.z;
     float mapped_len = length(mapped);
@@ -100,7 +101,11 @@ void main() {
     vec3 e2 = corner[2] - corner[0];
     // Counter-clockwise is front: the winding's normal faces the eye on a front face.
     geometric = normalize(cross(e1, e2));
-    if (!gl_FrontFacing) geometric = -geometric;
+    if (!gl_FrontFacing) {
+        // A double-sided mesh's back face (others are culled): its normals turn toward the eye.
+        geometric = -geometric;
+        for (int k = 0; k < 3; k++) corner_normal[k] = -corner_normal[k];
+    }
     offset = terminator_offset(p, corner, corner_normal, triangle_barycentrics(p, corner[0], e1, e2));
     // A degenerate triangle rasterises nothing, but a sliver may lose its barycentrics.
     if (any(isnan(offset)) || any(isinf(offset))) offset = vec3(0.0);
@@ -108,8 +113,8 @@ void main() {
     geometric = normalize(cross(dFdx(p), dFdy(p)));
     if (dot(geometric, pc.eye.xyz - p) < 0.0) geometric = -geometric;
 #endif
-    // Back faces are culled, but a smooth normal can still lean away from the eye at grazing
-    // angles; it is kept as is, and shading clamps n.v.
+    // Back faces are culled (but double-sided meshes'), and a smooth normal can still lean away
+    // from the eye at grazing angles; it is kept as is, and shading clamps n.v.
     vec4 material = pc.base_color_roughness;
     float metallic = pc.metallic.x;
 #ifdef TEXTURED
@@ -118,17 +123,21 @@ void main() {
     // a white texel, so every product below is the constant alone.
     material_dx = dFdx(in_uv) + vec2(1e-6, 0.0);
     material_dy = dFdy(in_uv) + vec2(0.0, 1e-6);
-    vec4 base_color = material_sample(material_base_color, in_uv);
+    vec4 base_color = material_sample(material_base_color, UV_OF_BASE_COLOR);
     // Alpha-masked materials (a cutoff of 0 never discards).
     if (base_color.a * material_constants.alpha.x < material_constants.alpha.y) discard;
     material.rgb *= base_color.rgb;
-    material.a *= dot(material_sample(material_roughness, in_uv), material_channel(pc.draw.w & 3u));
-    metallic *= dot(material_sample(material_metallic, in_uv), material_channel((pc.draw.w >> 8) & 3u));
-    if ((pc.draw.z & 8u) != 0u) n = material_mapped_normal(n, in_tangent, in_uv, pc.metallic.y);
+    material.a *= dot(material_sample(material_roughness, UV_OF_METAL_ROUGH), material_channel(pc.draw.w & 3u));
+    metallic *= dot(material_sample(material_metallic, UV_OF_METAL_ROUGH), material_channel((pc.draw.w >> 8) & 3u));
+    if ((pc.draw.z & 8u) != 0u) n = material_mapped_normal(n, in_tangent, pc.metallic.y);
     vec4 constants = material_constants.emission_occlusion;
-    float occluded = dot(material_sample(material_occlusion, in_uv), material_channel((pc.draw.w >> 16) & 3u));
-    out_emission = vec4(constants.rgb * material_sample(material_emission, in_uv).rgb, mix(1.0, occluded, constants.a));
+    float occluded = dot(material_sample(material_occlusion, UV_OF_OCCLUSION), material_channel((pc.draw.w >> 16) & 3u));
+    out_emission =
+        vec4(constants.rgb * material_sample(material_emission, UV_OF_EMISSION).rgb, mix(1.0, occluded, constants.a));
 #endif
+    // A double-sided mesh's back face shades with its normal reversed (glTF doubleSided), after
+    // any normal map: the whole tangent frame turns, as if the face were mirrored.
+    if (!gl_FrontFacing) n = -n;
     out_position = vec4(p, 1.0);
     out_normal = vec4(n, metallic);
     out_material = material;

@@ -97,6 +97,12 @@ pub fn run(options: &Options) -> Result<Outcome> {
     if tris.is_empty() {
         bail!("{name}: no shadow-casting triangles to trace");
     }
+    if crate::scene::bvh::mask::caster_masks(&local).is_some() {
+        bail!(
+            "{name}: has alpha-masked casters; bench rays checks every tracer against obvhs, which has no alpha \
+             masks (tests/alpha_masked_shadows.rs checks the masked traversal)"
+        );
+    }
     let start = Instant::now();
     let bvh = ShadowBvh::build(&local);
     let build_ms = start.elapsed().as_secs_f64() * 1e3;
@@ -110,13 +116,14 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let gpu_rays: Vec<GpuRay> = rays.iter().map(|r| GpuRay::new(r.0, r.1, r.2)).collect();
     let mut batch = TimedBatch::new(&ctx, &gpu_rays)?;
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
-    let pipeline = ray_batch::pipeline(&ctx)?;
+    let pipeline = ray_batch::pipeline(&ctx, buffers.masked())?;
     let (gpu_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&pipeline, &Target::Compute(&buffers)))?;
     timings.push(timing("compute BVH (device)", (ms, cpu), rays.len()));
     let mut rq_disagree = None;
     if ctx.capabilities.ray_query {
-        let scene = RayQueryScene::new(&ctx, &tris)?;
-        let rq_pipeline = ray_batch::ray_query_pipeline(&ctx)?;
+        let masks = crate::scene::bvh::mask::caster_masks(&local);
+        let scene = RayQueryScene::with_masks(&ctx, &tris, masks.as_ref())?;
+        let rq_pipeline = ray_batch::ray_query_pipeline(&ctx, scene.masked())?;
         // The first trace builds the structures: not timed.
         batch.trace(&rq_pipeline, &Target::RayQuery(&scene))?;
         let (rq_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&rq_pipeline, &Target::RayQuery(&scene)))?;

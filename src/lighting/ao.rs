@@ -27,7 +27,8 @@ struct Push {
     params: Vec4,
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+/// `masked`: the variant that reads alpha masks, for scenes with alpha-masked casters.
+pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
     let bindings = [
         sampled(AO_POSITION),
         sampled(AO_NORMAL),
@@ -36,7 +37,9 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
         (AO_BVH_TRIANGLES, crate::vk::DescriptorKind::UniformTexelBuffer),
         storage_image(AO_OUTPUT),
     ];
-    ComputePipeline::new(ctx, "ambient occlusion", spirv::LIGHTING_AO_COMP, &bindings, 32, TILE)
+    let bindings = crate::shadows::traced::bvh_bindings(&bindings, AO_BVH_MASKS, masked);
+    let spirv = if masked { spirv::LIGHTING_AO_COMP_MASKED } else { spirv::LIGHTING_AO_COMP };
+    ComputePipeline::new(ctx, "ambient occlusion", spirv, &bindings, 32, TILE)
 }
 
 pub fn view_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
@@ -58,15 +61,14 @@ pub fn add<'a>(
     let mut image = graph.create_image("ambient occlusion", ImageDesc::new(AO_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("ambient occlusion");
     let read = Access::ComputeShaderReadSampledImage;
-    let [nodes, triangles] = bvh.bind(&mut pass, AO_BVH_NODES, AO_BVH_TRIANGLES);
-    let bound = [
+    let walk = bvh.bind(&mut pass, AO_BVH_NODES, AO_BVH_TRIANGLES, AO_BVH_MASKS);
+    let mut bound = vec![
         (AO_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (AO_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (AO_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
-        nodes,
-        triangles,
         (AO_OUTPUT, Bound::Image(pass.write(&mut image, Access::ComputeShaderWrite))),
     ];
+    bound.extend(walk);
     let push = Push {
         dims: UVec4::new(extent.width, extent.height, params.spp, frame_index),
         params: Vec4::new(params.radius, 0.0, 0.0, 0.0),

@@ -126,7 +126,9 @@ pub struct Prepared<'a> {
 }
 
 impl Pipelines {
-    /// What a frame with `view` needs for `lighting` (`environment` on the device).
+    /// What a frame with `view` needs for `lighting` (`environment` on the device); AO and
+    /// rect-light rays read alpha masks when `masked`.
+    #[allow(clippy::too_many_arguments)]
     pub fn prepare<'a>(
         &'a self,
         ctx: &Arc<GpuContext>,
@@ -135,9 +137,10 @@ impl Pipelines {
         rect_lights: Option<&'a rects::RectsGpu>,
         area: Option<&'a AreaTables>,
         view: Option<crate::config::DebugView>,
+        masked: bool,
     ) -> GpuResult<Prepared<'a>> {
         let mut prepared = Prepared::default();
-        let ao_pipeline = || crate::vk::get_or_make(&self.ao, || ao::pipeline(ctx));
+        let ao_pipeline = || crate::vk::get_or_make(&self.ao, || ao::pipeline(ctx, masked));
         match view {
             Some(crate::config::DebugView::AmbientOcclusion) => {
                 let params = lighting.ambient_occlusion.ok_or_else(|| {
@@ -152,7 +155,7 @@ impl Pipelines {
             None => {
                 prepared.area = area;
                 if let Some(r) = rect_lights {
-                    prepared.rects = Some((r, crate::vk::get_or_make(&self.rects, || rects::pipeline(ctx))?));
+                    prepared.rects = Some((r, crate::vk::get_or_make(&self.rects, || rects::pipeline(ctx, masked))?));
                 }
                 if let Some(environment) = environment {
                     let occlusion = lighting.occlusion_of_environment();

@@ -69,7 +69,8 @@ struct Push {
     dims: UVec4,
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+/// `masked`: the variant that reads alpha masks, for scenes with alpha-masked casters.
+pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
     let bindings = [
         sampled(RECT_POSITION),
         sampled(RECT_NORMAL),
@@ -84,7 +85,9 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
         (RECT_BVH_TRIANGLES, crate::vk::DescriptorKind::UniformTexelBuffer),
     ];
     let size = std::mem::size_of::<Push>() as u32;
-    ComputePipeline::new(ctx, "rect lights", spirv::LIGHTING_RECT_LIGHTS_COMP, &bindings, size, TILE)
+    let bindings = crate::shadows::traced::bvh_bindings(&bindings, RECT_BVH_MASKS, masked);
+    let spirv = if masked { spirv::LIGHTING_RECT_LIGHTS_COMP_MASKED } else { spirv::LIGHTING_RECT_LIGHTS_COMP };
+    ComputePipeline::new(ctx, "rect lights", spirv, &bindings, size, TILE)
 }
 
 /// `radiance` with the rect lights added (a new image).
@@ -108,11 +111,9 @@ pub fn add<'a>(
     let mut out = graph.create_image("radiance (rects)", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("rect lights");
     let read = Access::ComputeShaderReadSampledImage;
-    let [nodes, triangles] = bvh.bind(&mut pass, RECT_BVH_NODES, RECT_BVH_TRIANGLES);
-    let bound = [
+    let walk = bvh.bind(&mut pass, RECT_BVH_NODES, RECT_BVH_TRIANGLES, RECT_BVH_MASKS);
+    let mut bound = vec![
         (RECT_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
-        nodes,
-        triangles,
         (RECT_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (RECT_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (RECT_MATERIAL, Bound::Image(pass.read(&gbuffer.material, read))),
@@ -122,6 +123,7 @@ pub fn add<'a>(
         (RECT_RADIANCE_IN, Bound::Image(pass.read(radiance, read))),
         (RECT_RADIANCE_OUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
     ];
+    bound.extend(walk);
     let push = Push {
         clip_to_eye: camera.view_proj_relative.inverse(),
         eye: camera.eye.extend(0.0),

@@ -56,6 +56,7 @@ fn desc<'a>(
     fragment: &'a [u8],
     bindings: &'a [(u32, crate::vk::DescriptorKind)],
     color_formats: &'a [vk::Format],
+    two_sided: bool,
 ) -> GraphicsPipelineDesc<'a> {
     GraphicsPipelineDesc {
         name,
@@ -67,7 +68,9 @@ fn desc<'a>(
         depth_format: Some(DEPTH_FORMAT),
         bindings,
         push_bytes: std::mem::size_of::<Push>() as u32,
-        cull_back_faces: true,
+        // Back faces are culled but for double-sided meshes (glTF doubleSided), whose back
+        // faces the shader turns toward the eye.
+        cull_back_faces: !two_sided,
         dynamic_depth_bias: false,
     }
 }
@@ -85,27 +88,32 @@ const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
 
 pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
     let reads_triangles = ctx.capabilities.geometry_shader;
+    Ok(GeometryPipelines { pipeline: untextured_pipeline(ctx, false)?, reads_triangles })
+}
+
+/// The untextured geometry pipeline; `two_sided`: without back-face culling (made only for
+/// scenes with double-sided meshes, `SceneGpu::two_sided`).
+pub fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<GraphicsPipeline> {
     let extras = GraphicsExtras { instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)), ..Default::default() };
     let vertex = spirv::GEOMETRY_VERT;
-    let pipeline = match reads_triangles {
-        true => GraphicsPipeline::with_extras(
-            ctx,
-            &desc("geometry", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS, &FORMATS),
-            &extras,
-        )?,
-        false => GraphicsPipeline::with_extras(
-            ctx,
-            &desc("geometry (plain)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[], &FORMATS),
-            &extras,
-        )?,
+    let desc = match (ctx.capabilities.geometry_shader, two_sided) {
+        (true, false) => desc("geometry", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS, &FORMATS, false),
+        (true, true) => desc("geometry (two-sided)", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS, &FORMATS, true),
+        (false, false) => desc("geometry (plain)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[], &FORMATS, false),
+        (false, true) => desc("geometry (plain, two-sided)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[], &FORMATS, true),
     };
-    Ok(GeometryPipelines { pipeline, reads_triangles })
+    GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
 
 /// The geometry pipeline for textured draws: texture coordinates and tangents at vertex binding
 /// 2, the material's textures in descriptor set 1 (`material_set`, see gpu_textures.rs). Made
 /// per scene, only for a scene with textures.
-pub fn textured_pipeline(ctx: &Arc<GpuContext>, material_set: vk::DescriptorSetLayout) -> GpuResult<GraphicsPipeline> {
+/// `two_sided`: without back-face culling, for double-sided meshes.
+pub fn textured_pipeline(
+    ctx: &Arc<GpuContext>,
+    material_set: vk::DescriptorSetLayout,
+    two_sided: bool,
+) -> GpuResult<GraphicsPipeline> {
     let extras = GraphicsExtras {
         instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
         per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES)),
@@ -113,14 +121,13 @@ pub fn textured_pipeline(ctx: &Arc<GpuContext>, material_set: vk::DescriptorSetL
         ..Default::default()
     };
     let vertex = spirv::GEOMETRY_TEXTURED_VERT;
-    let desc = match ctx.capabilities.geometry_shader {
-        true => {
-            desc("geometry (textured)", vertex, spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS, &TEXTURED_FORMATS)
-        }
-        false => {
-            desc("geometry (textured, plain)", vertex, spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[], &TEXTURED_FORMATS)
-        }
+    let (name, fragment, bindings): (_, _, &[_]) = match (ctx.capabilities.geometry_shader, two_sided) {
+        (true, false) => ("geometry (textured)", spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS),
+        (true, true) => ("geometry (textured, two-sided)", spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS),
+        (false, false) => ("geometry (textured, plain)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[]),
+        (false, true) => ("geometry (textured, plain, two-sided)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[]),
     };
+    let desc = desc(name, vertex, fragment, bindings, &TEXTURED_FORMATS, two_sided);
     GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
 
@@ -212,18 +219,22 @@ pub fn add<'a>(
                 d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
             }
         }
-        // The pipeline bound (textured or not), switched as the draws need.
-        let mut current: Option<bool> = None;
+        // The pipeline bound (textured or not, two-sided or not), switched as the draws need.
+        let mut current: Option<(bool, bool)> = None;
         for draw in &scene.draws {
             // In a textured scene every draw is textured (its rendering has the emission
             // attachment); a mesh without textures reads the white set.
             let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));
-            let used = match textured {
-                Some((materials, _)) => &materials.pipeline,
-                None => pipeline,
+            let used = match (textured, draw.double_sided) {
+                (Some((materials, _)), false) => &materials.pipeline,
+                (Some((materials, _)), true) => {
+                    materials.pipeline_two_sided.as_ref().expect("made for double-sided draws")
+                }
+                (None, false) => pipeline,
+                (None, true) => scene.two_sided.as_ref().expect("made for double-sided draws"),
             };
-            if current != Some(textured.is_some()) {
-                current = Some(textured.is_some());
+            if current != Some((textured.is_some(), draw.double_sided)) {
+                current = Some((textured.is_some(), draw.double_sided));
                 if !bound.is_empty() {
                     ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &used.layout, &bound)?;
                 }

@@ -30,20 +30,17 @@ impl GpuRay {
     }
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "bvh rays",
-        spirv::BVH_RAYS_COMP,
-        &[
-            storage(RAYS_INPUT),
-            (RAYS_BVH_NODES, DescriptorKind::UniformTexelBuffer),
-            (RAYS_BVH_TRIANGLES, DescriptorKind::UniformTexelBuffer),
-            storage(RAYS_OUTPUT),
-        ],
-        16,
-        GROUP,
-    )
+/// `masked`: the variant that reads alpha masks, for BVHs with alpha-masked casters.
+pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+    let bindings = [
+        storage(RAYS_INPUT),
+        (RAYS_BVH_NODES, DescriptorKind::UniformTexelBuffer),
+        (RAYS_BVH_TRIANGLES, DescriptorKind::UniformTexelBuffer),
+        storage(RAYS_OUTPUT),
+    ];
+    let bindings = crate::shadows::traced::bvh_bindings(&bindings, RAYS_BVH_MASKS, masked);
+    let spirv = if masked { spirv::BVH_RAYS_COMP_MASKED } else { spirv::BVH_RAYS_COMP };
+    ComputePipeline::new(ctx, "bvh rays", spirv, &bindings, 16, GROUP)
 }
 
 /// Declares the query pass: reads `rays` and the BVH; returns the hit flags (u32 each).
@@ -56,13 +53,12 @@ pub fn add<'a>(
 ) -> Handle<BufferKind> {
     let mut hits = graph.create_buffer("hits", u64::from(count.max(1)) * 4);
     let mut pass = graph.add_pass("bvh rays");
-    let [nodes, triangles] = bvh.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES);
-    let bound = [
+    let walk = bvh.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES, RAYS_BVH_MASKS);
+    let mut bound = vec![
         (RAYS_INPUT, Bound::Buffer(pass.read(rays, Access::ComputeShaderReadStorageBuffer))),
-        nodes,
-        triangles,
         (RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))),
     ];
+    bound.extend(walk);
     let push = UVec4::new(count, 0, 0, 0);
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), count, 1));
     hits
@@ -70,7 +66,7 @@ pub fn add<'a>(
 
 /// Traces `rays` through `bvh` on the GPU and returns whether each is occluded.
 pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResult<Vec<bool>> {
-    let pipeline = pipeline(ctx)?;
+    let pipeline = pipeline(ctx, bvh.masks().is_some())?;
     let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
     let ray_buf = Buffer::with_data(ctx, "rays", bytemuck::cast_slice(rays), usage)?;
     let bvh = BvhBuffers::upload(ctx, bvh)?;
@@ -102,16 +98,13 @@ pub enum Target<'s> {
     RayQuery(&'s crate::shadows::traced::accel::RayQueryScene),
 }
 
-/// The ray-query twin of `pipeline`; only on devices with ray query.
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "bvh rays (ray query)",
-        spirv::BVH_RAYS_RQ_COMP,
-        &[storage(RAYS_INPUT), (RAYS_TLAS, DescriptorKind::AccelerationStructure), storage(RAYS_OUTPUT)],
-        16,
-        GROUP,
-    )
+/// The ray-query twin of `pipeline`; only on devices with ray query. `masked`: the variant for
+/// a `RayQueryScene` with alpha-masked casters.
+pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+    let bindings = [storage(RAYS_INPUT), (RAYS_TLAS, DescriptorKind::AccelerationStructure), storage(RAYS_OUTPUT)];
+    let bindings = crate::shadows::traced::bvh_bindings(&bindings, RAYS_BVH_MASKS, masked);
+    let spirv = if masked { spirv::BVH_RAYS_RQ_COMP_MASKED } else { spirv::BVH_RAYS_RQ_COMP };
+    ComputePipeline::new(ctx, "bvh rays (ray query)", spirv, &bindings, 16, GROUP)
 }
 
 /// Rays on the device, traced again and again for timing.
@@ -161,12 +154,16 @@ impl TimedBatch {
         let mut pass = g.add_pass("bvh rays");
         let mut bound = vec![(RAYS_INPUT, Bound::Buffer(pass.read(&rays, Access::ComputeShaderReadStorageBuffer)))];
         if let Some(walk) = &walk {
-            bound.extend(walk.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES));
+            bound.extend(walk.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES, RAYS_BVH_MASKS));
         }
         if let Some(rq) = &rq {
             let read = Access::ComputeShaderReadAccelerationStructure;
             bound.push((RAYS_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));
             let _ = pass.read(&rq.bottom, read);
+            if let Some((masks, view)) = &rq.masks {
+                let texel = Access::ComputeShaderReadUniformTexelBuffer;
+                bound.push((RAYS_BVH_MASKS, Bound::TexelBuffer(pass.read(masks, texel), *view)));
+            }
         }
         bound.push((RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))));
         let push = UVec4::new(count, 0, 0, 0);

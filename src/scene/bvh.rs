@@ -12,6 +12,7 @@ use obvhs::triangle::Triangle;
 
 use super::Scene;
 
+pub mod mask;
 mod ploc;
 mod ray_offset;
 pub mod wide;
@@ -29,6 +30,9 @@ pub struct ShadowBvh {
     /// The input triangles in input order, indexed through `reference.primitive_indices`.
     reference_triangles: Vec<Triangle>,
     wide: WideBvh,
+    /// The alpha masks of masked casters, in `wide`'s triangle order; `None` in scenes without
+    /// alpha-masked casters.
+    masks: Option<mask::BvhMasks>,
     triangle_count: usize,
     depth: usize,
 }
@@ -54,8 +58,21 @@ pub fn caster_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
 impl ShadowBvh {
     /// Builds over the world-space triangles of every mesh with `cast_shadows`. Triangles with
     /// non-finite vertices are skipped: they would poison the bounding boxes.
+    /// Alpha-masked casters keep their masks (`masks`).
     pub fn build(scene: &Scene) -> ShadowBvh {
-        ShadowBvh::from_triangles(&caster_triangles(scene))
+        let mut bvh = ShadowBvh::from_triangles(&caster_triangles(scene));
+        if !bvh.is_empty() {
+            if let Some(source) = mask::caster_masks(scene) {
+                bvh.masks = Some(mask::BvhMasks::new(&source, &bvh.wide.order));
+            }
+        }
+        bvh
+    }
+
+    /// The alpha masks of the scene's masked casters (`None` when it has none): the traced
+    /// shadow rays then take the shaders' masked variant.
+    pub fn masks(&self) -> Option<&mask::BvhMasks> {
+        self.masks.as_ref()
     }
 
     pub fn from_triangles(tris: &[[Vec3; 3]]) -> ShadowBvh {
@@ -104,7 +121,7 @@ impl ShadowBvh {
         let start = std::time::Instant::now();
         let wide = WideBvh::from_bvh2(&reference, tris);
         log::debug!("BVH 4-wide collapse: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
-        ShadowBvh { reference, reference_triangles, wide, triangle_count: tris.len(), depth }
+        ShadowBvh { reference, reference_triangles, wide, masks: None, triangle_count: tris.len(), depth }
     }
 
     /// Shadow-casting triangles in the BVH (the dummy triangle of an empty BVH not counted).
@@ -148,8 +165,9 @@ impl ShadowBvh {
 
     /// Any-hit shadow query over the GPU arrays, a line-for-line twin of `bvh_occluded` in
     /// bvh.glsl: true when some triangle (either face) is hit at t in (0, tmax).
+    /// Alpha masks apply where the scene has them.
     pub fn occluded_gpu_layout(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        self.wide.occluded(origin, dir, tmax)
+        self.wide.occluded_masked(self.masks.as_ref(), origin, dir, tmax)
     }
 
     /// The same query through obvhs's own Bvh2 traversal and triangle test: the independent

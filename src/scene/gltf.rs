@@ -17,7 +17,7 @@ use super::{tangents, Camera, Light, Material};
 
 /// Extensions whose data umbra reads. A file that requires any other is refused by name;
 /// one that only uses another is loaded without it, with a notice.
-const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_lights_punctual"];
+const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_lights_punctual", "KHR_texture_transform"];
 
 /// Lumens per watt used to turn glTF's photometric light units (candela for point and spot
 /// lights, lux for directional ones) into umbra's radiometric ones (W/sr, W/m^2): 683 lm/W, the
@@ -68,6 +68,13 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
             return Err(GltfError::Parse(format!("requires the extension {ext}, which umbra does not support")));
         }
     }
+    // The JSON as written, for what the crate does not expose (KHR_texture_transform on normal
+    // and occlusion textures).
+    let raw: serde_json::Value = match binary {
+        true => gltf::binary::Glb::from_slice(&bytes).ok().and_then(|glb| serde_json::from_slice(&glb.json).ok()),
+        false => serde_json::from_slice(&bytes).ok(),
+    }
+    .unwrap_or_default();
     let gltf::Gltf { document, blob } = gltf;
     let document = gltf::Document::from_json(document.into_json()).map_err(parse)?;
     let name = file_name(path);
@@ -86,7 +93,8 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
     let mut primitives = Vec::new();
     let mut first_primitive = Vec::new();
     let mut skipped_modes = 0;
-    let mut maps = MaterialMaps { file: path, name: &name, buffers: &buffers, cache: textures, read: Vec::new() };
+    let mut maps =
+        MaterialMaps { file: path, name: &name, buffers: &buffers, cache: textures, raw: &raw, read: Vec::new() };
     for mesh in document.meshes() {
         first_primitive.push(primitives.len());
         for primitive in mesh.primitives() {
@@ -184,6 +192,9 @@ fn read_buffers(
                 files.push(file);
                 gltf::buffer::Data(bytes)
             }
+            gltf::buffer::Source::Uri(uri) => gltf::buffer::Data(
+                data_uri(uri).map_err(|reason| GltfError::Parse(format!("buffer {index}: {reason}")))?,
+            ),
             source => gltf::buffer::Data::from_source_and_blob(source, Some(base), &mut blob)
                 .map_err(|e| GltfError::Parse(format!("buffer {index}: {}", one_line(&e.to_string()))))?,
         };
@@ -277,7 +288,7 @@ fn read_primitive(
     let gltf_material = primitive.material();
     let material = Some(material(&gltf_material));
     let mut surface = ObjectSurface::default();
-    if let Some((textures, set)) = maps.of(&gltf_material) {
+    if let Some((textures, set)) = maps.of(&gltf_material)? {
         let uvs = reader.read_tex_coords(set).map(|uv| uv.into_f32().map(glam::Vec2::from).collect::<Vec<_>>());
         // Without texture coordinates there is nothing to map: the constants stay (emission
         // from its factor alone reads no texel: zero coordinates do).
@@ -296,7 +307,8 @@ fn read_primitive(
             };
         }
     }
-    let mut object_mesh = ObjectMesh { name, positions, normals, indices, material, surface };
+    let double_sided = gltf_material.double_sided();
+    let mut object_mesh = ObjectMesh { name, positions, normals, indices, material, surface, double_sided };
     let needs_tangents = object_mesh.surface.textures.as_ref().is_some_and(|t| t.normal.is_some());
     if needs_tangents && object_mesh.surface.tangents.is_none() && !tangents::generate(&mut object_mesh) {
         log::warn!(
@@ -316,15 +328,18 @@ struct MaterialMaps<'a> {
     name: &'a str,
     buffers: &'a [gltf::buffer::Data],
     cache: &'a mut TextureCache,
+    /// The file's JSON, for KHR_texture_transform.
+    raw: &'a serde_json::Value,
     /// By material index: its textures and the texture coordinate set they use.
     read: Vec<(Option<usize>, Option<MaterialRead>)>,
 }
 
 impl MaterialMaps<'_> {
-    /// The textures of `material` (None when it has none that umbra reads).
-    fn of(&mut self, material: &gltf::Material) -> Option<MaterialRead> {
+    /// The textures of `material` (None when it has none that umbra reads); an error for an
+    /// image whose data URI is malformed.
+    fn of(&mut self, material: &gltf::Material) -> Result<Option<MaterialRead>, String> {
         if let Some((_, found)) = self.read.iter().find(|(i, _)| *i == material.index()) {
-            return found.clone();
+            return Ok(found.clone());
         }
         let label = format!(
             "{}: material {}",
@@ -333,24 +348,68 @@ impl MaterialMaps<'_> {
         );
         let pbr = material.pbr_metallic_roughness();
         let mut sets = Vec::new();
-        let mut texture = |info: Option<(gltf::Texture, u32)>, srgb: bool, sets: &mut Vec<u32>| {
-            let (texture, set) = info?;
+        let mut uv_transforms = super::UvTransforms::default();
+        // Each texture reference's KHR_texture_transform (its JSON under the material at `slot`),
+        // whose texCoord overrides the reference's.
+        let json = material.index().and_then(|i| self.raw.get("materials")?.get(i)).cloned().unwrap_or_default();
+        let mut texture = |info: Option<(gltf::Texture, u32)>,
+                           slot: &[&str],
+                           srgb: bool,
+                           sets: &mut Vec<u32>,
+                           transform: &mut super::UvTransform|
+         -> Result<Option<std::sync::Arc<super::Texture>>, String> {
+            let Some((texture, mut set)) = info else { return Ok(None) };
+            let reference = slot.iter().try_fold(&json, |v, key| v.get(key));
+            if let Some(ext) = reference.and_then(|r| r.get("extensions")?.get("KHR_texture_transform")) {
+                match texture_transform(ext) {
+                    Ok((t, tex_coord)) => {
+                        *transform = t;
+                        set = tex_coord.unwrap_or(set);
+                    }
+                    Err(reason) => {
+                        log::warn!("{label}: {}'s KHR_texture_transform {reason}; it is ignored", slot.join("."))
+                    }
+                }
+            }
             sets.push(set);
             self.image(&texture.source(), srgb, &label)
         };
-        let base_color = texture(pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
-        let metal_rough =
-            texture(pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())), false, &mut sets);
-        let normal = material.normal_texture().and_then(|n| {
-            let scale = n.scale();
-            texture(Some((n.texture(), n.tex_coord())), false, &mut sets).map(|t| (t, scale))
-        });
-        let occlusion = material.occlusion_texture().and_then(|o| {
-            let strength = o.strength();
-            let texture = texture(Some((o.texture(), o.tex_coord())), false, &mut sets)?;
-            Some((ChannelMap { texture, channel: 0 }, strength.clamp(0.0, 1.0)))
-        });
-        let emission_map = texture(material.emissive_texture().map(|i| (i.texture(), i.tex_coord())), true, &mut sets);
+        let base_color = texture(
+            pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord())),
+            &["pbrMetallicRoughness", "baseColorTexture"],
+            true,
+            &mut sets,
+            &mut uv_transforms.base_color,
+        )?;
+        let metal_rough = texture(
+            pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())),
+            &["pbrMetallicRoughness", "metallicRoughnessTexture"],
+            false,
+            &mut sets,
+            &mut uv_transforms.metal_rough,
+        )?;
+        let normal = match material.normal_texture() {
+            Some(n) => {
+                let info = Some((n.texture(), n.tex_coord()));
+                texture(info, &["normalTexture"], false, &mut sets, &mut uv_transforms.normal)?.map(|t| (t, n.scale()))
+            }
+            None => None,
+        };
+        let occlusion = match material.occlusion_texture() {
+            Some(o) => {
+                let info = Some((o.texture(), o.tex_coord()));
+                let map = texture(info, &["occlusionTexture"], false, &mut sets, &mut uv_transforms.occlusion)?;
+                map.map(|texture| (ChannelMap { texture, channel: 0 }, o.strength().clamp(0.0, 1.0)))
+            }
+            None => None,
+        };
+        let emission_map = texture(
+            material.emissive_texture().map(|i| (i.texture(), i.tex_coord())),
+            &["emissiveTexture"],
+            true,
+            &mut sets,
+            &mut uv_transforms.emission,
+        )?;
         let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO);
         let [.., alpha] = pbr.base_color_factor();
         let alpha_mask = match material.alpha_mode() {
@@ -366,6 +425,7 @@ impl MaterialMaps<'_> {
         };
         let textures = MaterialTextures {
             alpha_mask,
+            uv_transforms,
             emission: if emission.is_finite() { emission } else { glam::Vec3::ZERO },
             emission_map,
             occlusion,
@@ -381,11 +441,18 @@ impl MaterialMaps<'_> {
         }
         let found = (!textures.is_empty()).then(|| (std::sync::Arc::new(textures), set));
         self.read.push((material.index(), found.clone()));
-        found
+        Ok(found)
     }
 
-    fn image(&mut self, image: &gltf::Image, srgb: bool, label: &str) -> Option<std::sync::Arc<super::Texture>> {
-        match image.source() {
+    /// The texture of `image`: `None` (with a warning) where its bytes cannot be decoded; an error
+    /// where its data URI is malformed (the file itself is then broken).
+    fn image(
+        &mut self,
+        image: &gltf::Image,
+        srgb: bool,
+        label: &str,
+    ) -> Result<Option<std::sync::Arc<super::Texture>>, String> {
+        Ok(match image.source() {
             gltf::image::Source::View { view, .. } => {
                 let key = self.file.join(format!("#image{}", image.index()));
                 let name = format!("image {}", image.index());
@@ -399,15 +466,62 @@ impl MaterialMaps<'_> {
                 }
             }
             gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
-                log::warn!("{label}: an image in a data URI is not read yet; the material's constant is used instead");
-                None
+                let bytes = data_uri(uri).map_err(|reason| format!("image {}: {reason}", image.index()))?;
+                let key = self.file.join(format!("#image{}", image.index()));
+                let name = format!("image {} (data URI)", image.index());
+                self.cache.get_bytes(&key, &bytes, &name, srgb, label)
             }
             gltf::image::Source::Uri { uri, .. } => {
                 let file = self.file.parent().unwrap_or(Path::new("")).join(uri);
                 self.cache.get(&file, uri, srgb, label)
             }
-        }
+        })
     }
+}
+
+/// The bytes of a base64 data URI (`data:[<media type>];base64,<data>`), or what is wrong with
+/// it. The glTF crate decodes buffers' data URIs the same way (`read_buffers`).
+fn data_uri(uri: &str) -> Result<Vec<u8>, String> {
+    let rest = uri.strip_prefix("data:").ok_or("not a data URI")?;
+    if !rest.contains(";base64,") {
+        return Err("its data URI is not base64 (`data:<media type>;base64,<data>`)".to_owned());
+    }
+    let mut none = None;
+    gltf::buffer::Data::from_source_and_blob(gltf::buffer::Source::Uri(uri), Some(Path::new("")), &mut none)
+        .map(|data| data.0)
+        .map_err(|e| format!("malformed data URI: {}", one_line(&e.to_string())))
+}
+
+/// A KHR_texture_transform object: its transform and texCoord override, or what is wrong with it.
+fn texture_transform(ext: &serde_json::Value) -> Result<(super::UvTransform, Option<u32>), String> {
+    let pair = |key: &str, default: [f32; 2]| -> Result<[f32; 2], String> {
+        match ext.get(key) {
+            None => Ok(default),
+            Some(v) => {
+                let a = v.as_array().filter(|a| a.len() == 2);
+                let xy = a.and_then(|a| Some([a[0].as_f64()? as f32, a[1].as_f64()? as f32]));
+                xy.filter(|xy| xy.iter().all(|c| c.is_finite()))
+                    .ok_or_else(|| format!("has a `{key}` that is not two finite numbers"))
+            }
+        }
+    };
+    let offset = pair("offset", [0.0, 0.0])?;
+    let scale = pair("scale", [1.0, 1.0])?;
+    let rotation = match ext.get("rotation") {
+        None => 0.0,
+        Some(v) => v
+            .as_f64()
+            .map(|r| r as f32)
+            .filter(|r| r.is_finite())
+            .ok_or("has a `rotation` that is not a finite number")?,
+    };
+    let tex_coord = match ext.get("texCoord") {
+        None => None,
+        Some(v) => {
+            Some(v.as_u64().and_then(|c| u32::try_from(c).ok()).ok_or("has a `texCoord` that is not a set index")?)
+        }
+    };
+    Ok((super::UvTransform::from_khr(offset, rotation, scale), tex_coord))
 }
 
 /// The metallic-roughness factors (textures multiply them: `MaterialMaps`).

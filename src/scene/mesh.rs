@@ -20,6 +20,8 @@ pub(super) struct ObjectMesh {
     /// From the MTL file, before the scene's overrides.
     pub material: Option<Material>,
     pub surface: ObjectSurface,
+    /// glTF `doubleSided`: both faces are drawn (see `Mesh::double_sided`).
+    pub double_sided: bool,
 }
 
 /// What a textured mesh has beside its geometry; empty (the default) for a mesh without
@@ -148,6 +150,7 @@ pub(super) fn place(
         cast_shadows,
         instance: None,
         surface,
+        double_sided: mesh.double_sided,
     })
 }
 
@@ -237,6 +240,7 @@ mod tests {
             indices: vec![0, 1, 2, 0, 2, 3],
             material: None,
             surface: Default::default(),
+            double_sided: false,
         }
     }
 

@@ -26,7 +26,10 @@ pub use error::SceneError;
 pub use gltf::LUMENS_PER_WATT;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 pub use local::MAX_LOCAL_DISTANCE;
-pub use texture::{mip_chain as texture_mip_chain, srgb_to_linear, AlphaMask, ChannelMap, MaterialTextures, Texture};
+pub use texture::{
+    mip_chain as texture_mip_chain, srgb_to_linear, AlphaMask, ChannelMap, MaterialTextures, Texture, UvTransform,
+    UvTransforms,
+};
 
 /// Pinhole camera. `vfov_deg` is the full vertical field of view. Points are in f64, like every
 /// world position (see `Mesh`); the renderer rounds them to f32 only in its scene-local frame.
@@ -152,6 +155,9 @@ pub struct Mesh {
     pub instance: Option<Instance>,
     /// Texture coordinates, tangents and textures, for a mesh whose material has textures.
     pub surface: Option<MeshSurface>,
+    /// Both faces are drawn, a back face with its normals turned toward the viewer (glTF
+    /// `doubleSided`); otherwise back faces are culled (glTF's default, and every other source's).
+    pub double_sided: bool,
 }
 
 /// Per vertex (parallel to `Mesh::positions`): texture coordinates, and with a normal map the

@@ -100,6 +100,7 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
                 indices: mesh.indices,
                 material: mtl.map(|m| textured_constants(convert_material(m), surface.textures.as_deref())),
                 surface,
+                double_sided: false,
             };
             let normal_map = object_mesh.surface.textures.as_ref().is_some_and(|t| t.normal.is_some());
             if normal_map && !tangents::generate(&mut object_mesh) {
@@ -330,6 +331,7 @@ fn texture_maps(mtl: &tobj::Material, dir: &Path, cache: &mut TextureCache, labe
     let occlusion = rma.clone().map(|texture| (ChannelMap { texture, channel: 2 }, 1.0));
     MaterialTextures {
         alpha_mask: None,
+        uv_transforms: Default::default(),
         emission,
         emission_map,
         occlusion,

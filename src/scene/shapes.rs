@@ -48,6 +48,7 @@ pub(super) fn plane(size: f64, segments: u32) -> ObjectMesh {
         indices,
         material: None,
         surface: Default::default(),
+        double_sided: false,
     }
 }
 
@@ -81,6 +82,7 @@ pub(super) fn cube(size: f64) -> ObjectMesh {
         indices,
         material: None,
         surface: Default::default(),
+        double_sided: false,
     }
 }
 
@@ -132,6 +134,7 @@ pub(super) fn sphere(radius: f64, segments: u32) -> ObjectMesh {
         indices,
         material: None,
         surface: Default::default(),
+        double_sided: false,
     }
 }
 

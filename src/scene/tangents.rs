@@ -111,6 +111,7 @@ mod tests {
                     ]),
                     ..Default::default()
                 },
+                double_sided: false,
             };
             assert!(generate(&mut mesh));
             assert_eq!(mesh.positions.len(), 6);

@@ -54,6 +54,59 @@ pub struct MaterialTextures {
     /// base colour alpha (texture alpha times `factor`) is below `cutoff` is not drawn, in the
     /// G-buffer and in shadow maps.
     pub alpha_mask: Option<AlphaMask>,
+    /// Each map's texture-coordinate transform (glTF KHR_texture_transform), identity unless the
+    /// file gives one.
+    pub uv_transforms: UvTransforms,
+}
+
+/// An affine map of texture coordinates: `uv' = (rows[0] . (u, v, 1), rows[1] . (u, v, 1))`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct UvTransform {
+    pub rows: [[f32; 3]; 2],
+}
+
+impl Default for UvTransform {
+    fn default() -> Self {
+        UvTransform::IDENTITY
+    }
+}
+
+impl UvTransform {
+    pub const IDENTITY: UvTransform = UvTransform { rows: [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] };
+
+    /// KHR_texture_transform's `translation * rotation * scale` (rotation counter-clockwise in
+    /// texture space, radians): `u' = sx cos r u + sy sin r v + ox`, `v' = -sx sin r u + sy cos r v
+    /// + oy`.
+    pub fn from_khr(offset: [f32; 2], rotation: f32, scale: [f32; 2]) -> UvTransform {
+        let (sin, cos) = rotation.sin_cos();
+        UvTransform {
+            rows: [[scale[0] * cos, scale[1] * sin, offset[0]], [-scale[0] * sin, scale[1] * cos, offset[1]]],
+        }
+    }
+
+    /// The transformed coordinates, as the shaders compute them.
+    pub fn apply(&self, uv: glam::Vec2) -> glam::Vec2 {
+        let [a, b] = self.rows;
+        glam::Vec2::new(a[0] * uv.x + a[1] * uv.y + a[2], b[0] * uv.x + b[1] * uv.y + b[2])
+    }
+}
+
+/// A material's texture-coordinate transforms, one per map it can have (the roughness and
+/// metallic maps share glTF's metallicRoughnessTexture, so its transform).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct UvTransforms {
+    pub base_color: UvTransform,
+    pub metal_rough: UvTransform,
+    pub normal: UvTransform,
+    pub occlusion: UvTransform,
+    pub emission: UvTransform,
+}
+
+impl UvTransforms {
+    /// In the order of `material_constants.glsl`'s `uv_transform` pairs.
+    pub fn in_order(&self) -> [UvTransform; 5] {
+        [self.base_color, self.metal_rough, self.normal, self.occlusion, self.emission]
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -269,7 +269,7 @@ impl Pipelines {
         let hybrid = match plan.hybrid.is_empty() {
             true => None,
             false => {
-                let pipelines = crate::vk::get_or_make(&self.hybrid, || hybrid::pipelines(ctx))?;
+                let pipelines = crate::vk::get_or_make(&self.hybrid, || hybrid::pipelines(ctx, scene.bvh.masked()))?;
                 if debug_view.is_some_and(|v| matches!(v, DebugView::Hybrid(_))) {
                     pipelines.prepare_view()?;
                 }

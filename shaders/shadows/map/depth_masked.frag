@@ -10,6 +10,10 @@ layout(set = 1, binding = MATERIAL_BASE_COLOR) uniform sampler2D material_base_c
 
 void main() {
     // As geometry_body.glsl: the footprint kept off zero for lavapipe's anisotropic filter.
-    vec4 base_color = textureGrad(material_base_color, in_uv, dFdx(in_uv) + vec2(1e-6, 0.0), dFdy(in_uv) + vec2(0.0, 1e-6));
+    // Through the base colour's texture-coordinate transform, as there.
+    vec2 dx = dFdx(in_uv) + vec2(1e-6, 0.0);
+    vec2 dy = dFdy(in_uv) + vec2(0.0, 1e-6);
+    vec4 base_color = textureGrad(material_base_color, material_uv(UV_OF_BASE_COLOR, in_uv),
+                                  material_uv_delta(UV_OF_BASE_COLOR, dx), material_uv_delta(UV_OF_BASE_COLOR, dy));
     if (base_color.a * material_constants.alpha.x < material_constants.alpha.y) discard;
 }

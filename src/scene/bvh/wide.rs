@@ -209,6 +209,12 @@ impl WideBvh {
     /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` (whose comments explain the walk):
     /// true when a triangle (either face) lies on `origin + t dir` for t in (0, tmax).
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.occluded_masked(None, origin, dir, tmax)
+    }
+
+    /// `occluded` with `masks` (of this tree's triangles) applied as bvh.glsl's BVH_MASKED
+    /// variant applies them: a hit where a masked triangle's alpha is below its cutoff is none.
+    pub fn occluded_masked(&self, masks: Option<&super::mask::BvhMasks>, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         let inv_dir = Vec3::ONE / safe_dir(dir);
         let mut stack = [0u32; STACK_SIZE];
         let mut len = 0usize;
@@ -217,7 +223,13 @@ impl WideBvh {
         let (mut leaf_next, mut leaf_left) = (0u32, 0u32);
         loop {
             if leaf_left > 0 {
-                if triangle_occludes(&self.triangles[leaf_next as usize], origin, dir, tmax) {
+                let triangle = &self.triangles[leaf_next as usize];
+                let hit = match masks {
+                    None => triangle_occludes(triangle, origin, dir, tmax),
+                    Some(masks) => super::mask::triangle_hit(triangle, origin, dir, tmax)
+                        .is_some_and(|(u, v)| !masks.passes(leaf_next, u, v)),
+                };
+                if hit {
                     return true;
                 }
                 leaf_next += 1;

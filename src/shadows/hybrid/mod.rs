@@ -46,7 +46,8 @@ struct ClassifyPush {
     params: Vec4,
 }
 
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
+/// `masked`: the scene has alpha-masked casters (the list trace takes its masked variant).
+pub fn pipelines(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<Pipelines> {
     let classify = ComputePipeline::new(
         ctx,
         "hybrid classify",
@@ -65,7 +66,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
         std::mem::size_of::<ClassifyPush>() as u32,
         TILE,
     )?;
-    let trace = traced::list_pipeline(ctx, LIST_GROUP)?;
+    let trace = traced::list_pipeline(ctx, LIST_GROUP, masked)?;
     Ok(Pipelines { classify, trace, view: OnceLock::new(), ctx: ctx.clone() })
 }
 
@@ -223,17 +224,16 @@ fn trace<'a>(
     pass.read_layer(target, served.layer, Access::ComputeShaderReadStorageImage);
     let read = Access::ComputeShaderReadSampledImage;
     let storage_read = Access::ComputeShaderReadStorageBuffer;
-    let [bvh_nodes, bvh_triangles] = bvh.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES);
-    let bound = [
+    let walk = bvh.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES, SHADOW_BVH_MASKS);
+    let mut bound = vec![
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, storage_read))),
-        bvh_nodes,
-        bvh_triangles,
         (SHADOW_LIST, Bound::Buffer(pass.read(list, storage_read))),
         (SHADOW_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
     ];
+    bound.extend(walk);
     let dispatch = pass.read(args, Access::IndirectCommandRead);
     let light = &frame.scene.local_lights[served.light as usize];
     let push = traced::push_constants(extent, frame.frame_index, served, traced::rays(served, light));

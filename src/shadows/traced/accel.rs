@@ -58,7 +58,12 @@ pub struct RayQueryScene {
     bottom: Structure,
     positions: Buffer,
     instances: Buffer,
-    triangles: u32,
+    /// Triangles of the bottom level's geometries: the opaque casters, then (in a scene with
+    /// alpha-masked casters) the masked ones, non-opaque so their candidates reach the shader.
+    counts: Vec<(u32, bool)>,
+    /// The masked casters' alpha masks in the second geometry's primitive order (the layout of
+    /// `crate::scene::bvh::mask`); `None` without masked casters.
+    masks: Option<crate::vk::TexelBuffer>,
     bottom_scratch: u64,
     top_scratch: u64,
     scratch_alignment: u64,
@@ -71,11 +76,24 @@ pub struct RayQueryHandles {
     pub top: Handle<BufferKind>,
     pub bottom: Handle<BufferKind>,
     pub top_raw: vk::AccelerationStructureKHR,
+    /// The alpha masks, in scenes with masked casters (bound by the passes' masked variants).
+    pub masks: Option<(Handle<BufferKind>, vk::BufferView)>,
 }
 
 impl RayQueryScene {
     /// Creates (but does not build) the structures over `triangles`, which must not be empty.
     pub fn new(ctx: &Arc<GpuContext>, triangles: &[[Vec3; 3]]) -> GpuResult<RayQueryScene> {
+        RayQueryScene::with_masks(ctx, triangles, None)
+    }
+
+    /// As `new`, with `masks` (per triangle of `triangles`, `caster_masks`' answer): masked
+    /// triangles go in a second, non-opaque geometry whose candidates the shaders' masked
+    /// variants test against their alpha masks.
+    pub fn with_masks(
+        ctx: &Arc<GpuContext>,
+        triangles: &[[Vec3; 3]],
+        masks: Option<&crate::scene::bvh::mask::MaskSource>,
+    ) -> GpuResult<RayQueryScene> {
         if !ctx.capabilities.ray_query {
             return Err(GpuError::Unsupported(format!(
                 "the ray-query shadow backend needs VK_KHR_acceleration_structure and VK_KHR_ray_query, which {} \
@@ -88,14 +106,33 @@ impl RayQueryScene {
         let loader = ctx.acceleration_structure.clone().expect("ray query is enabled");
         let count = u32::try_from(triangles.len())
             .map_err(|_| GpuError::Unsupported(format!("{} shadow casters exceed one BLAS", triangles.len())))?;
-        let flat: Vec<[f32; 3]> = triangles.iter().flatten().map(|v| v.to_array()).collect();
+        // Opaque casters first, then the masked ones (their input indices in `masked`).
+        let is_masked = |i: usize| masks.is_some_and(|m| m.triangles.get(i).is_some_and(|t| t.is_some()));
+        let masked: Vec<u32> = (0..triangles.len()).filter(|&i| is_masked(i)).map(|i| i as u32).collect();
+        let order = (0..triangles.len()).filter(|&i| !is_masked(i)).chain(masked.iter().map(|&i| i as usize));
+        let flat: Vec<[f32; 3]> = order.flat_map(|i| triangles[i]).map(|v| v.to_array()).collect();
+        let counts: Vec<(u32, bool)> = [(count - masked.len() as u32, true), (masked.len() as u32, false)]
+            .into_iter()
+            .filter(|c| c.0 > 0)
+            .collect();
         let input = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
         let [positions] = crate::gpu_scene::upload(ctx, [("caster positions", bytemuck::cast_slice(&flat), input)])?;
+        let masks = match masks.filter(|_| !masked.is_empty()) {
+            Some(source) => {
+                let texels = crate::scene::bvh::mask::BvhMasks::new(source, &masked).texels;
+                let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+                let [buffer] =
+                    crate::gpu_scene::upload(ctx, [("ray-query alpha masks", bytemuck::cast_slice(&texels), texel)])?;
+                Some(crate::vk::TexelBuffer::new(ctx, buffer, vk::Format::R32G32B32A32_UINT)?)
+            }
+            None => None,
+        };
         // The instance's reference is filled once the bottom level exists; a placeholder sizes
         // the top level, whose size does not depend on it.
-        let geometry = [bottom_geometry(positions.device_address(), count)];
-        let bottom_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, &geometry, count);
+        let geometry = bottom_geometries(positions.device_address(), &counts);
+        let primitives: Vec<u32> = counts.iter().map(|c| c.0).collect();
+        let bottom_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL, &geometry, &primitives);
         let bottom = Structure::new(
             ctx,
             "BLAS",
@@ -120,7 +157,7 @@ impl RayQueryScene {
         };
         let [instances] = crate::gpu_scene::upload(ctx, [("TLAS instances", instance_bytes, input)])?;
         let top_geometry = [top_geometry(instances.device_address())];
-        let top_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &top_geometry, 1);
+        let top_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &top_geometry, &[1]);
         let top = Structure::new(
             ctx,
             "TLAS",
@@ -142,12 +179,18 @@ impl RayQueryScene {
             bottom,
             positions,
             instances,
-            triangles: count,
+            counts,
+            masks,
             bottom_scratch: bottom_sizes.build_scratch_size,
             top_scratch: top_sizes.build_scratch_size,
             scratch_alignment: u64::from(accel_props.min_acceleration_structure_scratch_offset_alignment).max(1),
             built: AtomicBool::new(false),
         })
+    }
+
+    /// Whether the scene has alpha-masked casters (the passes then take their masked variant).
+    pub fn masked(&self) -> bool {
+        self.masks.is_some()
     }
 
     /// GPU bytes the structures take (not counting their build inputs and scratch).
@@ -158,12 +201,17 @@ impl RayQueryScene {
     /// Imports the structures into `g`; on the first frame, adds the passes that build them.
     pub fn add<'a>(&'a self, g: &mut RenderGraph<'a>) -> RayQueryHandles {
         let read = Access::ComputeShaderReadAccelerationStructure;
+        let masks = self
+            .masks
+            .as_ref()
+            .map(|m| (g.import_buffer("ray-query alpha masks", &m.buffer, crate::gpu_scene::SCENE_ACCESS), m.view));
         if self.built.load(Ordering::Acquire) {
             // Built by an earlier frame, whose shadow pass already made them visible to rays.
             return RayQueryHandles {
                 top: g.import_buffer("TLAS", &self.top.buffer, read),
                 bottom: g.import_buffer("BLAS", &self.bottom.buffer, read),
                 top_raw: self.top.raw,
+                masks,
             };
         }
         let positions = g.import_buffer("caster positions", &self.positions, crate::gpu_scene::SCENE_ACCESS);
@@ -179,16 +227,17 @@ impl RayQueryScene {
         let scratch_ref = pass.write(&mut scratch, Access::AccelerationStructureBuildScratch);
         let _ = pass.write(&mut bottom, Access::AccelerationStructureBuildWrite);
         let (loader, align) = (self.bottom.loader.clone(), self.scratch_alignment);
-        let (positions_address, count, dst) = (self.positions.device_address(), self.triangles, self.bottom.raw);
+        let (positions_address, counts, dst) = (self.positions.device_address(), self.counts.clone(), self.bottom.raw);
         pass.render(move |pctx| {
             let scratch = align_up(buffer_address(pctx.device, pctx.buffer(scratch_ref)), align);
-            let geometry = [bottom_geometry(positions_address, count)];
+            let geometry = bottom_geometries(positions_address, &counts);
+            let primitives: Vec<u32> = counts.iter().map(|c| c.0).collect();
             record_build(
                 pctx.cmd,
                 &loader,
                 vk::AccelerationStructureTypeKHR::BOTTOM_LEVEL,
                 &geometry,
-                count,
+                &primitives,
                 dst,
                 scratch,
             );
@@ -205,10 +254,10 @@ impl RayQueryScene {
         pass.render(move |pctx| {
             let scratch = align_up(buffer_address(pctx.device, pctx.buffer(scratch_ref)), align);
             let geometry = [top_geometry(instances_address)];
-            record_build(pctx.cmd, &loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &geometry, 1, dst, scratch);
+            record_build(pctx.cmd, &loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &geometry, &[1], dst, scratch);
             Ok(())
         });
-        RayQueryHandles { top, bottom, top_raw: self.top.raw }
+        RayQueryHandles { top, bottom, top_raw: self.top.raw, masks }
     }
 
     /// After a frame from `add` was recorded: remembers whether it built the structures (its
@@ -230,18 +279,33 @@ fn buffer_address(device: &ash::Device, buffer: vk::Buffer) -> vk::DeviceAddress
     unsafe { device.get_buffer_device_address(&vk::BufferDeviceAddressInfo::default().buffer(buffer)) }
 }
 
-fn bottom_geometry(positions: vk::DeviceAddress, count: u32) -> vk::AccelerationStructureGeometryKHR<'static> {
-    let triangles = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
-        .vertex_format(vk::Format::R32G32B32_SFLOAT)
-        .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: positions })
-        .vertex_stride(12)
-        .max_vertex(count * 3 - 1)
-        .index_type(vk::IndexType::NONE_KHR);
-    vk::AccelerationStructureGeometryKHR::default()
-        .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
-        .geometry(vk::AccelerationStructureGeometryDataKHR { triangles })
-        // Opaque: any hit ends the ray without a candidate reaching the shader.
-        .flags(vk::GeometryFlagsKHR::OPAQUE)
+/// One geometry per `(triangles, opaque)` of `counts`, each reading its triangles where the
+/// one before it ends in `positions`.
+fn bottom_geometries(
+    positions: vk::DeviceAddress,
+    counts: &[(u32, bool)],
+) -> Vec<vk::AccelerationStructureGeometryKHR<'static>> {
+    let mut first = 0u64;
+    let mut out = Vec::new();
+    for &(count, opaque) in counts {
+        let triangles = vk::AccelerationStructureGeometryTrianglesDataKHR::default()
+            .vertex_format(vk::Format::R32G32B32_SFLOAT)
+            .vertex_data(vk::DeviceOrHostAddressConstKHR { device_address: positions + first * 36 })
+            .vertex_stride(12)
+            .max_vertex(count * 3 - 1)
+            .index_type(vk::IndexType::NONE_KHR);
+        // Opaque: any hit ends the ray without a candidate reaching the shader. Masked casters'
+        // candidates reach it, which tests their alpha.
+        let flags = if opaque { vk::GeometryFlagsKHR::OPAQUE } else { vk::GeometryFlagsKHR::empty() };
+        out.push(
+            vk::AccelerationStructureGeometryKHR::default()
+                .geometry_type(vk::GeometryTypeKHR::TRIANGLES)
+                .geometry(vk::AccelerationStructureGeometryDataKHR { triangles })
+                .flags(flags),
+        );
+        first += u64::from(count);
+    }
+    out
 }
 
 fn top_geometry(instances: vk::DeviceAddress) -> vk::AccelerationStructureGeometryKHR<'static> {
@@ -268,7 +332,7 @@ fn build_sizes(
     loader: &ash::khr::acceleration_structure::Device,
     ty: vk::AccelerationStructureTypeKHR,
     geometry: &[vk::AccelerationStructureGeometryKHR<'_>],
-    primitives: u32,
+    primitives: &[u32],
 ) -> vk::AccelerationStructureBuildSizesInfoKHR<'static> {
     let mut sizes = vk::AccelerationStructureBuildSizesInfoKHR::default();
     // SAFETY: valid device; the geometry describes what the build will get.
@@ -276,7 +340,7 @@ fn build_sizes(
         loader.get_acceleration_structure_build_sizes(
             vk::AccelerationStructureBuildTypeKHR::DEVICE,
             &build_info(ty, geometry),
-            &[primitives],
+            primitives,
             &mut sizes,
         )
     };
@@ -288,14 +352,15 @@ fn record_build(
     loader: &ash::khr::acceleration_structure::Device,
     ty: vk::AccelerationStructureTypeKHR,
     geometry: &[vk::AccelerationStructureGeometryKHR<'_>],
-    primitives: u32,
+    primitives: &[u32],
     dst: vk::AccelerationStructureKHR,
     scratch: vk::DeviceAddress,
 ) {
     let info = build_info(ty, geometry)
         .dst_acceleration_structure(dst)
         .scratch_data(vk::DeviceOrHostAddressKHR { device_address: scratch });
-    let range = [vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(primitives)];
+    let ranges: Vec<_> =
+        primitives.iter().map(|&p| vk::AccelerationStructureBuildRangeInfoKHR::default().primitive_count(p)).collect();
     // SAFETY: recording state; inputs, destination and scratch are live and ordered by the graph.
-    unsafe { loader.cmd_build_acceleration_structures(cmd, &[info], &[&range]) };
+    unsafe { loader.cmd_build_acceleration_structures(cmd, &[info], &[&ranges]) };
 }

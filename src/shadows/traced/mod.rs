@@ -19,7 +19,8 @@ use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
 
-/// The two traversals' pipelines, each made the first time a frame uses it.
+/// The two traversals' pipelines, each made the first time a frame uses it (the compute one for
+/// the scene's BVH: masked where it has alpha-masked casters, see `pipeline`).
 #[derive(Default)]
 pub struct Pipelines {
     compute: OnceLock<ComputePipeline>,
@@ -27,17 +28,18 @@ pub struct Pipelines {
 }
 
 impl Pipelines {
-    pub fn compute(&self, ctx: &Arc<GpuContext>) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.compute, || pipeline(ctx))
+    pub fn compute(&self, ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.compute, || pipeline(ctx, masked))
     }
 
     /// Only on devices with ray query.
-    pub fn ray_query(&self, ctx: &Arc<GpuContext>) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.ray_query, || ray_query_pipeline(ctx))
+    pub fn ray_query(&self, ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<&ComputePipeline> {
+        crate::vk::get_or_make(&self.ray_query, || ray_query_pipeline(ctx, masked))
     }
 }
 
-/// The compute-BVH trace's bindings (trace.comp and trace_list.comp).
+/// The compute-BVH trace's bindings (trace.comp and trace_list.comp), and `SHADOW_BVH_MASKS` in
+/// their masked variants.
 const BVH_BINDINGS: [(u32, DescriptorKind); 7] = [
     (SHADOW_POSITION, DescriptorKind::SampledImage),
     (SHADOW_NORMAL, DescriptorKind::SampledImage),
@@ -48,42 +50,53 @@ const BVH_BINDINGS: [(u32, DescriptorKind); 7] = [
     (SHADOW_VISIBILITY, DescriptorKind::StorageImage),
 ];
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(ctx, "shadow trace", spirv::SHADOWS_TRACED_TRACE_COMP, &BVH_BINDINGS, 32, TILE)
+/// The bindings of a compute-BVH pass: `bindings`, and the alpha masks at `masks` when `masked`.
+pub fn bvh_bindings(bindings: &[(u32, DescriptorKind)], masks: u32, masked: bool) -> Vec<(u32, DescriptorKind)> {
+    let mut all = bindings.to_vec();
+    if masked {
+        all.push((masks, DescriptorKind::UniformTexelBuffer));
+    }
+    all
+}
+
+/// The trace over the compute BVH; `masked`: the variant that reads alpha masks (bvh.glsl's
+/// BVH_MASKED), for scenes with alpha-masked casters only.
+pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+    let (name, spirv) = match masked {
+        false => ("shadow trace", spirv::SHADOWS_TRACED_TRACE_COMP),
+        true => ("shadow trace (alpha masks)", spirv::SHADOWS_TRACED_TRACE_COMP_MASKED),
+    };
+    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked), 32, TILE)
 }
 
 /// The same rays over the compute BVH for the pixels of a list only (`hybrid`), one
 /// invocation per listed pixel, `list_group` to a workgroup (an indirect dispatch).
-pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32) -> GpuResult<ComputePipeline> {
-    let mut bindings = BVH_BINDINGS.to_vec();
+pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32, masked: bool) -> GpuResult<ComputePipeline> {
+    let mut bindings = bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked);
     bindings.push((SHADOW_LIST, DescriptorKind::StorageBuffer));
-    ComputePipeline::new(
-        ctx,
-        "shadow trace (list)",
-        spirv::SHADOWS_TRACED_TRACE_LIST_COMP,
-        &bindings,
-        32,
-        [list_group, 1],
-    )
+    let (name, spirv) = match masked {
+        false => ("shadow trace (list)", spirv::SHADOWS_TRACED_TRACE_LIST_COMP),
+        true => ("shadow trace (list, alpha masks)", spirv::SHADOWS_TRACED_TRACE_LIST_COMP_MASKED),
+    };
+    ComputePipeline::new(ctx, name, spirv, &bindings, 32, [list_group, 1])
 }
 
 /// The same pass over a top-level acceleration structure; only on devices with ray query.
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "shadow trace (ray query)",
-        spirv::SHADOWS_TRACED_TRACE_RQ_COMP,
-        &[
-            sampled(SHADOW_POSITION),
-            sampled(SHADOW_NORMAL),
-            sampled(SHADOW_SURFACE),
-            storage(SHADOW_LIGHTS),
-            (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
-            storage_image(SHADOW_VISIBILITY),
-        ],
-        32,
-        TILE,
-    )
+/// `masked`: the variant that tests alpha-masked casters' candidates against their masks.
+pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+    let bindings = [
+        sampled(SHADOW_POSITION),
+        sampled(SHADOW_NORMAL),
+        sampled(SHADOW_SURFACE),
+        storage(SHADOW_LIGHTS),
+        (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
+        storage_image(SHADOW_VISIBILITY),
+    ];
+    let (name, spirv) = match masked {
+        false => ("shadow trace (ray query)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP),
+        true => ("shadow trace (ray query, alpha masks)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED),
+    };
+    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&bindings, SHADOW_BVH_MASKS, masked), 32, TILE)
 }
 
 /// What the rays traverse.
@@ -136,12 +149,18 @@ pub fn add<'a>(
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
     match casters {
-        Casters::Bvh(walk) => bound.extend(walk.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES)),
+        Casters::Bvh(walk) => {
+            bound.extend(walk.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES, SHADOW_BVH_MASKS))
+        }
         Casters::RayQuery(rq) => {
             let read = Access::ComputeShaderReadAccelerationStructure;
             bound.push((SHADOW_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));
             // Not bound, but traversed through the top level: its build must be visible too.
             let _ = pass.read(&rq.bottom, read);
+            if let Some((masks, view)) = &rq.masks {
+                let texel = Access::ComputeShaderReadUniformTexelBuffer;
+                bound.push((SHADOW_BVH_MASKS, Bound::TexelBuffer(pass.read(masks, texel), *view)));
+            }
         }
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.

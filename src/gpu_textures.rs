@@ -264,22 +264,7 @@ fn upload_images(ctx: &Arc<GpuContext>, textures: &[Arc<Texture>]) -> GpuResult<
         let desc = ImageDesc { mips: levels.len() as u32, ..ImageDesc::new(format, texture.width, texture.height) };
         let usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
         images.push(Image::new(ctx, "material texture", desc, usage)?);
-        let mut data = Vec::new();
-        let mut copies = Vec::new();
-        for (level, (w, h, texels)) in levels.iter().enumerate() {
-            copies.push(
-                vk::BufferImageCopy::default()
-                    .buffer_offset(data.len() as u64)
-                    .image_subresource(
-                        vk::ImageSubresourceLayers::default()
-                            .aspect_mask(vk::ImageAspectFlags::COLOR)
-                            .mip_level(level as u32)
-                            .layer_count(1),
-                    )
-                    .image_extent(vk::Extent3D { width: *w, height: *h, depth: 1 }),
-            );
-            data.extend_from_slice(texels);
-        }
+        let (data, copies) = mip_uploads(levels.into_iter());
         bytes += data.len() as u64;
         staging.push(Buffer::with_data(ctx, "texture staging", &data, vk::BufferUsageFlags::TRANSFER_SRC)?);
         regions.push(copies);
@@ -339,4 +324,26 @@ pub fn draw_maps(set: usize, textures: &MaterialTextures) -> DrawMaps {
         masked: textures.alpha_mask.is_some(),
         normal_scale: textures.normal.as_ref().map_or(1.0, |(_, s)| *s),
     }
+}
+
+/// The staging bytes of a mip chain (`levels`: width, height and texel bytes, level 0 first)
+/// and the copy of each level into a one-layer colour image.
+pub(crate) fn mip_uploads(levels: impl Iterator<Item = (u32, u32, Vec<u8>)>) -> (Vec<u8>, Vec<vk::BufferImageCopy>) {
+    let mut data = Vec::new();
+    let mut copies = Vec::new();
+    for (level, (w, h, texels)) in levels.enumerate() {
+        copies.push(
+            vk::BufferImageCopy::default()
+                .buffer_offset(data.len() as u64)
+                .image_subresource(
+                    vk::ImageSubresourceLayers::default()
+                        .aspect_mask(vk::ImageAspectFlags::COLOR)
+                        .mip_level(level as u32)
+                        .layer_count(1),
+                )
+                .image_extent(vk::Extent3D { width: w, height: h, depth: 1 }),
+        );
+        data.extend_from_slice(&texels);
+    }
+    (data, copies)
 }

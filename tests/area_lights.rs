@@ -46,6 +46,15 @@ fn numerical(v: Vec3, material: &Material, cap: &Cap, k: usize) -> DVec3 {
     sum * cap.radiance.as_dvec3()
 }
 
+/// The cosine's integral over `c` over pi (the Lambert share of a unit-radiance cap), by
+/// `numerical` with a white Lambert-only BRDF: umbra's white dielectric minus its black twin.
+fn lambert_share(c: &Cap, k: usize) -> f64 {
+    let unit = Cap { radiance: Vec3::ONE, ..*c };
+    let white = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0 };
+    let black = Material { base_color: Vec3::ZERO, ..white };
+    (numerical(Vec3::Z, &white, &unit, k) - numerical(Vec3::Z, &black, &unit, k)).x
+}
+
 #[test]
 fn the_cap_polygon_has_the_caps_cosine_integral() {
     // Lambert is the cosine itself: the polygon's horizon-clipped form factor against the cap's.
@@ -55,12 +64,7 @@ fn the_cap_polygon_has_the_caps_cosine_integral() {
             let c = cap(half_deg, tilt_deg);
             let (centre, offsets) = ltc::cap_polygon(c.axis, c.one_minus_cos);
             let polygon = f64::from(ltc::cap_form_factor(glam::Mat3::IDENTITY, centre, &offsets).z.abs());
-            let white = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0 };
-            // The diffuse share alone: umbra's Lambert is base_color / pi, radiance 1.
-            let unit = Cap { radiance: Vec3::ONE, ..c };
-            let lambert_only = |m: &Material| numerical(Vec3::Z, m, &unit, 200);
-            let black = Material { base_color: Vec3::ZERO, ..white };
-            let exact = (lambert_only(&white) - lambert_only(&black)).x;
+            let exact = lambert_share(&c, 200);
             if exact < 1e-4 * (1.0 - f64::from(half_deg).to_radians().cos()) {
                 assert!(
                     polygon <= 2e-4 * (1.0 - f64::from(half_deg).to_radians().cos()),
@@ -91,9 +95,7 @@ fn the_caps_diffuse_share_is_exact() {
             let c = Cap { radiance: Vec3::ONE, ..cap(half_deg, tilt_deg) };
             let sin2 = c.one_minus_cos * (2.0 - c.one_minus_cos);
             let closed = f64::from(ltc::cap_diffuse(c.axis.z, sin2));
-            let white = Material { base_color: Vec3::ONE, roughness: 1.0, metallic: 0.0 };
-            let black = Material { base_color: Vec3::ZERO, ..white };
-            let exact = (numerical(Vec3::Z, &white, &c, 300) - numerical(Vec3::Z, &black, &c, 300)).x;
+            let exact = lambert_share(&c, 300);
             // Relative, with a floor of 1 % of the cap's face-on value (f32 at the horizon).
             let error = (closed - exact).abs() / exact.max(1e-2 * f64::from(sin2));
             worst = worst.max(error);

@@ -58,26 +58,12 @@ impl EnvironmentMapGpu {
         let start = std::time::Instant::now();
         let mut levels = vec![(map.width, map.height, map.texels.iter().map(|t| t.extend(1.0).to_array()).collect())];
         levels.extend(map.mip_chain());
-        let mut data: Vec<u8> = Vec::new();
-        let mut copies = Vec::new();
-        for (level, (w, h, texels)) in levels.iter().enumerate() {
-            copies.push(
-                vk::BufferImageCopy::default()
-                    .buffer_offset(data.len() as u64)
-                    .image_subresource(
-                        vk::ImageSubresourceLayers::default()
-                            .aspect_mask(vk::ImageAspectFlags::COLOR)
-                            .mip_level(level as u32)
-                            .layer_count(1),
-                    )
-                    .image_extent(vk::Extent3D { width: *w, height: *h, depth: 1 }),
-            );
-            for t in texels {
-                for v in t {
-                    data.extend_from_slice(&half::f16::from_f32(*v).to_le_bytes());
-                }
-            }
-        }
+        // RGBA16F texels.
+        let half_bytes = |texels: &Vec<[f32; 4]>| -> Vec<u8> {
+            texels.iter().flatten().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()).collect()
+        };
+        let (data, copies) =
+            crate::gpu_textures::mip_uploads(levels.iter().map(|(w, h, texels)| (*w, *h, half_bytes(texels))));
         let staging = Buffer::with_data(ctx, "environment map staging", &data, vk::BufferUsageFlags::TRANSFER_SRC)?;
         let desc = ImageDesc { mips: levels.len() as u32, ..ImageDesc::new(MAP_FORMAT, map.width, map.height) };
         let source =

@@ -260,6 +260,12 @@ pub struct SurfaceVertex {
 pub const SURFACE_ATTRIBUTES: [(u32, vk::Format, u32); 2] =
     [(8, vk::Format::R32G32_SFLOAT, 0), (9, vk::Format::R32G32B32A32_SFLOAT, 8)];
 
+/// The second texture-coordinate set (vertex binding 3, location 10: one `[f32; 2]` per vertex,
+/// parallel to the `Vertex`es), stored only in a scene where some material's maps use two sets
+/// (`SceneGpu::second_uv_offset`).
+pub const SECOND_UV_ATTRIBUTES: [(u32, vk::Format, u32); 1] = [(10, vk::Format::R32G32_SFLOAT, 0)];
+pub const SECOND_UV_STRIDE: u32 = 8;
+
 /// One mesh's slice of the shared vertex and index buffers.
 pub struct Draw {
     pub first_index: u32,
@@ -287,6 +293,12 @@ pub struct SceneGpu {
     /// Where the `SurfaceVertex`es start in `vertices` (after the instances), in a scene with
     /// textures; they are bound at vertex binding 2 by textured draws.
     pub surface_offset: Option<u64>,
+    /// Where the second texture-coordinate set starts in `vertices` (after the `SurfaceVertex`es),
+    /// in a scene where some material's maps use two sets; `None` otherwise, and the vertex
+    /// buffer is as large as it was with one set. Textured draws bind vertex binding 3 here, or
+    /// (with no second set) at `surface_offset`, whose bytes it then reads as coordinates no map
+    /// selects (`UvTransforms::second_set` is all false).
+    pub second_uv_offset: Option<u64>,
     /// The material textures and their pipeline; `None` in a scene without textures.
     pub materials: Option<crate::gpu_textures::MaterialSets>,
     /// The untextured geometry pipeline without back-face culling, in a scene without textures
@@ -321,6 +333,9 @@ impl SceneGpu {
         // Parallel to `vertices` once any mesh has textures.
         let textured = scene.meshes.iter().any(|m| m.surface.is_some());
         let mut surface_vertices: Vec<SurfaceVertex> = Vec::new();
+        // Parallel to `vertices` once any material's maps use two texture-coordinate sets.
+        let two_sets = scene.meshes.iter().any(|m| m.surface.as_ref().is_some_and(|s| !s.uvs_1.is_empty()));
+        let mut second_uvs: Vec<[f32; 2]> = Vec::new();
         let mut materials: Vec<std::sync::Arc<crate::scene::MaterialTextures>> = Vec::new();
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
@@ -352,6 +367,10 @@ impl SceneGpu {
                                 surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
                             }
                         }
+                        if !g.uvs_1.is_empty() {
+                            second_uvs.resize(at.1 as usize, [0.0; 2]);
+                            second_uvs.extend(g.uvs_1.iter().map(|uv| uv.to_array()));
+                        }
                         indices.extend_from_slice(&g.indices);
                         at
                     });
@@ -368,6 +387,10 @@ impl SceneGpu {
                         for (k, uv) in surface.uvs.iter().enumerate() {
                             let tangent = surface.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
                             surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+                        }
+                        if !surface.uvs_1.is_empty() {
+                            second_uvs.resize(at.2 as usize, [0.0; 2]);
+                            second_uvs.extend(surface.uvs_1.iter().map(|uv| uv.to_array()));
                         }
                     }
                     indices.extend_from_slice(&mesh.indices);
@@ -411,6 +434,12 @@ impl SceneGpu {
             surface_vertices.resize(vertices.len(), SurfaceVertex::default());
             let at = vertex_bytes.len() as u64;
             vertex_bytes.extend_from_slice(bytemuck::cast_slice(&surface_vertices));
+            at
+        });
+        let second_uv_offset = two_sets.then(|| {
+            second_uvs.resize(vertices.len(), [0.0; 2]);
+            let at = vertex_bytes.len() as u64;
+            vertex_bytes.extend_from_slice(bytemuck::cast_slice(&second_uvs));
             at
         });
         // Pipelines without back-face culling only for scenes with double-sided meshes.
@@ -462,6 +491,7 @@ impl SceneGpu {
             vertex_count,
             instance_offset,
             surface_offset,
+            second_uv_offset,
             materials,
             two_sided,
             indices,

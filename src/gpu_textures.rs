@@ -189,8 +189,10 @@ pub fn upload(
         // A cutoff of 0 never discards: opaque.
         let mask = m.alpha_mask.map_or([1.0, 0.0], |a| [a.factor, a.cutoff]);
         let mut values = vec![m.emission.extend(strength).to_array(), [mask[0], mask[1], 0.0, 0.0]];
-        for t in m.uv_transforms.in_order() {
-            values.extend(t.rows.map(|[a, b, c]| [a, b, c, 0.0]));
+        // The first row's w: 1 where the map reads the second texture-coordinate set.
+        for (t, second) in m.uv_transforms.in_order().into_iter().zip(m.uv_transforms.second_set) {
+            let [[a, b, c], [d, e, f]] = t.rows;
+            values.extend([[a, b, c, if second { 1.0 } else { 0.0 }], [d, e, f, 0.0]]);
         }
         constants[k * stride as usize..][..SIZE].copy_from_slice(bytemuck::cast_slice(&values));
     }

@@ -48,17 +48,33 @@ fn scene(dir: &std::path::Path) -> Scene {
 
 /// `scene` with `base_color` as the base colour's texture reference.
 fn scene_with(dir: &std::path::Path, base_color: serde_json::Value) -> Scene {
+    scene_with_sets(dir, base_color, None)
+}
+
+/// TEXCOORD_1 of `scene_with_sets`: TEXCOORD_0 moved by this (repeating, so like an offset).
+const UV1_OFFSET: Vec2 = Vec2::new(0.5, 0.25);
+
+/// `scene_with`, and where `emissive` is given, that emissive texture reference too; the quad
+/// has TEXCOORD_1 = TEXCOORD_0 + `UV1_OFFSET` beside TEXCOORD_0.
+fn scene_with_sets(dir: &std::path::Path, base_color: serde_json::Value, emissive: Option<serde_json::Value>) -> Scene {
     let mut g = Gltf::default();
     let (p, n, uv, idx) = quad_xz();
     let p: Vec<[f32; 3]> = p.iter().map(|v| [v[0] * 2.0, 1.0, v[2] * 2.0]).collect();
+    let uv1: Vec<[f32; 2]> = uv.iter().map(|t| [t[0] + UV1_OFFSET.x, t[1] + UV1_OFFSET.y]).collect();
     let (positions, normals, uvs, indices) = (g.vec3(&p), g.vec3(&n), g.vec2(&uv), g.indices(&idx, U16));
+    let uvs1 = g.vec2(&uv1);
     let view = g.view(&mask_png(), None);
     g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
-    let material = g.material(json!({ "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
+    let mut material = json!({ "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
         "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8,
-            "baseColorTexture": base_color } }));
+            "baseColorTexture": base_color } });
+    if let Some(emissive) = emissive {
+        material["emissiveTexture"] = emissive;
+        material["emissiveFactor"] = json!([0.1, 0.1, 0.1]);
+    }
+    let material = g.material(material);
     let mesh = g.mesh(vec![json!({
-        "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
+        "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs, "TEXCOORD_1": uvs1 },
         "indices": indices, "material": material
     })]);
     g.node(json!({ "mesh": mesh }), true);
@@ -220,6 +236,48 @@ fn the_masks_shadow_follows_the_texture_transform() {
             &wrong[..wrong.len().min(5)]
         );
         assert!(shadowed > 150 && moved > 200, "{method:?}: {shadowed} shadowed, {moved} moved by the transform");
+    }
+    common::assert_clean(&ctx);
+}
+
+/// An alpha-masked base colour on TEXCOORD_1 (TEXCOORD_0 moved by `UV1_OFFSET`) in a material
+/// whose emissive texture is on TEXCOORD_0: the material carries two sets, and the mask's
+/// shadow, traced and from the shadow map, follows the base colour's own set on every sure
+/// floor pixel (the CPU evaluation looks the shape up at uv + `UV1_OFFSET`); many of those
+/// pixels would be wrong had the mask been read with TEXCOORD_0.
+#[test]
+fn the_masks_shadow_reads_the_base_colours_own_set() {
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let scene = scene_with_sets(dir.path(), json!({ "index": 0, "texCoord": 1 }), Some(json!({ "index": 0 })));
+    let surface = scene.meshes[0].surface.as_ref().unwrap();
+    assert_eq!(surface.uvs_1.len(), 4, "two sets carried");
+    assert_eq!(surface.textures.uv_transforms.second_set, [false, false, false, false, true]);
+    let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+    assert!(renderer.gpu_scene.second_uv_offset.is_some());
+    let position = frame(&mut renderer, ShadowMethod::Traced, DebugView::Position);
+    for method in [ShadowMethod::Traced, ShadowMethod::Map] {
+        let visibility = frame(&mut renderer, method, DebugView::Visibility(0));
+        let (mut shadowed, mut moved, mut wrong) = (0, 0, Vec::new());
+        for (i, (p, v)) in position.iter().zip(&visibility).enumerate() {
+            let p = p.truncate();
+            if p.y.abs() > 1e-3 {
+                continue;
+            }
+            let Some(dark) = expected_shadow_through(p, |uv| uv + UV1_OFFSET) else { continue };
+            shadowed += usize::from(dark);
+            moved += usize::from(expected_shadow(p).is_some_and(|plain| plain != dark));
+            if (v.x < 0.5) != dark {
+                wrong.push((i, p, v.x));
+            }
+        }
+        assert!(
+            wrong.is_empty(),
+            "{method:?}: {} pixels disagree, e.g. {:?}",
+            wrong.len(),
+            &wrong[..wrong.len().min(5)]
+        );
+        assert!(shadowed > 150 && moved > 200, "{method:?}: {shadowed} shadowed, {moved} differ from TEXCOORD_0's");
     }
     common::assert_clean(&ctx);
 }

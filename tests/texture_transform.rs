@@ -185,6 +185,82 @@ fn texcoord_1_and_the_extensions_override() {
     common::assert_clean(&ctx);
 }
 
+/// A material whose maps use different sets: the base colour on TEXCOORD_0 (with a transform),
+/// the emission on TEXCOORD_1 (quarter-turned against TEXCOORD_0), through the reference's
+/// `texCoord: 1` and through the extension's override (with an offset). The albedo view shows
+/// the base colour read with set 0, the unlit frame the emission read with set 1, each against
+/// the CPU lookup (`compare`: 0.01 linear on every quad pixel). The vertex buffer carries the
+/// second set: 8 bytes more per vertex.
+#[test]
+fn maps_on_different_sets_read_their_own() {
+    use umbra::gpu_scene::{InstanceRows, SurfaceVertex, Vertex};
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let (offset_a, rotation_a, scale_a) = ([0.3, -0.2], 0.7, [1.5, 0.75]);
+    let base = json!({ "index": 0, "extensions": { "KHR_texture_transform":
+        { "offset": offset_a, "rotation": rotation_a, "scale": scale_a } } });
+    let a = UvTransform::from_khr(offset_a, rotation_a, scale_a);
+    let plain = json!({ "index": 0, "texCoord": 1 });
+    let overridden = json!({ "index": 0, "texCoord": 0,
+        "extensions": { "KHR_texture_transform": { "texCoord": 1, "offset": [0.125, 0.375] } } });
+    for (name, emissive, offset) in
+        [("mixed.glb", plain, Vec2::ZERO), ("mixed_override.glb", overridden, Vec2::new(0.125, 0.375))]
+    {
+        let material = json!({
+            "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8, "baseColorTexture": base },
+            "emissiveFactor": [1.0, 1.0, 1.0],
+            "emissiveTexture": emissive
+        });
+        let scene = scene(dir.path(), name, material);
+        assert!(!common::logged("different texture coordinate sets"), "no notice: both sets are read");
+        let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+        let gpu = &renderer.gpu_scene;
+        let (vertex, surface) = (std::mem::size_of::<Vertex>() as u64, std::mem::size_of::<SurfaceVertex>() as u64);
+        let rows = std::mem::size_of::<InstanceRows>() as u64;
+        assert_eq!(gpu.vertex_count, 4);
+        assert_eq!(gpu.vertices.size, 4 * (vertex + surface + 8) + rows, "{name}: the second set, 8 B a vertex");
+        assert!(gpu.second_uv_offset.is_some());
+        let position = views(&mut renderer);
+        let albedo = common::render_linear(&mut renderer, W, H, Some(DebugView::Albedo));
+        let emitted = common::render_linear(&mut renderer, W, H, None);
+        compare(&albedo, &position, name, |s| a.apply(s[0]));
+        compare(&emitted, &position, name, |s| s[1] + offset);
+    }
+    common::assert_clean(&ctx);
+}
+
+/// Scenes whose materials use one set each (set 0 for every map, or set 1 for every map) carry
+/// no second set: the vertex buffer is the vertices, the instance rows and one `SurfaceVertex`
+/// per vertex, to the byte; and set 1 alone still reads set 1.
+#[test]
+fn one_set_scenes_carry_no_second_set() {
+    use umbra::gpu_scene::{InstanceRows, SurfaceVertex, Vertex};
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    for (name, set) in [("set0.glb", 0usize), ("set1only.glb", 1)] {
+        let material = json!({
+            "pbrMetallicRoughness": { "baseColorTexture": { "index": 0, "texCoord": set } },
+            "emissiveFactor": [1.0, 1.0, 1.0],
+            "emissiveTexture": { "index": 0, "texCoord": set }
+        });
+        let scene = scene(dir.path(), name, material);
+        assert!(scene.meshes[0].surface.as_ref().unwrap().uvs_1.is_empty());
+        let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+        let gpu = &renderer.gpu_scene;
+        let (vertex, surface) = (std::mem::size_of::<Vertex>() as u64, std::mem::size_of::<SurfaceVertex>() as u64);
+        let rows = std::mem::size_of::<InstanceRows>() as u64;
+        assert_eq!(gpu.vertex_count, 4);
+        assert_eq!(gpu.vertices.size, 4 * (vertex + surface) + rows, "{name}: no second set");
+        assert!(gpu.second_uv_offset.is_none());
+        let position = views(&mut renderer);
+        let emitted = common::render_linear(&mut renderer, W, H, None);
+        if set == 1 {
+            compare(&emitted, &position, name, |s| s[1]);
+        }
+    }
+    common::assert_clean(&ctx);
+}
+
 /// A transform that is not numbers: on the normal texture (whose extension umbra reads itself)
 /// a warning naming the file, the material and the reference, and the map is read untransformed;
 /// on the base colour (which the glTF crate parses) the file is refused, naming it.

@@ -24,6 +24,7 @@ layout(location = GBUFFER_SURFACE_LOCATION) out uvec4 out_surface;
 #ifdef TEXTURED
 layout(location = 8) in vec2 in_uv;
 layout(location = 9) in vec4 in_tangent;
+layout(location = 10) in vec2 in_uv_1;
 layout(set = 1, binding = MATERIAL_BASE_COLOR) uniform sampler2D material_base_color;
 layout(set = 1, binding = MATERIAL_ROUGHNESS) uniform sampler2D material_roughness;
 layout(set = 1, binding = MATERIAL_METALLIC) uniform sampler2D material_metallic;
@@ -38,12 +39,20 @@ layout(location = GBUFFER_EMISSION_LOCATION) out vec4 out_emission;
 // divides by the footprint's minor axis, and a face whose corners share a texture coordinate
 // (common for flat-coloured parts of a model) or whose coordinates vary along one axis only has
 // none, which made its texels NaN.
+// Both sets' footprints: each map picks its set's (material_second_set) by a select.
 vec2 material_dx;
 vec2 material_dy;
+vec2 material_dx_1;
+vec2 material_dy_1;
 
-// Map `k` (UV_OF_*) of the material at the fragment's texture coordinates, through its transform.
+// Map `k` (UV_OF_*) of the material at the fragment's texture coordinates (its own set's),
+// through its transform.
 vec4 material_sample(sampler2D map, uint k) {
-    return textureGrad(map, material_uv(k, in_uv), material_uv_delta(k, material_dx), material_uv_delta(k, material_dy));
+    bool second = material_second_set(k);
+    vec2 uv = second ? in_uv_1 : in_uv;
+    vec2 dx = second ? material_dx_1 : material_dx;
+    vec2 dy = second ? material_dy_1 : material_dy;
+    return textureGrad(map, material_uv(k, uv), material_uv_delta(k, dx), material_uv_delta(k, dy));
 }
 
 // A one-hot mask: the texture channel a map reads (0..3 = R, G, B, A), without indexing a
@@ -123,6 +132,8 @@ void main() {
     // a white texel, so every product below is the constant alone.
     material_dx = dFdx(in_uv) + vec2(1e-6, 0.0);
     material_dy = dFdy(in_uv) + vec2(0.0, 1e-6);
+    material_dx_1 = dFdx(in_uv_1) + vec2(1e-6, 0.0);
+    material_dy_1 = dFdy(in_uv_1) + vec2(0.0, 1e-6);
     vec4 base_color = material_sample(material_base_color, UV_OF_BASE_COLOR);
     // Alpha-masked materials (a cutoff of 0 never discards).
     if (base_color.a * material_constants.alpha.x < material_constants.alpha.y) discard;

@@ -6,7 +6,8 @@ layout(set = 1, binding = MATERIAL_CONSTANTS, std140) uniform MaterialConstants 
     vec4 alpha;              // x: base colour alpha factor, y: alpha cutoff (0: opaque)
     // Per map (base colour, metallic-roughness, normal, occlusion, emission), the two rows of its
     // texture-coordinate transform (KHR_texture_transform): uv' = (r0.xy . uv + r0.z, r1.xy . uv
-    // + r1.z); the identity unless the material gives one.
+    // + r1.z); the identity unless the material gives one. r0.w: 1 where the map reads the
+    // second texture-coordinate set, 0 for the first.
     vec4 uv_transform[10];
 } material_constants;
 
@@ -15,6 +16,11 @@ vec2 material_uv(uint k, vec2 uv) {
     vec4 r0 = material_constants.uv_transform[2u * k];
     vec4 r1 = material_constants.uv_transform[2u * k + 1u];
     return vec2(dot(r0.xy, uv) + r0.z, dot(r1.xy, uv) + r1.z);
+}
+
+// Whether map k reads the second texture-coordinate set (a uniform value: selects, no branch).
+bool material_second_set(uint k) {
+    return material_constants.uv_transform[2u * k].w > 0.5;
 }
 
 vec2 material_uv_delta(uint k, vec2 d) {

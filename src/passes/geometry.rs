@@ -13,7 +13,8 @@ use glam::{Mat4, UVec4, Vec4};
 
 use super::{GBuffer, DEPTH_FORMAT, EMISSION_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
 use crate::gpu_scene::{
-    CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES,
+    CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SECOND_UV_ATTRIBUTES,
+    SECOND_UV_STRIDE, SURFACE_ATTRIBUTES,
 };
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
 use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc};
@@ -106,7 +107,7 @@ pub fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<
 }
 
 /// The geometry pipeline for textured draws: texture coordinates and tangents at vertex binding
-/// 2, the material's textures in descriptor set 1 (`material_set`, see gpu_textures.rs). Made
+/// 2, the second texture-coordinate set at binding 3, the material's textures in descriptor set 1 (`material_set`, see gpu_textures.rs). Made
 /// per scene, only for a scene with textures.
 /// `two_sided`: without back-face culling, for double-sided meshes.
 pub fn textured_pipeline(
@@ -117,6 +118,7 @@ pub fn textured_pipeline(
     let extras = GraphicsExtras {
         instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
         per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES)),
+        per_vertex_3: Some((SECOND_UV_STRIDE, &SECOND_UV_ATTRIBUTES)),
         set_1: Some(material_set),
         ..Default::default()
     };
@@ -212,7 +214,10 @@ pub fn add<'a>(
                 let vb = ctx.buffer(vb);
                 match scene.surface_offset {
                     Some(surface) => {
-                        d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb, vb], &[0, scene.instance_offset, surface])
+                        // Without a second set, binding 3 reads the surface data (no map selects it).
+                        let second = scene.second_uv_offset.unwrap_or(surface);
+                        let offsets = [0, scene.instance_offset, surface, second];
+                        d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb; 4], &offsets)
                     }
                     None => d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]),
                 }

@@ -288,8 +288,12 @@ fn read_primitive(
     let gltf_material = primitive.material();
     let material = Some(material(&gltf_material));
     let mut surface = ObjectSurface::default();
-    if let Some((textures, set)) = maps.of(&gltf_material)? {
-        let uvs = reader.read_tex_coords(set).map(|uv| uv.into_f32().map(glam::Vec2::from).collect::<Vec<_>>());
+    if let Some((textures, set, second)) = maps.of(&gltf_material)? {
+        let read = |set: u32| {
+            let uvs = reader.read_tex_coords(set).map(|uv| uv.into_f32().map(glam::Vec2::from).collect::<Vec<_>>());
+            uvs.filter(|uv| uv.len() == positions.len())
+        };
+        let uvs = read(set);
         // Without texture coordinates there is nothing to map: the constants stay (emission
         // from its factor alone reads no texel: zero coordinates do).
         let constant_only = textures.emission_map.is_none()
@@ -298,10 +302,18 @@ fn read_primitive(
             && textures.normal.is_none()
             && textures.occlusion.is_none();
         let uvs = uvs.or_else(|| constant_only.then(|| vec![glam::Vec2::ZERO; positions.len()]));
-        if let Some(uvs) = uvs.filter(|uv| uv.len() == positions.len()) {
+        if let Some(uvs) = uvs {
+            // A primitive without the second set reads its maps with the first.
+            let uvs_1 = second.map(|second| {
+                read(second).unwrap_or_else(|| {
+                    log::warn!("{}: no TEXCOORD_{second}; its maps on that set read set {set}", where_());
+                    uvs.clone()
+                })
+            });
             let tangents = reader.read_tangents().map(|t| t.map(glam::Vec4::from).collect::<Vec<_>>());
             surface = ObjectSurface {
                 uvs: Some(uvs),
+                uvs_1,
                 tangents: tangents.filter(|t| t.len() == positions.len() && textures.normal.is_some()),
                 textures: Some(textures),
             };
@@ -319,8 +331,9 @@ fn read_primitive(
     Ok(Some(object_mesh))
 }
 
-/// A material's textures and the texture coordinate set they use.
-type MaterialRead = (std::sync::Arc<MaterialTextures>, u32);
+/// A material's textures, the texture coordinate set of its base colour (or of its first map),
+/// and the other set some of its maps use, if any (`UvTransforms::second_set` says which).
+type MaterialRead = (std::sync::Arc<MaterialTextures>, u32, Option<u32>);
 
 /// Reads a glTF file's materials' textures through the scene's texture cache, once per material.
 struct MaterialMaps<'a> {
@@ -330,7 +343,7 @@ struct MaterialMaps<'a> {
     cache: &'a mut TextureCache,
     /// The file's JSON, for KHR_texture_transform.
     raw: &'a serde_json::Value,
-    /// By material index: its textures and the texture coordinate set they use.
+    /// By material index: its textures and the texture coordinate sets they use.
     read: Vec<(Option<usize>, Option<MaterialRead>)>,
 }
 
@@ -347,7 +360,8 @@ impl MaterialMaps<'_> {
             material.name().map_or_else(|| format!("{:?}", material.index()), |n| format!("{n:?}"))
         );
         let pbr = material.pbr_metallic_roughness();
-        let mut sets = Vec::new();
+        // (map in `UvTransforms::in_order`'s order, its set) for each map present.
+        let mut sets: Vec<(usize, u32)> = Vec::new();
         let mut uv_transforms = super::UvTransforms::default();
         // Each texture reference's KHR_texture_transform (its JSON under the material at `slot`),
         // whose texCoord overrides the reference's.
@@ -355,7 +369,8 @@ impl MaterialMaps<'_> {
         let mut texture = |info: Option<(gltf::Texture, u32)>,
                            slot: &[&str],
                            srgb: bool,
-                           sets: &mut Vec<u32>,
+                           map: usize,
+                           sets: &mut Vec<(usize, u32)>,
                            transform: &mut super::UvTransform|
          -> Result<Option<std::sync::Arc<super::Texture>>, String> {
             let Some((texture, mut set)) = info else { return Ok(None) };
@@ -371,13 +386,14 @@ impl MaterialMaps<'_> {
                     }
                 }
             }
-            sets.push(set);
+            sets.push((map, set));
             self.image(&texture.source(), srgb, &label)
         };
         let base_color = texture(
             pbr.base_color_texture().map(|i| (i.texture(), i.tex_coord())),
             &["pbrMetallicRoughness", "baseColorTexture"],
             true,
+            0,
             &mut sets,
             &mut uv_transforms.base_color,
         )?;
@@ -385,20 +401,22 @@ impl MaterialMaps<'_> {
             pbr.metallic_roughness_texture().map(|i| (i.texture(), i.tex_coord())),
             &["pbrMetallicRoughness", "metallicRoughnessTexture"],
             false,
+            1,
             &mut sets,
             &mut uv_transforms.metal_rough,
         )?;
         let normal = match material.normal_texture() {
             Some(n) => {
                 let info = Some((n.texture(), n.tex_coord()));
-                texture(info, &["normalTexture"], false, &mut sets, &mut uv_transforms.normal)?.map(|t| (t, n.scale()))
+                texture(info, &["normalTexture"], false, 2, &mut sets, &mut uv_transforms.normal)?
+                    .map(|t| (t, n.scale()))
             }
             None => None,
         };
         let occlusion = match material.occlusion_texture() {
             Some(o) => {
                 let info = Some((o.texture(), o.tex_coord()));
-                let map = texture(info, &["occlusionTexture"], false, &mut sets, &mut uv_transforms.occlusion)?;
+                let map = texture(info, &["occlusionTexture"], false, 3, &mut sets, &mut uv_transforms.occlusion)?;
                 map.map(|texture| (ChannelMap { texture, channel: 0 }, o.strength().clamp(0.0, 1.0)))
             }
             None => None,
@@ -407,6 +425,7 @@ impl MaterialMaps<'_> {
             material.emissive_texture().map(|i| (i.texture(), i.tex_coord())),
             &["emissiveTexture"],
             true,
+            4,
             &mut sets,
             &mut uv_transforms.emission,
         )?;
@@ -423,6 +442,24 @@ impl MaterialMaps<'_> {
                 Some(super::AlphaMask { factor: alpha.clamp(0.0, 1.0), cutoff: 0.5 })
             }
         };
+        // The first set is the base colour's (its map comes first): alpha masks read it on the
+        // shadow side with the first set alone. Two sets where the maps use exactly two.
+        let set = sets.first().map_or(0, |&(_, s)| s);
+        // Sets 0 and 1 may be mixed; a material that mixes in a set of 2 or more is read with
+        // its first set on every map, with a notice (as before two sets were carried).
+        let mut second = None;
+        if sets.iter().any(|&(_, s)| s != set) {
+            if set <= 1 && sets.iter().all(|&(_, s)| s <= 1) {
+                second = Some(1 - set);
+                for &(map, s) in &sets {
+                    uv_transforms.second_set[map] = s != set;
+                }
+            } else {
+                log::warn!(
+                    "{label}: its textures mix texture coordinate sets beyond 0 and 1; all are read with set {set}"
+                );
+            }
+        }
         let textures = MaterialTextures {
             alpha_mask,
             uv_transforms,
@@ -435,11 +472,7 @@ impl MaterialMaps<'_> {
             metallic: metal_rough.map(|texture| ChannelMap { texture, channel: 2 }),
             normal,
         };
-        let set = sets.first().copied().unwrap_or(0);
-        if sets.iter().any(|&s| s != set) {
-            log::warn!("{label}: its textures use different texture coordinate sets; all are read with set {set}");
-        }
-        let found = (!textures.is_empty()).then(|| (std::sync::Arc::new(textures), set));
+        let found = (!textures.is_empty()).then(|| (std::sync::Arc::new(textures), set, second));
         self.read.push((material.index(), found.clone()));
         Ok(found)
     }

@@ -30,6 +30,9 @@ pub(super) struct ObjectMesh {
 pub(super) struct ObjectSurface {
     /// One per position.
     pub uvs: Option<Vec<Vec2>>,
+    /// One per position, only for a material whose maps use two sets (`UvTransforms::second_set`
+    /// says which read it): the set that is not `uvs`'.
+    pub uvs_1: Option<Vec<Vec2>>,
     /// One per position: the tangent (object space) and the bitangent's sign (w).
     pub tangents: Option<Vec<Vec4>>,
     pub textures: Option<Arc<MaterialTextures>>,
@@ -160,6 +163,10 @@ fn place_surface(surface: &ObjectSurface, sources: &[usize], to_world: &DMat4, m
     let textures = surface.textures.clone()?;
     let uvs = surface.uvs.as_ref()?;
     let uvs: Vec<Vec2> = sources.iter().map(|&s| uvs.get(s).copied().unwrap_or(Vec2::ZERO)).collect();
+    let uvs_1: Vec<Vec2> = match &surface.uvs_1 {
+        Some(uvs_1) => sources.iter().map(|&s| uvs_1.get(s).copied().unwrap_or(Vec2::ZERO)).collect(),
+        None => Vec::new(),
+    };
     let linear = DMat3::from_mat4(*to_world);
     // A mirror turns the bitangent (cross(n, t) * w) around: flip w to keep it.
     let sign = if mirrored { -1.0 } else { 1.0 };
@@ -174,7 +181,7 @@ fn place_surface(surface: &ObjectSurface, sources: &[usize], to_world: &DMat4, m
             .collect(),
         _ => Vec::new(),
     };
-    Some(MeshSurface { uvs, tangents, textures })
+    Some(MeshSurface { uvs, uvs_1, tangents, textures })
 }
 
 /// The geometry of each mesh that more than one instance draws, placed at the identity once
@@ -196,12 +203,14 @@ pub(super) fn shared_geometry(
             }
             let mut stats = LoadStats::default();
             let placed = place("", mesh, &DMat4::IDENTITY, Material::default(), true, &mut stats)?;
-            let (uvs, tangents) = placed.surface.map_or((Vec::new(), Vec::new()), |s| (s.uvs, s.tangents));
+            let (uvs, uvs_1, tangents) =
+                placed.surface.map_or((Vec::new(), Vec::new(), Vec::new()), |s| (s.uvs, s.uvs_1, s.tangents));
             Some(Arc::new(InstanceGeometry {
                 positions: placed.positions.iter().map(|p| p.as_vec3()).collect(),
                 normals: placed.normals,
                 indices: placed.indices,
                 uvs,
+                uvs_1,
                 tangents,
             }))
         })

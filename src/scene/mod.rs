@@ -166,6 +166,8 @@ pub struct Mesh {
 #[derive(Clone, Debug)]
 pub struct MeshSurface {
     pub uvs: Vec<glam::Vec2>,
+    /// The second texture-coordinate set, for a material whose maps use two (empty otherwise).
+    pub uvs_1: Vec<glam::Vec2>,
     /// Empty without a normal map.
     pub tangents: Vec<glam::Vec4>,
     pub textures: Arc<MaterialTextures>,
@@ -189,6 +191,7 @@ pub struct InstanceGeometry {
     /// A textured mesh's texture coordinates and own-space tangents (`MeshSurface`'s); empty
     /// otherwise (tangents also without a normal map).
     pub uvs: Vec<glam::Vec2>,
+    pub uvs_1: Vec<glam::Vec2>,
     pub tangents: Vec<glam::Vec4>,
 }
 

@@ -89,7 +89,7 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
                 if uvs.len() != positions.len() && constant_only { vec![Vec2::ZERO; positions.len()] } else { uvs };
             let surface = match textures {
                 Some(textures) if uvs.len() == positions.len() => {
-                    ObjectSurface { uvs: Some(uvs), tangents: None, textures: Some(textures) }
+                    ObjectSurface { uvs: Some(uvs), uvs_1: None, tangents: None, textures: Some(textures) }
                 }
                 _ => ObjectSurface::default(),
             };

@@ -48,7 +48,9 @@ impl mikktspace::Geometry for Corners {
 /// normals gets its face normals per corner, which shades it flat as before. Returns false (and
 /// leaves the mesh as it was) when MikkTSpace finds no frame, or the mesh has no UVs.
 pub(super) fn generate(mesh: &mut ObjectMesh) -> bool {
-    let Some(uvs) = &mesh.surface.uvs else { return false };
+    // The normal map's own set frames it (the second, where the material reads it there).
+    let second = mesh.surface.textures.as_ref().is_some_and(|t| t.uv_transforms.second_set[2]);
+    let Some(uvs) = (if second { &mesh.surface.uvs_1 } else { &mesh.surface.uvs }) else { return false };
     let corner_count = mesh.indices.len() / 3 * 3;
     let mut corners = Corners {
         positions: Vec::with_capacity(corner_count),
@@ -73,8 +75,13 @@ pub(super) fn generate(mesh: &mut ObjectMesh) -> bool {
     let source_positions = std::mem::take(&mut mesh.positions);
     mesh.positions = mesh.indices.iter().take(corner_count).map(|&i| source_positions[i as usize]).collect();
     mesh.normals = Some(corners.normals.iter().map(|n| Vec3::from(*n)).collect());
-    mesh.indices = (0..corner_count as u32).collect();
-    mesh.surface.uvs = Some(corners.uvs.iter().map(|uv| Vec2::from(*uv)).collect());
+    let source_indices = std::mem::replace(&mut mesh.indices, (0..corner_count as u32).collect());
+    for set in [&mut mesh.surface.uvs, &mut mesh.surface.uvs_1] {
+        if let Some(uvs) = set.take() {
+            let corner = |&i: &u32| uvs.get(i as usize).copied().unwrap_or(Vec2::ZERO);
+            *set = Some(source_indices.iter().take(corner_count).map(corner).collect());
+        }
+    }
     mesh.surface.tangents = Some(corners.tangents.iter().map(|t| Vec4::from(*t)).collect());
     true
 }

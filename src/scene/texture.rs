@@ -100,6 +100,10 @@ pub struct UvTransforms {
     pub normal: UvTransform,
     pub occlusion: UvTransform,
     pub emission: UvTransform,
+    /// Per map, in `in_order`'s order: whether it reads the mesh's second texture-coordinate set
+    /// (`MeshSurface::uvs_1`) rather than its first (`uvs`). The base colour never does: the
+    /// first set is the base colour's own, which alpha masks read on the shadow side too.
+    pub second_set: [bool; 5],
 }
 
 impl UvTransforms {

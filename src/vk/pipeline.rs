@@ -242,6 +242,8 @@ pub struct GraphicsExtras<'a> {
     pub instance: Option<VertexBinding<'a>>,
     /// A third vertex binding (2), read per vertex like binding 0: stride and attributes.
     pub per_vertex_2: Option<VertexBinding<'a>>,
+    /// A fourth vertex binding (3), read per vertex like binding 0: stride and attributes.
+    pub per_vertex_3: Option<VertexBinding<'a>>,
     /// Descriptor set 1's layout (owned by the caller, who keeps it alive while the pipeline
     /// lives): material textures.
     pub set_1: Option<vk::DescriptorSetLayout>,
@@ -332,6 +334,10 @@ impl GraphicsPipeline {
         if let Some((stride, per_vertex)) = extras.per_vertex_2 {
             vb.push(vk::VertexInputBindingDescription { binding: 2, stride, input_rate: vk::VertexInputRate::VERTEX });
             attrs.extend(per_vertex.iter().map(attribute(2)));
+        }
+        if let Some((stride, per_vertex)) = extras.per_vertex_3 {
+            vb.push(vk::VertexInputBindingDescription { binding: 3, stride, input_rate: vk::VertexInputRate::VERTEX });
+            attrs.extend(per_vertex.iter().map(attribute(3)));
         }
         let bindings: &[_] = if attrs.is_empty() { &[] } else { &vb };
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()

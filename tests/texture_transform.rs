@@ -58,13 +58,18 @@ fn uv_sets(p: Vec3) -> [Vec2; 2] {
 
 /// A scene of the quad with `material` (its texture 0 is the test texture), seen from above.
 fn scene(dir: &Path, name: &str, material: serde_json::Value) -> Scene {
+    scene_with(dir, name, material, &png())
+}
+
+/// `scene` with `image` (PNG bytes) as image 0.
+fn scene_with(dir: &Path, name: &str, material: serde_json::Value, image: &[u8]) -> Scene {
     let mut g = Gltf::default();
     let (p, n, uv, idx) = quad_xz();
     let p: Vec<[f32; 3]> = p.iter().map(|v| [v[0] * 2.0, v[1], v[2] * 2.0]).collect();
     let uv1: Vec<[f32; 2]> = uv.iter().map(|t| [1.0 - t[1], t[0]]).collect();
     let (positions, normals, uvs, uvs1) = (g.vec3(&p), g.vec3(&n), g.vec2(&uv), g.vec2(&uv1));
     let indices = g.indices(&idx, U16);
-    let view = g.view(&png(), None);
+    let view = g.view(image, None);
     g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
     let material = g.material(material);
     let mesh = g.mesh(vec![json!({
@@ -293,4 +298,53 @@ fn a_malformed_transform_warns_or_is_an_error() {
         "[camera]\neye = [0.0, 3.0, 0.1]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n[[objects]]\nmesh = \"bad.glb\"\n";
     let error = Scene::parse(text, "t.toml", dir.path()).expect_err("a malformed transform is refused").to_string();
     assert!(error.contains("bad.glb") && error.contains("\"two\""), "{error}");
+}
+
+/// A 4x4 PNG of one colour.
+fn flat_png(rgb: [u8; 3]) -> Vec<u8> {
+    let image = image::RgbaImage::from_pixel(4, 4, image::Rgba([rgb[0], rgb[1], rgb[2], 255]));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut bytes, image::ImageFormat::Png).unwrap();
+    bytes.into_inner()
+}
+
+#[test]
+fn a_rotated_normal_map_turns_its_slopes_with_it() {
+    // A constant normal map sloping toward -u' (bytes 64, 128: x = -0.498, y = 0.004), rotated a
+    // quarter turn by KHR_texture_transform. Texture coordinates uv' = A uv turn a slope s' of the
+    // map into A^T s' in the mesh's own (u, v), which is (-y, x) here: the map (127, 64) unturned.
+    // The texture is constant, so the rotation moves no texel; only the tangent frame turns.
+    let dir = tempfile::tempdir().unwrap();
+    let normal = |rotation: Option<f32>| {
+        let mut info = json!({ "index": 0 });
+        if let Some(r) = rotation {
+            info["extensions"] = json!({ "KHR_texture_transform": { "rotation": r } });
+        }
+        json!({ "name": "bumpy", "normalTexture": info })
+    };
+    let frame = |name: &str, material, rgb| {
+        let mut renderer = Renderer::new(common::gpu(), scene_with(dir.path(), name, material, &flat_png(rgb))).unwrap();
+        let normals = common::render_linear(&mut renderer, W, H, Some(DebugView::Normal));
+        (normals, views(&mut renderer))
+    };
+    let (turned, views) = frame("turned.glb", normal(Some(std::f32::consts::FRAC_PI_2)), [64, 128, 230]);
+    let (pre_turned, _) = frame("pre-turned.glb", normal(None), [127, 64, 230]);
+    let (unturned, _) = frame("unturned.glb", normal(None), [64, 128, 230]);
+    let (mut compared, mut worst, mut moved) = (0, 0.0f32, 0);
+    for i in 0..turned.len() {
+        let p = views.position[i].truncate();
+        if views.depth[i].x <= 0.0 || p.x.abs() > 0.98 || p.z.abs() > 0.98 {
+            continue;
+        }
+        let (a, b) = (turned[i].truncate(), pre_turned[i].truncate());
+        worst = worst.max((a - b).abs().max_element());
+        moved += usize::from((a - unturned[i].truncate()).abs().max_element() > 0.1);
+        compared += 1;
+    }
+    println!("{compared} quad pixels: turned map within {worst:.1e} of the pre-turned one; {moved} moved by the turn");
+    assert!(compared > 1000, "{compared}");
+    // cos(pi / 2) is -4e-8 in f32, and the normal view stores f16-rounded values.
+    assert!(worst < 2e-3, "the turned map's normals are {worst} from the pre-turned map's");
+    assert!(moved == compared, "the turn moved only {moved} of {compared} normals");
+    common::assert_clean(&common::gpu());
 }

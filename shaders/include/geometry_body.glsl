@@ -71,6 +71,15 @@ vec3 material_mapped_normal(vec3 n, vec4 tangent, float scale) {
     vec3 b = cross(n, t) * (tangent.w < 0.0 ? -1.0 : 1.0);
     vec3 m = material_sample(material_normal, UV_OF_NORMAL).xyz * 2.0 - 1.0;
     m.xy *= scale;
+    // A transformed normal map (KHR_texture_transform): coordinates uv' = A uv turn the map's
+    // slope s' into A^T s' in the mesh's own (u, v), the frame the tangents follow. Only its
+    // direction is taken (rotations and flips exactly; a non-uniform scale's stretch of the
+    // slope is left out); the identity leaves m exactly as it was.
+    vec4 r0 = material_constants.uv_transform[2u * UV_OF_NORMAL];
+    vec4 r1 = material_constants.uv_transform[2u * UV_OF_NORMAL + 1u];
+    vec2 turned = vec2(r0.x * m.x + r1.x * m.y, r0.y * m.x + r1.y * m.y);
+    float turned_len = length(turned);
+    if (turned_len > 0.0) m.xy = turned * (length(m.xy) / turned_len);
     vec3 mapped = t * m.x + b * m.y + n * m.z;
     float mapped_len = length(mapped);
     return mapped_len > 1e-6 ? mapped / mapped_len : n;

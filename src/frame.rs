@@ -246,7 +246,7 @@ fn lighting_stage<'a>(
             }),
         }),
         brdf_table: area.as_ref().map(|(_, _, t)| t).or(environment_table.as_ref()),
-        ltc_table: area.as_ref().filter(|_| lighting.sized_lights).map(|(_, ltc, _)| ltc),
+        ltc_table: area.as_ref().filter(|(t, _, _)| t.sized_lights).map(|(_, ltc, _)| ltc),
     };
     let mut image = compose::add(g, gbuffer, inputs, extent);
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {

@@ -54,8 +54,6 @@ pub struct Renderer {
     rects: Option<crate::lighting::rects::RectsGpu>,
     /// The LTC and split-sum tables, in scenes with rect lights or lights with a size.
     area_tables: Option<crate::lighting::AreaTables>,
-    /// Some light has a size: compose shades it as a sphere or disk light.
-    sized_lights: bool,
     /// (light, method) pairs already told that the method cannot serve the light.
     fallbacks_noted: std::sync::Mutex<std::collections::BTreeSet<(usize, ShadowMethod)>>,
     /// How passes are timed on this device, found the first time timings are asked for.
@@ -89,7 +87,6 @@ impl Renderer {
         let start = std::time::Instant::now();
         let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
         let pipelines = Pipelines::new(&ctx)?;
-        let sized_lights = crate::shading::gpu_lights(&local.lights).iter().any(|l| l.size[0] > 0.0);
         log::info!(
             "upload: {} KiB of scene buffers in {:.1} ms",
             gpu_scene.bytes() >> 10,
@@ -123,8 +120,11 @@ impl Renderer {
                 scene.lighting.environment_map.as_deref(),
             )?,
             rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
-            area_tables: crate::lighting::AreaTables::new(&ctx, sized_lights || !local.rect_lights.is_empty())?,
-            sized_lights,
+            area_tables: crate::lighting::AreaTables::new(
+                &ctx,
+                local.lights.iter().any(crate::scene::Light::has_size),
+                !local.rect_lights.is_empty(),
+            )?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
             gpu_scene,
@@ -174,7 +174,7 @@ impl Renderer {
             prepared.traced = Some((pipeline, ray_query));
         }
         let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
-        let mut lighting = self.lighting_pipelines.prepare(
+        let lighting = self.lighting_pipelines.prepare(
             &self.ctx,
             &self.scene.lighting,
             self.environment.as_ref(),
@@ -183,7 +183,6 @@ impl Renderer {
             settings.debug_view,
             self.gpu_scene.bvh.masked(),
         )?;
-        lighting.sized_lights = self.sized_lights && lighting.area.is_some();
         let compose = match settings.debug_view {
             Some(_) => None,
             None => {
@@ -192,7 +191,7 @@ impl Renderer {
                     environment: lighting.environment.is_some(),
                     occluded: lighting.environment.is_some() && lighting.occlusion.is_some(),
                     emissive: self.gpu_scene.materials.is_some(),
-                    area_lights: lighting.sized_lights,
+                    area_lights: lighting.area.is_some_and(|a| a.sized_lights),
                     environment_map: lighting.environment.is_some_and(|e| e.map.is_some()),
                 };
                 Some((variant, self.pipelines.compose(&self.ctx, variant)?))

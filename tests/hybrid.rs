@@ -20,16 +20,7 @@ const H: u32 = 180;
 /// The shared box scene's three lights, with a 5 cm pole beside the box.
 fn scene() -> String {
     let pole = "[[objects]]\nshape = \"cube\"\nsize = 1.0\nscale = [0.05, 1.5, 0.05]\ntranslate = [-1.2, 0.75, 0.8]\n";
-    common::scene(&[
-        common::CAMERA,
-        common::SPOT,
-        common::SUN,
-        common::POINT,
-        common::FLOOR,
-        common::CUBE,
-        common::SPHERE,
-        pole,
-    ])
+    common::scene(&[&common::BOX[..], &[pole]].concat())
 }
 
 fn renderer(text: &str) -> (std::sync::Arc<umbra::vk::GpuContext>, Renderer) {

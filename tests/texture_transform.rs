@@ -323,7 +323,8 @@ fn a_rotated_normal_map_turns_its_slopes_with_it() {
         json!({ "name": "bumpy", "normalTexture": info })
     };
     let frame = |name: &str, material, rgb| {
-        let mut renderer = Renderer::new(common::gpu(), scene_with(dir.path(), name, material, &flat_png(rgb))).unwrap();
+        let mut renderer =
+            Renderer::new(common::gpu(), scene_with(dir.path(), name, material, &flat_png(rgb))).unwrap();
         let normals = common::render_linear(&mut renderer, W, H, Some(DebugView::Normal));
         (normals, views(&mut renderer))
     };

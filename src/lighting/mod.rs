@@ -79,12 +79,15 @@ impl EnvironmentGpu {
 pub struct AreaTables {
     pub ltc: Buffer,
     pub split_sum: Buffer,
+    /// Some light has a size: compose shades it as a sphere or disk light with these tables
+    /// (else only the rect lights' pass reads them).
+    pub sized_lights: bool,
 }
 
 impl AreaTables {
-    /// `None` (nothing made) unless `needed`.
-    pub fn new(ctx: &Arc<GpuContext>, needed: bool) -> GpuResult<Option<AreaTables>> {
-        if !needed {
+    /// `None` (nothing made) unless the scene has `sized_lights` or `rect_lights`.
+    pub fn new(ctx: &Arc<GpuContext>, sized_lights: bool, rect_lights: bool) -> GpuResult<Option<AreaTables>> {
+        if !(sized_lights || rect_lights) {
             return Ok(None);
         }
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
@@ -95,7 +98,7 @@ impl AreaTables {
                 ("split-sum table (area lights)", bytemuck::cast_slice(split_sum::table()), usage),
             ],
         )?;
-        Ok(Some(AreaTables { ltc, split_sum }))
+        Ok(Some(AreaTables { ltc, split_sum, sized_lights }))
     }
 }
 
@@ -120,9 +123,6 @@ pub struct Prepared<'a> {
     pub rects: Option<(&'a rects::RectsGpu, &'a ComputePipeline)>,
     /// The LTC and split-sum tables, in shaded frames of scenes with rect or sized lights.
     pub area: Option<&'a AreaTables>,
-    /// Compose shades the lights with a size as sphere and disk lights (`area` is set; the
-    /// renderer sets this for scenes that have such a light).
-    pub sized_lights: bool,
 }
 
 impl Pipelines {

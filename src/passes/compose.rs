@@ -56,6 +56,19 @@ impl Variant {
             .sum()
     }
 
+    /// The variant of `index` (`index`'s inverse).
+    fn from_index(index: usize) -> Variant {
+        let on = |bit: usize| index & (1 << bit) != 0;
+        Variant {
+            shadowed: on(0),
+            environment: on(1),
+            occluded: on(2),
+            emissive: on(3),
+            area_lights: on(4),
+            environment_map: on(5),
+        }
+    }
+
     fn name(self) -> String {
         let parts = [
             (!self.shadowed, "unshadowed"),
@@ -108,8 +121,10 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePip
         bindings.push((COMPOSE_ENV_MAP, crate::vk::DescriptorKind::FilteredImage));
     }
     let spv = spirv::COMPOSE_COMP[variant.index()];
-    // Pipelines keep a 'static name; each variant is made at most once per device.
-    let name: &'static str = Box::leak(variant.name().into_boxed_str());
+    // Pipelines keep a 'static name: every variant's, made once per process.
+    static NAMES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
+    let names = NAMES.get_or_init(|| (0..VARIANTS).map(|i| Variant::from_index(i).name()).collect());
+    let name: &'static str = &names[variant.index()];
     ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
 }
 
@@ -220,4 +235,17 @@ pub fn add<'a>(
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     radiance
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_variant_index_names_its_own_flags() {
+        for i in 0..VARIANTS {
+            assert_eq!(Variant::from_index(i).index(), i);
+        }
+        assert_eq!(VARIANTS, 64, "six flags in compose.comp's variants line");
+    }
 }

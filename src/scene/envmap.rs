@@ -69,23 +69,7 @@ pub fn from_texels(name: String, width: u32, height: u32, texels: Vec<Vec3>) -> 
 }
 
 fn decode_exr(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>), String> {
-    use exr::prelude::*;
-    let image = read()
-        .no_deep_data()
-        .largest_resolution_level()
-        .rgba_channels(
-            |resolution, _| (resolution.width(), vec![Vec3::ZERO; resolution.width() * resolution.height()]),
-            |(width, texels), position, (r, g, b, _a): (f32, f32, f32, f32)| {
-                texels[position.y() * *width + position.x()] = Vec3::new(r, g, b);
-            },
-        )
-        .first_valid_layer()
-        .all_attributes()
-        .from_buffered(std::io::Cursor::new(bytes))
-        .map_err(|e| e.to_string())?;
-    let size = image.layer_data.size;
-    let (_, texels) = image.layer_data.channel_data.pixels;
-    Ok((size.width() as u32, size.height() as u32, texels))
+    super::texture::decode_exr_rgba(bytes, 1, |texel: &mut [Vec3], [r, g, b, _]| texel[0] = Vec3::new(r, g, b))
 }
 
 fn decode_hdr(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>), String> {

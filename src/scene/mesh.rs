@@ -233,10 +233,11 @@ fn face_normal(tri: [usize; 3], [a, b, c]: [DVec3; 3]) -> Option<DVec3> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn quad() -> ObjectMesh {
+    /// A unit quad in the z = 0 plane facing +z, two triangles, no surface data.
+    pub(crate) fn quad() -> ObjectMesh {
         ObjectMesh {
             name: "quad".into(),
             positions: vec![

@@ -60,7 +60,7 @@ pub enum Light {
 
 impl Light {
     /// Whether the light has a size (a radius or an angular diameter above zero), so that its
-    /// shadows have penumbrae.
+    /// shadows have penumbrae and compose shades it as the sphere or disk it is.
     pub fn has_size(&self) -> bool {
         match *self {
             Light::Point { radius, .. } | Light::Spot { radius, .. } => radius > 0.0,

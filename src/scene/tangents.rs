@@ -89,7 +89,6 @@ pub(super) fn generate(mesh: &mut ObjectMesh) -> bool {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use glam::DVec3;
 
     /// A quad in the XY plane facing +Z with u along +X and v along +Y (so up the image is -Y):
     /// the tangent is +X, and the bitangent cross(n, t) * w = -Y needs w = -1. Mirroring the
@@ -99,16 +98,6 @@ mod tests {
         for (flip_u, tangent, w) in [(false, Vec3::X, -1.0), (true, Vec3::NEG_X, 1.0)] {
             let u = |x: f32| if flip_u { 1.0 - x } else { x };
             let mut mesh = ObjectMesh {
-                name: "quad".into(),
-                positions: vec![
-                    DVec3::new(0.0, 0.0, 0.0),
-                    DVec3::new(1.0, 0.0, 0.0),
-                    DVec3::new(1.0, 1.0, 0.0),
-                    DVec3::new(0.0, 1.0, 0.0),
-                ],
-                normals: Some(vec![Vec3::Z; 4]),
-                indices: vec![0, 1, 2, 0, 2, 3],
-                material: None,
                 surface: super::super::mesh::ObjectSurface {
                     uvs: Some(vec![
                         Vec2::new(u(0.0), 0.0),
@@ -118,7 +107,7 @@ mod tests {
                     ]),
                     ..Default::default()
                 },
-                double_sided: false,
+                ..super::super::mesh::tests::quad()
             };
             assert!(generate(&mut mesh));
             assert_eq!(mesh.positions.len(), 6);

@@ -212,17 +212,31 @@ fn decode(bytes: &[u8], is_exr: bool) -> Result<(u32, u32, Vec<u8>), String> {
 
 /// The first RGBA layer of an EXR file, clamped to [0, 1] and quantised to 8 bits.
 fn decode_exr(bytes: &[u8]) -> Result<(u32, u32, Vec<u8>), String> {
+    decode_exr_rgba(bytes, 4, |texel: &mut [u8], rgba| {
+        for (t, v) in texel.iter_mut().zip(rgba) {
+            *t = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        }
+    })
+}
+
+/// The first RGBA layer of an EXR file at its largest resolution, as `channels` values per
+/// texel (rows from the top) that `store` makes of each texel's (r, g, b, a).
+pub(crate) fn decode_exr_rgba<T: Clone + Default + 'static>(
+    bytes: &[u8],
+    channels: usize,
+    store: fn(&mut [T], [f32; 4]),
+) -> Result<(u32, u32, Vec<T>), String> {
     use exr::prelude::*;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .rgba_channels(
-            |resolution, _| (resolution.width(), vec![0u8; resolution.width() * resolution.height() * 4]),
-            |(width, texels), position, (r, g, b, a): (f32, f32, f32, f32)| {
-                let at = (position.y() * *width + position.x()) * 4;
-                for (k, v) in [r, g, b, a].into_iter().enumerate() {
-                    texels[at + k] = (v.clamp(0.0, 1.0) * 255.0).round() as u8;
-                }
+            move |resolution, _| {
+                (resolution.width(), vec![T::default(); resolution.width() * resolution.height() * channels])
+            },
+            move |(width, texels), position, (r, g, b, a): (f32, f32, f32, f32)| {
+                let at = (position.y() * *width + position.x()) * channels;
+                store(&mut texels[at..at + channels], [r, g, b, a]);
             },
         )
         .first_valid_layer()

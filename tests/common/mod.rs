@@ -140,6 +140,9 @@ pub const CUBE: &str = "[[objects]]\nshape = \"cube\"\nsize = 1.0\ntranslate = [
 pub const SPHERE: &str = "[[objects]]\nshape = \"sphere\"\nradius = 0.4\ntranslate = [1.4, 0.4, 0.6]\n";
 
 /// A scene file from `parts`, in order (a key after a table's part belongs to that table).
+/// The shared test box scene's pieces: camera, spot, sun and point light, floor, cube, sphere.
+pub const BOX: [&str; 7] = [CAMERA, SPOT, SUN, POINT, FLOOR, CUBE, SPHERE];
+
 pub fn scene(parts: &[&str]) -> String {
     parts.join("\n")
 }

@@ -180,20 +180,7 @@ impl MapPipelines {
     /// per layer culls draws per layer.)
     fn prepare_layer(&self, k: usize) -> GpuResult<&GraphicsPipeline> {
         crate::vk::get_or_make(&self.depth[k], || {
-            let desc = GraphicsPipelineDesc {
-                name: "shadow map",
-                vertex: spirv::SHADOWS_MAP_DEPTH_VERT,
-                fragment: None,
-                vertex_stride: std::mem::size_of::<Vertex>() as u32,
-                attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
-                color_formats: &[],
-                depth_format: Some(DEPTH_FORMAT),
-                bindings: &[(MAP_DEPTH_LAYERS, DescriptorKind::UniformBuffer)],
-                push_bytes: 0,
-                // Both faces: thin and open casters shadow from either side, as traced rays see them.
-                cull_back_faces: false,
-                dynamic_depth_bias: true,
-            };
+            let desc = depth_desc("shadow map", spirv::SHADOWS_MAP_DEPTH_VERT, None);
             let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
             let extras = GraphicsExtras { view_mask: 1u32 << k, instance, ..Default::default() };
             GraphicsPipeline::with_extras(&self.ctx, &desc, &extras)
@@ -205,19 +192,11 @@ impl MapPipelines {
     pub fn prepare_masked(&self, layers: usize, material_set: vk::DescriptorSetLayout) -> GpuResult<()> {
         (0..layers).try_for_each(|k| {
             crate::vk::get_or_make(&self.masked[k], || {
-                let desc = GraphicsPipelineDesc {
-                    name: "shadow map (alpha-masked)",
-                    vertex: spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
-                    fragment: Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
-                    vertex_stride: std::mem::size_of::<Vertex>() as u32,
-                    attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
-                    color_formats: &[],
-                    depth_format: Some(DEPTH_FORMAT),
-                    bindings: &[(MAP_DEPTH_LAYERS, DescriptorKind::UniformBuffer)],
-                    push_bytes: 0,
-                    cull_back_faces: false,
-                    dynamic_depth_bias: true,
-                };
+                let desc = depth_desc(
+                    "shadow map (alpha-masked)",
+                    spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
+                    Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
+                );
                 let extras = GraphicsExtras {
                     view_mask: 1u32 << k,
                     instance: Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..])),
@@ -246,6 +225,29 @@ impl MapPipelines {
             Some(materials) => self.prepare_masked(layers, materials.set_layout()),
             None => Ok(()),
         }
+    }
+}
+
+/// A shadow map's depth pipeline: positions only, depth with a dynamic bias, both faces (thin
+/// and open casters shadow from either side, as traced rays see them), the layers' matrices at
+/// `MAP_DEPTH_LAYERS`; `fragment` for the alpha-masked variant.
+fn depth_desc(
+    name: &'static str,
+    vertex: &'static [u8],
+    fragment: Option<&'static [u8]>,
+) -> GraphicsPipelineDesc<'static> {
+    GraphicsPipelineDesc {
+        name,
+        vertex,
+        fragment,
+        vertex_stride: std::mem::size_of::<Vertex>() as u32,
+        attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
+        color_formats: &[],
+        depth_format: Some(DEPTH_FORMAT),
+        bindings: &[(MAP_DEPTH_LAYERS, DescriptorKind::UniformBuffer)],
+        push_bytes: 0,
+        cull_back_faces: false,
+        dynamic_depth_bias: true,
     }
 }
 

@@ -323,37 +323,35 @@ pub fn shade_rect(p: Vec3, n: Vec3, v: Vec3, material: &Material, rect: &RectLig
     let (x, y) = ltc::frame(n, v);
     let corners = ltc::corners_in_frame(rect.center, rect.half_edge_u, rect.half_edge_v, p, x, y, n);
     let diffuse_share = ltc::convex_form_factor(glam::Mat3::IDENTITY, &corners).z.abs();
-    shade_lobe(n, v, x, material, diffuse_share, |m| ltc::convex_form_factor(m, &corners)) * rect.radiance
+    let lobe = |node, m, v_frame, n_dot_v, roughness, ab| {
+        ltc::lobe_over_polygon(node, m, &corners, v_frame, n_dot_v, roughness, ab)
+    };
+    shade_lobe(n, v, x, material, diffuse_share, lobe) * rect.radiance
 }
 
 /// Outgoing radiance toward `v` (unit normal `n`, `x` the frame's `ltc::frame`) from a light
-/// of unit radiance covering `diffuse_share` of the cosine and whose vector form factor after a
-/// matrix `form` gives (in that frame): `shade_rect`'s LTC evaluation.
+/// of unit radiance covering `diffuse_share` of the cosine and whose GGX lobe integral, as the
+/// scale and bias of F0, `lobe` gives from the LTC node, its matrix, v in the frame, n.v,
+/// roughness and the split-sum scale and bias: `shade_rect`'s LTC evaluation.
 fn shade_lobe(
     n: Vec3,
     v: Vec3,
     x: Vec3,
     material: &Material,
     diffuse_share: f32,
-    form: impl Fn(glam::Mat3) -> Vec3,
+    lobe: impl Fn([f32; crate::lighting::ltc::ENTRY], glam::Mat3, Vec3, f32, f32, glam::Vec2) -> glam::Vec2,
 ) -> Vec3 {
     use crate::lighting::{ltc, split_sum};
     let n_dot_v = n.dot(v).max(BRDF_MIN_N_DOT_V);
     let roughness = material.roughness.clamp(0.0, 1.0);
     let node = ltc::lookup(ltc::table(), n_dot_v, roughness);
     let m = ltc::inverse_matrix(node);
-    let form = form(m);
     let ab = split_sum::lookup(split_sum::table(), n_dot_v, roughness);
     let metallic = material.metallic.clamp(0.0, 1.0);
     let f0 = Vec3::splat(0.04).lerp(material.base_color, metallic);
     let v_frame = Vec3::new(v.dot(x), 0.0, v.dot(n));
-    let (lobe, mean) = ltc::lobe_integral(node, m, form, v_frame, n_dot_v, roughness, ab);
-    let fresnel = Vec3::new(
-        ltc::fresnel_toward(f0.x, v_frame, mean),
-        ltc::fresnel_toward(f0.y, v_frame, mean),
-        ltc::fresnel_toward(f0.z, v_frame, mean),
-    );
-    let specular = fresnel * lobe;
+    let lobe = lobe(node, m, v_frame, n_dot_v, roughness, ab);
+    let specular = f0 * lobe.x + Vec3::splat(lobe.y);
     let diffuse = material.base_color * (1.0 - metallic) * diffuse_share;
     diffuse + specular
 }
@@ -413,10 +411,12 @@ pub fn shade_cap(n: Vec3, v: Vec3, material: &Material, cap: &Cap) -> Vec3 {
     let to_frame = |c: Vec3| Vec3::new(c.dot(x), c.dot(y), c.dot(n));
     let (centre, offsets) = ltc::cap_polygon(cap.axis, cap.one_minus_cos);
     let (centre, offsets) = (to_frame(centre), offsets.map(to_frame));
-    let form = |m| ltc::cap_form_factor(m, centre, &offsets);
+    let lobe = |node, m, v_frame, n_dot_v, roughness, ab| {
+        ltc::fitted_lobe(node, m, ltc::cap_form_factor(m, centre, &offsets), v_frame, n_dot_v, roughness, ab)
+    };
     let sin2 = cap.one_minus_cos * (2.0 - cap.one_minus_cos);
     let diffuse_share = ltc::cap_diffuse(n.dot(cap.axis), sin2);
-    shade_lobe(n, v, x, material, diffuse_share, form) * cap.radiance
+    shade_lobe(n, v, x, material, diffuse_share, lobe) * cap.radiance
 }
 
 /// Whether `light` can reach a point `p` of unit normal `n`: the direction to it above the

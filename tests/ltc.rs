@@ -59,59 +59,97 @@ fn compare(theta_deg: f64, roughness: f64, f0: f64, c: DVec3, u: DVec3, w: DVec3
     let (x, y) = ltc::frame(Vec3::Z, v.as_vec3());
     let corners = ltc::corners_in_frame(c.as_vec3(), u.as_vec3(), w.as_vec3(), Vec3::ZERO, x, y, Vec3::Z);
     let ab = split_sum::lookup(split_sum::table(), nv, roughness as f32);
-    let form = ltc::form_factor(m, corners);
     let v_frame = Vec3::new(v.as_vec3().dot(x), 0.0, v.z as f32);
-    let (lobe, mean) = ltc::lobe_integral(node, m, form, v_frame, nv.max(1e-4), roughness as f32, ab);
-    let fresnel = ltc::fresnel_toward(f0 as f32, v_frame, mean);
-    (f64::from(lobe * fresnel), numerical)
+    let lobe = ltc::lobe_over_polygon(node, m, &corners, v_frame, nv.max(1e-4), roughness as f32, ab);
+    (f64::from(lobe.x * f0 as f32 + lobe.y), numerical)
 }
 
-/// A 1 m x 1 m rect 2 m away along `dir`, facing the origin.
-fn rect_toward(dir: DVec3) -> (DVec3, DVec3, DVec3) {
+/// A `size` m square rect 2 m away along `dir`, facing the origin.
+fn rect_toward(dir: DVec3, size: f64) -> (DVec3, DVec3, DVec3) {
     let dir = dir.normalize();
     let side = if dir.y.abs() < 0.9 { DVec3::Y } else { DVec3::X };
-    let u = dir.cross(side).normalize() * 0.5;
-    let w = dir.cross(u).normalize() * 0.5;
+    let u = dir.cross(side).normalize() * (0.5 * size);
+    let w = dir.cross(u).normalize() * (0.5 * size);
     (dir * 2.0, u, w)
+}
+
+/// The worst relative error (over F0 0.04 and 1) for each (view angle, roughness) of the grid,
+/// with a `size` m square rect 2 m away on the mirror direction, lifted to at least `lift`
+/// (sin of its elevation) above the horizon at grazing views so that it is not mostly below it.
+fn grid_errors(size: f64, lift: f64) -> Vec<(f64, f64, f64)> {
+    let mut errors = Vec::new();
+    for theta in [0.0, 15.0, 30.0, 45.0, 60.0, 70.0, 75.0, 80.0, 85.0] {
+        for roughness in [0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 1.0] {
+            let t = f64::to_radians(theta);
+            let mirror = DVec3::new(-t.sin(), 0.0, t.cos().max(lift));
+            let (c, u, w) = rect_toward(mirror, size);
+            let k = if roughness < 0.15 { 1200 } else { 400 };
+            let worst = [0.04, 1.0]
+                .map(|f0| {
+                    let (approx, exact) = compare(theta, roughness, f0, c, u, w, k);
+                    (approx - exact).abs() / exact
+                })
+                .into_iter()
+                .fold(0.0, f64::max);
+            errors.push((theta, roughness, worst));
+        }
+    }
+    errors
+}
+
+/// Issue 11's bound: 2 % up to 70 degrees from the normal, 5 % up to 85.
+fn bound(theta: f64) -> f64 {
+    if theta <= 70.0 {
+        0.02
+    } else {
+        0.05
+    }
+}
+
+fn report(errors: &[(f64, f64, f64)]) -> String {
+    errors
+        .iter()
+        .map(|(theta, roughness, e)| format!("{theta:>4} deg, roughness {roughness:<4}: {:.2} %", e * 100.0))
+        .collect::<Vec<_>>()
+        .join("\n")
 }
 
 #[test]
 fn ggx_over_a_rect_matches_numerical_integration() {
-    let mut report = Vec::new();
+    // A 1 m square 2 m away, lifted to 10 degrees: measured within 1.75 % up to 70 degrees and
+    // 3.02 % at 85 (roughness 0.2) for every roughness. Up to 45 degrees that is the fit with
+    // `lobe_integral`'s correction; from 50 degrees on, for roughness 0.2 and up, the
+    // quadrature of `lobe_over_polygon` (the fit alone was 5-45 % off there).
+    let errors = grid_errors(1.0, 0.17);
+    println!("LTC against numerical integration (1 m rect on the mirror direction):\n{}", report(&errors));
+    let failures: Vec<String> = errors
+        .iter()
+        .filter(|(theta, _, e)| *e > bound(*theta))
+        .map(|(theta, roughness, e)| format!("{theta} deg, roughness {roughness}: {:.2} %", e * 100.0))
+        .collect();
+    assert!(failures.is_empty(), "{}", failures.join("\n"));
+}
+
+#[test]
+fn ggx_over_other_rects_at_grazing_views() {
+    // Smaller, larger and higher rects. For roughness 0.2 and up (the quadrature's range):
+    // the 0.25 m rect holds the issue's bounds; 9 points per triangle fall short of them for a
+    // 4 m rect 2 m away, which spans some 90 degrees (measured 5.5 % at 70 degrees and 8.8 % at
+    // 75, roughness 0.35), and for a 1 m rect 30 degrees up (6.9 % at 85 degrees, roughness
+    // 0.2). Asserted at 6 % up to 70 degrees and 10 % beyond.
+    // Printed for the smoother lobes, which the fit alone carries and which miss at 80-85
+    // degrees for some placements (up to 144 %: a lobe thinner than the light, seen edge-on).
+    let bound = |theta: f64| if theta <= 70.0 { 0.06 } else { 0.10 };
     let mut failures = Vec::new();
-    for theta in [0.0, 15.0, 30.0, 45.0, 60.0, 70.0, 80.0, 85.0] {
-        for roughness in [0.05, 0.1, 0.2, 0.35, 0.5, 0.7, 1.0] {
-            let t = f64::to_radians(theta);
-            // Where the lobe peaks: the mirror direction, lifted to 10 degrees above the
-            // horizon at grazing views so the rect is not mostly below it.
-            let mirror = DVec3::new(-t.sin(), 0.0, t.cos().max(0.17));
-            let (c, u, w) = rect_toward(mirror);
-            let k = if roughness < 0.15 { 1200 } else { 400 };
-            let mut worst: f64 = 0.0;
-            for f0 in [0.04, 1.0] {
-                let (approx, exact) = compare(theta, roughness, f0, c, u, w, k);
-                worst = worst.max((approx - exact).abs() / exact);
-            }
-            let bound = if theta <= 70.0 { 0.02 } else { 0.05 };
-            report.push(format!("{theta:>4} deg, roughness {roughness:<4}: {:.2} %", worst * 100.0));
-            // Not yet met everywhere (issue 11 asks for every roughness). Measured with the
-            // ratio correction of `ltc::lobe_integral`: every roughness within 2 % up to 45
-            // degrees and within 2.03 % at 60 (asserted at 2.1 %); at 70 degrees 0.35-1 miss by
-            // 2.4-12 %, and at 80-85 degrees everything from 0.2 up misses by 5-45 % (the plain
-            // fit's error: the correction is faded out there). Asserted where it holds.
-            let held = theta <= 45.0 || (theta <= 70.0 && roughness <= 0.2) || roughness <= 0.1;
-            let bound = if theta == 60.0 { 0.021 } else { bound };
-            let held = held || theta == 60.0;
-            if held && worst > bound {
-                failures.push(format!(
-                    "{theta} deg, roughness {roughness}: {:.2} % > {:.0} %",
-                    worst * 100.0,
-                    bound * 100.0
-                ));
-            }
-        }
+    for (size, lift) in [(0.25, 0.17), (4.0, 0.17), (1.0, 0.5)] {
+        let errors = grid_errors(size, lift);
+        println!("{size} m rect, lift {lift}:\n{}", report(&errors));
+        failures.extend(
+            errors.iter().filter(|(theta, roughness, e)| *roughness >= 0.2 && *e > bound(*theta)).map(
+                |(theta, roughness, e)| format!("{size} m, {theta} deg, roughness {roughness}: {:.2} %", e * 100.0),
+            ),
+        );
     }
-    println!("LTC against numerical integration (rect on the mirror direction):\n{}", report.join("\n"));
     assert!(failures.is_empty(), "{}", failures.join("\n"));
 }
 

@@ -221,7 +221,7 @@ fn gpu_rect_shading_matches_the_cpu_twin() {
             let normal = render(&mut renderer, Some(DebugView::Normal));
             let depth = render(&mut renderer, Some(DebugView::Depth));
             let material = Material { base_color: base, roughness, metallic };
-            let (mut lit, mut emitter, mut worst) = (0, 0, 0.0f32);
+            let (mut lit, mut emitter, mut worst, mut integrated) = (0, 0, 0.0f32, 0);
             for i in 0..radiance.len() {
                 let got = radiance[i].truncate();
                 if got == rect.radiance {
@@ -243,10 +243,15 @@ fn gpu_rect_shading_matches_the_cpu_twin() {
                     worst = worst.max((got - twin).abs().max_element() / twin.max_element());
                 }
                 lit += (twin.max_element() > 1e-3) as usize;
+                // Lit pixels seen beyond 50 degrees: shaded by ltc::lobe_over_polygon's
+                // quadrature alone (ltc::quadrature_weight 1), on both sides.
+                let grazing = umbra::lighting::ltc::quadrature_weight(n.dot((eye - p).normalize()), roughness, 0.0);
+                integrated += (grazing == 1.0 && twin.max_element() > 1e-3) as usize;
             }
+            assert!(integrated > 200, "only {integrated} pixels exercise the quadrature");
             println!(
-                "two_sided {two_sided}, {material:?}: {lit} lit pixels, GPU within {worst:.1e} of the CPU twin, \
-                 {emitter} emitter pixels"
+                "two_sided {two_sided}, {material:?}: {lit} lit pixels ({integrated} by quadrature alone), GPU \
+                 within {worst:.1e} of the CPU twin, {emitter} emitter pixels"
             );
             assert!(lit > 1000, "{lit}");
             // The camera, below the rect, sees its emitting side.

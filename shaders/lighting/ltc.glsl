@@ -1,5 +1,5 @@
 // Linearly transformed cosines over a rect light or a cap (a sphere or disk light): twin of
-// src/lighting/ltc.rs (`lookup`, `form_factor`, `cap_polygon`, `cap_form_factor`, `fresnel_toward`, `frame`) and of
+// src/lighting/ltc.rs (`lookup`, `form_factor`, `cap_polygon`, `cap_form_factor`, `lobe_over_polygon`, `frame`) and of
 // `shade_rect` and `shade_cap` in src/shading.rs.
 // Contract: before including, declare `float ltc_table[]` (ltc::table(), 5 floats a node, x
 // fastest) and `vec2 brdf_table[]`, and include brdf.glsl, lights.glsl and
@@ -84,11 +84,17 @@ vec3 ltc_form_factor(mat3 m, vec3 c0, vec3 c1, vec3 c2, vec3 c3) {
     return sum / (2.0 * LTC_PI);
 }
 
-vec3 ltc_fresnel_toward(vec3 f0, vec3 v, vec3 l) {
+// (1 - v.h)^5 for the half vector of v and direction l: Schlick's F = F0 (1 - s) + s
+// (ltc::schlick_weight).
+float ltc_schlick_weight(vec3 v, vec3 l) {
     vec3 h = normalize(v + normalize(l));
     float m = 1.0 - clamp(dot(v, h), 0.0, 1.0);
-    float m5 = m * m * m * m * m;
-    return f0 + (vec3(1.0) - f0) * m5;
+    return m * m * m * m * m;
+}
+
+vec3 ltc_normalize_or_zero(vec3 x) {
+    float len = length(x);
+    return len > 0.0 ? x / len : vec3(0.0);
 }
 
 // n.v where the correction of ltc_lobe_integral is gone (75 degrees) and where it is whole (60).
@@ -128,23 +134,117 @@ float ltc_lobe_integral(mat3 m, float share, vec3 form, vec3 v, float n_dot_v, f
     return plain * (ratio + (1.0 - ratio) * coverage);
 }
 
-// Radiance toward v from a convex polygon of unit radiance: the diffuse share (the cosine's
-// integral over it), and after the LTC matrix `m` (with its share above the horizon) its vector
-// form factor `form`, in the frame (x, y = n x x, n). shading::shade_polygon.
-vec3 ltc_shade(float diffuse_share, vec3 form, mat3 m, float share, vec3 x, vec3 n, vec3 v, float n_dot_v,
-               vec3 base_color, float roughness, float metallic) {
-    metallic = clamp(metallic, 0.0, 1.0);
-    vec3 specular = vec3(0.0);
-    if (form.z != 0.0) {
-        vec2 ab = split_sum_lookup(n_dot_v, roughness);
-        vec3 f0 = mix(vec3(0.04), base_color, metallic);
-        vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
-        vec3 mean;
-        float lobe = ltc_lobe_integral(m, share, form, v_frame, n_dot_v, roughness, ab, mean);
-        specular = ltc_fresnel_toward(f0, v_frame, mean) * lobe;
+// The lobe's integral as the scale and bias of F0, Fresnel at the light's mean direction under
+// the lobe (ltc::fitted_lobe).
+vec2 ltc_fitted_lobe(mat3 m, float share, vec3 form, vec3 v_frame, float n_dot_v, float roughness, vec2 ab) {
+    if (form.z == 0.0) return vec2(0.0);
+    vec3 mean;
+    float lobe = ltc_lobe_integral(m, share, form, v_frame, n_dot_v, roughness, ab, mean);
+    float s = ltc_schlick_weight(v_frame, mean);
+    return lobe * vec2(1.0 - s, s);
+}
+
+// Where ltc_lobe_over_polygon blends in its quadrature (ltc::QUADRATURE_FROM): n.v, roughness,
+// the light's share of the fitted lobe.
+const vec2 LTC_QUADRATURE_VIEW = vec2(0.7071068, 0.6427876);
+const vec2 LTC_QUADRATURE_ROUGHNESS = vec2(0.1, 0.2);
+const vec2 LTC_QUADRATURE_COVERAGE = vec2(0.05, 0.1);
+// Points per triangle along each axis (ltc::QUADRATURE_SIDE).
+const uint LTC_QUADRATURE_SIDE = 3u;
+// Solid angle below which a triangle takes its centre alone (ltc::TRIANGLE_MIN_AREA).
+const float LTC_TRIANGLE_MIN_AREA = 1e-3;
+
+// ltc::quadrature_weight.
+float ltc_quadrature_weight(float n_dot_v, float roughness, float coverage) {
+    float grazing = 1.0 - light_smoothstep(LTC_QUADRATURE_VIEW.y, LTC_QUADRATURE_VIEW.x, n_dot_v);
+    float large = light_smoothstep(LTC_QUADRATURE_COVERAGE.x, LTC_QUADRATURE_COVERAGE.y, coverage);
+    return light_smoothstep(LTC_QUADRATURE_ROUGHNESS.x, LTC_QUADRATURE_ROUGHNESS.y, roughness) * max(grazing, large);
+}
+
+// The lobe over the cosine at unit w of the cosine's space, as (F0's scale, bias), and the
+// cosine there (ltc::lobe_quadrature's `at`).
+vec3 ltc_quadrature_point(mat3 m, mat3 back, float det, vec3 v, float n_dot_v, float alpha, vec3 w) {
+    vec3 l = ltc_normalize_or_zero(back * w);
+    float c = max(w.z, 0.0);
+    if (!(l.z > 0.0)) return vec3(0.0, 0.0, c);
+    float len = length(m * l);
+    vec3 h = normalize(v + l);
+    float lobe = ggx_d(clamp(h.z, 0.0, 1.0), alpha) * smith_vis(l.z, n_dot_v, alpha) * l.z * (len * len * len / det);
+    float s = ltc_schlick_weight(v, l);
+    return vec3(lobe * (1.0 - s), lobe * s, c);
+}
+
+// Sums of ltc_quadrature_point over the spherical triangle (a, b, c), stratified uniformly in
+// solid angle (Arvo 1995); its centre alone for a triangle too small for that map in f32
+// (ltc::triangle_average).
+vec3 ltc_triangle_average(vec3 a, vec3 b, vec3 c, mat3 m, mat3 back, float det, vec3 v, float n_dot_v,
+                          float alpha) {
+    float area = 2.0 * atan(abs(dot(a, cross(b, c))), 1.0 + dot(a, b) + dot(b, c) + dot(c, a));
+    if (!(area > LTC_TRIANGLE_MIN_AREA)) {
+        return ltc_quadrature_point(m, back, det, v, n_dot_v, alpha, ltc_normalize_or_zero(a + b + c));
     }
-    vec3 diffuse = base_color * (1.0 - metallic) * diffuse_share;
-    return diffuse + specular;
+    float cos_alpha = clamp(dot(ltc_normalize_or_zero(cross(a, b)), ltc_normalize_or_zero(cross(a, c))), -1.0, 1.0);
+    float sin_alpha = sqrt(max(1.0 - cos_alpha * cos_alpha, 0.0));
+    float angle = acos(cos_alpha);
+    float cos_c = dot(a, b);
+    vec3 c_perp = ltc_normalize_or_zero(c - a * dot(c, a));
+    float side = float(LTC_QUADRATURE_SIDE);
+    vec3 sum = vec3(0.0);
+    for (uint i = 0u; i < LTC_QUADRATURE_SIDE; i++) {
+        float sub = ((float(i) + 0.5) / side) * area - angle;
+        float s = sin(sub);
+        float t = cos(sub);
+        float u = t - cos_alpha;
+        float w = s + sin_alpha * cos_c;
+        float q = clamp(((w * t - u * s) * cos_alpha - w) / ((w * s + u * t) * sin_alpha), -1.0, 1.0);
+        vec3 c_hat = a * q + c_perp * sqrt(max(1.0 - q * q, 0.0));
+        vec3 b_perp = ltc_normalize_or_zero(c_hat - b * dot(c_hat, b));
+        float one_minus = 1.0 - dot(c_hat, b);
+        for (uint j = 0u; j < LTC_QUADRATURE_SIDE; j++) {
+            float z = 1.0 - (float(j) + 0.5) / side * one_minus;
+            sum += ltc_quadrature_point(m, back, det, v, n_dot_v, alpha, b * z + b_perp * sqrt(max(1.0 - z * z, 0.0)));
+        }
+    }
+    return sum;
+}
+
+// The lobe's integral over the rect (c0..c3 in the shading frame) by quadrature in the
+// cosine's space, as (F0's scale, bias): ltc::lobe_quadrature.
+vec2 ltc_lobe_quadrature(mat3 m, vec3 c0, vec3 c1, vec3 c2, vec3 c3, vec3 v, float n_dot_v, float roughness) {
+    vec3 p[4] = vec3[4](m * c0, m * c1, m * c2, m * c3);
+    vec3 clipped[5];
+    uint count = 0u;
+    for (uint i = 0u; i < 4u; i++) {
+        vec3 a = p[i];
+        vec3 b = p[(i + 1u) % 4u];
+        if (a.z >= 0.0) clipped[count++] = ltc_normalize_or_zero(a);
+        if ((a.z >= 0.0) != (b.z >= 0.0)) clipped[count++] = ltc_normalize_or_zero(a + (b - a) * (a.z / (a.z - b.z)));
+    }
+    if (count < 3u) return vec2(0.0);
+    vec3 centre = vec3(0.0);
+    for (uint k = 0u; k < count; k++) centre += clipped[k];
+    centre = ltc_normalize_or_zero(centre);
+    mat3 back = inverse(m);
+    float det = abs(determinant(m));
+    float alpha = max(roughness * roughness, BRDF_MIN_ALPHA);
+    vec2 total = vec2(0.0);
+    for (uint k = 0u; k < count; k++) {
+        vec3 b = clipped[k];
+        vec3 c = clipped[(k + 1u) % count];
+        float cosine = abs(ltc_edge(centre, b).z + ltc_edge(b, c).z + ltc_edge(c, centre).z) / (2.0 * LTC_PI);
+        if (!(cosine > 0.0)) continue;
+        vec3 sum = ltc_triangle_average(centre, b, c, m, back, det, v, n_dot_v, alpha);
+        if (sum.z > 0.0) total += sum.xy * (cosine * LTC_PI / sum.z);
+    }
+    return total;
+}
+
+// Outgoing radiance toward v from a light of unit radiance covering `diffuse_share` of the
+// cosine, whose GGX lobe integral is `lobe` (F0's scale and bias): shading::shade_lobe's end.
+vec3 ltc_shade(float diffuse_share, vec2 lobe, vec3 base_color, float metallic) {
+    metallic = clamp(metallic, 0.0, 1.0);
+    vec3 f0 = mix(vec3(0.04), base_color, metallic);
+    return base_color * (1.0 - metallic) * diffuse_share + f0 * lobe.x + vec3(lobe.y);
 }
 
 // The shading frame's x: toward v in the tangent plane (ltc::frame).
@@ -179,8 +279,13 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);
     vec3 form = ltc_form_factor(m, c0, c1, c2, c3);
-    return ltc_shade(diffuse_share, form, m, share, x, n, v, n_dot_v, base_color, roughness, metallic)
-        * rect.radiance.rgb;
+    vec2 ab = split_sum_lookup(n_dot_v, roughness);
+    vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
+    vec2 lobe = ltc_fitted_lobe(m, share, form, v_frame, n_dot_v, roughness, ab);
+    // ltc::lobe_over_polygon: by quadrature at grazing views and for large lights.
+    float weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
+    if (weight > 0.0) lobe = mix(lobe, ltc_lobe_quadrature(m, c0, c1, c2, c3, v_frame, n_dot_v, roughness), weight);
+    return ltc_shade(diffuse_share, lobe, base_color, metallic) * rect.radiance.rgb;
 }
 
 // A cap (a sphere or disk light seen from the shading point) stands in as the regular
@@ -274,7 +379,9 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);
     vec3 form = ltc_cap_form_factor(m, centre, to_frame, t, b, sin_rho);
-    return ltc_shade(diffuse_share, form, m, share, x, n, v, n_dot_v, base_color, roughness, metallic) * radiance;
+    vec2 ab = split_sum_lookup(n_dot_v, roughness);
+    vec2 lobe = ltc_fitted_lobe(m, share, form, vec3(dot(v, x), 0.0, dot(v, n)), n_dot_v, roughness, ab);
+    return ltc_shade(diffuse_share, lobe, base_color, metallic) * radiance;
 }
 
 #endif

@@ -324,7 +324,8 @@ pub fn shade_rect(p: Vec3, n: Vec3, v: Vec3, material: &Material, rect: &RectLig
     let corners = ltc::corners_in_frame(rect.center, rect.half_edge_u, rect.half_edge_v, p, x, y, n);
     let diffuse_share = ltc::convex_form_factor(glam::Mat3::IDENTITY, &corners).z.abs();
     let lobe = |node, m, v_frame, n_dot_v, roughness, ab| {
-        ltc::lobe_over_polygon(node, m, &corners, v_frame, n_dot_v, roughness, ab)
+        let form = ltc::convex_form_factor(m, &corners);
+        ltc::lobe_over_polygon(node, m, form, &corners, ltc::QUADRATURE_SIDE, v_frame, n_dot_v, roughness, ab)
     };
     shade_lobe(n, v, x, material, diffuse_share, lobe) * rect.radiance
 }
@@ -412,7 +413,9 @@ pub fn shade_cap(n: Vec3, v: Vec3, material: &Material, cap: &Cap) -> Vec3 {
     let (centre, offsets) = ltc::cap_polygon(cap.axis, cap.one_minus_cos);
     let (centre, offsets) = (to_frame(centre), offsets.map(to_frame));
     let lobe = |node, m, v_frame, n_dot_v, roughness, ab| {
-        ltc::fitted_lobe(node, m, ltc::cap_form_factor(m, centre, &offsets), v_frame, n_dot_v, roughness, ab)
+        let form = ltc::cap_form_factor(m, centre, &offsets);
+        let corners = offsets.map(|o| centre + o);
+        ltc::lobe_over_polygon(node, m, form, &corners, ltc::CAP_QUADRATURE_SIDE, v_frame, n_dot_v, roughness, ab)
     };
     let sin2 = cap.one_minus_cos * (2.0 - cap.one_minus_cos);
     let diffuse_share = ltc::cap_diffuse(n.dot(cap.axis), sin2);

@@ -144,13 +144,15 @@ vec2 ltc_fitted_lobe(mat3 m, float share, vec3 form, vec3 v_frame, float n_dot_v
     return lobe * vec2(1.0 - s, s);
 }
 
-// Where ltc_lobe_over_polygon blends in its quadrature (ltc::QUADRATURE_FROM): n.v, roughness,
-// the light's share of the fitted lobe.
+// Where the quadrature is blended in (ltc::QUADRATURE_FROM): n.v, roughness, the light's share
+// of the fitted lobe.
 const vec2 LTC_QUADRATURE_VIEW = vec2(0.7071068, 0.6427876);
 const vec2 LTC_QUADRATURE_ROUGHNESS = vec2(0.1, 0.2);
 const vec2 LTC_QUADRATURE_COVERAGE = vec2(0.05, 0.1);
-// Points per triangle along each axis (ltc::QUADRATURE_SIDE).
+// Points per triangle along each axis, over a rect and over a cap's octagon
+// (ltc::QUADRATURE_SIDE, ltc::CAP_QUADRATURE_SIDE).
 const uint LTC_QUADRATURE_SIDE = 3u;
+const uint LTC_CAP_QUADRATURE_SIDE = 2u;
 // Solid angle below which a triangle takes its centre alone (ltc::TRIANGLE_MIN_AREA).
 const float LTC_TRIANGLE_MIN_AREA = 1e-3;
 
@@ -161,82 +163,92 @@ float ltc_quadrature_weight(float n_dot_v, float roughness, float coverage) {
     return light_smoothstep(LTC_QUADRATURE_ROUGHNESS.x, LTC_QUADRATURE_ROUGHNESS.y, roughness) * max(grazing, large);
 }
 
+// What the quadrature needs of the lobe and the LTC.
+struct LtcQuadrature {
+    mat3 m;
+    mat3 back;
+    float det;
+    vec3 v;
+    float n_dot_v;
+    float alpha;
+};
+
+LtcQuadrature ltc_quadrature(mat3 m, vec3 v, float n_dot_v, float roughness) {
+    return LtcQuadrature(m, inverse(m), abs(determinant(m)), v, n_dot_v, max(roughness * roughness, BRDF_MIN_ALPHA));
+}
+
 // The lobe over the cosine at unit w of the cosine's space, as (F0's scale, bias), and the
 // cosine there (ltc::lobe_quadrature's `at`).
-vec3 ltc_quadrature_point(mat3 m, mat3 back, float det, vec3 v, float n_dot_v, float alpha, vec3 w) {
-    vec3 l = ltc_normalize_or_zero(back * w);
+vec3 ltc_quadrature_point(LtcQuadrature q, vec3 w) {
+    vec3 l = ltc_normalize_or_zero(q.back * w);
     float c = max(w.z, 0.0);
     if (!(l.z > 0.0)) return vec3(0.0, 0.0, c);
-    float len = length(m * l);
-    vec3 h = normalize(v + l);
-    float lobe = ggx_d(clamp(h.z, 0.0, 1.0), alpha) * smith_vis(l.z, n_dot_v, alpha) * l.z * (len * len * len / det);
-    float s = ltc_schlick_weight(v, l);
+    float len = length(q.m * l);
+    vec3 h = normalize(q.v + l);
+    float lobe = ggx_d(clamp(h.z, 0.0, 1.0), q.alpha) * smith_vis(l.z, q.n_dot_v, q.alpha) * l.z * (len * len * len / q.det);
+    float s = ltc_schlick_weight(q.v, l);
     return vec3(lobe * (1.0 - s), lobe * s, c);
 }
 
-// Sums of ltc_quadrature_point over the spherical triangle (a, b, c), stratified uniformly in
-// solid angle (Arvo 1995); its centre alone for a triangle too small for that map in f32
-// (ltc::triangle_average).
-vec3 ltc_triangle_average(vec3 a, vec3 b, vec3 c, mat3 m, mat3 back, float det, vec3 v, float n_dot_v,
-                          float alpha) {
+// The mean of ltc_quadrature_point over `side`^2 points of the spherical triangle (a, b, c),
+// stratified uniformly in solid angle (Arvo 1995), times the triangle's solid angle; its centre
+// alone for a triangle too small for that map in f32 (ltc::triangle_mean).
+vec3 ltc_triangle_mean(LtcQuadrature q, vec3 a, vec3 b, vec3 c, uint side) {
     float area = 2.0 * atan(abs(dot(a, cross(b, c))), 1.0 + dot(a, b) + dot(b, c) + dot(c, a));
-    if (!(area > LTC_TRIANGLE_MIN_AREA)) {
-        return ltc_quadrature_point(m, back, det, v, n_dot_v, alpha, ltc_normalize_or_zero(a + b + c));
-    }
+    if (area < LTC_TRIANGLE_MIN_AREA) return ltc_quadrature_point(q, ltc_normalize_or_zero(a + b + c)) * area;
     float cos_alpha = clamp(dot(ltc_normalize_or_zero(cross(a, b)), ltc_normalize_or_zero(cross(a, c))), -1.0, 1.0);
     float sin_alpha = sqrt(max(1.0 - cos_alpha * cos_alpha, 0.0));
     float angle = acos(cos_alpha);
     float cos_c = dot(a, b);
     vec3 c_perp = ltc_normalize_or_zero(c - a * dot(c, a));
-    float side = float(LTC_QUADRATURE_SIDE);
+    float sides = float(side);
     vec3 sum = vec3(0.0);
-    for (uint i = 0u; i < LTC_QUADRATURE_SIDE; i++) {
-        float sub = ((float(i) + 0.5) / side) * area - angle;
+    for (uint i = 0u; i < side; i++) {
+        float sub = ((float(i) + 0.5) / sides) * area - angle;
         float s = sin(sub);
         float t = cos(sub);
         float u = t - cos_alpha;
         float w = s + sin_alpha * cos_c;
-        float q = clamp(((w * t - u * s) * cos_alpha - w) / ((w * s + u * t) * sin_alpha), -1.0, 1.0);
-        vec3 c_hat = a * q + c_perp * sqrt(max(1.0 - q * q, 0.0));
+        float qq = clamp(((w * t - u * s) * cos_alpha - w) / ((w * s + u * t) * sin_alpha), -1.0, 1.0);
+        vec3 c_hat = a * qq + c_perp * sqrt(max(1.0 - qq * qq, 0.0));
         vec3 b_perp = ltc_normalize_or_zero(c_hat - b * dot(c_hat, b));
         float one_minus = 1.0 - dot(c_hat, b);
-        for (uint j = 0u; j < LTC_QUADRATURE_SIDE; j++) {
-            float z = 1.0 - (float(j) + 0.5) / side * one_minus;
-            sum += ltc_quadrature_point(m, back, det, v, n_dot_v, alpha, b * z + b_perp * sqrt(max(1.0 - z * z, 0.0)));
+        for (uint j = 0u; j < side; j++) {
+            float z = 1.0 - (float(j) + 0.5) / sides * one_minus;
+            sum += ltc_quadrature_point(q, b * z + b_perp * sqrt(max(1.0 - z * z, 0.0)));
         }
     }
-    return sum;
+    return sum * (area / (sides * sides));
 }
 
-// The lobe's integral over the rect (c0..c3 in the shading frame) by quadrature in the
-// cosine's space, as (F0's scale, bias): ltc::lobe_quadrature.
-vec2 ltc_lobe_quadrature(mat3 m, vec3 c0, vec3 c1, vec3 c2, vec3 c3, vec3 v, float n_dot_v, float roughness) {
-    vec3 p[4] = vec3[4](m * c0, m * c1, m * c2, m * c3);
-    vec3 clipped[5];
+// The lobe's sum over the cosine's, scaled to the polygon's cosine integral `cosine_integral`:
+// (F0's scale, bias) (the end of ltc::lobe_quadrature).
+vec2 ltc_quadrature_result(vec3 sum, float cosine_integral) {
+    return sum.z > 0.0 ? sum.xy * (cosine_integral * LTC_PI / sum.z) : vec2(0.0);
+}
+
+// ltc::lobe_quadrature: over the convex polygon of `n` corners (at most 8, in the shading frame),
+// moved into the cosine's space and clipped to its horizon, cut into triangles around its
+// centre.
+vec2 ltc_polygon_quadrature(LtcQuadrature q, vec3 corners[8], uint n, uint side, float cosine_integral) {
+    vec3 clipped[9];
     uint count = 0u;
-    for (uint i = 0u; i < 4u; i++) {
-        vec3 a = p[i];
-        vec3 b = p[(i + 1u) % 4u];
+    vec3 a = q.m * corners[0];
+    for (uint i = 0u; i < n; i++) {
+        vec3 b = q.m * corners[i + 1u == n ? 0u : i + 1u];
         if (a.z >= 0.0) clipped[count++] = ltc_normalize_or_zero(a);
         if ((a.z >= 0.0) != (b.z >= 0.0)) clipped[count++] = ltc_normalize_or_zero(a + (b - a) * (a.z / (a.z - b.z)));
+        a = b;
     }
     if (count < 3u) return vec2(0.0);
     vec3 centre = vec3(0.0);
     for (uint k = 0u; k < count; k++) centre += clipped[k];
     centre = ltc_normalize_or_zero(centre);
-    mat3 back = inverse(m);
-    float det = abs(determinant(m));
-    float alpha = max(roughness * roughness, BRDF_MIN_ALPHA);
-    vec2 total = vec2(0.0);
+    vec3 sum = vec3(0.0);
     for (uint k = 0u; k < count; k++) {
-        vec3 b = clipped[k];
-        vec3 c = clipped[(k + 1u) % count];
-        float cosine = abs(ltc_edge(centre, b).z + ltc_edge(b, c).z + ltc_edge(c, centre).z) / (2.0 * LTC_PI);
-        if (!(cosine > 0.0)) continue;
-        vec3 sum = ltc_triangle_average(centre, b, c, m, back, det, v, n_dot_v, alpha);
-        if (sum.z > 0.0) total += sum.xy * (cosine * LTC_PI / sum.z);
+        sum += ltc_triangle_mean(q, centre, clipped[k], clipped[k + 1u == count ? 0u : k + 1u], side);
     }
-    return total;
+    return ltc_quadrature_result(sum, cosine_integral);
 }
 
 // Outgoing radiance toward v from a light of unit radiance covering `diffuse_share` of the
@@ -284,7 +296,11 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
     vec2 lobe = ltc_fitted_lobe(m, share, form, v_frame, n_dot_v, roughness, ab);
     // ltc::lobe_over_polygon: by quadrature at grazing views and for large lights.
     float weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
-    if (weight > 0.0) lobe = mix(lobe, ltc_lobe_quadrature(m, c0, c1, c2, c3, v_frame, n_dot_v, roughness), weight);
+    if (weight > 0.0) {
+        LtcQuadrature q = ltc_quadrature(m, v_frame, n_dot_v, roughness);
+        vec3 corners[8] = vec3[8](c0, c1, c2, c3, vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
+        lobe = mix(lobe, ltc_polygon_quadrature(q, corners, 4u, LTC_QUADRATURE_SIDE, abs(form.z)), weight);
+    }
     return ltc_shade(diffuse_share, lobe, base_color, metallic) * rect.radiance.rgb;
 }
 
@@ -380,7 +396,16 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
     mat3 m = ltc_lookup(n_dot_v, roughness, share);
     vec3 form = ltc_cap_form_factor(m, centre, to_frame, t, b, sin_rho);
     vec2 ab = split_sum_lookup(n_dot_v, roughness);
-    vec2 lobe = ltc_fitted_lobe(m, share, form, vec3(dot(v, x), 0.0, dot(v, n)), n_dot_v, roughness, ab);
+    vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
+    vec2 lobe = ltc_fitted_lobe(m, share, form, v_frame, n_dot_v, roughness, ab);
+    // ltc::lobe_over_polygon: by quadrature at grazing views and for large lights.
+    float weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
+    if (weight > 0.0) {
+        LtcQuadrature q = ltc_quadrature(m, v_frame, n_dot_v, roughness);
+        vec3 corners[8];
+        for (uint k = 0u; k < LTC_CAP_CORNERS; k++) corners[k] = centre + to_frame * ltc_cap_offset(k, t, b, sin_rho);
+        lobe = mix(lobe, ltc_polygon_quadrature(q, corners, LTC_CAP_CORNERS, LTC_CAP_QUADRATURE_SIDE, abs(form.z)), weight);
+    }
     return ltc_shade(diffuse_share, lobe, base_color, metallic) * radiance;
 }
 

@@ -277,17 +277,18 @@ pub fn lobe_integral(
 }
 
 /// The integral of umbra's GGX lobe D Vis n.l over a polygon light (corners in the shading
-/// frame, either winding), as the scale and bias of F0 (Schlick's Fresnel taken at each
-/// direction's own half vector): specular = F0 x + y.
+/// frame, either winding; `form` its vector form factor after `m`), as the scale and bias of F0
+/// (Schlick's Fresnel taken at each direction's own half vector): specular = F0 x + y.
 ///
 /// At grazing views the fitted cosine is no longer GGX's shape (`lobe_integral` is 5-45 % off
-/// from 70 degrees on for roughness 0.2 and up), so there the lobe is integrated numerically,
-/// with the LTC as the change of variables: the polygon moved by `m` into the cosine's space
-/// (horizon-clipped) is cut into triangles around its centre; each triangle's cosine integral
-/// is exact (its form factor), and within it the lobe's ratio to the cosine is averaged over
-/// `QUADRATURE_SIDE`^2 points stratified uniformly in solid angle (Arvo 1995) and mapped back by
-/// M. In the cosine's space the peaked lobe is nearly flat, so few points suffice, and the
-/// result converges to the exact integral as points are added. Blended in from 45 to 50 degrees
+/// from 70 degrees on for roughness 0.2 and up, over a rect; up to 71 % over a cap), so there
+/// the lobe is integrated numerically, with the LTC as the change of variables: the polygon
+/// moved by `m` into the cosine's space (horizon-clipped) is cut into triangles around its
+/// centre, and the lobe (over the change of variables' Jacobian) and the cosine are averaged
+/// over `side`^2 points of each, stratified uniformly in solid angle (Arvo 1995) and mapped back
+/// by M. The lobe's sum over the cosine's, times the polygon's exact cosine integral (`form`),
+/// is the result: in the cosine's space the peaked lobe is nearly flat, so their ratio varies
+/// little and few points suffice, and it converges to the exact integral as points are added. Blended in from 45 to 50 degrees
 /// of view or for a light covering a tenth of the lobe, and from roughness 0.1 to 0.2
 /// (`QUADRATURE_FROM`); elsewhere `lobe_integral` (cheaper, and good for smooth lobes, where a
 /// lobe thinner than the points' spacing would defeat the quadrature). tests/ltc.rs measures
@@ -296,19 +297,20 @@ pub fn lobe_integral(
 pub fn lobe_over_polygon(
     node: [f32; ENTRY],
     m: Mat3,
+    form: Vec3,
     corners: &[Vec3],
+    side: usize,
     v: Vec3,
     n_dot_v: f32,
     roughness: f32,
     ab: glam::Vec2,
 ) -> glam::Vec2 {
-    let form = convex_form_factor(m, corners);
     let fitted = fitted_lobe(node, m, form, v, n_dot_v, roughness, ab);
     let weight = quadrature_weight(n_dot_v, roughness, (form.z.abs() / node[4]).clamp(0.0, 1.0));
     if weight <= 0.0 {
         return fitted;
     }
-    fitted.lerp(lobe_quadrature(m, corners, v, n_dot_v, roughness), weight)
+    fitted.lerp(lobe_quadrature(m, corners, form.z.abs(), side, v, n_dot_v, roughness), weight)
 }
 
 /// `lobe_integral` as the scale and bias of F0, with Fresnel at the light's mean direction under
@@ -336,8 +338,11 @@ pub fn fitted_lobe(
 /// 2-7 % off at views up to 45 degrees).
 pub const QUADRATURE_FROM: [[f32; 2]; 3] = [[std::f32::consts::FRAC_1_SQRT_2, 0.642_787_6], [0.1, 0.2], [0.05, 0.1]];
 
-/// Points per triangle along each axis of `lobe_over_polygon`'s quadrature.
+/// Points per triangle along each axis of `lobe_over_polygon`'s quadrature over a rect (4
+/// triangles, 36 points) and over a cap's octagon (8 triangles, 32 points: as accurate as 3
+/// there, tests/area_lights.rs).
 pub const QUADRATURE_SIDE: usize = 3;
+pub const CAP_QUADRATURE_SIDE: usize = 2;
 
 /// How much of `lobe_over_polygon` is its quadrature, for a light covering `coverage` of the
 /// fitted lobe (|form.z| / share).
@@ -356,9 +361,18 @@ fn schlick_weight(v: Vec3, l: Vec3) -> f32 {
     m * m * m * m * m
 }
 
-/// `lobe_over_polygon`'s numerical integral alone: (scale, bias) of F0.
+/// `lobe_over_polygon`'s numerical integral alone, for a polygon whose cosine integral (over pi)
+/// is `cosine_integral`: (scale, bias) of F0.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
-pub fn lobe_quadrature(m: Mat3, corners: &[Vec3], v: Vec3, n_dot_v: f32, roughness: f32) -> glam::Vec2 {
+pub fn lobe_quadrature(
+    m: Mat3,
+    corners: &[Vec3],
+    cosine_integral: f32,
+    side: usize,
+    v: Vec3,
+    n_dot_v: f32,
+    roughness: f32,
+) -> glam::Vec2 {
     assert!(corners.len() <= MAX_CORNERS, "at most {MAX_CORNERS} corners");
     let n = corners.len();
     let p = |i: usize| m * corners[i % n];
@@ -398,30 +412,37 @@ pub fn lobe_quadrature(m: Mat3, corners: &[Vec3], v: Vec3, n_dot_v: f32, roughne
         let s = schlick_weight(v, l);
         (glam::Vec2::new(lobe * (1.0 - s), lobe * s), w.z.max(0.0))
     };
-    let mut total = glam::Vec2::ZERO;
+    // Each triangle weighs its points' mean by its solid angle (robust in f32 for the slivers a
+    // lobe's tail becomes near the cosine's horizon, where the triangles' own form factors
+    // cancel to noise), and the whole is scaled to the polygon's exact cosine integral.
+    let (mut lobe, mut cos) = (glam::Vec2::ZERO, 0.0);
     for k in 0..count {
-        let (a, b, c) = (centre, clipped[k], clipped[(k + 1) % count]);
-        let cosine = (edge(a, b) + edge(b, c) + edge(c, a)).z.abs() / (2.0 * std::f32::consts::PI);
-        if !(cosine > 0.0) {
-            continue;
-        }
-        let (lobe, cos) = triangle_average(a, b, c, at);
-        if cos > 0.0 {
-            total += lobe * (cosine * std::f32::consts::PI / cos);
-        }
+        let (l, c, area) = triangle_mean(centre, clipped[k], clipped[(k + 1) % count], side, at);
+        lobe += l * area;
+        cos += c * area;
     }
-    total
+    if cos > 0.0 {
+        lobe * (cosine_integral * std::f32::consts::PI / cos)
+    } else {
+        glam::Vec2::ZERO
+    }
 }
 
-/// Sums of `f` (a pair: the lobe's part, the cosine) over `QUADRATURE_SIDE`^2 points of the
-/// spherical triangle (a, b, c) stratified uniformly in solid angle (Arvo 1995, "Stratified
-/// sampling of spherical triangles"); a triangle too small for that map in f32 takes its
-/// centre alone (the ratio is then constant across it).
-#[allow(clippy::neg_cmp_op_on_partial_ord)]
-fn triangle_average(a: Vec3, b: Vec3, c: Vec3, f: impl Fn(Vec3) -> (glam::Vec2, f32)) -> (glam::Vec2, f32) {
+/// Means of `f` (a pair: the lobe's part, the cosine) over `side`^2 points of the spherical
+/// triangle (a, b, c) stratified uniformly in solid angle (Arvo 1995, "Stratified sampling of
+/// spherical triangles"), and the triangle's solid angle; a triangle too small for that map in
+/// f32 takes its centre alone (the ratio is then constant across it).
+fn triangle_mean(
+    a: Vec3,
+    b: Vec3,
+    c: Vec3,
+    side: usize,
+    f: impl Fn(Vec3) -> (glam::Vec2, f32),
+) -> (glam::Vec2, f32, f32) {
     let area = 2.0 * a.dot(b.cross(c)).abs().atan2(1.0 + a.dot(b) + b.dot(c) + c.dot(a));
-    if !(area > TRIANGLE_MIN_AREA) {
-        return f((a + b + c).normalize_or_zero());
+    if area < TRIANGLE_MIN_AREA {
+        let (l, c) = f((a + b + c).normalize_or_zero());
+        return (l, c, area);
     }
     let (nab, nac) = (a.cross(b).normalize_or_zero(), a.cross(c).normalize_or_zero());
     let cos_alpha = nab.dot(nac).clamp(-1.0, 1.0);
@@ -429,9 +450,9 @@ fn triangle_average(a: Vec3, b: Vec3, c: Vec3, f: impl Fn(Vec3) -> (glam::Vec2, 
     let angle = cos_alpha.acos();
     let cos_c = a.dot(b);
     let c_perp = (c - a * c.dot(a)).normalize_or_zero();
-    let side = QUADRATURE_SIDE as f32;
+    let (count, side) = (side, side as f32);
     let (mut lobe, mut cos) = (glam::Vec2::ZERO, 0.0);
-    for i in 0..QUADRATURE_SIDE {
+    for i in 0..count {
         let (s, t) = (((i as f32 + 0.5) / side) * area - angle).sin_cos();
         let u = t - cos_alpha;
         let w = s + sin_alpha * cos_c;
@@ -439,17 +460,18 @@ fn triangle_average(a: Vec3, b: Vec3, c: Vec3, f: impl Fn(Vec3) -> (glam::Vec2, 
         let c_hat = a * q + c_perp * (1.0 - q * q).max(0.0).sqrt();
         let b_perp = (c_hat - b * c_hat.dot(b)).normalize_or_zero();
         let one_minus = 1.0 - c_hat.dot(b);
-        for j in 0..QUADRATURE_SIDE {
+        for j in 0..count {
             let z = 1.0 - (j as f32 + 0.5) / side * one_minus;
             let (l, c) = f(b * z + b_perp * (1.0 - z * z).max(0.0).sqrt());
             lobe += l;
             cos += c;
         }
     }
-    (lobe, cos)
+    let points = (count * count) as f32;
+    (lobe / points, cos / points, area)
 }
 
-/// Solid angle (sr) below which `triangle_average` takes one point.
+/// Solid angle (sr) below which `triangle_mean` takes one point.
 const TRIANGLE_MIN_AREA: f32 = 1e-3;
 
 /// n.v where `lobe_integral`'s correction is gone (75 degrees) and where it is whole (60).

@@ -98,7 +98,7 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
     let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer);
     if let (Some(view), Some(ao)) = (lighting.view, &occlusion) {
         let image = crate::lighting::ao::add_view(&mut g, view, ao, extent);
-        let result = post_stage(&mut g, pipelines, settings, Lit { image, debug: true, history: None });
+        let result = post_stage(&mut g, pipelines, settings, Lit { image, debug: true, toned: false, history: None });
         target_stage(&mut g, settings, result, target);
         return g;
     }
@@ -164,7 +164,17 @@ struct Lit<'a> {
     image: Handle<ImageKind>,
     /// The frame is a debug view (float values already mapped for display, or raw).
     debug: bool,
+    /// Compose wrote display values itself (`compose_displays`): nothing left to tone-map.
+    toned: bool,
     history: Option<History<'a>>,
+}
+
+/// Compose writes the display image itself, tone-mapped (`compose::Variant::display`), when a
+/// shaded frame is shown and no pass shades it after compose: no accumulation into a history
+/// and no rect lights (which add to compose's radiance).
+pub fn compose_displays(settings: &RenderSettings, lighting: &crate::lighting::Prepared, accumulated: bool) -> bool {
+    let rect_lights = lighting.rects.is_some() && lighting.area.is_some();
+    settings.output == OutputKind::Display && settings.debug_view.is_none() && !accumulated && !rect_lights
 }
 
 /// Compose (with accumulation when a history is given), or the debug view.
@@ -190,7 +200,7 @@ fn lighting_stage<'a>(
         None => (None, None),
     };
     if let Some(image) = technique_view {
-        return Lit { image, debug: true, history: None };
+        return Lit { image, debug: true, toned: false, history: None };
     }
     if let Some(view) = settings.debug_view {
         let layer = view.light().and_then(|l| plan.layers.layers.get(l).copied().flatten());
@@ -204,7 +214,7 @@ fn lighting_stage<'a>(
         };
         // Float even for PNG: the shader already mapped values to [0,1] for display.
         let image = debug_view::add(g, &pipelines.debug_view, gbuffer, inputs, extent);
-        return Lit { image, debug: true, history: None };
+        return Lit { image, debug: true, toned: false, history: None };
     }
     let lighting = &ambient.lighting;
     let area = lighting.area.map(|t| {
@@ -226,8 +236,10 @@ fn lighting_stage<'a>(
             g.import_owned_image("environment map", &m.source, read),
         )
     });
+    let (variant, pipeline) = ambient.compose.expect("the renderer prepares compose for shaded frames");
+    debug_assert_eq!(variant.display, compose_displays(settings, lighting, history.is_some()));
     let inputs = compose::ComposeInputs {
-        pipeline: ambient.compose.expect("the renderer prepares compose for shaded frames"),
+        pipeline: (variant, pipeline),
         lights: &handles.lights,
         light_count: s.light_count,
         visibility: visibility.as_ref().map(|(v, t)| (v, t)),
@@ -247,6 +259,7 @@ fn lighting_stage<'a>(
         }),
         brdf_table: area.as_ref().map(|(_, _, t)| t).or(environment_table.as_ref()),
         ltc_table: area.as_ref().filter(|(t, _, _)| t.sized_lights).map(|(_, ltc, _)| ltc),
+        exposure_ev: variant.display.then_some(settings.exposure_ev),
     };
     let mut image = compose::add(g, gbuffer, inputs, extent);
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
@@ -257,7 +270,7 @@ fn lighting_stage<'a>(
     if let Some(h) = &history {
         image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);
     }
-    Lit { image, debug: false, history }
+    Lit { image, debug: false, toned: variant.display, history }
 }
 
 /// What the post stage hands on: the frame's result, and the history to export after it.
@@ -281,6 +294,7 @@ fn post_stage<'a>(
     let accumulated = lit.history.is_some();
     match () {
         _ if lit.debug => Result { image: lit.image, debug: true, is_history: false, history_out: None },
+        _ if lit.toned => Result { image: lit.image, debug: false, is_history: false, history_out: None },
         _ if settings.output == OutputKind::Display => {
             let toned = tonemap::add(g, &pipelines.tonemap, &lit.image, settings.exposure_ev, extent);
             Result { image: toned, debug: false, is_history: false, history_out: accumulated.then_some(lit.image) }

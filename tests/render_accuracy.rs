@@ -452,6 +452,40 @@ fn an_empty_scene_renders_the_background() {
     common::assert_clean(&ctx);
 }
 
+/// A single display frame is tone-mapped by compose itself (no tone-map pass): its bytes are the
+/// tone curve and sRGB encoding of the same frame's radiance, at the settings' exposure.
+#[test]
+fn compose_tone_maps_a_single_display_frame() {
+    let ctx = common::gpu();
+    let mut renderer = Renderer::new(ctx.clone(), floor_cube()).expect("renderer");
+    let radiance = common::render_linear(&mut renderer, WIDTH, HEIGHT, None);
+    for exposure_ev in [0.0, 1.5] {
+        let mut settings = RenderSettings::new(WIDTH, HEIGHT, OutputKind::Display);
+        settings.exposure_ev = exposure_ev;
+        let passes = renderer.plan(&settings).expect("plan").live_pass_names();
+        assert!(passes.contains(&"compose") && !passes.contains(&"tonemap"), "{passes:?}");
+        let Frame::Rgba8 { pixels, .. } = renderer.render(&settings).expect("render") else {
+            panic!("display output read back as float")
+        };
+        let mut lit = 0;
+        for (i, (r, p)) in radiance.iter().zip(pixels.chunks_exact(4)).enumerate() {
+            let mapped = umbra::shading::tonemap(r.truncate(), exposure_ev);
+            let expected = mapped.to_array().map(|c| (umbra::shading::srgb_encode(c) * 255.0).round());
+            for (c, (&got, want)) in p.iter().zip(expected).enumerate() {
+                assert!(
+                    (f32::from(got) - want).abs() <= 1.0,
+                    "pixel {i} channel {c} at {exposure_ev} EV: {got} vs {want}"
+                );
+            }
+            assert_eq!(p[3], 255, "pixel {i}");
+            lit += usize::from(mapped.max_element() > 0.1);
+        }
+        assert!(lit > pixels.len() / 8, "{lit} lit pixels");
+    }
+    drop(renderer);
+    common::assert_clean(&ctx);
+}
+
 #[test]
 fn debug_views_schedule_only_what_they_need() {
     let ctx = common::gpu();
@@ -475,15 +509,14 @@ fn debug_views_schedule_only_what_they_need() {
         assert!(!passes.contains(&"compose") && !passes.contains(&"tonemap"), "{passes:?}");
     }
 
+    // A single PNG frame: compose tone-maps as it writes (no accumulation or rect lights follow it).
     let png = live(OutputKind::Display, None, &renderer);
-    for pass in ["geometry", "shadow trace", "compose", "tonemap"] {
+    for pass in ["geometry", "shadow trace", "compose"] {
         assert!(png.contains(&pass), "PNG render lacks {pass}: {png:?}");
     }
-    assert!(!png.contains(&"debug view"), "{png:?}");
-    let order: Vec<usize> = ["geometry", "shadow trace", "compose", "tonemap"]
-        .iter()
-        .map(|p| png.iter().position(|q| q == p).unwrap())
-        .collect();
+    assert!(!png.contains(&"debug view") && !png.contains(&"tonemap"), "{png:?}");
+    let order: Vec<usize> =
+        ["geometry", "shadow trace", "compose"].iter().map(|p| png.iter().position(|q| q == p).unwrap()).collect();
     assert!(order.windows(2).all(|w| w[0] < w[1]), "passes out of order: {png:?}");
 
     let exr = live(OutputKind::SceneLinear, None, &renderer);
@@ -517,7 +550,7 @@ fn debug_views_schedule_only_what_they_need() {
     assert_eq!(text.matches("cast_shadows = false").count(), 2);
     let renderer = Renderer::new(ctx.clone(), parse(&text, "no_casters.toml")).expect("renderer");
     let passes = live(OutputKind::Display, None, &renderer);
-    assert!(!passes.contains(&"shadow trace") && passes.contains(&"tonemap"), "{passes:?}");
+    assert!(!passes.contains(&"shadow trace") && passes.contains(&"compose"), "{passes:?}");
     drop(renderer);
     common::assert_clean(&ctx);
 }

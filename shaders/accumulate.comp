@@ -1,9 +1,11 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
 // Accumulate pass: the running mean of a still view's frames (each with fresh soft-shadow
 // samples), kept in a history image that outlives the frame. Frame n (from 0) weighs 1/(n+1).
 #include "bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
+#include "tile.glsl"
 
 layout(set = 0, binding = ACCUM_CURRENT) uniform sampler2D current;
 layout(set = 0, binding = ACCUM_HISTORY, rgba32f) uniform image2D history;
@@ -13,7 +15,7 @@ layout(push_constant) uniform Push {
 } pc;
 
 void main() {
-    uvec2 p = gl_GlobalInvocationID.xy;
+    uvec2 p = tile_pixel();
     if (p.x >= pc.dims.x || p.y >= pc.dims.y) return;
     vec4 now = texelFetch(current, ivec2(p), 0);
     // The first frame ignores whatever the image held (it may be uninitialised).

@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
 // Compose: every light's BRDF * cos * irradiance (times its visibility), plus what the frame
 // has of the environment (a constant or a map), ambient occlusion, emission and area lights.
 // WITH_DISPLAY: the frame's last shading pass for display output also tone-maps (tonemap.comp).

@@ -9,6 +9,7 @@
 #include "brdf.glsl"
 #include "lights.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
+#include "tile.glsl"
 
 layout(set = 0, binding = COMPOSE_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = COMPOSE_NORMAL) uniform sampler2D gbuffer_normal;
@@ -73,7 +74,7 @@ void compose_store(uvec2 px, vec3 radiance_rgb) {
 }
 
 void main() {
-    uvec2 px = gl_GlobalInvocationID.xy;
+    uvec2 px = tile_pixel();
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
     if (position.w <= 0.0) {

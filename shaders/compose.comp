@@ -1,8 +1,10 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
 // Compose: every light's BRDF * cos * irradiance (times its visibility), plus what the frame
 // has of the environment (a constant or a map), ambient occlusion, emission and area lights.
+// WITH_DISPLAY: the frame's last shading pass for display output also tone-maps (tonemap.comp).
 // build.rs compiles one variant per subset of these flags; passes::compose::Variant picks the
 // frame's.
-// variants: WITH_VISIBILITY WITH_ENVIRONMENT WITH_AMBIENT_OCCLUSION WITH_EMISSION WITH_AREA_LIGHTS WITH_ENVIRONMENT_MAP
+// variants: WITH_VISIBILITY WITH_ENVIRONMENT WITH_AMBIENT_OCCLUSION WITH_EMISSION WITH_AREA_LIGHTS WITH_ENVIRONMENT_MAP WITH_DISPLAY
 #include "compose_body.glsl"

@@ -1,6 +1,7 @@
 //! One frame's graph, in stages: G-buffer -> visibility (each shadow technique) -> lighting
-//! (compose or a debug view, with accumulation) -> post (tone map) -> target (read-back,
-//! present, or left for inspection). Each stage is a small function of the one before.
+//! (compose or a debug view, with accumulation) -> post (tone map, where compose or accumulate
+//! did not already) -> target (read-back, present, or left for inspection). Each stage is a
+//! small function of the one before.
 
 use ash::vk;
 use glam::Vec3;
@@ -98,7 +99,8 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
     let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer);
     if let (Some(view), Some(ao)) = (lighting.view, &occlusion) {
         let image = crate::lighting::ao::add_view(&mut g, view, ao, extent);
-        let result = post_stage(&mut g, pipelines, settings, Lit { image, debug: true, history: None });
+        let result =
+            post_stage(&mut g, pipelines, settings, Lit { image, debug: true, toned: false, history: Accumulated::No });
         target_stage(&mut g, settings, result, target);
         return g;
     }
@@ -160,11 +162,32 @@ struct Ambient<'a> {
 }
 
 /// What the lighting stage hands on: the image, and what happens to the history.
-struct Lit<'a> {
+struct Lit {
     image: Handle<ImageKind>,
     /// The frame is a debug view (float values already mapped for display, or raw).
     debug: bool,
-    history: Option<History<'a>>,
+    /// `image` holds display values already: compose (`compose_displays`) or accumulate wrote
+    /// them, so nothing is left to tone-map.
+    toned: bool,
+    history: Accumulated,
+}
+
+/// Where an accumulated frame's history is, after the lighting stage.
+enum Accumulated {
+    /// The frame is not accumulated.
+    No,
+    /// The stage's image is the history (the mean's radiance).
+    Image,
+    /// The stage's image is the mean's display values; the history beside it.
+    Beside(Handle<ImageKind>),
+}
+
+/// Compose writes the display image itself, tone-mapped (`compose::Variant::display`), when a
+/// shaded frame is shown and no pass shades it after compose: no accumulation into a history
+/// and no rect lights (which add to compose's radiance).
+pub fn compose_displays(settings: &RenderSettings, lighting: &crate::lighting::Prepared, accumulated: bool) -> bool {
+    let rect_lights = lighting.rects.is_some() && lighting.area.is_some();
+    settings.output == OutputKind::Display && settings.debug_view.is_none() && !accumulated && !rect_lights
 }
 
 /// Compose (with accumulation when a history is given), or the debug view.
@@ -181,7 +204,7 @@ fn lighting_stage<'a>(
     camera: &CameraMatrices,
     history: Option<History<'a>>,
     ambient: Ambient<'a>,
-) -> Lit<'a> {
+) -> Lit {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let display = settings.output == OutputKind::Display;
     // A technique's own view (checked by the renderer before the graph was built).
@@ -190,7 +213,7 @@ fn lighting_stage<'a>(
         None => (None, None),
     };
     if let Some(image) = technique_view {
-        return Lit { image, debug: true, history: None };
+        return Lit { image, debug: true, toned: false, history: Accumulated::No };
     }
     if let Some(view) = settings.debug_view {
         let layer = view.light().and_then(|l| plan.layers.layers.get(l).copied().flatten());
@@ -204,7 +227,7 @@ fn lighting_stage<'a>(
         };
         // Float even for PNG: the shader already mapped values to [0,1] for display.
         let image = debug_view::add(g, &pipelines.debug_view, gbuffer, inputs, extent);
-        return Lit { image, debug: true, history: None };
+        return Lit { image, debug: true, toned: false, history: Accumulated::No };
     }
     let lighting = &ambient.lighting;
     let area = lighting.area.map(|t| {
@@ -226,8 +249,10 @@ fn lighting_stage<'a>(
             g.import_owned_image("environment map", &m.source, read),
         )
     });
+    let (variant, pipeline) = ambient.compose.expect("the renderer prepares compose for shaded frames");
+    debug_assert_eq!(variant.display, compose_displays(settings, lighting, history.is_some()));
     let inputs = compose::ComposeInputs {
-        pipeline: ambient.compose.expect("the renderer prepares compose for shaded frames"),
+        pipeline: (variant, pipeline),
         lights: &handles.lights,
         light_count: s.light_count,
         visibility: visibility.as_ref().map(|(v, t)| (v, t)),
@@ -247,6 +272,7 @@ fn lighting_stage<'a>(
         }),
         brdf_table: area.as_ref().map(|(_, _, t)| t).or(environment_table.as_ref()),
         ltc_table: area.as_ref().filter(|(t, _, _)| t.sized_lights).map(|(_, ltc, _)| ltc),
+        exposure_ev: variant.display.then_some(settings.exposure_ev),
     };
     let mut image = compose::add(g, gbuffer, inputs, extent);
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
@@ -254,10 +280,15 @@ fn lighting_stage<'a>(
         let frame = settings.frame_index;
         image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &bvh, camera, frame, extent);
     }
-    if let Some(h) = &history {
-        image = accumulate::add(g, &pipelines.accumulate, &image, h, extent);
+    let Some(h) = &history else {
+        return Lit { image, debug: false, toned: variant.display, history: Accumulated::No };
+    };
+    // Display output: accumulate also writes the mean's display values (no tone-map pass).
+    let exposure_ev = display.then_some(settings.exposure_ev);
+    match accumulate::add(g, &pipelines.accumulate, &image, h, exposure_ev, extent) {
+        (mean, Some(shown)) => Lit { image: shown, debug: false, toned: true, history: Accumulated::Beside(mean) },
+        (mean, None) => Lit { image: mean, debug: false, toned: false, history: Accumulated::Image },
     }
-    Lit { image, debug: false, history }
 }
 
 /// What the post stage hands on: the frame's result, and the history to export after it.
@@ -270,22 +301,25 @@ struct Result {
     history_out: Option<Handle<ImageKind>>,
 }
 
-/// Tone mapping for display output of shaded frames.
-fn post_stage<'a>(
-    g: &mut RenderGraph<'a>,
-    pipelines: &'a Pipelines,
-    settings: &RenderSettings,
-    lit: Lit<'a>,
-) -> Result {
+/// Tone mapping for display output of shaded frames that compose and accumulate left linear
+/// (a single frame with rect lights).
+fn post_stage<'a>(g: &mut RenderGraph<'a>, pipelines: &'a Pipelines, settings: &RenderSettings, lit: Lit) -> Result {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
-    let accumulated = lit.history.is_some();
+    let Lit { image, debug, toned, history } = lit;
+    let is_history = matches!(history, Accumulated::Image);
+    let beside = match history {
+        Accumulated::Beside(h) => Some(h),
+        Accumulated::No | Accumulated::Image => None,
+    };
     match () {
-        _ if lit.debug => Result { image: lit.image, debug: true, is_history: false, history_out: None },
+        _ if debug => Result { image, debug: true, is_history: false, history_out: None },
+        _ if toned => Result { image, debug: false, is_history: false, history_out: beside },
         _ if settings.output == OutputKind::Display => {
-            let toned = tonemap::add(g, &pipelines.tonemap, &lit.image, settings.exposure_ev, extent);
-            Result { image: toned, debug: false, is_history: false, history_out: accumulated.then_some(lit.image) }
+            debug_assert!(!is_history, "accumulate tone-maps display frames itself");
+            let toned = tonemap::add(g, &pipelines.tonemap, &image, settings.exposure_ev, extent);
+            Result { image: toned, debug: false, is_history: false, history_out: None }
         }
-        _ => Result { image: lit.image, debug: false, is_history: accumulated, history_out: None },
+        _ => Result { image, debug: false, is_history, history_out: None },
     }
 }
 

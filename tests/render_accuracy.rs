@@ -452,6 +452,69 @@ fn an_empty_scene_renders_the_background() {
     common::assert_clean(&ctx);
 }
 
+/// Asserts that `pixels` (8-bit display values) are the tone curve and sRGB encoding of
+/// `radiance` at `exposure_ev`, to the byte, and that enough of them are lit to tell.
+fn assert_tone_mapped(radiance: &[Vec4], pixels: &[u8], exposure_ev: f32) {
+    let mut lit = 0;
+    for (i, (r, p)) in radiance.iter().zip(pixels.chunks_exact(4)).enumerate() {
+        let mapped = umbra::shading::tonemap(r.truncate(), exposure_ev);
+        let expected = mapped.to_array().map(|c| (umbra::shading::srgb_encode(c) * 255.0).round());
+        for (c, (&got, want)) in p.iter().zip(expected).enumerate() {
+            assert!((f32::from(got) - want).abs() <= 1.0, "pixel {i} channel {c} at {exposure_ev} EV: {got} vs {want}");
+        }
+        assert_eq!(p[3], 255, "pixel {i}");
+        lit += usize::from(mapped.max_element() > 0.1);
+    }
+    assert_eq!(radiance.len() * 4, pixels.len());
+    assert!(lit > radiance.len() / 8, "{lit} lit pixels");
+}
+
+fn display_bytes(frame: Frame) -> Vec<u8> {
+    match frame {
+        Frame::Rgba8 { pixels, .. } => pixels,
+        Frame::Rgba32F { .. } => panic!("display output read back as float"),
+    }
+}
+
+/// A single display frame is tone-mapped by compose itself (no tone-map pass): its bytes are the
+/// tone curve and sRGB encoding of the same frame's radiance, at the settings' exposure.
+#[test]
+fn compose_tone_maps_a_single_display_frame() {
+    let ctx = common::gpu();
+    let mut renderer = Renderer::new(ctx.clone(), floor_cube()).expect("renderer");
+    let radiance = common::render_linear(&mut renderer, WIDTH, HEIGHT, None);
+    for exposure_ev in [0.0, 1.5] {
+        let mut settings = RenderSettings::new(WIDTH, HEIGHT, OutputKind::Display);
+        settings.exposure_ev = exposure_ev;
+        let passes = renderer.plan(&settings).expect("plan").live_pass_names();
+        assert!(passes.contains(&"compose") && !passes.contains(&"tonemap"), "{passes:?}");
+        assert_tone_mapped(&radiance, &display_bytes(renderer.render(&settings).expect("render")), exposure_ev);
+    }
+    drop(renderer);
+    common::assert_clean(&ctx);
+}
+
+/// An accumulated display frame is tone-mapped by accumulate as it folds the frame in: its bytes
+/// are the tone curve of the mean the same frames make in scene-linear output.
+#[test]
+fn accumulate_tone_maps_the_mean_of_display_frames() {
+    let ctx = common::gpu();
+    let mut renderer = Renderer::new(ctx.clone(), floor_cube()).expect("renderer");
+    let frames = 3;
+    let mut linear = RenderSettings::new(WIDTH, HEIGHT, OutputKind::SceneLinear);
+    linear.antialias = true;
+    let first = common::floats(renderer.render(&linear).expect("render"));
+    let mean = (1..frames).map(|_| common::floats(renderer.render(&linear).expect("render"))).last().unwrap();
+    assert!(first.iter().zip(&mean).any(|(a, b)| a != b), "the frames were not accumulated");
+    let mut display = RenderSettings::new(WIDTH, HEIGHT, OutputKind::Display);
+    display.antialias = true;
+    display.exposure_ev = 0.5;
+    let pixels = (0..frames).map(|_| display_bytes(renderer.render(&display).expect("render"))).last().unwrap();
+    assert_tone_mapped(&mean, &pixels, display.exposure_ev);
+    drop(renderer);
+    common::assert_clean(&ctx);
+}
+
 #[test]
 fn debug_views_schedule_only_what_they_need() {
     let ctx = common::gpu();
@@ -475,15 +538,14 @@ fn debug_views_schedule_only_what_they_need() {
         assert!(!passes.contains(&"compose") && !passes.contains(&"tonemap"), "{passes:?}");
     }
 
+    // A single PNG frame: compose tone-maps as it writes (no accumulation or rect lights follow it).
     let png = live(OutputKind::Display, None, &renderer);
-    for pass in ["geometry", "shadow trace", "compose", "tonemap"] {
+    for pass in ["geometry", "shadow trace", "compose"] {
         assert!(png.contains(&pass), "PNG render lacks {pass}: {png:?}");
     }
-    assert!(!png.contains(&"debug view"), "{png:?}");
-    let order: Vec<usize> = ["geometry", "shadow trace", "compose", "tonemap"]
-        .iter()
-        .map(|p| png.iter().position(|q| q == p).unwrap())
-        .collect();
+    assert!(!png.contains(&"debug view") && !png.contains(&"tonemap"), "{png:?}");
+    let order: Vec<usize> =
+        ["geometry", "shadow trace", "compose"].iter().map(|p| png.iter().position(|q| q == p).unwrap()).collect();
     assert!(order.windows(2).all(|w| w[0] < w[1]), "passes out of order: {png:?}");
 
     let exr = live(OutputKind::SceneLinear, None, &renderer);
@@ -517,7 +579,7 @@ fn debug_views_schedule_only_what_they_need() {
     assert_eq!(text.matches("cast_shadows = false").count(), 2);
     let renderer = Renderer::new(ctx.clone(), parse(&text, "no_casters.toml")).expect("renderer");
     let passes = live(OutputKind::Display, None, &renderer);
-    assert!(!passes.contains(&"shadow trace") && passes.contains(&"tonemap"), "{passes:?}");
+    assert!(!passes.contains(&"shadow trace") && passes.contains(&"compose"), "{passes:?}");
     drop(renderer);
     common::assert_clean(&ctx);
 }

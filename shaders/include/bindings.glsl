@@ -73,6 +73,7 @@
 // accumulate.comp: progressive average of a still view
 #define ACCUM_CURRENT 0
 #define ACCUM_HISTORY 1
+#define ACCUM_DISPLAY 2
 
 // busy.comp: a pass of known cost, for tests and the timing calibration
 #define BUSY_OUTPUT 0

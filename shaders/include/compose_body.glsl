@@ -9,12 +9,20 @@
 #include "brdf.glsl"
 #include "lights.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
+#include "tile.glsl"
 
 layout(set = 0, binding = COMPOSE_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = COMPOSE_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = COMPOSE_MATERIAL) uniform sampler2D gbuffer_material;
 layout(set = 0, binding = COMPOSE_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
+#ifdef WITH_DISPLAY
+// Nothing shades the frame after compose and it is shown: the display image, 8-bit, tone-mapped
+// here rather than by a tone-map pass reading radiance back (one full-screen pass less).
+#include "tonemap.glsl"
+layout(set = 0, binding = COMPOSE_RADIANCE, rgba8) uniform writeonly image2D radiance;
+#else
 layout(set = 0, binding = COMPOSE_RADIANCE, rgba32f) uniform writeonly image2D radiance;
+#endif
 #ifdef WITH_VISIBILITY
 layout(set = 0, binding = COMPOSE_VISIBILITY) uniform sampler2DArray visibility;
 // Per light: its layer of the visibility target, or COMPOSE_UNSHADOWED.
@@ -47,15 +55,26 @@ layout(set = 0, binding = COMPOSE_EMISSION) uniform sampler2D gbuffer_emission;
 #endif
 
 layout(push_constant) uniform Push {
-    vec4 eye;        // xyz
+    vec4 eye;        // xyz; w: exposure in stops (WITH_DISPLAY)
     vec4 background; // rgb radiance where nothing was drawn; w: 1 when the scene gave it
     uvec4 dims;      // x: width, y: height, z: light count, w: prefiltered layers (map)
     vec4 environment; // rgb: the environment's radiance (WITH_ENVIRONMENT), or the map's scale
     mat4 clip_to_eye; // inverse of the eye-relative view-projection (WITH_ENVIRONMENT_MAP)
 } pc;
 
+// The pixel's radiance, or with WITH_DISPLAY its display value, as tonemap.comp computes it.
+void compose_store(uvec2 px, vec3 radiance_rgb) {
+#ifdef WITH_DISPLAY
+    vec3 linear = tonemap(radiance_rgb, pc.eye.w);
+    vec3 encoded = vec3(srgb_encode(linear.r), srgb_encode(linear.g), srgb_encode(linear.b));
+    imageStore(radiance, ivec2(px), vec4(encoded, 1.0));
+#else
+    imageStore(radiance, ivec2(px), vec4(radiance_rgb, 1.0));
+#endif
+}
+
 void main() {
-    uvec2 px = gl_GlobalInvocationID.xy;
+    uvec2 px = tile_pixel();
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
     if (position.w <= 0.0) {
@@ -69,7 +88,7 @@ void main() {
             background = textureLod(env_map, envmap_uv(d), 0.0).rgb * pc.environment.rgb;
         }
 #endif
-        imageStore(radiance, ivec2(px), vec4(background, 1.0));
+        compose_store(px, background);
         return;
     }
     vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
@@ -122,5 +141,5 @@ void main() {
 #ifdef WITH_EMISSION
     sum += texelFetch(gbuffer_emission, ivec2(px), 0).rgb;
 #endif
-    imageStore(radiance, ivec2(px), vec4(sum, 1.0));
+    compose_store(px, sum);
 }

@@ -1,29 +1,49 @@
 //! Accumulate pass: while the view stands still, averages each new frame into a history image
 //! that lives outside the graph, so soft shadows converge progressively. Scheduled only when a
-//! light's shadows are stochastic.
+//! light's shadows are stochastic. For display output it also writes the mean's tone-mapped
+//! display image (the `display` pipeline), in place of a tone-map pass reading the history back.
 
 use std::sync::Arc;
 
 use ash::vk;
-use glam::UVec4;
+use glam::{UVec4, Vec4};
 
-use super::{sampled, storage_image, TILE};
-use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
+use super::{sampled, storage_image, DISPLAY_FORMAT, TILE};
+use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image};
 
 /// How the history image is left at the end of each frame, and found at the start of the next.
 pub const HISTORY_ACCESS: Access = Access::ComputeShaderReadSampledImage;
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "accumulate",
-        spirv::ACCUMULATE_COMP,
-        &[sampled(ACCUM_CURRENT), storage_image(ACCUM_HISTORY)],
-        16,
-        TILE,
-    )
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct Push {
+    dims: UVec4,
+    exposure: Vec4,
+}
+
+/// The accumulate pipelines: the mean alone, and the mean with its display image.
+pub struct Pipelines {
+    pub mean: ComputePipeline,
+    pub display: ComputePipeline,
+}
+
+pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
+    let bindings = [sampled(ACCUM_CURRENT), storage_image(ACCUM_HISTORY)];
+    let push = std::mem::size_of::<Push>() as u32;
+    let with_display = [bindings[0], bindings[1], storage_image(ACCUM_DISPLAY)];
+    Ok(Pipelines {
+        mean: ComputePipeline::new(ctx, "accumulate", spirv::ACCUMULATE_COMP[0], &bindings, push, TILE)?,
+        display: ComputePipeline::new(
+            ctx,
+            "accumulate (tone-mapped)",
+            spirv::ACCUMULATE_COMP[1],
+            &with_display,
+            push,
+            TILE,
+        )?,
+    })
 }
 
 /// A history image and how many frames it holds (0: start afresh).
@@ -54,28 +74,39 @@ pub fn jitter(frame: u32) -> glam::Vec2 {
     glam::Vec2::new(halton(frame, 2), halton(frame, 3)) - glam::Vec2::splat(0.5)
 }
 
-/// Folds `radiance` into the history; returns the history, which now holds the mean.
+/// Folds `radiance` into the history; returns the history, which now holds the mean, and with
+/// `exposure_ev` (display output) the mean's display image.
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a ComputePipeline,
+    pipelines: &'a Pipelines,
     radiance: &Handle<ImageKind>,
     history: &History<'_>,
+    exposure_ev: Option<f32>,
     extent: vk::Extent2D,
-) -> Handle<ImageKind> {
+) -> (Handle<ImageKind>, Option<Handle<ImageKind>>) {
     // A fresh image has no layout yet; a used one may still be read by the frame before.
     let last = if history.fresh { Access::Nothing } else { HISTORY_ACCESS };
     let mut mean = graph.import_owned_image("history", history.image, last);
+    let display_desc = ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height);
+    let mut display = exposure_ev.map(|_| graph.create_image("display", display_desc));
     let mut pass = graph.add_pass("accumulate");
     if history.frames > 0 {
         pass.read(&mean, Access::ComputeShaderReadStorageImage);
     }
-    let bound = [
+    let mut bound = vec![
         (ACCUM_CURRENT, Bound::Image(pass.read(radiance, Access::ComputeShaderReadSampledImage))),
         (ACCUM_HISTORY, Bound::Image(pass.write(&mut mean, Access::ComputeShaderWrite))),
     ];
-    let push = UVec4::new(extent.width, extent.height, history.frames, 0);
+    if let Some(display) = &mut display {
+        bound.push((ACCUM_DISPLAY, Bound::Image(pass.write(display, Access::ComputeShaderWrite))));
+    }
+    let push = Push {
+        dims: UVec4::new(extent.width, extent.height, history.frames, 0),
+        exposure: Vec4::new(exposure_ev.unwrap_or(0.0), 0.0, 0.0, 0.0),
+    };
+    let pipeline = if exposure_ev.is_some() { &pipelines.display } else { &pipelines.mean };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    mean
+    (mean, display)
 }
 
 /// Owns a history image and decides, frame by frame, whether the view is still (same settings
@@ -119,7 +150,7 @@ impl Accumulator {
         }
         let desc = crate::vk::ImageDesc::new(super::RADIANCE_FORMAT, settings.width, settings.height);
         if self.image.as_ref().is_none_or(|i| i.desc != desc) {
-            // Storage for the running mean, sampled by the tone map, copied by a linear read-back.
+            // Storage for the running mean, left sampled between frames, copied by a linear read-back.
             let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_SRC;
             self.image = Some(Image::new(ctx, "history", desc, usage)?);
             self.used = false;

@@ -3,14 +3,16 @@
 //! target, whatever technique wrote a light's layer; the light table says which layer is whose.
 //! Where no light has a layer, a variant that reads no visibility runs instead, so no shadow
 //! pass or target is needed; likewise for the environment, AO, emission and area lights
-//! (`Variant`).
+//! (`Variant`). Where nothing shades the frame after compose and it is shown, compose also
+//! tone-maps and writes the display image itself (`Variant::display`): no tone-map pass, and no
+//! radiance image written only to be read back once.
 
 use std::sync::Arc;
 
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use super::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use super::{sampled, storage, storage_image, GBuffer, DISPLAY_FORMAT, RADIANCE_FORMAT, TILE};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
@@ -43,17 +45,28 @@ pub struct Variant {
     /// The environment is a map (`crate::lighting::envmap`, only with `environment`): its SH
     /// irradiance, prefiltered layers and the map itself for the background.
     pub environment_map: bool,
+    /// Tone-mapped 8-bit display values instead of radiance, as the tone-map pass would make
+    /// them: for display output with no accumulation or rect lights after compose.
+    pub display: bool,
 }
 
 impl Variant {
     /// Index into `spirv::COMPOSE_COMP` and the pipeline cache: the flags in the order of
     /// compose.comp's `// variants:` line.
     pub fn index(self) -> usize {
-        [self.shadowed, self.environment, self.occluded, self.emissive, self.area_lights, self.environment_map]
-            .iter()
-            .enumerate()
-            .map(|(i, &on)| usize::from(on) << i)
-            .sum()
+        [
+            self.shadowed,
+            self.environment,
+            self.occluded,
+            self.emissive,
+            self.area_lights,
+            self.environment_map,
+            self.display,
+        ]
+        .iter()
+        .enumerate()
+        .map(|(i, &on)| usize::from(on) << i)
+        .sum()
     }
 
     /// The variant of `index` (`index`'s inverse).
@@ -66,6 +79,7 @@ impl Variant {
             emissive: on(3),
             area_lights: on(4),
             environment_map: on(5),
+            display: on(6),
         }
     }
 
@@ -77,6 +91,7 @@ impl Variant {
             (self.occluded, "AO"),
             (self.emissive, "emissive"),
             (self.area_lights, "area lights"),
+            (self.display, "tone-mapped"),
         ];
         let on: Vec<&str> = parts.iter().filter(|(on, _)| *on).map(|(_, name)| *name).collect();
         if on.is_empty() {
@@ -166,6 +181,8 @@ pub struct ComposeInputs<'h, 'a> {
     pub brdf_table: Option<&'h Handle<BufferKind>>,
     /// The LTC table (with area lights).
     pub ltc_table: Option<&'h Handle<BufferKind>>,
+    /// Exposure in stops, for a variant that writes display values (`Variant::display`).
+    pub exposure_ev: Option<f32>,
 }
 
 pub fn add<'a>(
@@ -186,10 +203,14 @@ pub fn add<'a>(
             emissive: gbuffer.emission.is_some(),
             area_lights: inputs.ltc_table.is_some(),
             environment_map: map.is_some(),
+            display: inputs.exposure_ev.is_some(),
         },
         "compose's inputs are those of its variant"
     );
-    let mut radiance = graph.create_image("radiance", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
+    let mut output = match variant.display {
+        true => graph.create_image("display", ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height)),
+        false => graph.create_image("radiance", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height)),
+    };
     let mut pass = graph.add_pass("compose");
     let sampled = Access::ComputeShaderReadSampledImage;
     let buffer = Access::ComputeShaderReadStorageBuffer;
@@ -198,7 +219,7 @@ pub fn add<'a>(
         (COMPOSE_NORMAL, Bound::Image(pass.read(&gbuffer.normal, sampled))),
         (COMPOSE_MATERIAL, Bound::Image(pass.read(&gbuffer.material, sampled))),
         (COMPOSE_LIGHTS, Bound::Buffer(pass.read(inputs.lights, buffer))),
-        (COMPOSE_RADIANCE, Bound::Image(pass.write(&mut radiance, Access::ComputeShaderWrite))),
+        (COMPOSE_RADIANCE, Bound::Image(pass.write(&mut output, Access::ComputeShaderWrite))),
     ];
     if let Some((v, table)) = inputs.visibility {
         bound.push((COMPOSE_VISIBILITY, Bound::Image(pass.read(v, sampled))));
@@ -227,14 +248,14 @@ pub fn add<'a>(
     }
     let environment = inputs.environment.as_ref().map_or(glam::Vec3::ZERO, |e| e.radiance);
     let push = Push {
-        eye: inputs.eye.extend(0.0),
+        eye: inputs.eye.extend(inputs.exposure_ev.unwrap_or(0.0)),
         background: inputs.background.extend(if inputs.background_given { 1.0 } else { 0.0 }),
         dims: UVec4::new(extent.width, extent.height, inputs.light_count, layers),
         environment: environment.extend(0.0),
         clip_to_eye,
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    radiance
+    output
 }
 
 #[cfg(test)]
@@ -246,6 +267,6 @@ mod tests {
         for i in 0..VARIANTS {
             assert_eq!(Variant::from_index(i).index(), i);
         }
-        assert_eq!(VARIANTS, 64, "six flags in compose.comp's variants line");
+        assert_eq!(VARIANTS, 128, "seven flags in compose.comp's variants line");
     }
 }

@@ -55,7 +55,7 @@ pub struct Pipelines {
     compose: [std::sync::OnceLock<ComputePipeline>; compose::VARIANTS],
     pub tonemap: ComputePipeline,
     pub debug_view: debug_view::DebugPipelines,
-    pub accumulate: ComputePipeline,
+    pub accumulate: accumulate::Pipelines,
 }
 
 impl Pipelines {
@@ -65,7 +65,7 @@ impl Pipelines {
             compose: std::array::from_fn(|_| std::sync::OnceLock::new()),
             tonemap: tonemap::pipeline(ctx)?,
             debug_view: debug_view::pipelines(ctx)?,
-            accumulate: accumulate::pipeline(ctx)?,
+            accumulate: accumulate::pipelines(ctx)?,
         })
     }
 

@@ -21,6 +21,8 @@ pub struct Capabilities {
     pub rgb32f_texel_buffer: bool,
     /// `maxTexelBufferElements`: the most texels one texel buffer view may hold.
     pub max_texel_buffer_elements: u32,
+    /// `maxSubgroupSize`: the widest subgroup a compute dispatch may run (0: unknown).
+    pub max_subgroup_size: u32,
 }
 
 impl Capabilities {
@@ -58,6 +60,8 @@ pub(crate) fn detect(instance: &ash::Instance, pd: vk::PhysicalDevice, family: O
         instance.get_physical_device_features2(pd, &mut f2);
         let base = f2.features;
         let props = instance.get_physical_device_properties(pd);
+        let mut p13 = vk::PhysicalDeviceVulkan13Properties::default();
+        instance.get_physical_device_properties2(pd, &mut vk::PhysicalDeviceProperties2::default().push_next(&mut p13));
         let families = instance.get_physical_device_queue_family_properties(pd);
         let family = family.or_else(|| {
             families
@@ -81,6 +85,7 @@ pub(crate) fn detect(instance: &ash::Instance, pd: vk::PhysicalDevice, family: O
                 .buffer_features
                 .contains(vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER),
             max_texel_buffer_elements: props.limits.max_texel_buffer_elements,
+            max_subgroup_size: p13.max_subgroup_size,
         }
     }
 }

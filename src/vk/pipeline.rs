@@ -142,11 +142,18 @@ impl ComputePipeline {
     ) -> GpuResult<ComputePipeline> {
         let layout = PipelineLayout::new(ctx, bindings, vk::ShaderStageFlags::COMPUTE, push_bytes, None)?;
         let module = shader_module(ctx, spirv)?;
+        // Constants 0 and 1: the workgroup size. 2: whole subgroups fill each row of it (tile.glsl's
+        // TILE_BY_SUBGROUPS; shaders without the constant ignore it). SPIR-V 1.6 guarantees whole
+        // subgroups where the workgroup's width is a multiple of the subgroup size, whichever size
+        // from the device's range a dispatch runs with (all are powers of two).
+        let max_subgroup = ctx.capabilities.max_subgroup_size;
+        let by_subgroups = max_subgroup > 0 && local_size[0] % max_subgroup == 0;
         let entries = [
             vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 },
             vk::SpecializationMapEntry { constant_id: 1, offset: 4, size: 4 },
+            vk::SpecializationMapEntry { constant_id: 2, offset: 8, size: 4 },
         ];
-        let data: [u8; 8] = bytemuck::cast(local_size);
+        let data: [u8; 12] = bytemuck::cast([local_size[0], local_size[1], vk::Bool32::from(by_subgroups)]);
         let spec = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)

@@ -325,7 +325,7 @@ fn gpu_sphere_and_disk_shading_matches_the_cpu_twin() {
             // integrated numerically (`ltc::lobe_over_polygon`) and the two sides' f32 differ by
             // up to 0.7 % of the pixel: a lobe's dim tail, where the light is a sliver near the
             // fitted cosine's horizon (there an f64 twin of the same quadrature agreed with the
-            // CPU to 0.01 %), or the sphere's rim seen at 87 degrees. 21 of 3,822 pixels for the
+            // CPU to 0.01 %), or the sphere's rim seen at 87 degrees. 20 of 3,822 pixels for the
             // rough metal, none for the dielectric.
             let bound = twin * 2e-3 + Vec3::splat(1e-5);
             let close = (got - twin).abs().cmple(bound).all();

@@ -227,28 +227,48 @@ vec2 ltc_quadrature_result(vec3 sum, float cosine_integral) {
     return sum.z > 0.0 ? sum.xy * (cosine_integral * LTC_PI / sum.z) : vec2(0.0);
 }
 
-// ltc::lobe_quadrature: over the convex polygon of `n` corners (at most 8, in the shading frame),
-// moved into the cosine's space and clipped to its horizon, cut into triangles around its
-// centre.
-vec2 ltc_polygon_quadrature(LtcQuadrature q, vec3 corners[8], uint n, uint side, float cosine_integral) {
-    vec3 clipped[9];
-    uint count = 0u;
-    vec3 a = q.m * corners[0];
-    for (uint i = 0u; i < n; i++) {
-        vec3 b = q.m * corners[i + 1u == n ? 0u : i + 1u];
-        if (a.z >= 0.0) clipped[count++] = ltc_normalize_or_zero(a);
-        if ((a.z >= 0.0) != (b.z >= 0.0)) clipped[count++] = ltc_normalize_or_zero(a + (b - a) * (a.z / (a.z - b.z)));
-        a = b;
+// ltc::lobe_quadrature streams the polygon (moved into the cosine's space, clipped to its
+// horizon, cut into triangles around its centre) edge by edge, as ltc_form_factor does: no
+// array of corners, which lavapipe would keep in scratch memory and index lane by lane.
+// An edge a -> b (moved) adds its clipped part's corners to the centre's sum.
+vec3 ltc_clipped_corners(vec3 a, vec3 b) {
+    vec3 sum = a.z >= 0.0 ? ltc_normalize_or_zero(a) : vec3(0.0);
+    if ((a.z >= 0.0) != (b.z >= 0.0)) sum += ltc_normalize_or_zero(a + (b - a) * (a.z / (a.z - b.z)));
+    return sum;
+}
+
+// The triangle an edge a -> b (moved) makes with `centre` once clipped, remembering where the
+// polygon leaves the upper half (exit) and comes back (entry) for the horizon's triangle.
+vec3 ltc_edge_triangle(LtcQuadrature q, vec3 centre, vec3 a, vec3 b, uint side, inout vec3 exit_point,
+                       inout vec3 entry_point) {
+    bool a_up = a.z >= 0.0;
+    bool b_up = b.z >= 0.0;
+    if (!a_up && !b_up) return vec3(0.0);
+    // Only used where the edge crosses the horizon (elsewhere it may divide by 0).
+    vec3 crossing = a + (b - a) * (a.z / (a.z - b.z));
+    if (a_up && !b_up) exit_point = crossing;
+    if (!a_up && b_up) entry_point = crossing;
+    return ltc_triangle_mean(q, centre, ltc_normalize_or_zero(a_up ? a : crossing),
+                             ltc_normalize_or_zero(b_up ? b : crossing), side);
+}
+
+// ltc::lobe_quadrature over a rect (corners c0..c3 in the shading frame).
+vec2 ltc_rect_quadrature(LtcQuadrature q, vec3 c0, vec3 c1, vec3 c2, vec3 c3, float cosine_integral) {
+    vec3 p0 = q.m * c0, p1 = q.m * c1, p2 = q.m * c2, p3 = q.m * c3;
+    vec3 centre = ltc_normalize_or_zero(ltc_clipped_corners(p0, p1) + ltc_clipped_corners(p1, p2)
+                                        + ltc_clipped_corners(p2, p3) + ltc_clipped_corners(p3, p0));
+    vec3 exit_point = vec3(0.0), entry_point = vec3(0.0);
+    vec3 sum = ltc_edge_triangle(q, centre, p0, p1, LTC_QUADRATURE_SIDE, exit_point, entry_point)
+        + ltc_edge_triangle(q, centre, p1, p2, LTC_QUADRATURE_SIDE, exit_point, entry_point)
+        + ltc_edge_triangle(q, centre, p2, p3, LTC_QUADRATURE_SIDE, exit_point, entry_point)
+        + ltc_edge_triangle(q, centre, p3, p0, LTC_QUADRATURE_SIDE, exit_point, entry_point);
+    bool any_up = p0.z >= 0.0 || p1.z >= 0.0 || p2.z >= 0.0 || p3.z >= 0.0;
+    bool any_down = p0.z < 0.0 || p1.z < 0.0 || p2.z < 0.0 || p3.z < 0.0;
+    if (any_up && any_down) {
+        sum += ltc_triangle_mean(q, centre, ltc_normalize_or_zero(exit_point), ltc_normalize_or_zero(entry_point),
+                                 LTC_QUADRATURE_SIDE);
     }
-    if (count < 3u) return vec2(0.0);
-    vec3 centre = vec3(0.0);
-    for (uint k = 0u; k < count; k++) centre += clipped[k];
-    centre = ltc_normalize_or_zero(centre);
-    vec3 sum = vec3(0.0);
-    for (uint k = 0u; k < count; k++) {
-        sum += ltc_triangle_mean(q, centre, clipped[k], clipped[k + 1u == count ? 0u : k + 1u], side);
-    }
-    return ltc_quadrature_result(sum, cosine_integral);
+    return any_up ? ltc_quadrature_result(sum, cosine_integral) : vec2(0.0);
 }
 
 // Outgoing radiance toward v from a light of unit radiance covering `diffuse_share` of the
@@ -298,8 +318,7 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
     float weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
     if (weight > 0.0) {
         LtcQuadrature q = ltc_quadrature(m, v_frame, n_dot_v, roughness);
-        vec3 corners[8] = vec3[8](c0, c1, c2, c3, vec3(0.0), vec3(0.0), vec3(0.0), vec3(0.0));
-        lobe = mix(lobe, ltc_polygon_quadrature(q, corners, 4u, LTC_QUADRATURE_SIDE, abs(form.z)), weight);
+        lobe = mix(lobe, ltc_rect_quadrature(q, c0, c1, c2, c3, abs(form.z)), weight);
     }
     return ltc_shade(diffuse_share, lobe, base_color, metallic) * rect.radiance.rgb;
 }
@@ -375,6 +394,39 @@ vec3 ltc_cap_form_factor(mat3 m, vec3 centre, mat3 to_frame, vec3 t, vec3 b, flo
     return sum / (2.0 * LTC_PI);
 }
 
+// ltc::lobe_quadrature over a cap's octagon (centre and offsets as in ltc_cap_form_factor).
+vec2 ltc_cap_quadrature(LtcQuadrature q, vec3 centre, mat3 to_frame, vec3 t, vec3 b, float sin_rho,
+                        float cosine_integral) {
+    mat3 mf = q.m * to_frame;
+    vec3 c = q.m * centre;
+    vec3 first = c + mf * ltc_cap_offset(0u, t, b, sin_rho);
+    vec3 a = first;
+    vec3 middle = vec3(0.0);
+    bool any_up = false, any_down = false;
+    for (uint k = 1u; k <= LTC_CAP_CORNERS; k++) {
+        vec3 o = k == LTC_CAP_CORNERS ? first : c + mf * ltc_cap_offset(k, t, b, sin_rho);
+        middle += ltc_clipped_corners(a, o);
+        any_up = any_up || a.z >= 0.0;
+        any_down = any_down || a.z < 0.0;
+        a = o;
+    }
+    if (!any_up) return vec2(0.0);
+    middle = ltc_normalize_or_zero(middle);
+    vec3 exit_point = vec3(0.0), entry_point = vec3(0.0);
+    vec3 sum = vec3(0.0);
+    a = first;
+    for (uint k = 1u; k <= LTC_CAP_CORNERS; k++) {
+        vec3 o = k == LTC_CAP_CORNERS ? first : c + mf * ltc_cap_offset(k, t, b, sin_rho);
+        sum += ltc_edge_triangle(q, middle, a, o, LTC_CAP_QUADRATURE_SIDE, exit_point, entry_point);
+        a = o;
+    }
+    if (any_down) {
+        sum += ltc_triangle_mean(q, middle, ltc_normalize_or_zero(exit_point), ltc_normalize_or_zero(entry_point),
+                                 LTC_CAP_QUADRATURE_SIDE);
+    }
+    return ltc_quadrature_result(sum, cosine_integral);
+}
+
 // Unshadowed radiance toward v at a point of normal n from the cap of half-angle theta
 // (one_minus_cos = 1 - cos(theta)) around `axis` with `radiance`: shading::shade_cap.
 vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v, vec3 base_color, float roughness,
@@ -402,9 +454,7 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
     float weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
     if (weight > 0.0) {
         LtcQuadrature q = ltc_quadrature(m, v_frame, n_dot_v, roughness);
-        vec3 corners[8];
-        for (uint k = 0u; k < LTC_CAP_CORNERS; k++) corners[k] = centre + to_frame * ltc_cap_offset(k, t, b, sin_rho);
-        lobe = mix(lobe, ltc_polygon_quadrature(q, corners, LTC_CAP_CORNERS, LTC_CAP_QUADRATURE_SIDE, abs(form.z)), weight);
+        lobe = mix(lobe, ltc_cap_quadrature(q, centre, to_frame, t, b, sin_rho, abs(form.z)), weight);
     }
     return ltc_shade(diffuse_share, lobe, base_color, metallic) * radiance;
 }

@@ -271,6 +271,14 @@ vec2 ltc_rect_quadrature(LtcQuadrature q, vec3 c0, vec3 c1, vec3 c2, vec3 c3, fl
     return any_up ? ltc_quadrature_result(sum, cosine_integral) : vec2(0.0);
 }
 
+// ltc::lobe_over_polygon's first half: the fitted lobe, and how much of it the quadrature
+// replaces (`weight`: at grazing views and for large lights), which the caller then runs over
+// its polygon.
+vec2 ltc_polygon_lobe(mat3 m, float share, vec3 form, vec3 v_frame, float n_dot_v, float roughness, out float weight) {
+    weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
+    return ltc_fitted_lobe(m, share, form, v_frame, n_dot_v, roughness, split_sum_lookup(n_dot_v, roughness));
+}
+
 // Outgoing radiance toward v from a light of unit radiance covering `diffuse_share` of the
 // cosine, whose GGX lobe integral is `lobe` (F0's scale and bias): shading::shade_lobe's end.
 vec3 ltc_shade(float diffuse_share, vec2 lobe, vec3 base_color, float metallic) {
@@ -311,11 +319,9 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);
     vec3 form = ltc_form_factor(m, c0, c1, c2, c3);
-    vec2 ab = split_sum_lookup(n_dot_v, roughness);
     vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
-    vec2 lobe = ltc_fitted_lobe(m, share, form, v_frame, n_dot_v, roughness, ab);
-    // ltc::lobe_over_polygon: by quadrature at grazing views and for large lights.
-    float weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
+    float weight;
+    vec2 lobe = ltc_polygon_lobe(m, share, form, v_frame, n_dot_v, roughness, weight);
     if (weight > 0.0) {
         LtcQuadrature q = ltc_quadrature(m, v_frame, n_dot_v, roughness);
         lobe = mix(lobe, ltc_rect_quadrature(q, c0, c1, c2, c3, abs(form.z)), weight);
@@ -447,11 +453,9 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);
     vec3 form = ltc_cap_form_factor(m, centre, to_frame, t, b, sin_rho);
-    vec2 ab = split_sum_lookup(n_dot_v, roughness);
     vec3 v_frame = vec3(dot(v, x), 0.0, dot(v, n));
-    vec2 lobe = ltc_fitted_lobe(m, share, form, v_frame, n_dot_v, roughness, ab);
-    // ltc::lobe_over_polygon: by quadrature at grazing views and for large lights.
-    float weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
+    float weight;
+    vec2 lobe = ltc_polygon_lobe(m, share, form, v_frame, n_dot_v, roughness, weight);
     if (weight > 0.0) {
         LtcQuadrature q = ltc_quadrature(m, v_frame, n_dot_v, roughness);
         lobe = mix(lobe, ltc_cap_quadrature(q, centre, to_frame, t, b, sin_rho, abs(form.z)), weight);

@@ -86,10 +86,20 @@ pub fn form_factor(m: Mat3, corners: [Vec3; 4]) -> Vec3 {
 /// `form_factor` of any convex polygon of at most `MAX_CORNERS` corners (a rect's 4, a cap's
 /// `CAP_CORNERS`).
 pub fn convex_form_factor(m: Mat3, corners: &[Vec3]) -> Vec3 {
+    let (clipped, count) = clip_to_horizon(m, corners);
+    let mut sum = Vec3::ZERO;
+    for i in 0..count {
+        sum += edge(clipped[i], clipped[(i + 1) % count]);
+    }
+    sum / (2.0 * std::f32::consts::PI)
+}
+
+/// The convex polygon `corners` (at most `MAX_CORNERS`) moved by `m` and clipped to z >= 0
+/// (Sutherland-Hodgman: a convex polygon gains at most one corner), and its number of corners.
+fn clip_to_horizon(m: Mat3, corners: &[Vec3]) -> ([Vec3; MAX_CORNERS + 1], usize) {
     assert!(corners.len() <= MAX_CORNERS, "at most {MAX_CORNERS} corners");
     let n = corners.len();
     let p = |i: usize| m * corners[i % n];
-    // Sutherland-Hodgman against z >= 0: a convex polygon gains at most one corner.
     let mut clipped = [Vec3::ZERO; MAX_CORNERS + 1];
     let mut count = 0usize;
     for i in 0..n {
@@ -99,16 +109,11 @@ pub fn convex_form_factor(m: Mat3, corners: &[Vec3]) -> Vec3 {
             count += 1;
         }
         if (a.z >= 0.0) != (b.z >= 0.0) {
-            let t = a.z / (a.z - b.z);
-            clipped[count] = a + (b - a) * t;
+            clipped[count] = a + (b - a) * (a.z / (a.z - b.z));
             count += 1;
         }
     }
-    let mut sum = Vec3::ZERO;
-    for i in 0..count {
-        sum += edge(clipped[i], clipped[(i + 1) % count]);
-    }
-    sum / (2.0 * std::f32::consts::PI)
+    (clipped, count)
 }
 
 /// The most corners `convex_form_factor` takes.
@@ -314,8 +319,8 @@ pub fn lobe_over_polygon(
 }
 
 /// `lobe_integral` as the scale and bias of F0, with Fresnel at the light's mean direction under
-/// the lobe (`fresnel_toward`): what a cap's specular is, and a polygon's where
-/// `lobe_over_polygon` does not integrate.
+/// the lobe (`fresnel_toward`): a polygon's or a cap's specular where `lobe_over_polygon` does
+/// not integrate.
 #[allow(clippy::too_many_arguments)]
 pub fn fitted_lobe(
     node: [f32; ENTRY],
@@ -373,22 +378,8 @@ pub fn lobe_quadrature(
     n_dot_v: f32,
     roughness: f32,
 ) -> glam::Vec2 {
-    assert!(corners.len() <= MAX_CORNERS, "at most {MAX_CORNERS} corners");
-    let n = corners.len();
-    let p = |i: usize| m * corners[i % n];
-    let mut clipped = [Vec3::ZERO; MAX_CORNERS + 1];
-    let mut count = 0usize;
-    for i in 0..n {
-        let (a, b) = (p(i), p(i + 1));
-        if a.z >= 0.0 {
-            clipped[count] = a.normalize_or_zero();
-            count += 1;
-        }
-        if (a.z >= 0.0) != (b.z >= 0.0) {
-            clipped[count] = (a + (b - a) * (a.z / (a.z - b.z))).normalize_or_zero();
-            count += 1;
-        }
-    }
+    let (clipped, count) = clip_to_horizon(m, corners);
+    let clipped = clipped.map(Vec3::normalize_or_zero);
     if count < 3 {
         return glam::Vec2::ZERO;
     }

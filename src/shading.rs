@@ -180,6 +180,33 @@ pub fn light_sample_point(light: &GpuLight, p: Vec3, u: Vec2) -> (Vec3, f32) {
     (to_target / dist, dist)
 }
 
+/// A soft shadow ray's weight in the ratio estimator (Heitz, Hill, McGuire 2018): the traced
+/// pass's visibility for a light with a size is the sum of these weights over the rays that
+/// reach the light, over their sum over all rays, and compose multiplies it into the light's
+/// analytic unshadowed shading. The weight is the luminance of `brdf_times_cos` toward the ray's
+/// unit direction `l` over the solid-angle pdf of `light_sample_point`, less its constant
+/// factors: 1 for a disk light (uniform in solid angle); for a sphere, whose points are uniform
+/// in area over a disk square to the axis `centre` away from the ray's origin, the pdf is
+/// dist^2 / cos = dist^3 / centre, hence (centre / dist)^3. `n`, `v` unit. Twin of
+/// `shadow_sample_weight` in trace_body.glsl.
+pub fn shadow_sample_weight(
+    light: &GpuLight,
+    n: Vec3,
+    v: Vec3,
+    material: &Material,
+    l: Vec3,
+    dist: f32,
+    centre: f32,
+) -> f32 {
+    let f = brdf_times_cos(n, v, l, material.base_color, material.roughness, material.metallic);
+    let weight = f.dot(Vec3::new(0.2126, 0.7152, 0.0722));
+    if light.position_kind[3] == LIGHT_DIRECTIONAL {
+        return weight;
+    }
+    let r = centre / dist;
+    weight * (r * r * r)
+}
+
 /// Shirley and Chiu's concentric map from the unit square to the unit disk, in the form of
 /// Shirley's 2011 blog post (as in PBRT): area-uniform, and it keeps strata compact, unlike
 /// (sqrt(u), 2 pi v). Twin of `concentric_disk` in lights.glsl.

@@ -2,12 +2,16 @@
 // drawn pixel and light, one toward the light's centre (hard) or several toward points over its
 // extent (soft). No ray is cast where the light cannot contribute (background, facing away,
 // outside a spot's cone): visibility there is 0 (1 for background, which nothing shadows).
+// A soft light's visibility is the ratio estimator's (Heitz, Hill, McGuire 2018, "Combining
+// analytic direct illumination and stochastic shadows"): compose multiplies it into the light's
+// analytic unshadowed shading, so it weighs each ray as that shading weighs its direction.
 //
 // Contract: before including, define `bool shadow_occluded(vec3 origin, vec3 dir, float tmax)`,
 // true when a caster lies on origin + t dir for t in (0, tmax).
 #ifndef UMBRA_SHADOW_TRACE_BODY_GLSL
 #define UMBRA_SHADOW_TRACE_BODY_GLSL
 
+#include "brdf.glsl"
 #include "gbuffer.glsl"
 #include "lights.glsl"
 #include "random.glsl"
@@ -16,6 +20,8 @@
 layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = SHADOW_SURFACE) uniform usampler2D gbuffer_surface;
+// Read by soft lights only: the BRDF their rays are weighted by.
+layout(set = 0, binding = SHADOW_MATERIAL) uniform sampler2D gbuffer_material;
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 // The light's layer alone, bound through a view of that layer: other techniques may write the
 // other layers at the same time.
@@ -25,14 +31,32 @@ layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visib
 layout(push_constant) uniform Push {
     uvec4 dims;  // x: width, y: height, z: the light, w: rays per pixel (0: none, facing only)
     uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: 1 = soft; w: the tile's origin, x | y << 16
+    vec4 eye;    // xyz: the camera (soft lights' view vector)
 } pc;
 
-// The light's visibility at pixel `px`: the share of its rays that reach the light.
+// A soft shadow ray's weight in the ratio estimator: the luminance of f cos toward its unit
+// direction `dir` (unit normal n, unit view v, base colour and roughness, metallic) over the
+// solid-angle pdf of light_sample_point, less its constant factors. A disk light's directions are
+// uniform in solid angle (pdf constant: 1); a sphere's points are uniform in area over a disk
+// square to the axis at distance `centre` (the light's centre from the ray's origin), seen at
+// distance `d` along `dir`: pdf d^2 / cos = d^3 / centre, so (centre / d)^3. Twin of
+// shading::shadow_sample_weight.
+float shadow_sample_weight(GpuLight l, vec3 n, vec3 v, vec4 material, float metallic, vec3 dir, float d, float centre) {
+    vec3 f = brdf_times_cos(n, v, dir, material.rgb, material.a, metallic);
+    float weight = dot(f, vec3(0.2126, 0.7152, 0.0722));
+    if (l.position_kind.w == LIGHT_DIRECTIONAL) return weight;
+    float r = centre / d;
+    return weight * (r * r * r);
+}
+
+// The light's visibility at pixel `px`: the share of its rays that reach the light, each soft
+// ray weighted by shadow_sample_weight; exactly 1 where all arrive, 0 where none do.
 float trace_pixel(uvec2 px) {
     uint pixel = px.y * pc.dims.x + px.x;
     uint light = pc.dims.z;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
-    vec3 n = texelFetch(gbuffer_normal, ivec2(px), 0).xyz;
+    vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
+    vec3 n = normal_metallic.xyz;
     float v = 1.0;
     if (position.w > 0.0) {
         GpuLight l = lights[light];
@@ -52,25 +76,38 @@ float trace_pixel(uvec2 px) {
             uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);
             vec3 start = position.xyz + gbuffer_terminator_offset(surface);
             vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
-            // Hard: one ray toward the centre. Soft: spp rays toward points over the light; a
-            // point below the horizon sends no light, so its ray does not count (a light
-            // straddling the horizon is shaded for its part above it). The light's own
-            // position is not an occluder: rays stop just short of it.
+            // Hard: one ray toward the centre. Soft: spp rays toward points over the light,
+            // weighted (a point below the horizon sends no light and weighs 0, so a light
+            // straddling the horizon is shaded for its part above it). The light's own position
+            // is not an occluder: rays stop just short of it.
             uint spp = pc.dims.w;
-            uint reached = 0u;
-            uint counted = 0u;
+            bool soft = pc.frame.z != 0u;
+            vec3 unit_n = vec3(0.0);
+            vec3 view = vec3(0.0);
+            vec4 material = vec4(0.0);
+            float centre = 0.0;
+            if (soft) {
+                unit_n = normalize(n);
+                view = normalize(pc.eye.xyz - position.xyz);
+                material = texelFetch(gbuffer_material, ivec2(px), 0);
+                centre = distance(l.position_kind.xyz, origin);
+            }
+            float reached = 0.0;
+            float all_weight = 0.0;
             for (uint k = 0u; k < spp; k++) {
                 vec3 dir = L;
                 float d = dist;
-                if (pc.frame.z != 0u) {
+                float weight = 1.0;
+                if (soft) {
                     vec2 u = random2(uvec3(pixel, pc.frame.x, light * spp + k));
                     dir = light_sample_point(l, origin, u, d);
-                    if (dot(n, dir) <= 0.0) continue;
+                    weight = shadow_sample_weight(l, unit_n, view, material, normal_metallic.w, dir, d, centre);
+                    if (!(weight > 0.0)) continue;
                 }
-                counted++;
-                if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) reached++;
+                all_weight += weight;
+                if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) reached += weight;
             }
-            v = counted > 0u ? float(reached) / float(counted) : 0.0;
+            v = all_weight > 0.0 ? reached / all_weight : 0.0;
         }
     }
     return v;

@@ -99,20 +99,26 @@ fn twin(
     for k in 0..spp {
         let u = random2(UVec3::new(pixel, frame, light_index * spp + k));
         let (l, dist) = light_sample_point(light, origin, u);
-        let weight = shadow_sample_weight(light, n.normalize(), v, material, l, dist, centre);
-        if !(weight > 0.0) {
+        // A point of the light below the horizon sends nothing: its ray does not count.
+        if n.dot(l) <= 0.0 {
             continue;
         }
         let tmax = dist * (1.0 - 1e-5);
         near_edge |= bvh.ray_near_edge(origin, l, tmax, 1e-6);
         let open = !bvh.occluded_obvhs(origin, l, tmax);
-        all += weight;
-        reached += if open { weight } else { 0.0 };
         counted_rays += 1;
         reached_rays += open as u32;
+        let weight = shadow_sample_weight(light, n.normalize(), v, material, l, dist, centre);
+        if weight > 0.0 {
+            all += weight;
+            reached += if open { weight } else { 0.0 };
+        }
     }
-    let share = |a: f32, b: f32| if b > 0.0 { a / b } else { 0.0 };
-    Twin { weighted: share(reached, all), unweighted: share(reached_rays as f32, counted_rays as f32), near_edge }
+    let unweighted = if counted_rays > 0 { reached_rays as f32 / counted_rays as f32 } else { 0.0 };
+    // Outside a penumbra the share is exactly 1 or 0 whatever the weights (the shader weighs
+    // penumbrae only); so where no ray weighs anything.
+    let penumbra = reached_rays > 0 && reached_rays < counted_rays && all > 0.0;
+    Twin { weighted: if penumbra { reached / all } else { unweighted }, unweighted, near_edge }
 }
 
 #[test]

@@ -34,6 +34,14 @@ layout(push_constant) uniform Push {
     vec4 eye;    // xyz: the camera (soft lights' view vector)
 } pc;
 
+// Most soft rays per pixel (params::MAX_SPP): one bit each records whether it arrived.
+const uint TRACE_MAX_SPP = 256u;
+
+// The point over the light that soft ray k of spp (of `light`, at `pixel`) aims at.
+vec2 soft_sample(uint pixel, uint light, uint spp, uint k) {
+    return random2(uvec3(pixel, pc.frame.x, light * spp + k));
+}
+
 // A soft shadow ray's weight in the ratio estimator: the luminance of f cos toward its unit
 // direction `dir` (unit normal n, unit view v, base colour and roughness, metallic) over the
 // solid-angle pdf of light_sample_point, less its constant factors. A disk light's directions are
@@ -76,38 +84,54 @@ float trace_pixel(uvec2 px) {
             uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);
             vec3 start = position.xyz + gbuffer_terminator_offset(surface);
             vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
-            // Hard: one ray toward the centre. Soft: spp rays toward points over the light,
-            // weighted (a point below the horizon sends no light and weighs 0, so a light
+            // Hard: one ray toward the centre. Soft: spp rays toward points over the light; a
+            // point below the horizon sends no light, so its ray does not count (a light
             // straddling the horizon is shaded for its part above it). The light's own position
             // is not an occluder: rays stop just short of it.
             uint spp = pc.dims.w;
             bool soft = pc.frame.z != 0u;
-            vec3 unit_n = vec3(0.0);
-            vec3 view = vec3(0.0);
-            vec4 material = vec4(0.0);
-            float centre = 0.0;
+            uint reached = 0u;
+            uint counted = 0u;
+            // Soft: which rays reached the light, to weigh them below.
+            uint open_rays[TRACE_MAX_SPP / 32u];
             if (soft) {
-                unit_n = normalize(n);
-                view = normalize(pc.eye.xyz - position.xyz);
-                material = texelFetch(gbuffer_material, ivec2(px), 0);
-                centre = distance(l.position_kind.xyz, origin);
+                for (uint i = 0u; i < TRACE_MAX_SPP / 32u; i++) open_rays[i] = 0u;
             }
-            float reached = 0.0;
-            float all_weight = 0.0;
             for (uint k = 0u; k < spp; k++) {
                 vec3 dir = L;
                 float d = dist;
-                float weight = 1.0;
                 if (soft) {
-                    vec2 u = random2(uvec3(pixel, pc.frame.x, light * spp + k));
-                    dir = light_sample_point(l, origin, u, d);
-                    weight = shadow_sample_weight(l, unit_n, view, material, normal_metallic.w, dir, d, centre);
-                    if (!(weight > 0.0)) continue;
+                    dir = light_sample_point(l, origin, soft_sample(pixel, light, spp, k), d);
+                    if (dot(n, dir) <= 0.0) continue;
                 }
-                all_weight += weight;
-                if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) reached += weight;
+                counted++;
+                if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) {
+                    reached++;
+                    if (soft) open_rays[k >> 5u] |= 1u << (k & 31u);
+                }
             }
-            v = all_weight > 0.0 ? reached / all_weight : 0.0;
+            v = counted > 0u ? float(reached) / float(counted) : 0.0;
+            // A penumbra (a hard light's one ray has none): the same rays again, weighed by
+            // shadow_sample_weight (the ratio estimator). Where every counted ray arrives, or none
+            // does, the weights cannot matter: those pixels pay nothing for them.
+            if (reached > 0u && reached < counted) {
+                vec3 unit_n = normalize(n);
+                vec3 view = normalize(pc.eye.xyz - position.xyz);
+                vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
+                float centre = distance(l.position_kind.xyz, origin);
+                float open_weight = 0.0;
+                float all_weight = 0.0;
+                for (uint k = 0u; k < spp; k++) {
+                    float d;
+                    vec3 dir = light_sample_point(l, origin, soft_sample(pixel, light, spp, k), d);
+                    float weight = shadow_sample_weight(l, unit_n, view, material, normal_metallic.w, dir, d, centre);
+                    if (!(weight > 0.0)) continue;
+                    all_weight += weight;
+                    if ((open_rays[k >> 5u] & (1u << (k & 31u))) != 0u) open_weight += weight;
+                }
+                // No ray weighs anything (a black metal, say): the unweighted share stays.
+                if (all_weight > 0.0) v = open_weight / all_weight;
+            }
         }
     }
     return v;

@@ -183,12 +183,12 @@ pub fn light_sample_point(light: &GpuLight, p: Vec3, u: Vec2) -> (Vec3, f32) {
 /// A soft shadow ray's weight in the ratio estimator (Heitz, Hill, McGuire 2018): in a penumbra
 /// the traced pass's visibility for a light with a size is the sum of these weights over the
 /// rays that reach the light over their sum over all rays (elsewhere exactly 1 or 0, unweighed),
-/// and compose multiplies it into the light's analytic unshadowed shading. The weight is the luminance of `brdf_times_cos` toward the ray's
-/// unit direction `l` over the solid-angle pdf of `light_sample_point`, less its constant
-/// factors: 1 for a disk light (uniform in solid angle); for a sphere, whose points are uniform
-/// in area over a disk square to the axis `centre` away from the ray's origin, the pdf is
-/// dist^2 / cos = dist^3 / centre, hence (centre / dist)^3. `n`, `v` unit. Twin of
-/// `shadow_sample_weight` in trace_body.glsl.
+/// and compose multiplies it into the light's analytic unshadowed shading. The weight is the
+/// luminance of `brdf_times_cos` toward the ray's unit direction `l` over the solid-angle pdf of
+/// `light_sample_point`, less its constant factors: 1 for a disk light (uniform in solid angle);
+/// for a sphere, whose points are uniform in area over a disk square to the axis `centre` away
+/// from the ray's origin, the pdf is dist^2 / cos = dist^3 / centre, hence (centre / dist)^3.
+/// `n`, `v` unit. Twin of `shadow_sample_weight` in trace_body.glsl.
 pub fn shadow_sample_weight(
     light: &GpuLight,
     n: Vec3,

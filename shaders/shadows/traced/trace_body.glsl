@@ -57,8 +57,9 @@ float shadow_sample_weight(GpuLight l, vec3 n, vec3 v, vec4 material, float meta
     return weight * (r * r * r);
 }
 
-// The light's visibility at pixel `px`: the share of its rays that reach the light, each soft
-// ray weighted by shadow_sample_weight; exactly 1 where all arrive, 0 where none do.
+// The light's visibility at pixel `px`: the share of its rays that reach the light, a soft
+// light's in a penumbra each weighted by shadow_sample_weight; exactly 1 where all arrive, 0
+// where none do.
 float trace_pixel(uvec2 px) {
     uint pixel = px.y * pc.dims.x + px.x;
     uint light = pc.dims.z;

@@ -1,6 +1,6 @@
 // Shadow trace pass body, shared by the compute-BVH and ray-query entry points: any-hit rays per
-// drawn pixel and light, one toward the light's centre (hard) or several toward points over its
-// extent (soft). No ray is cast where the light cannot contribute (background, facing away,
+// drawn pixel and light, one toward the light's centre (hard) or several over the solid angle it
+// fills (soft). No ray is cast where the light cannot contribute (background, facing away,
 // outside a spot's cone): visibility there is 0 (1 for background, which nothing shadows).
 // A soft light's visibility is the ratio estimator's (Heitz, Hill, McGuire 2018, "Combining
 // analytic direct illumination and stochastic shadows"): compose multiplies it into the light's
@@ -37,24 +37,32 @@ layout(push_constant) uniform Push {
 // Most soft rays per pixel (params::MAX_SPP): one bit each records whether it arrived.
 const uint TRACE_MAX_SPP = 256u;
 
-// The point over the light that soft ray k of spp (of `light`, at `pixel`) aims at.
+// R2 (Roberts 2018) in 0.32 fixed point: k (1/p, 1/p^2) mod 1 for the plastic number p.
+// Twin of shading::SOFT_R2.
+const uvec2 SOFT_R2 = uvec2(3242174889u, 2447445414u);
+
+// The point in [0, 1)^2 that soft ray k of spp (of `light`, at `pixel`) aims by, spread evenly
+// (a penumbra's noise falls faster): a jittered grid when spp is a perfect square, else R2's
+// first spp points shifted by a random offset mod 1 (Cranley-Patterson); new jitter and offsets
+// each frame. Twin of shading::soft_sample, which says more.
 vec2 soft_sample(uint pixel, uint light, uint spp, uint k) {
-    return random2(uvec3(pixel, pc.frame.x, light * spp + k));
+    uint grid = uint(sqrt(float(spp)) + 0.5);
+    if (grid * grid == spp) {
+        vec2 s = random2(uvec3(pixel, pc.frame.x, light * spp + k));
+        return (vec2(float(k % grid), float(k / grid)) + s) / float(grid);
+    }
+    uvec2 offset = uvec2(random2(uvec3(pixel, pc.frame.x, light * spp)) * 16777216.0) << 8u;
+    uvec2 r2 = offset + k * SOFT_R2;
+    return vec2(hash_to_unit(r2.x), hash_to_unit(r2.y));
 }
 
 // A soft shadow ray's weight in the ratio estimator: the luminance of f cos toward its unit
-// direction `dir` (unit normal n, unit view v, base colour and roughness, metallic) over the
-// solid-angle pdf of light_sample_point, less its constant factors. A disk light's directions are
-// uniform in solid angle (pdf constant: 1); a sphere's points are uniform in area over a disk
-// square to the axis at distance `centre` (the light's centre from the ray's origin), seen at
-// distance `d` along `dir`: pdf d^2 / cos = d^3 / centre, so (centre / d)^3. Twin of
-// shading::shadow_sample_weight.
-float shadow_sample_weight(GpuLight l, vec3 n, vec3 v, vec4 material, float metallic, vec3 dir, float d, float centre) {
+// direction `dir` (unit normal n, unit view v, base colour and roughness, metallic) over its pdf,
+// which light_sample_point makes uniform in the light's solid angle: a constant, left out.
+// Twin of shading::shadow_sample_weight.
+float shadow_sample_weight(vec3 n, vec3 v, vec4 material, float metallic, vec3 dir) {
     vec3 f = brdf_times_cos(n, v, dir, material.rgb, material.a, metallic);
-    float weight = dot(f, vec3(0.2126, 0.7152, 0.0722));
-    if (l.position_kind.w == LIGHT_DIRECTIONAL) return weight;
-    float r = centre / d;
-    return weight * (r * r * r);
+    return dot(f, vec3(0.2126, 0.7152, 0.0722));
 }
 
 // The light's visibility at pixel `px`: the share of its rays that reach the light, a soft
@@ -85,10 +93,10 @@ float trace_pixel(uvec2 px) {
             uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);
             vec3 start = position.xyz + gbuffer_terminator_offset(surface);
             vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
-            // Hard: one ray toward the centre. Soft: spp rays toward points over the light; a
-            // point below the horizon sends no light, so its ray does not count (a light
-            // straddling the horizon is shaded for its part above it). The light's own position
-            // is not an occluder: rays stop just short of it.
+            // Hard: one ray toward the centre. Soft: spp rays over the light's cap; a
+            // direction below the horizon brings no light, so its ray does not count (a light
+            // straddling the horizon is shaded for its part above it). The light itself is not
+            // an occluder: rays stop just short of its centre (hard) or surface (soft).
             uint spp = pc.dims.w;
             bool soft = pc.frame.z != 0u;
             uint reached = 0u;
@@ -119,13 +127,12 @@ float trace_pixel(uvec2 px) {
                 vec3 unit_n = normalize(n);
                 vec3 view = normalize(pc.eye.xyz - position.xyz);
                 vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
-                float centre = distance(l.position_kind.xyz, origin);
                 float open_weight = 0.0;
                 float all_weight = 0.0;
                 for (uint k = 0u; k < spp; k++) {
                     float d;
                     vec3 dir = light_sample_point(l, origin, soft_sample(pixel, light, spp, k), d);
-                    float weight = shadow_sample_weight(l, unit_n, view, material, normal_metallic.w, dir, d, centre);
+                    float weight = shadow_sample_weight(unit_n, view, material, normal_metallic.w, dir);
                     if (!(weight > 0.0)) continue;
                     all_weight += weight;
                     if ((open_rays[k >> 5u] & (1u << (k & 31u))) != 0u) open_weight += weight;

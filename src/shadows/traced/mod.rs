@@ -1,9 +1,9 @@
 //! `traced`: from every drawn surface point toward each light it serves, any-hit rays through
 //! the shadow casters: the CPU-built BVH traversed by the shader (`compute`, any device), or the
 //! driver's own acceleration structure through VK_KHR_ray_query (`ray-query`), with the same
-//! rays. Hard shadows are one ray toward the light's centre; soft ones `spp` rays over its
-//! extent per frame, weighted as the light's analytic shading weighs their directions (the ratio
-//! estimator, trace_body.glsl). Writes each served light's visibility layer (1 lit, 0 shadowed).
+//! rays. Hard shadows are one ray toward the light's centre; soft ones `spp` rays over the
+//! solid angle it fills per frame (spread evenly: `shading::soft_sample`), weighted as the
+//! light's analytic shading weighs their directions (the ratio estimator, trace_body.glsl). Writes each served light's visibility layer (1 lit, 0 shadowed).
 
 pub mod accel;
 pub mod params;

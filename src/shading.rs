@@ -124,60 +124,86 @@ pub fn light_sample(light: &GpuLight, p: Vec3) -> LightSample {
 }
 
 /// Twin of `light_sample_point` in lights.glsl: where a soft shadow ray from `p` aims. Returns
-/// the unit direction from `p` toward a point on the light's extent chosen by `u` in [0, 1)^2,
-/// and the distance to that point (the shadow ray's tmax).
+/// the unit direction from `p` toward the light chosen by `u` in [0, 1)^2, uniformly distributed
+/// over the solid angle of the cap `light_cap` gives (the directions shading integrates), and the
+/// shadow ray's tmax:
 ///
-/// - Point and spot lights (`size.x` = radius R > 0): a point uniformly distributed over the disk
-///   of radius R centred on the light and perpendicular to the line from `p` to the centre: the
-///   sphere's silhouette seen from `p`. The true silhouette is a slightly smaller disk
-///   (radius R sqrt(1 - R^2/d^2)) slightly nearer `p`, and uniform area on the disk is not
-///   uniform solid angle, but both differences are O(R^2/d^2): under 1% for a light 10 radii
-///   away, far less than the penumbra it produces. In exchange it needs no trigonometry beyond
-///   the disk mapping, never samples the far side of the sphere (which an occluder could not
-///   shadow differently), and its distance is never 0 for p outside the light's centre.
-/// - Directional lights (`size.x` = tan(angular radius) > 0): a direction uniformly distributed
-///   over the solid angle of the cone of that half-angle around `-direction`; the distance is
-///   `DIRECTIONAL_LIGHT_DISTANCE`.
+/// - Point and spot lights (`size.x` = radius R > 0): the distance along the direction to the
+///   sphere's near surface. From within the sphere the cap is the hemisphere around the
+///   direction to the centre, and the distance is to the sphere's surface ahead.
+/// - Directional lights (`size.x` = tan(angular radius) > 0): `DIRECTIONAL_LIGHT_DISTANCE`.
 ///
 /// With size 0 (or `p` at a point or spot light's centre) it is `light_sample`'s `l` and `dist`,
-/// bit for bit. `u` goes through the concentric (Shirley-Chiu) disk mapping, so stratified or
-/// low-discrepancy `u` stay well spread over the light.
+/// bit for bit. `u` goes through the concentric (Shirley-Chiu) disk mapping, whose squared
+/// radius sets 1 - cos(theta) and whose angle sets phi: area-uniform on the disk is uniform in
+/// solid angle on the cap, and stratified or low-discrepancy `u` (`soft_sample`) stay compact
+/// strata there.
 // `!(x > 0.0)` on purpose: NaN sizes and distances take the hard path, as in the GLSL twin.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
 pub fn light_sample_point(light: &GpuLight, p: Vec3, u: Vec2) -> (Vec3, f32) {
-    let kind = light.position_kind[3];
     let size = light.size[0];
     let hard = light_sample(light, p);
-    if !(size > 0.0) {
+    let Some(cap) = light_cap(light, p) else {
         return (hard.l, hard.dist);
-    }
+    };
     let disk = concentric_disk(u);
-    if kind == LIGHT_DIRECTIONAL {
-        // Uniform in solid angle: 1 - cos(theta) = r^2 (1 - cos(theta_max)), with r = |disk|
-        // area-uniform in [0, 1). 1 - cos(theta_max) = 1 - 1/sqrt(1 + t^2) is written without
-        // the cancellation, which would lose most of f32's digits for a sun-sized cone.
-        let axis = hard.l;
-        let root = (1.0 + size * size).sqrt();
-        let one_minus_cos_max = size * size / (root * (1.0 + root));
-        let r2 = disk.dot(disk);
-        let one_minus_cos = r2 * one_minus_cos_max;
-        let cos_theta = 1.0 - one_minus_cos;
-        let sin_theta = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0).sqrt();
-        let (t, b) = orthonormal_basis(axis);
-        let r = r2.sqrt();
-        let (cx, cy) = if r > 0.0 { (disk.x / r, disk.y / r) } else { (1.0, 0.0) };
-        let l = (axis * cos_theta + (t * cx + b * cy) * sin_theta).normalize();
+    let r2 = disk.dot(disk);
+    // 1 - cos(theta) = r^2 (1 - cos(theta_max)): uniform in solid angle, and free of the
+    // cancellation 1 - cos would suffer for a small or far light.
+    let one_minus_cos = r2 * cap.one_minus_cos;
+    let cos_theta = 1.0 - one_minus_cos;
+    let sin2 = (one_minus_cos * (2.0 - one_minus_cos)).max(0.0);
+    let (t, b) = orthonormal_basis(cap.axis);
+    let r = r2.sqrt();
+    let (cx, cy) = if r > 0.0 { (disk.x / r, disk.y / r) } else { (1.0, 0.0) };
+    let l = (cap.axis * cos_theta + (t * cx + b * cy) * sin2.sqrt()).normalize();
+    if light.position_kind[3] == LIGHT_DIRECTIONAL {
         return (l, DIRECTIONAL_LIGHT_DISTANCE);
     }
-    if !(hard.dist > 0.0) {
-        return (hard.l, hard.dist);
+    // The sphere along l: t^2 - 2 t d cos + d^2 - R^2 = 0, its half-chord h = sqrt(R^2 - d^2
+    // sin^2) (0 at the cap's edge: clamped, as rounding can take it below). Outside, the near
+    // root d cos - h as (d - R)(d + R) / (d cos + h), which does not cancel for a point close to
+    // the sphere; inside, the far root d cos + h (cos >= 0 over the hemisphere).
+    let d = hard.dist;
+    let h = (size * size - d * d * sin2).max(0.0).sqrt();
+    let dist = if d > size { (d - size) * (d + size) / (d * cos_theta + h) } else { d * cos_theta + h };
+    (l, dist)
+}
+
+/// R2, the 2D additive recurrence of the plastic number (Roberts 2018): k (1/p, 1/p^2) mod 1,
+/// in 0.32 fixed point (round(2^32 / p), round(2^32 / p^2)), so the sequence is exact integer
+/// arithmetic on both sides. Twin of `SOFT_R2` in trace_body.glsl.
+pub const SOFT_R2: [u32; 2] = [3_242_174_889, 2_447_445_414];
+
+/// The `k`th of the `spp` points in [0, 1)^2 that a soft light's shadow rays at `pixel` in frame
+/// `frame` aim by (`light_sample_point`), spread evenly so a penumbra's noise falls faster than
+/// with independent points: on a jittered grid when spp is a perfect square (one point per
+/// cell, as rect lights' are), else the first spp points of R2 (`SOFT_R2`, low-discrepancy for
+/// any count) shifted by a random offset mod 1 (Cranley-Patterson rotation). The jitter and the
+/// offset are new for each pixel, light and frame, so accumulated frames stay unbiased.
+/// Twin of `soft_sample` in trace_body.glsl.
+pub fn soft_sample(pixel: u32, frame: u32, light: u32, spp: u32, k: u32) -> Vec2 {
+    let grid = ((spp as f32).sqrt() + 0.5) as u32;
+    if grid * grid == spp {
+        let s = random2(UVec3::new(pixel, frame, light.wrapping_mul(spp).wrapping_add(k)));
+        return (Vec2::new((k % grid) as f32, (k / grid) as f32) + s) / grid as f32;
     }
-    let centre = Vec3::from_slice(&light.position_kind[..3]);
-    let (t, b) = orthonormal_basis(hard.l);
-    let target = centre + (t * disk.x + b * disk.y) * size;
-    let to_target = target - p;
-    let dist = to_target.length();
-    (to_target / dist, dist)
+    // The offset's 24 bits, exactly, as 0.32 fixed point.
+    let offset = random2(UVec3::new(pixel, frame, light.wrapping_mul(spp))) * 16_777_216.0;
+    let along = |o: f32, step: u32| hash_to_unit(((o as u32) << 8).wrapping_add(k.wrapping_mul(step)));
+    Vec2::new(along(offset.x, SOFT_R2[0]), along(offset.y, SOFT_R2[1]))
+}
+
+/// A soft shadow ray's weight in the ratio estimator (Heitz, Hill, McGuire 2018): in a penumbra
+/// the traced pass's visibility for a light with a size is the sum of these weights over the
+/// rays that reach the light over their sum over all rays (elsewhere exactly 1 or 0, unweighed),
+/// and compose multiplies it into the light's analytic unshadowed shading. The weight is the
+/// luminance of `brdf_times_cos` toward the ray's unit direction `l` over its pdf, less the
+/// pdf's constant: `light_sample_point` is uniform in the cap's solid angle, so the weight is
+/// the luminance alone. `n`, `v` unit. Twin of `shadow_sample_weight` in trace_body.glsl.
+pub fn shadow_sample_weight(n: Vec3, v: Vec3, material: &Material, l: Vec3) -> f32 {
+    let f = brdf_times_cos(n, v, l, material.base_color, material.roughness, material.metallic);
+    f.dot(Vec3::new(0.2126, 0.7152, 0.0722))
 }
 
 /// Shirley and Chiu's concentric map from the unit square to the unit disk, in the form of

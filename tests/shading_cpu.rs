@@ -3,7 +3,7 @@
 
 mod common;
 
-use glam::{DVec3, UVec3, Vec2, Vec3};
+use glam::{DVec3, UVec2, UVec3, Vec2, Vec3};
 use std::f32::consts::PI;
 use umbra::scene::{Light, Material};
 use umbra::shading::*;
@@ -287,26 +287,115 @@ fn gpu_size_is_radius_or_tan_of_the_angular_radius() {
 }
 
 #[test]
-fn sphere_samples_lie_on_the_silhouette_disk() {
+fn sphere_samples_lie_on_the_near_surface_within_the_cap() {
     let radius = 0.2;
     let lights = sized_lights(radius, 2.5);
     for light in [lights[0], lights[2]] {
         let centre = Vec3::from_slice(&light.position_kind[..3]);
-        for p in test_points() {
-            let axis = (centre - p).normalize();
-            let mut farthest = 0.0f32;
+        // And two points within the sphere, where the cap is the hemisphere toward the centre.
+        let inside = [centre + Vec3::new(0.05, -0.1, 0.02), centre + Vec3::new(0.0, 0.0, -0.15)];
+        for p in test_points().into_iter().chain(inside) {
+            let cap = light_cap(&light, p).expect("a sphere");
+            let d = (centre - p).length();
+            let mut widest = 0.0f32;
             for u in us() {
                 let (l, dist) = light_sample_point(&light, p, u);
                 assert!(close(l.length(), 1.0, 1e-5) && dist > 0.0 && dist.is_finite(), "{l} {dist}");
-                let target = p + l * dist;
-                let offset = target - centre;
-                // On the disk: within the radius, in the plane perpendicular to the axis.
-                assert!(offset.length() <= radius * (1.0 + 1e-4) + 1e-5, "{p}: {offset}");
-                assert!(offset.dot(axis).abs() <= 1e-5 * (1.0 + (centre - p).length()), "{p}: {offset} vs {axis}");
-                farthest = farthest.max(offset.length());
+                // Within the cap: 1 - cos(theta) as |l - axis|^2 / 2, which does not cancel.
+                let one_minus_cos = (l - cap.axis).length_squared() / 2.0;
+                assert!(one_minus_cos <= cap.one_minus_cos * (1.0 + 1e-3) + 1e-7, "{p}: {one_minus_cos} > {cap:?}");
+                widest = widest.max(one_minus_cos / cap.one_minus_cos);
+                // On the sphere; from outside, on the part of it seen from p (offset . (p -
+                // centre) >= R^2, equal on the silhouette).
+                let offset = p + l * dist - centre;
+                assert!((offset.length() - radius).abs() <= 1e-4 * radius + 2e-6 * d, "{p}: {offset}");
+                if d > radius {
+                    assert!(offset.dot(p - centre) >= radius * radius * (1.0 - 1e-3) - 1e-5 * d, "{p}: {offset}");
+                }
             }
-            // And spread to its edge.
-            assert!(farthest > 0.97 * radius, "{p}: {farthest}");
+            // And spread to the cap's edge (the horizon, within the sphere).
+            assert!(widest > 0.97, "{p}: {widest}");
+        }
+    }
+}
+
+/// Sphere and disk samples, mapped from uniform `u`, fill the cap `light_cap` gives (the one
+/// shading integrates) uniformly in solid angle: as many in each of 4 rings of equal solid angle
+/// times 8 sectors of phi, within 10 % (4.5 standard deviations), for caps from 0.01 to 180
+/// degrees across.
+#[test]
+fn sphere_and_disk_samples_cover_the_cap_uniformly_in_solid_angle() {
+    let radius = 0.2;
+    let lights = sized_lights(radius, 0.53);
+    let wide_sun = sized_lights(radius, 60.0)[1];
+    let centre = Vec3::from_slice(&lights[0].position_kind[..3]);
+    let cases = [
+        (lights[0], centre + Vec3::new(0.0, -0.5, 0.3)),
+        (lights[0], Vec3::new(0.3, -7.0, -0.4)),
+        (lights[0], Vec3::new(40.0, -30.0, 10.0)),
+        (lights[0], centre + Vec3::new(0.05, -0.1, 0.02)),
+        (lights[2], Vec3::new(-1.6, 0.0, 0.0)),
+        (lights[1], Vec3::ZERO),
+        (wide_sun, Vec3::ZERO),
+    ];
+    let n = 64_000u32;
+    for (light, p) in cases {
+        let cap = light_cap(&light, p).expect("a light with a size");
+        if light.position_kind[3] != LIGHT_DIRECTIONAL {
+            // The cap's solid angle is the sphere's: 1 - cos = 1 - sqrt(1 - R^2 / d^2), in f64.
+            let d = f64::from((Vec3::from_slice(&light.position_kind[..3]) - p).length());
+            let sin2 = (f64::from(radius) / d).powi(2).min(1.0);
+            let exact = sin2 / (1.0 + (1.0 - sin2).sqrt());
+            assert!((f64::from(cap.one_minus_cos) / exact - 1.0).abs() < 1e-5, "{p}: {cap:?} vs {exact}");
+        }
+        let (t, b) = orthonormal_basis(cap.axis);
+        let mut bins = [[0u32; 8]; 4];
+        for i in 0..n {
+            let (l, _) = light_sample_point(&light, p, random2(UVec3::new(i, 3, 9)));
+            let ring = (l - cap.axis).length_squared() / 2.0 / cap.one_minus_cos;
+            let phi = l.dot(b).atan2(l.dot(t)).rem_euclid(2.0 * PI);
+            bins[((ring * 4.0) as usize).min(3)][((phi / (2.0 * PI) * 8.0) as usize).min(7)] += 1;
+        }
+        let expected = n as f32 / 32.0;
+        for (ring, sectors) in bins.iter().enumerate() {
+            for (sector, &count) in sectors.iter().enumerate() {
+                let off = count as f32 / expected - 1.0;
+                assert!(off.abs() < 0.1, "{p}, {:?}: ring {ring} sector {sector}: {count} vs {expected}", cap);
+            }
+        }
+    }
+}
+
+/// The traced pass's points over the light: one per cell of a jittered grid when spp is a
+/// square; R2's steps otherwise; each in [0, 1)^2, and new ones each frame.
+#[test]
+fn soft_samples_fill_a_jittered_grid_or_step_by_r2() {
+    for spp in [1u32, 4, 9, 16, 64, 256] {
+        let grid = (spp as f32).sqrt() as u32;
+        for pixel in [0u32, 77, 5_000] {
+            let mut cells = vec![0u32; spp as usize];
+            for k in 0..spp {
+                let s = soft_sample(pixel, 3, 1, spp, k);
+                assert!(s.cmpge(Vec2::ZERO).all() && s.cmplt(Vec2::ONE).all(), "{s}");
+                let cell = (s * grid as f32).as_uvec2();
+                assert_eq!(cell, UVec2::new(k % grid, k / grid), "{spp} rays: point {k} at {s}");
+                cells[(cell.y * grid + cell.x) as usize] += 1;
+                assert_ne!(s, soft_sample(pixel, 4, 1, spp, k));
+            }
+            assert!(cells.iter().all(|&c| c == 1));
+        }
+    }
+    let step = Vec2::new(SOFT_R2[0] as f32, SOFT_R2[1] as f32) / 4_294_967_296.0;
+    for spp in [2u32, 3, 8, 12, 99] {
+        for pixel in [0u32, 77, 5_000] {
+            for k in 0..spp {
+                let s = soft_sample(pixel, 3, 1, spp, k);
+                assert!(s.cmpge(Vec2::ZERO).all() && s.cmplt(Vec2::ONE).all(), "{s}");
+                assert_ne!(s, soft_sample(pixel, 4, 1, spp, k));
+                let next = soft_sample(pixel, 3, 1, spp, k + 1);
+                let moved = (next - s).rem_euclid(Vec2::ONE);
+                assert!((moved - step).abs().max_element() < 1e-6, "{spp} rays: {s} to {next}");
+            }
         }
     }
 }

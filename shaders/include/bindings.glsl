@@ -96,6 +96,8 @@
 #define SHADOW_LIST 8
 // shadows/traced/trace*.comp's masked variants: the alpha masks of masked casters (bvh.glsl)
 #define SHADOW_BVH_MASKS 9
+// shadows/traced/trace*.comp: the G-buffer's material, which soft lights' rays are weighted by
+#define SHADOW_MATERIAL 10
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1

@@ -128,45 +128,44 @@ void orthonormal_basis(vec3 n, out vec3 t, out vec3 b) {
     b = vec3(c, sign_z + n.y * n.y * a, -n.y);
 }
 
-// Where a soft shadow ray from p aims: returns the unit direction from p toward a point on the
-// light's extent chosen by u in [0, 1)^2 (e.g. random2 in random.glsl), dist: the distance to
-// that point (the shadow ray's tmax). Point and spot lights: a point uniform over the disk of
-// radius size.x centred on the light and perpendicular to the line to p (the sphere's
-// silhouette, to O(radius^2 / dist^2)). Directional: a direction uniform in solid angle within
-// the cone of half-angle atan(size.x) around -direction, dist DIRECTIONAL_LIGHT_DISTANCE.
-// size.x == 0 (or p at the light's centre) gives light_sample's L and dist exactly.
+// Where a soft shadow ray from p aims: returns the unit direction from p toward the light chosen
+// by u in [0, 1)^2 (e.g. soft_sample in trace_body.glsl), uniform in the solid angle of the cap
+// light_cap gives, by the concentric disk (squared radius: 1 - cos(theta) over 1 - cos(theta_max),
+// angle: phi); dist: the shadow ray's tmax, for a sphere (point, spot) the distance along it to
+// the near surface (from within, the surface ahead), for a disk (directional)
+// DIRECTIONAL_LIGHT_DISTANCE. size.x == 0 (or p at the light's centre) gives light_sample's L and
+// dist exactly.
 vec3 light_sample_point(GpuLight l, vec3 p, vec2 u, out float dist) {
-    float kind = l.position_kind.w;
     float size = l.size.x;
     vec3 L;
     vec3 E_normal;
     light_sample(l, p, L, dist, E_normal);
-    if (!(size > 0.0)) {
+    vec3 axis;
+    float one_minus_cos_max;
+    vec3 radiance;
+    if (!light_cap(l, p, axis, one_minus_cos_max, radiance)) {
         return L;
     }
     vec2 disk = concentric_disk(u);
+    float r2 = dot(disk, disk);
+    float one_minus_cos = r2 * one_minus_cos_max;
+    float cos_theta = 1.0 - one_minus_cos;
+    float sin2 = max(one_minus_cos * (2.0 - one_minus_cos), 0.0);
     vec3 t;
     vec3 b;
-    orthonormal_basis(L, t, b);
-    if (kind == LIGHT_DIRECTIONAL) {
-        // 1 - cos(theta) = r^2 (1 - cos(theta_max)), 1 - cos(theta_max) without cancellation.
-        float root = sqrt(1.0 + size * size);
-        float one_minus_cos_max = size * size / (root * (1.0 + root));
-        float r2 = dot(disk, disk);
-        float one_minus_cos = r2 * one_minus_cos_max;
-        float cos_theta = 1.0 - one_minus_cos;
-        float sin_theta = sqrt(max(one_minus_cos * (2.0 - one_minus_cos), 0.0));
-        float r = sqrt(r2);
-        vec2 c = r > 0.0 ? disk / r : vec2(1.0, 0.0);
-        return normalize(L * cos_theta + (t * c.x + b * c.y) * sin_theta);
+    orthonormal_basis(axis, t, b);
+    float r = sqrt(r2);
+    vec2 c = r > 0.0 ? disk / r : vec2(1.0, 0.0);
+    vec3 dir = normalize(axis * cos_theta + (t * c.x + b * c.y) * sqrt(sin2));
+    if (l.position_kind.w == LIGHT_DIRECTIONAL) {
+        return dir;
     }
-    if (!(dist > 0.0)) {
-        return L;
-    }
-    vec3 target = l.position_kind.xyz + (t * disk.x + b * disk.y) * size;
-    vec3 to_target = target - p;
-    dist = length(to_target);
-    return to_target / dist;
+    // Outside: the near root of the sphere along dir, (d - R)(d + R) / (d cos + h), free of
+    // cancellation; inside: the far root d cos + h.
+    float d = dist;
+    float h = sqrt(max(size * size - d * d * sin2, 0.0));
+    dist = d > size ? (d - size) * (d + size) / (d * cos_theta + h) : d * cos_theta + h;
+    return dir;
 }
 
 #endif

@@ -43,9 +43,10 @@ pub struct Camera {
 
 /// Light sources. Directions are unit vectors; radiometric quantities are linear Rec.709 RGB.
 ///
-/// `radius` and `angular_diameter_deg` give the light a size: soft shadow rays aim at points
-/// spread over it (`shading::light_sample_point`), and shading integrates the sphere or disk it
-/// is (`shading::light_cap`, `shading::shade_cap`). 0 is a hard point or direction.
+/// `radius` and `angular_diameter_deg` give the light a size: soft shadow rays aim at directions
+/// spread over the solid angle it fills (`shading::light_sample_point`), and shading integrates
+/// the sphere or disk it is (`shading::light_cap`, `shading::shade_cap`). 0 is a hard point or
+/// direction.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum Light {
     /// Radiant intensity in W/sr; E = I cos(theta) / d^2. `radius`: sphere radius in metres.

@@ -1,13 +1,17 @@
 // Shadow trace pass body, shared by the compute-BVH and ray-query entry points: any-hit rays per
-// drawn pixel and light, one toward the light's centre (hard) or several toward points over its
-// extent (soft). No ray is cast where the light cannot contribute (background, facing away,
+// drawn pixel and light, one toward the light's centre (hard) or several over the solid angle it
+// fills (soft). No ray is cast where the light cannot contribute (background, facing away,
 // outside a spot's cone): visibility there is 0 (1 for background, which nothing shadows).
+// A soft light's visibility is the ratio estimator's (Heitz, Hill, McGuire 2018, "Combining
+// analytic direct illumination and stochastic shadows"): compose multiplies it into the light's
+// analytic unshadowed shading, so it weighs each ray as that shading weighs its direction.
 //
 // Contract: before including, define `bool shadow_occluded(vec3 origin, vec3 dir, float tmax)`,
 // true when a caster lies on origin + t dir for t in (0, tmax).
 #ifndef UMBRA_SHADOW_TRACE_BODY_GLSL
 #define UMBRA_SHADOW_TRACE_BODY_GLSL
 
+#include "brdf.glsl"
 #include "gbuffer.glsl"
 #include "lights.glsl"
 #include "random.glsl"
@@ -16,6 +20,8 @@
 layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
 layout(set = 0, binding = SHADOW_SURFACE) uniform usampler2D gbuffer_surface;
+// Read by soft lights only: the BRDF their rays are weighted by.
+layout(set = 0, binding = SHADOW_MATERIAL) uniform sampler2D gbuffer_material;
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 // The light's layer alone, bound through a view of that layer: other techniques may write the
 // other layers at the same time.
@@ -25,14 +31,49 @@ layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visib
 layout(push_constant) uniform Push {
     uvec4 dims;  // x: width, y: height, z: the light, w: rays per pixel (0: none, facing only)
     uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: 1 = soft; w: the tile's origin, x | y << 16
+    vec4 eye;    // xyz: the camera (soft lights' view vector)
 } pc;
 
-// The light's visibility at pixel `px`: the share of its rays that reach the light.
+// Most soft rays per pixel (params::MAX_SPP): one bit each records whether it arrived.
+const uint TRACE_MAX_SPP = 256u;
+
+// R2 (Roberts 2018) in 0.32 fixed point: k (1/p, 1/p^2) mod 1 for the plastic number p.
+// Twin of shading::SOFT_R2.
+const uvec2 SOFT_R2 = uvec2(3242174889u, 2447445414u);
+
+// The point in [0, 1)^2 that soft ray k of spp (of `light`, at `pixel`) aims by, spread evenly
+// (a penumbra's noise falls faster): a jittered grid when spp is a perfect square, else R2's
+// first spp points shifted by a random offset mod 1 (Cranley-Patterson); new jitter and offsets
+// each frame. Twin of shading::soft_sample, which says more.
+vec2 soft_sample(uint pixel, uint light, uint spp, uint k) {
+    uint grid = uint(sqrt(float(spp)) + 0.5);
+    if (grid * grid == spp) {
+        vec2 s = random2(uvec3(pixel, pc.frame.x, light * spp + k));
+        return (vec2(float(k % grid), float(k / grid)) + s) / float(grid);
+    }
+    uvec2 offset = uvec2(random2(uvec3(pixel, pc.frame.x, light * spp)) * 16777216.0) << 8u;
+    uvec2 r2 = offset + k * SOFT_R2;
+    return vec2(hash_to_unit(r2.x), hash_to_unit(r2.y));
+}
+
+// A soft shadow ray's weight in the ratio estimator: the luminance of f cos toward its unit
+// direction `dir` (unit normal n, unit view v, base colour and roughness, metallic) over its pdf,
+// which light_sample_point makes uniform in the light's solid angle: a constant, left out.
+// Twin of shading::shadow_sample_weight.
+float shadow_sample_weight(vec3 n, vec3 v, vec4 material, float metallic, vec3 dir) {
+    vec3 f = brdf_times_cos(n, v, dir, material.rgb, material.a, metallic);
+    return dot(f, vec3(0.2126, 0.7152, 0.0722));
+}
+
+// The light's visibility at pixel `px`: the share of its rays that reach the light, a soft
+// light's in a penumbra each weighted by shadow_sample_weight; exactly 1 where all arrive, 0
+// where none do.
 float trace_pixel(uvec2 px) {
     uint pixel = px.y * pc.dims.x + px.x;
     uint light = pc.dims.z;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
-    vec3 n = texelFetch(gbuffer_normal, ivec2(px), 0).xyz;
+    vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
+    vec3 n = normal_metallic.xyz;
     float v = 1.0;
     if (position.w > 0.0) {
         GpuLight l = lights[light];
@@ -52,25 +93,53 @@ float trace_pixel(uvec2 px) {
             uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);
             vec3 start = position.xyz + gbuffer_terminator_offset(surface);
             vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
-            // Hard: one ray toward the centre. Soft: spp rays toward points over the light; a
-            // point below the horizon sends no light, so its ray does not count (a light
-            // straddling the horizon is shaded for its part above it). The light's own
-            // position is not an occluder: rays stop just short of it.
+            // Hard: one ray toward the centre. Soft: spp rays over the light's cap; a
+            // direction below the horizon brings no light, so its ray does not count (a light
+            // straddling the horizon is shaded for its part above it). The light itself is not
+            // an occluder: rays stop just short of its centre (hard) or surface (soft).
             uint spp = pc.dims.w;
+            bool soft = pc.frame.z != 0u;
             uint reached = 0u;
             uint counted = 0u;
+            // Soft: which rays reached the light, to weigh them below.
+            uint open_rays[TRACE_MAX_SPP / 32u];
+            if (soft) {
+                for (uint i = 0u; i < TRACE_MAX_SPP / 32u; i++) open_rays[i] = 0u;
+            }
             for (uint k = 0u; k < spp; k++) {
                 vec3 dir = L;
                 float d = dist;
-                if (pc.frame.z != 0u) {
-                    vec2 u = random2(uvec3(pixel, pc.frame.x, light * spp + k));
-                    dir = light_sample_point(l, origin, u, d);
+                if (soft) {
+                    dir = light_sample_point(l, origin, soft_sample(pixel, light, spp, k), d);
                     if (dot(n, dir) <= 0.0) continue;
                 }
                 counted++;
-                if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) reached++;
+                if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) {
+                    reached++;
+                    if (soft) open_rays[k >> 5u] |= 1u << (k & 31u);
+                }
             }
             v = counted > 0u ? float(reached) / float(counted) : 0.0;
+            // A penumbra (a hard light's one ray has none): the same rays again, weighed by
+            // shadow_sample_weight (the ratio estimator). Where every counted ray arrives, or none
+            // does, the weights cannot matter: those pixels pay nothing for them.
+            if (reached > 0u && reached < counted) {
+                vec3 unit_n = normalize(n);
+                vec3 view = normalize(pc.eye.xyz - position.xyz);
+                vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
+                float open_weight = 0.0;
+                float all_weight = 0.0;
+                for (uint k = 0u; k < spp; k++) {
+                    float d;
+                    vec3 dir = light_sample_point(l, origin, soft_sample(pixel, light, spp, k), d);
+                    float weight = shadow_sample_weight(unit_n, view, material, normal_metallic.w, dir);
+                    if (!(weight > 0.0)) continue;
+                    all_weight += weight;
+                    if ((open_rays[k >> 5u] & (1u << (k & 31u))) != 0u) open_weight += weight;
+                }
+                // No ray weighs anything (a black metal, say): the unweighted share stays.
+                if (all_weight > 0.0) v = open_weight / all_weight;
+            }
         }
     }
     return v;

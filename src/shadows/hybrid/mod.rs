@@ -229,6 +229,7 @@ fn trace<'a>(
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
+        (SHADOW_MATERIAL, Bound::Image(pass.read(&gbuffer.material, read))),
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, storage_read))),
         (SHADOW_LIST, Bound::Buffer(pass.read(list, storage_read))),
         (SHADOW_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
@@ -236,9 +237,10 @@ fn trace<'a>(
     bound.extend(walk);
     let dispatch = pass.read(args, Access::IndirectCommandRead);
     let light = &frame.scene.local_lights[served.light as usize];
-    let push = traced::push_constants(extent, frame.frame_index, served, traced::rays(served, light));
+    let rays = traced::rays(served, light);
+    let push = traced::push_constants(extent, frame.frame_index, frame.camera.eye, served, rays);
     let pipeline = &pipelines.trace;
-    pass.render(move |ctx| ctx.dispatch_indirect(pipeline, &bound, bytemuck::cast_slice(&push), dispatch));
+    pass.render(move |ctx| ctx.dispatch_indirect(pipeline, &bound, bytemuck::bytes_of(&push), dispatch));
 }
 
 /// The `hybrid:N` view: the light's visibility in grey, the traced pixels in red-orange.

@@ -1,8 +1,9 @@
 //! `traced`: from every drawn surface point toward each light it serves, any-hit rays through
 //! the shadow casters: the CPU-built BVH traversed by the shader (`compute`, any device), or the
 //! driver's own acceleration structure through VK_KHR_ray_query (`ray-query`), with the same
-//! rays. Hard shadows are one ray toward the light's centre; soft ones `spp` rays over its
-//! extent per frame. Writes each served light's visibility layer (1 lit, 0 shadowed).
+//! rays. Hard shadows are one ray toward the light's centre; soft ones `spp` rays over the
+//! solid angle it fills per frame (spread evenly: `shading::soft_sample`), weighted as the
+//! light's analytic shading weighs their directions (the ratio estimator, trace_body.glsl). Writes each served light's visibility layer (1 lit, 0 shadowed).
 
 pub mod accel;
 pub mod params;
@@ -10,7 +11,7 @@ pub mod params;
 use std::sync::{Arc, OnceLock};
 
 use ash::vk;
-use glam::UVec4;
+use glam::{UVec4, Vec3, Vec4};
 
 use self::accel::RayQueryHandles;
 use super::{FrameInputs, Served};
@@ -40,10 +41,11 @@ impl Pipelines {
 
 /// The compute-BVH trace's bindings (trace.comp and trace_list.comp), and `SHADOW_BVH_MASKS` in
 /// their masked variants.
-const BVH_BINDINGS: [(u32, DescriptorKind); 7] = [
+const BVH_BINDINGS: [(u32, DescriptorKind); 8] = [
     (SHADOW_POSITION, DescriptorKind::SampledImage),
     (SHADOW_NORMAL, DescriptorKind::SampledImage),
     (SHADOW_SURFACE, DescriptorKind::SampledImage),
+    (SHADOW_MATERIAL, DescriptorKind::SampledImage),
     (SHADOW_LIGHTS, DescriptorKind::StorageBuffer),
     (SHADOW_BVH_NODES, DescriptorKind::UniformTexelBuffer),
     (SHADOW_BVH_TRIANGLES, DescriptorKind::UniformTexelBuffer),
@@ -66,7 +68,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipelin
         false => ("shadow trace", spirv::SHADOWS_TRACED_TRACE_COMP),
         true => ("shadow trace (alpha masks)", spirv::SHADOWS_TRACED_TRACE_COMP_MASKED),
     };
-    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked), 32, TILE)
+    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked), PUSH_SIZE, TILE)
 }
 
 /// The same rays over the compute BVH for the pixels of a list only (`hybrid`), one
@@ -78,7 +80,7 @@ pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32, masked: bool) -> Gp
         false => ("shadow trace (list)", spirv::SHADOWS_TRACED_TRACE_LIST_COMP),
         true => ("shadow trace (list, alpha masks)", spirv::SHADOWS_TRACED_TRACE_LIST_COMP_MASKED),
     };
-    ComputePipeline::new(ctx, name, spirv, &bindings, 32, [list_group, 1])
+    ComputePipeline::new(ctx, name, spirv, &bindings, PUSH_SIZE, [list_group, 1])
 }
 
 /// The same pass over a top-level acceleration structure; only on devices with ray query.
@@ -88,6 +90,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<Comp
         sampled(SHADOW_POSITION),
         sampled(SHADOW_NORMAL),
         sampled(SHADOW_SURFACE),
+        sampled(SHADOW_MATERIAL),
         storage(SHADOW_LIGHTS),
         (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
         storage_image(SHADOW_VISIBILITY),
@@ -96,7 +99,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<Comp
         false => ("shadow trace (ray query)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP),
         true => ("shadow trace (ray query, alpha masks)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED),
     };
-    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&bindings, SHADOW_BVH_MASKS, masked), 32, TILE)
+    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&bindings, SHADOW_BVH_MASKS, masked), PUSH_SIZE, TILE)
 }
 
 /// What the rays traverse.
@@ -146,6 +149,7 @@ pub fn add<'a>(
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
         (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, Access::ComputeShaderReadSampledImage))),
+        (SHADOW_MATERIAL, Bound::Image(pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage))),
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
     match casters {
@@ -165,14 +169,14 @@ pub fn add<'a>(
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.
-    let mut work: Vec<([UVec4; 2], Bound, [u32; 2])> = Vec::new();
+    let mut work: Vec<(Push, Bound, [u32; 2])> = Vec::new();
     for s in served {
         let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
         let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
-        let push = push_constants(extent, frame.frame_index, s, rays);
-        for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push[0].w) {
+        let push = push_constants(extent, frame.frame_index, frame.camera.eye, s, rays);
+        for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
             let mut push = push;
-            push[1].w = x | y << 16;
+            push.frame.w = x | y << 16;
             work.push((push, layer, [w, h]));
         }
     }
@@ -180,19 +184,37 @@ pub fn add<'a>(
         let mut bound = bound;
         for (push, target, [w, h]) in &work {
             bound.push((SHADOW_VISIBILITY, *target));
-            ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(push), *w, *h)?;
+            ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(push), *w, *h)?;
             bound.pop();
         }
         Ok(())
     });
 }
 
-/// The trace shaders' push constants for `served`'s `rays` (trace_body.glsl's `Push`).
-pub fn push_constants(extent: vk::Extent2D, frame_index: u32, served: &Served, rays: Rays) -> [UVec4; 2] {
+/// The trace shaders' push constants (trace_body.glsl's `Push`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Push {
+    /// Width, height, the light, rays per pixel.
+    pub dims: UVec4,
+    /// Frame index, the light's layer, 1 for soft, the tile's origin.
+    pub frame: UVec4,
+    /// The camera, whose view vector soft rays' weights take.
+    pub eye: Vec4,
+}
+
+const PUSH_SIZE: u32 = std::mem::size_of::<Push>() as u32;
+
+/// The push constants for `served`'s `rays`, seen from `eye` (scene-local).
+pub fn push_constants(extent: vk::Extent2D, frame_index: u32, eye: Vec3, served: &Served, rays: Rays) -> Push {
     let (spp, soft) = match rays {
         Rays::None => (0, 0),
         Rays::Hard => (1, 0),
         Rays::Soft(spp) => (spp, 1),
     };
-    [UVec4::new(extent.width, extent.height, served.light, spp), UVec4::new(frame_index, served.layer, soft, 0)]
+    Push {
+        dims: UVec4::new(extent.width, extent.height, served.light, spp),
+        frame: UVec4::new(frame_index, served.layer, soft, 0),
+        eye: eye.extend(0.0),
+    }
 }

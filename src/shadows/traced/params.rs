@@ -32,6 +32,7 @@ pub const DEFAULT_TILE_RAYS: u32 = 1 << 22;
 pub const MIN_TILE_RAYS: u32 = 64 * MAX_SPP;
 
 /// Most soft-shadow rays per pixel and frame (the visibility target resolves 1/255 steps).
+/// trace_body.glsl keeps a bit per ray for this many (`TRACE_MAX_SPP`): change both.
 pub const MAX_SPP: u32 = 256;
 
 impl TracedParams {

@@ -15,6 +15,7 @@ use super::Scene;
 pub mod mask;
 mod ploc;
 mod ray_offset;
+mod reinsertion;
 pub mod wide;
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};
 pub use wide::{WideBvh, WideNode};
@@ -22,6 +23,11 @@ pub use wide::{WideBvh, WideNode};
 /// Entries in the traversal stack of `bvh.glsl` (`BVH_STACK_SIZE` there). A tree whose
 /// traversal could need more (`ShadowBvh::stack_need`) is rebuilt balanced.
 pub const BVH_STACK_SIZE: usize = wide::STACK_SIZE;
+
+/// Threads the BVH build may use: one per core, at most 16.
+fn build_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get()).min(16)
+}
 
 /// The BVH over every shadow-casting triangle of a scene, in obvhs's form (kept as the
 /// reference traversal) and in the flattened GPU form.

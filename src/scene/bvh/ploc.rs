@@ -4,10 +4,11 @@
 //! This is `obvhs::bvh2::builder::build_bvh2_from_tris` with `BvhBuildParams::medium_build()`
 //! (obvhs 0.4.0, without its `parallel` feature), ported line for line: the same Morton sort,
 //! the same nearest-neighbour search (radius 14, radius 1 for the first 3 passes), the same
-//! merges into the same node slots, then obvhs's own reinsertion. On ordinary input it builds
-//! exactly obvhs's tree for the same settings without leaf collapse (`tests/bvh_cpu.rs` compares
-//! them node for node): leaves are chosen later, in the same linear pass that makes the 4-wide
-//! tree (`wide::LeafPlan`), which costs less than obvhs's collapse and its second reinsertion.
+//! merges into the same node slots, then obvhs's reinsertion (`reinsertion`: the same, with its
+//! search on several threads). On ordinary input it builds exactly obvhs's tree for the same
+//! settings without leaf collapse (`tests/bvh_cpu.rs` compares them node for node): leaves are
+//! chosen later, in the same linear pass that makes the 4-wide tree (`wide::LeafPlan`), which
+//! costs less than obvhs's collapse and its second reinsertion.
 //!
 //! What it adds: obvhs merges only the pairs of nodes that choose each other, and when many
 //! nodes tie (coincident triangles: every pair costs the same) or nest (a triangle fan: every box
@@ -26,7 +27,6 @@
 
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::node::Bvh2Node;
-use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH};
 use obvhs::ploc::morton::morton_encode_u64_unorm;
 use obvhs::triangle::Triangle;
@@ -43,8 +43,6 @@ const REINSERTION_BATCH_RATIO: f32 = 0.05;
 /// Passes over this many nodes or more search on several threads (below it, starting threads
 /// costs more than it saves).
 const PARALLEL_SEARCH_MIN: usize = 32_768;
-/// At most this many build threads.
-const MAX_BUILD_THREADS: usize = 16;
 
 /// A pass over at least `GUARD_MIN_COUNT` nodes that merges fewer than 1/`GUARD_DIVISOR` of
 /// them is slow. Below `GUARD_MIN_COUNT` nodes a slow tail costs little, so it is not counted.
@@ -71,17 +69,17 @@ pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
         clock = std::time::Instant::now();
         ms
     };
-    let report = build_ploc(&mut bvh, triangles);
+    let threads = super::build_threads();
+    let report = build_ploc(&mut bvh, triangles, threads);
     let ploc_ms = lap();
     bvh.uses_spatial_splits = false;
-    let mut reinsertion = ReinsertionOptimizer::default();
-    reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO, None);
+    super::reinsertion::run(&mut bvh, REINSERTION_BATCH_RATIO, threads);
     log::debug!("BVH build over {} triangles: PLOC {ploc_ms:.0} ms, reinsertion {:.0} ms", triangles.len(), lap());
     (bvh, report)
 }
 
 /// `PlocBuilder::build_ploc::<14>` followed by `build_ploc_from_leaves::<14, false>`.
-fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
+fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle], threads: usize) -> PlocReport {
     let prim_count = triangles.len();
     bvh.reset_for_reuse(prim_count, Some((0..prim_count as u32).collect()));
     if prim_count == 0 {
@@ -111,7 +109,6 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
     std::mem::swap(&mut current_nodes, &mut next_nodes);
 
     let mut merge = vec![0i8; prim_count];
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(MAX_BUILD_THREADS);
     let mut cache = SearchCache::default();
     let mut report = PlocReport::default();
     let mut depth = 0usize;

@@ -123,10 +123,12 @@ impl ShadowBvh {
             tris.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
         assert!(tris.len() < wide::MAX_TRIANGLES, "{} triangles exceed the layout's 2^28", tris.len());
         let reference = if tris.is_empty() { Bvh2::default() } else { build(&reference_triangles) };
-        let depth = if tris.is_empty() { 0 } else { reference.depth(0) };
         let start = std::time::Instant::now();
         let wide = WideBvh::from_bvh2(&reference, tris);
         log::debug!("BVH 4-wide collapse: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+        // The collapse's leaf plan measured the binary depth on its way (obvhs's `depth` walks
+        // the whole tree once more, and recursively).
+        let depth = wide.binary_depth;
         ShadowBvh { reference, reference_triangles, wide, masks: None, triangle_count: tris.len(), depth }
     }
 

@@ -109,7 +109,6 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle], threads: usize) -> PlocRep
     std::mem::swap(&mut current_nodes, &mut next_nodes);
 
     let mut merge = vec![0i8; prim_count];
-    let mut cache = SearchCache::default();
     let mut report = PlocReport::default();
     let mut depth = 0usize;
     let mut next_nodes_idx = 0;
@@ -118,39 +117,15 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle], threads: usize) -> PlocRep
     let mut slow_work = 0usize;
     while count > 1 {
         let merge = &mut merge[..count];
+        // The search is the build's hot loop, and each node's choice depends only on the nodes:
+        // big passes split it into one chunk per thread, each making the sequential loop's
+        // choices (see `search_next` and `search_radius`).
+        let nodes = &current_nodes[..count];
+        let chunks = if count >= PARALLEL_SEARCH_MIN { threads } else { 1 };
         if depth < SEARCH_DEPTH_THRESHOLD {
-            let mut last_cost = f32::INFINITY;
-            for i in 0..count - 1 {
-                let cost = current_nodes[i].aabb().union(current_nodes[i + 1].aabb()).half_area();
-                merge[i] = if last_cost < cost { -1 } else { 1 };
-                last_cost = cost;
-            }
-            merge[count - 1] = -1;
-        } else if count >= PARALLEL_SEARCH_MIN && threads > 1 {
-            // The search is the build's hot loop, and each node's choice depends only on the
-            // nodes: split it into one chunk per thread. A chunk's cache is first filled by
-            // searching the radius before it (results discarded), so every choice is the one
-            // the sequential loop makes.
-            let nodes = &current_nodes[..count];
-            let chunk = count.div_ceil(threads);
-            std::thread::scope(|scope| {
-                for (c, out) in merge.chunks_mut(chunk).enumerate() {
-                    scope.spawn(move || {
-                        let mut cache = SearchCache::default();
-                        let start = c * chunk;
-                        for warm in start.saturating_sub(SEARCH_DISTANCE)..start {
-                            cache.find_best_node(warm, nodes);
-                        }
-                        for (k, best) in out.iter_mut().enumerate() {
-                            *best = cache.find_best_node(start + k, nodes);
-                        }
-                    });
-                }
-            });
+            in_chunks(merge, chunks, |start, out| search_next(nodes, start, out));
         } else {
-            for (index, best) in merge.iter_mut().enumerate() {
-                *best = cache.find_best_node(index, &current_nodes[..count]);
-            }
+            in_chunks(merge, chunks, |start, out| search_radius(nodes, start, out));
         }
 
         let mut index = 0;
@@ -210,6 +185,51 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle], threads: usize) -> PlocRep
     bvh.max_depth = DEFAULT_MAX_STACK_DEPTH.max(depth + 1);
     bvh.children_are_ordered_after_parents = true;
     report
+}
+
+/// Runs `search(start, out)` over `merge` cut into `chunks` pieces, each on a thread of its own
+/// when there are several; `start` is the index of the piece's first entry.
+fn in_chunks(merge: &mut [i8], chunks: usize, search: impl Fn(usize, &mut [i8]) + Sync) {
+    if chunks < 2 {
+        return search(0, merge);
+    }
+    let size = merge.len().div_ceil(chunks);
+    let search = &search;
+    std::thread::scope(|scope| {
+        for (c, out) in merge.chunks_mut(size).enumerate() {
+            scope.spawn(move || search(c * size, out));
+        }
+    });
+}
+
+/// The first passes' search (radius 1) for `nodes[start..][..out.len()]`: each node takes
+/// whichever neighbour its union with costs less, the previous one on a tie (the last node: the
+/// previous one). A piece starting past 0 recomputes the cost its first node compares with.
+fn search_next(nodes: &[Bvh2Node], start: usize, out: &mut [i8]) {
+    let cost = |i: usize| nodes[i].aabb().union(nodes[i + 1].aabb()).half_area();
+    let mut last_cost = if start == 0 { f32::INFINITY } else { cost(start - 1) };
+    for (i, best) in (start..).zip(out.iter_mut()) {
+        if i + 1 == nodes.len() {
+            *best = -1;
+            break;
+        }
+        let cost = cost(i);
+        *best = if last_cost < cost { -1 } else { 1 };
+        last_cost = cost;
+    }
+}
+
+/// The radius-14 search for `nodes[start..][..out.len()]`. The cache is first filled by
+/// searching the radius before `start` (results discarded), so every choice is the one a
+/// search from node 0 makes.
+fn search_radius(nodes: &[Bvh2Node], start: usize, out: &mut [i8]) {
+    let mut cache = SearchCache::default();
+    for warm in start.saturating_sub(SEARCH_DISTANCE)..start {
+        cache.find_best_node(warm, nodes);
+    }
+    for (k, best) in out.iter_mut().enumerate() {
+        *best = cache.find_best_node(start + k, nodes);
+    }
 }
 
 /// Writes a balanced tree over `roots` with its root at `nodes[slot]`, taking child pairs from

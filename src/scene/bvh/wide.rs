@@ -299,6 +299,12 @@ impl WideBvh {
     /// at 0.
     fn subtree(bvh: &Bvh2, plan: &LeafPlan, tris: &[[Vec3; 3]], child: Child) -> WideBvh {
         let mut sub = WideBvh::default();
+        // Its triangles exactly, and a node per 6 triangles (the bench scenes need fewer): no
+        // reallocation while it grows.
+        let count = plan.count(child.0) as usize;
+        sub.triangles.reserve_exact(count);
+        sub.order.reserve_exact(count);
+        sub.nodes.reserve(count / 6 + 1);
         sub.nodes.push(WideNode::default());
         sub.stack_need = sub.emit(bvh, plan, tris, 0, &open(bvh, plan, child.0), 0, &mut Vec::new().into_iter());
         sub

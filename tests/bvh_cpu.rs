@@ -282,7 +282,8 @@ fn node_tuples(bvh: &obvhs::bvh2::Bvh2) -> Vec<([f32; 3], [f32; 3], u32, u32)> {
 
 /// The guarded build is obvhs's PLOC build, node for node, wherever the clustering does not
 /// stall: on the default scene, the bench-like grid and sphere, and a random soup. The grid is
-/// over 250,000 triangles, where obvhs sorts by radix rather than by std's sort.
+/// over 250,000 triangles, where obvhs sorts by radix rather than by std's sort, and where the
+/// reinsertion searches on several threads (on a machine with several cores).
 #[test]
 fn ordinary_scenes_keep_obvhs_tree_exactly() {
     let mut rng = StdRng::seed_from_u64(0x0B5);
@@ -308,6 +309,8 @@ fn ordinary_scenes_keep_obvhs_tree_exactly() {
         assert_eq!(ours_nodes.len(), reference.len(), "{what}: node count");
         let first_difference = ours_nodes.iter().zip(&reference).position(|(a, b)| a != b);
         assert_eq!(first_difference, None, "{what}: nodes differ from obvhs's");
+        // The depth the collapse measured on its way is obvhs's own.
+        assert_eq!(ours.depth(), ours.binary().depth(0), "{what}: depth");
         println!("{what}: {} triangles, depth {}, same tree as obvhs", tris.len(), ours.depth());
     }
 }

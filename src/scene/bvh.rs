@@ -15,6 +15,7 @@ use super::Scene;
 pub mod mask;
 mod ploc;
 mod ray_offset;
+mod reinsertion;
 pub mod wide;
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};
 pub use wide::{WideBvh, WideNode};
@@ -22,6 +23,11 @@ pub use wide::{WideBvh, WideNode};
 /// Entries in the traversal stack of `bvh.glsl` (`BVH_STACK_SIZE` there). A tree whose
 /// traversal could need more (`ShadowBvh::stack_need`) is rebuilt balanced.
 pub const BVH_STACK_SIZE: usize = wide::STACK_SIZE;
+
+/// Threads the BVH build may use: one per core, at most 16.
+fn build_threads() -> usize {
+    std::thread::available_parallelism().map_or(1, |n| n.get()).min(16)
+}
 
 /// The BVH over every shadow-casting triangle of a scene, in obvhs's form (kept as the
 /// reference traversal) and in the flattened GPU form.
@@ -117,10 +123,12 @@ impl ShadowBvh {
             tris.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
         assert!(tris.len() < wide::MAX_TRIANGLES, "{} triangles exceed the layout's 2^28", tris.len());
         let reference = if tris.is_empty() { Bvh2::default() } else { build(&reference_triangles) };
-        let depth = if tris.is_empty() { 0 } else { reference.depth(0) };
         let start = std::time::Instant::now();
         let wide = WideBvh::from_bvh2(&reference, tris);
         log::debug!("BVH 4-wide collapse: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+        // The collapse's leaf plan measured the binary depth on its way (obvhs's `depth` walks
+        // the whole tree once more, and recursively).
+        let depth = wide.binary_depth;
         ShadowBvh { reference, reference_triangles, wide, masks: None, triangle_count: tris.len(), depth }
     }
 

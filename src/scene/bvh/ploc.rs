@@ -4,10 +4,11 @@
 //! This is `obvhs::bvh2::builder::build_bvh2_from_tris` with `BvhBuildParams::medium_build()`
 //! (obvhs 0.4.0, without its `parallel` feature), ported line for line: the same Morton sort,
 //! the same nearest-neighbour search (radius 14, radius 1 for the first 3 passes), the same
-//! merges into the same node slots, then obvhs's own reinsertion. On ordinary input it builds
-//! exactly obvhs's tree for the same settings without leaf collapse (`tests/bvh_cpu.rs` compares
-//! them node for node): leaves are chosen later, in the same linear pass that makes the 4-wide
-//! tree (`wide::LeafPlan`), which costs less than obvhs's collapse and its second reinsertion.
+//! merges into the same node slots, then obvhs's reinsertion (`reinsertion`: the same, with its
+//! search on several threads). On ordinary input it builds exactly obvhs's tree for the same
+//! settings without leaf collapse (`tests/bvh_cpu.rs` compares them node for node): leaves are
+//! chosen later, in the same linear pass that makes the 4-wide tree (`wide::LeafPlan`), which
+//! costs less than obvhs's collapse and its second reinsertion.
 //!
 //! What it adds: obvhs merges only the pairs of nodes that choose each other, and when many
 //! nodes tie (coincident triangles: every pair costs the same) or nest (a triangle fan: every box
@@ -26,7 +27,6 @@
 
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::node::Bvh2Node;
-use obvhs::bvh2::reinsertion::ReinsertionOptimizer;
 use obvhs::bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH};
 use obvhs::ploc::morton::morton_encode_u64_unorm;
 use obvhs::triangle::Triangle;
@@ -43,8 +43,6 @@ const REINSERTION_BATCH_RATIO: f32 = 0.05;
 /// Passes over this many nodes or more search on several threads (below it, starting threads
 /// costs more than it saves).
 const PARALLEL_SEARCH_MIN: usize = 32_768;
-/// At most this many build threads.
-const MAX_BUILD_THREADS: usize = 16;
 
 /// A pass over at least `GUARD_MIN_COUNT` nodes that merges fewer than 1/`GUARD_DIVISOR` of
 /// them is slow. Below `GUARD_MIN_COUNT` nodes a slow tail costs little, so it is not counted.
@@ -71,17 +69,17 @@ pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
         clock = std::time::Instant::now();
         ms
     };
-    let report = build_ploc(&mut bvh, triangles);
+    let threads = super::build_threads();
+    let report = build_ploc(&mut bvh, triangles, threads);
     let ploc_ms = lap();
     bvh.uses_spatial_splits = false;
-    let mut reinsertion = ReinsertionOptimizer::default();
-    reinsertion.run(&mut bvh, REINSERTION_BATCH_RATIO, None);
+    super::reinsertion::run(&mut bvh, REINSERTION_BATCH_RATIO, threads);
     log::debug!("BVH build over {} triangles: PLOC {ploc_ms:.0} ms, reinsertion {:.0} ms", triangles.len(), lap());
     (bvh, report)
 }
 
 /// `PlocBuilder::build_ploc::<14>` followed by `build_ploc_from_leaves::<14, false>`.
-fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
+fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle], threads: usize) -> PlocReport {
     let prim_count = triangles.len();
     bvh.reset_for_reuse(prim_count, Some((0..prim_count as u32).collect()));
     if prim_count == 0 {
@@ -111,8 +109,6 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
     std::mem::swap(&mut current_nodes, &mut next_nodes);
 
     let mut merge = vec![0i8; prim_count];
-    let threads = std::thread::available_parallelism().map_or(1, |n| n.get()).min(MAX_BUILD_THREADS);
-    let mut cache = SearchCache::default();
     let mut report = PlocReport::default();
     let mut depth = 0usize;
     let mut next_nodes_idx = 0;
@@ -121,39 +117,15 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
     let mut slow_work = 0usize;
     while count > 1 {
         let merge = &mut merge[..count];
+        // The search is the build's hot loop, and each node's choice depends only on the nodes:
+        // big passes split it into one chunk per thread, each making the sequential loop's
+        // choices (see `search_next` and `search_radius`).
+        let nodes = &current_nodes[..count];
+        let chunks = if count >= PARALLEL_SEARCH_MIN { threads } else { 1 };
         if depth < SEARCH_DEPTH_THRESHOLD {
-            let mut last_cost = f32::INFINITY;
-            for i in 0..count - 1 {
-                let cost = current_nodes[i].aabb().union(current_nodes[i + 1].aabb()).half_area();
-                merge[i] = if last_cost < cost { -1 } else { 1 };
-                last_cost = cost;
-            }
-            merge[count - 1] = -1;
-        } else if count >= PARALLEL_SEARCH_MIN && threads > 1 {
-            // The search is the build's hot loop, and each node's choice depends only on the
-            // nodes: split it into one chunk per thread. A chunk's cache is first filled by
-            // searching the radius before it (results discarded), so every choice is the one
-            // the sequential loop makes.
-            let nodes = &current_nodes[..count];
-            let chunk = count.div_ceil(threads);
-            std::thread::scope(|scope| {
-                for (c, out) in merge.chunks_mut(chunk).enumerate() {
-                    scope.spawn(move || {
-                        let mut cache = SearchCache::default();
-                        let start = c * chunk;
-                        for warm in start.saturating_sub(SEARCH_DISTANCE)..start {
-                            cache.find_best_node(warm, nodes);
-                        }
-                        for (k, best) in out.iter_mut().enumerate() {
-                            *best = cache.find_best_node(start + k, nodes);
-                        }
-                    });
-                }
-            });
+            in_chunks(merge, chunks, |start, out| search_next(nodes, start, out));
         } else {
-            for (index, best) in merge.iter_mut().enumerate() {
-                *best = cache.find_best_node(index, &current_nodes[..count]);
-            }
+            in_chunks(merge, chunks, |start, out| search_radius(nodes, start, out));
         }
 
         let mut index = 0;
@@ -213,6 +185,51 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle]) -> PlocReport {
     bvh.max_depth = DEFAULT_MAX_STACK_DEPTH.max(depth + 1);
     bvh.children_are_ordered_after_parents = true;
     report
+}
+
+/// Runs `search(start, out)` over `merge` cut into `chunks` pieces, each on a thread of its own
+/// when there are several; `start` is the index of the piece's first entry.
+fn in_chunks(merge: &mut [i8], chunks: usize, search: impl Fn(usize, &mut [i8]) + Sync) {
+    if chunks < 2 {
+        return search(0, merge);
+    }
+    let size = merge.len().div_ceil(chunks);
+    let search = &search;
+    std::thread::scope(|scope| {
+        for (c, out) in merge.chunks_mut(size).enumerate() {
+            scope.spawn(move || search(c * size, out));
+        }
+    });
+}
+
+/// The first passes' search (radius 1) for `nodes[start..][..out.len()]`: each node takes
+/// whichever neighbour its union with costs less, the previous one on a tie (the last node: the
+/// previous one). A piece starting past 0 recomputes the cost its first node compares with.
+fn search_next(nodes: &[Bvh2Node], start: usize, out: &mut [i8]) {
+    let cost = |i: usize| nodes[i].aabb().union(nodes[i + 1].aabb()).half_area();
+    let mut last_cost = if start == 0 { f32::INFINITY } else { cost(start - 1) };
+    for (i, best) in (start..).zip(out.iter_mut()) {
+        if i + 1 == nodes.len() {
+            *best = -1;
+            break;
+        }
+        let cost = cost(i);
+        *best = if last_cost < cost { -1 } else { 1 };
+        last_cost = cost;
+    }
+}
+
+/// The radius-14 search for `nodes[start..][..out.len()]`. The cache is first filled by
+/// searching the radius before `start` (results discarded), so every choice is the one a
+/// search from node 0 makes.
+fn search_radius(nodes: &[Bvh2Node], start: usize, out: &mut [i8]) {
+    let mut cache = SearchCache::default();
+    for warm in start.saturating_sub(SEARCH_DISTANCE)..start {
+        cache.find_best_node(warm, nodes);
+    }
+    for (k, best) in out.iter_mut().enumerate() {
+        *best = cache.find_best_node(start + k, nodes);
+    }
 }
 
 /// Writes a balanced tree over `roots` with its root at `nodes[slot]`, taking child pairs from

@@ -40,6 +40,7 @@
 
 use glam::{UVec4, Vec3, Vec4};
 use obvhs::bvh2::Bvh2;
+use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
 
 /// Entries in the traversal stack (`BVH_STACK_SIZE` in bvh.glsl). `WideBvh::stack_need` says
 /// how many a tree can use; a build that needs more is rebuilt balanced.
@@ -76,6 +77,8 @@ pub struct WideBvh {
     pub order: Vec<u32>,
     /// The deepest the traversal stack can get on this tree: its depth in wide nodes.
     pub stack_need: usize,
+    /// Levels of the binary tree it was collapsed from, root to deepest leaf (0 when empty).
+    pub binary_depth: usize,
 }
 
 /// A child of a node being collapsed: a binary node's index in the obvhs tree.
@@ -87,49 +90,165 @@ struct Child(usize);
 /// walking it (the surface-area heuristic, with obvhs's collapse weight).
 const TRAVERSAL_COST: f32 = 3.0;
 
+/// Binary trees with at least this many nodes are planned and collapsed on several threads
+/// (below it, starting threads costs more than it saves).
+const PARALLEL_MIN_NODES: usize = 65_536;
+/// The leaf plan splits the tree into the subtrees this many binary levels below the root (up
+/// to 64), which threads take in turn: enough that one big subtree cannot keep one thread
+/// busy while the others wait.
+const PLAN_SPLIT_LEVELS: usize = 6;
+/// The emission splits the tree into subtrees of at most 1/(threads * this) of the triangles.
+const TASKS_PER_THREAD: usize = 8;
+/// A plan entry's leaf flag; the bits below it hold the subtree's triangle count.
+const PLAN_LEAF: u32 = 1 << 31;
+
 /// Which binary subtrees become leaves: bottom up, a subtree of at most `MAX_LEAF_TRIANGLES`
 /// whose leaf cost is no more than its tree's SAH cost. One pass in post order: linear time.
+/// A node's choice depends only on its subtree, so the subtrees `PLAN_SPLIT_LEVELS` below the
+/// root are planned on several threads and the few nodes above them last.
 struct LeafPlan {
-    leaf: Vec<bool>,
+    /// Per binary node: its triangle count, with `PLAN_LEAF` where it becomes a leaf. Only read
+    /// for children of nodes that are not leaves. Atomic so threads can write their disjoint
+    /// subtrees' entries (relaxed: `thread::scope` joins them before any read).
+    nodes: Vec<AtomicU32>,
+    /// Levels of the binary tree from the root to its deepest leaf.
+    depth: usize,
+}
+
+/// A planned subtree: its triangles, its cost (as a leaf or as a tree, whichever it is) and
+/// its depth in binary levels.
+#[derive(Clone, Copy)]
+struct Planned {
+    count: u32,
+    cost: f32,
+    depth: usize,
 }
 
 impl LeafPlan {
-    fn new(bvh: &Bvh2) -> LeafPlan {
-        let n = bvh.nodes.len();
-        let mut count = vec![0u32; n];
-        let mut cost = vec![0f32; n];
-        let mut leaf = vec![false; n];
-        // Post order without recursion: children finish before their parent.
-        let mut stack = vec![(0usize, false)];
-        while let Some((i, children_done)) = stack.pop() {
-            let node = &bvh.nodes[i];
-            if node.prim_count > 0 {
-                count[i] = node.prim_count;
-                cost[i] = node.prim_count as f32;
-                leaf[i] = node.prim_count <= MAX_LEAF_TRIANGLES;
-                continue;
-            }
-            let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
-            if !children_done {
-                stack.push((i, true));
-                stack.push((l, false));
-                stack.push((r, false));
-                continue;
-            }
-            count[i] = count[l] + count[r];
-            let area = node.aabb.half_area();
-            let walk = if area > 0.0 && area.is_finite() {
-                TRAVERSAL_COST
-                    + (bvh.nodes[l].aabb.half_area() * cost[l] + bvh.nodes[r].aabb.half_area() * cost[r]) / area
-            } else {
-                TRAVERSAL_COST + cost[l] + cost[r]
-            };
-            let as_leaf = count[i] as f32;
-            leaf[i] = count[i] <= MAX_LEAF_TRIANGLES && as_leaf <= walk;
-            cost[i] = if leaf[i] { as_leaf } else { walk };
-        }
-        LeafPlan { leaf }
+    fn new(bvh: &Bvh2, threads: usize) -> LeafPlan {
+        let nodes: Vec<AtomicU32> = (0..bvh.nodes.len()).map(|_| AtomicU32::new(0)).collect();
+        let levels = if threads > 1 { PLAN_SPLIT_LEVELS } else { 0 };
+        let mut roots = Vec::new();
+        subtree_roots(bvh, 0, levels, &mut roots);
+        let planned = in_parallel(roots.len(), threads, |k| plan_subtree(bvh, roots[k], &nodes));
+        let top = plan_top(bvh, 0, levels, &nodes, &mut planned.into_iter());
+        LeafPlan { nodes, depth: top.depth }
     }
+
+    fn is_leaf(&self, index: usize) -> bool {
+        self.nodes[index].load(Ordering::Relaxed) & PLAN_LEAF != 0
+    }
+
+    fn count(&self, index: usize) -> u32 {
+        self.nodes[index].load(Ordering::Relaxed) & !PLAN_LEAF
+    }
+}
+
+/// The roots of the subtrees `levels` below `index` (binary leaves above that level are roots
+/// themselves), in the order `plan_top` meets them.
+fn subtree_roots(bvh: &Bvh2, index: usize, levels: usize, roots: &mut Vec<usize>) {
+    let node = &bvh.nodes[index];
+    if levels == 0 || node.prim_count > 0 {
+        roots.push(index);
+        return;
+    }
+    subtree_roots(bvh, node.first_index as usize, levels - 1, roots);
+    subtree_roots(bvh, node.first_index as usize + 1, levels - 1, roots);
+}
+
+/// Plans the nodes above the subtrees of `subtree_roots(bvh, index, levels)`, taking those
+/// subtrees' plans from `planned` in the same order.
+fn plan_top(
+    bvh: &Bvh2,
+    index: usize,
+    levels: usize,
+    plan: &[AtomicU32],
+    planned: &mut impl Iterator<Item = Planned>,
+) -> Planned {
+    let node = &bvh.nodes[index];
+    if levels == 0 || node.prim_count > 0 {
+        return planned.next().expect("a plan per subtree");
+    }
+    let l = plan_top(bvh, node.first_index as usize, levels - 1, plan, planned);
+    let r = plan_top(bvh, node.first_index as usize + 1, levels - 1, plan, planned);
+    plan_inner(bvh, index, l, r, plan)
+}
+
+/// Plans every node of the subtree at `root`, in post order without recursion (a tree can be
+/// as deep as its input is long): children's plans wait on a stack until their parent's turn.
+fn plan_subtree(bvh: &Bvh2, root: usize, plan: &[AtomicU32]) -> Planned {
+    let mut stack = vec![(root, false)];
+    let mut done: Vec<Planned> = Vec::new();
+    while let Some((i, children_done)) = stack.pop() {
+        let node = &bvh.nodes[i];
+        if node.prim_count > 0 {
+            let leaf = if node.prim_count <= MAX_LEAF_TRIANGLES { PLAN_LEAF } else { 0 };
+            plan[i].store(node.prim_count | leaf, Ordering::Relaxed);
+            done.push(Planned { count: node.prim_count, cost: node.prim_count as f32, depth: 1 });
+            continue;
+        }
+        if !children_done {
+            // The right child is pushed last: its plan is done first and waits below the left's.
+            stack.push((i, true));
+            stack.push((node.first_index as usize, false));
+            stack.push((node.first_index as usize + 1, false));
+            continue;
+        }
+        let l = done.pop().expect("left child planned");
+        let r = done.pop().expect("right child planned");
+        done.push(plan_inner(bvh, i, l, r, plan));
+    }
+    done.pop().expect("root planned")
+}
+
+/// The plan of inner node `index` from its children's.
+fn plan_inner(bvh: &Bvh2, index: usize, l: Planned, r: Planned, plan: &[AtomicU32]) -> Planned {
+    let node = &bvh.nodes[index];
+    let (ln, rn) = (&bvh.nodes[node.first_index as usize], &bvh.nodes[node.first_index as usize + 1]);
+    let count = l.count + r.count;
+    let area = node.aabb.half_area();
+    let walk = if area > 0.0 && area.is_finite() {
+        TRAVERSAL_COST + (ln.aabb.half_area() * l.cost + rn.aabb.half_area() * r.cost) / area
+    } else {
+        TRAVERSAL_COST + l.cost + r.cost
+    };
+    let as_leaf = count as f32;
+    let is_leaf = count <= MAX_LEAF_TRIANGLES && as_leaf <= walk;
+    plan[index].store(count | if is_leaf { PLAN_LEAF } else { 0 }, Ordering::Relaxed);
+    Planned { count, cost: if is_leaf { as_leaf } else { walk }, depth: 1 + l.depth.max(r.depth) }
+}
+
+/// `f(0)` ... `f(n - 1)` in order, computed on up to `threads` threads that each take the next
+/// index when done with one. The threads get a main thread's stack: `emit` recurses once per
+/// wide level.
+fn in_parallel<T: Send>(n: usize, threads: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    if threads < 2 || n < 2 {
+        return (0..n).map(f).collect();
+    }
+    let next = AtomicUsize::new(0);
+    let (f, next) = (&f, &next);
+    let mut results: Vec<(usize, T)> = std::thread::scope(|scope| {
+        let workers: Vec<_> = (0..threads.min(n))
+            .map(|_| {
+                std::thread::Builder::new()
+                    .stack_size(8 << 20)
+                    .spawn_scoped(scope, move || {
+                        let mut mine = Vec::new();
+                        loop {
+                            let k = next.fetch_add(1, Ordering::Relaxed);
+                            if k >= n {
+                                return mine;
+                            }
+                            mine.push((k, f(k)));
+                        }
+                    })
+                    .expect("spawn a BVH thread")
+            })
+            .collect();
+        workers.into_iter().flat_map(|w| w.join().expect("BVH thread panicked")).collect()
+    });
+    results.sort_unstable_by_key(|r| r.0);
+    results.into_iter().map(|r| r.1).collect()
 }
 
 impl WideBvh {
@@ -138,6 +257,12 @@ impl WideBvh {
     /// binary node's two children and keeps opening the inner child with the largest surface
     /// area until it has four.
     pub fn from_bvh2(bvh: &Bvh2, tris: &[[Vec3; 3]]) -> WideBvh {
+        let threads = if bvh.nodes.len() >= PARALLEL_MIN_NODES { super::build_threads() } else { 1 };
+        WideBvh::collapse(bvh, tris, threads)
+    }
+
+    /// `from_bvh2` on up to `threads` threads.
+    fn collapse(bvh: &Bvh2, tris: &[[Vec3; 3]], threads: usize) -> WideBvh {
         let mut out = WideBvh::default();
         if tris.is_empty() || bvh.nodes.is_empty() {
             out.nodes.push(WideNode::default()); // no children: nothing is hit
@@ -146,64 +271,130 @@ impl WideBvh {
             out.stack_need = 1;
             return out;
         }
-        let plan = LeafPlan::new(bvh);
+        let plan = LeafPlan::new(bvh, threads);
+        out.binary_depth = plan.depth;
+        let root = if plan.is_leaf(0) {
+            // A single leaf: a root whose one child is that leaf.
+            Children { items: [Child(0); 4], len: 1 }
+        } else {
+            open(bvh, &plan, 0)
+        };
+        // The inner subtrees of at most `split` triangles (on one thread: the root's inner
+        // children) are collapsed on the threads, each into a tree of its own numbered from 0.
+        // Then one depth-first pass emits the nodes above them and appends each where it meets
+        // it, indices shifted: node for node the tree one pass over everything makes.
+        let split = if threads > 1 { (tris.len() / (threads * TASKS_PER_THREAD)).max(1) as u32 } else { u32::MAX };
+        let mut tasks = Vec::new();
+        find_tasks(bvh, &plan, &root, split, &mut tasks);
+        let done = in_parallel(tasks.len(), threads, |k| WideBvh::subtree(bvh, &plan, tris, tasks[k]));
         out.triangles.reserve(tris.len());
         out.order.reserve(tris.len());
-        out.nodes.reserve(bvh.nodes.len() / 6 + 1);
+        out.nodes.reserve(done.iter().map(|sub| sub.nodes.len()).sum::<usize>() + 1);
         out.nodes.push(WideNode::default());
-        let need = if plan.leaf[0] {
-            // A single leaf: a root whose one child is that leaf.
-            out.emit(bvh, &plan, tris, 0, &Children { items: [Child(0); 4], len: 1 })
-        } else {
-            let children = open(bvh, &plan, 0);
-            out.emit(bvh, &plan, tris, 0, &children)
-        };
-        out.stack_need = need;
+        out.stack_need = out.emit(bvh, &plan, tris, 0, &root, split, &mut done.into_iter());
         out
     }
 
-    /// Fills node `slot` with `children` (binary node indices) and recurses into inner ones;
-    /// returns the stack this subtree's traversal can need.
-    fn emit(&mut self, bvh: &Bvh2, plan: &LeafPlan, tris: &[[Vec3; 3]], slot: usize, children: &[Child]) -> usize {
-        let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
-        for (b, c) in boxes.iter_mut().zip(children) {
-            *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
-        }
-        let boxes = &boxes[..children.len()];
+    /// The wide tree under inner binary node `child`, its root at node 0 and its first triangle
+    /// at 0.
+    fn subtree(bvh: &Bvh2, plan: &LeafPlan, tris: &[[Vec3; 3]], child: Child) -> WideBvh {
+        let mut sub = WideBvh::default();
+        // Its triangles exactly, and a node per 6 triangles (the bench scenes need fewer): no
+        // reallocation while it grows.
+        let count = plan.count(child.0) as usize;
+        sub.triangles.reserve_exact(count);
+        sub.order.reserve_exact(count);
+        sub.nodes.reserve(count / 6 + 1);
+        sub.nodes.push(WideNode::default());
+        sub.stack_need = sub.emit(bvh, plan, tris, 0, &open(bvh, plan, child.0), 0, &mut Vec::new().into_iter());
+        sub
+    }
+
+    /// Appends `sub` (a `subtree`) with its node and triangle indices shifted to where they now
+    /// lie; returns the child word of its root.
+    fn append(&mut self, sub: &WideBvh) -> u32 {
+        let node_base = self.nodes.len() as u32;
+        let triangle_base = self.triangles.len() as u32;
+        self.nodes.extend(sub.nodes.iter().map(|node| {
+            let mut node = *node;
+            let mask = node.texels[0][3] >> 24;
+            for (c, word) in node.texels[1].iter_mut().enumerate() {
+                if mask >> c & 1 != 0 {
+                    // Triangle indices stay under 2^28 (`MAX_TRIANGLES`): the count bits keep.
+                    *word += if *word & LEAF != 0 { triangle_base } else { node_base };
+                }
+            }
+            node
+        }));
+        self.triangles.extend_from_slice(&sub.triangles);
+        self.order.extend_from_slice(&sub.order);
+        node_base
+    }
+
+    /// Fills node `slot` with `children` (binary node indices) and recurses into inner ones,
+    /// except those of at most `split` triangles: their trees, collapsed beforehand, are taken
+    /// from `done` in depth-first order and appended. Returns the stack this subtree's traversal
+    /// can need.
+    #[allow(clippy::too_many_arguments)]
+    fn emit(
+        &mut self,
+        bvh: &Bvh2,
+        plan: &LeafPlan,
+        tris: &[[Vec3; 3]],
+        slot: usize,
+        children: &[Child],
+        split: u32,
+        done: &mut std::vec::IntoIter<WideBvh>,
+    ) -> usize {
         let mut words = [0u32; 4];
         let mut need_below = 0usize;
         for (i, child) in children.iter().enumerate() {
-            if plan.leaf[child.0] {
-                let first = self.triangles.len() as u32;
-                // Every triangle of the subtree, in its leaves' order.
-                let mut pending = vec![child.0];
-                while let Some(n) = pending.pop() {
-                    let node = &bvh.nodes[n];
-                    if node.prim_count == 0 {
-                        pending.push(node.first_index as usize + 1);
-                        pending.push(node.first_index as usize);
-                        continue;
-                    }
-                    for &p in &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize] {
-                        let [a, b, c] = tris[p as usize];
-                        self.triangles.push([a, b - a, c - a]);
-                        self.order.push(p);
-                    }
-                }
-                let count = self.triangles.len() as u32 - first;
-                debug_assert!((1..=MAX_LEAF_TRIANGLES).contains(&count));
-                words[i] = LEAF | ((count - 1) << 28) | first;
+            if plan.is_leaf(child.0) {
+                words[i] = self.push_leaf(bvh, tris, child.0);
+            } else if plan.count(child.0) <= split {
+                let sub = done.next().expect("a collapsed tree per split subtree");
+                need_below = need_below.max(sub.stack_need);
+                words[i] = self.append(&sub);
             } else {
                 let index = self.nodes.len();
                 self.nodes.push(WideNode::default());
                 words[i] = index as u32;
                 let grandchildren = open(bvh, plan, child.0);
-                need_below = need_below.max(self.emit(bvh, plan, tris, index, &grandchildren));
+                need_below = need_below.max(self.emit(bvh, plan, tris, index, &grandchildren, split, done));
             }
         }
-        self.nodes[slot] = encode(boxes, words);
+        self.nodes[slot] = encode(&child_boxes(bvh, children)[..children.len()], words);
         // Descending into an inner child pushes this node's group (one entry) at most.
         1 + need_below
+    }
+
+    /// Appends every triangle of the binary subtree at `index` (a planned leaf), in its leaves'
+    /// order; returns its leaf child word.
+    fn push_leaf(&mut self, bvh: &Bvh2, tris: &[[Vec3; 3]], index: usize) -> u32 {
+        let first = self.triangles.len() as u32;
+        // The subtrees waiting are disjoint and each holds a triangle: at most
+        // `MAX_LEAF_TRIANGLES` of them, so a fixed stack holds them.
+        let mut pending = [0usize; MAX_LEAF_TRIANGLES as usize];
+        pending[0] = index;
+        let mut len = 1;
+        while len > 0 {
+            len -= 1;
+            let node = &bvh.nodes[pending[len]];
+            if node.prim_count == 0 {
+                pending[len] = node.first_index as usize + 1;
+                pending[len + 1] = node.first_index as usize;
+                len += 2;
+                continue;
+            }
+            for &p in &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize] {
+                let [a, b, c] = tris[p as usize];
+                self.triangles.push([a, b - a, c - a]);
+                self.order.push(p);
+            }
+        }
+        let count = self.triangles.len() as u32 - first;
+        debug_assert!((1..=MAX_LEAF_TRIANGLES).contains(&count));
+        LEAF | ((count - 1) << 28) | first
     }
 
     /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` (whose comments explain the walk):
@@ -304,7 +495,7 @@ fn open(bvh: &Bvh2, plan: &LeafPlan, index: usize) -> Children {
         let mut widest: Option<(usize, f32)> = None;
         for (i, child) in c.items[..c.len].iter().enumerate() {
             let area = bvh.nodes[child.0].aabb.half_area();
-            if !plan.leaf[child.0] && widest.is_none_or(|(_, a)| area > a) {
+            if !plan.is_leaf(child.0) && widest.is_none_or(|(_, a)| area > a) {
                 widest = Some((i, area));
             }
         }
@@ -316,6 +507,30 @@ fn open(bvh: &Bvh2, plan: &LeafPlan, index: usize) -> Children {
         c.len += 1;
     }
     c
+}
+
+/// The inner subtrees of at most `split` triangles among `children` and below them, in the
+/// depth-first order `WideBvh::emit` meets them.
+fn find_tasks(bvh: &Bvh2, plan: &LeafPlan, children: &[Child], split: u32, tasks: &mut Vec<Child>) {
+    for &child in children {
+        if plan.is_leaf(child.0) {
+            continue;
+        }
+        if plan.count(child.0) <= split {
+            tasks.push(child);
+        } else {
+            find_tasks(bvh, plan, &open(bvh, plan, child.0), split, tasks);
+        }
+    }
+}
+
+/// The true boxes of `children` (the first `children.len()` entries).
+fn child_boxes(bvh: &Bvh2, children: &[Child]) -> [(Vec3, Vec3); 4] {
+    let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
+    for (b, c) in boxes.iter_mut().zip(children) {
+        *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
+    }
+    boxes
 }
 
 /// The decoded coordinate `origin + q * scale`, as the shader computes it.
@@ -443,6 +658,35 @@ pub(super) fn triangle_occludes(&[v0, e1, e2]: &[Vec3; 3], origin: Vec3, dir: Ve
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn parallel_collapse_is_the_one_thread_collapse() {
+        // A jittered grid of small triangles, enough for a tree over PARALLEL_MIN_NODES nodes.
+        let mut seed = 1u32;
+        let mut jitter = || {
+            seed = seed.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+            (seed >> 8) as f32 / (1 << 24) as f32
+        };
+        let tris: Vec<[Vec3; 3]> = (0..40_000)
+            .map(|i| {
+                let p = Vec3::new((i % 200) as f32, (i / 200) as f32, 0.0) + Vec3::splat(jitter()) * 3.0;
+                [p, p + Vec3::new(jitter(), 0.1, 0.0), p + Vec3::new(0.0, jitter(), 0.5)]
+            })
+            .collect();
+        let triangles: Vec<obvhs::triangle::Triangle> = tris
+            .iter()
+            .map(|&[a, b, c]| obvhs::triangle::Triangle { v0: a.into(), v1: b.into(), v2: c.into() })
+            .collect();
+        let (bvh, _) = super::super::ploc::build(&triangles);
+        assert!(bvh.nodes.len() >= PARALLEL_MIN_NODES);
+        let (one, many) = (WideBvh::collapse(&bvh, &tris, 1), WideBvh::collapse(&bvh, &tris, 4));
+        assert!(one.nodes.len() > 1000);
+        assert_eq!(one.nodes, many.nodes);
+        assert_eq!(one.order, many.order);
+        assert_eq!(one.triangles, many.triangles);
+        assert_eq!((one.stack_need, one.binary_depth), (many.stack_need, many.binary_depth));
+        assert_eq!(one.binary_depth, bvh.depth(0));
+    }
 
     #[test]
     fn quantised_boxes_contain_the_true_ones() {

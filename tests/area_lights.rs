@@ -46,6 +46,16 @@ fn numerical(v: Vec3, material: &Material, cap: &Cap, k: usize) -> DVec3 {
     sum * cap.radiance.as_dvec3()
 }
 
+/// The largest relative error over RGB of `shade_cap` against `numerical` (`k` rings) for a
+/// view `view_deg` from the normal (+z) toward +x.
+fn shading_error(view_deg: f32, material: &Material, c: &Cap, k: usize) -> f64 {
+    let t = view_deg.to_radians();
+    let v = Vec3::new(t.sin(), 0.0, t.cos());
+    let ltc = shade_cap(Vec3::Z, v, material, c).as_dvec3();
+    let num = numerical(v, material, c, k);
+    ((ltc - num).abs() / num).max_element()
+}
+
 /// The cosine's integral over `c` over pi (the Lambert share of a unit-radiance cap), by
 /// `numerical` with a white Lambert-only BRDF: umbra's white dielectric minus its black twin.
 fn lambert_share(c: &Cap, k: usize) -> f64 {
@@ -118,12 +128,9 @@ fn sphere_and_disk_lights_match_numerical_integration() {
                 for half_deg in [2.0f32, 10.0, 40.0] {
                     let material = Material { base_color: Vec3::new(0.9, 0.6, 0.3), roughness, metallic };
                     let t = view_deg.to_radians();
-                    let v = Vec3::new(t.sin(), 0.0, t.cos());
                     // The light around the mirror direction, where the lobe is.
                     let c = Cap { axis: Vec3::new(-t.sin(), 0.1, t.cos()).normalize(), ..cap(half_deg, 0.0) };
-                    let ltc = shade_cap(Vec3::Z, v, &material, &c).as_dvec3();
-                    let num = numerical(v, &material, &c, 300);
-                    let error = ((ltc - num).abs() / num).max_element();
+                    let error = shading_error(view_deg, &material, &c, 300);
                     println!(
                         "roughness {roughness} metallic {metallic} view {view_deg:>2} cap {half_deg:>2}: error {:.2} %",
                         100.0 * error
@@ -152,16 +159,13 @@ fn sphere_and_disk_lights_at_grazing_views() {
                     let mut e = 0.0f64;
                     for metallic in [0.0f32, 1.0] {
                         let material = Material { base_color: Vec3::new(0.9, 0.6, 0.3), roughness, metallic };
-                        let t = view_deg.to_radians();
-                        let v = Vec3::new(t.sin(), 0.0, t.cos());
                         let (elevation, turn) =
                             ((90.0 - view_deg).max(half_deg + 10.0).to_radians(), aside_deg.to_radians());
                         let axis =
                             Vec3::new(-elevation.cos() * turn.cos(), elevation.cos() * turn.sin(), elevation.sin());
                         let c = Cap { axis, ..cap(half_deg, 0.0) };
-                        let ltc = shade_cap(Vec3::Z, v, &material, &c).as_dvec3();
-                        let num = numerical(v, &material, &c, if roughness < 0.3 { 1000 } else { 300 });
-                        e = e.max(((ltc - num).abs() / num).max_element());
+                        let k = if roughness < 0.3 { 1000 } else { 300 };
+                        e = e.max(shading_error(view_deg, &material, &c, k));
                     }
                     println!(
                         "roughness {roughness:<4} view {view_deg:>2} cap {half_deg:>2} aside {aside_deg:>2}: error {:.2} %",

@@ -1,11 +1,10 @@
 //! The LTC table (src/lighting/ltc_ggx.bin, fitted by `cargo run --release --example ltc_fit`)
 //! against numerical integration of umbra's own BRDF over a rectangle (issue 11 asks: GGX within
 //! 2 % up to 70 degrees from the normal and 5 % up to 85, Lambert within 0.5 %). Lambert holds
-//! (it is exact); GGX (with `lobe_integral`'s correction of the fit at the light's direction)
-//! holds up to 45 degrees for every roughness, 2.03 % at 60, up to 70 for 0.2, and to 85 for
-//! 0.1, and is printed for the rest, which the fit does not reach yet. Fresnel is taken
-//! at the half vector of the light's mean direction under the lobe (`ltc::fresnel_toward`).
-//! CPU only here: tests/rect_lights.rs checks the GPU's rect shading against its CPU twin.
+//! (it is exact); GGX (`ltc::lobe_over_polygon`: the fit corrected at the light's direction, and
+//! at grazing views a quadrature in the LTC's space) holds on the whole grid, and is printed and
+//! bounded for other rects. CPU only here: tests/rect_lights.rs checks the GPU's rect shading
+//! against its CPU twin.
 
 use glam::{DVec3, Vec3};
 use umbra::lighting::{ltc, split_sum};

@@ -78,7 +78,7 @@ pub fn polygon(m: Mat3, corners: [Vec3; 4]) -> f32 {
 /// The polygon's vector form factor after `m` (Arvo's irradiance vector over 2 pi, horizon-
 /// clipped): its z is `polygon`'s integral (up to the sign of the winding), its direction the
 /// mean direction of the cosine over the moved polygon. `inverse(m) * it` points along the mean
-/// direction of the lobe over the light, where `fresnel_toward` evaluates Fresnel.
+/// direction of the lobe over the light, where `fitted_lobe` evaluates Fresnel.
 pub fn form_factor(m: Mat3, corners: [Vec3; 4]) -> Vec3 {
     convex_form_factor(m, &corners)
 }
@@ -228,7 +228,7 @@ fn edge(a: Vec3, b: Vec3) -> Vec3 {
 /// The integral of umbra's GGX lobe D Vis n.l (no Fresnel) over a light whose vector form factor
 /// after the node's inverse matrix `m` is `form`, for the view `v` (in the shading frame, n.v
 /// `n_dot_v`) and the split-sum scale and bias `ab`; and the light's mean direction under the
-/// lobe (where `fresnel_toward` evaluates Fresnel).
+/// lobe (where `fitted_lobe` evaluates Fresnel).
 ///
 /// The LTC alone gives (A + B) |form.z| / share: exact in magnitude for a light that covers the
 /// whole lobe, but for a light covering little of it only as good as the fitted density is
@@ -318,9 +318,11 @@ pub fn lobe_over_polygon(
     fitted.lerp(lobe_quadrature(m, corners, form.z.abs(), side, v, n_dot_v, roughness), weight)
 }
 
-/// `lobe_integral` as the scale and bias of F0, with Fresnel at the light's mean direction under
-/// the lobe (`fresnel_toward`): a polygon's or a cap's specular where `lobe_over_polygon` does
-/// not integrate.
+/// `lobe_integral` as the scale and bias of F0, with Schlick's Fresnel at the half vector of
+/// the light's mean direction under the lobe (the lobe over a small light sees the Fresnel of
+/// its own half vector, not the lobe's average: a dielectric's specular seen at grazing was 80 %
+/// low with the average): a polygon's or a cap's specular where `lobe_over_polygon` does not
+/// integrate.
 #[allow(clippy::too_many_arguments)]
 pub fn fitted_lobe(
     node: [f32; ENTRY],
@@ -369,7 +371,7 @@ fn schlick_weight(v: Vec3, l: Vec3) -> f32 {
 /// `lobe_over_polygon`'s numerical integral alone, for a polygon whose cosine integral (over pi)
 /// is `cosine_integral`: (scale, bias) of F0.
 #[allow(clippy::neg_cmp_op_on_partial_ord)]
-pub fn lobe_quadrature(
+fn lobe_quadrature(
     m: Mat3,
     corners: &[Vec3],
     cosine_integral: f32,
@@ -471,14 +473,6 @@ pub const RATIO_FADE_N_DOT_V: [f32; 2] = [0.258_819, 0.5];
 /// n.l of the light's mean direction (and the fitted cosine's z there) below which
 /// `lobe_integral`'s correction fades to none.
 pub const RATIO_FADE_HORIZON: f32 = 0.2;
-
-/// Schlick's Fresnel for the view `v` and the light's mean direction `l` (both in the shading
-/// frame): the lobe over a small light sees the Fresnel of its own half vector, not the
-/// lobe's average (a dielectric's specular seen at grazing was 80 % low with the average).
-pub fn fresnel_toward(f0: f32, v: Vec3, l: Vec3) -> f32 {
-    let s = schlick_weight(v, l);
-    f0 * (1.0 - s) + s
-}
 
 /// The shading frame: x toward v in the tangent plane, z = n. Returns (x, y).
 pub fn frame(n: Vec3, v: Vec3) -> (Vec3, Vec3) {

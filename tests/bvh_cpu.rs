@@ -260,18 +260,14 @@ fn log2_ceil(n: usize) -> usize {
     (usize::BITS - (n.max(1) - 1).leading_zeros()) as usize
 }
 
-/// obvhs's own build of `tris` (its "medium" preset, leaves of one triangle), node by node as
+/// obvhs's own build of `tris` (its "fast" preset, leaves of one triangle), node by node as
 /// (min, max, count, first).
 fn obvhs_nodes(tris: &[[Vec3; 3]]) -> Vec<([f32; 3], [f32; 3], u32, u32)> {
     use obvhs::bvh2::builder::build_bvh2_from_tris;
     let tris: Vec<obvhs::triangle::Triangle> =
         tris.iter().map(|&[a, b, c]| obvhs::triangle::Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
-    // The medium preset without leaf collapse (leaves are chosen by the 4-wide collapse).
-    let params = obvhs::BvhBuildParams {
-        max_prims_per_leaf: 1,
-        post_collapse_reinsertion_batch_ratio_multiplier: 0.0,
-        ..obvhs::BvhBuildParams::medium_build()
-    };
+    // The fast preset without leaf collapse (leaves are chosen by the 4-wide collapse).
+    let params = obvhs::BvhBuildParams { max_prims_per_leaf: 1, ..obvhs::BvhBuildParams::fast_build() };
     let bvh = build_bvh2_from_tris(&tris, params, &mut std::time::Duration::default());
     node_tuples(&bvh)
 }

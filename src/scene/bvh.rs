@@ -34,7 +34,7 @@ fn build_threads() -> usize {
 pub struct ShadowBvh {
     reference: Bvh2,
     /// The input triangles in input order, indexed through `reference.primitive_indices`.
-    reference_triangles: Vec<Triangle>,
+    triangles: Vec<[Vec3; 3]>,
     wide: WideBvh,
     /// The alpha masks of masked casters, in `wide`'s triangle order; `None` in scenes without
     /// alpha-masked casters.
@@ -48,17 +48,55 @@ pub struct ShadowBvh {
 /// those with non-finite vertices (they would poison the bounding boxes). Positions are rounded to
 /// f32 here: `scene` is expected in the renderer's local frame (`Scene::local_frame`).
 pub fn caster_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
-    scene
-        .meshes
+    let casters: Vec<&super::Mesh> = scene.meshes.iter().filter(|mesh| mesh.cast_shadows).collect();
+    // Each caster's first triangle in the output.
+    let firsts: Vec<usize> = casters
         .iter()
-        .filter(|mesh| mesh.cast_shadows)
-        .flat_map(|mesh| {
-            mesh.indices
-                .chunks_exact(3)
-                .map(|i| [i[0], i[1], i[2]].map(|index| mesh.positions[index as usize].as_vec3()))
+        .scan(0, |next, mesh| {
+            let first = *next;
+            *next += mesh.indices.len() / 3;
+            Some(first)
         })
-        .filter(|tri| tri.iter().all(|v| v.is_finite()))
-        .collect()
+        .collect();
+    let count = casters.iter().map(|mesh| mesh.indices.len() / 3).sum();
+    let threads = if count >= PARALLEL_MIN_ITEMS { build_threads() } else { 1 };
+    let mut tris = parallel_map(count, threads, |t| {
+        let m = firsts.partition_point(|&first| first <= t) - 1;
+        let (mesh, k) = (casters[m], 3 * (t - firsts[m]));
+        [0, 1, 2].map(|c| mesh.positions[mesh.indices[k + c] as usize].as_vec3())
+    });
+    tris.retain(|tri| tri.iter().all(|v| v.is_finite()));
+    tris
+}
+
+/// Items at least this many are made on several threads (`parallel_map`).
+const PARALLEL_MIN_ITEMS: usize = 65_536;
+
+/// `[f(0), ..., f(len - 1)]`, made in consecutive runs on up to `threads` threads (each also
+/// takes the page faults of first writing its run: a 1M-triangle scene's arrays are tens of MB).
+fn parallel_map<T: Send>(len: usize, threads: usize, f: impl Fn(usize) -> T + Sync) -> Vec<T> {
+    let mut out: Vec<T> = Vec::with_capacity(len);
+    let fill = |first: usize, run: &mut [std::mem::MaybeUninit<T>]| {
+        for (k, slot) in run.iter_mut().enumerate() {
+            slot.write(f(first + k));
+        }
+    };
+    let spare = &mut out.spare_capacity_mut()[..len];
+    if threads < 2 || len < PARALLEL_MIN_ITEMS {
+        fill(0, spare);
+    } else {
+        let run = len.div_ceil(threads);
+        let fill = &fill;
+        std::thread::scope(|scope| {
+            for (r, slots) in spare.chunks_mut(run).enumerate() {
+                scope.spawn(move || fill(r * run, slots));
+            }
+        });
+    }
+    // SAFETY: every one of the first `len` entries was written just above (a panic in `f`
+    // propagates before this line, leaving `out` empty).
+    unsafe { out.set_len(len) };
+    out
 }
 
 impl ShadowBvh {
@@ -66,7 +104,7 @@ impl ShadowBvh {
     /// non-finite vertices are skipped: they would poison the bounding boxes.
     /// Alpha-masked casters keep their masks (`masks`).
     pub fn build(scene: &Scene) -> ShadowBvh {
-        let mut bvh = ShadowBvh::from_triangles(&caster_triangles(scene));
+        let mut bvh = ShadowBvh::from_triangle_vec(caster_triangles(scene));
         if !bvh.is_empty() {
             if let Some(source) = mask::caster_masks(scene) {
                 bvh.masks = Some(mask::BvhMasks::new(&source, &bvh.wide.order));
@@ -81,13 +119,19 @@ impl ShadowBvh {
         self.masks.as_ref()
     }
 
+    /// `from_triangle_vec` over a copy of `tris`.
     pub fn from_triangles(tris: &[[Vec3; 3]]) -> ShadowBvh {
-        // PLOC with a medium search radius, reinsertion before and after leaf collapse:
-        // obvhs's "medium" preset, with a guard that stops the clustering where it stalls
+        ShadowBvh::from_triangle_vec(tris.to_vec())
+    }
+
+    /// Builds over `tris` (kept, in input order, for the reference traversal).
+    pub fn from_triangle_vec(tris: Vec<[Vec3; 3]>) -> ShadowBvh {
+        // PLOC with a low search radius and reinsertion, obvhs's "fast" preset (leaves are
+        // chosen by the 4-wide collapse), with a guard that stops the clustering where it stalls
         // (coincident or nested triangles) and joins what it built by a median split.
         // Spatial pre-splits stay off so each triangle is in one leaf.
-        let bvh = ShadowBvh::with_builder(tris, |reference_triangles| {
-            let (bvh, report) = ploc::build(reference_triangles);
+        let bvh = ShadowBvh::with_builder(tris, |tris| {
+            let (bvh, report) = ploc::build(tris);
             if report.stopped_with > 0 {
                 log::info!(
                     "shadow BVH: clustering stalled after {} passes with {} nodes left; \
@@ -109,27 +153,26 @@ impl ShadowBvh {
             bvh.stack_need(),
             bvh.depth()
         );
-        ShadowBvh::from_triangles_median_split(tris)
+        ShadowBvh::with_builder(bvh.triangles, median_split_bvh)
     }
 
     /// The balanced fallback build that `from_triangles` uses when PLOC's tree is too deep for
     /// the shader's stack; public so tests can exercise it.
     pub fn from_triangles_median_split(tris: &[[Vec3; 3]]) -> ShadowBvh {
-        ShadowBvh::with_builder(tris, median_split_bvh)
+        ShadowBvh::with_builder(tris.to_vec(), median_split_bvh)
     }
 
-    fn with_builder(tris: &[[Vec3; 3]], build: impl FnOnce(&[Triangle]) -> Bvh2) -> ShadowBvh {
-        let reference_triangles: Vec<Triangle> =
-            tris.iter().map(|&[a, b, c]| Triangle { v0: a.into(), v1: b.into(), v2: c.into() }).collect();
+    fn with_builder(tris: Vec<[Vec3; 3]>, build: impl FnOnce(&[[Vec3; 3]]) -> Bvh2) -> ShadowBvh {
         assert!(tris.len() < wide::MAX_TRIANGLES, "{} triangles exceed the layout's 2^28", tris.len());
-        let reference = if tris.is_empty() { Bvh2::default() } else { build(&reference_triangles) };
+        let reference = if tris.is_empty() { Bvh2::default() } else { build(&tris) };
         let start = std::time::Instant::now();
-        let wide = WideBvh::from_bvh2(&reference, tris);
+        let wide = WideBvh::from_bvh2(&reference, &tris);
         log::debug!("BVH 4-wide collapse: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         // The collapse's leaf plan measured the binary depth on its way (obvhs's `depth` walks
         // the whole tree once more, and recursively).
         let depth = wide.binary_depth;
-        ShadowBvh { reference, reference_triangles, wide, masks: None, triangle_count: tris.len(), depth }
+        let triangle_count = tris.len();
+        ShadowBvh { reference, triangles: tris, wide, masks: None, triangle_count, depth }
     }
 
     /// Shadow-casting triangles in the BVH (the dummy triangle of an empty BVH not counted).
@@ -186,8 +229,8 @@ impl ShadowBvh {
         }
         let ray = Ray::new(Vec3A::from(origin), Vec3A::from(dir), 0.0, tmax);
         let miss = self.reference.ray_traverse_miss(ray, |ray, id| {
-            let tri = &self.reference_triangles[self.reference.primitive_indices[id] as usize];
-            let t = tri.intersect(ray);
+            let [v0, v1, v2] = self.triangles[self.reference.primitive_indices[id] as usize];
+            let t = Triangle { v0: v0.into(), v1: v1.into(), v2: v2.into() }.intersect(ray);
             // obvhs accepts t == tmin; the shadow query is open at 0 like the GPU test.
             if t > 0.0 {
                 t
@@ -252,14 +295,14 @@ const MEDIAN_SPLIT_LEAF_SIZE: usize = 4;
 
 /// A balanced Bvh2: each node splits its triangles in half at the median centroid along the
 /// widest axis of their centroids. Children are allocated in pairs, depth first, as obvhs does.
-fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
-    fn split(tris: &[Triangle], order: &mut [u32], first: u32, slot: usize, nodes: &mut Vec<Bvh2Node>) {
+fn median_split_bvh(tris: &[[Vec3; 3]]) -> Bvh2 {
+    fn split(tris: &[[Vec3; 3]], order: &mut [u32], first: u32, slot: usize, nodes: &mut Vec<Bvh2Node>) {
         let mut aabb = Aabb::empty();
         let mut centroids = Aabb::empty();
         for &i in order.iter() {
-            let tri = &tris[i as usize];
-            aabb = aabb.union(&tri.aabb());
-            centroids.extend((tri.v0 + tri.v1 + tri.v2) / 3.0);
+            let [v0, v1, v2] = tris[i as usize].map(Vec3A::from);
+            aabb = aabb.union(&triangle_aabb(&tris[i as usize]));
+            centroids.extend((v0 + v1 + v2) / 3.0);
         }
         if order.len() <= MEDIAN_SPLIT_LEAF_SIZE {
             nodes[slot] = Bvh2Node::new(aabb, order.len() as u32, first);
@@ -267,8 +310,8 @@ fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
         }
         let axis = centroids.largest_axis();
         let key = |i: &u32| {
-            let tri = &tris[*i as usize];
-            tri.v0[axis] + tri.v1[axis] + tri.v2[axis]
+            let [v0, v1, v2] = tris[*i as usize];
+            v0[axis] + v1[axis] + v2[axis]
         };
         let mid = order.len() / 2;
         order.select_nth_unstable_by(mid, |a, b| key(a).total_cmp(&key(b)));
@@ -284,4 +327,10 @@ fn median_split_bvh(tris: &[Triangle]) -> Bvh2 {
     let mut nodes = vec![Bvh2Node::default()];
     split(tris, &mut order, 0, 0, &mut nodes);
     Bvh2 { nodes, primitive_indices: order, ..Bvh2::default() }
+}
+
+/// A triangle's bounding box, as obvhs's `Triangle::aabb` makes it.
+fn triangle_aabb([v0, v1, v2]: &[Vec3; 3]) -> Aabb {
+    let (v0, v1, v2) = (Vec3A::from(*v0), Vec3A::from(*v1), Vec3A::from(*v2));
+    Aabb::new(v0.min(v1).min(v2), v0.max(v1).max(v2))
 }

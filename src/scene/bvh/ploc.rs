@@ -1,9 +1,9 @@
 //! obvhs's PLOC build with a progress guard (obvhs is MIT OR Apache-2.0, as umbra is; this file
 //! follows its code closely, see below).
 //!
-//! This is `obvhs::bvh2::builder::build_bvh2_from_tris` with `BvhBuildParams::medium_build()`
+//! This is `obvhs::bvh2::builder::build_bvh2_from_tris` with `BvhBuildParams::fast_build()`
 //! (obvhs 0.4.0, without its `parallel` feature), ported line for line: the same Morton sort,
-//! the same nearest-neighbour search (radius 14, radius 1 for the first 3 passes), the same
+//! the same nearest-neighbour search (radius 6, radius 1 for the first 2 passes), the same
 //! merges into the same node slots, then obvhs's reinsertion (`reinsertion`: the same, with its
 //! search on several threads). On ordinary input it builds exactly obvhs's tree for the same
 //! settings without leaf collapse (`tests/bvh_cpu.rs` compares them node for node): leaves are
@@ -25,20 +25,24 @@
 //! Ordinary scenes never get there: the bench scenes' slow passes (the last, small passes over
 //! regular grids) search 0.04 n to 0.12 n nodes, so they keep obvhs's tree exactly.
 
+use glam::Vec3;
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH};
 use obvhs::ploc::morton::morton_encode_u64_unorm;
-use obvhs::triangle::Triangle;
 use rdst::{RadixKey, RadixSort};
 
-/// `PlocSearchDistance::Medium`.
-const SEARCH_DISTANCE: usize = 14;
-/// `medium_build().search_depth_threshold`: passes before it search only the next node.
-const SEARCH_DEPTH_THRESHOLD: usize = 3;
-/// `medium_build()`'s reinsertion setting (its leaf collapse and the reinsertion after it are
-/// left to the wide collapse).
-const REINSERTION_BATCH_RATIO: f32 = 0.05;
+// obvhs's `fast_build()` preset. Its medium preset (radius 14, 3 first passes, reinsertion
+// batches of 5 %) built the 1M bench scene about 1.3x slower for no trace speed the bench rays
+// could tell apart: `umbra bench rays` on both bench scenes, medium and fast alternated four
+// times, compute trace 161-195 ms against 161-213 ms on the 100k scene and 267-334 against
+// 277-301 on the 1M one. Without the reinsertion the trace slowed by 1.2-1.5x.
+/// `PlocSearchDistance::Low`.
+const SEARCH_DISTANCE: usize = 6;
+/// `fast_build().search_depth_threshold`: passes before it search only the next node.
+const SEARCH_DEPTH_THRESHOLD: usize = 2;
+/// `fast_build()`'s reinsertion setting (its leaf collapse is left to the wide collapse).
+const REINSERTION_BATCH_RATIO: f32 = 0.02;
 
 /// Passes over this many nodes or more search on several threads (below it, starting threads
 /// costs more than it saves).
@@ -60,8 +64,8 @@ pub struct PlocReport {
     pub stopped_with: usize,
 }
 
-/// Builds a Bvh2 over `triangles` as obvhs's medium preset does, guarded as the module docs say.
-pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
+/// Builds a Bvh2 over `triangles` as obvhs's fast preset does, guarded as the module docs say.
+pub fn build(triangles: &[[Vec3; 3]]) -> (Bvh2, PlocReport) {
     let mut bvh = Bvh2::zeroed(triangles.len());
     let mut clock = std::time::Instant::now();
     let mut lap = || {
@@ -78,35 +82,45 @@ pub fn build(triangles: &[Triangle]) -> (Bvh2, PlocReport) {
     (bvh, report)
 }
 
-/// `PlocBuilder::build_ploc::<14>` followed by `build_ploc_from_leaves::<14, false>`.
-fn build_ploc(bvh: &mut Bvh2, triangles: &[Triangle], threads: usize) -> PlocReport {
+/// `PlocBuilder::build_ploc::<6>` followed by `build_ploc_from_leaves::<6, false>`.
+fn build_ploc(bvh: &mut Bvh2, triangles: &[[Vec3; 3]], threads: usize) -> PlocReport {
     let prim_count = triangles.len();
     bvh.reset_for_reuse(prim_count, Some((0..prim_count as u32).collect()));
     if prim_count == 0 {
         return PlocReport::default();
     }
 
-    let mut total_aabb = Aabb::empty();
-    let mut current_nodes: Vec<Bvh2Node> = triangles
-        .iter()
-        .zip(&bvh.primitive_indices)
-        .map(|(tri, &prim_index)| {
-            let aabb = tri.aabb();
-            total_aabb.extend(aabb.min);
-            total_aabb.extend(aabb.max);
-            Bvh2Node::new(aabb, 1, prim_index)
-        })
-        .collect();
-    let mut next_nodes = vec![Bvh2Node::default(); prim_count];
-
     let nodes_count = 2 * prim_count - 1;
     bvh.nodes.resize(nodes_count, Bvh2Node::default());
     let mut insert_index = nodes_count;
 
-    let scale = 1.0 / total_aabb.diagonal().as_dvec3();
-    let offset = -total_aabb.min.as_dvec3() * scale;
-    sort_by_morton(&current_nodes, &mut next_nodes, scale, offset);
-    std::mem::swap(&mut current_nodes, &mut next_nodes);
+    // The kernel maps fresh memory a page at a time, zeroing each, when it is first written:
+    // on the 1M bench scene the output nodes and the second node array (144 MB) took as long
+    // as making the leaves and sorting them. With threads to spare, two others write them
+    // (taking those faults) meanwhile; every output node is overwritten by the merges below.
+    let (mut current_nodes, mut next_nodes) = std::thread::scope(|scope| {
+        let (output, prim_indices) = (&mut bvh.nodes, &bvh.primitive_indices);
+        let spare = threads > 1;
+        let _touch_output = spare.then(|| scope.spawn(move || output.fill(Bvh2Node::default())));
+        let next = spare.then(|| scope.spawn(move || vec![Bvh2Node::default(); prim_count]));
+
+        let mut total_aabb = Aabb::empty();
+        let mut leaves: Vec<Bvh2Node> = Vec::with_capacity(prim_count);
+        leaves.extend(triangles.iter().zip(prim_indices).map(|(tri, &prim_index)| {
+            let aabb = super::triangle_aabb(tri);
+            total_aabb.extend(aabb.min);
+            total_aabb.extend(aabb.max);
+            Bvh2Node::new(aabb, 1, prim_index)
+        }));
+        let mut sorted = match next {
+            Some(next) => next.join().expect("node array thread panicked"),
+            None => vec![Bvh2Node::default(); prim_count],
+        };
+        let scale = 1.0 / total_aabb.diagonal().as_dvec3();
+        let offset = -total_aabb.min.as_dvec3() * scale;
+        sort_by_morton(&leaves, &mut sorted, scale, offset);
+        (sorted, leaves)
+    });
 
     let mut merge = vec![0i8; prim_count];
     let mut report = PlocReport::default();
@@ -295,7 +309,7 @@ fn sort_by_morton(nodes: &[Bvh2Node], sorted: &mut [Bvh2Node], scale: glam::DVec
     }
 }
 
-/// obvhs's `SearchCache<14>`: the cost of each pair within the search radius, computed once.
+/// obvhs's `SearchCache<6>`: the cost of each pair within the search radius, computed once.
 struct SearchCache([[f32; SEARCH_DISTANCE]; SEARCH_DISTANCE]);
 
 impl Default for SearchCache {

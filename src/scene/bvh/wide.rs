@@ -40,7 +40,7 @@
 
 use glam::{UVec4, Vec3, Vec4};
 use obvhs::bvh2::Bvh2;
-use std::sync::atomic::{AtomicU32, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Entries in the traversal stack (`BVH_STACK_SIZE` in bvh.glsl). `WideBvh::stack_need` says
 /// how many a tree can use; a build that needs more is rebuilt balanced.
@@ -93,129 +93,139 @@ const TRAVERSAL_COST: f32 = 3.0;
 /// Binary trees with at least this many nodes are planned and collapsed on several threads
 /// (below it, starting threads costs more than it saves).
 const PARALLEL_MIN_NODES: usize = 65_536;
-/// The leaf plan splits the tree into the subtrees this many binary levels below the root (up
-/// to 64), which threads take in turn: enough that one big subtree cannot keep one thread
-/// busy while the others wait.
-const PLAN_SPLIT_LEVELS: usize = 6;
 /// The emission splits the tree into subtrees of at most 1/(threads * this) of the triangles.
 const TASKS_PER_THREAD: usize = 8;
 /// A plan entry's leaf flag; the bits below it hold the subtree's triangle count.
 const PLAN_LEAF: u32 = 1 << 31;
+/// A plan or start entry not yet known.
+const UNKNOWN: u32 = u32::MAX;
 
 /// Which binary subtrees become leaves: bottom up, a subtree of at most `MAX_LEAF_TRIANGLES`
-/// whose leaf cost is no more than its tree's SAH cost. One pass in post order: linear time.
-/// A node's choice depends only on its subtree, so the subtrees `PLAN_SPLIT_LEVELS` below the
-/// root are planned on several threads and the few nodes above them last.
+/// whose leaf cost is no more than its tree's SAH cost; and where each subtree's triangles lie
+/// in depth-first order. Linear time (`LeafPlan::new`).
 struct LeafPlan {
     /// Per binary node: its triangle count, with `PLAN_LEAF` where it becomes a leaf. Only read
-    /// for children of nodes that are not leaves. Atomic so threads can write their disjoint
-    /// subtrees' entries (relaxed: `thread::scope` joins them before any read).
-    nodes: Vec<AtomicU32>,
+    /// for children of nodes that are not leaves.
+    nodes: Vec<u32>,
+    /// The binary leaves' primitives in depth-first order, left child first: every subtree's
+    /// triangles are a run of it, and it is the order the wide tree stores triangles in (the
+    /// collapse visits children left to right), so a leaf is a start and a count in it.
+    prims: Vec<u32>,
     /// Levels of the binary tree from the root to its deepest leaf.
     depth: usize,
 }
 
-/// A planned subtree: its triangles, its cost (as a leaf or as a tree, whichever it is) and
-/// its depth in binary levels.
-#[derive(Clone, Copy)]
-struct Planned {
-    count: u32,
-    cost: f32,
-    depth: usize,
-}
-
 impl LeafPlan {
-    fn new(bvh: &Bvh2, threads: usize) -> LeafPlan {
-        let nodes: Vec<AtomicU32> = (0..bvh.nodes.len()).map(|_| AtomicU32::new(0)).collect();
-        let levels = if threads > 1 { PLAN_SPLIT_LEVELS } else { 0 };
-        let mut roots = Vec::new();
-        subtree_roots(bvh, 0, levels, &mut roots);
-        let planned = in_parallel(roots.len(), threads, |k| plan_subtree(bvh, roots[k], &nodes));
-        let top = plan_top(bvh, 0, levels, &nodes, &mut planned.into_iter());
-        LeafPlan { nodes, depth: top.depth }
+    /// Two scans over the nodes in index order instead of walks down the tree. The builder
+    /// places children after their parent, but for the nodes the reinsertion moved; a walk
+    /// must wait for each node's cache miss before it knows the next node to read (the nodes
+    /// lie scattered over memory), where a scan's reads depend on no earlier read, so the
+    /// processor overlaps their misses. The depth-first plan took about 80 ms of the 1M bench
+    /// scene's build on two threads, 100 on one.
+    /// - Bottom up, by decreasing index: a node is planned from its children's plans, or, where
+    ///   a child has a smaller index (a moved node), once that child is planned.
+    /// - Top down, by increasing index: a node's triangles start where its parent's do (the
+    ///   left child), or after its left sibling's (the right); a node whose parent has a larger
+    ///   index gets its start when its parent does. Leaves put their primitives there.
+    fn new(bvh: &Bvh2) -> LeafPlan {
+        let n = bvh.nodes.len();
+        let computed;
+        let parents: &[u32] = if bvh.parents.len() == n {
+            &bvh.parents
+        } else {
+            let mut p = Vec::new();
+            Bvh2::compute_parents(&bvh.nodes, &mut p);
+            computed = p;
+            &computed
+        };
+
+        // What a parent reads of its children, together: 16 bytes a node, where the nodes
+        // themselves are 48 (children's entries are read out of order, the nodes in order).
+        #[derive(Clone, Copy)]
+        struct Entry {
+            plan: u32,
+            cost: f32,
+            /// The cost times the node's half area: what its parent's SAH sum adds.
+            weighted: f32,
+            depth: u32,
+        }
+        let mut entries = vec![Entry { plan: UNKNOWN, cost: 0.0, weighted: 0.0, depth: 0 }; n];
+        for i in (0..n).rev() {
+            let mut x = i;
+            loop {
+                let node = &bvh.nodes[x];
+                let area = node.aabb.half_area();
+                let (plan, cost, depth) = if node.prim_count > 0 {
+                    let leaf = if node.prim_count <= MAX_LEAF_TRIANGLES { PLAN_LEAF } else { 0 };
+                    (node.prim_count | leaf, node.prim_count as f32, 1)
+                } else {
+                    let (l, r) = (entries[node.first_index as usize], entries[node.first_index as usize + 1]);
+                    if l.plan == UNKNOWN || r.plan == UNKNOWN {
+                        break; // planned when its last child is
+                    }
+                    let count = (l.plan & !PLAN_LEAF) + (r.plan & !PLAN_LEAF);
+                    let walk = if area > 0.0 && area.is_finite() {
+                        TRAVERSAL_COST + (l.weighted + r.weighted) / area
+                    } else {
+                        TRAVERSAL_COST + l.cost + r.cost
+                    };
+                    let as_leaf = count as f32;
+                    let is_leaf = count <= MAX_LEAF_TRIANGLES && as_leaf <= walk;
+                    let cost = if is_leaf { as_leaf } else { walk };
+                    (count | if is_leaf { PLAN_LEAF } else { 0 }, cost, 1 + l.depth.max(r.depth))
+                };
+                entries[x] = Entry { plan, cost, weighted: area * cost, depth };
+                // A parent already passed (a larger index) waited for this node.
+                let parent = parents[x] as usize;
+                if x == 0 || parent < i {
+                    break;
+                }
+                x = parent;
+            }
+        }
+        let tree_depth = entries[0].depth as usize;
+        let plan: Vec<u32> = entries.iter().map(|e| e.plan).collect();
+        drop(entries);
+
+        let mut start = vec![UNKNOWN; n];
+        let mut prims = vec![0u32; bvh.primitive_indices.len()];
+        let mut waiting = Vec::new();
+        for i in 0..n {
+            if i == 0 {
+                start[0] = 0;
+            } else if start[i] == UNKNOWN {
+                continue; // its parent has a larger index: placed with it
+            }
+            waiting.push(i);
+            while let Some(x) = waiting.pop() {
+                let node = &bvh.nodes[x];
+                if node.prim_count > 0 {
+                    let run = &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize];
+                    prims[start[x] as usize..][..run.len()].copy_from_slice(run);
+                    continue;
+                }
+                let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+                start[l] = start[x];
+                start[r] = start[x] + (plan[l] & !PLAN_LEAF);
+                // Children the scan has passed waited for this start.
+                for c in [l, r] {
+                    if c < i {
+                        waiting.push(c);
+                    }
+                }
+            }
+        }
+        debug_assert_eq!(plan[0] & !PLAN_LEAF, bvh.primitive_indices.len() as u32);
+        LeafPlan { nodes: plan, prims, depth: tree_depth }
     }
 
     fn is_leaf(&self, index: usize) -> bool {
-        self.nodes[index].load(Ordering::Relaxed) & PLAN_LEAF != 0
+        self.nodes[index] & PLAN_LEAF != 0
     }
 
     fn count(&self, index: usize) -> u32 {
-        self.nodes[index].load(Ordering::Relaxed) & !PLAN_LEAF
+        self.nodes[index] & !PLAN_LEAF
     }
-}
-
-/// The roots of the subtrees `levels` below `index` (binary leaves above that level are roots
-/// themselves), in the order `plan_top` meets them.
-fn subtree_roots(bvh: &Bvh2, index: usize, levels: usize, roots: &mut Vec<usize>) {
-    let node = &bvh.nodes[index];
-    if levels == 0 || node.prim_count > 0 {
-        roots.push(index);
-        return;
-    }
-    subtree_roots(bvh, node.first_index as usize, levels - 1, roots);
-    subtree_roots(bvh, node.first_index as usize + 1, levels - 1, roots);
-}
-
-/// Plans the nodes above the subtrees of `subtree_roots(bvh, index, levels)`, taking those
-/// subtrees' plans from `planned` in the same order.
-fn plan_top(
-    bvh: &Bvh2,
-    index: usize,
-    levels: usize,
-    plan: &[AtomicU32],
-    planned: &mut impl Iterator<Item = Planned>,
-) -> Planned {
-    let node = &bvh.nodes[index];
-    if levels == 0 || node.prim_count > 0 {
-        return planned.next().expect("a plan per subtree");
-    }
-    let l = plan_top(bvh, node.first_index as usize, levels - 1, plan, planned);
-    let r = plan_top(bvh, node.first_index as usize + 1, levels - 1, plan, planned);
-    plan_inner(bvh, index, l, r, plan)
-}
-
-/// Plans every node of the subtree at `root`, in post order without recursion (a tree can be
-/// as deep as its input is long): children's plans wait on a stack until their parent's turn.
-fn plan_subtree(bvh: &Bvh2, root: usize, plan: &[AtomicU32]) -> Planned {
-    let mut stack = vec![(root, false)];
-    let mut done: Vec<Planned> = Vec::new();
-    while let Some((i, children_done)) = stack.pop() {
-        let node = &bvh.nodes[i];
-        if node.prim_count > 0 {
-            let leaf = if node.prim_count <= MAX_LEAF_TRIANGLES { PLAN_LEAF } else { 0 };
-            plan[i].store(node.prim_count | leaf, Ordering::Relaxed);
-            done.push(Planned { count: node.prim_count, cost: node.prim_count as f32, depth: 1 });
-            continue;
-        }
-        if !children_done {
-            // The right child is pushed last: its plan is done first and waits below the left's.
-            stack.push((i, true));
-            stack.push((node.first_index as usize, false));
-            stack.push((node.first_index as usize + 1, false));
-            continue;
-        }
-        let l = done.pop().expect("left child planned");
-        let r = done.pop().expect("right child planned");
-        done.push(plan_inner(bvh, i, l, r, plan));
-    }
-    done.pop().expect("root planned")
-}
-
-/// The plan of inner node `index` from its children's.
-fn plan_inner(bvh: &Bvh2, index: usize, l: Planned, r: Planned, plan: &[AtomicU32]) -> Planned {
-    let node = &bvh.nodes[index];
-    let (ln, rn) = (&bvh.nodes[node.first_index as usize], &bvh.nodes[node.first_index as usize + 1]);
-    let count = l.count + r.count;
-    let area = node.aabb.half_area();
-    let walk = if area > 0.0 && area.is_finite() {
-        TRAVERSAL_COST + (ln.aabb.half_area() * l.cost + rn.aabb.half_area() * r.cost) / area
-    } else {
-        TRAVERSAL_COST + l.cost + r.cost
-    };
-    let as_leaf = count as f32;
-    let is_leaf = count <= MAX_LEAF_TRIANGLES && as_leaf <= walk;
-    plan[index].store(count | if is_leaf { PLAN_LEAF } else { 0 }, Ordering::Relaxed);
-    Planned { count, cost: if is_leaf { as_leaf } else { walk }, depth: 1 + l.depth.max(r.depth) }
 }
 
 /// `f(0)` ... `f(n - 1)` in order, computed on up to `threads` threads that each take the next
@@ -271,7 +281,7 @@ impl WideBvh {
             out.stack_need = 1;
             return out;
         }
-        let plan = LeafPlan::new(bvh, threads);
+        let plan = LeafPlan::new(bvh);
         out.binary_depth = plan.depth;
         let root = if plan.is_leaf(0) {
             // A single leaf: a root whose one child is that leaf.
@@ -282,76 +292,71 @@ impl WideBvh {
         // The inner subtrees of at most `split` triangles (on one thread: the root's inner
         // children) are collapsed on the threads, each into a tree of its own numbered from 0.
         // Then one depth-first pass emits the nodes above them and appends each where it meets
-        // it, indices shifted: node for node the tree one pass over everything makes.
+        // it, node indices shifted: node for node the tree one pass over everything makes.
+        // Leaves name runs of the plan's depth-first primitive order, which is the triangles'.
         let split = if threads > 1 { (tris.len() / (threads * TASKS_PER_THREAD)).max(1) as u32 } else { u32::MAX };
         let mut tasks = Vec::new();
-        find_tasks(bvh, &plan, &root, split, &mut tasks);
-        let done = in_parallel(tasks.len(), threads, |k| WideBvh::subtree(bvh, &plan, tris, tasks[k]));
-        out.triangles.reserve(tris.len());
-        out.order.reserve(tris.len());
+        find_tasks(bvh, &plan, &root, 0, split, &mut tasks);
+        let done = in_parallel(tasks.len(), threads, |k| WideBvh::subtree(bvh, &plan, tasks[k]));
         out.nodes.reserve(done.iter().map(|sub| sub.nodes.len()).sum::<usize>() + 1);
         out.nodes.push(WideNode::default());
-        out.stack_need = out.emit(bvh, &plan, tris, 0, &root, split, &mut done.into_iter());
+        out.stack_need = out.emit(bvh, &plan, 0, &root, 0, split, &mut done.into_iter());
+        out.triangles = leaf_triangles(tris, &plan.prims, threads);
+        out.order = plan.prims;
         out
     }
 
-    /// The wide tree under inner binary node `child`, its root at node 0 and its first triangle
-    /// at 0.
-    fn subtree(bvh: &Bvh2, plan: &LeafPlan, tris: &[[Vec3; 3]], child: Child) -> WideBvh {
+    /// The wide tree under inner binary node `child`, whose triangles start at `start` of the
+    /// plan's order, with its root at node 0.
+    fn subtree(bvh: &Bvh2, plan: &LeafPlan, (child, start): (Child, u32)) -> WideBvh {
         let mut sub = WideBvh::default();
-        // Its triangles exactly, and a node per 6 triangles (the bench scenes need fewer): no
-        // reallocation while it grows.
-        let count = plan.count(child.0) as usize;
-        sub.triangles.reserve_exact(count);
-        sub.order.reserve_exact(count);
-        sub.nodes.reserve(count / 6 + 1);
+        // A node per 6 triangles (the bench scenes need fewer): no reallocation while it grows.
+        sub.nodes.reserve(plan.count(child.0) as usize / 6 + 1);
         sub.nodes.push(WideNode::default());
-        sub.stack_need = sub.emit(bvh, plan, tris, 0, &open(bvh, plan, child.0), 0, &mut Vec::new().into_iter());
+        sub.stack_need = sub.emit(bvh, plan, 0, &open(bvh, plan, child.0), start, 0, &mut Vec::new().into_iter());
         sub
     }
 
-    /// Appends `sub` (a `subtree`) with its node and triangle indices shifted to where they now
-    /// lie; returns the child word of its root.
+    /// Appends the nodes of `sub` (a `subtree`) with its inner child words shifted to where its
+    /// nodes now lie; returns the child word of its root.
     fn append(&mut self, sub: &WideBvh) -> u32 {
         let node_base = self.nodes.len() as u32;
-        let triangle_base = self.triangles.len() as u32;
         self.nodes.extend(sub.nodes.iter().map(|node| {
             let mut node = *node;
             let mask = node.texels[0][3] >> 24;
             for (c, word) in node.texels[1].iter_mut().enumerate() {
-                if mask >> c & 1 != 0 {
-                    // Triangle indices stay under 2^28 (`MAX_TRIANGLES`): the count bits keep.
-                    *word += if *word & LEAF != 0 { triangle_base } else { node_base };
+                if mask >> c & 1 != 0 && *word & LEAF == 0 {
+                    *word += node_base;
                 }
             }
             node
         }));
-        self.triangles.extend_from_slice(&sub.triangles);
-        self.order.extend_from_slice(&sub.order);
         node_base
     }
 
-    /// Fills node `slot` with `children` (binary node indices) and recurses into inner ones,
-    /// except those of at most `split` triangles: their trees, collapsed beforehand, are taken
-    /// from `done` in depth-first order and appended. Returns the stack this subtree's traversal
-    /// can need.
+    /// Fills node `slot` with `children` (binary node indices, whose triangles start at `start`
+    /// of the plan's order) and recurses into inner ones, except those of at most `split`
+    /// triangles: their trees, collapsed beforehand, are taken from `done` in depth-first order
+    /// and appended. Returns the stack this subtree's traversal can need.
     #[allow(clippy::too_many_arguments)]
     fn emit(
         &mut self,
         bvh: &Bvh2,
         plan: &LeafPlan,
-        tris: &[[Vec3; 3]],
         slot: usize,
         children: &[Child],
+        mut start: u32,
         split: u32,
         done: &mut std::vec::IntoIter<WideBvh>,
     ) -> usize {
         let mut words = [0u32; 4];
         let mut need_below = 0usize;
         for (i, child) in children.iter().enumerate() {
+            let count = plan.count(child.0);
             if plan.is_leaf(child.0) {
-                words[i] = self.push_leaf(bvh, tris, child.0);
-            } else if plan.count(child.0) <= split {
+                debug_assert!((1..=MAX_LEAF_TRIANGLES).contains(&count));
+                words[i] = LEAF | ((count - 1) << 28) | start;
+            } else if count <= split {
                 let sub = done.next().expect("a collapsed tree per split subtree");
                 need_below = need_below.max(sub.stack_need);
                 words[i] = self.append(&sub);
@@ -360,41 +365,13 @@ impl WideBvh {
                 self.nodes.push(WideNode::default());
                 words[i] = index as u32;
                 let grandchildren = open(bvh, plan, child.0);
-                need_below = need_below.max(self.emit(bvh, plan, tris, index, &grandchildren, split, done));
+                need_below = need_below.max(self.emit(bvh, plan, index, &grandchildren, start, split, done));
             }
+            start += count;
         }
         self.nodes[slot] = encode(&child_boxes(bvh, children)[..children.len()], words);
         // Descending into an inner child pushes this node's group (one entry) at most.
         1 + need_below
-    }
-
-    /// Appends every triangle of the binary subtree at `index` (a planned leaf), in its leaves'
-    /// order; returns its leaf child word.
-    fn push_leaf(&mut self, bvh: &Bvh2, tris: &[[Vec3; 3]], index: usize) -> u32 {
-        let first = self.triangles.len() as u32;
-        // The subtrees waiting are disjoint and each holds a triangle: at most
-        // `MAX_LEAF_TRIANGLES` of them, so a fixed stack holds them.
-        let mut pending = [0usize; MAX_LEAF_TRIANGLES as usize];
-        pending[0] = index;
-        let mut len = 1;
-        while len > 0 {
-            len -= 1;
-            let node = &bvh.nodes[pending[len]];
-            if node.prim_count == 0 {
-                pending[len] = node.first_index as usize + 1;
-                pending[len + 1] = node.first_index as usize;
-                len += 2;
-                continue;
-            }
-            for &p in &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize] {
-                let [a, b, c] = tris[p as usize];
-                self.triangles.push([a, b - a, c - a]);
-                self.order.push(p);
-            }
-        }
-        let count = self.triangles.len() as u32 - first;
-        debug_assert!((1..=MAX_LEAF_TRIANGLES).contains(&count));
-        LEAF | ((count - 1) << 28) | first
     }
 
     /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` (whose comments explain the walk):
@@ -509,19 +486,36 @@ fn open(bvh: &Bvh2, plan: &LeafPlan, index: usize) -> Children {
     c
 }
 
-/// The inner subtrees of at most `split` triangles among `children` and below them, in the
-/// depth-first order `WideBvh::emit` meets them.
-fn find_tasks(bvh: &Bvh2, plan: &LeafPlan, children: &[Child], split: u32, tasks: &mut Vec<Child>) {
+/// The inner subtrees of at most `split` triangles among `children` (whose triangles start at
+/// `start` of the plan's order) and below them, with their starts, in the depth-first order
+/// `WideBvh::emit` meets them.
+fn find_tasks(
+    bvh: &Bvh2,
+    plan: &LeafPlan,
+    children: &[Child],
+    mut start: u32,
+    split: u32,
+    tasks: &mut Vec<(Child, u32)>,
+) {
     for &child in children {
-        if plan.is_leaf(child.0) {
-            continue;
+        let count = plan.count(child.0);
+        if !plan.is_leaf(child.0) {
+            if count <= split {
+                tasks.push((child, start));
+            } else {
+                find_tasks(bvh, plan, &open(bvh, plan, child.0), start, split, tasks);
+            }
         }
-        if plan.count(child.0) <= split {
-            tasks.push(child);
-        } else {
-            find_tasks(bvh, plan, &open(bvh, plan, child.0), split, tasks);
-        }
+        start += count;
     }
+}
+
+/// `v0, e1, e2` of `tris[p]` for each `p` of `prims`, on up to `threads` threads.
+fn leaf_triangles(tris: &[[Vec3; 3]], prims: &[u32], threads: usize) -> Vec<[Vec3; 3]> {
+    super::parallel_map(prims.len(), threads, |i| {
+        let [a, b, c] = tris[prims[i] as usize];
+        [a, b - a, c - a]
+    })
 }
 
 /// The true boxes of `children` (the first `children.len()` entries).
@@ -673,11 +667,7 @@ mod tests {
                 [p, p + Vec3::new(jitter(), 0.1, 0.0), p + Vec3::new(0.0, jitter(), 0.5)]
             })
             .collect();
-        let triangles: Vec<obvhs::triangle::Triangle> = tris
-            .iter()
-            .map(|&[a, b, c]| obvhs::triangle::Triangle { v0: a.into(), v1: b.into(), v2: c.into() })
-            .collect();
-        let (bvh, _) = super::super::ploc::build(&triangles);
+        let (bvh, _) = super::super::ploc::build(&tris);
         assert!(bvh.nodes.len() >= PARALLEL_MIN_NODES);
         let (one, many) = (WideBvh::collapse(&bvh, &tris, 1), WideBvh::collapse(&bvh, &tris, 4));
         assert!(one.nodes.len() > 1000);
@@ -686,6 +676,72 @@ mod tests {
         assert_eq!(one.triangles, many.triangles);
         assert_eq!((one.stack_need, one.binary_depth), (many.stack_need, many.binary_depth));
         assert_eq!(one.binary_depth, bvh.depth(0));
+    }
+
+    /// The plan as a recursive walk would make it: (count | leaf flag per node, the primitives
+    /// in depth-first order, depth).
+    fn reference_plan(bvh: &Bvh2) -> (Vec<u32>, Vec<u32>, usize) {
+        fn walk(bvh: &Bvh2, i: usize, plan: &mut [u32], prims: &mut Vec<u32>) -> (u32, f32, usize) {
+            let node = &bvh.nodes[i];
+            if node.prim_count > 0 {
+                let leaf = if node.prim_count <= MAX_LEAF_TRIANGLES { PLAN_LEAF } else { 0 };
+                plan[i] = node.prim_count | leaf;
+                prims
+                    .extend_from_slice(&bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize]);
+                return (node.prim_count, node.prim_count as f32, 1);
+            }
+            let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+            let (lc, lcost, ld) = walk(bvh, l, plan, prims);
+            let (rc, rcost, rd) = walk(bvh, r, plan, prims);
+            let area = node.aabb.half_area();
+            let walk_cost = if area > 0.0 && area.is_finite() {
+                TRAVERSAL_COST + (bvh.nodes[l].aabb.half_area() * lcost + bvh.nodes[r].aabb.half_area() * rcost) / area
+            } else {
+                TRAVERSAL_COST + lcost + rcost
+            };
+            let count = lc + rc;
+            let is_leaf = count <= MAX_LEAF_TRIANGLES && count as f32 <= walk_cost;
+            plan[i] = count | if is_leaf { PLAN_LEAF } else { 0 };
+            (count, if is_leaf { count as f32 } else { walk_cost }, 1 + ld.max(rd))
+        }
+        let mut plan = vec![0; bvh.nodes.len()];
+        let mut prims = Vec::new();
+        let (_, _, depth) = walk(bvh, 0, &mut plan, &mut prims);
+        (plan, prims, depth)
+    }
+
+    #[test]
+    fn leaf_plan_scans_match_a_recursive_walk() {
+        // A sphere's worth of triangles: the reinsertion moves nodes, so some children come
+        // before their parents and the scans' waiting paths run.
+        let tris: Vec<[Vec3; 3]> = (0..20_000)
+            .map(|i| {
+                let (a, b) = (i as f32 * 2.399_963, (i as f32 / 20_000.0) * 2.0 - 1.0);
+                let p = Vec3::new(a.cos() * (1.0 - b * b).sqrt(), b, a.sin() * (1.0 - b * b).sqrt()) * 10.0;
+                [p, p + Vec3::new(0.2, 0.05, 0.0), p + Vec3::new(0.0, 0.15, 0.1)]
+            })
+            .collect();
+        let (bvh, _) = super::super::ploc::build(&tris);
+        let moved = (0..bvh.nodes.len())
+            .filter(|&i| bvh.nodes[i].prim_count == 0 && (bvh.nodes[i].first_index as usize) < i)
+            .count();
+        assert!(moved > 0, "no child precedes its parent");
+        let plan = LeafPlan::new(&bvh);
+        let (nodes, prims, depth) = reference_plan(&bvh);
+        // Entries of nodes below a leaf are never read; compare the rest.
+        let mut read = vec![false; bvh.nodes.len()];
+        read[0] = true;
+        for (node, &planned) in bvh.nodes.iter().zip(&nodes) {
+            if node.prim_count == 0 && planned & PLAN_LEAF == 0 {
+                read[node.first_index as usize] = true;
+                read[node.first_index as usize + 1] = true;
+            }
+        }
+        let differ = (0..nodes.len()).filter(|&i| read[i] && plan.nodes[i] != nodes[i]).count();
+        assert_eq!(differ, 0);
+        assert_eq!(plan.prims, prims);
+        assert_eq!(plan.depth, depth);
+        assert_eq!(depth, bvh.depth(0));
     }
 
     #[test]

@@ -7,8 +7,8 @@
 //! merges into the same node slots, then obvhs's reinsertion (`reinsertion`: the same, with its
 //! search on several threads). On ordinary input it builds exactly obvhs's tree for the same
 //! settings without leaf collapse (`tests/bvh_cpu.rs` compares them node for node): leaves are
-//! chosen later, in the same linear pass that makes the 4-wide tree (`wide::LeafPlan`), which
-//! costs less than obvhs's collapse and its second reinsertion.
+//! chosen later, in the linear scans before the 4-wide collapse (`wide::LeafPlan`), which cost
+//! less than obvhs's collapse and its second reinsertion.
 //!
 //! What it adds: obvhs merges only the pairs of nodes that choose each other, and when many
 //! nodes tie (coincident triangles: every pair costs the same) or nest (a triangle fan: every box

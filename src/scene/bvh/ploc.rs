@@ -112,13 +112,16 @@ fn build_ploc(bvh: &mut Bvh2, triangles: &[[Vec3; 3]], threads: usize) -> PlocRe
             total_aabb.extend(aabb.max);
             Bvh2Node::new(aabb, 1, prim_index)
         }));
+        let scale = 1.0 / total_aabb.diagonal().as_dvec3();
+        let offset = -total_aabb.min.as_dvec3() * scale;
+        let order = morton_order(&leaves, scale, offset);
         let mut sorted = match next {
             Some(next) => next.join().expect("node array thread panicked"),
             None => vec![Bvh2Node::default(); prim_count],
         };
-        let scale = 1.0 / total_aabb.diagonal().as_dvec3();
-        let offset = -total_aabb.min.as_dvec3() * scale;
-        sort_by_morton(&leaves, &mut sorted, scale, offset);
+        for (node, m) in sorted.iter_mut().zip(&order) {
+            *node = leaves[m.index as usize];
+        }
         (sorted, leaves)
     });
 
@@ -289,9 +292,10 @@ impl RadixKey for Morton64 {
     }
 }
 
-/// `sort_nodes_by_morton::<Morton64>` without the `parallel` feature: std's unstable sort up
-/// to 250,000 nodes, rdst's radix sort above.
-fn sort_by_morton(nodes: &[Bvh2Node], sorted: &mut [Bvh2Node], scale: glam::DVec3, offset: glam::DVec3) {
+/// The order of `sort_nodes_by_morton::<Morton64>` without the `parallel` feature: std's
+/// unstable sort up to 250,000 nodes, rdst's radix sort above. The caller moves the nodes into
+/// it once the array they go to is ready (`build_ploc`).
+fn morton_order(nodes: &[Bvh2Node], scale: glam::DVec3, offset: glam::DVec3) -> Vec<Morton64> {
     let mut mortons: Vec<Morton64> = nodes
         .iter()
         .enumerate()
@@ -304,9 +308,7 @@ fn sort_by_morton(nodes: &[Bvh2Node], sorted: &mut [Bvh2Node], scale: glam::DVec
         0..=250_000 => mortons.sort_unstable_by_key(|m| m.code),
         _ => mortons.radix_sort_unstable(),
     }
-    for (node, m) in sorted.iter_mut().zip(&mortons) {
-        *node = nodes[m.index as usize];
-    }
+    mortons
 }
 
 /// obvhs's `SearchCache<6>`: the cost of each pair within the search radius, computed once.

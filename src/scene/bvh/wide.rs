@@ -90,7 +90,7 @@ struct Child(usize);
 /// walking it (the surface-area heuristic, with obvhs's collapse weight).
 const TRAVERSAL_COST: f32 = 3.0;
 
-/// Binary trees with at least this many nodes are planned and collapsed on several threads
+/// Binary trees with at least this many nodes are collapsed on several threads
 /// (below it, starting threads costs more than it saves).
 const PARALLEL_MIN_NODES: usize = 65_536;
 /// The emission splits the tree into subtrees of at most 1/(threads * this) of the triangles.
@@ -119,9 +119,10 @@ impl LeafPlan {
     /// Two scans over the nodes in index order instead of walks down the tree. The builder
     /// places children after their parent, but for the nodes the reinsertion moved; a walk
     /// must wait for each node's cache miss before it knows the next node to read (the nodes
-    /// lie scattered over memory), where a scan's reads depend on no earlier read, so the
-    /// processor overlaps their misses. The depth-first plan took about 80 ms of the 1M bench
-    /// scene's build on two threads, 100 on one.
+    /// lie scattered over memory), where a scan's reads depend on no earlier read. On the 1M
+    /// bench scene the scans, on one thread, took 63-104 ms against 73-103 for depth-first
+    /// walks on two threads (six alternations on a noisy machine), and they also place every
+    /// subtree's triangles, which spares the collapse a walk under each leaf.
     /// - Bottom up, by decreasing index: a node is planned from its children's plans, or, where
     ///   a child has a smaller index (a moved node), once that child is planned.
     /// - Top down, by increasing index: a node's triangles start where its parent's do (the

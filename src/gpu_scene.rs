@@ -15,7 +15,7 @@ use crate::scene::bvh::ShadowBvh;
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
 use crate::shadows::light_space::Bounds;
-use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, TexelBuffer};
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, TexelBuffer, TexelView};
 
 /// How frames find the scene's buffers: uploaded once and made visible to any read, so no
 /// frame needs a barrier for them (and frames in flight do not wait on each other's copies).
@@ -285,6 +285,12 @@ pub struct Draw {
 
 /// The scene on the device: uploaded once, imported into every frame's graph.
 pub struct SceneGpu {
+    /// `vertices` and `indices` as R32F and R32UI texels: how the geometry pass reads each
+    /// fragment's triangle (a texel fetch is one gather on lavapipe, where a storage load whose
+    /// address it cannot prove the same for every lane is a loop over them). Declared before
+    /// the buffers, so they are dropped first.
+    pub vertex_view: TexelView,
+    pub index_view: TexelView,
     /// `vertex_count` `Vertex`es, then the `InstanceRows` from byte `instance_offset`: one
     /// buffer, so every pass that binds the vertices has the instances too.
     pub vertices: Buffer,
@@ -457,18 +463,19 @@ impl SceneGpu {
             true => Some(crate::passes::geometry::untextured_pipeline(ctx, true)?),
             false => None,
         };
-        // The geometry pass reads both as storage buffers (a binding holds at most this much).
-        let limit = u64::from(ctx.properties.limits.max_storage_buffer_range);
+        // The geometry pass reads both as texel buffers of 4-byte texels (a view holds at most
+        // this many).
+        let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
         for (what, bytes) in
             [("vertices", vertex_bytes.len()), ("triangle indices", std::mem::size_of_val(indices.as_slice()))]
         {
-            if bytes as u64 > limit {
+            if bytes as u64 / 4 > limit {
                 return Err(GpuError::Unsupported(format!(
-                    "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one storage buffer \
-                     (maxStorageBufferRange): use fewer or simpler meshes",
+                    "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one texel buffer \
+                     (maxTexelBufferElements of 4 bytes): use fewer or simpler meshes",
                     bytes >> 20,
                     ctx.device_name(),
-                    limit >> 20
+                    (limit * 4) >> 20
                 )));
             }
         }
@@ -478,8 +485,8 @@ impl SceneGpu {
         let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
             ctx,
             [
-                ("vertices", &vertex_bytes, vk::BufferUsageFlags::VERTEX_BUFFER | storage),
-                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | storage),
+                ("vertices", &vertex_bytes, vk::BufferUsageFlags::VERTEX_BUFFER | texel),
+                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | texel),
                 ("lights", bytemuck::cast_slice(&lights), storage),
                 ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
                 ("bvh triangles", bytemuck::cast_slice(&triangle_floats), texel),
@@ -487,6 +494,8 @@ impl SceneGpu {
         )?;
         let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles, bvh)?;
         Ok(SceneGpu {
+            vertex_view: TexelView::new(ctx, &vertices, vk::Format::R32_SFLOAT)?,
+            index_view: TexelView::new(ctx, &indices, vk::Format::R32_UINT)?,
             vertices,
             vertex_count,
             instance_offset,

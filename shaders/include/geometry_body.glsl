@@ -87,13 +87,10 @@ vec3 material_mapped_normal(vec3 n, vec4 tangent, float scale) {
 #endif
 
 #ifdef GEOMETRY_TRIANGLES
-// gpu_scene::Vertex: position, then normal, 24 bytes.
-struct GeometryVertex {
-    float position[3];
-    float normal[3];
-};
-layout(set = 0, binding = GEOMETRY_VERTICES, std430) readonly buffer Vertices { GeometryVertex vertices[]; };
-layout(set = 0, binding = GEOMETRY_INDICES, std430) readonly buffer Indices { uint indices[]; };
+// The scene's vertex and index buffers as R32F and R32UI texels (gpu_scene::SceneGpu's views):
+// a gpu_scene::Vertex is 6 floats, position then normal.
+layout(set = 0, binding = GEOMETRY_VERTICES) uniform samplerBuffer geometry_vertices;
+layout(set = 0, binding = GEOMETRY_INDICES) uniform usamplerBuffer geometry_indices;
 #endif
 
 void main() {
@@ -108,9 +105,11 @@ void main() {
     vec3 corner[3];
     vec3 corner_normal[3];
     for (int k = 0; k < 3; k++) {
-        GeometryVertex v = vertices[int(indices[first + uint(k)]) + base];
-        vec4 c = vec4(v.position[0], v.position[1], v.position[2], 1.0);
-        vec3 cn = vec3(v.normal[0], v.normal[1], v.normal[2]);
+        int f = 6 * (int(texelFetch(geometry_indices, int(first) + k).r) + base);
+        vec4 c = vec4(texelFetch(geometry_vertices, f).r, texelFetch(geometry_vertices, f + 1).r,
+                      texelFetch(geometry_vertices, f + 2).r, 1.0);
+        vec3 cn = vec3(texelFetch(geometry_vertices, f + 3).r, texelFetch(geometry_vertices, f + 4).r,
+                       texelFetch(geometry_vertices, f + 5).r);
         corner[k] = vec3(dot(in_model[0], c), dot(in_model[1], c), dot(in_model[2], c));
         corner_normal[k] = normalize(vec3(dot(in_normal_rows[0].xyz, cn), dot(in_normal_rows[1].xyz, cn),
                                           dot(in_normal_rows[2].xyz, cn)));

@@ -22,7 +22,8 @@ pub enum Access {
     ComputeShaderReadUniformBuffer,
     ComputeShaderReadSampledImage,
     FragmentShaderReadSampledImage,
-    FragmentShaderReadStorageBuffer,
+    /// A uniform texel buffer read by a fragment shader (the geometry pass's triangles).
+    FragmentShaderReadUniformTexelBuffer,
     TransferRead,
     ComputeShaderWrite,
     ColorAttachmentWrite,
@@ -171,12 +172,12 @@ impl Access {
                 B::empty(),
                 Applies::Image,
             ),
-            Access::FragmentShaderReadStorageBuffer => (
+            Access::FragmentShaderReadUniformTexelBuffer => (
                 S::FRAGMENT_SHADER,
-                A::SHADER_STORAGE_READ,
+                A::SHADER_SAMPLED_READ,
                 L::UNDEFINED,
                 I::empty(),
-                B::STORAGE_BUFFER,
+                B::UNIFORM_TEXEL_BUFFER,
                 Applies::Buffer,
             ),
             Access::TransferRead => (
@@ -344,7 +345,7 @@ mod tests {
         Access::ComputeShaderReadUniformBuffer,
         Access::ComputeShaderReadSampledImage,
         Access::FragmentShaderReadSampledImage,
-        Access::FragmentShaderReadStorageBuffer,
+        Access::FragmentShaderReadUniformTexelBuffer,
         Access::TransferRead,
         Access::ComputeShaderWrite,
         Access::ColorAttachmentWrite,

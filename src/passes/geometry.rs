@@ -42,7 +42,7 @@ struct Push {
 
 /// The geometry pass's pipeline. Where the device has the geometryShader feature (needed for
 /// `gl_PrimitiveID` in a fragment shader) it reads each fragment's triangle from the scene's
-/// vertex and index buffers (uploaded with storage usage for it) for the terminator offset and
+/// vertex and index buffers (read through texel views of them, `SceneGpu::vertex_view`) for the terminator offset and
 /// the geometric normal; elsewhere the plain variant stores no offset and takes the geometric
 /// normal from screen derivatives. Only the one the device uses is built.
 pub struct GeometryPipelines {
@@ -83,8 +83,8 @@ const TEXTURED_FORMATS: [vk::Format; 5] =
     [POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT, EMISSION_FORMAT];
 
 const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
-    (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::StorageBuffer),
-    (bindings::GEOMETRY_INDICES, crate::vk::DescriptorKind::StorageBuffer),
+    (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::UniformTexelBuffer),
+    (bindings::GEOMETRY_INDICES, crate::vk::DescriptorKind::UniformTexelBuffer),
 ];
 
 pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
@@ -157,8 +157,20 @@ pub fn add<'a>(
     let ib = pass.read(indices, Access::IndexBuffer);
     let bound = match reads_triangles && !scene.draws.is_empty() {
         true => vec![
-            (bindings::GEOMETRY_VERTICES, Bound::Buffer(pass.read(vertices, Access::FragmentShaderReadStorageBuffer))),
-            (bindings::GEOMETRY_INDICES, Bound::Buffer(pass.read(indices, Access::FragmentShaderReadStorageBuffer))),
+            (
+                bindings::GEOMETRY_VERTICES,
+                Bound::TexelBuffer(
+                    pass.read(vertices, Access::FragmentShaderReadUniformTexelBuffer),
+                    scene.vertex_view.view,
+                ),
+            ),
+            (
+                bindings::GEOMETRY_INDICES,
+                Bound::TexelBuffer(
+                    pass.read(indices, Access::FragmentShaderReadUniformTexelBuffer),
+                    scene.index_view.view,
+                ),
+            ),
         ],
         false => Vec::new(),
     };

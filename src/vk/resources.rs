@@ -98,6 +98,31 @@ impl TexelBuffer {
     }
 }
 
+/// A texel view of a buffer owned elsewhere (the buffer needs UNIFORM_TEXEL_BUFFER usage and
+/// must outlive the view; the caller checks `maxTexelBufferElements`).
+pub struct TexelView {
+    pub view: vk::BufferView,
+    ctx: Arc<GpuContext>,
+}
+
+impl TexelView {
+    /// All of `buffer` as texels of `format`.
+    pub fn new(ctx: &Arc<GpuContext>, buffer: &Buffer, format: vk::Format) -> GpuResult<TexelView> {
+        let info =
+            vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(vk::WHOLE_SIZE);
+        // SAFETY: valid buffer created with texel-buffer usage.
+        let view = unsafe { ctx.device.create_buffer_view(&info, None) }.vk("vkCreateBufferView")?;
+        Ok(TexelView { view, ctx: ctx.clone() })
+    }
+}
+
+impl Drop for TexelView {
+    fn drop(&mut self) {
+        // SAFETY: callers wait for the GPU before dropping resources it may still use.
+        unsafe { self.ctx.device.destroy_buffer_view(self.view, None) };
+    }
+}
+
 impl Drop for TexelBuffer {
     fn drop(&mut self) {
         // SAFETY: callers wait for the GPU before dropping resources it may still use; the view

@@ -1,5 +1,5 @@
 //! The 10M-triangle scene (assets/scenes/bench/large-10m.toml) loads, builds and renders on
-//! lavapipe within its 2 GiB heap and 128 MiB storage bindings, with validation on. Slow (about
+//! lavapipe within its 2 GiB heap and its storage-binding and texel-buffer limits, with validation on. Slow (about
 //! a minute and 4 GiB of host memory), so not part of tools/test:
 //! `cargo test --release --test large_scene -- --ignored --nocapture`.
 

@@ -164,9 +164,9 @@ impl BvhBuffers {
         BvhHandles {
             nodes: g.import_buffer("bvh nodes", &self.nodes.buffer, access),
             triangles: g.import_buffer("bvh triangles", &self.triangles.buffer, access),
-            node_view: self.nodes.view,
-            triangle_view: self.triangles.view,
-            masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view)),
+            node_view: self.nodes.view(),
+            triangle_view: self.triangles.view(),
+            masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view())),
         }
     }
 }

@@ -104,13 +104,12 @@ const float LTC_RATIO_FADE_HORIZON = 0.2;
 
 // The integral of umbra's GGX lobe D Vis n.l over a light whose form factor after m is `form`,
 // (A + B) |form.z| / share corrected by the true lobe over the fitted one at the light's mean
-// direction (`mean`), faded out as the light covers the lobe, at grazing views and near the
-// horizon:
-// ltc::lobe_integral.
-float ltc_lobe_integral(mat3 m, float share, vec3 form, vec3 v, float n_dot_v, float roughness, vec2 ab,
-                        out vec3 mean) {
+// direction, faded out as the light covers the lobe, at grazing views and near the horizon; as
+// the scale and bias of F0, Fresnel at that mean direction: ltc::lobe_integral.
+vec2 ltc_lobe_integral(mat3 m, float share, vec3 form, vec3 v, float n_dot_v, float roughness, vec2 ab) {
+    if (form.z == 0.0) return vec2(0.0);
     float magnitude = (ab.x + ab.y) / share;
-    mean = inverse(m) * form * sign(form.z);
+    vec3 mean = inverse(m) * form * sign(form.z);
     float plain = magnitude * abs(form.z);
     float mean_len = length(mean);
     vec3 l = mean_len > 0.0 ? mean / mean_len : vec3(0.0);
@@ -131,16 +130,8 @@ float ltc_lobe_integral(mat3 m, float share, vec3 form, vec3 v, float n_dot_v, f
         * light_smoothstep(0.0, LTC_RATIO_FADE_HORIZON, min(l.z, len > 0.0 ? lo.z / len : 0.0));
     ratio = 1.0 + (ratio - 1.0) * trust;
     float coverage = clamp(abs(form.z) / share, 0.0, 1.0);
-    return plain * (ratio + (1.0 - ratio) * coverage);
-}
-
-// The lobe's integral as the scale and bias of F0, Fresnel at the light's mean direction under
-// the lobe (ltc::fitted_lobe).
-vec2 ltc_fitted_lobe(mat3 m, float share, vec3 form, vec3 v_frame, float n_dot_v, float roughness, vec2 ab) {
-    if (form.z == 0.0) return vec2(0.0);
-    vec3 mean;
-    float lobe = ltc_lobe_integral(m, share, form, v_frame, n_dot_v, roughness, ab, mean);
-    float s = ltc_schlick_weight(v_frame, mean);
+    float lobe = plain * (ratio + (1.0 - ratio) * coverage);
+    float s = ltc_schlick_weight(v, mean);
     return lobe * vec2(1.0 - s, s);
 }
 
@@ -276,7 +267,7 @@ vec2 ltc_rect_quadrature(LtcQuadrature q, vec3 c0, vec3 c1, vec3 c2, vec3 c3, fl
 // its polygon.
 vec2 ltc_polygon_lobe(mat3 m, float share, vec3 form, vec3 v_frame, float n_dot_v, float roughness, out float weight) {
     weight = ltc_quadrature_weight(n_dot_v, roughness, clamp(abs(form.z) / share, 0.0, 1.0));
-    return ltc_fitted_lobe(m, share, form, v_frame, n_dot_v, roughness, split_sum_lookup(n_dot_v, roughness));
+    return ltc_lobe_integral(m, share, form, v_frame, n_dot_v, roughness, split_sum_lookup(n_dot_v, roughness));
 }
 
 // Outgoing radiance toward v from a light of unit radiance covering `diffuse_share` of the

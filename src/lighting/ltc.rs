@@ -78,7 +78,7 @@ pub fn polygon(m: Mat3, corners: [Vec3; 4]) -> f32 {
 /// The polygon's vector form factor after `m` (Arvo's irradiance vector over 2 pi, horizon-
 /// clipped): its z is `polygon`'s integral (up to the sign of the winding), its direction the
 /// mean direction of the cosine over the moved polygon. `inverse(m) * it` points along the mean
-/// direction of the lobe over the light, where `fitted_lobe` evaluates Fresnel.
+/// direction of the lobe over the light, where `lobe_integral` evaluates Fresnel.
 pub fn form_factor(m: Mat3, corners: [Vec3; 4]) -> Vec3 {
     convex_form_factor(m, &corners)
 }
@@ -225,10 +225,13 @@ fn edge(a: Vec3, b: Vec3) -> Vec3 {
     c * (s.atan2(a.dot(b)) / s)
 }
 
-/// The integral of umbra's GGX lobe D Vis n.l (no Fresnel) over a light whose vector form factor
-/// after the node's inverse matrix `m` is `form`, for the view `v` (in the shading frame, n.v
-/// `n_dot_v`) and the split-sum scale and bias `ab`; and the light's mean direction under the
-/// lobe (where `fitted_lobe` evaluates Fresnel).
+/// The integral of umbra's GGX lobe D Vis n.l over a light whose vector form factor after the
+/// node's inverse matrix `m` is `form`, for the view `v` (in the shading frame, n.v `n_dot_v`)
+/// and the split-sum scale and bias `ab`, as the scale and bias of F0: Schlick's Fresnel at the
+/// half vector of the light's mean direction under the lobe (the lobe over a small light sees
+/// the Fresnel of its own half vector, not the lobe's average: a dielectric's specular seen at
+/// grazing was 80 % low with the average). A polygon's or a cap's specular where
+/// `lobe_over_polygon` does not integrate.
 ///
 /// The LTC alone gives (A + B) |form.z| / share: exact in magnitude for a light that covers the
 /// whole lobe, but for a light covering little of it only as good as the fitted density is
@@ -248,7 +251,7 @@ pub fn lobe_integral(
     n_dot_v: f32,
     roughness: f32,
     ab: glam::Vec2,
-) -> (f32, Vec3) {
+) -> glam::Vec2 {
     let share = node[4];
     let magnitude = (ab.x + ab.y) / share;
     let mean = m.inverse() * form * form.z.signum();
@@ -278,7 +281,9 @@ pub fn lobe_integral(
         * crate::shading::smoothstep(0.0, RATIO_FADE_HORIZON, l.z.min(cosine));
     let ratio = 1.0 + (ratio - 1.0) * trust;
     let coverage = (form.z.abs() / share).clamp(0.0, 1.0);
-    (plain * (ratio + (1.0 - ratio) * coverage), mean)
+    let lobe = plain * (ratio + (1.0 - ratio) * coverage);
+    let s = schlick_weight(v, mean);
+    glam::Vec2::new(lobe * (1.0 - s), lobe * s)
 }
 
 /// The integral of umbra's GGX lobe D Vis n.l over a polygon light (corners in the shading
@@ -310,32 +315,12 @@ pub fn lobe_over_polygon(
     roughness: f32,
     ab: glam::Vec2,
 ) -> glam::Vec2 {
-    let fitted = fitted_lobe(node, m, form, v, n_dot_v, roughness, ab);
+    let fitted = lobe_integral(node, m, form, v, n_dot_v, roughness, ab);
     let weight = quadrature_weight(n_dot_v, roughness, (form.z.abs() / node[4]).clamp(0.0, 1.0));
     if weight <= 0.0 {
         return fitted;
     }
     fitted.lerp(lobe_quadrature(m, corners, form.z.abs(), side, v, n_dot_v, roughness), weight)
-}
-
-/// `lobe_integral` as the scale and bias of F0, with Schlick's Fresnel at the half vector of
-/// the light's mean direction under the lobe (the lobe over a small light sees the Fresnel of
-/// its own half vector, not the lobe's average: a dielectric's specular seen at grazing was 80 %
-/// low with the average): a polygon's or a cap's specular where `lobe_over_polygon` does not
-/// integrate.
-#[allow(clippy::too_many_arguments)]
-pub fn fitted_lobe(
-    node: [f32; ENTRY],
-    m: Mat3,
-    form: Vec3,
-    v: Vec3,
-    n_dot_v: f32,
-    roughness: f32,
-    ab: glam::Vec2,
-) -> glam::Vec2 {
-    let (lobe, mean) = lobe_integral(node, m, form, v, n_dot_v, roughness, ab);
-    let s = schlick_weight(v, mean);
-    glam::Vec2::new(lobe * (1.0 - s), lobe * s)
 }
 
 /// Where `lobe_over_polygon` starts blending in its quadrature, and where the quadrature is

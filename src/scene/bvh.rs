@@ -330,7 +330,6 @@ fn median_split_bvh(tris: &[[Vec3; 3]]) -> Bvh2 {
 }
 
 /// A triangle's bounding box, as obvhs's `Triangle::aabb` makes it.
-fn triangle_aabb([v0, v1, v2]: &[Vec3; 3]) -> Aabb {
-    let (v0, v1, v2) = (Vec3A::from(*v0), Vec3A::from(*v1), Vec3A::from(*v2));
-    Aabb::new(v0.min(v1).min(v2), v0.max(v1).max(v2))
+fn triangle_aabb(tri: &[Vec3; 3]) -> Aabb {
+    Aabb::from_points(&tri.map(Vec3A::from))
 }

@@ -80,21 +80,21 @@ impl Drop for Buffer {
 
 /// A buffer read through one uniform texel buffer view (`texelFetch` on a `samplerBuffer`).
 pub struct TexelBuffer {
-    pub view: vk::BufferView,
+    /// Declared before the buffer, so it is destroyed first.
+    texels: TexelView,
     pub buffer: Buffer,
     pub format: vk::Format,
-    ctx: Arc<GpuContext>,
 }
 
 impl TexelBuffer {
     /// A view of all of `buffer` as texels of `format` (the buffer needs UNIFORM_TEXEL_BUFFER
     /// usage; the caller checks `maxTexelBufferElements`).
     pub fn new(ctx: &Arc<GpuContext>, buffer: Buffer, format: vk::Format) -> GpuResult<TexelBuffer> {
-        let info =
-            vk::BufferViewCreateInfo::default().buffer(buffer.raw).format(format).offset(0).range(vk::WHOLE_SIZE);
-        // SAFETY: valid buffer created with texel-buffer usage.
-        let view = unsafe { ctx.device.create_buffer_view(&info, None) }.vk("vkCreateBufferView")?;
-        Ok(TexelBuffer { view, buffer, format, ctx: ctx.clone() })
+        Ok(TexelBuffer { texels: TexelView::new(ctx, &buffer, format)?, buffer, format })
+    }
+
+    pub fn view(&self) -> vk::BufferView {
+        self.texels.view
     }
 }
 
@@ -119,14 +119,6 @@ impl TexelView {
 impl Drop for TexelView {
     fn drop(&mut self) {
         // SAFETY: callers wait for the GPU before dropping resources it may still use.
-        unsafe { self.ctx.device.destroy_buffer_view(self.view, None) };
-    }
-}
-
-impl Drop for TexelBuffer {
-    fn drop(&mut self) {
-        // SAFETY: callers wait for the GPU before dropping resources it may still use; the view
-        // goes before its buffer (dropped after this).
         unsafe { self.ctx.device.destroy_buffer_view(self.view, None) };
     }
 }

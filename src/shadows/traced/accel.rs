@@ -204,7 +204,7 @@ impl RayQueryScene {
         let masks = self
             .masks
             .as_ref()
-            .map(|m| (g.import_buffer("ray-query alpha masks", &m.buffer, crate::gpu_scene::SCENE_ACCESS), m.view));
+            .map(|m| (g.import_buffer("ray-query alpha masks", &m.buffer, crate::gpu_scene::SCENE_ACCESS), m.view()));
         if self.built.load(Ordering::Acquire) {
             // Built by an earlier frame, whose shadow pass already made them visible to rays.
             return RayQueryHandles {

@@ -279,6 +279,8 @@ pub struct Draw {
     pub cast_shadows: bool,
     /// Drawn without back-face culling (glTF doubleSided).
     pub double_sided: bool,
+    /// Flat-shaded (`shading::flat_shaded`): the geometry pass reads none of its triangles.
+    pub flat: bool,
     /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
     pub bounds: Bounds,
 }
@@ -355,11 +357,15 @@ impl SceneGpu {
                 lo = lo.min(*p);
                 hi = hi.max(*p);
             }
-            let (first_index, index_count, vertex_offset, instance) = match &mesh.instance {
+            let (first_index, index_count, vertex_offset, instance, flat) = match &mesh.instance {
                 Some(instance) => {
                     let g = &instance.geometry;
-                    let (first, offset) = *shared.entry(std::sync::Arc::as_ptr(g)).or_insert_with(|| {
-                        let at = (indices.len() as u32, vertices.len() as i32);
+                    let (first, offset, flat) = *shared.entry(std::sync::Arc::as_ptr(g)).or_insert_with(|| {
+                        let at = (
+                            indices.len() as u32,
+                            vertices.len() as i32,
+                            crate::shading::flat_shaded(&g.positions, &g.normals, &g.indices),
+                        );
                         vertices.extend(
                             g.positions
                                 .iter()
@@ -381,10 +387,16 @@ impl SceneGpu {
                         at
                     });
                     instances.push(InstanceRows::of(&instance.to_world));
-                    (first, g.indices.len() as u32, offset, instances.len() as u32 - 1)
+                    (first, g.indices.len() as u32, offset, instances.len() as u32 - 1, flat)
                 }
                 None => {
-                    let at = (indices.len() as u32, mesh.indices.len() as u32, vertices.len() as i32, 0);
+                    let at = (
+                        indices.len() as u32,
+                        mesh.indices.len() as u32,
+                        vertices.len() as i32,
+                        0,
+                        crate::shading::flat_shaded(&positions, &mesh.normals, &mesh.indices),
+                    );
                     for (p, n) in positions.iter().zip(&mesh.normals) {
                         vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
                     }
@@ -423,6 +435,7 @@ impl SceneGpu {
                 material: mesh.material,
                 cast_shadows: mesh.cast_shadows,
                 double_sided: mesh.double_sided,
+                flat,
                 bounds,
             });
         }

@@ -526,6 +526,27 @@ pub fn terminator_offset(p: Vec3, a: [Vec3; 3], n: [Vec3; 3], b: Vec3) -> Vec3 {
     (0..3).fold(Vec3::ZERO, |offset, i| offset + b[i] * (a[i] - p).dot(n[i]).max(0.0) * n[i])
 }
 
+/// How far (per component) a unit vertex normal may be from its triangle's unit face normal for
+/// the triangle to count as flat-shaded: the six decimals OBJ exporters write, with rounding.
+pub const FLAT_NORMAL_TOLERANCE: f32 = 1e-5;
+
+/// Whether every triangle (`indices` into `positions` and `normals`) has its own face normal, by
+/// its winding, at all three corners (within `FLAT_NORMAL_TOLERANCE`): a flat-shaded mesh. Its
+/// terminator offset is 0 (no point of a triangle lies below a corner's tangent plane, which is
+/// the triangle's own) and its geometric normal is the interpolated vertex normal, so the
+/// geometry pass reads no triangle for it (geometry_body.glsl's DRAW_FLAT). Degenerate
+/// triangles, which rasterise nothing, do not count.
+pub fn flat_shaded(positions: &[Vec3], normals: &[Vec3], indices: &[u32]) -> bool {
+    indices.chunks_exact(3).all(|t| {
+        let [a, b, c] = [0, 1, 2].map(|k| positions[t[k] as usize]);
+        let Some(face) = (b - a).cross(c - a).try_normalize() else { return true };
+        t.iter().all(|&i| {
+            let n = normals[i as usize].normalize();
+            (n - face).abs().max_element() <= FLAT_NORMAL_TOLERANCE
+        })
+    })
+}
+
 /// Octahedral map of a unit vector into [0,1]^2. Twin of `gbuffer_oct_encode`.
 pub fn oct_encode(n: Vec3) -> Vec2 {
     let sign = |x: f32| if x >= 0.0 { 1.0 } else { -1.0 };
@@ -600,6 +621,8 @@ pub fn surface_quantised(terminator_offset: Vec3, geometric_normal: Vec3) -> Sur
 struct SurfaceTriangle {
     corner: [Vec3; 3],
     normal: [Vec3; 3],
+    /// Its mesh is flat-shaded (`flat_shaded`, as the renderer decides it for the mesh's draw).
+    flat: bool,
 }
 
 impl SurfaceTriangle {
@@ -636,11 +659,22 @@ impl Surfaces {
     pub fn new(scene: &crate::scene::Scene) -> Surfaces {
         let mut triangles = Vec::new();
         for mesh in &scene.meshes {
+            let flat = match &mesh.instance {
+                Some(instance) => {
+                    let g = &instance.geometry;
+                    flat_shaded(&g.positions, &g.normals, &g.indices)
+                }
+                None => {
+                    let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+                    flat_shaded(&positions, &mesh.normals, &mesh.indices)
+                }
+            };
             for t in mesh.indices.chunks_exact(3) {
                 let at = |k: usize| t[k] as usize;
                 triangles.push(SurfaceTriangle {
                     corner: [0, 1, 2].map(|k| mesh.positions[at(k)].as_vec3()),
                     normal: [0, 1, 2].map(|k| mesh.normals[at(k)].normalize()),
+                    flat,
                 });
             }
         }
@@ -708,8 +742,14 @@ impl Surfaces {
         let (_, t) = best?;
         let [a, b, c] = t.corner;
         let (e1, e2) = (b - a, c - a);
+        let weights = triangle_barycentrics(p, a, e1, e2);
+        if t.flat {
+            // As the geometry pass's DRAW_FLAT: no offset, the interpolated vertex normal.
+            let n = (0..3).fold(Vec3::ZERO, |n, i| n + weights[i] * t.normal[i]).normalize();
+            return Some((Vec3::ZERO, n));
+        }
         let geometric = e1.cross(e2).normalize();
-        let offset = terminator_offset(p, t.corner, t.normal, triangle_barycentrics(p, a, e1, e2));
+        let offset = terminator_offset(p, t.corner, t.normal, weights);
         Some((if offset.is_finite() { offset } else { Vec3::ZERO }, geometric))
     }
 

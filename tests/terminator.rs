@@ -22,7 +22,8 @@ use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowBackend
 use umbra::scene::bvh::{offset_ray_origin, ShadowBvh};
 use umbra::scene::Scene;
 use umbra::shading::{
-    f16_round, oct_decode, oct_encode, surface_quantised, terminator_offset, triangle_barycentrics, Surfaces,
+    f16_round, flat_shaded, oct_decode, oct_encode, surface_quantised, terminator_offset, triangle_barycentrics,
+    Surfaces,
 };
 
 const W: u32 = 160;
@@ -264,4 +265,117 @@ fn the_geometric_normal_view_shows_the_facets_the_shading_normal_smooths() {
     }
     println!("{} distinct geometric normals, {} shading normals", faces.len(), smooth.len());
     assert!(faces.len() * 4 < smooth.len(), "{} facets against {} smooth normals", faces.len(), smooth.len());
+}
+
+/// The meshes of `scene` as the renderer uploads them (f32, the scene-local frame), flat or not.
+fn flat_meshes(scene: &Scene) -> Vec<bool> {
+    let (local, _) = scene.local_frame();
+    local
+        .meshes
+        .iter()
+        .map(|m| {
+            let positions: Vec<Vec3> = m.positions.iter().map(|p| p.as_vec3()).collect();
+            flat_shaded(&positions, &m.normals, &m.indices)
+        })
+        .collect()
+}
+
+/// A flat-shaded mesh (every corner has its face's normal) needs no terminator offset: the
+/// geometry pass skips reading its triangles. Planes, cubes and OBJ meshes without normals are
+/// flat; a sphere is not, nor is a cube with one normal tilted by 1e-4 or turned inside out.
+#[test]
+fn flat_shaded_meshes_are_told_from_smooth_ones() {
+    let scene = Scene::parse(
+        &common::scene(&[
+            "[camera]\neye = [0.0, 1.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 45.0",
+            "[[objects]]\nshape = \"plane\"\nsize = 4.0\nsegments = 3",
+            "[[objects]]\nshape = \"cube\"\nsize = 1.0\nrotate_deg = [10.0, 33.0, 5.0]\ntranslate = [0.3, 0.5, -0.2]",
+            "[[objects]]\nshape = \"sphere\"\nradius = 0.5\nsegments = 16",
+        ]),
+        "flat.toml",
+        Path::new("."),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(flat_meshes(&scene), [true, true, false]);
+    let cube = &scene.meshes[1];
+    let positions: Vec<Vec3> = cube.positions.iter().map(|p| p.as_vec3()).collect();
+    let mut tilted = cube.normals.clone();
+    tilted[5] = (tilted[5] + Vec3::new(1e-4, 0.0, 0.0)).normalize();
+    assert!(!flat_shaded(&positions, &tilted, &cube.indices));
+    let inside_out: Vec<Vec3> = cube.normals.iter().map(|n| -*n).collect();
+    assert!(!flat_shaded(&positions, &inside_out, &cube.indices));
+    // Within the tolerance (normals written with six decimals) it is still flat.
+    let mut rounded = cube.normals.clone();
+    for n in &mut rounded {
+        *n = (*n * 1e6).round() / 1e6;
+    }
+    assert!(flat_shaded(&positions, &rounded, &cube.indices));
+    // A degenerate triangle rasterises nothing and does not count.
+    let mut indices = cube.indices.clone();
+    indices.extend_from_slice(&[0, 0, 1]);
+    assert!(flat_shaded(&positions, &cube.normals, &indices));
+}
+
+/// On a scene of flat and smooth meshes lit by a hard light, the G-buffer's geometric normal and
+/// the traced visibility agree with the CPU twin at every covered pixel (the twin reads the
+/// triangle under each pixel whatever its mesh; a flat mesh's geometric normal is its face's).
+#[test]
+fn flat_and_smooth_draws_match_the_twin() {
+    let d = LIGHT_TRAVELS;
+    let scene = Scene::parse(
+        &format!(
+            "[camera]\neye = [2.0, 2.5, 3.5]\ntarget = [0.0, 0.4, 0.0]\nvfov_deg = 45.0\n\
+             [[lights]]\ntype = \"directional\"\ndirection = [{}, {}, {}]\nirradiance = [2.0, 2.0, 2.0]\n\
+             [[objects]]\nshape = \"plane\"\nsize = 4.0\nsegments = 5\n\
+             [[objects]]\nshape = \"cube\"\nsize = 0.6\nrotate_deg = [0.0, 30.0, 0.0]\ntranslate = [-0.6, 0.3, 0.2]\n\
+             [[objects]]\nshape = \"sphere\"\nradius = 0.45\nsegments = 12\ntranslate = [0.5, 0.45, -0.1]\n",
+            d.x,
+            d.y - 1.0,
+            d.z
+        ),
+        "flat-and-smooth.toml",
+        Path::new("."),
+    )
+    .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(flat_meshes(&scene), [true, true, false]);
+    let ctx = common::gpu();
+    let mut r = Renderer::new(ctx.clone(), scene.clone()).expect("renderer");
+    let backend = ShadowBackend::Compute;
+    let geometric = frame(&mut r, backend, DebugView::GeometricNormal);
+    let position = frame(&mut r, backend, DebugView::Position);
+    let visibility = frame(&mut r, backend, DebugView::Visibility(0));
+    let normal = frame(&mut r, backend, DebugView::Normal);
+    let covered: Vec<bool> = frame(&mut r, backend, DebugView::Depth).iter().map(|d| d.x > 0.0).collect();
+    drop(r);
+    common::assert_clean(&ctx);
+    let surfaces = Surfaces::new(&scene);
+    let eye = scene.camera.eye.as_vec3();
+    let bvh = ShadowBvh::build(&scene);
+    let travels = Vec3::new(d.x, d.y - 1.0, d.z).normalize();
+    let (mut checked, mut shadowed, mut differ) = (0, 0, Vec::new());
+    for i in (0..covered.len()).filter(|&i| covered[i]) {
+        let p = position[i].truncate();
+        // Pixels on an edge between meshes may take either triangle.
+        let Some(twin) = surfaces.at(p, eye, 1e-4) else { continue };
+        let g = geometric[i].truncate();
+        assert!(
+            g.dot(twin.geometric_normal) > 0.9999,
+            "pixel {i}: geometric normal {g}, twin {}",
+            twin.geometric_normal
+        );
+        checked += 1;
+        // A pixel facing away from the light is unlit without a ray.
+        if normal[i].truncate().dot(-travels) <= 0.0 {
+            continue;
+        }
+        let origin = twin.ray_origin(p);
+        let cpu = if bvh.occluded_obvhs(origin, -travels, 1e30) { 0.0 } else { 1.0 };
+        if visibility[i].x != cpu && !bvh.ray_near_edge(origin, -travels, 1e30, EDGE_EPS) {
+            differ.push(format!("pixel {i} at {p}: gpu {} cpu {cpu}", visibility[i].x));
+        }
+        shadowed += (cpu == 0.0) as usize;
+    }
+    println!("{checked} pixels checked, {shadowed} shadowed");
+    assert!(differ.is_empty(), "{} pixels differ from the twin:\n{}", differ.len(), differ.join("\n"));
+    assert!(checked > W as usize * H as usize / 2 && shadowed > 300, "{checked} pixels, {shadowed} shadowed");
 }

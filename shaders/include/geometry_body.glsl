@@ -1,7 +1,8 @@
 // Geometry pass fragment shader body: fills the G-buffer (see gbuffer.glsl). geometry.frag
 // defines GEOMETRY_TRIANGLES: it reads the triangle under the fragment (gl_PrimitiveID, which
 // needs the device's geometryShader feature) from the scene's vertex and index buffers for the
-// geometric normal and the shadow-terminator offset. geometry_plain.frag, for devices without
+// geometric normal and the shadow-terminator offset (but for a flat-shaded draw, DRAW_FLAT,
+// whose offset is 0 and whose vertex normal is its geometric normal). geometry_plain.frag, for devices without
 // that feature, takes the geometric normal from the position's screen derivatives and stores no
 // terminator offset. The textured variants (geometry_textured*.frag) define TEXTURED: the
 // material's textures multiply its constants, and a normal map bends the shading normal.
@@ -99,33 +100,38 @@ void main() {
     vec3 offset = vec3(0.0);
     vec3 geometric;
 #ifdef GEOMETRY_TRIANGLES
-    // The draw's triangles start at its first index; each vertex index counts from its offset.
-    uint first = pc.draw.x + 3u * uint(gl_PrimitiveID);
-    int base = int(pc.draw.y);
-    vec3 corner[3];
-    vec3 corner_normal[3];
-    for (int k = 0; k < 3; k++) {
-        int f = 6 * (int(texelFetch(geometry_indices, int(first) + k).r) + base);
-        vec4 c = vec4(texelFetch(geometry_vertices, f).r, texelFetch(geometry_vertices, f + 1).r,
-                      texelFetch(geometry_vertices, f + 2).r, 1.0);
-        vec3 cn = vec3(texelFetch(geometry_vertices, f + 3).r, texelFetch(geometry_vertices, f + 4).r,
-                       texelFetch(geometry_vertices, f + 5).r);
-        corner[k] = vec3(dot(in_model[0], c), dot(in_model[1], c), dot(in_model[2], c));
-        corner_normal[k] = normalize(vec3(dot(in_normal_rows[0].xyz, cn), dot(in_normal_rows[1].xyz, cn),
-                                          dot(in_normal_rows[2].xyz, cn)));
+    if ((pc.draw.z & DRAW_FLAT) != 0u) {
+        // A flat-shaded draw: the face normal is at every corner, and below no corner's plane.
+        geometric = gl_FrontFacing ? n : -n;
+    } else {
+        // The draw's triangles start at its first index; each vertex index counts from its offset.
+        uint first = pc.draw.x + 3u * uint(gl_PrimitiveID);
+        int base = int(pc.draw.y);
+        vec3 corner[3];
+        vec3 corner_normal[3];
+        for (int k = 0; k < 3; k++) {
+            int f = 6 * (int(texelFetch(geometry_indices, int(first) + k).r) + base);
+            vec4 c = vec4(texelFetch(geometry_vertices, f).r, texelFetch(geometry_vertices, f + 1).r,
+                          texelFetch(geometry_vertices, f + 2).r, 1.0);
+            vec3 cn = vec3(texelFetch(geometry_vertices, f + 3).r, texelFetch(geometry_vertices, f + 4).r,
+                           texelFetch(geometry_vertices, f + 5).r);
+            corner[k] = vec3(dot(in_model[0], c), dot(in_model[1], c), dot(in_model[2], c));
+            corner_normal[k] = normalize(vec3(dot(in_normal_rows[0].xyz, cn), dot(in_normal_rows[1].xyz, cn),
+                                              dot(in_normal_rows[2].xyz, cn)));
+        }
+        vec3 e1 = corner[1] - corner[0];
+        vec3 e2 = corner[2] - corner[0];
+        // Counter-clockwise is front: the winding's normal faces the eye on a front face.
+        geometric = normalize(cross(e1, e2));
+        if (!gl_FrontFacing) {
+            // A double-sided mesh's back face (others are culled): its normals turn toward the eye.
+            geometric = -geometric;
+            for (int k = 0; k < 3; k++) corner_normal[k] = -corner_normal[k];
+        }
+        offset = terminator_offset(p, corner, corner_normal, triangle_barycentrics(p, corner[0], e1, e2));
+        // A degenerate triangle rasterises nothing, but a sliver may lose its barycentrics.
+        if (any(isnan(offset)) || any(isinf(offset))) offset = vec3(0.0);
     }
-    vec3 e1 = corner[1] - corner[0];
-    vec3 e2 = corner[2] - corner[0];
-    // Counter-clockwise is front: the winding's normal faces the eye on a front face.
-    geometric = normalize(cross(e1, e2));
-    if (!gl_FrontFacing) {
-        // A double-sided mesh's back face (others are culled): its normals turn toward the eye.
-        geometric = -geometric;
-        for (int k = 0; k < 3; k++) corner_normal[k] = -corner_normal[k];
-    }
-    offset = terminator_offset(p, corner, corner_normal, triangle_barycentrics(p, corner[0], e1, e2));
-    // A degenerate triangle rasterises nothing, but a sliver may lose its barycentrics.
-    if (any(isnan(offset)) || any(isinf(offset))) offset = vec3(0.0);
 #else
     geometric = normalize(cross(dFdx(p), dFdy(p)));
     if (dot(geometric, pc.eye.xyz - p) < 0.0) geometric = -geometric;

@@ -158,9 +158,12 @@ void main() {
     imageStore(visibility, ivec2(px), vec4(trace_pixel(px)));
 }
 #else
+// The includer enables GL_KHR_shader_subgroup_basic (tile.glsl).
+#include "tile.glsl"
+
 void main() {
     // One tile of the image per dispatch (long passes are cut so none runs for seconds).
-    uvec2 px = gl_GlobalInvocationID.xy + uvec2(pc.frame.w & 0xFFFFu, pc.frame.w >> 16);
+    uvec2 px = tile_pixel() + uvec2(pc.frame.w & 0xFFFFu, pc.frame.w >> 16);
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
     imageStore(visibility, ivec2(px), vec4(trace_pixel(px)));
 }

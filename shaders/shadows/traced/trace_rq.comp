@@ -1,6 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #extension GL_EXT_ray_query : require
+#extension GL_KHR_shader_subgroup_basic : require
 // Shadow trace pass over the driver's own acceleration structure (VK_KHR_ray_query): the same
 // rays, origins and offsets as shadow_trace.comp, so the two backends can check each other.
 #include "bindings.glsl"

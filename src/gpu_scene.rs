@@ -266,6 +266,11 @@ pub const SURFACE_ATTRIBUTES: [(u32, vk::Format, u32); 2] =
 pub const SECOND_UV_ATTRIBUTES: [(u32, vk::Format, u32); 1] = [(10, vk::Format::R32G32_SFLOAT, 0)];
 pub const SECOND_UV_STRIDE: u32 = 8;
 
+/// The texels of `SceneGpu::vertex_view`: a `Vertex` (24 bytes) is three of them. RG32F
+/// is the widest float format every device can read from a uniform texel buffer that divides a
+/// vertex (RGB32F is optional), and each fetch is a gather on lavapipe: 9 per triangle, not 18.
+pub const VERTEX_TEXEL_FORMAT: vk::Format = vk::Format::R32G32_SFLOAT;
+
 /// One mesh's slice of the shared vertex and index buffers.
 pub struct Draw {
     pub first_index: u32,
@@ -287,7 +292,7 @@ pub struct Draw {
 
 /// The scene on the device: uploaded once, imported into every frame's graph.
 pub struct SceneGpu {
-    /// `vertices` and `indices` as R32F and R32UI texels: how the geometry pass reads each
+    /// `vertices` and `indices` as RG32F and R32UI texels: how the geometry pass reads each
     /// fragment's triangle (a texel fetch is one gather on lavapipe, where a storage load whose
     /// address it cannot prove the same for every lane is a loop over them). Declared before
     /// the buffers, so they are dropped first.
@@ -479,16 +484,16 @@ impl SceneGpu {
         // The geometry pass reads both as texel buffers of 4-byte texels (a view holds at most
         // this many).
         let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
-        for (what, bytes) in
-            [("vertices", vertex_bytes.len()), ("triangle indices", std::mem::size_of_val(indices.as_slice()))]
+        for (what, bytes, texel) in
+            [("vertices", vertex_bytes.len(), 8), ("triangle indices", std::mem::size_of_val(indices.as_slice()), 4)]
         {
-            if bytes as u64 / 4 > limit {
+            if bytes as u64 / texel > limit {
                 return Err(GpuError::Unsupported(format!(
                     "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one texel buffer \
-                     (maxTexelBufferElements of 4 bytes): use fewer or simpler meshes",
+                     (maxTexelBufferElements of {texel} bytes): use fewer or simpler meshes",
                     bytes >> 20,
                     ctx.device_name(),
-                    (limit * 4) >> 20
+                    (limit * texel) >> 20
                 )));
             }
         }
@@ -507,7 +512,7 @@ impl SceneGpu {
         )?;
         let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles, bvh)?;
         Ok(SceneGpu {
-            vertex_view: TexelView::new(ctx, &vertices, vk::Format::R32_SFLOAT)?,
+            vertex_view: TexelView::new(ctx, &vertices, VERTEX_TEXEL_FORMAT)?,
             index_view: TexelView::new(ctx, &indices, vk::Format::R32_UINT)?,
             vertices,
             vertex_count,

@@ -88,8 +88,8 @@ vec3 material_mapped_normal(vec3 n, vec4 tangent, float scale) {
 #endif
 
 #ifdef GEOMETRY_TRIANGLES
-// The scene's vertex and index buffers as R32F and R32UI texels (gpu_scene::SceneGpu's views):
-// a gpu_scene::Vertex is 6 floats, position then normal.
+// The scene's vertex and index buffers as RG32F and R32UI texels (gpu_scene::SceneGpu's views):
+// a gpu_scene::Vertex is 6 floats, position then normal: three texels.
 layout(set = 0, binding = GEOMETRY_VERTICES) uniform samplerBuffer geometry_vertices;
 layout(set = 0, binding = GEOMETRY_INDICES) uniform usamplerBuffer geometry_indices;
 #endif
@@ -110,11 +110,12 @@ void main() {
         vec3 corner[3];
         vec3 corner_normal[3];
         for (int k = 0; k < 3; k++) {
-            int f = 6 * (int(texelFetch(geometry_indices, int(first) + k).r) + base);
-            vec4 c = vec4(texelFetch(geometry_vertices, f).r, texelFetch(geometry_vertices, f + 1).r,
-                          texelFetch(geometry_vertices, f + 2).r, 1.0);
-            vec3 cn = vec3(texelFetch(geometry_vertices, f + 3).r, texelFetch(geometry_vertices, f + 4).r,
-                           texelFetch(geometry_vertices, f + 5).r);
+            int f = 3 * (int(texelFetch(geometry_indices, int(first) + k).r) + base);
+            vec2 xy = texelFetch(geometry_vertices, f).xy;
+            vec2 zx = texelFetch(geometry_vertices, f + 1).xy;
+            vec2 yz = texelFetch(geometry_vertices, f + 2).xy;
+            vec4 c = vec4(xy, zx.x, 1.0);
+            vec3 cn = vec3(zx.y, yz);
             corner[k] = vec3(dot(in_model[0], c), dot(in_model[1], c), dot(in_model[2], c));
             corner_normal[k] = normalize(vec3(dot(in_normal_rows[0].xyz, cn), dot(in_normal_rows[1].xyz, cn),
                                               dot(in_normal_rows[2].xyz, cn)));

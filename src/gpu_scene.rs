@@ -481,8 +481,8 @@ impl SceneGpu {
             true => Some(crate::passes::geometry::untextured_pipeline(ctx, true)?),
             false => None,
         };
-        // The geometry pass reads both as texel buffers of 4-byte texels (a view holds at most
-        // this many).
+        // The geometry pass reads both as texel buffers (vertices of 8-byte texels, indices of
+        // 4-byte ones; a view holds at most this many texels).
         let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
         for (what, bytes, texel) in
             [("vertices", vertex_bytes.len(), 8), ("triangle indices", std::mem::size_of_val(indices.as_slice()), 4)]

@@ -3,6 +3,8 @@
 #extension GL_KHR_shader_subgroup_basic : require
 // Accumulate pass: the running mean of a still view's frames (each with fresh soft-shadow
 // samples), kept in a history image that outlives the frame. Frame n (from 0) weighs 1/(n+1).
+// Only after rect lights (which add to compose's radiance): elsewhere compose folds the frame in
+// itself (compose.comp's WITH_HISTORY, the same arithmetic).
 // WITH_DISPLAY (display output): also the mean's display value, as tonemap.comp would make it
 // from the history, so no tone-map pass reads the history back.
 // variants: WITH_DISPLAY

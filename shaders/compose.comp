@@ -4,7 +4,9 @@
 // Compose: every light's BRDF * cos * irradiance (times its visibility), plus what the frame
 // has of the environment (a constant or a map), ambient occlusion, emission and area lights.
 // WITH_DISPLAY: the frame's last shading pass for display output also tone-maps (tonemap.comp).
+// WITH_HISTORY: compose also folds the frame into a still view's running mean (accumulate.comp's
+// work, where nothing shades the frame after compose), and with WITH_DISPLAY shows the mean.
 // build.rs compiles one variant per subset of these flags; passes::compose::Variant picks the
 // frame's.
-// variants: WITH_VISIBILITY WITH_ENVIRONMENT WITH_AMBIENT_OCCLUSION WITH_EMISSION WITH_AREA_LIGHTS WITH_ENVIRONMENT_MAP WITH_DISPLAY
+// variants: WITH_VISIBILITY WITH_ENVIRONMENT WITH_AMBIENT_OCCLUSION WITH_EMISSION WITH_AREA_LIGHTS WITH_ENVIRONMENT_MAP WITH_DISPLAY WITH_HISTORY
 #include "compose_body.glsl"

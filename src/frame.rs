@@ -1,6 +1,6 @@
 //! One frame's graph, in stages: G-buffer -> visibility (each shadow technique) -> lighting
-//! (compose or a debug view, with accumulation) -> post (tone map, where compose or accumulate
-//! did not already) -> target (read-back, present, or left for inspection). Each stage is a
+//! (compose or a debug view, with accumulation: folded into compose, or an accumulate pass after
+//! rect lights) -> post (tone map, where compose or accumulate did not already) -> target (read-back, present, or left for inspection). Each stage is a
 //! small function of the one before.
 
 use ash::vk;
@@ -182,12 +182,23 @@ enum Accumulated {
     Beside(Handle<ImageKind>),
 }
 
+/// Whether rect lights shade the frame after compose (adding to its radiance).
+fn rect_lights_after_compose(lighting: &crate::lighting::Prepared) -> bool {
+    lighting.rects.is_some() && lighting.area.is_some()
+}
+
 /// Compose writes the display image itself, tone-mapped (`compose::Variant::display`), when a
-/// shaded frame is shown and no pass shades it after compose: no accumulation into a history
-/// and no rect lights (which add to compose's radiance).
-pub fn compose_displays(settings: &RenderSettings, lighting: &crate::lighting::Prepared, accumulated: bool) -> bool {
-    let rect_lights = lighting.rects.is_some() && lighting.area.is_some();
-    settings.output == OutputKind::Display && settings.debug_view.is_none() && !accumulated && !rect_lights
+/// shaded frame is shown and no pass shades it after compose (rect lights add to compose's
+/// radiance). An accumulated frame's display values are then the mean's (`compose_accumulates`).
+pub fn compose_displays(settings: &RenderSettings, lighting: &crate::lighting::Prepared) -> bool {
+    settings.output == OutputKind::Display && settings.debug_view.is_none() && !rect_lights_after_compose(lighting)
+}
+
+/// Compose folds an accumulated frame into the history itself (`compose::Variant::history`)
+/// when no pass shades the frame after it: no accumulate pass, and no radiance image written
+/// only to be read back once.
+pub fn compose_accumulates(lighting: &crate::lighting::Prepared, accumulated: bool) -> bool {
+    accumulated && !rect_lights_after_compose(lighting)
 }
 
 /// Compose (with accumulation when a history is given), or the debug view.
@@ -250,7 +261,8 @@ fn lighting_stage<'a>(
         )
     });
     let (variant, pipeline) = ambient.compose.expect("the renderer prepares compose for shaded frames");
-    debug_assert_eq!(variant.display, compose_displays(settings, lighting, history.is_some()));
+    debug_assert_eq!(variant.display, compose_displays(settings, lighting));
+    debug_assert_eq!(variant.history, compose_accumulates(lighting, history.is_some()));
     let inputs = compose::ComposeInputs {
         pipeline: (variant, pipeline),
         lights: &handles.lights,
@@ -273,8 +285,16 @@ fn lighting_stage<'a>(
         brdf_table: area.as_ref().map(|(_, _, t)| t).or(environment_table.as_ref()),
         ltc_table: area.as_ref().filter(|(t, _, _)| t.sized_lights).map(|(_, ltc, _)| ltc),
         exposure_ev: variant.display.then_some(settings.exposure_ev),
+        history: history.as_ref().filter(|_| variant.history),
     };
-    let mut image = compose::add(g, gbuffer, inputs, extent);
+    let composed = compose::add(g, gbuffer, inputs, extent);
+    if variant.history {
+        return match composed.history {
+            Some(mean) => Lit { image: composed.image, debug: false, toned: true, history: Accumulated::Beside(mean) },
+            None => Lit { image: composed.image, debug: false, toned: false, history: Accumulated::Image },
+        };
+    }
+    let mut image = composed.image;
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
         let bvh = s.bvh.import(g, SCENE_ACCESS);
         let frame = settings.frame_index;

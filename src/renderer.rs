@@ -196,7 +196,8 @@ impl Renderer {
                     emissive: self.gpu_scene.materials.is_some(),
                     area_lights: lighting.area.is_some_and(|a| a.sized_lights),
                     environment_map: lighting.environment.is_some_and(|e| e.map.is_some()),
-                    display: crate::frame::compose_displays(settings, &lighting, history.is_some()),
+                    display: crate::frame::compose_displays(settings, &lighting),
+                    history: crate::frame::compose_accumulates(&lighting, history.is_some()),
                 };
                 Some((variant, self.pipelines.compose(&self.ctx, variant)?))
             }

@@ -515,6 +515,40 @@ fn accumulate_tone_maps_the_mean_of_display_frames() {
     common::assert_clean(&ctx);
 }
 
+/// Accumulated frames fold into the history in compose itself (no accumulate pass, no tone-map
+/// pass), in linear and display output alike; only where rect lights shade the frame after
+/// compose does the accumulate pass run.
+#[test]
+fn compose_folds_accumulated_frames_in_unless_rect_lights_follow() {
+    let ctx = common::gpu();
+    let passes = |renderer: &mut Renderer, output: OutputKind| {
+        let mut settings = RenderSettings::new(WIDTH, HEIGHT, output);
+        settings.antialias = true;
+        for _ in 0..2 {
+            renderer.render(&settings).expect("render");
+        }
+        renderer.last_plan().expect("a frame was rendered").live_pass_names()
+    };
+    let mut renderer = Renderer::new(ctx.clone(), floor_cube()).expect("renderer");
+    for output in [OutputKind::Display, OutputKind::SceneLinear] {
+        let live = passes(&mut renderer, output);
+        assert!(live.contains(&"compose"), "{output:?}: {live:?}");
+        for absent in ["accumulate", "tonemap"] {
+            assert!(!live.contains(&absent), "{output:?} schedules {absent}: {live:?}");
+        }
+    }
+    drop(renderer);
+    let window =
+        Scene::load(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/lighting/window.toml").as_path())
+            .expect("window scene");
+    let mut renderer = Renderer::new(ctx.clone(), window).expect("renderer");
+    let live = passes(&mut renderer, OutputKind::Display);
+    let after = |name: &str| live.iter().position(|p| *p == name).unwrap_or_else(|| panic!("no {name}: {live:?}"));
+    assert!(after("compose") < after("accumulate"), "{live:?}");
+    drop(renderer);
+    common::assert_clean(&ctx);
+}
+
 #[test]
 fn debug_views_schedule_only_what_they_need() {
     let ctx = common::gpu();

@@ -51,6 +51,8 @@
 #define COMPOSE_ENV_MAP 12
 // WITH_AREA_LIGHTS: the LTC table (lights with a size shaded as sphere and disk lights)
 #define COMPOSE_LTC_TABLE 13
+// WITH_HISTORY: the accumulation history (read and written; accumulate.comp's ACCUM_HISTORY)
+#define COMPOSE_HISTORY 14
 
 // tonemap.comp and debug_view.comp
 #define DISPLAY_INPUT 0

@@ -20,8 +20,14 @@ layout(set = 0, binding = COMPOSE_LIGHTS, std430) readonly buffer Lights { GpuLi
 // here rather than by a tone-map pass reading radiance back (one full-screen pass less).
 #include "tonemap.glsl"
 layout(set = 0, binding = COMPOSE_RADIANCE, rgba8) uniform writeonly image2D radiance;
-#else
+#elif !defined(WITH_HISTORY)
 layout(set = 0, binding = COMPOSE_RADIANCE, rgba32f) uniform writeonly image2D radiance;
+#endif
+#ifdef WITH_HISTORY
+// A still view's running mean of its frames (accumulate.comp's, which this replaces where
+// nothing shades the frame after compose): frame n (from 0) weighs 1/(n+1). Without
+// WITH_DISPLAY the history is the frame's result.
+layout(set = 0, binding = COMPOSE_HISTORY, rgba32f) uniform image2D history;
 #endif
 #ifdef WITH_VISIBILITY
 layout(set = 0, binding = COMPOSE_VISIBILITY) uniform sampler2DArray visibility;
@@ -58,17 +64,27 @@ layout(push_constant) uniform Push {
     vec4 eye;        // xyz; w: exposure in stops (WITH_DISPLAY)
     vec4 background; // rgb radiance where nothing was drawn; w: 1 when the scene gave it
     uvec4 dims;      // x: width, y: height, z: light count, w: prefiltered layers (map)
-    vec4 environment; // rgb: the environment's radiance (WITH_ENVIRONMENT), or the map's scale
+    vec4 environment; // rgb: the environment's radiance (WITH_ENVIRONMENT), or the map's scale;
+                      // w: WITH_HISTORY, the frames already in the history (uint bits)
     mat4 clip_to_eye; // inverse of the eye-relative view-projection (WITH_ENVIRONMENT_MAP)
 } pc;
 
-// The pixel's radiance, or with WITH_DISPLAY its display value, as tonemap.comp computes it.
+// The pixel's radiance, or with WITH_DISPLAY its display value, as tonemap.comp computes it;
+// with WITH_HISTORY folded into the running mean first, as accumulate.comp does.
 void compose_store(uvec2 px, vec3 radiance_rgb) {
+#ifdef WITH_HISTORY
+    uint frames = floatBitsToUint(pc.environment.w);
+    vec4 now = vec4(radiance_rgb, 1.0);
+    // The first frame ignores whatever the image held (it may be uninitialised).
+    vec4 mean = frames == 0u ? now : mix(imageLoad(history, ivec2(px)), now, 1.0 / float(frames + 1u));
+    imageStore(history, ivec2(px), mean);
+    radiance_rgb = mean.rgb;
+#endif
 #ifdef WITH_DISPLAY
     vec3 linear = tonemap(radiance_rgb, pc.eye.w);
     vec3 encoded = vec3(srgb_encode(linear.r), srgb_encode(linear.g), srgb_encode(linear.b));
     imageStore(radiance, ivec2(px), vec4(encoded, 1.0));
-#else
+#elif !defined(WITH_HISTORY)
     imageStore(radiance, ivec2(px), vec4(radiance_rgb, 1.0));
 #endif
 }

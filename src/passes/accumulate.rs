@@ -1,7 +1,10 @@
 //! Accumulate pass: while the view stands still, averages each new frame into a history image
 //! that lives outside the graph, so soft shadows converge progressively. Scheduled only when a
-//! light's shadows are stochastic. For display output it also writes the mean's tone-mapped
-//! display image (the `display` pipeline), in place of a tone-map pass reading the history back.
+//! frame is accumulated and rect lights shade it after compose; otherwise compose folds the frame
+//! in itself (`compose::Variant::history`), with the same arithmetic. For display output it also
+//! writes the mean's tone-mapped display image (the `display` pipeline), in place of a tone-map
+//! pass reading the history back. This module also owns the history (`Accumulator`) and the
+//! anti-aliasing jitter, which both paths use.
 
 use std::sync::Arc;
 

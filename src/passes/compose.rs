@@ -5,7 +5,8 @@
 //! pass or target is needed; likewise for the environment, AO, emission and area lights
 //! (`Variant`). Where nothing shades the frame after compose and it is shown, compose also
 //! tone-maps and writes the display image itself (`Variant::display`): no tone-map pass, and no
-//! radiance image written only to be read back once.
+//! radiance image written only to be read back once. Likewise it folds an accumulated frame into
+//! the still view's history (`Variant::history`), in place of the accumulate pass.
 
 use std::sync::Arc;
 
@@ -16,6 +17,8 @@ use super::{sampled, storage, storage_image, GBuffer, DISPLAY_FORMAT, RADIANCE_F
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+
+use super::accumulate::{History, HISTORY_ACCESS};
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -46,8 +49,11 @@ pub struct Variant {
     /// irradiance, prefiltered layers and the map itself for the background.
     pub environment_map: bool,
     /// Tone-mapped 8-bit display values instead of radiance, as the tone-map pass would make
-    /// them: for display output with no accumulation or rect lights after compose.
+    /// them: for display output with no rect lights after compose.
     pub display: bool,
+    /// Folds the frame into a still view's accumulation history (the accumulate pass's work,
+    /// where no rect lights shade the frame after compose); with `display`, shows the mean.
+    pub history: bool,
 }
 
 impl Variant {
@@ -62,6 +68,7 @@ impl Variant {
             self.area_lights,
             self.environment_map,
             self.display,
+            self.history,
         ]
         .iter()
         .enumerate()
@@ -80,6 +87,7 @@ impl Variant {
             area_lights: on(4),
             environment_map: on(5),
             display: on(6),
+            history: on(7),
         }
     }
 
@@ -92,6 +100,7 @@ impl Variant {
             (self.emissive, "emissive"),
             (self.area_lights, "area lights"),
             (self.display, "tone-mapped"),
+            (self.history, "accumulated"),
         ];
         let on: Vec<&str> = parts.iter().filter(|(on, _)| *on).map(|(_, name)| *name).collect();
         if on.is_empty() {
@@ -107,13 +116,14 @@ pub const VARIANTS: usize = spirv::COMPOSE_COMP.len();
 
 /// One compose variant: its bindings follow from the same flags that pick its shader.
 pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePipeline> {
-    let mut bindings = vec![
-        sampled(COMPOSE_POSITION),
-        sampled(COMPOSE_NORMAL),
-        sampled(COMPOSE_MATERIAL),
-        storage(COMPOSE_LIGHTS),
-        storage_image(COMPOSE_RADIANCE),
-    ];
+    let mut bindings =
+        vec![sampled(COMPOSE_POSITION), sampled(COMPOSE_NORMAL), sampled(COMPOSE_MATERIAL), storage(COMPOSE_LIGHTS)];
+    if variant.display || !variant.history {
+        bindings.push(storage_image(COMPOSE_RADIANCE));
+    }
+    if variant.history {
+        bindings.push(storage_image(COMPOSE_HISTORY));
+    }
     if variant.shadowed {
         bindings.push(sampled(COMPOSE_VISIBILITY));
         bindings.push(storage(COMPOSE_LIGHT_LAYERS));
@@ -183,6 +193,8 @@ pub struct ComposeInputs<'h, 'a> {
     pub ltc_table: Option<&'h Handle<BufferKind>>,
     /// Exposure in stops, for a variant that writes display values (`Variant::display`).
     pub exposure_ev: Option<f32>,
+    /// The accumulation history to fold the frame into (`Variant::history`).
+    pub history: Option<&'h History<'a>>,
 }
 
 pub fn add<'a>(
@@ -190,7 +202,7 @@ pub fn add<'a>(
     gbuffer: &GBuffer,
     inputs: ComposeInputs<'_, 'a>,
     extent: vk::Extent2D,
-) -> Handle<ImageKind> {
+) -> Composed {
     let (variant, pipeline) = inputs.pipeline;
     let occlusion = inputs.environment.as_ref().and_then(|e| e.occlusion);
     let map = inputs.environment.as_ref().and_then(|e| e.map.as_ref());
@@ -204,13 +216,22 @@ pub fn add<'a>(
             area_lights: inputs.ltc_table.is_some(),
             environment_map: map.is_some(),
             display: inputs.exposure_ev.is_some(),
+            history: inputs.history.is_some(),
         },
         "compose's inputs are those of its variant"
     );
-    let mut output = match variant.display {
-        true => graph.create_image("display", ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height)),
-        false => graph.create_image("radiance", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height)),
+    let mut output = match (variant.display, variant.history) {
+        (true, _) => Some(graph.create_image("display", ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height))),
+        (false, false) => {
+            Some(graph.create_image("radiance", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height)))
+        }
+        // The history is the result.
+        (false, true) => None,
     };
+    let mut mean = inputs.history.map(|h| {
+        let last = if h.fresh { Access::Nothing } else { HISTORY_ACCESS };
+        graph.import_owned_image("history", h.image, last)
+    });
     let mut pass = graph.add_pass("compose");
     let sampled = Access::ComputeShaderReadSampledImage;
     let buffer = Access::ComputeShaderReadStorageBuffer;
@@ -219,8 +240,17 @@ pub fn add<'a>(
         (COMPOSE_NORMAL, Bound::Image(pass.read(&gbuffer.normal, sampled))),
         (COMPOSE_MATERIAL, Bound::Image(pass.read(&gbuffer.material, sampled))),
         (COMPOSE_LIGHTS, Bound::Buffer(pass.read(inputs.lights, buffer))),
-        (COMPOSE_RADIANCE, Bound::Image(pass.write(&mut output, Access::ComputeShaderWrite))),
     ];
+    if let Some(output) = &mut output {
+        bound.push((COMPOSE_RADIANCE, Bound::Image(pass.write(output, Access::ComputeShaderWrite))));
+    }
+    let frames = inputs.history.map_or(0, |h| h.frames);
+    if let Some(mean) = &mut mean {
+        if frames > 0 {
+            pass.read(mean, Access::ComputeShaderReadStorageImage);
+        }
+        bound.push((COMPOSE_HISTORY, Bound::Image(pass.write(mean, Access::ComputeShaderWrite))));
+    }
     if let Some((v, table)) = inputs.visibility {
         bound.push((COMPOSE_VISIBILITY, Bound::Image(pass.read(v, sampled))));
         bound.push((COMPOSE_LIGHT_LAYERS, Bound::Buffer(pass.read(table, buffer))));
@@ -251,11 +281,22 @@ pub fn add<'a>(
         eye: inputs.eye.extend(inputs.exposure_ev.unwrap_or(0.0)),
         background: inputs.background.extend(if inputs.background_given { 1.0 } else { 0.0 }),
         dims: UVec4::new(extent.width, extent.height, inputs.light_count, layers),
-        environment: environment.extend(0.0),
+        environment: environment.extend(f32::from_bits(frames)),
         clip_to_eye,
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    output
+    match (output, mean) {
+        (Some(output), mean) => Composed { image: output, history: mean },
+        (None, Some(mean)) => Composed { image: mean, history: None },
+        (None, None) => unreachable!("compose writes radiance, display values or the history"),
+    }
+}
+
+/// What compose wrote: the frame's image (radiance, display values, or with a history and no
+/// display the history itself) and, beside display values, the history.
+pub struct Composed {
+    pub image: Handle<ImageKind>,
+    pub history: Option<Handle<ImageKind>>,
 }
 
 #[cfg(test)]
@@ -267,6 +308,6 @@ mod tests {
         for i in 0..VARIANTS {
             assert_eq!(Variant::from_index(i).index(), i);
         }
-        assert_eq!(VARIANTS, 128, "seven flags in compose.comp's variants line");
+        assert_eq!(VARIANTS, 256, "eight flags in compose.comp's variants line");
     }
 }

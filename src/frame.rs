@@ -1,7 +1,8 @@
 //! One frame's graph, in stages: G-buffer -> visibility (each shadow technique) -> lighting
 //! (compose or a debug view, with accumulation: folded into compose, or an accumulate pass after
-//! rect lights) -> post (tone map, where compose or accumulate did not already) -> target (read-back, present, or left for inspection). Each stage is a
-//! small function of the one before.
+//! rect lights) -> post (tone map, where compose or accumulate did not already) -> target
+//! (read-back, present, or left for inspection). Each stage is a small function of the one
+//! before.
 
 use ash::vk;
 use glam::Vec3;

@@ -57,6 +57,15 @@ pub struct History<'a> {
     pub fresh: bool,
 }
 
+impl History<'_> {
+    /// The history image in `graph`, in the access the previous frame left it in (none yet for
+    /// a fresh image).
+    pub fn import(&self, graph: &mut RenderGraph<'_>) -> Handle<ImageKind> {
+        let last = if self.fresh { Access::Nothing } else { HISTORY_ACCESS };
+        graph.import_owned_image("history", self.image, last)
+    }
+}
+
 /// Where accumulated frame `frame` (from 0) puts its primary sample, in pixels from the pixel
 /// centre: frame 0 at the centre, then the Halton (2, 3) sequence over the pixel square. The
 /// mean of N frames is the pixel's image under a box filter one pixel wide, its error falling
@@ -88,8 +97,7 @@ pub fn add<'a>(
     extent: vk::Extent2D,
 ) -> (Handle<ImageKind>, Option<Handle<ImageKind>>) {
     // A fresh image has no layout yet; a used one may still be read by the frame before.
-    let last = if history.fresh { Access::Nothing } else { HISTORY_ACCESS };
-    let mut mean = graph.import_owned_image("history", history.image, last);
+    let mut mean = history.import(graph);
     let display_desc = ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height);
     let mut display = exposure_ev.map(|_| graph.create_image("display", display_desc));
     let mut pass = graph.add_pass("accumulate");

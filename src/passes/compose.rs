@@ -18,7 +18,7 @@ use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, Rend
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
 
-use super::accumulate::{History, HISTORY_ACCESS};
+use super::accumulate::History;
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -228,10 +228,7 @@ pub fn add<'a>(
         // The history is the result.
         (false, true) => None,
     };
-    let mut mean = inputs.history.map(|h| {
-        let last = if h.fresh { Access::Nothing } else { HISTORY_ACCESS };
-        graph.import_owned_image("history", h.image, last)
-    });
+    let mut mean = inputs.history.map(|h| h.import(graph));
     let mut pass = graph.add_pass("compose");
     let sampled = Access::ComputeShaderReadSampledImage;
     let buffer = Access::ComputeShaderReadStorageBuffer;

@@ -136,7 +136,8 @@ fn bindings_from_glsl(path: &Path) -> String {
             continue;
         }
         let (Some(name), Some(value)) = (words.next(), words.next()) else { continue };
-        if let Ok(v) = value.parse::<u32>() {
+        // Decimal, with GLSL's `u` suffix where a value needs it (past i32).
+        if let Ok(v) = value.trim_end_matches('u').parse::<u32>() {
             writeln!(rs, "pub const {name}: u32 = {v};").unwrap();
         }
     }

@@ -296,6 +296,8 @@ pub const SECOND_UV_STRIDE: u32 = 8;
 /// is the widest float format every device can read from a uniform texel buffer that divides a
 /// vertex (RGB32F is optional), and each fetch is a gather on lavapipe: 9 per triangle, not 18.
 pub const VERTEX_TEXEL_FORMAT: vk::Format = vk::Format::R32G32_SFLOAT;
+/// The texels of `SceneGpu::index_view`: one index each.
+pub const INDEX_TEXEL_FORMAT: vk::Format = vk::Format::R32_UINT;
 
 /// One mesh's slice of the shared vertex and index buffers.
 pub struct Draw {
@@ -507,12 +509,13 @@ impl SceneGpu {
             true => Some(crate::passes::geometry::untextured_pipeline(ctx, true)?),
             false => None,
         };
-        // The geometry pass reads both as texel buffers (vertices of 8-byte texels, indices of
-        // 4-byte ones; a view holds at most this many texels).
+        // The geometry pass reads both as texel buffers (a view holds at most this many texels).
         let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
-        for (what, bytes, texel) in
-            [("vertices", vertex_bytes.len(), 8), ("triangle indices", std::mem::size_of_val(indices.as_slice()), 4)]
-        {
+        for (what, bytes, format) in [
+            ("vertices", vertex_bytes.len(), VERTEX_TEXEL_FORMAT),
+            ("triangle indices", std::mem::size_of_val(indices.as_slice()), INDEX_TEXEL_FORMAT),
+        ] {
+            let texel = crate::vk::texel_bytes(format);
             if bytes as u64 / texel > limit {
                 return Err(GpuError::Unsupported(format!(
                     "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one texel buffer \
@@ -539,7 +542,7 @@ impl SceneGpu {
         let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles, bvh)?;
         Ok(SceneGpu {
             vertex_view: TexelView::new(ctx, &vertices, VERTEX_TEXEL_FORMAT)?,
-            index_view: TexelView::new(ctx, &indices, vk::Format::R32_UINT)?,
+            index_view: TexelView::new(ctx, &indices, INDEX_TEXEL_FORMAT)?,
             vertices,
             vertex_count,
             instance_offset,

@@ -103,6 +103,9 @@
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
+// The geometry pass's push constant draw.z: a flat-shaded draw (gpu_scene::Draw::flat), whose
+// fragments read no triangle (geometry_body.glsl). Bit 31: textured draws keep the low bits.
+#define GEOMETRY_DRAW_FLAT 2147483648u
 // geometry_textured*.frag, descriptor set 1 (one set per material, src/gpu_textures.rs): its
 // textures, each a 1x1 white texel where the material has no such map
 #define MATERIAL_BASE_COLOR 0

@@ -1,8 +1,8 @@
 // Geometry pass fragment shader body: fills the G-buffer (see gbuffer.glsl). geometry.frag
 // defines GEOMETRY_TRIANGLES: it reads the triangle under the fragment (gl_PrimitiveID, which
 // needs the device's geometryShader feature) from the scene's vertex and index buffers for the
-// geometric normal and the shadow-terminator offset (but for a flat-shaded draw, DRAW_FLAT,
-// whose offset is 0 and whose vertex normal is its geometric normal). geometry_plain.frag, for devices without
+// geometric normal and the shadow-terminator offset (but for a flat-shaded draw,
+// GEOMETRY_DRAW_FLAT, whose offset is 0 and whose vertex normal is its geometric normal). geometry_plain.frag, for devices without
 // that feature, takes the geometric normal from the position's screen derivatives and stores no
 // terminator offset. The textured variants (geometry_textured*.frag) define TEXTURED: the
 // material's textures multiply its constants, and a normal map bends the shading normal.
@@ -100,8 +100,9 @@ void main() {
     vec3 offset = vec3(0.0);
     vec3 geometric;
 #ifdef GEOMETRY_TRIANGLES
-    if ((pc.draw.z & DRAW_FLAT) != 0u) {
-        // A flat-shaded draw: the face normal is at every corner, and below no corner's plane.
+    if ((pc.draw.z & GEOMETRY_DRAW_FLAT) != 0u) {
+        // A flat-shaded draw (shading::flat_shaded): the face normal is at every corner, so no
+        // point lies below a corner's plane, and the vertex normal is the geometric normal.
         geometric = gl_FrontFacing ? n : -n;
     } else {
         // The draw's triangles start at its first index; each vertex index counts from its offset.

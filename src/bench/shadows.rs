@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::{bail, Context as _, Result};
-use ash::vk;
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
@@ -77,20 +76,6 @@ pub fn is_shadow_pass(name: &str) -> bool {
     name.starts_with("shadow") || name == BUILD_BOTTOM || name == BUILD_TOP
 }
 
-/// Bytes per texel of the formats frame graphs use (4 for any other).
-fn texel_bytes(format: vk::Format) -> u64 {
-    match format {
-        vk::Format::R8_UNORM | vk::Format::R8_UINT | vk::Format::S8_UINT => 1,
-        vk::Format::R16_SFLOAT | vk::Format::R16_UNORM | vk::Format::D16_UNORM => 2,
-        vk::Format::D32_SFLOAT_S8_UINT
-        | vk::Format::R32G32_SFLOAT
-        | vk::Format::R16G16B16A16_SFLOAT
-        | vk::Format::R16G16B16A16_UNORM => 8,
-        vk::Format::R32G32B32A32_SFLOAT | vk::Format::R32G32B32A32_UINT => 16,
-        _ => 4,
-    }
-}
-
 /// Bytes of the transient images and buffers the plan's shadow passes bring in (first used by
 /// one), the shared visibility target left out; resources sharing a transient slot count once.
 pub fn shadow_bytes(plan: &CompiledGraph) -> u64 {
@@ -105,7 +90,7 @@ pub fn shadow_bytes(plan: &CompiledGraph) -> u64 {
     let by_desc = |slot: usize| {
         plan.resources.iter().find(|r| r.storage == Storage::Transient(slot)).map_or(0, |r| match r.desc {
             ResourceDesc::Image(d) => {
-                u64::from(d.width) * u64::from(d.height) * u64::from(d.layers.max(1)) * texel_bytes(d.format)
+                u64::from(d.width) * u64::from(d.height) * u64::from(d.layers.max(1)) * crate::vk::texel_bytes(d.format)
             }
             ResourceDesc::Buffer(b) => b.size,
         })

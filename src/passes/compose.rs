@@ -282,10 +282,9 @@ pub fn add<'a>(
         clip_to_eye,
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    match (output, mean) {
-        (Some(output), mean) => Composed { image: output, history: mean },
-        (None, Some(mean)) => Composed { image: mean, history: None },
-        (None, None) => unreachable!("compose writes radiance, display values or the history"),
+    match output {
+        Some(image) => Composed { image, history: mean },
+        None => Composed { image: mean.expect("a variant without an output image writes the history"), history: None },
     }
 }
 

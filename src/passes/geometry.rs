@@ -43,9 +43,6 @@ struct Push {
     draw: UVec4,
 }
 
-/// `Push::draw.z`'s flag for a flat-shaded draw (`Draw::flat`; geometry_push.glsl's DRAW_FLAT).
-const DRAW_FLAT: u32 = 0x8000_0000;
-
 /// The geometry pass's pipeline. Where the device has the geometryShader feature (needed for
 /// `gl_PrimitiveID` in a fragment shader) it reads each fragment's triangle from the scene's
 /// vertex and index buffers (read through texel views of them, `SceneGpu::vertex_view`) for the terminator offset and
@@ -270,14 +267,19 @@ pub fn add<'a>(
                 eye: camera.eye.extend(0.0),
                 base_color_roughness: m.base_color.extend(m.roughness),
                 metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
-                draw: UVec4::new(draw.first_index, draw.vertex_offset as u32, 0, 0),
+                // z: GEOMETRY_DRAW_FLAT for a flat-shaded draw, beside a textured draw's maps.
+                draw: UVec4::new(
+                    draw.first_index,
+                    draw.vertex_offset as u32,
+                    if draw.flat { bindings::GEOMETRY_DRAW_FLAT } else { 0 },
+                    0,
+                ),
             };
-            let flat = if draw.flat { DRAW_FLAT } else { 0 };
             // SAFETY: recording state; the set is the scene's, alive as long as it is.
             unsafe {
                 if let Some((materials, maps)) = textured {
                     push.metallic.y = maps.normal_scale;
-                    push.draw.z = maps.present;
+                    push.draw.z |= maps.present;
                     push.draw.w = maps.channels;
                     d.cmd_bind_descriptor_sets(
                         ctx.cmd,
@@ -288,7 +290,6 @@ pub fn add<'a>(
                         &[],
                     );
                 }
-                push.draw.z |= flat;
                 d.cmd_push_constants(
                     ctx.cmd,
                     used.layout.layout,

@@ -16,7 +16,7 @@ pub use pipeline::{
     ComputePipeline, DepthState, DescriptorKind, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc,
     PipelineLayout, StencilState,
 };
-pub use resources::{subresource_range, Buffer, Image, ImageDesc, TexelBuffer, TexelView};
+pub use resources::{subresource_range, texel_bytes, Buffer, Image, ImageDesc, TexelBuffer, TexelView};
 pub use sampler::{SamplerCache, SamplerDesc};
 pub use swapchain::{Acquired, Swapchain, SWAPCHAIN_USAGE};
 

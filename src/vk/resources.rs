@@ -123,6 +123,20 @@ impl Drop for TexelView {
     }
 }
 
+/// Bytes per texel of the formats umbra's images and texel views use (4 for any other).
+pub fn texel_bytes(format: vk::Format) -> u64 {
+    match format {
+        vk::Format::R8_UNORM | vk::Format::R8_UINT | vk::Format::S8_UINT => 1,
+        vk::Format::R16_SFLOAT | vk::Format::R16_UNORM | vk::Format::D16_UNORM => 2,
+        vk::Format::D32_SFLOAT_S8_UINT
+        | vk::Format::R32G32_SFLOAT
+        | vk::Format::R16G16B16A16_SFLOAT
+        | vk::Format::R16G16B16A16_UNORM => 8,
+        vk::Format::R32G32B32A32_SFLOAT | vk::Format::R32G32B32A32_UINT => 16,
+        _ => 4,
+    }
+}
+
 /// What a 2D image is; the frame graph's transient cache is keyed by this plus usage.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub struct ImageDesc {

@@ -11,7 +11,7 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{sampled, storage_image, DISPLAY_FORMAT, TILE};
+use super::{sampled, storage_image, DISPLAY_FORMAT, ROWS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image};
@@ -37,14 +37,14 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
     let push = std::mem::size_of::<Push>() as u32;
     let with_display = [bindings[0], bindings[1], storage_image(ACCUM_DISPLAY)];
     Ok(Pipelines {
-        mean: ComputePipeline::new(ctx, "accumulate", spirv::ACCUMULATE_COMP[0], &bindings, push, TILE)?,
+        mean: ComputePipeline::new(ctx, "accumulate", spirv::ACCUMULATE_COMP[0], &bindings, push, ROWS)?,
         display: ComputePipeline::new(
             ctx,
             "accumulate (tone-mapped)",
             spirv::ACCUMULATE_COMP[1],
             &with_display,
             push,
-            TILE,
+            ROWS,
         )?,
     })
 }

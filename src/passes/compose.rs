@@ -13,7 +13,7 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use super::{sampled, storage, storage_image, GBuffer, DISPLAY_FORMAT, RADIANCE_FORMAT, TILE};
+use super::{sampled, storage, storage_image, GBuffer, DISPLAY_FORMAT, RADIANCE_FORMAT, ROWS};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
@@ -150,7 +150,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePip
     static NAMES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
     let names = NAMES.get_or_init(|| (0..VARIANTS).map(|i| Variant::from_index(i).name()).collect());
     let name: &'static str = &names[variant.index()];
-    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, TILE)
+    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, ROWS)
 }
 
 /// The environment's part of compose's inputs.

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{sampled, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use super::{sampled, storage_image, GBuffer, RADIANCE_FORMAT, ROWS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
@@ -34,15 +34,15 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
     let mut with_vis = common.to_vec();
     with_vis.push(sampled(DISPLAY_VISIBILITY));
     Ok(DebugPipelines {
-        channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &common, push, TILE)?,
-        visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, TILE)?,
+        channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &common, push, ROWS)?,
+        visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, ROWS)?,
         geometric_normal: ComputePipeline::new(
             ctx,
             "debug geometric normal",
             spirv::DEBUG_GEOMETRIC_NORMAL_COMP,
             &common,
             push,
-            TILE,
+            ROWS,
         )?,
     })
 }

@@ -20,8 +20,19 @@ use ash::vk;
 use crate::graph::{Handle, ImageKind};
 use crate::vk::{ComputePipeline, DescriptorKind, GpuContext, GpuResult};
 
-/// Workgroup size of every full-screen compute pass (specialisation constants 0 and 1).
+/// Workgroup size of the full-screen compute passes that cast rays (shadow trace, ambient
+/// occlusion, rect lights, the hybrid's classification; specialisation constants 0 and 1): on a
+/// GPU a 32-wide subgroup covers an 8 x 4 block, whose rays stay coherent, and the trace's tiles
+/// are whole 8 x 8 workgroups (`TracedParams::tiles`).
 pub const TILE: [u32; 2] = [8, 8];
+
+/// Workgroup size of the full-screen passes that only read and write their pixels (compose,
+/// accumulate, tone map, the shadow-map and shadow-volume resolves, debug views, overlay): rows of
+/// 64 pixels, so that each workgroup streams 1 KB runs of an RGBA32F image row where an 8 x 8
+/// one reads 128-byte stubs of eight rows. At 1920x1080 on lavapipe (one thread, Mesa 25) compose
+/// took 62-78 ms against 74-97 for 8 x 8, alternated (`tools/bench-passes`); 32 x 8 gained less,
+/// 128 x 8 and 64 x 16 no more. `ComputePipeline::new` fits it to the device's limits.
+pub const ROWS: [u32; 2] = [64, 8];
 
 pub const POSITION_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const NORMAL_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;

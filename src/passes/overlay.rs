@@ -6,7 +6,7 @@ use std::sync::Arc;
 use ash::vk;
 use glam::UVec4;
 
-use super::{storage, storage_image, TILE};
+use super::{storage, storage_image, ROWS};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, Buffer, ComputePipeline, GpuContext, GpuResult};
@@ -26,7 +26,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
         spirv::OVERLAY_COMP,
         &[storage_image(OVERLAY_CANVAS), storage(OVERLAY_GLYPHS), storage(OVERLAY_TEXT)],
         32,
-        TILE,
+        ROWS,
     )
 }
 

@@ -6,7 +6,7 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{sampled, storage_image, DISPLAY_FORMAT, TILE};
+use super::{sampled, storage_image, DISPLAY_FORMAT, ROWS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
@@ -25,7 +25,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
         spirv::TONEMAP_COMP,
         &[sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)],
         std::mem::size_of::<Push>() as u32,
-        TILE,
+        ROWS,
     )
 }
 

@@ -23,6 +23,10 @@ pub struct Capabilities {
     pub max_texel_buffer_elements: u32,
     /// `maxSubgroupSize`: the widest subgroup a compute dispatch may run (0: unknown).
     pub max_subgroup_size: u32,
+    /// `maxComputeWorkGroupInvocations` and the x and y of `maxComputeWorkGroupSize`: what a
+    /// compute pipeline's workgroup is fitted to (`vk::fit_workgroup`; 0: unknown, nothing fitted).
+    pub max_workgroup_invocations: u32,
+    pub max_workgroup_size: [u32; 2],
 }
 
 impl Capabilities {
@@ -86,6 +90,11 @@ pub(crate) fn detect(instance: &ash::Instance, pd: vk::PhysicalDevice, family: O
                 .contains(vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER),
             max_texel_buffer_elements: props.limits.max_texel_buffer_elements,
             max_subgroup_size: p13.max_subgroup_size,
+            max_workgroup_invocations: props.limits.max_compute_work_group_invocations,
+            max_workgroup_size: [
+                props.limits.max_compute_work_group_size[0],
+                props.limits.max_compute_work_group_size[1],
+            ],
         }
     }
 }

@@ -13,7 +13,7 @@ pub use capabilities::{Capabilities, DeviceListing};
 pub use context::{list_devices, GpuContext, GpuOptions, WindowSurface};
 pub use debug::ValidationLog;
 pub use pipeline::{
-    ComputePipeline, DepthState, DescriptorKind, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc,
+    fit_workgroup, ComputePipeline, DepthState, DescriptorKind, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc,
     PipelineLayout, StencilState,
 };
 pub use resources::{subresource_range, texel_bytes, Buffer, Image, ImageDesc, TexelBuffer, TexelView};

@@ -140,6 +140,8 @@ impl ComputePipeline {
         push_bytes: u32,
         local_size: [u32; 2],
     ) -> GpuResult<ComputePipeline> {
+        let caps = &ctx.capabilities;
+        let local_size = fit_workgroup(local_size, caps.max_workgroup_invocations, caps.max_workgroup_size);
         let layout = PipelineLayout::new(ctx, bindings, vk::ShaderStageFlags::COMPUTE, push_bytes, None)?;
         let module = shader_module(ctx, spirv)?;
         // Constants 0 and 1: the workgroup size. 2: whole subgroups fill each row of it (tile.glsl's
@@ -174,6 +176,21 @@ impl ComputePipeline {
     pub fn groups(&self, width: u32, height: u32) -> [u32; 2] {
         [width.div_ceil(self.local_size[0]), height.div_ceil(self.local_size[1])]
     }
+}
+
+/// `size` halved (rows first, then columns) until it fits a device that runs at most
+/// `max_invocations` invocations per workgroup and `max_size` along x and y; the Vulkan minimums
+/// (128 and 128 x 128) keep 64 x 2 of a 64 x 8 request. A limit of 0 (unknown) fits anything.
+pub fn fit_workgroup(size: [u32; 2], max_invocations: u32, max_size: [u32; 2]) -> [u32; 2] {
+    let [mut x, mut y] = size;
+    let over = |x: u32, y: u32, limit: u32| limit > 0 && x.saturating_mul(y) > limit;
+    while y > 1 && (over(x, y, max_invocations) || (max_size[1] > 0 && y > max_size[1])) {
+        y /= 2;
+    }
+    while x > 1 && (over(x, y, max_invocations) || (max_size[0] > 0 && x > max_size[0])) {
+        x /= 2;
+    }
+    [x, y]
 }
 
 impl Drop for ComputePipeline {
@@ -417,5 +434,26 @@ impl Drop for GraphicsPipeline {
     fn drop(&mut self) {
         // SAFETY: the owner waits for the GPU before dropping pipelines.
         unsafe { self.layout.ctx.device.destroy_pipeline(self.pipeline, None) };
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::fit_workgroup;
+
+    #[test]
+    fn workgroups_fit_the_device_limits() {
+        // lavapipe and desktop GPUs: 1024 invocations, 1024 wide.
+        assert_eq!(fit_workgroup([64, 8], 1024, [1024, 1024]), [64, 8]);
+        // The Vulkan minimums (128 invocations, 128 x 128): rows go first.
+        assert_eq!(fit_workgroup([64, 8], 128, [128, 128]), [64, 2]);
+        assert_eq!(fit_workgroup([64, 8], 256, [128, 128]), [64, 4]);
+        // A size limit on one axis alone.
+        assert_eq!(fit_workgroup([64, 8], 1024, [32, 4]), [32, 4]);
+        // Fewer invocations than a row: columns halve once rows are gone.
+        assert_eq!(fit_workgroup([64, 8], 32, [1024, 1024]), [32, 1]);
+        // Unknown limits (0) fit anything; what fits is unchanged.
+        assert_eq!(fit_workgroup([64, 8], 0, [0, 0]), [64, 8]);
+        assert_eq!(fit_workgroup([8, 8], 128, [128, 128]), [8, 8]);
     }
 }

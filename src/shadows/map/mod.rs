@@ -19,7 +19,7 @@ use super::light_space::{cube_face_view_proj, depth_range, directional_view_proj
 use super::{FrameInputs, Served};
 use crate::gpu_scene::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, TILE};
+use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, ROWS};
 use crate::scene::Light;
 use crate::vk::bindings::*;
 use crate::vk::{
@@ -147,7 +147,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
             sampled(MAP_SURFACE),
         ],
         std::mem::size_of::<ResolvePush>() as u32,
-        TILE,
+        ROWS,
     )?;
     let debug = ComputePipeline::new(
         ctx,
@@ -161,7 +161,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
             (MAP_DEBUG_LAYERS, DescriptorKind::UniformBuffer),
         ],
         std::mem::size_of::<DebugPush>() as u32,
-        TILE,
+        ROWS,
     )?;
     Ok(MapPipelines { depth: Default::default(), masked: Default::default(), resolve, debug, ctx: ctx.clone() })
 }

@@ -39,7 +39,7 @@ pub use self::params::VolumeParams;
 use super::{FrameInputs, Served};
 use crate::gpu_scene::{upload, SCENE_ACCESS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, TILE};
+use crate::passes::{sampled, storage, storage_image, ROWS};
 use crate::scene::{Light, Scene};
 use crate::vk::bindings::*;
 use crate::vk::{
@@ -250,7 +250,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
         spirv::SHADOWS_VOLUMES_STENCIL_VIEW_COMP,
         &[sampled(VOLUMES_STENCIL), storage_image(VOLUMES_VIEW_OUTPUT)],
         std::mem::size_of::<UVec4>() as u32,
-        TILE,
+        ROWS,
     )?;
     let resolve = ComputePipeline::new(
         ctx,
@@ -264,7 +264,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
             storage_image(VOLUMES_VISIBILITY),
         ],
         std::mem::size_of::<UVec4>() as u32,
-        TILE,
+        ROWS,
     )?;
     Ok(Pipelines { format, depth, zfail, zpass, resolve, stencil_view })
 }

@@ -88,3 +88,91 @@ fn an_empty_bvh_occludes_nothing_on_the_gpu() {
     assert_eq!(trace(&ctx, &bvh, &rays).unwrap(), vec![false, false]);
     common::assert_clean(&ctx);
 }
+
+/// bvh.glsl keeps the top 8 stack entries in registers and spills deeper ones to an array. Shells
+/// of small triangles nested at halving radii around the origin make a tree as deep as the
+/// shells are many; rays along z just beside the axis pass inside the box of every shell's two
+/// triangles on the axis (missing each: it covers the half of its box with y <= x) and so keep
+/// a group on the stack per shell. Half of them reach a wall beyond the shells, whose group waits
+/// at the bottom of the stack, in the spill, until the shells are done: a spill that lost or
+/// garbled entries would miss it (a shader that restored nothing from the spill fails here). The
+/// CPU twin counts how deep each ray's stack went, and the GPU must answer as obvhs does on every
+/// ray.
+#[test]
+fn gpu_traversal_spills_deep_stacks_and_still_matches_obvhs() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(0xdee9_57ac);
+    let mut tris = Vec::new();
+    for k in 0..18 {
+        let s = 2f32.powi(-k);
+        let a = 0.5 * s;
+        for z in [-s, s] {
+            tris.push([Vec3::new(-a, -a, z), Vec3::new(a, -a, z), Vec3::new(a, a, z)]);
+        }
+        for _ in 0..64 {
+            let centre = Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))
+                .normalize_or(Vec3::X)
+                * s
+                * 1.5;
+            let mut corner = || {
+                centre
+                    + 0.1 * s * Vec3::new(rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0), rng.gen_range(-1.0..1.0))
+            };
+            tris.push([corner(), corner(), corner()]);
+        }
+    }
+    // The wall beyond the shells, across the axis.
+    for i in 0..16 {
+        for j in 0..16 {
+            let (x, y) = (-1.0 + i as f32 / 8.0, -1.0 + j as f32 / 8.0);
+            let (a, b, c, d) = (
+                Vec3::new(x, y, 2.5),
+                Vec3::new(x + 0.125, y, 2.5),
+                Vec3::new(x + 0.125, y + 0.125, 2.5),
+                Vec3::new(x, y + 0.125, 2.5),
+            );
+            tris.push([a, b, c]);
+            tris.push([a, c, d]);
+        }
+    }
+    let bvh = ShadowBvh::from_triangles(&tris);
+    let rays: Vec<(Vec3, Vec3, f32)> = (0..20_000)
+        .map(|i| {
+            if i % 2 == 0 {
+                // Beside the axis, above the diagonal of every axis triangle.
+                let t = rng.gen_range(1e-6..2e-6);
+                (Vec3::new(-t, t, -3.0), Vec3::Z, if i % 4 == 0 { 6.0 } else { 5.0 })
+            } else {
+                let o = Vec3::new(rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0), rng.gen_range(-3.0..3.0));
+                let target = Vec3::new(rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5), rng.gen_range(-0.5..0.5));
+                (o, (target - o).normalize(), 2.0 * (target - o).length())
+            }
+        })
+        .collect();
+    let depths: Vec<usize> = rays.iter().map(|&(o, d, t)| bvh.stack_depth_reached(o, d, t)).collect();
+    let deep = depths.iter().filter(|&&d| d > 8).count();
+    let deepest = depths.iter().copied().max().unwrap();
+    assert!(deep > 1_000, "only {deep} of {} rays spill the stack (deepest {deepest})", rays.len());
+    // Half the rays along the axis end short of the far occluder; the other half are blocked by it.
+    let deep_blocked =
+        (0..rays.len()).filter(|&i| depths[i] > 8 && bvh.occluded_obvhs(rays[i].0, rays[i].1, rays[i].2)).count();
+    assert!(deep_blocked > 1_000 && deep_blocked < deep, "{deep_blocked} of {deep} deep rays blocked");
+
+    let gpu_rays: Vec<GpuRay> = rays.iter().map(|&(o, d, t)| GpuRay::new(o, d, t)).collect();
+    let ctx = common::gpu();
+    let gpu_hits = trace(&ctx, &bvh, &gpu_rays).expect("trace on lavapipe");
+    common::assert_clean(&ctx);
+    let mut occluded = 0;
+    let mut near_edge = 0;
+    for (i, &(o, d, t)) in rays.iter().enumerate() {
+        let cpu = bvh.occluded_obvhs(o, d, t);
+        occluded += cpu as usize;
+        assert_eq!(cpu, bvh.occluded_gpu_layout(o, d, t), "the CPU twin disagrees with obvhs on ray {i}");
+        if cpu != gpu_hits[i] {
+            assert!(bvh.ray_near_edge(o, d, t, 1e-5), "ray {i} ({o}, {d}, {t}): obvhs {cpu}, GPU {}", gpu_hits[i]);
+            near_edge += 1;
+        }
+    }
+    assert!(occluded > 1_000 && occluded < 19_000, "{occluded} of {} occluded", rays.len());
+    assert!(near_edge * 1_000 < rays.len(), "{near_edge} near-edge disagreements");
+    eprintln!("{deep} rays spill (deepest {deepest}); {occluded} occluded; {near_edge} near-edge disagreements");
+}

@@ -167,7 +167,11 @@ impl ShadowBvh {
         let reference = if tris.is_empty() { Bvh2::default() } else { build(&tris) };
         let start = std::time::Instant::now();
         let wide = WideBvh::from_bvh2(&reference, &tris);
-        log::debug!("BVH 4-wide collapse: {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+        log::debug!(
+            "BVH 4-wide collapse: {:.0} ms; traversal stack: at most {} entries (bvh.glsl keeps 8 in registers)",
+            start.elapsed().as_secs_f64() * 1e3,
+            wide.stack_need
+        );
         // The collapse's leaf plan measured the binary depth on its way (obvhs's `depth` walks
         // the whole tree once more, and recursively).
         let depth = wide.binary_depth;
@@ -219,6 +223,15 @@ impl ShadowBvh {
     /// Alpha masks apply where the scene has them.
     pub fn occluded_gpu_layout(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
         self.wide.occluded_masked(self.masks.as_ref(), origin, dir, tmax)
+    }
+
+    /// The most stack entries `occluded_gpu_layout`'s walk holds on this ray (bvh.glsl keeps 8
+    /// in registers and spills the rest to an array).
+    pub fn stack_depth_reached(&self, origin: Vec3, dir: Vec3, tmax: f32) -> usize {
+        if self.is_empty() {
+            return 0;
+        }
+        self.wide.stack_depth_reached(origin, dir, tmax)
     }
 
     /// The same query through obvhs's own Bvh2 traversal and triangle test: the independent

@@ -384,14 +384,61 @@ impl WideBvh {
     /// `occluded` with `masks` (of this tree's triangles) applied as bvh.glsl's BVH_MASKED
     /// variant applies them: a hit where a masked triangle's alpha is below its cutoff is none.
     pub fn occluded_masked(&self, masks: Option<&super::mask::BvhMasks>, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
+        self.walk(masks, origin, dir, tmax, &mut 0)
+    }
+
+    /// The most entries `occluded`'s stack holds on this ray: bvh.glsl keeps the top 8 in
+    /// registers and spills the rest, so tests can pick rays that reach the spill.
+    pub fn stack_depth_reached(&self, origin: Vec3, dir: Vec3, tmax: f32) -> usize {
+        let mut deepest = 0;
+        self.walk(None, origin, dir, tmax, &mut deepest);
+        deepest
+    }
+
+    /// bvh.glsl's `bvh_occluded`, loop for loop (descend to a leaf, then test its triangles),
+    /// recording in `deepest` the most entries its stack held.
+    #[inline(always)]
+    fn walk(
+        &self,
+        masks: Option<&super::mask::BvhMasks>,
+        origin: Vec3,
+        dir: Vec3,
+        tmax: f32,
+        deepest: &mut usize,
+    ) -> bool {
         let inv_dir = Vec3::ONE / safe_dir(dir);
         let mut stack = [0u32; STACK_SIZE];
         let mut len = 0usize;
         let mut node = 0u32;
         let mut mask = child_hits(&self.nodes[0], origin, inv_dir, tmax);
-        let (mut leaf_next, mut leaf_left) = (0u32, 0u32);
         loop {
-            if leaf_left > 0 {
+            let (mut leaf_next, mut leaf_left) = (0u32, 0u32);
+            while leaf_left == 0 {
+                if mask == 0 {
+                    if len == 0 {
+                        return false;
+                    }
+                    len -= 1;
+                    node = stack[len] & FIRST_MASK;
+                    mask = stack[len] >> 28;
+                }
+                let c = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                let word = self.nodes[node as usize].texels[1][c];
+                if word & LEAF != 0 {
+                    leaf_next = word & FIRST_MASK;
+                    leaf_left = ((word >> 28) & 7) + 1;
+                } else {
+                    if mask != 0 {
+                        stack[len.min(STACK_SIZE - 1)] = node | (mask << 28);
+                        len += 1;
+                        *deepest = (*deepest).max(len);
+                    }
+                    node = word;
+                    mask = child_hits(&self.nodes[node as usize], origin, inv_dir, tmax);
+                }
+            }
+            while leaf_left > 0 {
                 let triangle = &self.triangles[leaf_next as usize];
                 let hit = match masks {
                     None => triangle_occludes(triangle, origin, dir, tmax),
@@ -403,29 +450,6 @@ impl WideBvh {
                 }
                 leaf_next += 1;
                 leaf_left -= 1;
-                continue;
-            }
-            if mask == 0 {
-                if len == 0 {
-                    return false;
-                }
-                len -= 1;
-                node = stack[len] & FIRST_MASK;
-                mask = stack[len] >> 28;
-            }
-            let c = mask.trailing_zeros() as usize;
-            mask &= mask - 1;
-            let word = self.nodes[node as usize].texels[1][c];
-            if word & LEAF != 0 {
-                leaf_next = word & FIRST_MASK;
-                leaf_left = ((word >> 28) & 7) + 1;
-            } else {
-                if mask != 0 {
-                    stack[len.min(STACK_SIZE - 1)] = node | (mask << 28);
-                    len += 1;
-                }
-                node = word;
-                mask = child_hits(&self.nodes[node as usize], origin, inv_dir, tmax);
             }
         }
     }

@@ -9,11 +9,8 @@ use std::process::Output;
 
 use common::umbra;
 
-fn out_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("umbra-cli-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    dir
+fn out_dir(name: &str) -> common::ScratchDir {
+    common::scratch_dir(&format!("cli-{name}"))
 }
 
 fn run(args: &[&str]) -> Output {

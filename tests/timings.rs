@@ -15,8 +15,7 @@ const FRAMES: &str = "16";
 
 /// Stdout and stderr (the calibration's log line) of a timed render of the default scene.
 fn render(busy: bool) -> String {
-    let dir = std::env::temp_dir().join(format!("umbra-timings-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
+    let dir = common::scratch_dir("timings");
     let out = dir.join(if busy { "busy.png" } else { "plain.png" });
     let mut args = vec!["render", "-o", out.to_str().unwrap(), "--size", "64x48", "--frames", FRAMES];
     args.extend(["--timings", "--validate"]);

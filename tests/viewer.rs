@@ -3,16 +3,14 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
 
 use umbra::output::read_exr;
 
 /// A fresh directory holding a copy of the default scene (screenshots land beside it).
-fn scene_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("umbra-viewer-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+fn scene_dir(name: &str) -> common::ScratchDir {
+    let dir = common::scratch_dir(&format!("viewer-{name}"));
     let scene = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/default.toml")).unwrap();
     std::fs::write(dir.join("scene.toml"), scene).unwrap();
     dir

@@ -7,13 +7,11 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::process::Output;
 
-fn scene_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("umbra-viewer-hard-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
+fn scene_dir(name: &str) -> common::ScratchDir {
+    let dir = common::scratch_dir(&format!("viewer-hard-{name}"));
     let scene = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/default.toml")).unwrap();
     std::fs::write(dir.join("scene.toml"), scene).unwrap();
     dir

@@ -196,3 +196,24 @@ pub fn render_linear(
     settings.debug_view = view;
     floats(renderer.render(&settings).expect("render"))
 }
+
+/// A fresh directory for one test's files under the system's temporary directory, named
+/// `umbra-{name}-...`, and removed when dropped (whether the test passed or not).
+pub struct ScratchDir(tempfile::TempDir);
+
+impl std::ops::Deref for ScratchDir {
+    type Target = std::path::Path;
+    fn deref(&self) -> &std::path::Path {
+        self.0.path()
+    }
+}
+
+impl AsRef<std::path::Path> for ScratchDir {
+    fn as_ref(&self) -> &std::path::Path {
+        self.0.path()
+    }
+}
+
+pub fn scratch_dir(name: &str) -> ScratchDir {
+    ScratchDir(tempfile::Builder::new().prefix(&format!("umbra-{name}-")).tempdir().expect("a temporary directory"))
+}

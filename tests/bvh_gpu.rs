@@ -35,6 +35,15 @@ fn test_mesh(rng: &mut impl Rng) -> Vec<[Vec3; 3]> {
     tris
 }
 
+/// The GPU's any-hit answer for each `(origin, direction, tmax)`, traced under validation.
+fn gpu_answers(bvh: &ShadowBvh, rays: &[(Vec3, Vec3, f32)]) -> Vec<bool> {
+    let gpu_rays: Vec<GpuRay> = rays.iter().map(|&(o, d, t)| GpuRay::new(o, d, t)).collect();
+    let ctx = common::gpu();
+    let hits = trace(&ctx, bvh, &gpu_rays).expect("trace on lavapipe");
+    common::assert_clean(&ctx);
+    hits
+}
+
 #[test]
 fn gpu_traversal_matches_obvhs_on_100k_rays() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(0x5eed_0bb5);
@@ -49,11 +58,7 @@ fn gpu_traversal_matches_obvhs_on_100k_rays() {
             (o, d, (target - o).length().max(1e-3))
         })
         .collect();
-    let gpu_rays: Vec<GpuRay> = rays.iter().map(|&(o, d, t)| GpuRay::new(o, d, t)).collect();
-
-    let ctx = common::gpu();
-    let gpu_hits = trace(&ctx, &bvh, &gpu_rays).expect("trace on lavapipe");
-    common::assert_clean(&ctx);
+    let gpu_hits = gpu_answers(&bvh, &rays);
 
     let mut occluded = 0;
     let mut mismatches_near_edge = 0;
@@ -157,10 +162,7 @@ fn gpu_traversal_spills_deep_stacks_and_still_matches_obvhs() {
         (0..rays.len()).filter(|&i| depths[i] > 8 && bvh.occluded_obvhs(rays[i].0, rays[i].1, rays[i].2)).count();
     assert!(deep_blocked > 1_000 && deep_blocked < deep, "{deep_blocked} of {deep} deep rays blocked");
 
-    let gpu_rays: Vec<GpuRay> = rays.iter().map(|&(o, d, t)| GpuRay::new(o, d, t)).collect();
-    let ctx = common::gpu();
-    let gpu_hits = trace(&ctx, &bvh, &gpu_rays).expect("trace on lavapipe");
-    common::assert_clean(&ctx);
+    let gpu_hits = gpu_answers(&bvh, &rays);
     let mut occluded = 0;
     let mut near_edge = 0;
     for (i, &(o, d, t)) in rays.iter().enumerate() {

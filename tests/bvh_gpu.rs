@@ -94,7 +94,8 @@ fn an_empty_bvh_occludes_nothing_on_the_gpu() {
     common::assert_clean(&ctx);
 }
 
-/// bvh.glsl keeps the top 8 stack entries in registers and spills deeper ones to an array. Shells
+/// bvh.glsl keeps the top `BVH_REGISTER_STACK` (8) stack entries in registers and spills deeper
+/// ones to an array. Shells
 /// of small triangles nested at halving radii around the origin make a tree as deep as the
 /// shells are many; rays along z just beside the axis pass inside the box of every shell's two
 /// triangles on the axis (missing each: it covers the half of its box with y <= x) and so keep
@@ -154,12 +155,14 @@ fn gpu_traversal_spills_deep_stacks_and_still_matches_obvhs() {
         })
         .collect();
     let depths: Vec<usize> = rays.iter().map(|&(o, d, t)| bvh.stack_depth_reached(o, d, t)).collect();
-    let deep = depths.iter().filter(|&&d| d > 8).count();
+    let registers = umbra::vk::bindings::BVH_REGISTER_STACK as usize;
+    let deep = depths.iter().filter(|&&d| d > registers).count();
     let deepest = depths.iter().copied().max().unwrap();
     assert!(deep > 1_000, "only {deep} of {} rays spill the stack (deepest {deepest})", rays.len());
     // Half the rays along the axis end short of the far occluder; the other half are blocked by it.
-    let deep_blocked =
-        (0..rays.len()).filter(|&i| depths[i] > 8 && bvh.occluded_obvhs(rays[i].0, rays[i].1, rays[i].2)).count();
+    let deep_blocked = (0..rays.len())
+        .filter(|&i| depths[i] > registers && bvh.occluded_obvhs(rays[i].0, rays[i].1, rays[i].2))
+        .count();
     assert!(deep_blocked > 1_000 && deep_blocked < deep, "{deep_blocked} of {deep} deep rays blocked");
 
     let gpu_hits = gpu_answers(&bvh, &rays);

@@ -106,6 +106,9 @@
 // The geometry pass's push constant draw.z: a flat-shaded draw (gpu_scene::Draw::flat), whose
 // fragments read no triangle (geometry_body.glsl). Bit 31: textured draws keep the low bits.
 #define GEOMETRY_DRAW_FLAT 2147483648u
+// bvh.glsl: the traversal stack's top entries kept in variables (s0..s7, so 8 is the only value
+// it takes); deeper ones spill to an array. The CPU twin's tests pick rays that go deeper.
+#define BVH_REGISTER_STACK 8u
 // geometry_textured*.frag, descriptor set 1 (one set per material, src/gpu_textures.rs): its
 // textures, each a 1x1 white texel where the material has no such map
 #define MATERIAL_BASE_COLOR 0

@@ -18,6 +18,9 @@
 #error "define BVH_SET, BVH_NODES_BINDING and BVH_TRIANGLES_BINDING before including bvh.glsl"
 #endif
 
+// BVH_REGISTER_STACK, shared with Rust.
+#include "bindings.glsl"
+
 // Texel buffers, not storage buffers: lavapipe turns a storage load whose address differs
 // between the lanes of a SIMD vector into a per-lane loop; a texel fetch is one gather.
 layout(set = BVH_SET, binding = BVH_NODES_BINDING) uniform usamplerBuffer bvh_nodes;
@@ -124,13 +127,13 @@ uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax) {
 // vector's other lanes for the whole leaf. A SIMD vector whose lanes are at different steps then
 // runs node steps together and triangle tests together, not both in every iteration.
 //
-// The stack's top BVH_REGISTER_STACK entries are plain variables, shifted on a push and a pop:
-// lavapipe runs each access to a local array at a varying index as a loop over the SIMD lanes
-// (in scratch memory), and shifting eight registers is eight selects. Entries below them spill to
-// that array, which the bench scenes' trees (at most 8 groups deep on any ray) never touch.
-// Against one array for the whole stack, `umbra bench rays` on one lavapipe thread (Mesa 25):
-// 100k scene 133 -> 117 ms (~14 %) with the while-while loop; the spill branch costs ~4 % of it.
-#define BVH_REGISTER_STACK 8u
+// The stack's top BVH_REGISTER_STACK (bindings.glsl) entries are plain variables, shifted on a
+// push and a pop: lavapipe runs each access to a local array at a varying index as a loop over
+// the SIMD lanes (in scratch memory), and shifting eight registers is eight selects. Deeper
+// entries spill to that array (the bench trees' stacks can reach 15 and 22 entries; -vv logs a
+// tree's bound). Against one array for the whole stack and the single loop before, `umbra bench
+// rays` on one lavapipe thread, alternated: 100k scene 141 -> 124-131 ms on Mesa 25, 179-188 ->
+// 148 on Mesa 22.3; the spill's branch costs about 4 % against registers alone.
 bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
     vec3 inv_dir = 1.0 / vec3(bvh_safe_component(dir.x), bvh_safe_component(dir.y),
                               bvh_safe_component(dir.z));

@@ -168,9 +168,10 @@ impl ShadowBvh {
         let start = std::time::Instant::now();
         let wide = WideBvh::from_bvh2(&reference, &tris);
         log::debug!(
-            "BVH 4-wide collapse: {:.0} ms; traversal stack: at most {} entries (bvh.glsl keeps 8 in registers)",
+            "BVH 4-wide collapse: {:.0} ms; traversal stack: at most {} entries ({} in registers)",
             start.elapsed().as_secs_f64() * 1e3,
-            wide.stack_need
+            wide.stack_need,
+            crate::vk::bindings::BVH_REGISTER_STACK
         );
         // The collapse's leaf plan measured the binary depth on its way (obvhs's `depth` walks
         // the whole tree once more, and recursively).
@@ -225,12 +226,9 @@ impl ShadowBvh {
         self.wide.occluded_masked(self.masks.as_ref(), origin, dir, tmax)
     }
 
-    /// The most stack entries `occluded_gpu_layout`'s walk holds on this ray (bvh.glsl keeps 8
-    /// in registers and spills the rest to an array).
+    /// The most stack entries `occluded_gpu_layout`'s walk holds on this ray (bvh.glsl keeps
+    /// `BVH_REGISTER_STACK` in registers and spills the rest to an array).
     pub fn stack_depth_reached(&self, origin: Vec3, dir: Vec3, tmax: f32) -> usize {
-        if self.is_empty() {
-            return 0;
-        }
         self.wide.stack_depth_reached(origin, dir, tmax)
     }
 

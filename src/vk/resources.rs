@@ -182,21 +182,6 @@ impl ImageDesc {
             _ => vk::ImageAspectFlags::COLOR,
         }
     }
-
-    /// Bytes per texel of the formats umbra reads back.
-    pub fn texel_size(&self) -> u32 {
-        match self.format {
-            vk::Format::R8_UNORM => 1,
-            vk::Format::R8G8B8A8_UNORM
-            | vk::Format::R8G8B8A8_SRGB
-            | vk::Format::B8G8R8A8_UNORM
-            | vk::Format::R32_SFLOAT
-            | vk::Format::D32_SFLOAT => 4,
-            vk::Format::R16G16B16A16_SFLOAT => 8,
-            vk::Format::R32G32B32A32_SFLOAT => 16,
-            f => panic!("texel size of {f:?} is not tabulated"),
-        }
-    }
 }
 
 pub struct Image {

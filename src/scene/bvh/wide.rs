@@ -387,8 +387,9 @@ impl WideBvh {
         self.walk(masks, origin, dir, tmax, &mut 0)
     }
 
-    /// The most entries `occluded`'s stack holds on this ray: bvh.glsl keeps the top 8 in
-    /// registers and spills the rest, so tests can pick rays that reach the spill.
+    /// The most entries `occluded`'s stack holds on this ray: bvh.glsl keeps the top
+    /// `BVH_REGISTER_STACK` in registers and spills the rest, so tests can pick rays that reach
+    /// the spill.
     pub fn stack_depth_reached(&self, origin: Vec3, dir: Vec3, tmax: f32) -> usize {
         let mut deepest = 0;
         self.walk(None, origin, dir, tmax, &mut deepest);

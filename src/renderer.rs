@@ -169,12 +169,11 @@ impl Renderer {
             self.shadow_pipelines.prepare(&self.ctx, &self.gpu_scene, &plan, volume_scene, settings.debug_view)?;
         let ray_query = self.ray_query_scene(settings)?;
         if !plan.traced.is_empty() {
-            let traced = &self.shadow_pipelines.traced;
-            let pipeline = match ray_query {
-                Some(rq) => traced.ray_query(&self.ctx, rq.masked())?,
-                None => traced.compute(&self.ctx, self.gpu_scene.bvh.masked())?,
-            };
-            prepared.traced = Some((pipeline, ray_query));
+            let masked = ray_query.map_or(self.gpu_scene.bvh.masked(), |rq| rq.masked());
+            let lights = &self.gpu_scene.local_lights;
+            let pipelines =
+                self.shadow_pipelines.traced.prepare(&self.ctx, ray_query.is_some(), masked, &plan.traced, lights)?;
+            prepared.traced = Some((pipelines, ray_query));
         }
         let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
         let lighting = self.lighting_pipelines.prepare(

@@ -229,8 +229,8 @@ pub struct Pipelines {
 /// What one frame's techniques draw and trace with, made before its graph is built.
 #[derive(Clone, Copy, Default)]
 pub struct Prepared<'a> {
-    /// The traced pipeline, and the ray-query scene when the rays use the driver's traversal.
-    pub traced: Option<(&'a crate::vk::ComputePipeline, Option<&'a traced::accel::RayQueryScene>)>,
+    /// The traced pipelines, and the ray-query scene when the rays use the driver's traversal.
+    pub traced: Option<(traced::Variants<'a>, Option<&'a traced::accel::RayQueryScene>)>,
     pub map: Option<&'a map::MapPipelines>,
     /// The volume pipelines and the casters' adjacency.
     pub volumes: Option<(&'a volumes::Pipelines, &'a volumes::VolumeScene)>,
@@ -270,6 +270,7 @@ impl Pipelines {
             true => None,
             false => {
                 let pipelines = crate::vk::get_or_make(&self.hybrid, || hybrid::pipelines(ctx, scene.bvh.masked()))?;
+                pipelines.prepare_trace(&plan.hybrid, &scene.local_lights)?;
                 if debug_view.is_some_and(|v| matches!(v, DebugView::Hybrid(_))) {
                     pipelines.prepare_view()?;
                 }
@@ -311,16 +312,16 @@ pub fn add<'a>(
     if let (Some(pipelines), Some(maps), Some(walk)) = (prepared.hybrid, prepared.map, &bvh) {
         debug = debug.or(hybrid::add(g, frame, maps, pipelines, walk, &plan.hybrid, &mut target));
     }
-    if let Some((pipeline, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
+    if let Some((pipelines, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
         match (ray_query, &bvh) {
             (Some(rq), _) => {
                 let handles = rq.add(g);
                 let casters = traced::Casters::RayQuery(&handles);
-                traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
+                traced::add(g, frame, pipelines, casters, &plan.traced, &mut target);
             }
             (None, Some(walk)) => {
                 let casters = traced::Casters::Bvh(walk);
-                traced::add(g, frame, pipeline, casters, &plan.traced, &mut target);
+                traced::add(g, frame, pipelines, casters, &plan.traced, &mut target);
             }
             (None, None) => unreachable!("imported above for the traced lights"),
         }

@@ -140,6 +140,20 @@ impl ComputePipeline {
         push_bytes: u32,
         local_size: [u32; 2],
     ) -> GpuResult<ComputePipeline> {
+        ComputePipeline::specialized(ctx, name, spirv, bindings, push_bytes, local_size, &[])
+    }
+
+    /// `new`, with `constants` as the shader's specialisation constants 3, 4, ... (a variant the
+    /// compiler builds without the code the constants rule out).
+    pub fn specialized(
+        ctx: &Arc<GpuContext>,
+        name: &'static str,
+        spirv: &[u8],
+        bindings: &[(u32, DescriptorKind)],
+        push_bytes: u32,
+        local_size: [u32; 2],
+        constants: &[u32],
+    ) -> GpuResult<ComputePipeline> {
         let caps = &ctx.capabilities;
         let local_size = fit_workgroup(local_size, caps.max_workgroup_invocations, caps.max_workgroup_size);
         let layout = PipelineLayout::new(ctx, bindings, vk::ShaderStageFlags::COMPUTE, push_bytes, None)?;
@@ -150,13 +164,15 @@ impl ComputePipeline {
         // from the device's range a dispatch runs with (all are powers of two).
         let max_subgroup = ctx.capabilities.max_subgroup_size;
         let by_subgroups = max_subgroup > 0 && local_size[0] % max_subgroup == 0;
-        let entries = [
-            vk::SpecializationMapEntry { constant_id: 0, offset: 0, size: 4 },
-            vk::SpecializationMapEntry { constant_id: 1, offset: 4, size: 4 },
-            vk::SpecializationMapEntry { constant_id: 2, offset: 8, size: 4 },
-        ];
-        let data: [u8; 12] = bytemuck::cast([local_size[0], local_size[1], vk::Bool32::from(by_subgroups)]);
-        let spec = vk::SpecializationInfo::default().map_entries(&entries).data(&data);
+        let data: Vec<u32> = [local_size[0], local_size[1], vk::Bool32::from(by_subgroups)]
+            .into_iter()
+            .chain(constants.iter().copied())
+            .collect();
+        let entries: Vec<_> = (0..data.len() as u32)
+            .map(|id| vk::SpecializationMapEntry { constant_id: id, offset: 4 * id, size: 4 })
+            .collect();
+        let data: &[u8] = bytemuck::cast_slice(&data);
+        let spec = vk::SpecializationInfo::default().map_entries(&entries).data(data);
         let stage = vk::PipelineShaderStageCreateInfo::default()
             .stage(vk::ShaderStageFlags::COMPUTE)
             .module(module)

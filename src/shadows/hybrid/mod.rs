@@ -31,8 +31,11 @@ pub const LIST_GROUP: u32 = 64;
 
 pub struct Pipelines {
     classify: ComputePipeline,
-    /// The traced pass over a list of pixels.
-    trace: ComputePipeline,
+    /// The traced pass over a list of pixels, hard and soft (`traced::Variants`), each made the
+    /// first time a frame's light takes it.
+    trace: [OnceLock<ComputePipeline>; 2],
+    /// The scene has alpha-masked casters (the list trace takes its masked variant).
+    masked: bool,
     /// The `hybrid:N` debug view, made on first use.
     view: OnceLock<ComputePipeline>,
     ctx: Arc<GpuContext>,
@@ -66,8 +69,7 @@ pub fn pipelines(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<Pipelines> {
         std::mem::size_of::<ClassifyPush>() as u32,
         TILE,
     )?;
-    let trace = traced::list_pipeline(ctx, LIST_GROUP, masked)?;
-    Ok(Pipelines { classify, trace, view: OnceLock::new(), ctx: ctx.clone() })
+    Ok(Pipelines { classify, trace: Default::default(), masked, view: OnceLock::new(), ctx: ctx.clone() })
 }
 
 impl Pipelines {
@@ -87,6 +89,17 @@ impl Pipelines {
     /// What a frame showing `hybrid:N` needs beyond the passes themselves.
     pub fn prepare_view(&self) -> GpuResult<()> {
         self.view().map(|_| ())
+    }
+
+    /// Makes the list trace's variant for each of `served` (lights of `lights`).
+    pub fn prepare_trace(&self, served: &[Served], lights: &[Light]) -> GpuResult<()> {
+        for s in served {
+            let soft = traced::is_soft(traced::rays(s, &lights[s.light as usize]));
+            crate::vk::get_or_make(&self.trace[soft as usize], || {
+                traced::list_pipeline(&self.ctx, LIST_GROUP, self.masked, soft)
+            })?;
+        }
+        Ok(())
     }
 }
 
@@ -239,7 +252,7 @@ fn trace<'a>(
     let light = &frame.scene.local_lights[served.light as usize];
     let rays = traced::rays(served, light);
     let push = traced::push_constants(extent, frame.frame_index, frame.camera.eye, served, rays);
-    let pipeline = &pipelines.trace;
+    let pipeline = pipelines.trace[traced::is_soft(rays) as usize].get().expect("made by prepare_trace");
     pass.render(move |ctx| ctx.dispatch_indirect(pipeline, &bound, bytemuck::bytes_of(&push), dispatch));
 }
 

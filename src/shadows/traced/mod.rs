@@ -3,7 +3,9 @@
 //! driver's own acceleration structure through VK_KHR_ray_query (`ray-query`), with the same
 //! rays. Hard shadows are one ray toward the light's centre; soft ones `spp` rays over the
 //! solid angle it fills per frame (spread evenly: `shading::soft_sample`), weighted as the
-//! light's analytic shading weighs their directions (the ratio estimator, trace_body.glsl). Writes each served light's visibility layer (1 lit, 0 shadowed).
+//! light's analytic shading weighs their directions (the ratio estimator, trace_body.glsl). Hard
+//! and soft lights run their own pipeline variant (`Variants`), made only when a frame has such
+//! a light. Writes each served light's visibility layer (1 lit, 0 shadowed).
 
 pub mod accel;
 pub mod params;
@@ -20,23 +22,76 @@ use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
 
-/// The two traversals' pipelines, each made the first time a frame uses it (the compute one for
-/// the scene's BVH: masked where it has alpha-masked casters, see `pipeline`).
+/// The two traversals' pipelines in their hard and soft variants (trace_body.glsl's
+/// TRACE_SOFT), each made the first time a frame uses it (the compute one for the scene's BVH:
+/// masked where it has alpha-masked casters, see `pipeline`).
 #[derive(Default)]
 pub struct Pipelines {
-    compute: OnceLock<ComputePipeline>,
-    ray_query: OnceLock<ComputePipeline>,
+    /// Indexed by `soft as usize`.
+    compute: [OnceLock<ComputePipeline>; 2],
+    ray_query: [OnceLock<ComputePipeline>; 2],
 }
 
 impl Pipelines {
-    pub fn compute(&self, ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.compute, || pipeline(ctx, masked))
+    /// The variants `served` needs (None for one no light of them takes), over the compute BVH
+    /// or, with `ray_query`, the driver's traversal (only on devices with ray query).
+    pub fn prepare<'a>(
+        &'a self,
+        ctx: &Arc<GpuContext>,
+        ray_query: bool,
+        masked: bool,
+        served: &[Served],
+        lights: &[crate::scene::Light],
+    ) -> GpuResult<Variants<'a>> {
+        let mut variants = Variants::default();
+        for soft in [false, true] {
+            if !served.iter().any(|s| is_soft(rays(s, &lights[s.light as usize])) == soft) {
+                continue;
+            }
+            let made = match ray_query {
+                true => {
+                    crate::vk::get_or_make(&self.ray_query[soft as usize], || ray_query_pipeline(ctx, masked, soft))
+                }
+                false => crate::vk::get_or_make(&self.compute[soft as usize], || pipeline(ctx, masked, soft)),
+            }?;
+            *variants.slot(soft) = Some(made);
+        }
+        Ok(variants)
+    }
+}
+
+/// A frame's traced pipelines: the hard and the soft variant, where a light of the frame takes it.
+#[derive(Clone, Copy, Default)]
+pub struct Variants<'a> {
+    pub hard: Option<&'a ComputePipeline>,
+    pub soft: Option<&'a ComputePipeline>,
+}
+
+impl<'a> Variants<'a> {
+    fn slot(&mut self, soft: bool) -> &mut Option<&'a ComputePipeline> {
+        if soft {
+            &mut self.soft
+        } else {
+            &mut self.hard
+        }
     }
 
-    /// Only on devices with ray query.
-    pub fn ray_query(&self, ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.ray_query, || ray_query_pipeline(ctx, masked))
+    /// The variant for `rays`, which `Pipelines::prepare` made for a light of the frame.
+    pub fn get(&self, rays: Rays) -> &'a ComputePipeline {
+        let soft = is_soft(rays);
+        if soft { self.soft } else { self.hard }.expect("Pipelines::prepare makes the variants a frame's lights take")
     }
+}
+
+/// Whether `rays` take the soft variant (TRACE_SOFT); hard rays and none (the facing test) take
+/// the hard one.
+pub fn is_soft(rays: Rays) -> bool {
+    matches!(rays, Rays::Soft(_))
+}
+
+/// A variant's name among `names`: plain, alpha masks, soft, soft with alpha masks.
+fn variant_name(names: [&'static str; 4], masked: bool, soft: bool) -> &'static str {
+    names[masked as usize + 2 * soft as usize]
 }
 
 /// The compute-BVH trace's bindings (trace.comp and trace_list.comp), and `SHADOW_BVH_MASKS` in
@@ -62,30 +117,36 @@ pub fn bvh_bindings(bindings: &[(u32, DescriptorKind)], masks: u32, masked: bool
 }
 
 /// The trace over the compute BVH; `masked`: the variant that reads alpha masks (bvh.glsl's
-/// BVH_MASKED), for scenes with alpha-masked casters only.
-pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
-    let (name, spirv) = match masked {
-        false => ("shadow trace", spirv::SHADOWS_TRACED_TRACE_COMP),
-        true => ("shadow trace (alpha masks)", spirv::SHADOWS_TRACED_TRACE_COMP_MASKED),
-    };
-    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked), PUSH_SIZE, TILE)
+/// BVH_MASKED), for scenes with alpha-masked casters only; `soft`: soft lights' variant.
+pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> GpuResult<ComputePipeline> {
+    let names =
+        ["shadow trace", "shadow trace (alpha masks)", "shadow trace (soft)", "shadow trace (soft, alpha masks)"];
+    let spirv = if masked { spirv::SHADOWS_TRACED_TRACE_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_COMP };
+    let bindings = bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked);
+    let name = variant_name(names, masked, soft);
+    ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
 }
 
 /// The same rays over the compute BVH for the pixels of a list only (`hybrid`), one
 /// invocation per listed pixel, `list_group` to a workgroup (an indirect dispatch).
-pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32, masked: bool) -> GpuResult<ComputePipeline> {
+pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32, masked: bool, soft: bool) -> GpuResult<ComputePipeline> {
     let mut bindings = bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked);
     bindings.push((SHADOW_LIST, DescriptorKind::StorageBuffer));
-    let (name, spirv) = match masked {
-        false => ("shadow trace (list)", spirv::SHADOWS_TRACED_TRACE_LIST_COMP),
-        true => ("shadow trace (list, alpha masks)", spirv::SHADOWS_TRACED_TRACE_LIST_COMP_MASKED),
-    };
-    ComputePipeline::new(ctx, name, spirv, &bindings, PUSH_SIZE, [list_group, 1])
+    let names = [
+        "shadow trace (list)",
+        "shadow trace (list, alpha masks)",
+        "shadow trace (list, soft)",
+        "shadow trace (list, soft, alpha masks)",
+    ];
+    let spirv =
+        if masked { spirv::SHADOWS_TRACED_TRACE_LIST_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_LIST_COMP };
+    let name = variant_name(names, masked, soft);
+    ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, [list_group, 1], &[soft as u32])
 }
 
 /// The same pass over a top-level acceleration structure; only on devices with ray query.
 /// `masked`: the variant that tests alpha-masked casters' candidates against their masks.
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> GpuResult<ComputePipeline> {
     let bindings = [
         sampled(SHADOW_POSITION),
         sampled(SHADOW_NORMAL),
@@ -95,11 +156,16 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<Comp
         (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
         storage_image(SHADOW_VISIBILITY),
     ];
-    let (name, spirv) = match masked {
-        false => ("shadow trace (ray query)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP),
-        true => ("shadow trace (ray query, alpha masks)", spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED),
-    };
-    ComputePipeline::new(ctx, name, spirv, &bvh_bindings(&bindings, SHADOW_BVH_MASKS, masked), PUSH_SIZE, TILE)
+    let names = [
+        "shadow trace (ray query)",
+        "shadow trace (ray query, alpha masks)",
+        "shadow trace (ray query, soft)",
+        "shadow trace (ray query, soft, alpha masks)",
+    ];
+    let spirv = if masked { spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_RQ_COMP };
+    let name = variant_name(names, masked, soft);
+    let bindings = bvh_bindings(&bindings, SHADOW_BVH_MASKS, masked);
+    ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
 }
 
 /// What the rays traverse.
@@ -132,11 +198,12 @@ pub fn rays(served: &Served, light: &crate::scene::Light) -> Rays {
 }
 
 /// Writes each light's layer of `visibility`: one dispatch per light, so every dispatch runs
-/// one sample loop with no untaken branch for other lights' kinds of shadow.
+/// one sample loop with no untaken branch for other lights' kinds of shadow, in the pipeline
+/// variant of its kind (`pipelines`, prepared for these lights).
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipeline: &'a ComputePipeline,
+    pipelines: Variants<'a>,
     casters: Casters<'_>,
     served: &[Served],
     visibility: &mut Handle<ImageKind>,
@@ -169,7 +236,7 @@ pub fn add<'a>(
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.
-    let mut work: Vec<(Push, Bound, [u32; 2])> = Vec::new();
+    let mut work: Vec<(&ComputePipeline, Push, Bound, [u32; 2])> = Vec::new();
     for s in served {
         let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
         let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
@@ -177,12 +244,12 @@ pub fn add<'a>(
         for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
             let mut push = push;
             push.frame.w = x | y << 16;
-            work.push((push, layer, [w, h]));
+            work.push((pipelines.get(rays), push, layer, [w, h]));
         }
     }
     pass.render(move |ctx| {
         let mut bound = bound;
-        for (push, target, [w, h]) in &work {
+        for (pipeline, push, target, [w, h]) in &work {
             bound.push((SHADOW_VISIBILITY, *target));
             ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(push), *w, *h)?;
             bound.pop();
@@ -197,7 +264,8 @@ pub fn add<'a>(
 pub struct Push {
     /// Width, height, the light, rays per pixel.
     pub dims: UVec4,
-    /// Frame index, the light's layer, 1 for soft, the tile's origin.
+    /// Frame index, the light's layer, 0 (the pipeline variant says soft or hard), the tile's
+    /// origin.
     pub frame: UVec4,
     /// The camera, whose view vector soft rays' weights take.
     pub eye: Vec4,
@@ -207,14 +275,14 @@ const PUSH_SIZE: u32 = std::mem::size_of::<Push>() as u32;
 
 /// The push constants for `served`'s `rays`, seen from `eye` (scene-local).
 pub fn push_constants(extent: vk::Extent2D, frame_index: u32, eye: Vec3, served: &Served, rays: Rays) -> Push {
-    let (spp, soft) = match rays {
-        Rays::None => (0, 0),
-        Rays::Hard => (1, 0),
-        Rays::Soft(spp) => (spp, 1),
+    let spp = match rays {
+        Rays::None => 0,
+        Rays::Hard => 1,
+        Rays::Soft(spp) => spp,
     };
     Push {
         dims: UVec4::new(extent.width, extent.height, served.light, spp),
-        frame: UVec4::new(frame_index, served.layer, soft, 0),
+        frame: UVec4::new(frame_index, served.layer, 0, 0),
         eye: eye.extend(0.0),
     }
 }

@@ -95,10 +95,9 @@ bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
 }
 
 // The mask of node `node`'s children whose boxes the ray segment touches (bit i: child i).
-uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax, out uvec4 words) {
+uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax) {
     int at = int(4u * node);
     uvec4 head = texelFetch(bvh_nodes, at);
-    words = texelFetch(bvh_nodes, at + 1);
     uvec4 qxy = texelFetch(bvh_nodes, at + 2);
     uvec4 qz = texelFetch(bvh_nodes, at + 3);
     vec3 base = uintBitsToFloat(head.xyz);
@@ -121,12 +120,11 @@ uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax, out uvec4 
 // that are still to visit. Each step visits one child of the group (its lowest): an inner node
 // replaces the group, the rest of the old group going on the stack as one entry (node index |
 // mask << 28); a pop happens only when a group is empty. So a node costs one push at most,
-// never one per child. The group's four child words stay in registers with it: fetched with the
-// node's boxes, again after a pop, and never per visited child. Each texel fetch is a call into
-// lavapipe's sampling code, around which every live vector is saved and restored, so a fetch
-// saved counts: against fetching the child word per step, `umbra bench rays` on one lavapipe
-// thread, alternated: 100k scene 131-134 -> 125 ms, 1M scene 230 -> 198-210 on Mesa 25; 100k
-// 200-210 -> 157-160 on Mesa 22.3.
+// never one per child. The group's child words are fetched again at each visited child, not
+// kept with it: four more loop-carried registers are saved around each texel fetch (a call on
+// lavapipe). Kept in registers they made `umbra bench rays` 6-11 % faster (Mesa 25; 23 % on
+// 22.3), where the walk is the whole shader, but AO 3 % slower, soft shadows 1-2 % and the hard
+// trace no faster, where it sits in a pass's loops (alternated, one lavapipe thread).
 //
 // Two loops in turn (Aila & Laine 2009's while-while): descend until the lane holds a leaf, then
 // test the leaf's triangles, one per iteration so that a lane in a big leaf does not hold the
@@ -147,8 +145,7 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
     uint spill[BVH_STACK_SIZE - BVH_REGISTER_STACK];
     uint stack_len = 0u;
     uint node = 0u;
-    uvec4 words;
-    uint mask = bvh_child_hits(0u, origin, inv_dir, tmax, words);
+    uint mask = bvh_child_hits(0u, origin, inv_dir, tmax);
     for (;;) {
         uint leaf_next = 0u; // the next triangle of the leaf to test
         uint leaf_left = 0u; // and how many of its triangles are left
@@ -165,11 +162,11 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
                 }
                 node = entry & BVH_FIRST_MASK;
                 mask = entry >> 28;
-                words = texelFetch(bvh_nodes, int(4u * node + 1u));
             }
             uint c = uint(findLSB(mask));
             mask &= mask - 1u;
             // Selected, not indexed: a vector indexed by a variable goes to scratch memory.
+            uvec4 words = texelFetch(bvh_nodes, int(4u * node + 1u));
             uint word = c == 0u ? words.x : c == 1u ? words.y : c == 2u ? words.z : words.w;
             if ((word & BVH_LEAF) != 0u) {
                 leaf_next = word & BVH_FIRST_MASK;
@@ -186,7 +183,7 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
                     stack_len++;
                 }
                 node = word;
-                mask = bvh_child_hits(node, origin, inv_dir, tmax, words);
+                mask = bvh_child_hits(node, origin, inv_dir, tmax);
             }
         }
         while (leaf_left > 0u) {

@@ -92,9 +92,8 @@ pub fn upload_staged<const N: usize>(
     Ok(targets.try_into().unwrap_or_else(|_| unreachable!("one target per item")))
 }
 
-/// The shadow BVH on the device (`crate::scene::bvh::wide` gives the layout): nodes as RGBA32UI
-/// texels, triangles as RGB32F texels where the device reads that format from a texel buffer,
-/// else RGBA32F.
+/// The shadow BVH on the device (`crate::scene::bvh::wide` gives the layout): nodes and
+/// triangles as RGBA32UI texels.
 pub struct BvhBuffers {
     pub nodes: TexelBuffer,
     pub triangles: TexelBuffer,
@@ -103,22 +102,13 @@ pub struct BvhBuffers {
     pub masks: Option<TexelBuffer>,
 }
 
-/// How a device takes a BVH's triangles.
-#[derive(Clone, Copy, Debug)]
-pub struct BvhLayout {
-    /// Floats per triangle texel: 3 (RGB32F) or 4 (RGBA32F).
-    pub components: usize,
-}
-
 impl BvhBuffers {
-    /// The triangle format `ctx` reads, once `bvh` is known to fit its texel buffers: an error
-    /// naming the limit where it does not.
-    pub fn layout(ctx: &GpuContext, bvh: &ShadowBvh) -> GpuResult<BvhLayout> {
-        let caps = &ctx.capabilities;
-        let limit = u64::from(caps.max_texel_buffer_elements);
+    /// Whether `bvh` fits `ctx`'s texel buffers: an error naming the limit where it does not.
+    pub fn check(ctx: &GpuContext, bvh: &ShadowBvh) -> GpuResult<()> {
+        let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
         let wide = bvh.wide();
         let node_texels = wide.nodes.len() as u64 * 4;
-        let triangle_texels = wide.triangles.len() as u64 * 3;
+        let triangle_texels = crate::scene::bvh::wide::triangle_texel_count(wide.triangles.len()) as u64;
         let mask_texels = bvh.masks().map_or(0, |m| m.texels.len() as u64);
         for (what, texels) in [("nodes", node_texels), ("triangles", triangle_texels), ("alpha masks", mask_texels)] {
             if texels > limit {
@@ -130,20 +120,12 @@ impl BvhBuffers {
                 )));
             }
         }
-        Ok(BvhLayout { components: if caps.rgb32f_texel_buffer { 3 } else { 4 } })
+        Ok(())
     }
 
-    /// Wraps the uploaded buffers (filled as `layout` says) in their views, and uploads `bvh`'s
-    /// alpha masks where it has them.
-    pub fn new(
-        ctx: &Arc<GpuContext>,
-        layout: BvhLayout,
-        nodes: Buffer,
-        triangles: Buffer,
-        bvh: &ShadowBvh,
-    ) -> GpuResult<BvhBuffers> {
-        let format =
-            if layout.components == 3 { vk::Format::R32G32B32_SFLOAT } else { vk::Format::R32G32B32A32_SFLOAT };
+    /// Wraps the uploaded buffers (`bvh`'s nodes and `WideBvh::triangle_texels`) in their views,
+    /// and uploads `bvh`'s alpha masks where it has them.
+    pub fn new(ctx: &Arc<GpuContext>, nodes: Buffer, triangles: Buffer, bvh: &ShadowBvh) -> GpuResult<BvhBuffers> {
         let masks = match bvh.masks() {
             Some(masks) => {
                 let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
@@ -154,7 +136,7 @@ impl BvhBuffers {
         };
         Ok(BvhBuffers {
             nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
-            triangles: TexelBuffer::new(ctx, triangles, format)?,
+            triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
             masks,
         })
     }
@@ -167,17 +149,17 @@ impl BvhBuffers {
     /// Uploads `bvh` alone (the ray benchmark and tests; a scene uploads it with its other
     /// buffers).
     pub fn upload(ctx: &Arc<GpuContext>, bvh: &ShadowBvh) -> GpuResult<BvhBuffers> {
-        let layout = BvhBuffers::layout(ctx, bvh)?;
-        let floats = bvh.wide().triangle_floats(layout.components);
+        BvhBuffers::check(ctx, bvh)?;
+        let triangles = bvh.wide().triangle_texels();
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         let [nodes, triangles] = upload(
             ctx,
             [
                 ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
-                ("bvh triangles", bytemuck::cast_slice(&floats), texel),
+                ("bvh triangles", bytemuck::cast_slice(&triangles), texel),
             ],
         )?;
-        BvhBuffers::new(ctx, layout, nodes, triangles, bvh)
+        BvhBuffers::new(ctx, nodes, triangles, bvh)
     }
 
     /// Device bytes of nodes and triangles (and alpha masks, where there are some).
@@ -526,8 +508,8 @@ impl SceneGpu {
                 )));
             }
         }
-        let layout = BvhBuffers::layout(ctx, bvh)?;
-        let triangle_floats = bvh.wide().triangle_floats(layout.components);
+        BvhBuffers::check(ctx, bvh)?;
+        let bvh_triangle_texels = bvh.wide().triangle_texels();
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
             ctx,
@@ -536,10 +518,10 @@ impl SceneGpu {
                 ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | texel),
                 ("lights", bytemuck::cast_slice(&lights), storage),
                 ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
-                ("bvh triangles", bytemuck::cast_slice(&triangle_floats), texel),
+                ("bvh triangles", bytemuck::cast_slice(&bvh_triangle_texels), texel),
             ],
         )?;
-        let bvh_buffers = BvhBuffers::new(ctx, layout, bvh_nodes, bvh_triangles, bvh)?;
+        let bvh_buffers = BvhBuffers::new(ctx, bvh_nodes, bvh_triangles, bvh)?;
         Ok(SceneGpu {
             vertex_view: TexelView::new(ctx, &vertices, VERTEX_TEXEL_FORMAT)?,
             index_view: TexelView::new(ctx, &indices, INDEX_TEXEL_FORMAT)?,

@@ -421,13 +421,16 @@ fn offset_origin_clears_its_surface_at_any_distance() {
     assert_eq!(offset_ray_origin(Vec3::ZERO, Vec3::Y), Vec3::new(0.0, RAY_OFFSET_MIN, 0.0));
 }
 
-/// The GLSL include compiles, and reads nodes of the size the Rust layout writes: four texels
-/// a node (`4u * entry`), three a triangle (`3u * i`).
+/// The GLSL include compiles, and reads nodes and triangles of the size the Rust layout
+/// writes: four texels a node (`4u * node`), nine words a triangle (`9u * i`, see
+/// `WideBvh::triangle_texels`).
 #[test]
 fn bvh_glsl_compiles_with_the_rust_layout() {
     common::compile_shader("tests/shaders/bvh_include.comp");
     assert_eq!(size_of::<WideNode>(), 64);
     let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
     assert!(glsl.contains("int at = int(4u * node);"));
-    assert!(glsl.contains("texelFetch(bvh_triangles, int(3u * i))"));
+    assert!(glsl.contains("uint first = 9u * i;"));
+    let words: usize = std::mem::size_of::<[glam::Vec3; 3]>() / 4;
+    assert_eq!(words, 9);
 }

@@ -181,3 +181,35 @@ fn gpu_traversal_spills_deep_stacks_and_still_matches_obvhs() {
     assert!(near_edge * 1_000 < rays.len(), "{near_edge} near-edge disagreements");
     eprintln!("{deep} rays spill (deepest {deepest}); {occluded} occluded; {near_edge} near-edge disagreements");
 }
+
+/// Each triangle's nine floats start at any of a texel's four words, and the last triangle's
+/// end the buffer: small trees put every triangle where the shader must find it.
+#[test]
+fn gpu_reads_every_triangle_of_small_trees_wherever_its_texels_start() {
+    let mut rays = Vec::new();
+    let mut trees = Vec::new();
+    for n in 1..=9usize {
+        // n unit triangles side by side along x, facing +z.
+        let tris: Vec<[Vec3; 3]> = (0..n)
+            .map(|i| {
+                let x = 2.0 * i as f32;
+                [Vec3::new(x, 0.0, 0.0), Vec3::new(x + 1.0, 0.0, 0.0), Vec3::new(x, 1.0, 0.0)]
+            })
+            .collect();
+        trees.push(ShadowBvh::from_triangles(&tris));
+        rays.push(
+            (0..n)
+                .flat_map(|i| {
+                    let x = 2.0 * i as f32;
+                    // Through the triangle's inside, and through the gap beside it.
+                    [(Vec3::new(x + 0.25, 0.25, 1.0), -Vec3::Z, 2.0), (Vec3::new(x + 1.5, 0.25, 1.0), -Vec3::Z, 2.0)]
+                })
+                .collect::<Vec<_>>(),
+        );
+    }
+    for (n, (bvh, rays)) in trees.iter().zip(&rays).enumerate() {
+        let hits = gpu_answers(bvh, rays);
+        let expected: Vec<bool> = rays.iter().map(|r| r.0.x.fract() == 0.25).collect();
+        assert_eq!(hits, expected, "{} triangles", n + 1);
+    }
+}

@@ -3,7 +3,7 @@
 //
 // Contract: before including, #define BVH_SET, BVH_NODES_BINDING and BVH_TRIANGLES_BINDING;
 // this file declares the two uniform texel buffers `bvh_nodes` (RGBA32UI, four texels a node)
-// and `bvh_triangles` (RGB32F or RGBA32F, three texels a triangle: v0, e1, e2) there.
+// and `bvh_triangles` (RGBA32UI: each triangle's nine floats v0, e1, e2, packed) there.
 //
 // Alpha-masked casters: build.rs compiles every shader that includes this file a second time
 // with BVH_MASKED defined (its `..._MASKED` SPIR-V), used only for scenes with alpha-masked
@@ -22,9 +22,10 @@
 #include "bindings.glsl"
 
 // Texel buffers, not storage buffers: lavapipe turns a storage load whose address differs
-// between the lanes of a SIMD vector into a per-lane loop; a texel fetch is one gather.
+// between the lanes of a SIMD vector into a per-lane loop; a texel fetch is one call that reads
+// every lane's texel (around which lavapipe saves and restores the live vectors: each counts).
 layout(set = BVH_SET, binding = BVH_NODES_BINDING) uniform usamplerBuffer bvh_nodes;
-layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform samplerBuffer bvh_triangles;
+layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform usamplerBuffer bvh_triangles;
 
 // Entries in the traversal stack (one per level of the tree at most); the CPU build keeps
 // every tree's depth within it.
@@ -67,9 +68,21 @@ void bvh_slab(float base, float scale, uint q_lo, uint q_hi, float o, float inv,
 // Möller–Trumbore without back-face culling: shadows are cast by both faces. A NaN (from a
 // denormal determinant) falls through every comparison to a miss.
 bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
-    vec3 v0 = texelFetch(bvh_triangles, int(3u * i)).xyz;
-    vec3 e1 = texelFetch(bvh_triangles, int(3u * i + 1u)).xyz;
-    vec3 e2 = texelFetch(bvh_triangles, int(3u * i + 2u)).xyz;
+    // Its nine floats lie in the three texels from word 9i on (src/scene/bvh/wide.rs), selected
+    // by where in the first texel they start: a vector indexed by a variable goes to scratch
+    // memory.
+    uint first = 9u * i;
+    int at = int(first >> 2u);
+    uint skip = first & 3u;
+    uvec4 a = texelFetch(bvh_triangles, at);
+    uvec4 b = texelFetch(bvh_triangles, at + 1);
+    uvec4 c = texelFetch(bvh_triangles, at + 2);
+    uvec4 w0 = skip == 0u ? a : skip == 1u ? uvec4(a.yzw, b.x) : skip == 2u ? uvec4(a.zw, b.xy) : uvec4(a.w, b.xyz);
+    uvec4 w1 = skip == 0u ? b : skip == 1u ? uvec4(b.yzw, c.x) : skip == 2u ? uvec4(b.zw, c.xy) : uvec4(b.w, c.xyz);
+    uint w2 = skip == 0u ? c.x : skip == 1u ? c.y : skip == 2u ? c.z : c.w;
+    vec3 v0 = uintBitsToFloat(w0.xyz);
+    vec3 e1 = uintBitsToFloat(uvec3(w0.w, w1.xy));
+    vec3 e2 = uintBitsToFloat(uvec3(w1.zw, w2));
     vec3 p = cross(dir, e2);
     float det = dot(e1, p);
     if (det == 0.0) {

@@ -17,8 +17,6 @@ pub struct Capabilities {
     pub sampler_anisotropy: bool,
     /// The chosen queue family writes timestamps.
     pub timestamps: bool,
-    /// RGB32F is readable from a uniform texel buffer (the BVH's triangles take 36 bytes, not 48).
-    pub rgb32f_texel_buffer: bool,
     /// `maxTexelBufferElements`: the most texels one texel buffer view may hold.
     pub max_texel_buffer_elements: u32,
     /// `maxSubgroupSize`: the widest subgroup a compute dispatch may run (0: unknown).
@@ -84,10 +82,6 @@ pub(crate) fn detect(instance: &ash::Instance, pd: vk::PhysicalDevice, family: O
             depth_clamp: base.depth_clamp == vk::TRUE,
             sampler_anisotropy: base.sampler_anisotropy == vk::TRUE,
             timestamps,
-            rgb32f_texel_buffer: instance
-                .get_physical_device_format_properties(pd, vk::Format::R32G32B32_SFLOAT)
-                .buffer_features
-                .contains(vk::FormatFeatureFlags::UNIFORM_TEXEL_BUFFER),
             max_texel_buffer_elements: props.limits.max_texel_buffer_elements,
             max_subgroup_size: p13.max_subgroup_size,
             max_workgroup_invocations: props.limits.max_compute_work_group_invocations,

@@ -109,6 +109,9 @@
 // bvh.glsl: the traversal stack's top entries kept in variables (s0..s7, so 8 is the only value
 // it takes); deeper ones spill to an array. The CPU twin's tests pick rays that go deeper.
 #define BVH_REGISTER_STACK 8u
+// bvh.glsl: entries in the whole traversal stack (one per level of the tree at most); the CPU
+// build keeps every tree's depth within it (src/scene/bvh.rs, BVH_STACK_SIZE there).
+#define BVH_STACK_SIZE 64u
 // geometry_textured*.frag, descriptor set 1 (one set per material, src/gpu_textures.rs): its
 // textures, each a 1x1 white texel where the material has no such map
 #define MATERIAL_BASE_COLOR 0

@@ -18,7 +18,7 @@
 #error "define BVH_SET, BVH_NODES_BINDING and BVH_TRIANGLES_BINDING before including bvh.glsl"
 #endif
 
-// BVH_REGISTER_STACK, shared with Rust.
+// BVH_REGISTER_STACK and BVH_STACK_SIZE, shared with Rust.
 #include "bindings.glsl"
 
 // Texel buffers, not storage buffers: lavapipe turns a storage load whose address differs
@@ -27,9 +27,6 @@
 layout(set = BVH_SET, binding = BVH_NODES_BINDING) uniform usamplerBuffer bvh_nodes;
 layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform usamplerBuffer bvh_triangles;
 
-// Entries in the traversal stack (one per level of the tree at most); the CPU build keeps
-// every tree's depth within it.
-#define BVH_STACK_SIZE 64
 // A child word with this bit is a leaf: bits 28-30 its triangle count - 1, 0-27 its first.
 const uint BVH_LEAF = 0x80000000u;
 const uint BVH_FIRST_MASK = 0x0FFFFFFFu;
@@ -189,7 +186,7 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
                     if (stack_len >= BVH_REGISTER_STACK) {
                         // The clamp only keeps a corrupt buffer from writing out of bounds: the
                         // build keeps every tree's depth within the stack.
-                        spill[min(stack_len - BVH_REGISTER_STACK, uint(BVH_STACK_SIZE) - BVH_REGISTER_STACK - 1u)] = s7;
+                        spill[min(stack_len - BVH_REGISTER_STACK, BVH_STACK_SIZE - BVH_REGISTER_STACK - 1u)] = s7;
                     }
                     s7 = s6; s6 = s5; s5 = s4; s4 = s3; s3 = s2; s2 = s1; s1 = s0;
                     s0 = node | (mask << 28);

@@ -20,7 +20,7 @@ pub mod wide;
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};
 pub use wide::{WideBvh, WideNode};
 
-/// Entries in the traversal stack of `bvh.glsl` (`BVH_STACK_SIZE` there). A tree whose
+/// Entries in the traversal stack of `bvh.glsl` (`BVH_STACK_SIZE` in bindings.glsl). A tree whose
 /// traversal could need more (`ShadowBvh::stack_need`) is rebuilt balanced.
 pub const BVH_STACK_SIZE: usize = wide::STACK_SIZE;
 

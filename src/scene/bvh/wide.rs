@@ -47,9 +47,10 @@ use glam::{UVec4, Vec3, Vec4};
 use obvhs::bvh2::Bvh2;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-/// Entries in the traversal stack (`BVH_STACK_SIZE` in bvh.glsl). `WideBvh::stack_need` says
-/// how many a tree can use; a build that needs more is rebuilt balanced.
-pub const STACK_SIZE: usize = 64;
+/// Entries in the traversal stack (`BVH_STACK_SIZE` in bindings.glsl, which bvh.glsl reads).
+/// `WideBvh::stack_need` says how many a tree can use; a build that needs more is rebuilt
+/// balanced.
+pub const STACK_SIZE: usize = crate::vk::bindings::BVH_STACK_SIZE as usize;
 
 /// Child word bit marking a leaf.
 const LEAF: u32 = 1 << 31;

@@ -303,8 +303,9 @@ pub struct Draw {
 /// The scene on the device: uploaded once, imported into every frame's graph.
 pub struct SceneGpu {
     /// `vertices` and `indices` as RG32F and R32UI texels: how the geometry pass reads each
-    /// fragment's triangle (a texel fetch is one gather on lavapipe, where a storage load whose
-    /// address it cannot prove the same for every lane is a loop over them). Declared before
+    /// fragment's triangle (a texel fetch is one call that reads every lane's texel on lavapipe,
+    /// where a storage load whose address it cannot prove the same for every lane is a loop over
+    /// them). Declared before
     /// the buffers, so they are dropped first.
     pub vertex_view: TexelView,
     pub index_view: TexelView,

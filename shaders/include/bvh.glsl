@@ -132,7 +132,7 @@ uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax) {
 // mask << 28); a pop happens only when a group is empty. So a node costs one push at most,
 // never one per child. The group's child words are fetched again at each visited child, not
 // kept with it: four more loop-carried registers are saved around each texel fetch (a call on
-// lavapipe). Kept in registers they made `umbra bench rays` 6-11 % faster (Mesa 25; 23 % on
+// lavapipe). Kept in registers they made `umbra bench rays` 6-14 % faster (Mesa 25; 23 % on
 // 22.3), where the walk is the whole shader, but AO 3 % slower, soft shadows 1-2 % and the hard
 // trace no faster, where it sits in a pass's loops (alternated, one lavapipe thread).
 //

@@ -234,7 +234,8 @@ pub struct Prepared<'a> {
     pub map: Option<&'a map::MapPipelines>,
     /// The volume pipelines and the casters' adjacency.
     pub volumes: Option<(&'a volumes::Pipelines, &'a volumes::VolumeScene)>,
-    pub hybrid: Option<&'a hybrid::Pipelines>,
+    /// The hybrid's pipelines, and the variants of its list trace that its lights take.
+    pub hybrid: Option<(&'a hybrid::Pipelines, traced::Variants<'a>)>,
 }
 
 impl Pipelines {
@@ -270,11 +271,11 @@ impl Pipelines {
             true => None,
             false => {
                 let pipelines = crate::vk::get_or_make(&self.hybrid, || hybrid::pipelines(ctx, scene.bvh.masked()))?;
-                pipelines.prepare_trace(&plan.hybrid, &scene.local_lights)?;
+                let trace = pipelines.prepare_trace(&plan.hybrid, &scene.local_lights)?;
                 if debug_view.is_some_and(|v| matches!(v, DebugView::Hybrid(_))) {
                     pipelines.prepare_view()?;
                 }
-                Some(pipelines)
+                Some((pipelines, trace))
             }
         };
         Ok(Prepared { traced: None, map, volumes, hybrid })

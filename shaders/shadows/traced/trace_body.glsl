@@ -106,32 +106,31 @@ float trace_pixel(uvec2 px) {
             // an occluder: rays stop just short of its centre (hard) or surface (soft).
             // A constant 1 for a hard light: its loop unrolls into the one ray.
             uint spp = TRACE_SOFT ? pc.dims.w : 1u;
-            const bool soft = TRACE_SOFT;
             uint reached = 0u;
             uint counted = 0u;
             // Soft: which rays reached the light, to weigh them below.
             uint open_rays[TRACE_MAX_SPP / 32u];
-            if (soft) {
+            if (TRACE_SOFT) {
                 for (uint i = 0u; i < TRACE_MAX_SPP / 32u; i++) open_rays[i] = 0u;
             }
             for (uint k = 0u; k < spp; k++) {
                 vec3 dir = L;
                 float d = dist;
-                if (soft) {
+                if (TRACE_SOFT) {
                     dir = light_sample_point(l, origin, soft_sample(pixel, light, spp, k), d);
                     if (dot(n, dir) <= 0.0) continue;
                 }
                 counted++;
                 if (!shadow_occluded(origin, dir, d * (1.0 - 1e-5))) {
                     reached++;
-                    if (soft) open_rays[k >> 5u] |= 1u << (k & 31u);
+                    if (TRACE_SOFT) open_rays[k >> 5u] |= 1u << (k & 31u);
                 }
             }
             v = counted > 0u ? float(reached) / float(counted) : 0.0;
             // A penumbra (a hard light's one ray has none): the same rays again, weighed by
             // shadow_sample_weight (the ratio estimator). Where every counted ray arrives, or none
             // does, the weights cannot matter: those pixels pay nothing for them.
-            if (soft && reached > 0u && reached < counted) {
+            if (TRACE_SOFT && reached > 0u && reached < counted) {
                 vec3 unit_n = normalize(n);
                 vec3 view = normalize(pc.eye.xyz - position.xyz);
                 vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);

@@ -91,15 +91,11 @@ impl Pipelines {
         self.view().map(|_| ())
     }
 
-    /// Makes the list trace's variant for each of `served` (lights of `lights`).
-    pub fn prepare_trace(&self, served: &[Served], lights: &[Light]) -> GpuResult<()> {
-        for s in served {
-            let soft = traced::is_soft(traced::rays(s, &lights[s.light as usize]));
-            crate::vk::get_or_make(&self.trace[soft as usize], || {
-                traced::list_pipeline(&self.ctx, LIST_GROUP, self.masked, soft)
-            })?;
-        }
-        Ok(())
+    /// The list trace's variants that `served` (lights of `lights`) take, made if they were not.
+    pub fn prepare_trace(&self, served: &[Served], lights: &[Light]) -> GpuResult<traced::Variants<'_>> {
+        traced::prepare_variants(&self.trace, served, lights, |soft| {
+            traced::list_pipeline(&self.ctx, LIST_GROUP, self.masked, soft)
+        })
     }
 }
 
@@ -128,12 +124,13 @@ pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &B
 }
 
 /// Writes each served light's visibility layer: its map, the classification, the rays for the
-/// pixels the map is not sure of. Returns the `hybrid:N` view when the frame shows one.
+/// pixels the map is not sure of, with the list trace's variants its lights take
+/// (`Pipelines::prepare_trace`). Returns the `hybrid:N` view when the frame shows one.
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     map_pipelines: &'a MapPipelines,
-    pipelines: &'a Pipelines,
+    (pipelines, trace_variants): (&'a Pipelines, traced::Variants<'a>),
     bvh: &crate::gpu_scene::BvhHandles,
     served: &[Served],
     target: &mut Handle<ImageKind>,
@@ -145,7 +142,7 @@ pub fn add<'a>(
         let light = &frame.scene.local_lights[s.light as usize];
         let map = light_map(s, light, &casters, &receivers);
         let (list, args) = classify(graph, frame, map_pipelines, pipelines, s, map.as_ref(), target);
-        trace(graph, frame, pipelines, bvh, s, &list, &args, target);
+        trace(graph, frame, trace_variants, bvh, s, &list, &args, target);
         if frame.debug_view == Some(crate::config::DebugView::Hybrid(s.light)) {
             debug = Some(add_view(graph, frame, pipelines, s, &list, &args, target));
         }
@@ -223,7 +220,7 @@ fn classify<'a>(
 fn trace<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a Pipelines,
+    pipelines: traced::Variants<'a>,
     bvh: &crate::gpu_scene::BvhHandles,
     served: &Served,
     list: &Handle<BufferKind>,
@@ -252,7 +249,7 @@ fn trace<'a>(
     let light = &frame.scene.local_lights[served.light as usize];
     let rays = traced::rays(served, light);
     let push = traced::push_constants(extent, frame.frame_index, frame.camera.eye, served, rays);
-    let pipeline = pipelines.trace[traced::is_soft(rays) as usize].get().expect("made by prepare_trace");
+    let pipeline = pipelines.get(rays);
     pass.render(move |ctx| ctx.dispatch_indirect(pipeline, &bound, bytemuck::bytes_of(&push), dispatch));
 }
 

@@ -43,21 +43,29 @@ impl Pipelines {
         served: &[Served],
         lights: &[crate::scene::Light],
     ) -> GpuResult<Variants<'a>> {
-        let mut variants = Variants::default();
-        for soft in [false, true] {
-            if !served.iter().any(|s| is_soft(rays(s, &lights[s.light as usize])) == soft) {
-                continue;
-            }
-            let made = match ray_query {
-                true => {
-                    crate::vk::get_or_make(&self.ray_query[soft as usize], || ray_query_pipeline(ctx, masked, soft))
-                }
-                false => crate::vk::get_or_make(&self.compute[soft as usize], || pipeline(ctx, masked, soft)),
-            }?;
-            *variants.slot(soft) = Some(made);
+        match ray_query {
+            true => prepare_variants(&self.ray_query, served, lights, |soft| ray_query_pipeline(ctx, masked, soft)),
+            false => prepare_variants(&self.compute, served, lights, |soft| pipeline(ctx, masked, soft)),
         }
-        Ok(variants)
     }
+}
+
+/// The variants of `slots` (indexed by `soft as usize`) that `served`'s lights (of `lights`)
+/// take, each made by `make(soft)` the first time a frame takes it: the traced pass's and the
+/// hybrid's list trace's.
+pub fn prepare_variants<'a>(
+    slots: &'a [OnceLock<ComputePipeline>; 2],
+    served: &[Served],
+    lights: &[crate::scene::Light],
+    make: impl Fn(bool) -> GpuResult<ComputePipeline>,
+) -> GpuResult<Variants<'a>> {
+    let mut variants = Variants::default();
+    for soft in [false, true] {
+        if served.iter().any(|s| is_soft(rays(s, &lights[s.light as usize])) == soft) {
+            *variants.slot(soft) = Some(crate::vk::get_or_make(&slots[soft as usize], || make(soft))?);
+        }
+    }
+    Ok(variants)
 }
 
 /// A frame's traced pipelines: the hard and the soft variant, where a light of the frame takes it.

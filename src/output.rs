@@ -195,7 +195,47 @@ fn write_exr(frame: &Frame, tmp: &NamedTempFile, provenance: &[(String, String)]
     for (key, value) in provenance {
         attributes.other.insert(exr_text(&format!("umbra:{key}")), AttributeValue::Text(exr_text(value)));
     }
-    image.write().to_buffered(BufWriter::new(tmp.as_file())).map_err(|e| e.to_string())
+    image.write().to_buffered(BufWriter::new(tmp.as_file())).map_err(|e| e.to_string())?;
+    sort_exr_attributes(tmp.as_file()).map_err(|e| format!("ordering the EXR header: {e}"))
+}
+
+/// Puts the header attributes of the single-part EXR in `file` in name order, in place, as
+/// OpenEXR's own writer orders them: exr writes `other` attributes in the order of a `HashMap`,
+/// which changes from run to run, so the same render would not give the same bytes twice. The
+/// header keeps its length, so the offsets after it stay right.
+fn sort_exr_attributes(mut file: &fs::File) -> std::io::Result<()> {
+    use std::io::{Error, Read, Seek, SeekFrom};
+    /// More header than any umbra writes (a few hundred bytes).
+    const MAX_HEADER: u64 = 1 << 20;
+    file.seek(SeekFrom::Start(0))?;
+    let mut head = Vec::new();
+    file.take(MAX_HEADER).read_to_end(&mut head)?;
+    let bad = |what: &str| Error::other(format!("{what} at byte {}", head.len().min(MAX_HEADER as usize)));
+    // Magic number, then the version word, whose bit 12 marks a multi-part file.
+    if head.len() < 8 || head[..4] != [0x76, 0x2f, 0x31, 0x01] || head[5] & 0x10 != 0 {
+        return Err(bad("not a single-part EXR"));
+    }
+    let nul = |from: usize| head[from..].iter().position(|&b| b == 0).map(|k| from + k);
+    let mut attributes: Vec<&[u8]> = Vec::new();
+    let mut at = 8;
+    loop {
+        let name_end = nul(at).ok_or_else(|| bad("an unterminated attribute name"))?;
+        if name_end == at {
+            break; // the empty name that ends the header
+        }
+        let type_end = nul(name_end + 1).ok_or_else(|| bad("an unterminated attribute type"))?;
+        let size_bytes = head.get(type_end + 1..type_end + 5).ok_or_else(|| bad("a cut attribute"))?;
+        let size = u32::from_le_bytes(size_bytes.try_into().expect("four bytes")) as usize;
+        let end = type_end + 5 + size;
+        attributes.push(head.get(at..end).ok_or_else(|| bad("a cut attribute"))?);
+        at = end;
+    }
+    attributes.sort_by_key(|a| &a[..a.iter().position(|&b| b == 0).expect("a name")]);
+    let sorted = attributes.concat();
+    debug_assert_eq!(sorted.len(), at - 8);
+    file.seek(SeekFrom::Start(8))?;
+    file.write_all(&sorted)?;
+    file.flush()
 }
 
 /// Reads an RGB EXR as linear float RGBA rows (alpha 1); used by tests and tools.
@@ -297,5 +337,57 @@ mod cleanup {
         let result = tmp.persist(target).map(drop).map_err(|e| e.error); // on error the file is dropped: removed
         pending.retain(|p| *p != path);
         result
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// exr keeps `umbra:` attributes in a `HashMap` (new hash keys per map), so without the
+    /// sort two writes of one frame in one process order them differently.
+    #[test]
+    fn the_same_exr_twice_is_the_same_bytes_and_reads_back() {
+        let (width, height) = (7u32, 5u32);
+        let pixels: Vec<f32> = (0..width * height * 4).map(|i| i as f32 * 0.25 - 3.0).collect();
+        let frame = Frame::Rgba32F { width, height, pixels: pixels.clone() };
+        let provenance: Vec<(String, String)> = (0..12).map(|k| (format!("key{k}"), format!("value {k}"))).collect();
+        let options = WriteOptions { provenance: provenance.clone(), ..Default::default() };
+        let dir = tempfile::tempdir().unwrap();
+        let paths = [dir.path().join("a.exr"), dir.path().join("b.exr")];
+        for path in &paths {
+            write_image_with(&frame, path, &options).unwrap();
+        }
+        let bytes = paths.each_ref().map(|p| fs::read(p).unwrap());
+        assert!(bytes[0] == bytes[1], "two writes of one frame differ");
+
+        let (w, h, read) = read_exr(&paths[0]).unwrap();
+        assert_eq!((w, h), (width, height));
+        for (i, (got, want)) in read.iter().zip(&pixels).enumerate() {
+            let want = if i % 4 == 3 { 1.0 } else { *want };
+            assert_eq!(*got, want, "float {i}");
+        }
+        let meta = exr::meta::MetaData::read_from_file(&paths[0], false).unwrap();
+        let other = &meta.headers[0].own_attributes.other;
+        for (key, value) in &provenance {
+            let got = other.get(&exr::prelude::Text::from(format!("umbra:{key}").as_str()));
+            assert_eq!(got, Some(&exr::prelude::AttributeValue::Text(exr::prelude::Text::from(value.as_str()))));
+        }
+        // In name order, as the sort put them: the names' bytes after the 8-byte preamble.
+        let names: Vec<&[u8]> = {
+            let mut names = Vec::new();
+            let b = &bytes[0];
+            let mut at = 8;
+            while b[at] != 0 {
+                let name_end = at + b[at..].iter().position(|&c| c == 0).unwrap();
+                let type_end = name_end + 1 + b[name_end + 1..].iter().position(|&c| c == 0).unwrap();
+                let size = u32::from_le_bytes(b[type_end + 1..type_end + 5].try_into().unwrap()) as usize;
+                names.push(&b[at..name_end]);
+                at = type_end + 5 + size;
+            }
+            names
+        };
+        assert!(names.len() > provenance.len());
+        assert!(names.is_sorted(), "{:?}", names.iter().map(|n| String::from_utf8_lossy(n)).collect::<Vec<_>>());
     }
 }

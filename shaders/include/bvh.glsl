@@ -42,6 +42,17 @@ float bvh_safe_component(float c) {
     return c;
 }
 
+// min and max as a compare and a select: x86's minps and maxps, one instruction each, where
+// GLSL's min and max must return the operand that is not NaN and lavapipe spends three on it.
+// No operand here is NaN (1/d is finite, boxes and tmax are), so the results are min and max's.
+vec4 bvh_min(vec4 a, vec4 b) {
+    return mix(b, a, lessThan(a, b));
+}
+
+vec4 bvh_max(vec4 a, vec4 b) {
+    return mix(b, a, greaterThan(a, b));
+}
+
 // The four 8-bit coordinates packed in `word`, child i in byte i.
 vec4 bvh_bytes(uint word) {
     return vec4((uvec4(word) >> uvec4(0u, 8u, 16u, 24u)) & 0xFFu);
@@ -54,8 +65,8 @@ void bvh_slab(float base, float scale, uint q_lo, uint q_hi, float o, float inv,
     vec4 hi = vec4(base) + bvh_bytes(q_hi) * scale;
     vec4 a = (lo - vec4(o)) * inv;
     vec4 b = (hi - vec4(o)) * inv;
-    near = min(a, b);
-    far = max(a, b);
+    near = bvh_min(a, b);
+    far = bvh_max(a, b);
 }
 
 #ifdef BVH_MASKED
@@ -117,8 +128,8 @@ uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax) {
     bvh_slab(base.x, scale.x, qxy.x, qxy.y, origin.x, inv_dir.x, nx, fx);
     bvh_slab(base.y, scale.y, qxy.z, qxy.w, origin.y, inv_dir.y, ny, fy);
     bvh_slab(base.z, scale.z, qz.x, qz.y, origin.z, inv_dir.z, nz, fz);
-    vec4 enter = max(max(nx, ny), max(nz, vec4(0.0)));
-    vec4 exit = min(min(fx, fy), min(fz, vec4(tmax))) * BVH_SLAB_FAR_SCALE;
+    vec4 enter = bvh_max(bvh_max(nx, ny), bvh_max(nz, vec4(0.0)));
+    vec4 exit = bvh_min(bvh_min(fx, fy), bvh_min(fz, vec4(tmax))) * BVH_SLAB_FAR_SCALE;
     uvec4 hit = uvec4(lessThanEqual(enter, exit));
     return (hit.x | hit.y << 1 | hit.z << 2 | hit.w << 3) & (head.w >> 24);
 }

@@ -204,38 +204,52 @@ fn write_exr(frame: &Frame, tmp: &NamedTempFile, provenance: &[(String, String)]
 /// which changes from run to run, so the same render would not give the same bytes twice. The
 /// header keeps its length, so the offsets after it stay right.
 fn sort_exr_attributes(mut file: &fs::File) -> std::io::Result<()> {
-    use std::io::{Error, Read, Seek, SeekFrom};
+    use std::io::{Read, Seek, SeekFrom};
     /// More header than any umbra writes (a few hundred bytes).
     const MAX_HEADER: u64 = 1 << 20;
     file.seek(SeekFrom::Start(0))?;
     let mut head = Vec::new();
     file.take(MAX_HEADER).read_to_end(&mut head)?;
-    let bad = |what: &str| Error::other(format!("{what} at byte {}", head.len().min(MAX_HEADER as usize)));
-    // Magic number, then the version word, whose bit 12 marks a multi-part file.
-    if head.len() < 8 || head[..4] != [0x76, 0x2f, 0x31, 0x01] || head[5] & 0x10 != 0 {
-        return Err(bad("not a single-part EXR"));
-    }
-    let nul = |from: usize| head[from..].iter().position(|&b| b == 0).map(|k| from + k);
-    let mut attributes: Vec<&[u8]> = Vec::new();
-    let mut at = 8;
-    loop {
-        let name_end = nul(at).ok_or_else(|| bad("an unterminated attribute name"))?;
-        if name_end == at {
-            break; // the empty name that ends the header
-        }
-        let type_end = nul(name_end + 1).ok_or_else(|| bad("an unterminated attribute type"))?;
-        let size_bytes = head.get(type_end + 1..type_end + 5).ok_or_else(|| bad("a cut attribute"))?;
-        let size = u32::from_le_bytes(size_bytes.try_into().expect("four bytes")) as usize;
-        let end = type_end + 5 + size;
-        attributes.push(head.get(at..end).ok_or_else(|| bad("a cut attribute"))?);
-        at = end;
-    }
-    attributes.sort_by_key(|a| &a[..a.iter().position(|&b| b == 0).expect("a name")]);
-    let sorted = attributes.concat();
-    debug_assert_eq!(sorted.len(), at - 8);
+    let mut attributes = exr_attributes(&head)?;
+    let length = attributes.iter().map(|a| a.bytes.len()).sum::<usize>();
+    attributes.sort_by_key(|a| a.name);
+    let sorted: Vec<u8> = attributes.iter().flat_map(|a| a.bytes.iter().copied()).collect();
+    debug_assert_eq!(sorted.len(), length);
     file.seek(SeekFrom::Start(8))?;
     file.write_all(&sorted)?;
     file.flush()
+}
+
+/// One header attribute of an EXR: its name and all its bytes (name, type, size, value).
+struct ExrAttribute<'a> {
+    name: &'a [u8],
+    bytes: &'a [u8],
+}
+
+/// The attributes of the single-part EXR header at the start of `head`, in file order, from
+/// byte 8 up to the empty name that ends the header.
+fn exr_attributes(head: &[u8]) -> std::io::Result<Vec<ExrAttribute<'_>>> {
+    let bad = |what: &str, at: usize| std::io::Error::other(format!("{what} at byte {at}"));
+    // Magic number, then the version word, whose bit 12 marks a multi-part file.
+    if head.len() < 8 || head[..4] != [0x76, 0x2f, 0x31, 0x01] || head[5] & 0x10 != 0 {
+        return Err(bad("not a single-part EXR", 0));
+    }
+    let nul = |from: usize| head.get(from..)?.iter().position(|&b| b == 0).map(|k| from + k);
+    let mut attributes = Vec::new();
+    let mut at = 8;
+    loop {
+        let name_end = nul(at).ok_or_else(|| bad("an unterminated attribute name", at))?;
+        if name_end == at {
+            return Ok(attributes); // the empty name that ends the header
+        }
+        let type_end = nul(name_end + 1).ok_or_else(|| bad("an unterminated attribute type", at))?;
+        let size_bytes = head.get(type_end + 1..type_end + 5).ok_or_else(|| bad("a cut attribute", at))?;
+        let size = u32::from_le_bytes(size_bytes.try_into().expect("four bytes")) as usize;
+        let end = type_end + 5 + size;
+        let bytes = head.get(at..end).ok_or_else(|| bad("a cut attribute", at))?;
+        attributes.push(ExrAttribute { name: &head[at..name_end], bytes });
+        at = end;
+    }
 }
 
 /// Reads an RGB EXR as linear float RGBA rows (alpha 1); used by tests and tools.
@@ -373,20 +387,8 @@ mod tests {
             let got = other.get(&exr::prelude::Text::from(format!("umbra:{key}").as_str()));
             assert_eq!(got, Some(&exr::prelude::AttributeValue::Text(exr::prelude::Text::from(value.as_str()))));
         }
-        // In name order, as the sort put them: the names' bytes after the 8-byte preamble.
-        let names: Vec<&[u8]> = {
-            let mut names = Vec::new();
-            let b = &bytes[0];
-            let mut at = 8;
-            while b[at] != 0 {
-                let name_end = at + b[at..].iter().position(|&c| c == 0).unwrap();
-                let type_end = name_end + 1 + b[name_end + 1..].iter().position(|&c| c == 0).unwrap();
-                let size = u32::from_le_bytes(b[type_end + 1..type_end + 5].try_into().unwrap()) as usize;
-                names.push(&b[at..name_end]);
-                at = type_end + 5 + size;
-            }
-            names
-        };
+        // In name order, as the sort put them.
+        let names: Vec<&[u8]> = exr_attributes(&bytes[0]).unwrap().iter().map(|a| a.name).collect();
         assert!(names.len() > provenance.len());
         assert!(names.is_sorted(), "{:?}", names.iter().map(|n| String::from_utf8_lossy(n)).collect::<Vec<_>>());
     }

@@ -627,14 +627,24 @@ fn child_hits(node: &WideNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> u32 {
         let hi = Vec4::splat(base[axis]) + bytes(q_hi) * scale[axis];
         let a = (lo - Vec4::splat(origin[axis])) * inv_dir[axis];
         let b = (hi - Vec4::splat(origin[axis])) * inv_dir[axis];
-        (a.min(b), a.max(b))
+        (min(a, b), max(a, b))
     };
     let (nx, fx) = slab(qlx, qhx, 0);
     let (ny, fy) = slab(qly, qhy, 1);
     let (nz, fz) = slab(qlz, qhz, 2);
-    let enter = nx.max(ny).max(nz.max(Vec4::ZERO));
-    let exit = fx.min(fy).min(fz.min(Vec4::splat(tmax))) * SLAB_FAR_SCALE;
+    let enter = max(max(nx, ny), max(nz, Vec4::ZERO));
+    let exit = min(min(fx, fy), min(fz, Vec4::splat(tmax))) * SLAB_FAR_SCALE;
     enter.cmple(exit).bitmask() & mask
+}
+
+/// bvh.glsl's `bvh_min` and `bvh_max`: a compare and a select (equal to glam's min and max on the
+/// operands here, none of which is NaN).
+fn min(a: Vec4, b: Vec4) -> Vec4 {
+    Vec4::select(a.cmplt(b), a, b)
+}
+
+fn max(a: Vec4, b: Vec4) -> Vec4 {
+    Vec4::select(a.cmpgt(b), a, b)
 }
 
 fn safe_dir(d: Vec3) -> Vec3 {

@@ -76,7 +76,8 @@ struct BenchRaysArgs {
     /// Image size as WIDTHxHEIGHT (default: the scene's [image], else 320x240).
     #[arg(long, value_parser = parse_size)]
     size: Option<(u32, u32)>,
-    /// Timed runs of each tracer; the median is reported.
+    /// Timed rounds, each running every tracer once (so drift weighs on all alike); the medians
+    /// are reported, and each ratio is the median of the per-round ratios.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeats: u32,
     /// Use this Vulkan device: an index from `umbra devices`, or part of its name.

@@ -42,7 +42,7 @@ pub struct Options {
     pub rays: RayKind,
     pub threads: usize,
     pub size: Option<(u32, u32)>,
-    /// Timed repetitions per tracer (the median is reported).
+    /// Timed rounds; each runs every tracer once (the median is reported).
     pub repeats: usize,
     pub device: Option<String>,
     pub validate: bool,
@@ -57,6 +57,10 @@ pub struct Timing {
     /// itself. Steadier than wall clock on a machine other work shares.
     pub cpu_ms: f64,
     pub mrays_per_s: f64,
+    /// Against the CPU tracer with the lowest median: the median over rounds of the ratio of
+    /// their times in the same round (above 1: faster), wall clock and CPU time.
+    pub vs_best_cpu: f64,
+    pub cpu_vs_best_cpu: f64,
 }
 
 pub struct Outcome {
@@ -112,27 +116,21 @@ pub fn run(options: &Options) -> Result<Outcome> {
     }
 
     let ctx = GpuContext::new(&GpuOptions { validate: options.validate, device_name: options.device.clone() })?;
-    let mut timings = Vec::new();
     let gpu_rays: Vec<GpuRay> = rays.iter().map(|r| GpuRay::new(r.0, r.1, r.2)).collect();
-    let mut batch = TimedBatch::new(&ctx, &gpu_rays)?;
+    // Both device tracers trace these rays, one after the other.
+    let batch = std::cell::RefCell::new(TimedBatch::new(&ctx, &gpu_rays)?);
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
     let pipeline = ray_batch::pipeline(&ctx, buffers.masked())?;
-    let (gpu_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&pipeline, &Target::Compute(&buffers)))?;
-    timings.push(timing("compute BVH (device)", (ms, cpu), rays.len()));
-    let mut rq_disagree = None;
-    if ctx.capabilities.ray_query {
+    let ray_query = if ctx.capabilities.ray_query {
         let masks = crate::scene::bvh::mask::caster_masks(&local);
         let scene = RayQueryScene::with_masks(&ctx, &tris, masks.as_ref())?;
         let rq_pipeline = ray_batch::ray_query_pipeline(&ctx, scene.masked())?;
         // The first trace builds the structures: not timed.
-        batch.trace(&rq_pipeline, &Target::RayQuery(&scene))?;
-        let (rq_hits, ms, cpu) = repeat(options.repeats, || batch.trace(&rq_pipeline, &Target::RayQuery(&scene)))?;
-        timings.push(timing("ray query (device)", (ms, cpu), rays.len()));
-        rq_disagree = Some(gpu_hits.iter().zip(&rq_hits).filter(|(a, b)| a != b).count());
-    }
-    if ctx.validation_messages() > 0 {
-        bail!("validation: {} messages", ctx.validation_messages());
-    }
+        batch.borrow_mut().trace(&rq_pipeline, &Target::RayQuery(&scene)).context("tracing on the device")?;
+        Some((scene, rq_pipeline))
+    } else {
+        None
+    };
 
     // The CPU: obvhs's own builds (its medium preset, which umbra's build followed before its
     // 4-wide collapse), binary and compressed 8-wide.
@@ -145,14 +143,6 @@ pub fn run(options: &Options) -> Result<Outcome> {
         &mut std::time::Duration::default(),
     );
     let binary_build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let binary = &binary;
-    let (cpu_hits, ms, cpu) = repeat(options.repeats, || {
-        Ok(cpu_trace(&rays, options.threads, |o, d, t| {
-            let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
-            !binary.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[binary.primitive_indices[id] as usize], ray))
-        }))
-    })?;
-    timings.push(timing("obvhs BVH2 (CPU)", (ms, cpu), rays.len()));
     let start = Instant::now();
     let cw = obvhs::cwbvh::builder::build_cwbvh_from_tris(
         &obvhs_tris,
@@ -160,13 +150,74 @@ pub fn run(options: &Options) -> Result<Outcome> {
         &mut std::time::Duration::default(),
     );
     let cw_build_ms = start.elapsed().as_secs_f64() * 1e3;
-    let (cw_hits, ms, cpu) = repeat(options.repeats, || {
-        Ok(cpu_trace(&rays, options.threads, |o, d, t| {
-            let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
-            !cw.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[cw.primitive_indices[id] as usize], ray))
-        }))
-    })?;
-    timings.push(timing("obvhs CWBVH (CPU)", (ms, cpu), rays.len()));
+
+    // Every tracer once per round, the rounds one after another, so that the machine's speed,
+    // which drifts over minutes, weighs on all of them alike.
+    let mut tracers: Vec<Tracer<'_>> = vec![Tracer::new(
+        "compute BVH (device)",
+        Box::new(|| batch_trace(&batch, &pipeline, &Target::Compute(&buffers))),
+    )];
+    if let Some((scene, rq_pipeline)) = &ray_query {
+        let batch = &batch;
+        tracers.push(Tracer::new(
+            "ray query (device)",
+            Box::new(move || batch_trace(batch, rq_pipeline, &Target::RayQuery(scene))),
+        ));
+    }
+    tracers.push(Tracer::new(
+        "obvhs BVH2 (CPU)",
+        Box::new(|| {
+            Ok(cpu_trace(&rays, options.threads, |o, d, t| {
+                let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
+                !binary.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[binary.primitive_indices[id] as usize], ray))
+            }))
+        }),
+    ));
+    tracers.push(Tracer::new(
+        "obvhs CWBVH (CPU)",
+        Box::new(|| {
+            Ok(cpu_trace(&rays, options.threads, |o, d, t| {
+                let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
+                !cw.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[cw.primitive_indices[id] as usize], ray))
+            }))
+        }),
+    ));
+    for _ in 0..options.repeats.max(1) {
+        for tracer in &mut tracers {
+            tracer.run_once()?;
+        }
+    }
+    if ctx.validation_messages() > 0 {
+        bail!("validation: {} messages", ctx.validation_messages());
+    }
+    let hits_of = |name: &str| tracers.iter().find(|t| t.name.starts_with(name)).and_then(|t| t.hits.as_ref());
+    let gpu_hits = hits_of("compute").expect("traced").clone();
+    let cpu_hits = hits_of("obvhs BVH2").expect("traced").clone();
+    let cw_hits = hits_of("obvhs CWBVH").expect("traced").clone();
+    let rq_disagree = hits_of("ray query").map(|rq| gpu_hits.iter().zip(rq).filter(|(a, b)| a != b).count());
+    // Each tracer against the CPU tracer with the lowest median: the median of the ratios of
+    // their times in the same round.
+    let best = tracers
+        .iter()
+        .filter(|t| t.name.contains("CPU"))
+        .min_by(|a, b| median(&a.wall).total_cmp(&median(&b.wall)))
+        .expect("two CPU tracers");
+    let ratios = |best: &[f64], times: &[f64]| median(&best.iter().zip(times).map(|(b, x)| b / x).collect::<Vec<_>>());
+    let timings: Vec<Timing> = tracers
+        .iter()
+        .map(|t| {
+            let ms = median(&t.wall);
+            Timing {
+                name: t.name.to_string(),
+                ms,
+                cpu_ms: median(&t.cpu),
+                mrays_per_s: rays.len() as f64 / (ms * 1e3),
+                vs_best_cpu: ratios(&best.wall, &t.wall),
+                cpu_vs_best_cpu: ratios(&best.cpu, &t.cpu),
+            }
+        })
+        .collect();
+    drop(tracers);
 
     // Agreement: every ray where the device and obvhs differ must graze an edge.
     let mut mismatches = 0;
@@ -180,9 +231,6 @@ pub fn run(options: &Options) -> Result<Outcome> {
         }
     }
     let occluded = gpu_hits.iter().filter(|&&h| h).count();
-    let cpu_side = || timings.iter().filter(|t| t.name.contains("CPU"));
-    let best_cpu = cpu_side().map(|t| t.ms).fold(f64::INFINITY, f64::min);
-    let best_cpu_time = cpu_side().map(|t| t.cpu_ms).fold(f64::INFINITY, f64::min);
     let mut report = format!(
         "{name}: {} {} rays from {width}x{height} ({:.1} % occluded), {} triangles; {} lavapipe/CPU thread(s)\n\
          BVH build {build_ms:.0} ms (umbra: PLOC + reinsertion + SAH 4-wide collapse), {binary_build_ms:.0} ms \
@@ -202,12 +250,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
     for t in &timings {
         report += &format!(
             "{:<22} {:>9.1} {:>8.2} {:>11.2}x {:>11.1} {:>11.2}x\n",
-            t.name,
-            t.ms,
-            t.mrays_per_s,
-            best_cpu / t.ms,
-            t.cpu_ms,
-            best_cpu_time / t.cpu_ms
+            t.name, t.ms, t.mrays_per_s, t.vs_best_cpu, t.cpu_ms, t.cpu_vs_best_cpu
         );
     }
     report += &format!(
@@ -224,8 +267,38 @@ pub fn run(options: &Options) -> Result<Outcome> {
     Ok(Outcome { rays: rays.len(), occluded, timings, mismatches, unexplained, report })
 }
 
-fn timing(name: &str, (ms, cpu_ms): (f64, f64), rays: usize) -> Timing {
-    Timing { name: name.to_string(), ms, cpu_ms, mrays_per_s: rays as f64 / (ms * 1e3) }
+/// One tracer of the benchmark: what it answered the first time and its time in each round.
+struct Tracer<'a> {
+    name: &'static str,
+    trace: Box<dyn FnMut() -> Result<(Vec<bool>, f64)> + 'a>,
+    hits: Option<Vec<bool>>,
+    /// Wall-clock milliseconds per round (GPU timestamps on the device).
+    wall: Vec<f64>,
+    /// The process's CPU milliseconds per round, all threads.
+    cpu: Vec<f64>,
+}
+
+impl<'a> Tracer<'a> {
+    fn new(name: &'static str, trace: Box<dyn FnMut() -> Result<(Vec<bool>, f64)> + 'a>) -> Tracer<'a> {
+        Tracer { name, trace, hits: None, wall: Vec::new(), cpu: Vec::new() }
+    }
+
+    fn run_once(&mut self) -> Result<()> {
+        let before = process_cpu_ms();
+        let (hits, ms) = (self.trace)()?;
+        self.cpu.push(process_cpu_ms() - before);
+        self.wall.push(ms);
+        self.hits.get_or_insert(hits);
+        Ok(())
+    }
+}
+
+fn batch_trace(
+    batch: &std::cell::RefCell<TimedBatch>,
+    pipeline: &crate::vk::ComputePipeline,
+    target: &Target<'_>,
+) -> Result<(Vec<bool>, f64)> {
+    batch.borrow_mut().trace(pipeline, target).context("tracing on the device")
 }
 
 /// Milliseconds of CPU time this process has used (all its threads: lavapipe's included).
@@ -240,22 +313,11 @@ fn process_cpu_ms() -> f64 {
     ms(usage.ru_utime) + ms(usage.ru_stime)
 }
 
-/// Runs `f` `n` times (at least once) and returns the first result with the median time and
-/// the median CPU time the process spent meanwhile.
-fn repeat<T>(n: usize, mut f: impl FnMut() -> Result<(T, f64), crate::vk::GpuError>) -> Result<(T, f64, f64)> {
-    let mut times = Vec::new();
-    let mut cpu = Vec::new();
-    let mut first = None;
-    for _ in 0..n.max(1) {
-        let before = process_cpu_ms();
-        let (value, ms) = f().context("tracing on the device")?;
-        cpu.push(process_cpu_ms() - before);
-        times.push(ms);
-        first.get_or_insert(value);
-    }
-    times.sort_by(f64::total_cmp);
-    cpu.sort_by(f64::total_cmp);
-    Ok((first.expect("ran at least once"), times[times.len() / 2], cpu[cpu.len() / 2]))
+/// The median of `values` (the upper one of an even count); not empty.
+fn median(values: &[f64]) -> f64 {
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted[sorted.len() / 2]
 }
 
 /// obvhs's triangle test as a shadow query wants it: open at t = 0.

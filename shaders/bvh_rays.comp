@@ -7,24 +7,26 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 #define BVH_SET 0
 #define BVH_NODES_BINDING RAYS_BVH_NODES
+#define BVH_ROOT_BINDING RAYS_BVH_ROOT
 #define BVH_TRIANGLES_BINDING RAYS_BVH_TRIANGLES
 #define BVH_MASKS_BINDING RAYS_BVH_MASKS
 #include "bvh.glsl"
 
-struct Ray {
-    vec4 origin; // w: tmax
-    vec4 dir;
-};
-layout(set = 0, binding = RAYS_INPUT, std430) readonly buffer Rays { Ray rays[]; };
+// Ray i is texels 2i (origin, tmax) and 2i + 1 (direction): a texel fetch reads every lane's
+// texel in one call, where lavapipe loads a storage buffer at a per-lane address in a loop over
+// the lanes (`umbra bench rays` about 4 % faster).
+layout(set = 0, binding = RAYS_INPUT) uniform samplerBuffer rays;
 layout(set = 0, binding = RAYS_OUTPUT, std430) writeonly buffer Hits { uint hits[]; };
 
 layout(push_constant) uniform Push {
     uvec4 count; // x: number of rays
 } pc;
 
+
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= pc.count.x) return;
-    Ray r = rays[i];
-    hits[i] = bvh_occluded(r.origin.xyz, r.dir.xyz, r.origin.w) ? 1u : 0u;
+    vec4 origin = texelFetch(rays, int(2u * i));
+    vec4 dir = texelFetch(rays, int(2u * i + 1u));
+    hits[i] = bvh_occluded(origin.xyz, dir.xyz, origin.w) ? 1u : 0u;
 }

@@ -13,11 +13,8 @@ layout(set = 0, binding = RAYS_TLAS) uniform accelerationStructureEXT tlas;
 #include "bvh_mask.glsl"
 #endif
 
-struct Ray {
-    vec4 origin; // w: tmax
-    vec4 dir;
-};
-layout(set = 0, binding = RAYS_INPUT, std430) readonly buffer Rays { Ray rays[]; };
+// As in bvh_rays.comp: ray i is texels 2i (origin, tmax) and 2i + 1 (direction).
+layout(set = 0, binding = RAYS_INPUT) uniform samplerBuffer rays;
 layout(set = 0, binding = RAYS_OUTPUT, std430) writeonly buffer Hits { uint hits[]; };
 
 layout(push_constant) uniform Push {
@@ -27,13 +24,13 @@ layout(push_constant) uniform Push {
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= pc.count.x) return;
-    Ray r = rays[i];
+    vec4 origin = texelFetch(rays, int(2u * i));
+    vec3 dir = texelFetch(rays, int(2u * i + 1u)).xyz;
     rayQueryEXT query;
 #ifdef BVH_MASKED
     // Alpha-masked casters are the non-opaque geometry: their candidates come here (as in
     // shadows/traced/trace_rq.comp).
-    rayQueryInitializeEXT(query, tlas, gl_RayFlagsTerminateOnFirstHitEXT, 0xFFu, r.origin.xyz, 0.0, r.dir.xyz,
-                          r.origin.w);
+    rayQueryInitializeEXT(query, tlas, gl_RayFlagsTerminateOnFirstHitEXT, 0xFFu, origin.xyz, 0.0, dir, origin.w);
     while (rayQueryProceedEXT(query)) {
         if (rayQueryGetIntersectionTypeEXT(query, false) == gl_RayQueryCandidateIntersectionTriangleEXT) {
             vec2 b = rayQueryGetIntersectionBarycentricsEXT(query, false);
@@ -44,7 +41,7 @@ void main() {
     }
 #else
     rayQueryInitializeEXT(query, tlas, gl_RayFlagsTerminateOnFirstHitEXT | gl_RayFlagsOpaqueEXT, 0xFFu,
-                          r.origin.xyz, 0.0, r.dir.xyz, r.origin.w);
+                          origin.xyz, 0.0, dir, origin.w);
     while (rayQueryProceedEXT(query)) {
     }
 #endif

@@ -100,6 +100,8 @@ pub struct BvhBuffers {
     /// The alpha masks of masked casters (RGBA32UI, `crate::scene::bvh::mask`), only in scenes
     /// that have them: the passes that walk the BVH then take their masked variant.
     pub masks: Option<TexelBuffer>,
+    /// The root node again, as a uniform buffer: every ray reads it (bvh.glsl's `BvhRoot`).
+    pub root: Buffer,
 }
 
 impl BvhBuffers {
@@ -134,10 +136,13 @@ impl BvhBuffers {
             }
             None => None,
         };
+        let root = bytemuck::bytes_of(&bvh.wide().nodes[0]);
+        let [root] = upload(ctx, [("bvh root", root, vk::BufferUsageFlags::UNIFORM_BUFFER)])?;
         Ok(BvhBuffers {
             nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
             triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
             masks,
+            root,
         })
     }
 
@@ -162,9 +167,13 @@ impl BvhBuffers {
         BvhBuffers::new(ctx, nodes, triangles, bvh)
     }
 
-    /// Device bytes of nodes and triangles (and alpha masks, where there are some).
+    /// Device bytes of nodes and triangles (and alpha masks, where there are some), the root's
+    /// copy included.
     pub fn bytes(&self) -> u64 {
-        self.nodes.buffer.size + self.triangles.buffer.size + self.masks.as_ref().map_or(0, |m| m.buffer.size)
+        self.nodes.buffer.size
+            + self.triangles.buffer.size
+            + self.root.size
+            + self.masks.as_ref().map_or(0, |m| m.buffer.size)
     }
 
     /// Imports both into `g` for a frame's passes to read.
@@ -172,6 +181,7 @@ impl BvhBuffers {
         BvhHandles {
             nodes: g.import_buffer("bvh nodes", &self.nodes.buffer, access),
             triangles: g.import_buffer("bvh triangles", &self.triangles.buffer, access),
+            root: g.import_buffer("bvh root", &self.root, access),
             node_view: self.nodes.view(),
             triangle_view: self.triangles.view(),
             masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view())),
@@ -183,6 +193,7 @@ impl BvhBuffers {
 pub struct BvhHandles {
     pub nodes: crate::graph::Handle<crate::graph::BufferKind>,
     pub triangles: crate::graph::Handle<crate::graph::BufferKind>,
+    pub root: crate::graph::Handle<crate::graph::BufferKind>,
     pub node_view: vk::BufferView,
     pub triangle_view: vk::BufferView,
     /// The alpha masks, in scenes with masked casters.
@@ -190,24 +201,52 @@ pub struct BvhHandles {
 }
 
 impl BvhHandles {
-    /// Declares `pass`'s reads of both and returns them bound at `nodes` and `triangles`, and
-    /// the alpha masks at `masks` where the scene has them (the masked variant's binding).
+    /// Declares `pass`'s reads of the BVH and returns it bound at `slots` (the alpha masks only
+    /// where the scene has them: the masked variant's binding).
     pub fn bind(
         &self,
         pass: &mut crate::graph::PassBuilder<'_, '_>,
-        nodes: u32,
-        triangles: u32,
-        masks: u32,
+        slots: &BvhSlots,
     ) -> Vec<(u32, crate::graph::Bound)> {
+        use crate::graph::Bound;
         let read = Access::ComputeShaderReadUniformTexelBuffer;
         let mut bound = vec![
-            (nodes, crate::graph::Bound::TexelBuffer(pass.read(&self.nodes, read), self.node_view)),
-            (triangles, crate::graph::Bound::TexelBuffer(pass.read(&self.triangles, read), self.triangle_view)),
+            (slots.nodes, Bound::TexelBuffer(pass.read(&self.nodes, read), self.node_view)),
+            (slots.triangles, Bound::TexelBuffer(pass.read(&self.triangles, read), self.triangle_view)),
+            (slots.root, Bound::Buffer(pass.read(&self.root, Access::ComputeShaderReadUniformBuffer))),
         ];
         if let Some((buffer, view)) = &self.masks {
-            bound.push((masks, crate::graph::Bound::TexelBuffer(pass.read(buffer, read), *view)));
+            bound.push((slots.masks, Bound::TexelBuffer(pass.read(buffer, read), *view)));
         }
         bound
+    }
+}
+
+/// The binding numbers a shader that includes bvh.glsl gives the BVH (bindings.glsl).
+pub struct BvhSlots {
+    pub nodes: u32,
+    pub triangles: u32,
+    pub root: u32,
+    /// Bound in the masked variant only.
+    pub masks: u32,
+}
+
+impl BvhSlots {
+    /// `bindings` with the BVH's added (its alpha masks' where `masked`).
+    pub fn with(
+        &self,
+        bindings: &[(u32, crate::vk::DescriptorKind)],
+        masked: bool,
+    ) -> Vec<(u32, crate::vk::DescriptorKind)> {
+        use crate::vk::DescriptorKind;
+        let mut all = bindings.to_vec();
+        all.push((self.nodes, DescriptorKind::UniformTexelBuffer));
+        all.push((self.triangles, DescriptorKind::UniformTexelBuffer));
+        all.push((self.root, DescriptorKind::UniformBuffer));
+        if masked {
+            all.push((self.masks, DescriptorKind::UniformTexelBuffer));
+        }
+        all
     }
 }
 

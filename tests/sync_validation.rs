@@ -15,8 +15,9 @@ fn run(declare_the_read: bool) -> Vec<String> {
     let ctx = common::gpu();
     let bvh = ShadowBvh::from_triangles(&[[Vec3::ZERO, Vec3::X, Vec3::Y]]);
     let pipeline = ray_batch::pipeline(&ctx, false).unwrap();
-    let usage = vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
+    let usage = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
     let rays = Buffer::new(&ctx, "rays", 64 * 32, usage, MemoryLocation::GpuOnly).unwrap();
+    let rays_view = umbra::vk::TexelView::new(&ctx, &rays, ray_batch::RAY_TEXEL_FORMAT).unwrap();
     let bvh = umbra::gpu_scene::BvhBuffers::upload(&ctx, &bvh).unwrap();
     let staging = Buffer::with_data(
         &ctx,
@@ -47,13 +48,14 @@ fn run(declare_the_read: bool) -> Vec<String> {
     });
     // Pass 2: the query reads the rays. The faulty variant binds them without declaring the read.
     let hits = if declare_the_read {
-        ray_batch::add(&mut g, &pipeline, &ray_handle, &walk, 64)
+        ray_batch::add(&mut g, &pipeline, (&ray_handle, rays_view.view), &walk, 64)
     } else {
-        let undeclared = rays.raw;
+        let undeclared = rays_view.view;
         let mut hits = g.create_buffer("hits", 256);
         let mut p = g.add_pass("bvh rays (undeclared read)");
         let _ = p.read(&walk.nodes, Access::ComputeShaderReadUniformTexelBuffer);
         let _ = p.read(&walk.triangles, Access::ComputeShaderReadUniformTexelBuffer);
+        let root = p.read(&walk.root, Access::ComputeShaderReadUniformBuffer);
         let (node_view, triangle_view) = (walk.node_view, walk.triangle_view);
         let hr = p.write(&mut hits, Access::ComputeShaderWrite);
         let pipeline = &pipeline;
@@ -69,19 +71,26 @@ fn run(declare_the_read: bool) -> Vec<String> {
                         &vk::DescriptorSetAllocateInfo::default().descriptor_pool(pool).set_layouts(&layouts),
                     )
                     .unwrap()[0];
-                let infos = [(RAYS_INPUT, undeclared), (RAYS_OUTPUT, pctx.buffer(hr))]
-                    .map(|(b, buf)| (b, [vk::DescriptorBufferInfo { buffer: buf, offset: 0, range: vk::WHOLE_SIZE }]));
+                let infos = [
+                    (RAYS_OUTPUT, pctx.buffer(hr), vk::DescriptorType::STORAGE_BUFFER),
+                    (RAYS_BVH_ROOT, pctx.buffer(root), vk::DescriptorType::UNIFORM_BUFFER),
+                ]
+                .map(|(b, buf, ty)| {
+                    (b, [vk::DescriptorBufferInfo { buffer: buf, offset: 0, range: vk::WHOLE_SIZE }], ty)
+                });
                 let mut writes: Vec<_> = infos
                     .iter()
-                    .map(|(b, info)| {
+                    .map(|(b, info, ty)| {
                         vk::WriteDescriptorSet::default()
                             .dst_set(set)
                             .dst_binding(*b)
-                            .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                            .descriptor_type(*ty)
                             .buffer_info(info)
                     })
                     .collect();
-                for (binding, view) in [(RAYS_BVH_NODES, &node_view), (RAYS_BVH_TRIANGLES, &triangle_view)] {
+                for (binding, view) in
+                    [(RAYS_INPUT, &undeclared), (RAYS_BVH_NODES, &node_view), (RAYS_BVH_TRIANGLES, &triangle_view)]
+                {
                     writes.push(
                         vk::WriteDescriptorSet::default()
                             .dst_set(set)
@@ -117,7 +126,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
     };
     g.export(hits, Access::ComputeShaderReadStorageBuffer);
     // Exported so the upload survives culling even when no pass declares that it reads the rays.
-    g.export(ray_handle, Access::ComputeShaderReadStorageBuffer);
+    g.export(ray_handle, Access::ComputeShaderReadUniformTexelBuffer);
     let plan = CompiledGraph::compile(&g);
     let mut cache = TransientCache::new(&ctx).unwrap();
     ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false)).unwrap();
@@ -130,8 +139,9 @@ fn run(declare_the_read: bool) -> Vec<String> {
 
 fn descriptor_pool(device: &ash::Device) -> vk::DescriptorPool {
     let sizes = [
-        vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 2 },
-        vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_TEXEL_BUFFER, descriptor_count: 2 },
+        vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: 1 },
+        vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: 1 },
+        vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_TEXEL_BUFFER, descriptor_count: 3 },
     ];
     unsafe {
         device.create_descriptor_pool(&vk::DescriptorPoolCreateInfo::default().max_sets(1).pool_sizes(&sizes), None)

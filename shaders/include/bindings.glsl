@@ -66,6 +66,7 @@
 #define RAYS_OUTPUT 3
 #define RAYS_TLAS 4
 #define RAYS_BVH_MASKS 5
+#define RAYS_BVH_ROOT 6
 
 // overlay.comp: text over the presented image
 #define OVERLAY_CANVAS 0
@@ -100,6 +101,8 @@
 #define SHADOW_BVH_MASKS 9
 // shadows/traced/trace*.comp: the G-buffer's material, which soft lights' rays are weighted by
 #define SHADOW_MATERIAL 10
+// shadows/traced/trace*.comp: the BVH's root node as a uniform block (bvh.glsl)
+#define SHADOW_BVH_ROOT 11
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
@@ -147,6 +150,7 @@
 #define AO_OUTPUT 5
 #define AO_VIEW_OUTPUT 6
 #define AO_BVH_MASKS 7
+#define AO_BVH_ROOT 8
 
 // lighting/rect_lights.comp: rect lights' unshadowed LTC shading added to compose's radiance,
 // times their traced visibility (ratio estimator), and their emitters where the camera sees
@@ -163,6 +167,7 @@
 #define RECT_BVH_NODES 9
 #define RECT_BVH_TRIANGLES 10
 #define RECT_BVH_MASKS 11
+#define RECT_BVH_ROOT 12
 
 // lighting/envmap_*.comp: an environment map's precompute at load (src/lighting/envmap.rs)
 #define ENVMAP_SOURCE 0

@@ -27,17 +27,18 @@ struct Push {
     params: Vec4,
 }
 
+/// Where ao.comp binds the BVH.
+const BVH_SLOTS: crate::gpu_scene::BvhSlots = crate::gpu_scene::BvhSlots {
+    nodes: AO_BVH_NODES,
+    triangles: AO_BVH_TRIANGLES,
+    root: AO_BVH_ROOT,
+    masks: AO_BVH_MASKS,
+};
+
 /// `masked`: the variant that reads alpha masks, for scenes with alpha-masked casters.
 pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
-    let bindings = [
-        sampled(AO_POSITION),
-        sampled(AO_NORMAL),
-        sampled(AO_SURFACE),
-        (AO_BVH_NODES, crate::vk::DescriptorKind::UniformTexelBuffer),
-        (AO_BVH_TRIANGLES, crate::vk::DescriptorKind::UniformTexelBuffer),
-        storage_image(AO_OUTPUT),
-    ];
-    let bindings = crate::shadows::traced::bvh_bindings(&bindings, AO_BVH_MASKS, masked);
+    let bindings = [sampled(AO_POSITION), sampled(AO_NORMAL), sampled(AO_SURFACE), storage_image(AO_OUTPUT)];
+    let bindings = BVH_SLOTS.with(&bindings, masked);
     let spirv = if masked { spirv::LIGHTING_AO_COMP_MASKED } else { spirv::LIGHTING_AO_COMP };
     ComputePipeline::new(ctx, "ambient occlusion", spirv, &bindings, 32, TILE)
 }
@@ -61,7 +62,7 @@ pub fn add<'a>(
     let mut image = graph.create_image("ambient occlusion", ImageDesc::new(AO_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("ambient occlusion");
     let read = Access::ComputeShaderReadSampledImage;
-    let walk = bvh.bind(&mut pass, AO_BVH_NODES, AO_BVH_TRIANGLES, AO_BVH_MASKS);
+    let walk = bvh.bind(&mut pass, &BVH_SLOTS);
     let mut bound = vec![
         (AO_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (AO_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),

@@ -69,6 +69,14 @@ struct Push {
     dims: UVec4,
 }
 
+/// Where rect_lights.comp binds the BVH.
+const BVH_SLOTS: crate::gpu_scene::BvhSlots = crate::gpu_scene::BvhSlots {
+    nodes: RECT_BVH_NODES,
+    triangles: RECT_BVH_TRIANGLES,
+    root: RECT_BVH_ROOT,
+    masks: RECT_BVH_MASKS,
+};
+
 /// `masked`: the variant that reads alpha masks, for scenes with alpha-masked casters.
 pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
     let bindings = [
@@ -81,11 +89,9 @@ pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipelin
         sampled(RECT_RADIANCE_IN),
         storage_image(RECT_RADIANCE_OUT),
         (RECT_SURFACE, crate::vk::DescriptorKind::SampledImage),
-        (RECT_BVH_NODES, crate::vk::DescriptorKind::UniformTexelBuffer),
-        (RECT_BVH_TRIANGLES, crate::vk::DescriptorKind::UniformTexelBuffer),
     ];
     let size = std::mem::size_of::<Push>() as u32;
-    let bindings = crate::shadows::traced::bvh_bindings(&bindings, RECT_BVH_MASKS, masked);
+    let bindings = BVH_SLOTS.with(&bindings, masked);
     let spirv = if masked { spirv::LIGHTING_RECT_LIGHTS_COMP_MASKED } else { spirv::LIGHTING_RECT_LIGHTS_COMP };
     ComputePipeline::new(ctx, "rect lights", spirv, &bindings, size, TILE)
 }
@@ -111,7 +117,7 @@ pub fn add<'a>(
     let mut out = graph.create_image("radiance (rects)", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("rect lights");
     let read = Access::ComputeShaderReadSampledImage;
-    let walk = bvh.bind(&mut pass, RECT_BVH_NODES, RECT_BVH_TRIANGLES, RECT_BVH_MASKS);
+    let walk = bvh.bind(&mut pass, &BVH_SLOTS);
     let mut bound = vec![
         (RECT_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
         (RECT_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),

@@ -8,13 +8,20 @@ use glam::{UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
 use super::storage;
-use crate::gpu_scene::{BvhBuffers, BvhHandles};
+use crate::gpu_scene::{BvhBuffers, BvhHandles, BvhSlots};
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
 use crate::scene::bvh::ShadowBvh;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
+use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuError, GpuResult, TexelBuffer};
 
 const GROUP: [u32; 2] = [64, 1];
+
+/// Where bvh_rays.comp binds the BVH.
+const BVH_SLOTS: BvhSlots =
+    BvhSlots { nodes: RAYS_BVH_NODES, triangles: RAYS_BVH_TRIANGLES, root: RAYS_BVH_ROOT, masks: RAYS_BVH_MASKS };
+
+/// The format the shaders read rays in: a `GpuRay` is two of its texels.
+pub const RAY_TEXEL_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -32,30 +39,26 @@ impl GpuRay {
 
 /// `masked`: the variant that reads alpha masks, for BVHs with alpha-masked casters.
 pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
-    let bindings = [
-        storage(RAYS_INPUT),
-        (RAYS_BVH_NODES, DescriptorKind::UniformTexelBuffer),
-        (RAYS_BVH_TRIANGLES, DescriptorKind::UniformTexelBuffer),
-        storage(RAYS_OUTPUT),
-    ];
-    let bindings = crate::shadows::traced::bvh_bindings(&bindings, RAYS_BVH_MASKS, masked);
+    let bindings = [(RAYS_INPUT, DescriptorKind::UniformTexelBuffer), storage(RAYS_OUTPUT)];
+    let bindings = BVH_SLOTS.with(&bindings, masked);
     let spirv = if masked { spirv::BVH_RAYS_COMP_MASKED } else { spirv::BVH_RAYS_COMP };
     ComputePipeline::new(ctx, "bvh rays", spirv, &bindings, 16, GROUP)
 }
 
-/// Declares the query pass: reads `rays` and the BVH; returns the hit flags (u32 each).
+/// Declares the query pass: reads `rays` (through `rays_view`, `RAY_TEXEL_FORMAT` texels) and
+/// the BVH; returns the hit flags (u32 each).
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
-    rays: &Handle<BufferKind>,
+    (rays, rays_view): (&Handle<BufferKind>, vk::BufferView),
     bvh: &BvhHandles,
     count: u32,
 ) -> Handle<BufferKind> {
     let mut hits = graph.create_buffer("hits", u64::from(count.max(1)) * 4);
     let mut pass = graph.add_pass("bvh rays");
-    let walk = bvh.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES, RAYS_BVH_MASKS);
+    let walk = bvh.bind(&mut pass, &BVH_SLOTS);
     let mut bound = vec![
-        (RAYS_INPUT, Bound::Buffer(pass.read(rays, Access::ComputeShaderReadStorageBuffer))),
+        (RAYS_INPUT, Bound::TexelBuffer(pass.read(rays, Access::ComputeShaderReadUniformTexelBuffer), rays_view)),
         (RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))),
     ];
     bound.extend(walk);
@@ -67,8 +70,7 @@ pub fn add<'a>(
 /// Traces `rays` through `bvh` on the GPU and returns whether each is occluded.
 pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResult<Vec<bool>> {
     let pipeline = pipeline(ctx, bvh.masks().is_some())?;
-    let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
-    let ray_buf = Buffer::with_data(ctx, "rays", bytemuck::cast_slice(rays), usage)?;
+    let ray_buf = upload_rays(ctx, rays)?;
     let bvh = BvhBuffers::upload(ctx, bvh)?;
     let count = rays.len() as u32;
     let out = Buffer::new(
@@ -80,9 +82,9 @@ pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResu
     )?;
     let mut cache = TransientCache::new(ctx)?;
     let mut g = RenderGraph::new();
-    let r = g.import_buffer("rays", &ray_buf, Access::HostWrite);
+    let r = g.import_buffer("rays", &ray_buf.buffer, crate::gpu_scene::SCENE_ACCESS);
     let walk = bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS);
-    let hits = add(&mut g, &pipeline, &r, &walk, count);
+    let hits = add(&mut g, &pipeline, (&r, ray_buf.view()), &walk, count);
     super::readback::add_buffer(&mut g, &hits, &out);
     let plan = CompiledGraph::compile(&g);
     ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
@@ -101,8 +103,12 @@ pub enum Target<'s> {
 /// The ray-query twin of `pipeline`; only on devices with ray query. `masked`: the variant for
 /// a `RayQueryScene` with alpha-masked casters.
 pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
-    let bindings = [storage(RAYS_INPUT), (RAYS_TLAS, DescriptorKind::AccelerationStructure), storage(RAYS_OUTPUT)];
-    let bindings = crate::shadows::traced::bvh_bindings(&bindings, RAYS_BVH_MASKS, masked);
+    let bindings = [
+        (RAYS_INPUT, DescriptorKind::UniformTexelBuffer),
+        (RAYS_TLAS, DescriptorKind::AccelerationStructure),
+        storage(RAYS_OUTPUT),
+    ];
+    let bindings = crate::shadows::traced::mask_bindings(&bindings, RAYS_BVH_MASKS, masked);
     let spirv = if masked { spirv::BVH_RAYS_RQ_COMP_MASKED } else { spirv::BVH_RAYS_RQ_COMP };
     ComputePipeline::new(ctx, "bvh rays (ray query)", spirv, &bindings, 16, GROUP)
 }
@@ -110,7 +116,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<Comp
 /// Rays on the device, traced again and again for timing.
 pub struct TimedBatch {
     ctx: Arc<GpuContext>,
-    rays: Buffer,
+    rays: TexelBuffer,
     hits: Buffer,
     count: u32,
     cache: TransientCache,
@@ -118,12 +124,8 @@ pub struct TimedBatch {
 
 impl TimedBatch {
     pub fn new(ctx: &Arc<GpuContext>, rays: &[GpuRay]) -> GpuResult<TimedBatch> {
-        let count = u32::try_from(rays.len())
-            .map_err(|_| crate::vk::GpuError::Unsupported(format!("{} rays in one batch", rays.len())))?;
-        let [rays_buf] = crate::gpu_scene::upload(
-            ctx,
-            [("rays", bytemuck::cast_slice(rays), vk::BufferUsageFlags::STORAGE_BUFFER)],
-        )?;
+        let count = rays.len() as u32;
+        let rays_buf = upload_rays(ctx, rays)?;
         let hits = Buffer::new(
             ctx,
             "hits",
@@ -140,7 +142,8 @@ impl TimedBatch {
     /// around the submission.
     pub fn trace(&mut self, pipeline: &ComputePipeline, target: &Target<'_>) -> GpuResult<(Vec<bool>, f64)> {
         let mut g = RenderGraph::new();
-        let rays = g.import_buffer("rays", &self.rays, crate::gpu_scene::SCENE_ACCESS);
+        let rays = g.import_buffer("rays", &self.rays.buffer, crate::gpu_scene::SCENE_ACCESS);
+        let rays_view = self.rays.view();
         let mut hits = g.import_buffer("hits", &self.hits, Access::Nothing);
         let count = self.count;
         let rq = match target {
@@ -152,9 +155,10 @@ impl TimedBatch {
             Target::RayQuery(_) => None,
         };
         let mut pass = g.add_pass("bvh rays");
-        let mut bound = vec![(RAYS_INPUT, Bound::Buffer(pass.read(&rays, Access::ComputeShaderReadStorageBuffer)))];
+        let texel = Access::ComputeShaderReadUniformTexelBuffer;
+        let mut bound = vec![(RAYS_INPUT, Bound::TexelBuffer(pass.read(&rays, texel), rays_view))];
         if let Some(walk) = &walk {
-            bound.extend(walk.bind(&mut pass, RAYS_BVH_NODES, RAYS_BVH_TRIANGLES, RAYS_BVH_MASKS));
+            bound.extend(walk.bind(&mut pass, &BVH_SLOTS));
         }
         if let Some(rq) = &rq {
             let read = Access::ComputeShaderReadAccelerationStructure;
@@ -186,4 +190,22 @@ impl TimedBatch {
         let flags: &[u32] = bytemuck::cast_slice(&self.hits.mapped()[..self.count as usize * 4]);
         Ok((flags.iter().map(|&h| h != 0).collect(), stamped.unwrap_or(wall)))
     }
+}
+
+/// `rays` on the device as `RAY_TEXEL_FORMAT` texels: an error naming the limit where one texel
+/// buffer cannot hold them.
+fn upload_rays(ctx: &Arc<GpuContext>, rays: &[GpuRay]) -> GpuResult<TexelBuffer> {
+    let texels = 2 * rays.len() as u64;
+    let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
+    if texels > limit || rays.len() > u32::MAX as usize {
+        return Err(GpuError::Unsupported(format!(
+            "{} rays need {texels} texels in one texel buffer; {} allows at most {limit} (maxTexelBufferElements): \
+             use a smaller image",
+            rays.len(),
+            ctx.device_name()
+        )));
+    }
+    let usage = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+    let [buffer] = crate::gpu_scene::upload(ctx, [("rays", bytemuck::cast_slice(rays), usage)])?;
+    TexelBuffer::new(ctx, buffer, RAY_TEXEL_FORMAT)
 }

@@ -5,6 +5,7 @@
 #define BVH_SET 0
 #define BVH_NODES_BINDING 0
 #define BVH_TRIANGLES_BINDING 1
+#define BVH_ROOT_BINDING 4
 #include "bvh.glsl"
 #include "ray_offset.glsl"
 

@@ -234,7 +234,7 @@ fn trace<'a>(
     pass.read_layer(target, served.layer, Access::ComputeShaderReadStorageImage);
     let read = Access::ComputeShaderReadSampledImage;
     let storage_read = Access::ComputeShaderReadStorageBuffer;
-    let walk = bvh.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES, SHADOW_BVH_MASKS);
+    let walk = bvh.bind(&mut pass, &crate::shadows::traced::BVH_SLOTS);
     let mut bound = vec![
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),

@@ -17,6 +17,7 @@ use glam::{UVec4, Vec3, Vec4};
 
 use self::accel::RayQueryHandles;
 use super::{FrameInputs, Served};
+use crate::gpu_scene::BvhSlots;
 use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::vk::bindings::*;
@@ -102,21 +103,26 @@ fn variant_name(names: [&'static str; 4], masked: bool, soft: bool) -> &'static 
     names[masked as usize + 2 * soft as usize]
 }
 
-/// The compute-BVH trace's bindings (trace.comp and trace_list.comp), and `SHADOW_BVH_MASKS` in
-/// their masked variants.
-const BVH_BINDINGS: [(u32, DescriptorKind); 8] = [
+/// Where trace.comp and trace_list.comp bind the BVH.
+pub const BVH_SLOTS: BvhSlots = BvhSlots {
+    nodes: SHADOW_BVH_NODES,
+    triangles: SHADOW_BVH_TRIANGLES,
+    root: SHADOW_BVH_ROOT,
+    masks: SHADOW_BVH_MASKS,
+};
+
+/// The compute-BVH trace's bindings (trace.comp and trace_list.comp) but the BVH's.
+const BVH_BINDINGS: [(u32, DescriptorKind); 6] = [
     (SHADOW_POSITION, DescriptorKind::SampledImage),
     (SHADOW_NORMAL, DescriptorKind::SampledImage),
     (SHADOW_SURFACE, DescriptorKind::SampledImage),
     (SHADOW_MATERIAL, DescriptorKind::SampledImage),
     (SHADOW_LIGHTS, DescriptorKind::StorageBuffer),
-    (SHADOW_BVH_NODES, DescriptorKind::UniformTexelBuffer),
-    (SHADOW_BVH_TRIANGLES, DescriptorKind::UniformTexelBuffer),
     (SHADOW_VISIBILITY, DescriptorKind::StorageImage),
 ];
 
-/// The bindings of a compute-BVH pass: `bindings`, and the alpha masks at `masks` when `masked`.
-pub fn bvh_bindings(bindings: &[(u32, DescriptorKind)], masks: u32, masked: bool) -> Vec<(u32, DescriptorKind)> {
+/// The bindings of a ray-query pass: `bindings`, and the alpha masks at `masks` when `masked`.
+pub fn mask_bindings(bindings: &[(u32, DescriptorKind)], masks: u32, masked: bool) -> Vec<(u32, DescriptorKind)> {
     let mut all = bindings.to_vec();
     if masked {
         all.push((masks, DescriptorKind::UniformTexelBuffer));
@@ -130,7 +136,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> GpuResult<Co
     let names =
         ["shadow trace", "shadow trace (alpha masks)", "shadow trace (soft)", "shadow trace (soft, alpha masks)"];
     let spirv = if masked { spirv::SHADOWS_TRACED_TRACE_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_COMP };
-    let bindings = bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked);
+    let bindings = BVH_SLOTS.with(&BVH_BINDINGS, masked);
     let name = variant_name(names, masked, soft);
     ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
 }
@@ -138,7 +144,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> GpuResult<Co
 /// The same rays over the compute BVH for the pixels of a list only (`hybrid`), one
 /// invocation per listed pixel, `list_group` to a workgroup (an indirect dispatch).
 pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32, masked: bool, soft: bool) -> GpuResult<ComputePipeline> {
-    let mut bindings = bvh_bindings(&BVH_BINDINGS, SHADOW_BVH_MASKS, masked);
+    let mut bindings = BVH_SLOTS.with(&BVH_BINDINGS, masked);
     bindings.push((SHADOW_LIST, DescriptorKind::StorageBuffer));
     let names = [
         "shadow trace (list)",
@@ -172,7 +178,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> Gp
     ];
     let spirv = if masked { spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_RQ_COMP };
     let name = variant_name(names, masked, soft);
-    let bindings = bvh_bindings(&bindings, SHADOW_BVH_MASKS, masked);
+    let bindings = mask_bindings(&bindings, SHADOW_BVH_MASKS, masked);
     ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
 }
 
@@ -228,9 +234,7 @@ pub fn add<'a>(
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
     match casters {
-        Casters::Bvh(walk) => {
-            bound.extend(walk.bind(&mut pass, SHADOW_BVH_NODES, SHADOW_BVH_TRIANGLES, SHADOW_BVH_MASKS))
-        }
+        Casters::Bvh(walk) => bound.extend(walk.bind(&mut pass, &BVH_SLOTS)),
         Casters::RayQuery(rq) => {
             let read = Access::ComputeShaderReadAccelerationStructure;
             bound.push((SHADOW_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));

@@ -164,24 +164,8 @@ pub fn run(options: &Options) -> Result<Outcome> {
             Box::new(move || batch_trace(batch, rq_pipeline, &Target::RayQuery(scene))),
         ));
     }
-    tracers.push(Tracer::new(
-        "obvhs BVH2 (CPU)",
-        Box::new(|| {
-            Ok(cpu_trace(&rays, options.threads, |o, d, t| {
-                let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
-                !binary.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[binary.primitive_indices[id] as usize], ray))
-            }))
-        }),
-    ));
-    tracers.push(Tracer::new(
-        "obvhs CWBVH (CPU)",
-        Box::new(|| {
-            Ok(cpu_trace(&rays, options.threads, |o, d, t| {
-                let ray = Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t);
-                !cw.ray_traverse_miss(ray, |ray, id| hit_t(&obvhs_tris[cw.primitive_indices[id] as usize], ray))
-            }))
-        }),
-    ));
+    tracers.push(obvhs_tracer("obvhs BVH2 (CPU)", &binary, &obvhs_tris, &rays, options.threads));
+    tracers.push(obvhs_tracer("obvhs CWBVH (CPU)", &cw, &obvhs_tris, &rays, options.threads));
     for _ in 0..options.repeats.max(1) {
         for tracer in &mut tracers {
             tracer.run_once()?;
@@ -318,6 +302,43 @@ fn median(values: &[f64]) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
     sorted[sorted.len() / 2]
+}
+
+/// obvhs's two trees as the benchmark traces them.
+trait ObvhsTree: Sync {
+    /// Whether a triangle of `tris` (the tree's primitives) lies on `ray`.
+    fn occluded(&self, tris: &[Triangle], ray: Ray) -> bool;
+}
+
+impl ObvhsTree for obvhs::bvh2::Bvh2 {
+    fn occluded(&self, tris: &[Triangle], ray: Ray) -> bool {
+        !self.ray_traverse_miss(ray, |ray, id| hit_t(&tris[self.primitive_indices[id] as usize], ray))
+    }
+}
+
+impl ObvhsTree for obvhs::cwbvh::CwBvh {
+    fn occluded(&self, tris: &[Triangle], ray: Ray) -> bool {
+        !self.ray_traverse_miss(ray, |ray, id| hit_t(&tris[self.primitive_indices[id] as usize], ray))
+    }
+}
+
+/// `tree` tracing `rays` on `threads` threads; generic, not a trait object, so that each tree's
+/// walk is compiled for it as it would be in a program of its own.
+fn obvhs_tracer<'a, T: ObvhsTree>(
+    name: &'static str,
+    tree: &'a T,
+    tris: &'a [Triangle],
+    rays: &'a [(Vec3, Vec3, f32)],
+    threads: usize,
+) -> Tracer<'a> {
+    Tracer::new(
+        name,
+        Box::new(move || {
+            Ok(cpu_trace(rays, threads, |o, d, t| {
+                tree.occluded(tris, Ray::new(Vec3A::from(o), Vec3A::from(d), 0.0, t))
+            }))
+        }),
+    )
 }
 
 /// obvhs's triangle test as a shadow query wants it: open at t = 0.

@@ -32,7 +32,10 @@ fn the_100k_scene_traces_the_same_on_the_device_and_the_cpu() {
     assert!((0.02..0.5).contains(&share), "{:.3} occluded: the sphere's shadow is in view", share);
     assert_eq!(outcome.unexplained, 0);
     assert!(outcome.mismatches * 10_000 <= outcome.rays, "{} near-edge mismatches", outcome.mismatches);
-    assert!(outcome.timings.iter().all(|t| t.ms > 0.0 && t.mrays_per_s.is_finite()));
+    assert!(outcome.timings.iter().all(|t| t.ms > 0.0 && t.mrays_per_s.is_finite() && t.vs_best_cpu > 0.0));
+    // Every ratio is against the CPU tracer with the lowest median, itself 1.
+    let best = outcome.timings.iter().filter(|t| t.name.contains("CPU")).min_by(|a, b| a.ms.total_cmp(&b.ms)).unwrap();
+    assert_eq!(best.vs_best_cpu, 1.0, "{}", outcome.report);
     assert!(outcome.report.contains("ray query differs from the compute traversal on 0"), "{}", outcome.report);
 }
 

@@ -7,8 +7,8 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 #define BVH_SET 0
 #define BVH_NODES_BINDING RAYS_BVH_NODES
-#define BVH_ROOT_BINDING RAYS_BVH_ROOT
 #define BVH_TRIANGLES_BINDING RAYS_BVH_TRIANGLES
+#define BVH_ROOT_BINDING RAYS_BVH_ROOT
 #define BVH_MASKS_BINDING RAYS_BVH_MASKS
 #include "bvh.glsl"
 
@@ -21,7 +21,6 @@ layout(set = 0, binding = RAYS_OUTPUT, std430) writeonly buffer Hits { uint hits
 layout(push_constant) uniform Push {
     uvec4 count; // x: number of rays
 } pc;
-
 
 void main() {
     uint i = gl_GlobalInvocationID.x;

@@ -125,9 +125,9 @@ impl BvhBuffers {
         Ok(())
     }
 
-    /// Wraps the uploaded buffers (`bvh`'s nodes and `WideBvh::triangle_texels`) in their views,
-    /// and uploads `bvh`'s alpha masks where it has them.
-    pub fn new(ctx: &Arc<GpuContext>, nodes: Buffer, triangles: Buffer, bvh: &ShadowBvh) -> GpuResult<BvhBuffers> {
+    /// Wraps the uploaded buffers (`bvh`'s nodes, `WideBvh::triangle_texels` and `root_bytes`)
+    /// in their views, and uploads `bvh`'s alpha masks where it has them.
+    pub fn new(ctx: &Arc<GpuContext>, [nodes, triangles, root]: [Buffer; 3], bvh: &ShadowBvh) -> GpuResult<BvhBuffers> {
         let masks = match bvh.masks() {
             Some(masks) => {
                 let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
@@ -136,8 +136,6 @@ impl BvhBuffers {
             }
             None => None,
         };
-        let root = bytemuck::bytes_of(&bvh.wide().nodes[0]);
-        let [root] = upload(ctx, [("bvh root", root, vk::BufferUsageFlags::UNIFORM_BUFFER)])?;
         Ok(BvhBuffers {
             nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
             triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
@@ -157,14 +155,21 @@ impl BvhBuffers {
         BvhBuffers::check(ctx, bvh)?;
         let triangles = bvh.wide().triangle_texels();
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-        let [nodes, triangles] = upload(
+        let uploaded = upload(
             ctx,
             [
                 ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
                 ("bvh triangles", bytemuck::cast_slice(&triangles), texel),
+                ("bvh root", BvhBuffers::root_bytes(bvh), vk::BufferUsageFlags::UNIFORM_BUFFER),
             ],
         )?;
-        BvhBuffers::new(ctx, nodes, triangles, bvh)
+        BvhBuffers::new(ctx, uploaded, bvh)
+    }
+
+    /// The root node's bytes, uploaded once more as a uniform buffer (bvh.glsl's `BvhRoot`),
+    /// in the same upload as the nodes.
+    pub fn root_bytes(bvh: &ShadowBvh) -> &[u8] {
+        bytemuck::bytes_of(&bvh.wide().nodes[0])
     }
 
     /// Device bytes of nodes and triangles (and alpha masks, where there are some), the root's
@@ -551,7 +556,7 @@ impl SceneGpu {
         BvhBuffers::check(ctx, bvh)?;
         let bvh_triangle_texels = bvh.wide().triangle_texels();
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-        let [vertices, indices, lights, bvh_nodes, bvh_triangles] = upload(
+        let [vertices, indices, lights, bvh_nodes, bvh_triangles, bvh_root] = upload(
             ctx,
             [
                 ("vertices", &vertex_bytes, vk::BufferUsageFlags::VERTEX_BUFFER | texel),
@@ -559,9 +564,10 @@ impl SceneGpu {
                 ("lights", bytemuck::cast_slice(&lights), storage),
                 ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
                 ("bvh triangles", bytemuck::cast_slice(&bvh_triangle_texels), texel),
+                ("bvh root", BvhBuffers::root_bytes(bvh), vk::BufferUsageFlags::UNIFORM_BUFFER),
             ],
         )?;
-        let bvh_buffers = BvhBuffers::new(ctx, bvh_nodes, bvh_triangles, bvh)?;
+        let bvh_buffers = BvhBuffers::new(ctx, [bvh_nodes, bvh_triangles, bvh_root], bvh)?;
         Ok(SceneGpu {
             vertex_view: TexelView::new(ctx, &vertices, VERTEX_TEXEL_FORMAT)?,
             index_view: TexelView::new(ctx, &indices, INDEX_TEXEL_FORMAT)?,

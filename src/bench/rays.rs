@@ -153,6 +153,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
 
     // Every tracer once per round, the rounds one after another, so that the machine's speed,
     // which drifts over minutes, weighs on all of them alike.
+    // In this order: the compute traversal, the ray query where there is one, the CPU tracers.
     let mut tracers: Vec<Tracer<'_>> = vec![Tracer::new(
         "compute BVH (device)",
         Box::new(|| batch_trace(&batch, &pipeline, &Target::Compute(&buffers))),
@@ -164,6 +165,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             Box::new(move || batch_trace(batch, rq_pipeline, &Target::RayQuery(scene))),
         ));
     }
+    let first_cpu = tracers.len();
     tracers.push(obvhs_tracer("obvhs BVH2 (CPU)", &binary, &obvhs_tris, &rays, options.threads));
     tracers.push(obvhs_tracer("obvhs CWBVH (CPU)", &cw, &obvhs_tris, &rays, options.threads));
     for _ in 0..options.repeats.max(1) {
@@ -174,16 +176,13 @@ pub fn run(options: &Options) -> Result<Outcome> {
     if ctx.validation_messages() > 0 {
         bail!("validation: {} messages", ctx.validation_messages());
     }
-    let hits_of = |name: &str| tracers.iter().find(|t| t.name.starts_with(name)).and_then(|t| t.hits.as_ref());
-    let gpu_hits = hits_of("compute").expect("traced").clone();
-    let cpu_hits = hits_of("obvhs BVH2").expect("traced").clone();
-    let cw_hits = hits_of("obvhs CWBVH").expect("traced").clone();
-    let rq_disagree = hits_of("ray query").map(|rq| gpu_hits.iter().zip(rq).filter(|(a, b)| a != b).count());
+    let hits: Vec<Vec<bool>> = tracers.iter_mut().map(|t| t.hits.take().expect("traced at least once")).collect();
+    let (gpu_hits, cpu_hits, cw_hits) = (&hits[0], &hits[first_cpu], &hits[first_cpu + 1]);
+    let rq_disagree = (first_cpu > 1).then(|| gpu_hits.iter().zip(&hits[1]).filter(|(a, b)| a != b).count());
     // Each tracer against the CPU tracer with the lowest median: the median of the ratios of
     // their times in the same round.
-    let best = tracers
+    let best = tracers[first_cpu..]
         .iter()
-        .filter(|t| t.name.contains("CPU"))
         .min_by(|a, b| median(&a.wall).total_cmp(&median(&b.wall)))
         .expect("two CPU tracers");
     let timings: Vec<Timing> = tracers
@@ -200,7 +199,6 @@ pub fn run(options: &Options) -> Result<Outcome> {
             }
         })
         .collect();
-    drop(tracers);
 
     // Agreement: every ray where the device and obvhs differ must graze an edge.
     let mut mismatches = 0;

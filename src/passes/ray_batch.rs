@@ -124,8 +124,8 @@ pub struct TimedBatch {
 
 impl TimedBatch {
     pub fn new(ctx: &Arc<GpuContext>, rays: &[GpuRay]) -> GpuResult<TimedBatch> {
-        let count = rays.len() as u32;
         let rays_buf = upload_rays(ctx, rays)?;
+        let count = rays.len() as u32; // upload_rays checked that it fits
         let hits = Buffer::new(
             ctx,
             "hits",

@@ -45,26 +45,48 @@ pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipelin
     ComputePipeline::new(ctx, "bvh rays", spirv, &bindings, 16, GROUP)
 }
 
+/// What a ray-batch pass traverses, as the graph holds it: the matching pipeline is
+/// `pipeline`'s for `Bvh`, `ray_query_pipeline`'s for `RayQuery`.
+#[derive(Clone, Copy)]
+enum Traversal<'h> {
+    Bvh(&'h BvhHandles),
+    RayQuery(&'h crate::shadows::traced::accel::RayQueryHandles),
+}
+
 /// Declares the query pass: reads `rays` (through `rays_view`, `RAY_TEXEL_FORMAT` texels) and
 /// the BVH; returns the hit flags (u32 each).
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
-    (rays, rays_view): (&Handle<BufferKind>, vk::BufferView),
+    rays: (&Handle<BufferKind>, vk::BufferView),
     bvh: &BvhHandles,
     count: u32,
 ) -> Handle<BufferKind> {
     let mut hits = graph.create_buffer("hits", u64::from(count.max(1)) * 4);
+    add_into(graph, pipeline, rays, Traversal::Bvh(bvh), &mut hits, count);
+    hits
+}
+
+/// `add`, writing the flags into `hits` (at least `count` u32s), through `traversal`.
+fn add_into<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipeline: &'a ComputePipeline,
+    (rays, rays_view): (&Handle<BufferKind>, vk::BufferView),
+    traversal: Traversal<'_>,
+    hits: &mut Handle<BufferKind>,
+    count: u32,
+) {
     let mut pass = graph.add_pass("bvh rays");
-    let walk = bvh.bind(&mut pass, &BVH_SLOTS);
     let mut bound = vec![
         (RAYS_INPUT, Bound::TexelBuffer(pass.read(rays, Access::ComputeShaderReadUniformTexelBuffer), rays_view)),
-        (RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))),
+        (RAYS_OUTPUT, Bound::Buffer(pass.write(hits, Access::ComputeShaderWrite))),
     ];
-    bound.extend(walk);
+    bound.extend(match traversal {
+        Traversal::Bvh(bvh) => bvh.bind(&mut pass, &BVH_SLOTS),
+        Traversal::RayQuery(rq) => rq.bind(&mut pass, RAYS_TLAS, RAYS_BVH_MASKS),
+    });
     let push = UVec4::new(count, 0, 0, 0);
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), count, 1));
-    hits
 }
 
 /// Traces `rays` through `bvh` on the GPU and returns whether each is occluded.
@@ -143,35 +165,19 @@ impl TimedBatch {
     pub fn trace(&mut self, pipeline: &ComputePipeline, target: &Target<'_>) -> GpuResult<(Vec<bool>, f64)> {
         let mut g = RenderGraph::new();
         let rays = g.import_buffer("rays", &self.rays.buffer, crate::gpu_scene::SCENE_ACCESS);
-        let rays_view = self.rays.view();
         let mut hits = g.import_buffer("hits", &self.hits, Access::Nothing);
-        let count = self.count;
-        let rq = match target {
-            Target::RayQuery(scene) => Some(scene.add(&mut g)),
-            Target::Compute(_) => None,
-        };
-        let walk = match target {
-            Target::Compute(bvh) => Some(bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS)),
-            Target::RayQuery(_) => None,
-        };
-        let mut pass = g.add_pass("bvh rays");
-        let texel = Access::ComputeShaderReadUniformTexelBuffer;
-        let mut bound = vec![(RAYS_INPUT, Bound::TexelBuffer(pass.read(&rays, texel), rays_view))];
-        if let Some(walk) = &walk {
-            bound.extend(walk.bind(&mut pass, &BVH_SLOTS));
-        }
-        if let Some(rq) = &rq {
-            let read = Access::ComputeShaderReadAccelerationStructure;
-            bound.push((RAYS_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));
-            let _ = pass.read(&rq.bottom, read);
-            if let Some((masks, view)) = &rq.masks {
-                let texel = Access::ComputeShaderReadUniformTexelBuffer;
-                bound.push((RAYS_BVH_MASKS, Bound::TexelBuffer(pass.read(masks, texel), *view)));
+        let (rq, walk);
+        let traversal = match target {
+            Target::RayQuery(scene) => {
+                rq = scene.add(&mut g);
+                Traversal::RayQuery(&rq)
             }
-        }
-        bound.push((RAYS_OUTPUT, Bound::Buffer(pass.write(&mut hits, Access::ComputeShaderWrite))));
-        let push = UVec4::new(count, 0, 0, 0);
-        pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), count, 1));
+            Target::Compute(bvh) => {
+                walk = bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS);
+                Traversal::Bvh(&walk)
+            }
+        };
+        add_into(&mut g, pipeline, (&rays, self.rays.view()), traversal, &mut hits, self.count);
         g.export(hits, Access::HostRead);
         let plan = CompiledGraph::compile(&g);
         let timing = self.ctx.timestamp_period_ns.map(|_| crate::graph::TimingMode::Flushed);

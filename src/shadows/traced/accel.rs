@@ -10,7 +10,7 @@ use ash::vk;
 use glam::Vec3;
 use gpu_allocator::MemoryLocation;
 
-use crate::graph::{Access, BufferKind, CompiledGraph, Handle, RenderGraph};
+use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph};
 use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, VkContext};
 
 /// The pass names, so the renderer can tell from a plan whether the build ran.
@@ -78,6 +78,23 @@ pub struct RayQueryHandles {
     pub top_raw: vk::AccelerationStructureKHR,
     /// The alpha masks, in scenes with masked casters (bound by the passes' masked variants).
     pub masks: Option<(Handle<BufferKind>, vk::BufferView)>,
+}
+
+impl RayQueryHandles {
+    /// Declares `pass`'s reads of the structures and returns the top level bound at `tlas` (and
+    /// the alpha masks at `masks`, where the scene has them: the masked variant's binding), as
+    /// `BvhHandles::bind` does for the compute BVH. The bottom level is read but not bound: rays
+    /// reach it through the top level, so its build must be visible too.
+    pub fn bind(&self, pass: &mut crate::graph::PassBuilder<'_, '_>, tlas: u32, masks: u32) -> Vec<(u32, Bound)> {
+        let read = Access::ComputeShaderReadAccelerationStructure;
+        let mut bound = vec![(tlas, Bound::AccelerationStructure(pass.read(&self.top, read), self.top_raw))];
+        let _ = pass.read(&self.bottom, read);
+        if let Some((buffer, view)) = &self.masks {
+            let texel = Access::ComputeShaderReadUniformTexelBuffer;
+            bound.push((masks, Bound::TexelBuffer(pass.read(buffer, texel), *view)));
+        }
+        bound
+    }
 }
 
 impl RayQueryScene {

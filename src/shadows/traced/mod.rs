@@ -235,16 +235,7 @@ pub fn add<'a>(
     ];
     match casters {
         Casters::Bvh(walk) => bound.extend(walk.bind(&mut pass, &BVH_SLOTS)),
-        Casters::RayQuery(rq) => {
-            let read = Access::ComputeShaderReadAccelerationStructure;
-            bound.push((SHADOW_TLAS, Bound::AccelerationStructure(pass.read(&rq.top, read), rq.top_raw)));
-            // Not bound, but traversed through the top level: its build must be visible too.
-            let _ = pass.read(&rq.bottom, read);
-            if let Some((masks, view)) = &rq.masks {
-                let texel = Access::ComputeShaderReadUniformTexelBuffer;
-                bound.push((SHADOW_BVH_MASKS, Bound::TexelBuffer(pass.read(masks, texel), *view)));
-            }
-        }
+        Casters::RayQuery(rq) => bound.extend(rq.bind(&mut pass, SHADOW_TLAS, SHADOW_BVH_MASKS)),
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.

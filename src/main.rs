@@ -192,11 +192,17 @@ struct RenderArgs {
     /// Khronos validation with synchronization validation; exits non-zero on any message.
     #[arg(long)]
     validate: bool,
-    /// Frames to render (the last one is written; soft shadows accumulate over them); timings
+    /// Frames to render (the last one is written; soft shadows accumulate over them, and more
+    /// than one frame also averages views jittered within the pixel: anti-aliasing); timings
     /// are medians over them. Default: 1, or enough for 64 soft-shadow samples per pixel in
     /// all when a light's shadows are soft.
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=100_000))]
     frames: Option<u32>,
+    /// Every frame sees through the pixel's centre: no anti-aliasing over --frames (soft
+    /// shadows still accumulate). A hard-shadowed frame is then the same frame each time, which
+    /// is how --timings measures the plain frame: without the running mean's reads and writes.
+    #[arg(long)]
+    no_antialias: bool,
     /// Print per-pass and whole-frame GPU times (timestamps) and host time per frame, median and
     /// interquartile range over --frames.
     #[arg(long)]
@@ -381,12 +387,15 @@ fn provenance(
     let shadows: Vec<String> =
         (0..scene.lights.len()).map(|i| format!("{i}: {}", settings.shadow(i).describe())).collect();
     let soft_spp = soft_traced_lights(settings, &scene.lights).min();
-    let samples = match soft_spp {
+    let mut samples = match soft_spp {
         Some(spp) => {
             format!("{frames} frames; soft shadows {spp} rays per pixel and light a frame, {} in all", spp * frames)
         }
         None => format!("{frames} frames; hard shadows, 1 ray per pixel and light"),
     };
+    if frames > 1 && !settings.antialias {
+        samples.push_str("; not anti-aliased");
+    }
     let mut out = vec![
         ("scene", scene_name),
         ("size", format!("{}x{}", settings.width, settings.height)),
@@ -546,8 +555,11 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     // After auto's choice: what it chose decides whether --spp does anything.
     warn_unused_options(&args, &settings, &lights, format);
     let frames = args.frames.unwrap_or_else(|| default_frames(&settings, renderer.scene()));
-    // More than one frame: they converge to the anti-aliased image too.
-    settings.antialias = frames > 1;
+    // More than one frame: they converge to the anti-aliased image too, unless told not to.
+    settings.antialias = frames > 1 && !args.no_antialias;
+    if args.no_antialias && frames == 1 {
+        log::warn!("--no-antialias does nothing here: one frame is never anti-aliased (it takes --frames 2 or more)");
+    }
     // Before the first frame, so its host time holds no calibration.
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
     let mut timings = TimingLog::default();

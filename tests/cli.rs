@@ -495,6 +495,29 @@ fn options_that_do_nothing_say_so() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--no-antialias`: hard-shadowed frames through the pixel centre are the same frame each
+/// time, so three of them are byte for byte the single frame; without the flag three frames
+/// average jittered views and the edges change.
+#[test]
+fn no_antialias_renders_the_plain_frame_every_frame() {
+    let dir = out_dir("no-antialias");
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let mut args = vec!["render", "-o", out.to_str().unwrap(), "--size", "64x48", "--hard", "--validate"];
+        args.extend_from_slice(extra);
+        let o = run(&args);
+        assert!(o.status.success(), "{name}: {}", stderr(&o));
+        image::open(&out).unwrap().to_rgba8().into_raw()
+    };
+    let single = render("single.png", &["--frames", "1"]);
+    let plain = render("plain.png", &["--frames", "3", "--no-antialias"]);
+    let antialiased = render("antialiased.png", &["--frames", "3"]);
+    assert!(single == plain, "three frames without anti-aliasing differ from one");
+    let changed = single.chunks(4).zip(antialiased.chunks(4)).filter(|(a, b)| a != b).count();
+    assert!(changed > 0, "anti-aliased frames changed no pixel");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// An EXR says how it was made: ZIP-compressed (RLE saved 2 % on renders), with the scene,
 /// size, each light's method, samples, version and device as `umbra:` text attributes.
 #[test]

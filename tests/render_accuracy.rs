@@ -119,8 +119,10 @@ fn near_edge(bvh: &ShadowBvh, ray: &ShadowRay) -> bool {
     bvh.ray_near_edge(ray.origin, ray.dir, ray.tmax, EDGE_EPS)
 }
 
-/// Rounds to the nearest f16 value (11 significant bits, ties to even), as the RGBA16F
-/// G-buffer stores material values. Normal-range values only (all that a material holds here).
+/// Rounds to the nearest f16 value (11 significant bits, ties to even). Devices may store RGBA16F
+/// values rounded either way (lavapipe's round toward zero, and so does umbra's material table,
+/// gpu_scene.rs), so the fixture's materials are exact in f16 (asserted below), where every
+/// rounding agrees. Normal-range values only (all that a material holds here).
 fn f16_round(x: f32) -> f32 {
     assert!(x == 0.0 || (6.2e-5..65504.0).contains(&x.abs()), "{x} outside the f16 normal range");
     let bits = x.to_bits();

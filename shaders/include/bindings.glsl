@@ -58,6 +58,7 @@
 #define DISPLAY_INPUT 0
 #define DISPLAY_OUTPUT 1
 #define DISPLAY_VISIBILITY 2
+#define DISPLAY_MATERIAL 3
 
 // bvh_rays.comp: a batch of shadow queries, for checking traversal against the CPU
 #define RAYS_INPUT 0

@@ -6,6 +6,7 @@
 #define WITH_ENVIRONMENT
 #endif
 #include "bindings.glsl"
+#include "gbuffer.glsl"
 #include "brdf.glsl"
 #include "lights.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
@@ -108,7 +109,7 @@ void main() {
         return;
     }
     vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
-    vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
+    vec4 material = texelFetch(gbuffer_material, gbuffer_material_texel(position.w, ivec2(px)), 0);
     vec3 n = normalize(normal_metallic.xyz);
     vec3 v = normalize(pc.eye.xyz - position.xyz);
     vec3 sum = vec3(0.0);

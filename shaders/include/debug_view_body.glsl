@@ -1,9 +1,13 @@
 // Debug views (included by debug_view.comp and, with WITH_VISIBILITY, debug_visibility.comp): one G-buffer channel (or one light's visibility) instead of the shaded
 // image. With `display` set, values are mapped to [0,1] for an 8-bit file.
 #include "bindings.glsl"
+#include "gbuffer.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = DISPLAY_INPUT) uniform sampler2D gbuffer_channel;
+// The material channel, or the scene's material table in its place (gbuffer.glsl): the albedo
+// view's input is the position channel, which says where each pixel's material is.
+layout(set = 0, binding = DISPLAY_MATERIAL) uniform sampler2D gbuffer_material;
 layout(set = 0, binding = DISPLAY_OUTPUT, rgba32f) uniform writeonly image2D result;
 #ifdef WITH_VISIBILITY
 // The shown light's layer alone, through a view of that layer.
@@ -33,9 +37,12 @@ void main() {
     bool display = pc.params.w != 0u;
     vec3 v;
     switch (pc.params.z) {
-    case VIEW_ALBEDO:
-        v = display ? vec3(srgb_encode(texel.r), srgb_encode(texel.g), srgb_encode(texel.b)) : texel.rgb;
+    case VIEW_ALBEDO: {
+        vec3 albedo = texel.w > 0.0 ? texelFetch(gbuffer_material, gbuffer_material_texel(texel.w, ivec2(p)), 0).rgb
+                                    : vec3(0.0);
+        v = display ? vec3(srgb_encode(albedo.r), srgb_encode(albedo.g), srgb_encode(albedo.b)) : albedo;
         break;
+    }
     case VIEW_NORMAL:
         v = display ? texel.xyz * 0.5 + 0.5 : texel.xyz;
         break;

@@ -1,7 +1,14 @@
 // G-buffer layout, shared by the geometry pass that writes it and the passes that read it.
-//   position: RGBA32F  world-space position, w = 1 where a surface was drawn, 0 for background
+//   position: RGBA32F  world-space position; w: 0 for background, else where the pixel's
+//             material is (gbuffer_material_texel): 1 (GBUFFER_OWN_MATERIAL) for the material
+//             channel's texel at the pixel, 2 + k (GBUFFER_TABLE_FIRST) for texel k of the
+//             scene's material table
 //   normal:   RGBA16F  world-space unit shading normal (front-facing), w = metallic
-//   material: RGBA16F  linear base colour, w = roughness
+//   material: RGBA16F  linear base colour, w = roughness. Written per pixel only in scenes
+//             with material textures; in the others every draw's material is a constant, so
+//             the geometry pass writes no material attachment and readers bind, in its place,
+//             the scene's material table (`gpu_scene::MaterialTable`: one texel per material,
+//             the same f16 values, GBUFFER_TABLE_WIDTH texels a row)
 //   surface:  RGBA16UI what shadow rays leave the surface with (decode with the functions below):
 //             xyz  the shadow-terminator offset (f16 bits): where a ray toward a light should
 //                  start instead of the position, relative to it, from the triangle's vertex
@@ -19,9 +26,20 @@
 #define GBUFFER_GLSL
 #define GBUFFER_POSITION_LOCATION 0
 #define GBUFFER_NORMAL_LOCATION 1
-#define GBUFFER_MATERIAL_LOCATION 2
-#define GBUFFER_SURFACE_LOCATION 3
+#define GBUFFER_SURFACE_LOCATION 2
+#define GBUFFER_MATERIAL_LOCATION 3
 #define GBUFFER_EMISSION_LOCATION 4
+#define GBUFFER_TABLE_WIDTH 1024
+
+const float GBUFFER_OWN_MATERIAL = 1.0;
+const float GBUFFER_TABLE_FIRST = 2.0;
+
+// The texel of the material channel (or the table bound in its place) that holds the material
+// of pixel `px`, whose position channel's w is `w` (> 0: drawn).
+ivec2 gbuffer_material_texel(float w, ivec2 px) {
+    int k = int(w - GBUFFER_TABLE_FIRST);
+    return w < GBUFFER_TABLE_FIRST ? px : ivec2(k % GBUFFER_TABLE_WIDTH, k / GBUFFER_TABLE_WIDTH);
+}
 
 // Octahedral map of a unit vector (Meyer et al. 2010; Cigolle et al. 2014) into [0,1]^2.
 vec2 gbuffer_oct_encode(vec3 n) {

@@ -19,8 +19,10 @@ layout(location = 5) flat in vec4 in_normal_rows[3];
 
 layout(location = GBUFFER_POSITION_LOCATION) out vec4 out_position;
 layout(location = GBUFFER_NORMAL_LOCATION) out vec4 out_normal;
-layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
 layout(location = GBUFFER_SURFACE_LOCATION) out uvec4 out_surface;
+#ifdef TEXTURED
+layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
+#endif
 
 #ifdef TEXTURED
 layout(location = 8) in vec2 in_uv;
@@ -165,8 +167,13 @@ void main() {
     // A double-sided mesh's back face shades with its normal reversed (glTF doubleSided), after
     // any normal map: the whole tangent frame turns, as if the face were mirrored.
     if (!gl_FrontFacing) n = -n;
-    out_position = vec4(p, 1.0);
-    out_normal = vec4(n, metallic);
+#ifdef TEXTURED
+    out_position = vec4(p, GBUFFER_OWN_MATERIAL);
     out_material = material;
+#else
+    // The draw's constant material is texel pc.draw.w of the scene's material table.
+    out_position = vec4(p, GBUFFER_TABLE_FIRST + float(pc.draw.w));
+#endif
+    out_normal = vec4(n, metallic);
     out_surface = gbuffer_surface_encode(offset, geometric);
 }

@@ -6,6 +6,8 @@ layout(push_constant) uniform GeometryPush {
     vec4 metallic;            // x: metallic, y: normal map scale (textured draws)
     uvec4 draw;               // x: the draw's first index, y: its vertex offset (int bits);
                               // textured draws: z the maps present, w the channels read
-                              // (geometry_body.glsl); z also holds GEOMETRY_DRAW_FLAT (bindings.glsl)
+                              // (geometry_body.glsl); untextured draws: w the material's
+                              // texel in the scene's material table (gbuffer.glsl); z also
+                              // holds GEOMETRY_DRAW_FLAT (bindings.glsl)
 } pc;
 

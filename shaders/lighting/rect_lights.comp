@@ -167,7 +167,7 @@ void main() {
     bool drawn = position.w > 0.0;
     if (drawn) {
         vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
-        vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
+        vec4 material = texelFetch(gbuffer_material, gbuffer_material_texel(position.w, ivec2(px)), 0);
         vec3 n = normalize(normal_metallic.xyz);
         vec3 v = normalize(pc.eye.xyz - position.xyz);
         uvec4 surface = texelFetch(gbuffer_surface, ivec2(px), 0);

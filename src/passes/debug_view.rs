@@ -31,10 +31,12 @@ pub struct DebugPipelines {
 pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
     let push = std::mem::size_of::<Push>() as u32;
     let common = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)];
-    let mut with_vis = common.to_vec();
+    // debug_view_body.glsl's views also read the material channel (the albedo view).
+    let channel = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT), sampled(DISPLAY_MATERIAL)];
+    let mut with_vis = channel.to_vec();
     with_vis.push(sampled(DISPLAY_VISIBILITY));
     Ok(DebugPipelines {
-        channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &common, push, ROWS)?,
+        channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &channel, push, ROWS)?,
         visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, ROWS)?,
         geometric_normal: ComputePipeline::new(
             ctx,
@@ -91,7 +93,6 @@ pub fn add<'a>(
 ) -> Handle<ImageKind> {
     let mut out = graph.create_image("debug view", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let source = match inputs.view {
-        DebugView::Albedo => &gbuffer.material,
         DebugView::Normal => &gbuffer.normal,
         DebugView::GeometricNormal => &gbuffer.surface,
         _ => &gbuffer.position,
@@ -111,6 +112,10 @@ pub fn add<'a>(
         None if inputs.view == DebugView::GeometricNormal => &pipelines.geometric_normal,
         None => &pipelines.channel,
     };
+    if inputs.view != DebugView::GeometricNormal {
+        let material = pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage);
+        bound.push((DISPLAY_MATERIAL, Bound::Image(material)));
+    }
     let push = Push {
         eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
         origin: inputs.origin.extend(0.0),

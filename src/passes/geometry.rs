@@ -17,19 +17,21 @@ use glam::{Mat4, UVec4, Vec4};
 use super::{GBuffer, DEPTH_FORMAT, EMISSION_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
 use crate::gpu_scene::{
     CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SECOND_UV_ATTRIBUTES,
-    SECOND_UV_STRIDE, SURFACE_ATTRIBUTES,
+    SECOND_UV_STRIDE, SURFACE_ATTRIBUTES, TABLE_ACCESS,
 };
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
 use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc};
 
 const INSTANCE_STRIDE: u32 = std::mem::size_of::<InstanceRows>() as u32;
 
-// The colour attachments below are listed in the order gbuffer.glsl gives their locations.
+// The colour attachments below are listed in the order gbuffer.glsl gives their locations
+// (the material channel after those every scene writes: untextured scenes have none).
 const _: () = assert!(
     bindings::GBUFFER_POSITION_LOCATION == 0
         && bindings::GBUFFER_NORMAL_LOCATION == 1
-        && bindings::GBUFFER_MATERIAL_LOCATION == 2
-        && bindings::GBUFFER_SURFACE_LOCATION == 3
+        && bindings::GBUFFER_SURFACE_LOCATION == 2
+        && bindings::GBUFFER_MATERIAL_LOCATION == 3
+        && bindings::GBUFFER_EMISSION_LOCATION == 4
 );
 
 #[repr(C)]
@@ -80,10 +82,11 @@ fn desc<'a>(
 }
 
 /// The G-buffer's colour attachments in gbuffer.glsl's location order; textured scenes add the
-/// emission attachment.
-const FORMATS: [vk::Format; 4] = [POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT];
+/// material (their materials vary over a draw; others read `SceneGpu::material_table`) and
+/// emission attachments.
+const FORMATS: [vk::Format; 3] = [POSITION_FORMAT, NORMAL_FORMAT, SURFACE_FORMAT];
 const TEXTURED_FORMATS: [vk::Format; 5] =
-    [POSITION_FORMAT, NORMAL_FORMAT, MATERIAL_FORMAT, SURFACE_FORMAT, EMISSION_FORMAT];
+    [POSITION_FORMAT, NORMAL_FORMAT, SURFACE_FORMAT, MATERIAL_FORMAT, EMISSION_FORMAT];
 
 const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
     (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::UniformTexelBuffer),
@@ -150,7 +153,10 @@ pub fn add<'a>(
         depth: graph.create_image("depth", image(DEPTH_FORMAT)),
         position: graph.create_image("gbuffer position", image(POSITION_FORMAT)),
         normal: graph.create_image("gbuffer normal", image(NORMAL_FORMAT)),
-        material: graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
+        material: match &scene.material_table {
+            Some(table) => graph.import_owned_image("material table", &table.image, TABLE_ACCESS),
+            None => graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
+        },
         surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
         emission: scene.materials.as_ref().map(|_| graph.create_image("gbuffer emission", image(EMISSION_FORMAT))),
     };
@@ -181,9 +187,11 @@ pub fn add<'a>(
     let mut colors = vec![
         pass.write(&mut gbuffer.position, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.normal, Access::ColorAttachmentWrite),
-        pass.write(&mut gbuffer.material, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.surface, Access::ColorAttachmentWrite),
     ];
+    if scene.material_table.is_none() {
+        colors.push(pass.write(&mut gbuffer.material, Access::ColorAttachmentWrite));
+    }
     if let Some(emission) = &mut gbuffer.emission {
         colors.push(pass.write(emission, Access::ColorAttachmentWrite));
     }
@@ -268,11 +276,12 @@ pub fn add<'a>(
                 base_color_roughness: m.base_color.extend(m.roughness),
                 metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
                 // z: GEOMETRY_DRAW_FLAT for a flat-shaded draw, beside a textured draw's maps.
+                // w: the material's texel in the scene's material table (an untextured draw).
                 draw: UVec4::new(
                     draw.first_index,
                     draw.vertex_offset as u32,
                     if draw.flat { bindings::GEOMETRY_DRAW_FLAT } else { 0 },
-                    0,
+                    draw.table_texel,
                 ),
             };
             // SAFETY: recording state; the set is the scene's, alive as long as it is.

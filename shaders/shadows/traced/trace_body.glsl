@@ -133,7 +133,7 @@ float trace_pixel(uvec2 px) {
             if (TRACE_SOFT && reached > 0u && reached < counted) {
                 vec3 unit_n = normalize(n);
                 vec3 view = normalize(pc.eye.xyz - position.xyz);
-                vec4 material = texelFetch(gbuffer_material, ivec2(px), 0);
+                vec4 material = texelFetch(gbuffer_material, gbuffer_material_texel(position.w, ivec2(px)), 0);
                 float open_weight = 0.0;
                 float all_weight = 0.0;
                 for (uint k = 0u; k < spp; k++) {

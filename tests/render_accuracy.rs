@@ -619,3 +619,57 @@ fn debug_views_schedule_only_what_they_need() {
     drop(renderer);
     common::assert_clean(&ctx);
 }
+
+/// An untextured scene's materials come from its material table (gbuffer.glsl): 1,120 planes,
+/// each its own base colour, in a 40 x 28 grid seen head-on, so the table runs past its first
+/// row of 1,024 texels. The raw albedo view at each plane's centre pixel is its colour as the
+/// table holds it (f16, rounded toward zero), bit for bit; background is 0.
+#[test]
+fn untextured_materials_come_from_the_table_past_its_first_row() {
+    let (cols, rows) = (40u32, 28u32);
+    let (w, h) = (cols * 10, rows * 10);
+    let colour = |i: u32, j: u32| [0.05 + 0.9 * i as f32 / cols as f32, 0.05 + 0.9 * j as f32 / rows as f32, 0.3];
+    // Head-on from 100 m: the grid's 28 m fill the 2 * atan(0.14) field of view, 10 px a plane.
+    let mut text = format!(
+        "background = [0.0, 0.0, 0.0]\n[camera]\neye = [0.0, 0.0, 100.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = {}\n",
+        2.0 * 0.14f64.atan().to_degrees()
+    );
+    for j in 0..rows {
+        for i in 0..cols {
+            let [r, g, b] = colour(i, j);
+            let (x, y) = (i as f32 - cols as f32 / 2.0 + 0.5, rows as f32 / 2.0 - j as f32 - 0.5);
+            text += &format!(
+                "[[objects]]\nshape = \"plane\"\nsize = 0.8\nrotate_deg = [90.0, 0.0, 0.0]\n\
+                 translate = [{x}, {y}, 0.0]\nmaterial = {{ base_color = [{r}, {g}, {b}], roughness = 0.5, metallic = 0.0 }}\n"
+            );
+        }
+    }
+    let ctx = common::gpu();
+    let scene = Scene::parse(&text, "table.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
+    let mut settings = RenderSettings::new(w, h, OutputKind::SceneLinear);
+    settings.debug_view = Some(DebugView::Albedo);
+    let albedo = common::floats(renderer.render(&settings).unwrap());
+    // A shaded frame reads the table too, and draws no material attachment.
+    let plan = renderer.plan(&RenderSettings::new(w, h, OutputKind::SceneLinear)).expect("plan").to_string();
+    assert!(plan.contains("material table") && !plan.contains("gbuffer material"), "{plan}");
+    // f16, rounded toward zero (every value here is positive and in f16's normal range).
+    let stored = |v: f32| {
+        let nearest = half::f16::from_f32(v);
+        let bits = if nearest.to_f32() > v { nearest.to_bits() - 1 } else { nearest.to_bits() };
+        half::f16::from_bits(bits).to_f32()
+    };
+    for j in 0..rows {
+        for i in 0..cols {
+            let got = albedo[((10 * j + 5) * w + 10 * i + 5) as usize].truncate();
+            let want = Vec3::from(colour(i, j).map(stored));
+            assert_eq!(got, want, "plane ({i}, {j}), material {}", j * cols + i);
+        }
+    }
+    // Each plane spans pixels 1..=8 of its 10: the others are background.
+    for (x, y) in [(0, 0), (9, 5), (15, 0), (w - 1, h - 1)] {
+        assert_eq!(albedo[(y * w + x) as usize].truncate(), Vec3::ZERO, "pixel ({x}, {y}) is background");
+    }
+    drop(renderer);
+    common::assert_clean(&ctx);
+}

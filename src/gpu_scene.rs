@@ -399,7 +399,7 @@ pub struct SceneGpu {
 /// writes, instead of an 8-byte material attachment per pixel, the material's texel number into
 /// the position channel's w, and the passes that read the channel bind this image in its place
 /// (on one lavapipe thread at 1080p, one attachment fewer took the 100k bench scene's geometry
-/// pass from 137 to 118 ms, alternated).
+/// pass from 118 to 99 ms: `tools/bench-passes`, six alternated rounds).
 pub struct MaterialTable {
     pub image: crate::vk::Image,
 }

@@ -1,6 +1,8 @@
 //! Geometry pass: rasterises every mesh with dynamic rendering into the G-buffer.
 //!
-//! Beside position, shading normal and material it stores, per pixel, what shadow rays leave
+//! Beside position, shading normal and (in scenes with material textures; the others' draws
+//! name their texel of `SceneGpu::material_table` in the position's w) material, it stores, per
+//! pixel, what shadow rays leave
 //! the surface with (gbuffer.glsl's `surface`, 8 bytes): the geometric normal, and the
 //! shadow-terminator offset of the triangle under the pixel, computed here once from the
 //! triangle's corners and vertex normals (read from the scene's buffers by `gl_PrimitiveID`),
@@ -41,7 +43,9 @@ struct Push {
     eye: Vec4,
     base_color_roughness: Vec4,
     metallic: Vec4,
-    /// x: the draw's first index, y: its vertex offset (as u32 bits).
+    /// x: the draw's first index, y: its vertex offset (as u32 bits), z: flags and a textured
+    /// draw's maps, w: a textured draw's channels or an untextured one's material table texel
+    /// (geometry_push.glsl).
     draw: UVec4,
 }
 
@@ -189,6 +193,8 @@ pub fn add<'a>(
         pass.write(&mut gbuffer.normal, Access::ColorAttachmentWrite),
         pass.write(&mut gbuffer.surface, Access::ColorAttachmentWrite),
     ];
+    // Textured scenes (whose pipelines have the material attachment) and only they have no table.
+    debug_assert_eq!(scene.material_table.is_none(), scene.materials.is_some());
     if scene.material_table.is_none() {
         colors.push(pass.write(&mut gbuffer.material, Access::ColorAttachmentWrite));
     }

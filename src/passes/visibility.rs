@@ -60,7 +60,8 @@ pub fn target_bytes(extent: vk::Extent2D, layers: u32) -> u64 {
 }
 
 /// Bytes per pixel of the frame's other images: the G-buffer (depth 4, position 16, normal 8,
-/// material 8, surface 8), radiance (16) and the display image (4).
+/// surface 8, and in textured scenes material 8; counted always, an over-estimate elsewhere),
+/// radiance (16) and the display image (4).
 pub const FRAME_BYTES_PER_PIXEL: u64 = 44 + 16 + 4;
 
 /// Refuses a frame whose images this device cannot hold, naming the size and what it needs, so

@@ -456,44 +456,9 @@ impl MaterialTable {
         let desc = crate::vk::ImageDesc::new(vk::Format::R16G16B16A16_SFLOAT, w, h);
         let usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
         let image = crate::vk::Image::new(ctx, "material table", desc, usage)?;
-        let staging = Buffer::with_data(
-            ctx,
-            "material table staging",
-            bytemuck::cast_slice(&data),
-            vk::BufferUsageFlags::TRANSFER_SRC,
-        )?;
-        let mut g = RenderGraph::new();
-        let src = g.import_buffer("material table staging", &staging, Access::HostWrite);
-        let mut dst = g.import_owned_image("material table", &image, Access::Nothing);
-        let mut pass = g.add_pass("upload material table");
-        let read = pass.read(&src, Access::TransferRead);
-        let written = pass.write(&mut dst, Access::TransferWrite);
-        pass.render(move |pctx| {
-            let region = vk::BufferImageCopy::default()
-                .image_subresource(vk::ImageSubresourceLayers {
-                    aspect_mask: vk::ImageAspectFlags::COLOR,
-                    mip_level: 0,
-                    base_array_layer: 0,
-                    layer_count: 1,
-                })
-                .image_extent(vk::Extent3D { width: w, height: h, depth: 1 });
-            let layout = Access::TransferWrite.info().layout;
-            // SAFETY: recording state; the buffer holds every texel of the image.
-            unsafe {
-                pctx.device.cmd_copy_buffer_to_image(
-                    pctx.cmd,
-                    pctx.buffer(read),
-                    pctx.image(written).0,
-                    layout,
-                    &[region],
-                )
-            };
-            Ok(())
-        });
-        g.export(dst, TABLE_ACCESS);
-        let plan = CompiledGraph::compile(&g);
-        let mut cache = TransientCache::new(ctx)?;
-        ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
+        let (bytes, copies) =
+            crate::gpu_textures::mip_uploads(std::iter::once((w, h, bytemuck::cast_slice(&data).to_vec())));
+        crate::gpu_textures::fill_images(ctx, &[(&image, bytes, copies)], TABLE_ACCESS)?;
         Ok(MaterialTable { image })
     }
 }

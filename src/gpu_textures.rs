@@ -252,12 +252,11 @@ pub fn upload(
     })
 }
 
-/// Each texture as a mipmapped image, uploaded in one small graph (staging copies, then every
-/// image handed on as a fragment shader's sampled read, the only way it is used).
+/// Each texture as a mipmapped image, uploaded in one small graph (`fill_images`), every image
+/// handed on as a fragment shader's sampled read, the only way it is used.
 fn upload_images(ctx: &Arc<GpuContext>, textures: &[Arc<Texture>]) -> GpuResult<(Vec<Image>, u64)> {
     let mut images = Vec::new();
-    let mut staging = Vec::new();
-    let mut regions = Vec::new();
+    let mut contents = Vec::new();
     let mut bytes = 0u64;
     for texture in textures {
         let mut levels = vec![(texture.width, texture.height, texture.rgba8.clone())];
@@ -268,17 +267,32 @@ fn upload_images(ctx: &Arc<GpuContext>, textures: &[Arc<Texture>]) -> GpuResult<
         images.push(Image::new(ctx, "material texture", desc, usage)?);
         let (data, copies) = mip_uploads(levels.into_iter());
         bytes += data.len() as u64;
-        staging.push(Buffer::with_data(ctx, "texture staging", &data, vk::BufferUsageFlags::TRANSFER_SRC)?);
-        regions.push(copies);
+        contents.push((data, copies));
     }
+    let uploads: Vec<_> = images.iter().zip(contents).map(|(image, (data, copies))| (image, data, copies)).collect();
+    fill_images(ctx, &uploads, Access::FragmentShaderReadSampledImage)?;
+    Ok((images, bytes))
+}
+
+/// Copies into each image of `uploads` its staging bytes (the copies of its levels as
+/// `mip_uploads` makes them), in one small graph, and leaves every image in `access`.
+pub(crate) fn fill_images(
+    ctx: &Arc<GpuContext>,
+    uploads: &[(&Image, Vec<u8>, Vec<vk::BufferImageCopy>)],
+    access: Access,
+) -> GpuResult<()> {
+    let staging: Vec<Buffer> = uploads
+        .iter()
+        .map(|(_, data, _)| Buffer::with_data(ctx, "image staging", data, vk::BufferUsageFlags::TRANSFER_SRC))
+        .collect::<GpuResult<_>>()?;
     let mut g = RenderGraph::new();
     let mut pass_inputs = Vec::new();
-    for ((image, buffer), copies) in images.iter().zip(&staging).zip(regions) {
-        let src = g.import_buffer("texture staging", buffer, Access::HostWrite);
-        let dst = g.import_image("material texture", image.desc, (image.raw, image.view, image.usage), Access::Nothing);
-        pass_inputs.push((src, dst, copies));
+    for ((image, _, copies), buffer) in uploads.iter().zip(&staging) {
+        let src = g.import_buffer("image staging", buffer, Access::HostWrite);
+        let dst = g.import_owned_image("uploaded image", image, Access::Nothing);
+        pass_inputs.push((src, dst, copies.clone()));
     }
-    let mut pass = g.add_pass("upload textures");
+    let mut pass = g.add_pass("upload images");
     let mut copies = Vec::new();
     let mut outputs = Vec::new();
     for (src, mut dst, regions) in pass_inputs {
@@ -298,12 +312,11 @@ fn upload_images(ctx: &Arc<GpuContext>, textures: &[Arc<Texture>]) -> GpuResult<
         Ok(())
     });
     for h in outputs {
-        g.export(h, Access::FragmentShaderReadSampledImage);
+        g.export(h, access);
     }
     let plan = CompiledGraph::compile(&g);
     let mut cache = TransientCache::new(ctx)?;
-    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
-    Ok((images, bytes))
+    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))
 }
 
 /// What a draw of a mesh with `textures` pushes (see `DrawMaps`).

@@ -207,7 +207,8 @@ fn quantile(sorted: &[f64], q: f64) -> f64 {
     sorted[lo] + (sorted[hi] - sorted[lo]) * (pos - lo as f64)
 }
 
-fn median(samples: &[f64]) -> f64 {
+/// The median of `samples` (the mean of the middle two of an even count); 0 for none.
+pub(crate) fn median(samples: &[f64]) -> f64 {
     Spread::of(samples).map_or(0.0, |s| s.median)
 }
 

@@ -24,6 +24,7 @@ use crate::passes::ray_batch::{self, GpuRay, Target, TimedBatch};
 use crate::scene::bvh::{caster_triangles, offset_ray_origin, ShadowBvh};
 use crate::scene::{Light, Scene};
 use crate::shadows::traced::accel::RayQueryScene;
+use crate::timing::median;
 use crate::vk::{GpuContext, GpuOptions};
 
 /// Which rays to cast.
@@ -298,13 +299,6 @@ fn process_cpu_ms() -> f64 {
 /// `best`'s time over its time in the same round (rounds in the same order on both).
 fn median_ratio(best: &[f64], times: &[f64]) -> f64 {
     median(&best.iter().zip(times).map(|(b, x)| b / x).collect::<Vec<_>>())
-}
-
-/// The median of `values` (the upper one of an even count); not empty.
-fn median(values: &[f64]) -> f64 {
-    let mut sorted = values.to_vec();
-    sorted.sort_by(f64::total_cmp);
-    sorted[sorted.len() / 2]
 }
 
 /// obvhs's two trees as the benchmark traces them.

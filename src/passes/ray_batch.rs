@@ -11,6 +11,7 @@ use super::storage;
 use crate::gpu_scene::{BvhBuffers, BvhHandles, BvhSlots};
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
 use crate::scene::bvh::ShadowBvh;
+use crate::shadows::traced::accel::RayQuerySlots;
 use crate::vk::bindings::*;
 use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuError, GpuResult, TexelBuffer};
 
@@ -19,6 +20,9 @@ const GROUP: [u32; 2] = [64, 1];
 /// Where bvh_rays.comp binds the BVH.
 const BVH_SLOTS: BvhSlots =
     BvhSlots { nodes: RAYS_BVH_NODES, triangles: RAYS_BVH_TRIANGLES, root: RAYS_BVH_ROOT, masks: RAYS_BVH_MASKS };
+
+/// Where bvh_rays_rq.comp binds the structures.
+const RAY_QUERY_SLOTS: RayQuerySlots = RayQuerySlots { tlas: RAYS_TLAS, masks: RAYS_BVH_MASKS };
 
 /// The format the shaders read rays in: a `GpuRay` is two of its texels.
 pub const RAY_TEXEL_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
@@ -83,7 +87,7 @@ fn add_into<'a>(
     ];
     bound.extend(match traversal {
         Traversal::Bvh(bvh) => bvh.bind(&mut pass, &BVH_SLOTS),
-        Traversal::RayQuery(rq) => rq.bind(&mut pass, RAYS_TLAS, RAYS_BVH_MASKS),
+        Traversal::RayQuery(rq) => rq.bind(&mut pass, &RAY_QUERY_SLOTS),
     });
     let push = UVec4::new(count, 0, 0, 0);
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), count, 1));
@@ -125,12 +129,8 @@ pub enum Target<'s> {
 /// The ray-query twin of `pipeline`; only on devices with ray query. `masked`: the variant for
 /// a `RayQueryScene` with alpha-masked casters.
 pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
-    let bindings = [
-        (RAYS_INPUT, DescriptorKind::UniformTexelBuffer),
-        (RAYS_TLAS, DescriptorKind::AccelerationStructure),
-        storage(RAYS_OUTPUT),
-    ];
-    let bindings = crate::shadows::traced::mask_bindings(&bindings, RAYS_BVH_MASKS, masked);
+    let bindings = [(RAYS_INPUT, DescriptorKind::UniformTexelBuffer), storage(RAYS_OUTPUT)];
+    let bindings = RAY_QUERY_SLOTS.with(&bindings, masked);
     let spirv = if masked { spirv::BVH_RAYS_RQ_COMP_MASKED } else { spirv::BVH_RAYS_RQ_COMP };
     ComputePipeline::new(ctx, "bvh rays (ray query)", spirv, &bindings, 16, GROUP)
 }

@@ -11,7 +11,7 @@ use glam::Vec3;
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph};
-use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, VkContext};
+use crate::vk::{Buffer, DescriptorKind, GpuContext, GpuError, GpuResult, VkContext};
 
 /// The pass names, so the renderer can tell from a plan whether the build ran.
 pub const BUILD_BOTTOM: &str = "build BLAS";
@@ -81,19 +81,39 @@ pub struct RayQueryHandles {
 }
 
 impl RayQueryHandles {
-    /// Declares `pass`'s reads of the structures and returns the top level bound at `tlas` (and
-    /// the alpha masks at `masks`, where the scene has them: the masked variant's binding), as
-    /// `BvhHandles::bind` does for the compute BVH. The bottom level is read but not bound: rays
-    /// reach it through the top level, so its build must be visible too.
-    pub fn bind(&self, pass: &mut crate::graph::PassBuilder<'_, '_>, tlas: u32, masks: u32) -> Vec<(u32, Bound)> {
+    /// Declares `pass`'s reads of the structures and returns them bound at `slots` (the alpha
+    /// masks only where the scene has them: the masked variant's binding), as `BvhHandles::bind`
+    /// does for the compute BVH. The bottom level is read but not bound: rays reach it through
+    /// the top level, so its build must be visible too.
+    pub fn bind(&self, pass: &mut crate::graph::PassBuilder<'_, '_>, slots: &RayQuerySlots) -> Vec<(u32, Bound)> {
         let read = Access::ComputeShaderReadAccelerationStructure;
-        let mut bound = vec![(tlas, Bound::AccelerationStructure(pass.read(&self.top, read), self.top_raw))];
+        let mut bound = vec![(slots.tlas, Bound::AccelerationStructure(pass.read(&self.top, read), self.top_raw))];
         let _ = pass.read(&self.bottom, read);
         if let Some((buffer, view)) = &self.masks {
             let texel = Access::ComputeShaderReadUniformTexelBuffer;
-            bound.push((masks, Bound::TexelBuffer(pass.read(buffer, texel), *view)));
+            bound.push((slots.masks, Bound::TexelBuffer(pass.read(buffer, texel), *view)));
         }
         bound
+    }
+}
+
+/// The binding numbers a ray-query shader gives the structures (bindings.glsl): the ray-query
+/// twin of `gpu_scene::BvhSlots`.
+pub struct RayQuerySlots {
+    pub tlas: u32,
+    /// Bound in the masked variant only.
+    pub masks: u32,
+}
+
+impl RayQuerySlots {
+    /// `bindings` with the top level's added (and the alpha masks' where `masked`).
+    pub fn with(&self, bindings: &[(u32, DescriptorKind)], masked: bool) -> Vec<(u32, DescriptorKind)> {
+        let mut all = bindings.to_vec();
+        all.push((self.tlas, DescriptorKind::AccelerationStructure));
+        if masked {
+            all.push((self.masks, DescriptorKind::UniformTexelBuffer));
+        }
+        all
     }
 }
 

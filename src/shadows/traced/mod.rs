@@ -15,7 +15,7 @@ use std::sync::{Arc, OnceLock};
 use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 
-use self::accel::RayQueryHandles;
+use self::accel::{RayQueryHandles, RayQuerySlots};
 use super::{FrameInputs, Served};
 use crate::gpu_scene::BvhSlots;
 use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
@@ -121,14 +121,8 @@ const BVH_BINDINGS: [(u32, DescriptorKind); 6] = [
     (SHADOW_VISIBILITY, DescriptorKind::StorageImage),
 ];
 
-/// The bindings of a ray-query pass: `bindings`, and the alpha masks at `masks` when `masked`.
-pub fn mask_bindings(bindings: &[(u32, DescriptorKind)], masks: u32, masked: bool) -> Vec<(u32, DescriptorKind)> {
-    let mut all = bindings.to_vec();
-    if masked {
-        all.push((masks, DescriptorKind::UniformTexelBuffer));
-    }
-    all
-}
+/// Where trace_rq.comp binds the structures.
+const RAY_QUERY_SLOTS: RayQuerySlots = RayQuerySlots { tlas: SHADOW_TLAS, masks: SHADOW_BVH_MASKS };
 
 /// The trace over the compute BVH; `masked`: the variant that reads alpha masks (bvh.glsl's
 /// BVH_MASKED), for scenes with alpha-masked casters only; `soft`: soft lights' variant.
@@ -167,7 +161,6 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> Gp
         sampled(SHADOW_SURFACE),
         sampled(SHADOW_MATERIAL),
         storage(SHADOW_LIGHTS),
-        (SHADOW_TLAS, DescriptorKind::AccelerationStructure),
         storage_image(SHADOW_VISIBILITY),
     ];
     let names = [
@@ -178,7 +171,7 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> Gp
     ];
     let spirv = if masked { spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_RQ_COMP };
     let name = variant_name(names, masked, soft);
-    let bindings = mask_bindings(&bindings, SHADOW_BVH_MASKS, masked);
+    let bindings = RAY_QUERY_SLOTS.with(&bindings, masked);
     ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
 }
 
@@ -235,7 +228,7 @@ pub fn add<'a>(
     ];
     match casters {
         Casters::Bvh(walk) => bound.extend(walk.bind(&mut pass, &BVH_SLOTS)),
-        Casters::RayQuery(rq) => bound.extend(rq.bind(&mut pass, SHADOW_TLAS, SHADOW_BVH_MASKS)),
+        Casters::RayQuery(rq) => bound.extend(rq.bind(&mut pass, &RAY_QUERY_SLOTS)),
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.

@@ -109,7 +109,7 @@ impl BvhBuffers {
     pub fn check(ctx: &GpuContext, bvh: &ShadowBvh) -> GpuResult<()> {
         let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
         let wide = bvh.wide();
-        let node_texels = wide.nodes.len() as u64 * 4;
+        let node_texels = wide.nodes.len() as u64 * 3;
         let triangle_texels = crate::scene::bvh::wide::triangle_texel_count(wide.triangles.len()) as u64;
         let mask_texels = bvh.masks().map_or(0, |m| m.texels.len() as u64);
         for (what, texels) in [("nodes", node_texels), ("triangles", triangle_texels), ("alpha masks", mask_texels)] {

@@ -97,7 +97,7 @@ impl Renderer {
         );
         if !bvh.is_empty() {
             log::info!(
-                "shadow BVH on the device: {} KiB, {:.1} bytes per triangle (4-wide nodes of 64 B, \
+                "shadow BVH on the device: {} KiB, {:.1} bytes per triangle (4-wide nodes of 48 B, \
                  triangles of {} B)",
                 gpu_scene.bvh.bytes() >> 10,
                 gpu_scene.bvh.bytes() as f64 / bvh.triangle_count() as f64,

@@ -2,9 +2,9 @@
 // the layout). Line-for-line twin of WideBvh::occluded, which tests check against obvhs.
 //
 // Contract: before including, #define BVH_SET, BVH_NODES_BINDING, BVH_TRIANGLES_BINDING and
-// BVH_ROOT_BINDING; this file declares the two uniform texel buffers `bvh_nodes` (RGBA32UI, four
+// BVH_ROOT_BINDING; this file declares the two uniform texel buffers `bvh_nodes` (RGBA32UI, three
 // texels a node) and `bvh_triangles` (RGBA32UI: each triangle's nine floats v0, e1, e2, packed)
-// there, and the uniform block `BvhRoot`: node 0's four texels again.
+// there, and the uniform block `BvhRoot`: node 0's three texels again.
 //
 // Alpha-masked casters: build.rs compiles every shader that includes this file a second time
 // with BVH_MASKED defined (its `..._MASKED` SPIR-V), used only for scenes with alpha-masked
@@ -31,12 +31,13 @@ layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform usamplerBuffer bv
 // one load for all lanes, where its texel fetches would be three calls per invocation (`umbra
 // bench rays` about 3 % faster).
 layout(set = BVH_SET, binding = BVH_ROOT_BINDING, std140) uniform BvhRoot {
-    uvec4 bvh_root[4];
+    uvec4 bvh_root[3];
 };
 
-// A child word with this bit is a leaf: bits 28-30 its triangle count - 1, 0-27 its first.
-const uint BVH_LEAF = 0x80000000u;
+// Bits of a node's first child and first triangle (the bits above hold child codes).
 const uint BVH_FIRST_MASK = 0x0FFFFFFFu;
+// A child's 4-bit code for an inner node (1-8: a leaf of that many triangles, 0: none).
+const uint BVH_CHILD_INNER = 15u;
 // Direction components closer to zero are replaced so 1/d stays finite (no 0 * inf = NaN).
 const float BVH_MIN_DIR_COMPONENT = 1e-20;
 // Widens the far slab distance by 2 gamma(3) (Ize 2013) so rounding never culls a touched box.
@@ -122,48 +123,48 @@ bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
 #endif
 }
 
-// The mask of the children whose boxes the ray segment touches (bit i: child i), of the node
-// whose texels 0, 2 and 3 are `head`, `qxy` and `qz`.
-uint bvh_child_hits_of(uvec4 head, uvec4 qxy, uvec4 qz, vec3 origin, vec3 inv_dir, float tmax) {
+// What a ray segment touching the node whose texels are `head`, `qxy` and `t2` goes on to: the
+// group of its inner children whose boxes it touches (first child | mask << 28, bit i: child
+// first + i) and the mask of its leaf children's triangles to test (bit j: triangle `first` + j).
+void bvh_node_step(uvec4 head, uvec4 qxy, uvec4 t2, vec3 origin, vec3 inv_dir, float tmax, out uint group,
+                   out uint first, out uint triangles) {
     vec3 base = uintBitsToFloat(head.xyz);
     uvec3 exps = (uvec3(head.w) >> uvec3(0u, 8u, 16u)) & 0xFFu;
     vec3 scale = uintBitsToFloat(exps << 23);
     vec4 nx, fx, ny, fy, nz, fz;
     bvh_slab(base.x, scale.x, qxy.x, qxy.y, origin.x, inv_dir.x, nx, fx);
     bvh_slab(base.y, scale.y, qxy.z, qxy.w, origin.y, inv_dir.y, ny, fy);
-    bvh_slab(base.z, scale.z, qz.x, qz.y, origin.z, inv_dir.z, nz, fz);
+    bvh_slab(base.z, scale.z, t2.x, t2.y, origin.z, inv_dir.z, nz, fz);
     vec4 enter = bvh_max(bvh_max(nx, ny), bvh_max(nz, vec4(0.0)));
     vec4 exit = bvh_min(bvh_min(fx, fy), bvh_min(fz, vec4(tmax))) * BVH_SLAB_FAR_SCALE;
-    uvec4 hit = uvec4(lessThanEqual(enter, exit));
-    return (hit.x | hit.y << 1 | hit.z << 2 | hit.w << 3) & (head.w >> 24);
-}
-
-// The same of node `node`.
-uint bvh_child_hits(uint node, vec3 origin, vec3 inv_dir, float tmax) {
-    int at = int(4u * node);
-    uvec4 head = texelFetch(bvh_nodes, at);
-    uvec4 qxy = texelFetch(bvh_nodes, at + 2);
-    uvec4 qz = texelFetch(bvh_nodes, at + 3);
-    return bvh_child_hits_of(head, qxy, qz, origin, inv_dir, tmax);
+    bvec4 hit = lessThanEqual(enter, exit);
+    uint meta = (head.w >> 24) | ((t2.w >> 28) << 8) | ((t2.z >> 28) << 12);
+    uvec4 code = (uvec4(meta) >> uvec4(0u, 4u, 8u, 12u)) & 0xFu;
+    bvec4 inner = equal(code, uvec4(BVH_CHILD_INNER));
+    uvec4 inner_hit = uvec4(inner) & uvec4(hit);
+    uvec4 count = mix(code, uvec4(0u), inner);
+    uvec4 at = uvec4(0u, count.x, count.x + count.y, count.x + count.y + count.z);
+    uvec4 span = mix(uvec4(0u), ((uvec4(1u) << count) - 1u) << at, hit);
+    group = (t2.z & BVH_FIRST_MASK) | ((inner_hit.x | inner_hit.y << 1 | inner_hit.z << 2 | inner_hit.w << 3) << 28);
+    first = t2.w & BVH_FIRST_MASK;
+    triangles = span.x | span.y | span.z | span.w;
 }
 
 // True when a triangle (either face) lies on the ray at t in (0, tmax). dir need not be unit;
 // t is in units of |dir|.
 //
-// The walk keeps one group in registers: a node and the mask of its children the ray touches
-// that are still to visit. Each step visits one child of the group (its lowest): an inner node
-// replaces the group, the rest of the old group going on the stack as one entry (node index |
-// mask << 28); a pop happens only when a group is empty. So a node costs one push at most,
-// never one per child. The group's child words are fetched again at each visited child, not
-// kept with it: four more loop-carried registers are saved around each texel fetch (a call on
-// lavapipe). Kept in registers they made `umbra bench rays` 6-14 % faster (Mesa 25; 23 % on
-// 22.3), where the walk is the whole shader, but AO 3 % slower, soft shadows 1-2 % and the hard
-// trace no faster, where it sits in a pass's loops (alternated, one lavapipe thread).
+// The walk keeps one group in registers: the first of a node's inner children and the mask of
+// those the ray touches that are still to visit (first | mask << 28; inner child i is node
+// first + i). Each step visits the group's lowest child: its node step gives a new group, the
+// rest of the old one going on the stack as one entry, and the mask of the node's leaf
+// triangles to test (a node's leaf triangles lie together). A pop happens only when a group is
+// empty, so a node costs one push at most, never one per child; and visiting a child reads
+// nothing but its node (the 64-byte node before held a word per child, fetched again at each
+// visit: `umbra bench rays` 6-7 % and AO 9-25 % slower; src/scene/bvh/wide.rs has the figures).
 //
-// Two loops in turn (Aila & Laine 2009's while-while): descend until the lane holds a leaf, then
-// test the leaf's triangles, one per iteration so that a lane in a big leaf does not hold the
-// vector's other lanes for the whole leaf. A SIMD vector whose lanes are at different steps then
-// runs node steps together and triangle tests together, not both in every iteration.
+// Two loops in turn (Aila & Laine 2009's while-while): descend until the lane has triangles to
+// test, then test them. A SIMD vector whose lanes are at different steps then runs node steps
+// together and triangle tests together, not both in every iteration.
 //
 // The stack's top BVH_REGISTER_STACK (bindings.glsl) entries are plain variables, shifted on a
 // push and a pop: lavapipe runs each access to a local array at a varying index as a loop over
@@ -178,54 +179,44 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
     uint s0 = 0u, s1 = 0u, s2 = 0u, s3 = 0u, s4 = 0u, s5 = 0u, s6 = 0u, s7 = 0u;
     uint spill[BVH_STACK_SIZE - BVH_REGISTER_STACK];
     uint stack_len = 0u;
-    uint node = 0u;
-    uint mask = bvh_child_hits_of(bvh_root[0], bvh_root[2], bvh_root[3], origin, inv_dir, tmax);
+    uint group, first, triangles;
+    bvh_node_step(bvh_root[0], bvh_root[1], bvh_root[2], origin, inv_dir, tmax, group, first, triangles);
     for (;;) {
-        uint leaf_next = 0u; // the next triangle of the leaf to test
-        uint leaf_left = 0u; // and how many of its triangles are left
-        while (leaf_left == 0u) {
-            if (mask == 0u) {
+        while (triangles == 0u) {
+            if ((group >> 28) == 0u) {
                 if (stack_len == 0u) {
                     return false;
                 }
                 stack_len--;
-                uint entry = s0;
+                group = s0;
                 s0 = s1; s1 = s2; s2 = s3; s3 = s4; s4 = s5; s5 = s6; s6 = s7;
                 if (stack_len >= BVH_REGISTER_STACK) {
                     s7 = spill[stack_len - BVH_REGISTER_STACK];
                 }
-                node = entry & BVH_FIRST_MASK;
-                mask = entry >> 28;
             }
-            uint c = uint(findLSB(mask));
-            mask &= mask - 1u;
-            // Selected, not indexed: a vector indexed by a variable goes to scratch memory.
-            uvec4 words = texelFetch(bvh_nodes, int(4u * node + 1u));
-            uint word = c == 0u ? words.x : c == 1u ? words.y : c == 2u ? words.z : words.w;
-            if ((word & BVH_LEAF) != 0u) {
-                leaf_next = word & BVH_FIRST_MASK;
-                leaf_left = ((word >> 28) & 7u) + 1u;
-            } else {
-                if (mask != 0u) {
-                    if (stack_len >= BVH_REGISTER_STACK) {
-                        // The clamp only keeps a corrupt buffer from writing out of bounds: the
-                        // build keeps every tree's depth within the stack.
-                        spill[min(stack_len - BVH_REGISTER_STACK, BVH_STACK_SIZE - BVH_REGISTER_STACK - 1u)] = s7;
-                    }
-                    s7 = s6; s6 = s5; s5 = s4; s4 = s3; s3 = s2; s2 = s1; s1 = s0;
-                    s0 = node | (mask << 28);
-                    stack_len++;
+            uint mask = group >> 28;
+            uint rest = mask & (mask - 1u);
+            uint child = (group & BVH_FIRST_MASK) + uint(findLSB(mask));
+            if (rest != 0u) {
+                if (stack_len >= BVH_REGISTER_STACK) {
+                    // The clamp only keeps a corrupt buffer from writing out of bounds: the
+                    // build keeps every tree's depth within the stack.
+                    spill[min(stack_len - BVH_REGISTER_STACK, BVH_STACK_SIZE - BVH_REGISTER_STACK - 1u)] = s7;
                 }
-                node = word;
-                mask = bvh_child_hits(node, origin, inv_dir, tmax);
+                s7 = s6; s6 = s5; s5 = s4; s4 = s3; s3 = s2; s2 = s1; s1 = s0;
+                s0 = (group & BVH_FIRST_MASK) | (rest << 28);
+                stack_len++;
             }
+            int at = int(3u * child);
+            bvh_node_step(texelFetch(bvh_nodes, at), texelFetch(bvh_nodes, at + 1), texelFetch(bvh_nodes, at + 2),
+                          origin, inv_dir, tmax, group, first, triangles);
         }
-        while (leaf_left > 0u) {
-            if (bvh_triangle_occludes(leaf_next, origin, dir, tmax)) {
+        while (triangles != 0u) {
+            uint i = first + uint(findLSB(triangles));
+            triangles &= triangles - 1u;
+            if (bvh_triangle_occludes(i, origin, dir, tmax)) {
                 return true;
             }
-            leaf_next++;
-            leaf_left--;
         }
     }
     return false;

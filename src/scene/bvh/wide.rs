@@ -6,31 +6,44 @@
 //! Why this layout (measured with `umbra bench rays`, see the README):
 //! - 4 children per node: a node step tests four boxes in vec4 arithmetic, and the tree is half
 //!   as deep as the binary one, so a ray takes fewer dependent fetches.
-//! - 8-bit boxes: a node is 64 bytes (four RGBA32UI texels) instead of the 128 a full-precision
-//!   4-wide node takes, which keeps memory per triangle under 48 bytes (nodes and triangles)
-//!   with each triangle stored whole (36 bytes) and fetched in three texels.
+//! - 8-bit boxes: a node is 48 bytes (three RGBA32UI texels) instead of the 128 a
+//!   full-precision 4-wide node takes, which keeps memory per triangle under 48 bytes (nodes and
+//!   triangles) with each triangle stored whole (36 bytes) and fetched in three texels.
 //! - Texel buffers: lavapipe turns a storage-buffer load whose address differs between the 8
 //!   lanes of a SIMD vector into a per-lane loop; a texel fetch is one call that reads every
 //!   lane's texel.
-//! - The walk keeps a group in registers (a node and the mask of its children still to visit)
-//!   and visits one child or tests one triangle per iteration, so a lane in a big leaf does not
-//!   hold the other lanes of its vector for the whole leaf (measured about 10 % less CPU time on
-//!   the 1M scene than testing the leaf in one go); the rest of a group goes on the stack as one entry
-//!   (Ylitie et al.'s traversal): one stack write per node at most, and a stack no deeper than
-//!   the tree. lavapipe runs every access to a local array at a varying index as a loop over the
-//!   8 lanes of a SIMD vector, so pushing each hit child (an earlier version) cost more.
+//! - Children found from the node alone (as Ylitie et al.'s nodes are): a node's inner children
+//!   lie next to each other from `first_child`, and its leaf children's triangles next to each
+//!   other from `first_triangle`. So one node step (three texel fetches) yields both the group of
+//!   inner children the ray touches (first child | mask) and the mask of triangles to test, and
+//!   visiting a child reads nothing more. The 64-byte node before this held a word per child,
+//!   fetched again at each visited child; against it, alternated on one lavapipe thread: `umbra
+//!   bench rays` 100k 113-120 -> 105-109 ms and 1M 196-197 -> 175-183, the 1080p hard trace of the
+//!   100k scene 127 -> 122, the spheres showcase's soft trace 137 -> 126 and AO 99 -> 91, the
+//!   room's AO 152 -> 114. Every ray's answer is the same: the order triangles are tested in
+//!   does not change whether one is hit.
+//! - The walk keeps a group in registers and visits one child per node step; the rest of a group
+//!   goes on the stack as one entry (Ylitie et al.'s traversal): one stack write per node at
+//!   most, and a stack no deeper than the tree. lavapipe runs every access to a local array at a
+//!   varying index as a loop over the 8 lanes of a SIMD vector, so pushing each hit child (an
+//!   earlier version) cost more.
 //!
-//! # Node: 64 bytes, four RGBA32UI texels
+//! # Node: 48 bytes, three RGBA32UI texels
+//! Children are ordered inner ones first, then leaves. Each has a 4-bit code (`node_meta`): 0
+//! none, 1-8 a leaf of that many triangles, 15 (`CHILD_INNER`) an inner node.
 //! - texel 0: `x, y, z`: the node box's minimum corner (f32 bits), the quantisation origin;
 //!   `w`: bytes 0-2 the biased exponents `ex, ey, ez` of the per-axis scales `2^(e - 127)`,
-//!   byte 3 the mask of children that exist (bit i: child i).
-//! - texel 1: the four child words. Inner child: its node index (bit 31 clear). Leaf child:
-//!   bit 31 set, bits 28-30 its triangle count minus 1 (1 to 8), bits 0-27 its first triangle.
-//! - texel 2: `lo x, hi x, lo y, hi y`, texel 3: `lo z, hi z, 0, 0`: each word holds the four
-//!   children's 8-bit box coordinates, child i in byte i. A coordinate decodes to
-//!   `origin + q * scale`: the product is exact (q has 8 bits, the scale is a power of two), so
-//!   the sum is the only rounding and any device, fused or not, decodes the same box.
-//!   Quantisation rounds outward: a decoded box always contains the child's true box.
+//!   byte 3 the codes of children 0 and 1.
+//! - texel 1: `lo x, hi x, lo y, hi y`; texel 2: `lo z, hi z` and then:
+//!   - `z`: bits 0-27 the first inner child's node (inner child i is node `first_child + i`),
+//!     bits 28-31 child 3's code;
+//!   - `w`: bits 0-27 the first leaf triangle (leaf children's triangles follow one another in
+//!     child order), bits 28-31 child 2's code.
+//!
+//!   Each box word holds the four children's 8-bit coordinates, child i in byte i. A coordinate
+//!   decodes to `origin + q * scale`: the product is exact (q has 8 bits, the scale is a power
+//!   of two), so the sum is the only rounding and any device, fused or not, decodes the same
+//!   box. Quantisation rounds outward: a decoded box always contains the child's true box.
 //!
 //! # Triangle: 36 bytes, `v0`, `e1 = v1 - v0`, `e2 = v2 - v0`
 //! Nine floats, triangle after triangle (triangle i from float 9i), read as RGBA32UI texels: a
@@ -38,9 +51,11 @@
 //! (`triangle_texels` pads the last texel, so the last triangle's three exist). Every device reads
 //! RGBA32UI from a texel buffer, so a triangle takes 36 bytes on all of them; lavapipe fetches an
 //! RGBA32UI texel with one 16-byte load per lane where an RGB32F one took three, and its AO,
-//! shadow trace and `bench rays` got 2-5 % faster for it. Triangles are in leaf order.
+//! shadow trace and `bench rays` got 2-5 % faster for it.
 //!
-//! Node 0 is the root; the tree is in depth-first order. The root of a BVH with no triangles has
+//! Node 0 is the root. Depth first, each node's inner children are placed together, then the
+//! subtree under each in turn; triangles go in the same order (a node's leaves, then the
+//! subtrees under its inner children). The root of a BVH with no triangles has
 //! no children, so a ray is occluded by nothing and buffers are never empty.
 
 use glam::{UVec4, Vec3, Vec4};
@@ -52,13 +67,12 @@ use std::sync::atomic::{AtomicUsize, Ordering};
 /// balanced.
 pub const STACK_SIZE: usize = crate::vk::bindings::BVH_STACK_SIZE as usize;
 
-/// Child word bit marking a leaf.
-const LEAF: u32 = 1 << 31;
-/// Bits of a leaf's first triangle.
+/// Bits of a node's first child and first triangle.
 const FIRST_MASK: u32 = (1 << 28) - 1;
-/// The most triangles a leaf child holds (its count is stored in 3 bits).
+/// The most triangles a leaf child holds (its code is its count).
 pub const MAX_LEAF_TRIANGLES: u32 = 8;
-/// The most triangles a tree can index (28 bits of first triangle).
+/// The most triangles a tree can index (28 bits of first triangle; a tree has fewer nodes than
+/// triangles, so its first children fit too).
 pub const MAX_TRIANGLES: usize = 1 << 28;
 
 /// Direction components closer to zero are replaced so 1/d stays finite.
@@ -66,12 +80,24 @@ const MIN_DIR_COMPONENT: f32 = 1e-20;
 /// Widens the far slab distance by 2 gamma(3) (Ize 2013) so rounding never culls a touched box.
 const SLAB_FAR_SCALE: f32 = 1.000_000_4;
 
-/// One 64-byte node as uploaded (four RGBA32UI texels).
+/// One 48-byte node as uploaded (three RGBA32UI texels).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct WideNode {
-    pub texels: [[u32; 4]; 4],
+    pub texels: [[u32; 4]; 3],
 }
+
+/// A tree being collapsed: its nodes, its triangles (as input indices), and the stack its
+/// traversal can need.
+#[derive(Default)]
+struct Collapsed {
+    nodes: Vec<WideNode>,
+    order: Vec<u32>,
+    stack_need: usize,
+}
+
+/// A child's 4-bit code in a node's meta: none, a leaf of 1-8 triangles (the count), or inner.
+const CHILD_INNER: u32 = 15;
 
 /// A 4-wide quantised BVH and its triangles in leaf order.
 #[derive(Clone, Debug, Default)]
@@ -299,52 +325,59 @@ impl WideBvh {
         // The inner subtrees of at most `split` triangles (on one thread: the root's inner
         // children) are collapsed on the threads, each into a tree of its own numbered from 0.
         // Then one depth-first pass emits the nodes above them and appends each where it meets
-        // it, node indices shifted: node for node the tree one pass over everything makes.
-        // Leaves name runs of the plan's depth-first primitive order, which is the triangles'.
+        // it, node and triangle indices shifted: node for node the tree one pass over
+        // everything makes.
         let split = if threads > 1 { (tris.len() / (threads * TASKS_PER_THREAD)).max(1) as u32 } else { u32::MAX };
         let mut tasks = Vec::new();
         find_tasks(bvh, &plan, &root, 0, split, &mut tasks);
-        let done = in_parallel(tasks.len(), threads, |k| WideBvh::subtree(bvh, &plan, tasks[k]));
-        out.nodes.reserve(done.iter().map(|sub| sub.nodes.len()).sum::<usize>() + 1);
-        out.nodes.push(WideNode::default());
-        out.stack_need = out.emit(bvh, &plan, 0, &root, 0, split, &mut done.into_iter());
-        out.triangles = leaf_triangles(tris, &plan.prims, threads);
-        out.order = plan.prims;
+        let done = in_parallel(tasks.len(), threads, |k| Collapsed::subtree(bvh, &plan, tasks[k]));
+        let mut tree = Collapsed::default();
+        tree.nodes.reserve(done.iter().map(|sub| sub.nodes.len()).sum::<usize>() + 1);
+        tree.order.reserve(tris.len());
+        tree.nodes.push(WideNode::default());
+        out.stack_need = tree.emit(bvh, &plan, 0, &root, 0, split, &mut done.into_iter());
+        out.triangles = leaf_triangles(tris, &tree.order, threads);
+        (out.nodes, out.order) = (tree.nodes, tree.order);
         out
     }
+}
 
+impl Collapsed {
     /// The wide tree under inner binary node `child`, whose triangles start at `start` of the
-    /// plan's order, with its root at node 0.
-    fn subtree(bvh: &Bvh2, plan: &LeafPlan, (child, start): (Child, u32)) -> WideBvh {
-        let mut sub = WideBvh::default();
+    /// plan's order, with its root at node 0 and its triangles from 0.
+    fn subtree(bvh: &Bvh2, plan: &LeafPlan, (child, start): (Child, u32)) -> Collapsed {
+        let mut sub = Collapsed::default();
         // A node per 6 triangles (the bench scenes need fewer): no reallocation while it grows.
         sub.nodes.reserve(plan.count(child.0) as usize / 6 + 1);
+        sub.order.reserve(plan.count(child.0) as usize);
         sub.nodes.push(WideNode::default());
         sub.stack_need = sub.emit(bvh, plan, 0, &open(bvh, plan, child.0), start, 0, &mut Vec::new().into_iter());
         sub
     }
 
-    /// Appends the nodes of `sub` (a `subtree`) with its inner child words shifted to where its
-    /// nodes now lie; returns the child word of its root.
-    fn append(&mut self, sub: &WideBvh) -> u32 {
-        let node_base = self.nodes.len() as u32;
-        self.nodes.extend(sub.nodes.iter().map(|node| {
-            let mut node = *node;
-            let mask = node.texels[0][3] >> 24;
-            for (c, word) in node.texels[1].iter_mut().enumerate() {
-                if mask >> c & 1 != 0 && *word & LEAF == 0 {
-                    *word += node_base;
-                }
-            }
+    /// Puts the root of `sub` (a `subtree`) at node `slot` and appends its other nodes and its
+    /// triangles, their indices shifted to where they now lie.
+    fn append(&mut self, sub: &Collapsed, slot: usize) {
+        // Node i >= 1 of `sub` lands at node_base + i.
+        let node_base = self.nodes.len() as u32 - 1;
+        let triangle_base = self.order.len() as u32;
+        let shift = |mut node: WideNode| {
+            node.texels[2][2] += node_base;
+            node.texels[2][3] += triangle_base;
             node
-        }));
-        node_base
+        };
+        let (root, rest) = sub.nodes.split_first().expect("a subtree has a root");
+        self.nodes.extend(rest.iter().copied().map(shift));
+        self.nodes[slot] = shift(*root);
+        self.order.extend_from_slice(&sub.order);
     }
 
     /// Fills node `slot` with `children` (binary node indices, whose triangles start at `start`
-    /// of the plan's order) and recurses into inner ones, except those of at most `split`
-    /// triangles: their trees, collapsed beforehand, are taken from `done` in depth-first order
-    /// and appended. Returns the stack this subtree's traversal can need.
+    /// of the plan's order): inner children first, their nodes next to each other at the end
+    /// of the tree so far, then the leaves, whose triangles are appended (the plan's runs). Then
+    /// recurses into the inner ones, except those of at most `split` triangles: their trees,
+    /// collapsed beforehand, are taken from `done` in depth-first order and appended. Returns
+    /// the stack this subtree's traversal can need.
     #[allow(clippy::too_many_arguments)]
     fn emit(
         &mut self,
@@ -352,35 +385,61 @@ impl WideBvh {
         plan: &LeafPlan,
         slot: usize,
         children: &[Child],
-        mut start: u32,
+        start: u32,
         split: u32,
-        done: &mut std::vec::IntoIter<WideBvh>,
+        done: &mut std::vec::IntoIter<Collapsed>,
     ) -> usize {
-        let mut words = [0u32; 4];
-        let mut need_below = 0usize;
-        for (i, child) in children.iter().enumerate() {
+        // Each child with where its triangles start in the plan's order, inner children first.
+        let mut ordered = [(Child(0), 0u32); 4];
+        let mut len = 0;
+        for inner in [true, false] {
+            let mut at = start;
+            for &child in children {
+                if plan.is_leaf(child.0) != inner {
+                    ordered[len] = (child, at);
+                    len += 1;
+                }
+                at += plan.count(child.0);
+            }
+        }
+        let ordered = &ordered[..len];
+        let inner = ordered.iter().take_while(|(c, _)| !plan.is_leaf(c.0)).count();
+        let first_child = self.nodes.len();
+        self.nodes.resize(first_child + inner, WideNode::default());
+        let first_triangle = self.order.len();
+        let mut codes = [0u32; 4];
+        for (k, &(child, at)) in ordered.iter().enumerate() {
             let count = plan.count(child.0);
-            if plan.is_leaf(child.0) {
+            if k < inner {
+                codes[k] = CHILD_INNER;
+            } else {
                 debug_assert!((1..=MAX_LEAF_TRIANGLES).contains(&count));
-                words[i] = LEAF | ((count - 1) << 28) | start;
-            } else if count <= split {
+                codes[k] = count;
+                self.order.extend_from_slice(&plan.prims[at as usize..][..count as usize]);
+            }
+        }
+        let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
+        for (b, (c, _)) in boxes.iter_mut().zip(ordered) {
+            *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
+        }
+        self.nodes[slot] = encode(&boxes[..len], codes, first_child as u32, first_triangle as u32);
+        let mut need_below = 0usize;
+        for (k, &(child, at)) in ordered[..inner].iter().enumerate() {
+            if plan.count(child.0) <= split {
                 let sub = done.next().expect("a collapsed tree per split subtree");
                 need_below = need_below.max(sub.stack_need);
-                words[i] = self.append(&sub);
+                self.append(&sub, first_child + k);
             } else {
-                let index = self.nodes.len();
-                self.nodes.push(WideNode::default());
-                words[i] = index as u32;
                 let grandchildren = open(bvh, plan, child.0);
-                need_below = need_below.max(self.emit(bvh, plan, index, &grandchildren, start, split, done));
+                need_below = need_below.max(self.emit(bvh, plan, first_child + k, &grandchildren, at, split, done));
             }
-            start += count;
         }
-        self.nodes[slot] = encode(&child_boxes(bvh, children)[..children.len()], words);
         // Descending into an inner child pushes this node's group (one entry) at most.
         1 + need_below
     }
+}
 
+impl WideBvh {
     /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` (whose comments explain the walk):
     /// true when a triangle (either face) lies on `origin + t dir` for t in (0, tmax).
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
@@ -402,7 +461,8 @@ impl WideBvh {
         deepest
     }
 
-    /// bvh.glsl's `bvh_occluded`, loop for loop (descend to a leaf, then test its triangles),
+    /// bvh.glsl's `bvh_occluded`, loop for loop (descend until a node has triangles to test, then
+    /// test them),
     /// recording in `deepest` the most entries its stack held.
     #[inline(always)]
     fn walk(
@@ -416,47 +476,39 @@ impl WideBvh {
         let inv_dir = Vec3::ONE / safe_dir(dir);
         let mut stack = [0u32; STACK_SIZE];
         let mut len = 0usize;
-        let mut node = 0u32;
-        let mut mask = child_hits(&self.nodes[0], origin, inv_dir, tmax);
+        let (mut group, mut first, mut triangles) = node_step(&self.nodes[0], origin, inv_dir, tmax);
         loop {
-            let (mut leaf_next, mut leaf_left) = (0u32, 0u32);
-            while leaf_left == 0 {
-                if mask == 0 {
+            while triangles == 0 {
+                if group >> 28 == 0 {
                     if len == 0 {
                         return false;
                     }
                     len -= 1;
-                    node = stack[len] & FIRST_MASK;
-                    mask = stack[len] >> 28;
+                    group = stack[len];
                 }
-                let c = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                let word = self.nodes[node as usize].texels[1][c];
-                if word & LEAF != 0 {
-                    leaf_next = word & FIRST_MASK;
-                    leaf_left = ((word >> 28) & 7) + 1;
-                } else {
-                    if mask != 0 {
-                        stack[len.min(STACK_SIZE - 1)] = node | (mask << 28);
-                        len += 1;
-                        *deepest = (*deepest).max(len);
-                    }
-                    node = word;
-                    mask = child_hits(&self.nodes[node as usize], origin, inv_dir, tmax);
+                let mask = group >> 28;
+                let c = mask.trailing_zeros();
+                let rest = mask & (mask - 1);
+                let child = (group & FIRST_MASK) + c;
+                if rest != 0 {
+                    stack[len.min(STACK_SIZE - 1)] = (group & FIRST_MASK) | rest << 28;
+                    len += 1;
+                    *deepest = (*deepest).max(len);
                 }
+                (group, first, triangles) = node_step(&self.nodes[child as usize], origin, inv_dir, tmax);
             }
-            while leaf_left > 0 {
-                let triangle = &self.triangles[leaf_next as usize];
+            while triangles != 0 {
+                let index = first + triangles.trailing_zeros();
+                triangles &= triangles - 1;
+                let triangle = &self.triangles[index as usize];
                 let hit = match masks {
                     None => triangle_occludes(triangle, origin, dir, tmax),
                     Some(masks) => super::mask::triangle_hit(triangle, origin, dir, tmax)
-                        .is_some_and(|(u, v)| !masks.passes(leaf_next, u, v)),
+                        .is_some_and(|(u, v)| !masks.passes(index, u, v)),
                 };
                 if hit {
                     return true;
                 }
-                leaf_next += 1;
-                leaf_left -= 1;
             }
         }
     }
@@ -545,13 +597,11 @@ fn leaf_triangles(tris: &[[Vec3; 3]], prims: &[u32], threads: usize) -> Vec<[Vec
     })
 }
 
-/// The true boxes of `children` (the first `children.len()` entries).
-fn child_boxes(bvh: &Bvh2, children: &[Child]) -> [(Vec3, Vec3); 4] {
-    let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
-    for (b, c) in boxes.iter_mut().zip(children) {
-        *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
-    }
-    boxes
+/// A node's child codes, 4 bits each (child i at bit 4i): 0 none, 1-8 a leaf of that many
+/// triangles, `CHILD_INNER` an inner node. Held in the top bits of three words (`encode`).
+fn node_meta(node: &WideNode) -> u32 {
+    let [t0, _, t2] = node.texels;
+    t0[3] >> 24 | (t2[3] >> 28) << 8 | (t2[2] >> 28) << 12
 }
 
 /// The decoded coordinate `origin + q * scale`, as the shader computes it.
@@ -559,8 +609,10 @@ fn decode(origin: f32, q: u32, scale: f32) -> f32 {
     origin + q as f32 * scale
 }
 
-/// A node's texels for children with true boxes `boxes` and child words `words`.
-fn encode(boxes: &[(Vec3, Vec3)], words: [u32; 4]) -> WideNode {
+/// A node's texels for children with true boxes `boxes` and codes `codes` (`node_meta`), whose
+/// inner children's nodes start at `first_child` and leaf children's triangles at
+/// `first_triangle`.
+fn encode(boxes: &[(Vec3, Vec3)], codes: [u32; 4], first_child: u32, first_triangle: u32) -> WideNode {
     let lo = boxes.iter().fold(Vec3::splat(f32::INFINITY), |m, b| m.min(b.0));
     let hi = boxes.iter().fold(Vec3::splat(f32::NEG_INFINITY), |m, b| m.max(b.1));
     let mut node = WideNode::default();
@@ -591,12 +643,13 @@ fn encode(boxes: &[(Vec3, Vec3)], words: [u32; 4]) -> WideNode {
         }
     }
     let pack = |bytes: [u32; 4]| bytes[0] | bytes[1] << 8 | bytes[2] << 16 | bytes[3] << 24;
-    let mask = (1u32 << boxes.len()) - 1;
+    debug_assert!(first_child <= FIRST_MASK && first_triangle <= FIRST_MASK);
+    let meta = codes.iter().enumerate().fold(0, |m, (i, c)| m | c << (4 * i));
     node.texels[0] =
-        [lo.x.to_bits(), lo.y.to_bits(), lo.z.to_bits(), exps[0] | exps[1] << 8 | exps[2] << 16 | mask << 24];
-    node.texels[1] = words;
-    node.texels[2] = [pack(q[0]), pack(q[1]), pack(q[2]), pack(q[3])];
-    node.texels[3] = [pack(q[4]), pack(q[5]), 0, 0];
+        [lo.x.to_bits(), lo.y.to_bits(), lo.z.to_bits(), exps[0] | exps[1] << 8 | exps[2] << 16 | (meta & 0xff) << 24];
+    node.texels[1] = [pack(q[0]), pack(q[1]), pack(q[2]), pack(q[3])];
+    node.texels[2] =
+        [pack(q[4]), pack(q[5]), first_child | (meta >> 12) << 28, first_triangle | (meta >> 8 & 0xf) << 28];
     node
 }
 
@@ -609,19 +662,20 @@ fn bytes(word: u32) -> Vec4 {
     w.as_vec4()
 }
 
-/// The mask of children whose decoded boxes the ray segment touches (bvh.glsl's
-/// `bvh_child_hits`, operation for operation).
-fn child_hits(node: &WideNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> u32 {
-    let t0 = node.texels[0];
+/// What a ray segment touching node `node` goes on to: the group of its inner children whose
+/// decoded boxes it touches (first child | mask << 28, bit i: child first + i) and its leaf
+/// children's triangles it must test (bit j: triangle first + j), as (group, first triangle,
+/// triangle mask). bvh.glsl's `bvh_node_step`, operation for operation.
+fn node_step(node: &WideNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> (u32, u32, u32) {
+    let [t0, qxy, t2] = node.texels;
     let base = Vec3::new(f32::from_bits(t0[0]), f32::from_bits(t0[1]), f32::from_bits(t0[2]));
     let scale = Vec3::new(
         f32::from_bits((t0[3] & 0xff) << 23),
         f32::from_bits((t0[3] >> 8 & 0xff) << 23),
         f32::from_bits((t0[3] >> 16 & 0xff) << 23),
     );
-    let mask = t0[3] >> 24;
-    let [qlx, qhx, qly, qhy] = node.texels[2];
-    let [qlz, qhz, _, _] = node.texels[3];
+    let [qlx, qhx, qly, qhy] = qxy;
+    let [qlz, qhz, _, _] = t2;
     let slab = |q_lo: u32, q_hi: u32, axis: usize| {
         let lo = Vec4::splat(base[axis]) + bytes(q_lo) * scale[axis];
         let hi = Vec4::splat(base[axis]) + bytes(q_hi) * scale[axis];
@@ -634,7 +688,22 @@ fn child_hits(node: &WideNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> u32 {
     let (nz, fz) = slab(qlz, qhz, 2);
     let enter = max(max(nx, ny), max(nz, Vec4::ZERO));
     let exit = min(min(fx, fy), min(fz, Vec4::splat(tmax))) * SLAB_FAR_SCALE;
-    enter.cmple(exit).bitmask() & mask
+    let hit = enter.cmple(exit).bitmask();
+    let meta = node_meta(node);
+    let (mut inner, mut triangles, mut at) = (0u32, 0u32, 0u32);
+    for i in 0..4 {
+        let code = meta >> (4 * i) & 0xf;
+        let touched = hit >> i & 1 != 0;
+        if code == CHILD_INNER {
+            inner |= (touched as u32) << i;
+        } else {
+            if touched && code != 0 {
+                triangles |= ((1u32 << code) - 1) << at;
+            }
+            at += code;
+        }
+    }
+    ((t2[2] & FIRST_MASK) | inner << 28, t2[3] & FIRST_MASK, triangles)
 }
 
 /// bvh.glsl's `bvh_min` and `bvh_max`: a compare and a select (equal to glam's min and max on the
@@ -820,16 +889,19 @@ mod tests {
             (Vec3::new(-1e3, 5.0, 7.3), Vec3::new(-999.0, 5.0, 9.0)),
             (Vec3::new(12.0, -1.0, 7.25), Vec3::new(12.5, 0.0, 7.26)),
         ];
-        let node = encode(&boxes, [1, 2, 3, 0]);
-        assert_eq!(node.texels[0][3] >> 24, 0b111);
+        // Codes and first indices that fill every bit they may use.
+        let (codes, first_child, first_triangle) = ([CHILD_INNER, 8, 1, 0], FIRST_MASK, FIRST_MASK - 1);
+        let node = encode(&boxes, codes, first_child, first_triangle);
+        assert_eq!(node_meta(&node), 0x018f);
+        assert_eq!((node.texels[2][2] & FIRST_MASK, node.texels[2][3] & FIRST_MASK), (first_child, first_triangle));
         let t0 = node.texels[0];
         for axis in 0..3 {
             let base = f32::from_bits(t0[axis]);
             let scale = f32::from_bits((t0[3] >> (8 * axis) & 0xff) << 23);
             let (wl, wh) = match axis {
-                0 => (node.texels[2][0], node.texels[2][1]),
-                1 => (node.texels[2][2], node.texels[2][3]),
-                _ => (node.texels[3][0], node.texels[3][1]),
+                0 => (node.texels[1][0], node.texels[1][1]),
+                1 => (node.texels[1][2], node.texels[1][3]),
+                _ => (node.texels[2][0], node.texels[2][1]),
             };
             for (i, b) in boxes.iter().enumerate() {
                 let lo = decode(base, wl >> (8 * i) & 0xff, scale);

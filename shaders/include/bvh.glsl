@@ -169,7 +169,7 @@ void bvh_node_step(uvec4 head, uvec4 qxy, uvec4 t2, vec3 origin, vec3 inv_dir, f
 // The stack's top BVH_REGISTER_STACK (bindings.glsl) entries are plain variables, shifted on a
 // push and a pop: lavapipe runs each access to a local array at a varying index as a loop over
 // the SIMD lanes (in scratch memory), and shifting eight registers is eight selects. Deeper
-// entries spill to that array (the bench trees' stacks can reach 15 and 22 entries; -vv logs a
+// entries spill to that array (the bench trees' stacks can reach 16 and 25 entries; -vv logs a
 // tree's bound). Against one array for the whole stack and the single loop before, `umbra bench
 // rays` on one lavapipe thread, alternated: 100k scene 141 -> 124-131 ms on Mesa 25, 179-188 ->
 // 148 on Mesa 22.3; the spill's branch costs about 4 % against registers alone.

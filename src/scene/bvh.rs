@@ -301,8 +301,9 @@ impl ShadowBvh {
     }
 }
 
-/// Triangles per leaf in the fallback build.
+/// Triangles per leaf in the fallback build (a leaf of the wide tree holds them all).
 const MEDIAN_SPLIT_LEAF_SIZE: usize = 4;
+const _: () = assert!(MEDIAN_SPLIT_LEAF_SIZE as u32 <= wide::MAX_LEAF_TRIANGLES);
 
 /// A balanced Bvh2: each node splits its triangles in half at the median centroid along the
 /// widest axis of their centroids. Children are allocated in pairs, depth first, as obvhs does.

@@ -2,6 +2,8 @@
 // image. With `display` set, values are mapped to [0,1] for an 8-bit file.
 #include "bindings.glsl"
 #include "gbuffer.glsl"
+// srgb_encode: the albedo view's display encoding, as the shaded frame's.
+#include "tonemap.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = DISPLAY_INPUT) uniform sampler2D gbuffer_channel;
@@ -26,10 +28,6 @@ layout(push_constant) uniform Push {
     uvec4 params;   // x: width, y: height, z: view, w: display (1) or raw (0)
 } pc;
 
-float srgb_encode(float x) {
-    return x <= 0.0031308 ? 12.92 * x : 1.055 * pow(x, 1.0 / 2.4) - 0.055;
-}
-
 void main() {
     uvec2 p = gl_GlobalInvocationID.xy;
     if (p.x >= pc.params.x || p.y >= pc.params.y) return;
@@ -40,7 +38,7 @@ void main() {
     case VIEW_ALBEDO: {
         vec3 albedo = texel.w > 0.0 ? texelFetch(gbuffer_material, gbuffer_material_texel(texel.w, ivec2(p)), 0).rgb
                                     : vec3(0.0);
-        v = display ? vec3(srgb_encode(albedo.r), srgb_encode(albedo.g), srgb_encode(albedo.b)) : albedo;
+        v = display ? srgb_encode(albedo) : albedo;
         break;
     }
     case VIEW_NORMAL:

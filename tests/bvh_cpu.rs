@@ -424,14 +424,18 @@ fn offset_origin_clears_its_surface_at_any_distance() {
 }
 
 /// The GLSL include compiles, and reads nodes and triangles of the size the Rust layout
-/// writes: three texels a node (`3u * child`), nine words a triangle (`9u * i`, see
-/// `WideBvh::triangle_texels`).
+/// writes: three texels a node (`3u * child`), its child codes and first indices where
+/// `encode` puts them, nine words a triangle (`9u * i`, see `WideBvh::triangle_texels`).
 #[test]
 fn bvh_glsl_compiles_with_the_rust_layout() {
     common::compile_shader("tests/shaders/bvh_include.comp");
     assert_eq!(size_of::<WideNode>(), 48);
     let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
     assert!(glsl.contains("int at = int(3u * child);"));
+    // Where the child codes and first indices lie (wide.rs's `encode` and `node_meta`).
+    assert!(glsl.contains("uint meta = (head.w >> 24) | ((t2.w >> 28) << 8) | ((t2.z >> 28) << 12);"));
+    assert!(glsl.contains("group = (t2.z & BVH_FIRST_MASK) |"));
+    assert!(glsl.contains("first = t2.w & BVH_FIRST_MASK;"));
     assert!(glsl.contains("uint first = 9u * i;"));
     let words: usize = std::mem::size_of::<[glam::Vec3; 3]>() / 4;
     assert_eq!(words, 9);

@@ -160,7 +160,8 @@ void bvh_node_step(uvec4 head, uvec4 qxy, uvec4 t2, vec3 origin, vec3 inv_dir, f
 // triangles to test (a node's leaf triangles lie together). A pop happens only when a group is
 // empty, so a node costs one push at most, never one per child; and visiting a child reads
 // nothing but its node (the 64-byte node before held a word per child, fetched again at each
-// visit: `umbra bench rays` 6-7 % and AO 9-25 % slower; src/scene/bvh/wide.rs has the figures).
+// visit; against it this walk took 0.89-0.93x the time on `umbra bench rays` and 0.75-0.92x on
+// AO, alternated on one lavapipe thread; src/scene/bvh/wide.rs has the figures).
 //
 // Two loops in turn (Aila & Laine 2009's while-while): descend until the lane has triangles to
 // test, then test them. A SIMD vector whose lanes are at different steps then runs node steps
@@ -169,7 +170,7 @@ void bvh_node_step(uvec4 head, uvec4 qxy, uvec4 t2, vec3 origin, vec3 inv_dir, f
 // The stack's top BVH_REGISTER_STACK (bindings.glsl) entries are plain variables, shifted on a
 // push and a pop: lavapipe runs each access to a local array at a varying index as a loop over
 // the SIMD lanes (in scratch memory), and shifting eight registers is eight selects. Deeper
-// entries spill to that array (the bench trees' stacks can reach 16 and 25 entries; -vv logs a
+// entries spill to that array (the bench trees' stack bounds are 16 and 25 entries; -vv logs a
 // tree's bound). Against one array for the whole stack and the single loop before, `umbra bench
 // rays` on one lavapipe thread, alternated: 100k scene 141 -> 124-131 ms on Mesa 25, 179-188 ->
 // 148 on Mesa 22.3; the spill's branch costs about 4 % against registers alone.

@@ -143,8 +143,8 @@ struct LeafPlan {
     /// for children of nodes that are not leaves.
     nodes: Vec<u32>,
     /// The binary leaves' primitives in depth-first order, left child first: every subtree's
-    /// triangles are a run of it, and it is the order the wide tree stores triangles in (the
-    /// collapse visits children left to right), so a leaf is a start and a count in it.
+    /// triangles are a run of it, so a leaf is a start and a count in it, which `Collapsed::emit`
+    /// copies to where the wide tree stores that leaf's triangles.
     prims: Vec<u32>,
     /// Levels of the binary tree from the root to its deepest leaf.
     depth: usize,
@@ -192,8 +192,10 @@ impl LeafPlan {
                 let node = &bvh.nodes[x];
                 let area = node.aabb.half_area();
                 let (plan, cost, depth) = if node.prim_count > 0 {
-                    let leaf = if node.prim_count <= MAX_LEAF_TRIANGLES { PLAN_LEAF } else { 0 };
-                    (node.prim_count | leaf, node.prim_count as f32, 1)
+                    // The builders make leaves of one triangle (PLOC) or up to 4 (the median
+                    // split); a bigger one could not be opened into children.
+                    assert!(node.prim_count <= MAX_LEAF_TRIANGLES, "a binary leaf of {} triangles", node.prim_count);
+                    (node.prim_count | PLAN_LEAF, node.prim_count as f32, 1)
                 } else {
                     let (l, r) = (entries[node.first_index as usize], entries[node.first_index as usize + 1]);
                     if l.plan == UNKNOWN || r.plan == UNKNOWN {
@@ -317,6 +319,9 @@ impl WideBvh {
             out.stack_need = 1;
             return out;
         }
+        // The layout's 28-bit first triangle (and first child: a tree has fewer nodes than
+        // triangles) holds every index below the limit.
+        assert!(tris.len() < MAX_TRIANGLES, "{} triangles exceed the layout's 2^28", tris.len());
         let plan = LeafPlan::new(bvh);
         out.binary_depth = plan.depth;
         let root = if plan.is_leaf(0) {
@@ -464,9 +469,8 @@ impl WideBvh {
         deepest
     }
 
-    /// bvh.glsl's `bvh_occluded`, loop for loop (descend until a node has triangles to test, then
-    /// test them),
-    /// recording in `deepest` the most entries its stack held.
+    /// bvh.glsl's `bvh_occluded`, loop for loop (descend until a node has triangles to test,
+    /// then test them), recording in `deepest` the most entries its stack held.
     #[inline(always)]
     fn walk(
         &self,
@@ -570,7 +574,7 @@ fn open(bvh: &Bvh2, plan: &LeafPlan, index: usize) -> Children {
 
 /// The inner subtrees of at most `split` triangles among `children` (whose triangles start at
 /// `start` of the plan's order) and below them, with their starts, in the depth-first order
-/// `WideBvh::emit` meets them.
+/// `Collapsed::emit` meets them.
 fn find_tasks(
     bvh: &Bvh2,
     plan: &LeafPlan,
@@ -892,10 +896,11 @@ mod tests {
             (Vec3::new(-1e3, 5.0, 7.3), Vec3::new(-999.0, 5.0, 9.0)),
             (Vec3::new(12.0, -1.0, 7.25), Vec3::new(12.5, 0.0, 7.26)),
         ];
-        // Codes and first indices that fill every bit they may use.
-        let (codes, first_child, first_triangle) = ([CHILD_INNER, 8, 1, 0], FIRST_MASK, FIRST_MASK - 1);
+        // Codes and first indices that fill every bit they may use (a fourth child's code with
+        // three boxes: the code bits are checked apart from the boxes).
+        let (codes, first_child, first_triangle) = ([CHILD_INNER, CHILD_INNER, 8, 1], FIRST_MASK, FIRST_MASK - 1);
         let node = encode(&boxes, codes, first_child, first_triangle);
-        assert_eq!(node_meta(&node), 0x018f);
+        assert_eq!(node_meta(&node), 0x18ff);
         assert_eq!((node.texels[2][2] & FIRST_MASK, node.texels[2][3] & FIRST_MASK), (first_child, first_triangle));
         let t0 = node.texels[0];
         for axis in 0..3 {

@@ -20,11 +20,9 @@ layout(location = 5) flat in vec4 in_normal_rows[3];
 layout(location = GBUFFER_POSITION_LOCATION) out vec4 out_position;
 layout(location = GBUFFER_NORMAL_LOCATION) out vec4 out_normal;
 layout(location = GBUFFER_SURFACE_LOCATION) out uvec4 out_surface;
-#ifdef TEXTURED
-layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
-#endif
 
 #ifdef TEXTURED
+layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
 layout(location = 8) in vec2 in_uv;
 layout(location = 9) in vec4 in_tangent;
 layout(location = 10) in vec2 in_uv_1;

@@ -32,8 +32,9 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
     let push = std::mem::size_of::<Push>() as u32;
     let common = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)];
     // debug_view_body.glsl's views also read the material channel (the albedo view).
-    let channel = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT), sampled(DISPLAY_MATERIAL)];
-    let mut with_vis = channel.to_vec();
+    let mut channel = common.to_vec();
+    channel.push(sampled(DISPLAY_MATERIAL));
+    let mut with_vis = channel.clone();
     with_vis.push(sampled(DISPLAY_VISIBILITY));
     Ok(DebugPipelines {
         channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &channel, push, ROWS)?,

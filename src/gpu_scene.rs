@@ -11,7 +11,7 @@ use glam::{DMat3, DMat4, DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
-use crate::scene::bvh::ShadowBvh;
+use crate::scene::bvh::{ShadowBvh, WideNode};
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
 use crate::shadows::light_space::Bounds;
@@ -109,7 +109,7 @@ impl BvhBuffers {
     pub fn check(ctx: &GpuContext, bvh: &ShadowBvh) -> GpuResult<()> {
         let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
         let wide = bvh.wide();
-        let node_texels = wide.nodes.len() as u64 * 3;
+        let node_texels = (wide.nodes.len() * WideNode::TEXELS) as u64;
         let triangle_texels = crate::scene::bvh::wide::triangle_texel_count(wide.triangles.len()) as u64;
         let mask_texels = bvh.masks().map_or(0, |m| m.texels.len() as u64);
         for (what, texels) in [("nodes", node_texels), ("triangles", triangle_texels), ("alpha masks", mask_texels)] {

@@ -13,7 +13,7 @@ pub use crate::gpu_scene::{perspective_reversed_infinite, CameraMatrices, SceneG
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
 use crate::passes::{busy, visibility, Pipelines};
-use crate::scene::bvh::{caster_triangles, ShadowBvh};
+use crate::scene::bvh::{caster_triangles, ShadowBvh, WideNode};
 use crate::scene::Scene;
 use crate::shadows::traced::accel::RayQueryScene;
 use crate::timing::TimingCalibration;
@@ -97,10 +97,11 @@ impl Renderer {
         );
         if !bvh.is_empty() {
             log::info!(
-                "shadow BVH on the device: {} KiB, {:.1} bytes per triangle (4-wide nodes of 48 B, \
+                "shadow BVH on the device: {} KiB, {:.1} bytes per triangle (4-wide nodes of {} B, \
                  triangles of {} B)",
                 gpu_scene.bvh.bytes() >> 10,
                 gpu_scene.bvh.bytes() as f64 / bvh.triangle_count() as f64,
+                std::mem::size_of::<WideNode>(),
                 gpu_scene.bvh.triangles.buffer.size as usize / bvh.wide().triangles.len()
             );
         }

@@ -87,7 +87,12 @@ const SLAB_FAR_SCALE: f32 = 1.000_000_4;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct WideNode {
-    pub texels: [[u32; 4]; 3],
+    pub texels: [[u32; 4]; WideNode::TEXELS],
+}
+
+impl WideNode {
+    /// RGBA32UI texels a node takes: node i is texels `TEXELS * i` on (bvh.glsl's `3u * child`).
+    pub const TEXELS: usize = 3;
 }
 
 /// A tree being collapsed: its nodes, its triangles (as input indices), and the stack its
@@ -399,19 +404,21 @@ impl Collapsed {
     ) -> usize {
         // Each child with where its triangles start in the plan's order, inner children first.
         let mut ordered = [(Child(0), 0u32); 4];
-        let mut len = 0;
-        for inner in [true, false] {
+        let (mut len, mut inner) = (0, 0);
+        for want_inner in [true, false] {
             let mut at = start;
             for &child in children {
-                if plan.is_leaf(child.0) != inner {
+                if plan.is_leaf(child.0) != want_inner {
                     ordered[len] = (child, at);
                     len += 1;
                 }
                 at += plan.count(child.0);
             }
+            if want_inner {
+                inner = len;
+            }
         }
         let ordered = &ordered[..len];
-        let inner = ordered.iter().take_while(|(c, _)| !plan.is_leaf(c.0)).count();
         let first_child = self.nodes.len();
         self.nodes.resize(first_child + inner, WideNode::default());
         let first_triangle = self.order.len();

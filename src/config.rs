@@ -379,6 +379,17 @@ impl RenderSettings {
         })
     }
 
+    /// Whether successive frames of `scene` with these settings fold into a running mean
+    /// (`passes::accumulate`): stochastic shadows, ambient occlusion of the environment,
+    /// rect-light shadows, or anti-aliasing. What the accumulator and the bench (which scores a
+    /// lone frame against a converged reference) both decide by.
+    pub fn accumulates(&self, scene: &crate::scene::Scene) -> bool {
+        self.is_stochastic(&scene.lights)
+            || scene.lighting.occlusion_of_environment().is_some()
+            || scene.rect_lights.iter().any(|r| r.spp > 0)
+            || self.antialias
+    }
+
     /// Light `light`'s shadows.
     pub fn shadow(&self, light: usize) -> ShadowChoice {
         self.shadows.get(light).copied().unwrap_or_default()

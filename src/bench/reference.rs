@@ -15,8 +15,9 @@
 //!   each: per pixel, the variance of the 256-sample mean is a quarter of the variance of A - B
 //!   (Var(A - B) = 2 s²/128, Var(mean) = s²/256), so the reference's RMSE is estimated as
 //!   `RMSE(A - B) / 2` over the mask. Hard lights' error is 0.
-//! - **Frame**: the shaded, tone-mapped frame (RGBA8 sRGB) with every light so traced (soft
-//!   lights accumulated over `FRAMES` frames), for FLIP.
+//! - **Frame**: the shaded, tone-mapped frame (RGBA8 sRGB) with every light so traced,
+//!   accumulated over `FRAMES` frames where the frame has anything sampled (soft lights, ambient
+//!   occlusion, rect lights' shadows: `RenderSettings::accumulates`), for FLIP.
 //!
 //! The reference is traced with the compute BVH (`ShadowBackend::Compute`) at the bench's size.
 //! It is cached under the user's cache directory (`$XDG_CACHE_HOME/umbra/references`, else
@@ -41,7 +42,7 @@ pub const FRAMES: u32 = 4;
 /// The first reference frame's `frame_index`; measured frames start at 0.
 pub const SEED: u32 = 0x4000_0000;
 /// Bumped whenever what a reference holds or how it is made changes.
-const FORMAT_VERSION: u32 = 1;
+const FORMAT_VERSION: u32 = 2;
 const MAGIC: &[u8; 8] = b"UMBRAREF";
 
 /// One light's reference.
@@ -350,10 +351,11 @@ pub fn compute(renderer: &mut Renderer, width: u32, height: u32) -> crate::vk::G
         lights.iter().map(|l| if l.has_size() { ShadowChoice::soft(SPP) } else { ShadowChoice::hard() }).collect();
     let mut shaded = settings(width, height, OutputKind::Display, shadows);
     shaded.frame_index = SEED;
-    let stochastic = shaded.is_stochastic(&lights);
+    let accumulates = shaded.accumulates(renderer.scene());
     let mut display = Vec::new();
-    // Successive renders with equal settings accumulate: FRAMES x SPP samples for soft lights.
-    for _ in 0..if stochastic { FRAMES } else { 1 } {
+    // Successive renders with equal settings accumulate: FRAMES x SPP samples for soft lights,
+    // FRAMES frames of ambient occlusion and of rect lights' shadows.
+    for _ in 0..if accumulates { FRAMES } else { 1 } {
         display = display_bytes(renderer.render(&shaded)?);
     }
     Ok(Reference { width, height, lights: out, display })

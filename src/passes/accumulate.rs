@@ -152,10 +152,7 @@ impl Accumulator {
         key.timestamps = false;
         let still = self.last.as_ref() == Some(&key);
         self.last = Some(key);
-        let occlusion = scene.lighting.occlusion_of_environment().is_some();
-        let rect_shadows = scene.rect_lights.iter().any(|r| r.spp > 0);
-        let accumulated = settings.is_stochastic(&scene.lights) || occlusion || rect_shadows || settings.antialias;
-        if settings.debug_view.is_some() || !accumulated {
+        if settings.debug_view.is_some() || !settings.accumulates(scene) {
             self.frames = 0;
             return Ok(None);
         }

@@ -95,8 +95,9 @@ struct BenchShadowsArgs {
     /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, hybrid, none.
     #[arg(long, default_value = umbra::bench::sweep::DEFAULT_METHODS)]
     methods: String,
-    /// The error bound (visibility RMSE) under which each chart rings the cheapest row: what
-    /// `--shadows auto` would pick with one method for every light.
+    /// The error bound (visibility RMSE) under which each chart rings the cheapest row whose
+    /// every light is within it: `--shadows auto`'s rule with one setting for every light, among
+    /// the points measured.
     #[arg(long, default_value_t = umbra::config::AutoParams::default().max_error, value_parser = parse_max_error)]
     max_error: f64,
     /// A sweep axis, KEY=V1,V2,... with the keys of --param (keys joined by + move together:
@@ -113,7 +114,8 @@ struct BenchShadowsArgs {
     /// Timed frames per point, after the warm-up frames (default 5; 3 with --quick).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=10_000))]
     frames: Option<u32>,
-    /// A tiny sweep (two map resolutions, every other method at its defaults), 3 frames at 320x240.
+    /// A tiny sweep (map and hybrid at two resolutions each, every other method at its
+    /// defaults), 3 frames at 320x240.
     #[arg(long)]
     quick: bool,
     /// Directory for the results (made if missing).

@@ -253,22 +253,32 @@ fn bench_sweeps_two_scenes_scores_against_a_cached_reference() {
         let name = s(scene, "scene");
         let frame: Vec<usize> =
             (0..rows.len()).filter(|&i| rows[i]["scene"] == name && rows[i]["frame_row"] == true).collect();
-        let time = s(&json, "time_axis");
-        let points: Vec<(f64, f64)> = frame.iter().map(|&i| (f(&rows[i], time), f(&rows[i], "scored_error"))).collect();
-        let front: Vec<usize> = umbra::bench::metrics::pareto_front(&points).into_iter().map(|k| frame[k]).collect();
+        // Each scene says how it was timed; one device, so the run agrees.
+        let time = s(scene, "time_axis");
+        assert_eq!(time, s(&json, "time_axis"));
+        // Rows where a light fell back measured another method: neither on the front nor picked.
+        let own: Vec<usize> = frame.iter().copied().filter(|&i| s(&rows[i], "fallback").is_empty()).collect();
+        let points: Vec<(f64, f64)> = own.iter().map(|&i| (f(&rows[i], time), f(&rows[i], "scored_error"))).collect();
+        let front: Vec<usize> = umbra::bench::metrics::pareto_front(&points).into_iter().map(|k| own[k]).collect();
         let stored: Vec<usize> =
             scene["pareto"].as_array().unwrap().iter().map(|v| v.as_u64().unwrap() as usize).collect();
         assert_eq!(stored, front, "{name}");
         for &i in &frame {
             assert_eq!(rows[i]["pareto"] == true, front.contains(&i));
         }
-        // auto's pick is the cheapest frame row (with shadows) under the run's bound.
+        // auto's pick is the cheapest frame row (with shadows) whose every light is under the
+        // run's bound.
         let bound = f(&scene["auto"], "max_error");
-        let under: Vec<usize> = frame
+        let under: Vec<usize> = own
             .iter()
             .copied()
-            .filter(|&i| rows[i]["method"] != "none" && s(&rows[i], "fallback").is_empty())
-            .filter(|&i| f(&rows[i], "scored_error") <= bound)
+            .filter(|&i| rows[i]["method"] != "none")
+            .filter(|&i| {
+                rows.iter()
+                    .filter(|r| r["scene"] == rows[i]["scene"] && r["method"] == rows[i]["method"])
+                    .filter(|r| r["point"] == rows[i]["point"] && r["light"] != "all")
+                    .all(|r| f(r, "scored_error") <= bound)
+            })
             .collect();
         let cheapest = under.iter().copied().min_by(|&a, &b| f(&rows[a], time).total_cmp(&f(&rows[b], time)));
         assert_eq!(scene["auto"]["row"].as_u64().map(|v| v as usize), cheapest, "{name}");
@@ -473,4 +483,87 @@ fn csv_quotes_what_needs_it_and_leaves_missing_figures_empty() {
         assert_eq!(line[col("host_ms")], "1.5");
         assert_eq!(line[col("vis_rmse")], "0.125");
     }
+}
+
+/// A frame row of scene "s" (with its light rows, when it has more than one light).
+fn frame(method: &str, point: usize, ms: f64, lights: &[f64], fallback: &str) -> Vec<Row> {
+    let row = |light: String, error: f64, frame_row: bool| Row {
+        scene: "s".into(),
+        method: method.into(),
+        point,
+        light,
+        shadow_gpu_ms: Some(ms),
+        host_ms: ms,
+        scored_error: error,
+        fallback: fallback.into(),
+        frame_row,
+        ..Default::default()
+    };
+    if let [only] = lights {
+        return vec![row("0".into(), *only, true)];
+    }
+    let mut rows: Vec<Row> = lights.iter().enumerate().map(|(n, &e)| row(n.to_string(), e, false)).collect();
+    // The pooled error of equal masks: the root of the mean square.
+    let pooled = (lights.iter().map(|e| e * e).sum::<f64>() / lights.len() as f64).sqrt();
+    rows.push(row("all".into(), pooled, true));
+    rows
+}
+
+#[test]
+fn the_front_leaves_out_fallbacks_and_auto_needs_every_light_under_the_bound() {
+    use umbra::bench::report::{scene_auto, scene_pareto};
+    // Two lights. volumes: pooled 0.0158, under 0.02, but light 1 at 0.022 is over it.
+    // cascades: served by traced for a light (a fallback), fastest and exact.
+    let rows: Vec<Row> = [
+        frame("traced", 0, 10.0, &[0.0, 0.0], ""),
+        frame("volumes", 0, 4.0, &[0.001, 0.022], ""),
+        frame("map", 0, 6.0, &[0.012, 0.014], ""),
+        frame("cascades", 0, 3.0, &[0.0, 0.0], "light 0: traced serves it"),
+        frame("none", 0, 0.0, &[0.3, 0.4], ""),
+    ]
+    .concat();
+    let method = |i: usize| rows[i].method.as_str();
+    let front: Vec<&str> = scene_pareto(&rows, "s").into_iter().map(method).collect();
+    assert_eq!(front, ["none", "volumes", "map", "traced"], "the fallback row measured traced: not on the front");
+    assert_eq!(scene_auto(&rows, "s", 0.02).map(method), Some("map"), "volumes has a light over the bound");
+    assert_eq!(scene_auto(&rows, "s", 0.025).map(method), Some("volumes"));
+    assert_eq!(scene_auto(&rows, "s", 0.01).map(method), Some("traced"));
+    // One light: its row is the frame's.
+    let one: Vec<Row> = [frame("map", 0, 2.0, &[0.03], ""), frame("traced", 0, 5.0, &[0.0], "")].concat();
+    assert_eq!(scene_auto(&one, "s", 0.02).map(|i| one[i].method.as_str()), Some("traced"));
+    assert_eq!(scene_auto(&one, "s", 0.05).map(|i| one[i].method.as_str()), Some("map"));
+}
+
+#[test]
+fn a_nan_error_is_never_scored_exact() {
+    use umbra::bench::metrics::scored_error;
+    assert!(scored_error(f64::NAN, 0.0).is_nan());
+    assert_eq!(scored_error(0.001, 0.004), 0.004);
+    assert_eq!(scored_error(0.01, 0.004), 0.01);
+}
+
+#[test]
+fn flip_scores_a_lone_frame_whatever_the_frame_count_with_ambient_occlusion() {
+    // The box under its hard spot, with an environment that ambient occlusion darkens: the
+    // frame accumulates though no light is soft. Every method's FLIP is of one frame against a
+    // converged reference, so it cannot depend on --frames (it did when only soft lights counted
+    // as accumulating: the timed frames' running mean was scored).
+    let dir = temp_dir("ao");
+    let cache = dir.join("cache");
+    let scene = dir.join("box-ao.toml");
+    let ao = "[environment]\ncolor = [0.4, 0.45, 0.5]\n[ambient_occlusion]\nradius = 2.0\nspp = 2\n";
+    std::fs::write(&scene, format!("{ao}{BOX}")).unwrap();
+    let flip_with = |frames: &str| {
+        let out = dir.join(format!("out-{frames}"));
+        let args = [scene.to_str().unwrap(), "--methods", "traced", "--size", "64x48", "--frames", frames];
+        ok(&bench(&cache, &[&args[..], &["-o", out.to_str().unwrap()]].concat()));
+        let (json, _) = results(&out);
+        let r = rows_of(&json, "box-ao.toml", "traced")[0].clone();
+        assert_eq!(f(&r, "vis_rmse"), 0.0, "hard traced shadows are their own reference: {r}");
+        f(&r, "flip")
+    };
+    let (one, four) = (flip_with("1"), flip_with("4"));
+    assert!(one > 0.0, "one frame of 2-ray AO differs from the converged reference: {one}");
+    assert_eq!(one, four, "FLIP with 1 and 4 timed frames");
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -23,7 +23,7 @@ use sha2::{Digest, Sha256};
 
 use super::metrics::visibility_error;
 use super::reference::{self, Reference};
-use crate::config::{OutputKind, RenderSettings, ShadowChoice, ShadowMethod};
+use crate::config::{OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
 use crate::renderer::Renderer;
 use crate::scene::Light;
 
@@ -32,7 +32,7 @@ pub const CALIBRATION_WIDTH: u32 = 320;
 /// Timed frames per candidate, after one warm-up frame.
 pub const TIMED: usize = 3;
 /// Bumped whenever what a calibration holds or how it is measured changes.
-const FORMAT_VERSION: u32 = 1;
+const FORMAT_VERSION: u32 = 2;
 
 /// One candidate's measurement for one light.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -116,7 +116,8 @@ pub fn calibration_size(width: u32, height: u32) -> (u32, u32) {
 }
 
 /// Index of the cheapest measure with error at most `max_error` (else the least error), and of
-/// the next cheapest under the bound (else the cheapest of the rest).
+/// the runner-up: the next cheapest under the bound, else the one of least error of the rest.
+/// A NaN error is never under the bound.
 pub fn choose(measures: &[Measure], max_error: f64) -> Option<(usize, Option<usize>, bool)> {
     let by_time = |a: &usize, b: &usize| measures[*a].time_ms.total_cmp(&measures[*b].time_ms);
     let mut under: Vec<usize> = (0..measures.len()).filter(|&i| measures[i].error <= max_error).collect();
@@ -143,7 +144,8 @@ pub fn resolve(renderer: &mut Renderer, settings: &mut RenderSettings) -> Result
         return Ok(Vec::new());
     }
     settings.shadows.resize(lights.len(), ShadowChoice::default());
-    let measured = calibrate(renderer, (settings.width, settings.height), &settings.shadows, &asked)?;
+    let measured =
+        calibrate(renderer, (settings.width, settings.height), &settings.shadows, settings.shadow_backend, &asked)?;
     let mut out = Vec::new();
     for (&n, measures) in asked.iter().zip(measured) {
         let max_error = settings.shadows[n].auto.max_error;
@@ -162,23 +164,26 @@ pub fn resolve(renderer: &mut Renderer, settings: &mut RenderSettings) -> Result
 }
 
 /// Each asked light's measures for a `target`-sized frame (cached): errors at the calibration
-/// size, times predicted for the target from two sizes.
+/// size, times predicted for the target from two sizes, traced candidates timed on the frame's
+/// `backend` (the compute BVH and the ray query differ severalfold in speed).
 fn calibrate(
     renderer: &mut Renderer,
     target: (u32, u32),
     base: &[ShadowChoice],
+    backend: ShadowBackend,
     asked: &[usize],
 ) -> Result<Vec<Vec<Measure>>> {
     let (width, height) = calibration_size(target.0, target.1);
     let device = format!("{} / {}", renderer.ctx.device_name(), renderer.ctx.driver);
     let reference::Cached { reference, key: ref_key, .. } =
         reference::load_or_compute(renderer, width, height, &device)?;
-    let key = calibration_key(&ref_key, target, base, asked);
+    let key = calibration_key(&ref_key, target, base, backend, asked);
     let dir = reference::cache_dir().map(|d| d.with_file_name("auto"));
     if let Some(cached) = dir.as_ref().and_then(|d| load(d, &key)) {
         return Ok(cached);
     }
-    let calibration = renderer.calibrate_timings()?.clone();
+    let timestamps = renderer.calibrate_timings()?.mode.is_some();
+    let how = How { reference: &reference, size: (width, height), target, backend, timestamps };
     let mut out = Vec::new();
     for &n in asked {
         let light = renderer.scene().lights[n];
@@ -188,10 +193,7 @@ fn calibrate(
             for (k, v) in &set {
                 choice.set(k, v).map_err(anyhow::Error::msg)?;
             }
-            let timestamps = calibration.mode.is_some();
-            if let Some((time_ms, error)) =
-                measure(renderer, &reference, (width, height), target, n, choice, timestamps)?
-            {
+            if let Some((time_ms, error)) = measure(renderer, &how, n, choice)? {
                 let set: Vec<(String, String)> = set.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect();
                 let label = std::iter::once(method.id().to_string())
                     .chain(set.iter().map(|(k, v)| format!("{k}={v}")))
@@ -211,26 +213,31 @@ fn calibrate(
     Ok(out)
 }
 
+/// How a calibration measures: against `reference` at `size`, predicting times for a `target`
+/// frame, tracing on `backend`, with GPU timestamps or the host's clock.
+#[derive(Clone, Copy)]
+struct How<'a> {
+    reference: &'a Reference,
+    size: (u32, u32),
+    target: (u32, u32),
+    backend: ShadowBackend,
+    timestamps: bool,
+}
+
 /// One candidate for light `n`: its time for a `target` frame and its error at the calibration
 /// size; None when it would not serve the light. Shadow work has a part per frame (a map's
 /// texels) and a part per pixel (rays, resolves), so the time is measured at the calibration
 /// size and at half its width and height, and the line through both is read at the target's
 /// pixel count.
-fn measure(
-    renderer: &mut Renderer,
-    reference: &Reference,
-    (width, height): (u32, u32),
-    target: (u32, u32),
-    n: usize,
-    choice: ShadowChoice,
-    timestamps: bool,
-) -> Result<Option<(f64, f64)>> {
+fn measure(renderer: &mut Renderer, how: &How, n: usize, choice: ShadowChoice) -> Result<Option<(f64, f64)>> {
+    let How { reference, size: (width, height), target, backend, timestamps } = *how;
     let lights = renderer.scene().lights.len();
     let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); lights];
     shadows[n] = choice;
     let settings = |w: u32, h: u32| {
         let mut s = reference::settings(w, h, OutputKind::SceneLinear, shadows.clone());
         s.debug_view = Some(crate::config::DebugView::Visibility(n as u32));
+        s.shadow_backend = backend;
         s.timestamps = timestamps;
         s
     };
@@ -252,7 +259,7 @@ fn measure(
     let time_ms = fixed + per_pixel * f64::from(target.0) * f64::from(target.1);
     let r = &reference.lights[n];
     let e = visibility_error(&r.visibility, &visibility, width as usize, height as usize, Some(&r.mask));
-    Ok(Some((time_ms, e.rmse.max(r.error))))
+    Ok(Some((time_ms, super::metrics::scored_error(e.rmse, r.error))))
 }
 
 /// Median over `TIMED` frames of `s`'s shadow work, ms (GPU, else host).
@@ -271,10 +278,17 @@ fn median_time(renderer: &mut Renderer, s: &RenderSettings) -> Result<f64> {
     Ok(times[times.len() / 2])
 }
 
-fn calibration_key(reference_key: &str, target: (u32, u32), base: &[ShadowChoice], asked: &[usize]) -> String {
+fn calibration_key(
+    reference_key: &str,
+    target: (u32, u32),
+    base: &[ShadowChoice],
+    backend: ShadowBackend,
+    asked: &[usize],
+) -> String {
     let mut h = Sha256::new();
     h.update(FORMAT_VERSION.to_le_bytes());
     h.update(format!("target {}x{}", target.0, target.1).as_bytes());
+    h.update(format!("backend {backend:?}").as_bytes());
     h.update(reference_key.as_bytes());
     for &n in asked {
         // The bound is not part of what is measured.

@@ -226,6 +226,18 @@ pub fn flip_mean(reference_srgb8: &[u8], test_srgb8: &[u8], width: u32, height: 
     sum / pixels as f64
 }
 
+/// What the front and `auto` rank a method by: its visibility RMSE, but never below the
+/// reference's own error (differences within it are not told apart). A NaN RMSE (a method that
+/// wrote NaN visibility) stays NaN, so such a method is never on the front nor picked, where
+/// `f64::max` would have returned the reference's error and scored it exact.
+pub fn scored_error(rmse: f64, reference_error: f64) -> f64 {
+    if rmse.is_nan() {
+        rmse
+    } else {
+        rmse.max(reference_error)
+    }
+}
+
 /// The Pareto front of `(time, error)` points, both to be minimised.
 ///
 /// Returns the indices of the points that no other point dominates, sorted by time (then by

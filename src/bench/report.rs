@@ -220,22 +220,33 @@ pub fn to_csv(rows: &[Row]) -> String {
 }
 
 /// The indices (into `rows`) of `scene`'s frame rows on the Pareto front of
-/// `(time_ms, scored_error)`, by `metrics::pareto_front`, in time order.
+/// `(time_ms, scored_error)`, by `metrics::pareto_front`, in time order. Rows where a light fell
+/// back to another method are left out: they measured that method (a fallback is never scored
+/// as the method), and would stand on the front under a name that did not make the frame.
 pub fn scene_pareto(rows: &[Row], scene: &str) -> Vec<usize> {
-    let frame = frame_rows(rows, scene);
+    let frame: Vec<usize> = frame_rows(rows, scene).into_iter().filter(|&i| rows[i].fallback.is_empty()).collect();
     let points: Vec<(f64, f64)> = frame.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect();
     super::metrics::pareto_front(&points).into_iter().map(|k| frame[k]).collect()
 }
 
-/// The frame row `auto` would pick on `scene` with one method for every light: the cheapest
-/// whose scored error is at most `max_error` (rows with no shadow work, `none`, and rows where
-/// a light fell back to another method left out).
+/// The frame row picked on `scene` by `auto`'s rule (`auto::choose`) with one setting for every
+/// light: the cheapest whose every light's scored error is at most `max_error` (a frame's
+/// pooled error can be under the bound while some of its lights are over it). Rows with no
+/// shadow work (`none`) and rows where a light fell back to another method are left out. The
+/// pick is among the points measured, which need not be the settings `--shadows auto` tries.
 pub fn scene_auto(rows: &[Row], scene: &str, max_error: f64) -> Option<usize> {
     // A row whose method fell back to `traced` for some light measured traced, not the method.
-    let under =
+    let candidates =
         frame_rows(rows, scene).into_iter().filter(|&i| rows[i].method != "none" && rows[i].fallback.is_empty());
-    under
-        .filter(|&i| rows[i].scored_error <= max_error)
+    candidates
+        .filter(|&i| {
+            let frame = &rows[i];
+            // The frame's own lights: its row when it has one light, else the rows beside `all`.
+            let mut lights = rows.iter().filter(|r| {
+                r.scene == frame.scene && r.method == frame.method && r.point == frame.point && r.light != "all"
+            });
+            lights.all(|r| r.scored_error <= max_error)
+        })
         .min_by(|&a, &b| rows[a].time_ms().total_cmp(&rows[b].time_ms()))
 }
 
@@ -257,8 +268,8 @@ pub fn bytes(n: u64) -> String {
 }
 
 /// The table printed at the end: per scene, each frame row (method, point, what served it,
-/// times, errors, work, memory), `*` marking the Pareto front (`A` auto's pick), `~` an error within the
-/// reference's own.
+/// times, errors, work, memory), `*` marking the Pareto front and `A` auto's pick (which need
+/// not be on it), `~` an error within the reference's own.
 pub fn summary(rows: &[Row]) -> String {
     let mut out = String::new();
     let mut scenes: Vec<&str> = Vec::new();
@@ -279,7 +290,7 @@ pub fn summary(rows: &[Row]) -> String {
         let served_w = frame.iter().map(|r| r.served_by.len()).max().unwrap_or(6).max(9);
         let _ = writeln!(
             out,
-            "  {:<11} {:<sweep_w$} {:<served_w$} {:>10} {:>10} {:>10} {:>9} {:>9} {:>7} {:>7} {:>7} {:>11} {:>11} {:>10}",
+            "   {:<11} {:<sweep_w$} {:<served_w$} {:>10} {:>10} {:>10} {:>9} {:>9} {:>7} {:>7} {:>7} {:>11} {:>11} {:>10}",
             "method",
             "point",
             "served by",
@@ -296,11 +307,9 @@ pub fn summary(rows: &[Row]) -> String {
             "memory",
         );
         for r in frame {
-            let mark = match (r.auto_choice, r.pareto) {
-                (true, _) => 'A',
-                (false, true) => '*',
-                (false, false) => ' ',
-            };
+            // The front and auto's pick apart: under the per-light rule the pick need not be on
+            // the front of the pooled error.
+            let mark = format!("{}{}", if r.pareto { '*' } else { ' ' }, if r.auto_choice { 'A' } else { ' ' });
             let within = if r.vis_rmse <= r.reference_error { '~' } else { ' ' };
             let mut sweep = r.sweep.clone();
             if sweep.len() > sweep_w {
@@ -327,10 +336,17 @@ pub fn summary(rows: &[Row]) -> String {
             );
         }
     }
+    let time = match rows.iter().all(|r| r.shadow_gpu_ms.is_some()) {
+        true => "shadow GPU time",
+        false => "time (shadow GPU time, or host time where the device could not time passes)",
+    };
+    let _ = write!(
+        out,
+        "\n* on the Pareto front of {time} and error; A: auto's pick, the cheapest whose every light is \
+         within --max-error; ~ error within the reference's own.\n"
+    );
     out.push_str(
-        "\n* on the Pareto front of shadow GPU time and error (A: also auto's pick under --max-error); ~ error \
-         within the reference's own.\n\
-         Errors are visibility RMSE against the traced reference over pixels each light reaches; \
+        "Errors are visibility RMSE against the traced reference over pixels each light reaches; \
          leak and false are shares of them; rows per light are in results.csv.\n",
     );
     out

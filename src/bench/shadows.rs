@@ -17,7 +17,7 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
 use super::chart::{write_atomic, Chart, Series};
-use super::metrics::{flip_mean, visibility_error, VisibilityError};
+use super::metrics::{flip_mean, scored_error, visibility_error, VisibilityError};
 use super::reference::{self, LightReference};
 use super::report::{self, Row};
 use super::sweep::{self, Axis, MethodSpec, Point};
@@ -262,18 +262,17 @@ pub fn run(options: &Options) -> Result<Outcome> {
 
     let mut rows: Vec<Row> = Vec::new();
     let mut scene_json = Vec::new();
-    let mut timing_label = String::new();
-    let mut time_axis = "shadow_gpu_ms";
+    // Each scene's renderer calibrates its own timing: its mode and time axis are the scene's.
+    let mut timing_labels: Vec<String> = Vec::new();
+    let mut time_axes: Vec<&str> = Vec::new();
     for job in &jobs {
         let (width, height) = job.size;
         bar.set_message(format!("{}: reference", job.label));
         let mut renderer = Renderer::new(ctx.clone(), job.scene.clone())
             .with_context(|| format!("{}: preparing the scene", job.label))?;
         let calibration: TimingCalibration = renderer.calibrate_timings()?.clone();
-        timing_label = calibration.describe();
-        if calibration.mode.is_none() {
-            time_axis = "host_ms";
-        }
+        let timing_label = calibration.describe();
+        let time_axis = if calibration.mode.is_none() { "host_ms" } else { "shadow_gpu_ms" };
 
         // The reference: cached, or traced now and cached.
         let reference::Cached { reference, key, file: ref_file, cached: was_cached, seconds } =
@@ -326,9 +325,10 @@ pub fn run(options: &Options) -> Result<Outcome> {
                 for (n, &choice) in point.choices.iter().enumerate().take(lights.len()) {
                     visibility.push(reference::light_visibility(&mut renderer, width, height, n, choice, 0)?);
                 }
-                if settings.is_stochastic(&lights) {
-                    // The timed frames accumulated; the views since broke the run, so this
-                    // frame stands alone.
+                if settings.accumulates(renderer.scene()) {
+                    // The timed frames accumulated (soft shadows, ambient occlusion, rect
+                    // lights' shadows); the views since broke the run, so this frame stands
+                    // alone, whatever `--frames`.
                     let mut single = settings.clone();
                     single.timestamps = false;
                     display = reference::display_bytes(renderer.render(&single)?);
@@ -391,7 +391,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
                         pixels_away: e.pixels_away,
                         reference_error: r.error,
                         reference_shadowed: r.shadowed_share(),
-                        scored_error: e.rmse.max(r.error),
+                        scored_error: scored_error(e.rmse, r.error),
                         rays,
                         map_texels: texels,
                         map_bytes: texels * 4,
@@ -436,7 +436,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
                         pixels_away: e.pixels_away,
                         reference_error: ref_error,
                         reference_shadowed: if pixels == 0 { 0.0 } else { shadowed as f64 / pixels as f64 },
-                        scored_error: e.rmse.max(ref_error),
+                        scored_error: scored_error(e.rmse, ref_error),
                         flip: Some(flip),
                         rays: light_rows.iter().map(|r| r.rays).sum(),
                         map_texels: light_rows.iter().map(|r| r.map_texels).sum(),
@@ -504,6 +504,8 @@ pub fn run(options: &Options) -> Result<Outcome> {
             "width": width,
             "height": height,
             "lights": lights.len(),
+            "time_axis": time_axis,
+            "timing": timing_label,
             "pareto": front,
             "auto": { "max_error": options.max_error, "row": auto },
             "chart_svg": format!("{}.svg", job.stem),
@@ -523,9 +525,18 @@ pub fn run(options: &Options) -> Result<Outcome> {
                 })).collect::<Vec<_>>(),
             },
         }));
+        timing_labels.push(timing_label);
+        time_axes.push(time_axis);
         drop(renderer);
     }
     bar.finish_and_clear();
+    // The run's: the scenes' own where they agree, else "per scene" (each scene says its own).
+    let common = |values: Vec<String>| match values.windows(2).all(|w| w[0] == w[1]) {
+        true => values.into_iter().next().unwrap_or_default(),
+        false => "per scene".to_owned(),
+    };
+    let timing_label = common(timing_labels);
+    let time_axis = common(time_axes.iter().map(|a| a.to_string()).collect());
 
     let doc = json!({
         "umbra_version": env!("CARGO_PKG_VERSION"),

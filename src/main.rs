@@ -143,7 +143,7 @@ struct ViewArgs {
     #[arg(long)]
     validate: bool,
     /// Close the window after this many frames.
-    #[arg(long)]
+    #[arg(long, value_parser = parse_frame_count)]
     frames: Option<u64>,
     /// Present with FIFO, paced to the display (default: mailbox where offered).
     #[arg(long)]
@@ -326,6 +326,10 @@ fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> 
             c.set(key.trim(), value.trim()).map_err(|e| anyhow::anyhow!("--param {param}: {e}"))?;
         }
     }
+    // `--shadows traced-soft` asks for soft shadows by name; --hard for hard ones.
+    if args.hard && args.shadows.as_ref().is_some_and(|a| a.0.iter().any(|s| s.2 == Some(true))) {
+        bail!("--hard contradicts --shadows traced-soft: ask for one of them");
+    }
     for c in &mut choices {
         if args.hard {
             c.traced.soft = Some(false);
@@ -352,6 +356,9 @@ fn warn_unused_options(
         if soft_traced_lights(settings, lights).next().is_none() {
             log::warn!("--spp {spp} does nothing here: no light has soft traced shadows (a light needs a size and `traced` without --hard)");
         }
+    }
+    if let (Some(n @ 2..), Some(view), false) = (args.frames, &args.debug_view, args.timings) {
+        log::warn!("--frames {n} does nothing here: debug views never accumulate, so the image of --debug-view {view} is one frame");
     }
     if args.exposure != 0.0 && (format == ImageFormat::Exr || args.debug_view.is_some()) {
         let what =
@@ -389,11 +396,14 @@ fn provenance(
     let shadows: Vec<String> =
         (0..scene.lights.len()).map(|i| format!("{i}: {}", settings.shadow(i).describe())).collect();
     let soft_spp = soft_traced_lights(settings, &scene.lights).min();
+    // A debug view holds one frame however many were rendered (they do not accumulate).
+    let frames = if settings.debug_view.is_some() { 1 } else { frames };
+    let counted = if frames == 1 { "frame" } else { "frames" };
     let mut samples = match soft_spp {
         Some(spp) => {
-            format!("{frames} frames; soft shadows {spp} rays per pixel and light a frame, {} in all", spp * frames)
+            format!("{frames} {counted}; soft shadows {spp} rays per pixel and light a frame, {} in all", spp * frames)
         }
-        None => format!("{frames} frames; hard shadows, 1 ray per pixel and light"),
+        None => format!("{frames} {counted}; hard shadows, 1 ray per pixel and light"),
     };
     if frames > 1 && !settings.antialias {
         samples.push_str("; not anti-aliased");
@@ -419,6 +429,10 @@ const CONVERGED_SPP: u32 = 64;
 /// One frame, or with soft shadows enough accumulated frames for `CONVERGED_SPP` samples per
 /// pixel of the light with the fewest samples per frame.
 fn default_frames(settings: &RenderSettings, scene: &Scene) -> u32 {
+    // Debug views never accumulate: more frames would only draw the same one again.
+    if settings.debug_view.is_some() {
+        return 1;
+    }
     let soft_spp = soft_traced_lights(settings, &scene.lights).min();
     // Ambient occlusion converges over the same frames.
     let ao_spp = scene.lighting.occlusion_of_environment().filter(|_| settings.debug_view.is_none()).map(|ao| ao.spp);
@@ -439,6 +453,14 @@ fn load_scene(path: Option<&Path>) -> Result<Scene> {
 
 fn ms_since(start: Instant) -> f64 {
     start.elapsed().as_secs_f64() * 1e3
+}
+
+fn parse_frame_count(text: &str) -> Result<u64, String> {
+    text.trim()
+        .parse::<u64>()
+        .ok()
+        .filter(|&n| n >= 1)
+        .ok_or_else(|| format!("{text:?}: give a whole number of frames, 1 or more"))
 }
 
 fn parse_size(text: &str) -> Result<(u32, u32), String> {

@@ -99,11 +99,6 @@ fn same_file(_: &fs::Metadata, _: &fs::Metadata) -> bool {
     false
 }
 
-/// Writes `frame` to `path` atomically, refusing a read-only existing file.
-pub fn write_image(frame: &Frame, path: &Path) -> Result<(), OutputError> {
-    write_image_with(frame, path, &WriteOptions::default())
-}
-
 /// Writes `frame` to `path` atomically. 8-bit frames go to PNG as they are; float frames go to
 /// EXR as they are, or to PNG clamped to 0..=1 (debug views already mapped for display).
 /// `options` says what may be replaced (see `check_output`).

@@ -215,8 +215,11 @@ pub(crate) fn median(samples: &[f64]) -> f64 {
 /// Timings gathered over frames, for `--timings`.
 #[derive(Clone, Debug, Default)]
 pub struct TimingLog {
-    /// Per pass, in order of first appearance.
+    /// Per pass name, in order of first appearance: one sample per frame, the sum of the
+    /// frame's passes of that name (a technique adds one per light: "shadow map" for each map).
     pub passes: Vec<(&'static str, Vec<f64>)>,
+    /// Per pass name (as `passes`), the most passes of that name in one frame.
+    pub counts: Vec<usize>,
     pub gpu_frame: Vec<f64>,
     pub host_frame: Vec<f64>,
 }
@@ -226,10 +229,27 @@ impl TimingLog {
     pub fn record(&mut self, gpu: Option<&GpuTimings>, host_ms: f64) {
         self.host_frame.push(host_ms);
         let Some(gpu) = gpu else { return };
+        // The frame's passes summed by name first, so each frame is one sample of each.
+        let mut frame: Vec<(&'static str, f64, usize)> = Vec::new();
         for &(name, ms) in &gpu.passes {
-            match self.passes.iter_mut().find(|p| p.0 == name) {
-                Some(p) => p.1.push(ms),
-                None => self.passes.push((name, vec![ms])),
+            match frame.iter_mut().find(|p| p.0 == name) {
+                Some(p) => {
+                    p.1 += ms;
+                    p.2 += 1;
+                }
+                None => frame.push((name, ms, 1)),
+            }
+        }
+        for (name, ms, count) in frame {
+            match self.passes.iter().position(|p| p.0 == name) {
+                Some(i) => {
+                    self.passes[i].1.push(ms);
+                    self.counts[i] = self.counts[i].max(count);
+                }
+                None => {
+                    self.passes.push((name, vec![ms]));
+                    self.counts.push(count);
+                }
             }
         }
         self.gpu_frame.push(gpu.frame_ms);
@@ -252,8 +272,9 @@ impl TimingLog {
                 "GPU time per pass ({}), median and IQR of {frames} frame{plural}:",
                 calibration.describe()
             );
-            for (name, samples) in &self.passes {
-                row(&mut out, name, samples, "");
+            for ((name, samples), &count) in self.passes.iter().zip(&self.counts) {
+                let note = if count > 1 { format!("   {count} passes a frame, summed") } else { String::new() };
+                row(&mut out, name, samples, &note);
             }
             row(&mut out, "GPU frame", &self.gpu_frame, "   first stamp to last");
         } else {
@@ -315,5 +336,32 @@ mod tests {
         let text = log.report(&none);
         assert!(text.starts_with("timings unavailable on this device: why\n"), "{text}");
         assert!(!text.contains("geometry") && text.contains("host per frame"), "{text}");
+    }
+
+    #[test]
+    fn passes_of_one_name_in_a_frame_are_one_sample_their_sum() {
+        // Two lights' shadow maps a frame: the per-frame sums are 5 and 7, whose median is 6 and
+        // whose one-frame IQR is 0 (mixing the four passes as samples gave 2.5, IQR 1.5).
+        let mut log = TimingLog::default();
+        for (a, b) in [(2.0, 3.0), (3.0, 4.0)] {
+            let gpu =
+                GpuTimings { passes: vec![("shadow map", a), ("geometry", 1.0), ("shadow map", b)], frame_ms: 9.0 };
+            log.record(Some(&gpu), 10.0);
+        }
+        assert_eq!(log.passes[0].0, "shadow map");
+        assert_eq!(log.passes[0].1, [5.0, 7.0]);
+        assert_eq!(log.counts, [2, 1]);
+        let cal = TimingCalibration {
+            mode: Some(TimingMode::Flushed),
+            iterations: 1,
+            host_ms: 1.0,
+            plain_ms: 0.0,
+            flushed_ms: Some(1.0),
+            unavailable: None,
+        };
+        let text = log.report(&cal);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines[1], "  shadow map            6.000 ms   IQR    1.000 ms   2 passes a frame, summed");
+        assert_eq!(lines[2], "  geometry              1.000 ms   IQR    0.000 ms");
     }
 }

@@ -492,6 +492,46 @@ fn options_that_do_nothing_say_so() {
     let o = run(&["render", "--size", "32x24", "--spp", "4", "--exposure", "1", "-o", png.to_str().unwrap()]);
     assert_eq!(warnings(&o), Vec::<String>::new());
     assert!(exr.exists() && png.exists());
+    // Debug views never accumulate: --frames 4 renders one frame's view, says so, and the
+    // header counts the one frame the image holds.
+    let view = dir.join("v.exr");
+    let o = run(&[
+        "render",
+        "--size",
+        "32x24",
+        "--debug-view",
+        "visibility:0",
+        "--frames",
+        "4",
+        "-o",
+        view.to_str().unwrap(),
+    ]);
+    let w = warnings(&o);
+    assert!(w.len() == 1 && w[0].contains("--frames 4 does nothing here: debug views never accumulate"), "{w:?}");
+    let meta = exr::meta::MetaData::read_from_file(&view, false).expect("an EXR header");
+    let samples = match meta.headers[0].own_attributes.other.get(&exr::prelude::Text::from("umbra:samples")) {
+        Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
+        other => panic!("umbra:samples: {other:?}"),
+    };
+    assert!(samples.starts_with("1 frame;"), "{samples}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Options that cannot mean what they say are refused in one line, before anything is written:
+/// the view of a light the scene lacks (it was an all-lit image), soft and hard shadows asked
+/// for at once (--hard won silently), a viewer run of no frames (it drew one).
+#[test]
+fn contradictory_and_impossible_options_are_refused() {
+    let dir = out_dir("contradictions");
+    let png = dir.join("a.png");
+    let o = run(&["render", "--size", "32x24", "--debug-view", "visibility:7", "-o", png.to_str().unwrap()]);
+    assert_clear_error(&o, &["visibility:7", "light 7 does not exist", "3 light(s)"]);
+    let o = run(&["render", "--size", "32x24", "--shadows", "traced-soft", "--hard", "-o", png.to_str().unwrap()]);
+    assert_clear_error(&o, &["--hard contradicts --shadows traced-soft"]);
+    no_files_left(&dir);
+    let o = run(&["view", "--frames", "0"]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("1 or more"), "{}", stderr(&o));
     let _ = std::fs::remove_dir_all(&dir);
 }
 

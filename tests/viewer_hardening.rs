@@ -179,3 +179,44 @@ fn a_5120x2880_window_with_three_shadowed_lights_keeps_rendering() {
     assert!(brightest > 200 && lums.iter().any(|&l| l < brightest / 4), "a shaded frame");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Screenshots go beside the scene file by default, where its own files are: one named like an
+/// input (here the environment map, sky.exr) is refused and logged, the input kept; it was
+/// overwritten, as no other output of umbra's may be.
+#[test]
+fn a_screenshot_never_replaces_a_file_the_scene_was_read_from() {
+    let dir = scene_dir("inputs");
+    let sky = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/lighting/sky.exr");
+    std::fs::copy(&sky, dir.join("sky.exr")).unwrap();
+    // The default scene lit by the map instead of its constant environment.
+    let scene = std::fs::read_to_string(dir.join("scene.toml")).unwrap();
+    let scene = scene.replacen("[environment]", "[environment]\nmap = \"sky.exr\"", 1);
+    assert!(scene.contains("map = \"sky.exr\""));
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    let before = std::fs::read(dir.join("sky.exr")).unwrap();
+    let out = view(&dir, "frames 2\nscreenshot sky\nframes 2\nquit\n", &[]);
+    assert_ran_clean(&out);
+    let text = text(&out);
+    assert_eq!(std::fs::read(dir.join("sky.exr")).unwrap(), before, "the environment map is untouched");
+    assert!(text.contains("sky.exr: is an input of this render"), "{text}");
+    assert!(dir.join("sky.png").is_file(), "the PNG, which is no input, is written");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Esc from a script quits as from the keyboard: it was handled but never ended the session,
+/// so a script ending in `press esc` kept the window open.
+#[test]
+fn esc_in_a_script_quits() {
+    let dir = scene_dir("esc");
+    let out = view(&dir, "frames 2\npress esc\nframes 40\n", &["--frames", "60"]);
+    assert_ran_clean(&out);
+    let text = text(&out);
+    let frames: u64 = text
+        .split("viewer: ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("viewer summary line");
+    assert!(frames <= 3, "quit after the first two frames, not after --frames 60: {text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

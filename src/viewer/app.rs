@@ -315,7 +315,7 @@ impl App {
                 if let (Some(name), Some(frame)) = (capture, captured) {
                     let path = r.screenshot_dir.join(format!("{name}.png"));
                     // A full or read-only disk costs the file, not the session (as F12).
-                    match crate::output::write_image(&frame, &path) {
+                    match crate::output::write_image_with(&frame, &path, &r.screenshot_options()) {
                         Ok(()) => self.report.captures.push(path),
                         Err(e) => log::error!("capture failed: {e}"),
                     }
@@ -401,6 +401,11 @@ impl Running {
                         let _ = self.window.request_inner_size(PhysicalSize::new(w.max(1), h.max(1)));
                     }
                     self.handle(ev);
+                    // Esc quits from a script as from the keyboard.
+                    if self.quit {
+                        event_loop.exit();
+                        return Ok(false);
+                    }
                 }
                 ScriptStep::Minimise(on) => {
                     // Without a window manager (Xvfb) iconifying may do nothing, so the 0x0
@@ -463,6 +468,12 @@ impl Running {
         lines
     }
 
+    /// How screenshots and captures are written: never over a file the scene was read from
+    /// (they go beside the scene file by default, where `sky.exr` may be its environment map).
+    fn screenshot_options(&self) -> crate::output::WriteOptions {
+        crate::output::WriteOptions { inputs: self.renderer.scene().sources.clone(), ..Default::default() }
+    }
+
     /// Writes NAME.png (as shown) and NAME.exr (linear radiance) into the screenshot directory,
     /// rendering the current view through the capture path at the window's size.
     fn screenshot(&mut self, name: Option<String>) -> Result<()> {
@@ -479,7 +490,7 @@ impl Running {
             settings.output = output;
             let frame = self.renderer.render(&settings)?;
             let path = self.screenshot_dir.join(format!("{stem}.{ext}"));
-            crate::output::write_image(&frame, &path)?;
+            crate::output::write_image_with(&frame, &path, &self.screenshot_options())?;
             log::info!("screenshot: {}", path.display());
             self.screenshots.push(path);
         }

@@ -6,6 +6,7 @@ mod common;
 
 use std::path::Path;
 
+use glam::Vec3;
 use umbra::scene::{Scene, SceneError};
 
 const CAMERA: &str = "[camera]\neye = [0.0, 1.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
@@ -78,4 +79,36 @@ fn objects_without_lights_get_a_notice() {
     parse_in(dir.path(), "", "empty.toml").unwrap();
     assert!(!common::logged("lamp.toml: the scene has objects but no lights"));
     assert!(!common::logged("empty.toml: the scene has objects but no lights"));
+}
+
+fn png(w: u32, h: u32, texel: [u8; 4]) -> Vec<u8> {
+    let image = image::RgbaImage::from_pixel(w, h, image::Rgba(texel));
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut bytes, image::ImageFormat::Png).unwrap();
+    bytes.into_inner()
+}
+
+/// A normal-mapped quad with triangles on an infinite and a NaN vertex: tangents are made
+/// before those triangles are dropped, and MikkTSpace panicked on the infinite one and never
+/// returned on the NaN one. Now both are dropped with the warning the format promises, and
+/// the quad keeps its generated tangents.
+#[test]
+fn non_finite_triangles_of_a_normal_mapped_obj_are_dropped() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("flat.png"), png(2, 2, [128, 128, 255, 255])).unwrap();
+    std::fs::write(d.join("nm.mtl"), "newmtl nm\nnorm flat.png\n").unwrap();
+    let quad = "mtllib nm.mtl\nv -1 0 -1\nv 1 0 -1\nv 1 0 1\nv -1 0 1\nvt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\nusemtl nm\n\
+                f 1/1 4/4 3/3\nf 1/1 3/3 2/2\n";
+    std::fs::write(d.join("bad.obj"), format!("{quad}v inf 0 inf\nv nan 0 0\nf 5/1 3/2 2/2\nf 1/1 6/2 2/2\n")).unwrap();
+    let scene = parse_in(d, &format!("{LIGHT}{}", object("bad.obj")), "bad.toml").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.stats.non_finite_triangles, 2);
+    assert!(common::logged("bad.toml: objects[0] (bad.obj): dropped 0 degenerate and 2 non-finite triangles"));
+    assert_eq!(scene.meshes.len(), 1);
+    let mesh = &scene.meshes[0];
+    assert_eq!(mesh.triangle_count(), 2);
+    let surface = mesh.surface.as_ref().expect("the normal map is kept");
+    assert_eq!(surface.tangents.len(), mesh.positions.len());
+    // u runs along +X on the quad.
+    assert!(surface.tangents.iter().all(|t| (t.truncate() - Vec3::X).length() < 1e-5), "{:?}", surface.tangents);
 }

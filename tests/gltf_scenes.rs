@@ -394,3 +394,55 @@ fn bad_meshes_fail_the_render_cleanly() {
         assert!(!out.exists(), "{mesh}: an output was written");
     }
 }
+
+/// glTF nodes form disjoint strict trees, which the crate does not check: a node its own child
+/// (here 1000 times over, which allocated about 5 GB before the old visit count gave up), a
+/// cycle, a child shared by two parents (a chain of such grew to 2^depth draws) and a root
+/// listed twice or also a child are refused naming the node; a tree still loads.
+#[test]
+fn node_graphs_that_are_not_trees_are_refused_naming_the_node() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let write = |name: &str, nodes: Vec<serde_json::Value>, roots: Vec<usize>| {
+        let mut g = quad_file(Some(U16));
+        g.nodes = nodes;
+        g.roots = roots;
+        g.write_glb(&d.join(name));
+    };
+    write("self.glb", vec![json!({ "mesh": 0, "children": vec![0; 1000] })], vec![0]);
+    write(
+        "cycle.glb",
+        vec![json!({ "children": [1] }), json!({ "children": [2] }), json!({ "mesh": 0, "children": [1] })],
+        vec![0],
+    );
+    write("back.glb", vec![json!({ "children": [1] }), json!({ "mesh": 0, "children": [0] })], vec![0]);
+    let shared = vec![
+        json!({ "children": [1, 2] }),
+        json!({ "children": [3] }),
+        json!({ "children": [3] }),
+        json!({ "mesh": 0 }),
+    ];
+    write("shared.glb", shared.clone(), vec![0]);
+    write("twice.glb", vec![json!({ "mesh": 0 })], vec![0, 0]);
+    write("child_root.glb", vec![json!({ "mesh": 0 }), json!({ "children": [0] })], vec![1, 0]);
+    write(
+        "tree.glb",
+        shared[..2].iter().cloned().chain([json!({ "mesh": 0 }), json!({ "mesh": 0 })]).collect(),
+        vec![0],
+    );
+    for (file, reason) in [
+        ("self.glb", "node 0 lists itself as a child"),
+        ("cycle.glb", "node 1 has more than one parent or is its own ancestor (node 2 lists it)"),
+        ("back.glb", "node 0 is a root of the scene and also a child of node 1"),
+        ("shared.glb", "node 3 has more than one parent or is its own ancestor (node 2 lists it)"),
+        ("twice.glb", "node 0 is listed twice as a root of the scene, or is also a child"),
+        ("child_root.glb", "node 0 is listed twice as a root of the scene, or is also a child"),
+    ] {
+        let message = parse_in(d, &format!("{CAMERA}[[objects]]\nmesh = \"{file}\"\n")).unwrap_err();
+        assert_eq!(message, format!("s.toml: objects[0].mesh: \"{file}\" is not a valid glTF file: {reason}"));
+    }
+    // Node 0 with children 1 and 2, node 1 with child 3: nodes 2 and 3 draw the quad once each.
+    let scene =
+        parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"tree.glb\"\n")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.meshes.len(), 2);
+}

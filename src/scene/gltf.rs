@@ -118,18 +118,27 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
         files,
     };
     let scene = document.default_scene().or_else(|| document.scenes().next());
-    let mut stack: Vec<(gltf::Node, DMat4)> = match &scene {
-        Some(scene) => scene.nodes().map(|n| (n, DMat4::IDENTITY)).collect(),
+    // (node, its parent's node-to-file transform, the parent node: None for a root).
+    let mut stack: Vec<(gltf::Node, DMat4, Option<usize>)> = match &scene {
+        Some(scene) => scene.nodes().map(|n| (n, DMat4::IDENTITY, None)).collect(),
         None => Vec::new(),
     };
     stack.reverse();
     let mut ignored_ranges = 0;
-    let mut visited = 0usize;
-    while let Some((node, parent)) = stack.pop() {
-        // Validation does not reject cycles in the node graph; a DAG can still be huge.
-        visited += 1;
-        if visited > 1 << 22 {
-            return Err(GltfError::Parse("the node hierarchy has a cycle or over 4M nodes".to_owned()));
+    // glTF's nodes form disjoint strict trees, which the crate's validation does not check: a
+    // node reached twice would be drawn twice, and a cycle (or a DAG of shared children) would
+    // grow without end. Each node is visited once at most.
+    let mut visited = vec![false; document.nodes().len()];
+    while let Some((node, parent, parent_node)) = stack.pop() {
+        if std::mem::replace(&mut visited[node.index()], true) {
+            let n = node.index();
+            let is_root = scene.as_ref().is_some_and(|s| s.nodes().any(|root| root.index() == n));
+            return Err(GltfError::Parse(match parent_node {
+                Some(p) if p == n => format!("node {n} lists itself as a child"),
+                Some(p) if is_root => format!("node {n} is a root of the scene and also a child of node {p}"),
+                Some(p) => format!("node {n} has more than one parent or is its own ancestor (node {p} lists it)"),
+                None => format!("node {n} is listed twice as a root of the scene, or is also a child"),
+            }));
         }
         let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
         let world = parent * local;
@@ -155,7 +164,7 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
             }
             loaded.lights.extend(light_at(&world, &light));
         }
-        let children: Vec<_> = node.children().map(|c| (c, world)).collect();
+        let children: Vec<_> = node.children().map(|c| (c, world, Some(node.index()))).collect();
         stack.extend(children.into_iter().rev());
     }
     if ignored_ranges > 0 {

@@ -46,7 +46,12 @@ pub fn load(path: &Path) -> Result<EnvironmentMap, MapError> {
     }
     let bytes = super::input::read(path).map_err(MapError::Read)?;
     let (width, height, texels) = match extension.as_str() {
-        "exr" => decode_exr(&bytes).map_err(|e| MapError::Invalid(format!("is not a valid OpenEXR file: {e}")))?,
+        "exr" => {
+            let invalid = |e| MapError::Invalid(format!("is not a valid OpenEXR file: {e}"));
+            let (width, height) = super::texture::exr_size(&bytes).map_err(invalid)?;
+            check_header_size(width, height).map_err(MapError::Invalid)?;
+            decode_exr(&bytes).map_err(invalid)?
+        }
         "hdr" => decode_hdr(&bytes).map_err(|e| MapError::Invalid(format!("is not a valid Radiance HDR file: {e}")))?,
         _ => unreachable!("checked above"),
     };
@@ -66,6 +71,19 @@ pub fn from_texels(name: String, width: u32, height: u32, texels: Vec<Vec3>) -> 
         return Err(format!("has a texel that is negative or not finite at ({x}, {y}): {}", texels[k]));
     }
     Ok(EnvironmentMap { name, width, height, texels })
+}
+
+/// Refuses a map whose file says it is larger than a map may be, before its texels are
+/// allocated: wider than `MAX_MAP_EDGE`, or higher than half that (so not 2:1).
+fn check_header_size(width: usize, height: usize) -> Result<(), String> {
+    let max = MAX_MAP_EDGE as usize;
+    if width > max {
+        return Err(format!("is {width}x{height}, wider than {MAX_MAP_EDGE}"));
+    }
+    if height > max / 2 {
+        return Err(format!("is {width}x{height}, not 2:1 (an equirectangular map is twice as wide as it is high)"));
+    }
+    Ok(())
 }
 
 fn decode_exr(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>), String> {
@@ -154,5 +172,35 @@ impl EnvironmentMap {
             (w, h, texels) = (nw, nh, next);
         }
         levels
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn invalid(name: &str, bytes: &[u8]) -> String {
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join(name), bytes).unwrap();
+        match load(&dir.path().join(name)) {
+            Err(MapError::Invalid(reason)) => reason,
+            other => panic!("{name}: {other:?}"),
+        }
+    }
+
+    /// A map whose header claims more than a map may be is refused from the header, before its
+    /// texels (here 9.6 and 3.2 GB) are allocated; one within the limits is decoded.
+    #[test]
+    fn an_exr_map_too_large_is_refused_from_its_header() {
+        use super::super::texture::tests::exr_claiming;
+        assert_eq!(invalid("huge.exr", &exr_claiming(40000, 20000)), "is 40000x20000, wider than 16384");
+        assert_eq!(
+            invalid("tall.exr", &exr_claiming(16384, 16384)),
+            "is 16384x16384, not 2:1 (an equirectangular map is twice as wide as it is high)"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("small.exr"), exr_claiming(8, 4)).unwrap();
+        let map = load(&dir.path().join("small.exr")).unwrap_or_else(|e| panic!("{e:?}"));
+        assert_eq!((map.width, map.height), (8, 4));
     }
 }

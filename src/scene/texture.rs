@@ -204,10 +204,27 @@ fn decode(bytes: &[u8], is_exr: bool) -> Result<(u32, u32, Vec<u8>), String> {
         let rgba = image.to_rgba8();
         (rgba.width(), rgba.height(), rgba.into_raw())
     };
-    if width == 0 || height == 0 || width > 16384 || height > 16384 {
-        return Err(format!("{width}x{height} is outside 1x1 to 16384x16384"));
-    }
+    check_texture_size(width as usize, height as usize)?;
     Ok((width, height, rgba8))
+}
+
+/// The largest texture edge read, in texels.
+const MAX_TEXTURE_EDGE: usize = 16384;
+
+fn check_texture_size(width: usize, height: usize) -> Result<(), String> {
+    if width == 0 || height == 0 || width > MAX_TEXTURE_EDGE || height > MAX_TEXTURE_EDGE {
+        return Err(format!("{width}x{height} is outside 1x1 to {MAX_TEXTURE_EDGE}x{MAX_TEXTURE_EDGE}"));
+    }
+    Ok(())
+}
+
+/// The width and height of an EXR file's largest layer (each the largest of any layer), from
+/// its headers alone: the decoder sizes its texel buffer from them before it reads a texel.
+pub(crate) fn exr_size(bytes: &[u8]) -> Result<(usize, usize), String> {
+    let meta =
+        exr::meta::MetaData::read_from_buffered(std::io::Cursor::new(bytes), false).map_err(|e| e.to_string())?;
+    let sizes = meta.headers.iter().map(|h| (h.layer_size.width(), h.layer_size.height()));
+    Ok(sizes.fold((0, 0), |(w, h), (x, y)| (w.max(x), h.max(y))))
 }
 
 /// The first RGBA layer of an EXR file, clamped to [0, 1] and quantised to 8 bits.
@@ -220,13 +237,17 @@ fn decode_exr(bytes: &[u8]) -> Result<(u32, u32, Vec<u8>), String> {
 }
 
 /// The first RGBA layer of an EXR file at its largest resolution, as `channels` values per
-/// texel (rows from the top) that `store` makes of each texel's (r, g, b, a).
+/// texel (rows from the top) that `store` makes of each texel's (r, g, b, a). A file with a layer
+/// over 16384 texels a side is refused from its headers, before any texel is allocated.
 pub(crate) fn decode_exr_rgba<T: Clone + Default + 'static>(
     bytes: &[u8],
     channels: usize,
     store: fn(&mut [T], [f32; 4]),
 ) -> Result<(u32, u32, Vec<T>), String> {
     use exr::prelude::*;
+    // A header may give any size; a small file must not size a huge buffer.
+    let (width, height) = exr_size(bytes)?;
+    check_texture_size(width.max(1), height.max(1))?;
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
@@ -295,5 +316,66 @@ fn linear_to_srgb(v: f32) -> f32 {
         v * 12.92
     } else {
         1.055 * v.powf(1.0 / 2.4) - 0.055
+    }
+}
+
+#[cfg(test)]
+pub(crate) mod tests {
+    use super::*;
+
+    /// An uncompressed scanline EXR (half-float B, G, R, all zero) whose header says `width` x
+    /// `height`, with its offset table; only the first line's data when it is large: what a
+    /// header costs to write however large a buffer it asks for.
+    pub(crate) fn exr_claiming(width: i32, height: i32) -> Vec<u8> {
+        fn attribute(name: &str, kind: &str, data: &[u8]) -> Vec<u8> {
+            let mut out = [name.as_bytes(), b"\0", kind.as_bytes(), b"\0"].concat();
+            out.extend((data.len() as i32).to_le_bytes());
+            out.extend(data);
+            out
+        }
+        let window: Vec<u8> = [0, 0, width - 1, height - 1].iter().flat_map(|v: &i32| v.to_le_bytes()).collect();
+        let mut channels = Vec::new();
+        for name in ["B", "G", "R"] {
+            channels.extend([name.as_bytes(), b"\0"].concat());
+            channels.extend(1i32.to_le_bytes()); // half
+            channels.extend([0u8; 4]);
+            channels.extend(1i32.to_le_bytes());
+            channels.extend(1i32.to_le_bytes());
+        }
+        channels.push(0);
+        let mut bytes = vec![0x76, 0x2f, 0x31, 0x01, 2, 0, 0, 0];
+        bytes.extend(attribute("channels", "chlist", &channels));
+        bytes.extend(attribute("compression", "compression", &[0]));
+        bytes.extend(attribute("dataWindow", "box2i", &window));
+        bytes.extend(attribute("displayWindow", "box2i", &window));
+        bytes.extend(attribute("lineOrder", "lineOrder", &[0]));
+        bytes.extend(attribute("pixelAspectRatio", "float", &1f32.to_le_bytes()));
+        bytes.extend(attribute("screenWindowCenter", "v2f", &[0; 8]));
+        bytes.extend(attribute("screenWindowWidth", "float", &1f32.to_le_bytes()));
+        bytes.push(0);
+        let line = 8 + width as u64 * 6;
+        let start = bytes.len() as u64 + 8 * height as u64;
+        for y in 0..height as u64 {
+            bytes.extend((start + y * line).to_le_bytes());
+        }
+        // Every line of a small image (all zeros), the first of a large one.
+        for y in 0..if i64::from(width) * i64::from(height) <= 4096 { height } else { 1 } {
+            bytes.extend(y.to_le_bytes());
+            bytes.extend((width * 6).to_le_bytes());
+            bytes.extend(vec![0u8; width as usize * 6]);
+        }
+        bytes
+    }
+
+    /// An EXR texture whose header claims 40000x20000 (a 3.2 GB texel buffer, which the decoder
+    /// allocated before the size was checked) is refused from its header; the header of a
+    /// small one is read as its size.
+    #[test]
+    fn an_exr_larger_than_the_limit_is_refused_before_decoding() {
+        assert_eq!(exr_size(&exr_claiming(8, 4)), Ok((8, 4)));
+        let (w, h, texels) = decode(&exr_claiming(8, 4), true).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((w, h, texels.len()), (8, 4, 8 * 4 * 4));
+        assert_eq!(decode(&exr_claiming(40000, 20000), true).unwrap_err(), "40000x20000 is outside 1x1 to 16384x16384");
+        assert_eq!(decode(&exr_claiming(16, 16385), true).unwrap_err(), "16x16385 is outside 1x1 to 16384x16384");
     }
 }

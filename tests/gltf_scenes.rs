@@ -8,7 +8,7 @@ mod gltf_builder;
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
-use gltf_builder::{quad_xz, Gltf, U16, U32, U8};
+use gltf_builder::{quad_xz, Gltf, F32, U16, U32, U8};
 use serde_json::json;
 use umbra::scene::{Light, Scene, LUMENS_PER_WATT};
 
@@ -445,4 +445,89 @@ fn node_graphs_that_are_not_trees_are_refused_naming_the_node() {
     let scene =
         parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"tree.glb\"\n")).unwrap_or_else(|e| panic!("{e}"));
     assert_eq!(scene.meshes.len(), 2);
+}
+
+/// Accessors whose bytes fit but whose layout or type glTF does not allow where they are used:
+/// a byteStride shorter than the element (the crate panicked), float indices and u32 texture
+/// coordinates (the crate's `unreachable!`), u8 positions (read as floats), a sparse accessor
+/// whose values' view strides short. Each is refused naming the accessor and, for a type, the
+/// mesh, the primitive and the attribute; normalized u16 texture coordinates and a sparse
+/// accessor that fits load.
+#[test]
+fn accessors_of_a_layout_or_type_gltf_does_not_allow_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let with_uvs = |kind: u32, normalized: bool| {
+        let mut g = quad_file(Some(U32));
+        let (_, _, uv, _) = quad_xz();
+        let bytes: Vec<u8> = match kind {
+            U16 => uv.iter().flatten().flat_map(|&v| ((v * 65535.0) as u16).to_le_bytes()).collect(),
+            _ => uv.iter().flatten().flat_map(|&v| (v as u32).to_le_bytes()).collect(),
+        };
+        let view = g.view(&bytes, Some(34962));
+        let uvs = g.accessor(json!({ "bufferView": view, "componentType": kind, "normalized": normalized,
+            "count": 4, "type": "VEC2" }));
+        g.meshes[0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(uvs);
+        g
+    };
+    let mut stride = quad_file(Some(U32));
+    stride.views[0]["byteStride"] = json!(4);
+    stride.write_glb(&d.join("stride.glb"));
+    let mut float_indices = quad_file(Some(U32));
+    float_indices.accessors[2]["componentType"] = json!(F32);
+    float_indices.write_glb(&d.join("float_indices.glb"));
+    with_uvs(U32, false).write_glb(&d.join("uv_u32.glb"));
+    with_uvs(U16, false).write_glb(&d.join("uv_u16.glb"));
+    with_uvs(U16, true).write_glb(&d.join("uv_unorm16.glb"));
+    let mut position_u8 = quad_file(Some(U32));
+    position_u8.accessors[0]["componentType"] = json!(U8);
+    position_u8.accessors[0]["min"] = json!([0, 0, 0]);
+    position_u8.accessors[0]["max"] = json!([255, 255, 255]);
+    position_u8.write_glb(&d.join("position_u8.glb"));
+    // Vertex 2 moved by a sparse accessor (index 2, one value), its values read through a view
+    // that strides 4 bytes for 12-byte elements, or packed.
+    let sparse = |values_stride: Option<u32>| {
+        let mut g = quad_file(Some(U32));
+        let indices = g.view(&2u32.to_le_bytes(), None);
+        let values = g.view(&[0.5f32, 1.0, 0.5].iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>(), None);
+        if let Some(s) = values_stride {
+            g.views[values]["byteStride"] = json!(s);
+        }
+        g.accessors[0]["sparse"] = json!({ "count": 1,
+            "indices": { "bufferView": indices, "componentType": U32 }, "values": { "bufferView": values } });
+        g
+    };
+    sparse(Some(4)).write_glb(&d.join("sparse_stride.glb"));
+    sparse(None).write_glb(&d.join("sparse.glb"));
+    for (file, reason) in [
+        ("stride.glb", "accessor 0 has elements of 12 bytes, but buffer view 0 strides 4 bytes"),
+        (
+            "float_indices.glb",
+            "mesh 0 primitive 0: indices accessor 2 is SCALAR of f32; glTF allows only SCALAR of u8, u16 or u32 there",
+        ),
+        (
+            "uv_u32.glb",
+            "mesh 0 primitive 0: TEXCOORD_0 accessor 3 is VEC2 of u32; glTF allows only VEC2 of f32, or of normalized \
+             u8 or u16 there",
+        ),
+        (
+            "uv_u16.glb",
+            "mesh 0 primitive 0: TEXCOORD_0 accessor 3 is VEC2 of u16; glTF allows only VEC2 of f32, or of normalized \
+             u8 or u16 there",
+        ),
+        (
+            "position_u8.glb",
+            "mesh 0 primitive 0: POSITION accessor 0 is VEC3 of u8; glTF allows only VEC3 of f32 there",
+        ),
+        ("sparse_stride.glb", "accessor 0's sparse values has elements of 12 bytes, but buffer view 4 strides 4 bytes"),
+    ] {
+        let message = parse_in(d, &format!("{CAMERA}[[objects]]\nmesh = \"{file}\"\n")).unwrap_err();
+        assert_eq!(message, format!("s.toml: objects[0].mesh: \"{file}\" is not a valid glTF file: {reason}"));
+    }
+    let scene = parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"uv_unorm16.glb\"\n"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.triangle_count(), 2);
+    let scene =
+        parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"sparse.glb\"\n")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(scene.meshes[0].positions.contains(&DVec3::new(0.5, 1.0, 0.5)), "{:?}", scene.meshes[0].positions);
 }

@@ -531,3 +531,42 @@ fn accessors_of_a_layout_or_type_gltf_does_not_allow_are_refused() {
         parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"sparse.glb\"\n")).unwrap_or_else(|e| panic!("{e}"));
     assert!(scene.meshes[0].positions.contains(&DVec3::new(0.5, 1.0, 0.5)), "{:?}", scene.meshes[0].positions);
 }
+
+/// An index past the primitive's vertices is an error naming it, as in an OBJ file: with a
+/// normal map tangent generation indexed past the positions (a panic), without one the triangle
+/// was dropped as "degenerate". Strips are checked as lists are.
+#[test]
+fn an_index_that_names_no_vertex_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (p, n, uv, _) = quad_xz();
+    let flat = image::RgbaImage::from_pixel(2, 2, image::Rgba([128, 128, 255, 255]));
+    let mut png = std::io::Cursor::new(Vec::new());
+    flat.write_to(&mut png, image::ImageFormat::Png).unwrap();
+    for (file, mode, normal_map) in [("mapped.glb", 4, true), ("plain.glb", 4, false), ("strip.glb", 5, false)] {
+        let mut g = Gltf::default();
+        let (positions, normals, uvs) = (g.vec3(&p), g.vec3(&n), g.vec2(&uv));
+        let indices = g.indices(&[0, 1, 2, 0, 2, 99], U16);
+        let mut material = json!({});
+        if normal_map {
+            let view = g.view(png.get_ref(), None);
+            g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
+            material["normalTexture"] = json!({ "index": 0 });
+        }
+        let material = g.material(material);
+        g.mesh(vec![json!({
+            "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
+            "indices": indices, "material": material, "mode": mode
+        })]);
+        g.node(json!({ "mesh": 0 }), true);
+        g.write_glb(&d.join(file));
+        let message = parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"{file}\"\n")).unwrap_err();
+        assert_eq!(
+            message,
+            format!(
+                "s.toml: objects[0].mesh: \"{file}\" is not a valid glTF file: mesh 0 primitive 0: index 99 names \
+                 no vertex (4 vertices)"
+            )
+        );
+    }
+}

@@ -388,6 +388,10 @@ fn read_primitive(
         Mode::TriangleFan => (2..list.len()).flat_map(|i| [list[0], list[i - 1], list[i]]).collect(),
         Mode::Points | Mode::Lines | Mode::LineLoop | Mode::LineStrip => return Ok(None),
     };
+    // An error, as an OBJ index past its vertices is: not a triangle to drop as degenerate.
+    if let Some(&index) = indices.iter().find(|&&i| i as usize >= positions.len()) {
+        return Err(format!("{}: index {index} names no vertex ({} vertices)", where_(), positions.len()));
+    }
     let name = match mesh.name() {
         Some(n) => format!("{file}/{n}/{}", primitive.index()),
         None => format!("{file}/mesh{}/{}", mesh.index(), primitive.index()),

@@ -570,3 +570,30 @@ fn an_index_that_names_no_vertex_is_refused() {
         );
     }
 }
+
+/// glTF URIs are percent-encoded: a buffer `my%20buf.bin` and an image `grey%20tex.png` are the
+/// files `my buf.bin` and `grey tex.png` beside the .gltf (they were looked up as written, so the
+/// buffer was missing and the texture a warning).
+#[test]
+fn percent_encoded_uris_name_their_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut g = quad_file(Some(U16));
+    let (_, _, uv, _) = quad_xz();
+    let uvs = g.vec2(&uv);
+    g.meshes[0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(uvs);
+    g.materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+    g.images = vec![json!({ "uri": "grey%20tex.png" })];
+    let grey = image::RgbaImage::from_pixel(2, 2, image::Rgba([128, 128, 128, 255]));
+    grey.save(d.join("grey tex.png")).unwrap();
+    std::fs::write(d.join("my buf.bin"), &g.bin).unwrap();
+    std::fs::write(d.join("spaced.gltf"), serde_json::to_string(&g.document(Some("my%20buf.bin"))).unwrap()).unwrap();
+    let scene =
+        parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"spaced.gltf\"\n")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.triangle_count(), 2);
+    let surface = scene.meshes[0].surface.as_ref().expect("the texture is read");
+    let base = surface.textures.base_color.as_ref().expect("a base colour map");
+    assert_eq!((base.width, base.height, base.name.as_str()), (2, 2, "grey%20tex.png"));
+    assert!(scene.sources.iter().any(|s| s.ends_with("my buf.bin")), "{:?}", scene.sources);
+    assert!(scene.sources.iter().any(|s| s.ends_with("grey tex.png")), "{:?}", scene.sources);
+}

@@ -195,7 +195,7 @@ fn read_buffers(
         let index = buffer.index();
         let mut data = match buffer.source() {
             gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
-                let file = base.join(uri);
+                let file = base.join(uri_path(uri));
                 let bytes = input::read(&file)
                     .map_err(|e| GltfError::Parse(format!("buffer {index}: cannot read {uri:?}: {}", IoReason(&e))))?;
                 files.push(file);
@@ -215,6 +215,30 @@ fn read_buffers(
         buffers.push(data);
     }
     Ok((buffers, files))
+}
+
+/// The file a relative URI names: glTF URIs are percent-encoded (`my%20buf.bin` is the file
+/// `my buf.bin`). A `%` without two hex digits after it, or a decoding that is not UTF-8, is
+/// left as written.
+fn uri_path(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut decoded = Vec::with_capacity(bytes.len());
+    let mut at = 0;
+    while at < bytes.len() {
+        let digits = bytes.get(at + 1..at + 3).filter(|h| h.iter().all(u8::is_ascii_hexdigit));
+        let hex = digits.and_then(|h| u8::from_str_radix(std::str::from_utf8(h).ok()?, 16).ok());
+        match (bytes[at], hex) {
+            (b'%', Some(byte)) => {
+                decoded.push(byte);
+                at += 3;
+            }
+            (byte, _) => {
+                decoded.push(byte);
+                at += 1;
+            }
+        }
+    }
+    String::from_utf8(decoded).unwrap_or_else(|_| uri.to_owned())
 }
 
 fn file_name(path: &Path) -> String {
@@ -616,7 +640,7 @@ impl MaterialMaps<'_> {
                 self.cache.get_bytes(&key, &bytes, &name, srgb, label)
             }
             gltf::image::Source::Uri { uri, .. } => {
-                let file = self.file.parent().unwrap_or(Path::new("")).join(uri);
+                let file = self.file.parent().unwrap_or(Path::new("")).join(uri_path(uri));
                 self.cache.get(&file, uri, srgb, label)
             }
         })
@@ -710,4 +734,20 @@ fn light_at(world: &DMat4, light: &gltf::khr_lights_punctual::Light) -> Option<L
             Light::Spot { position, direction, intensity: power, inner_deg: inner, outer_deg: outer, radius: 0.0 }
         }
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn uris_are_percent_decoded_where_they_can_be() {
+        assert_eq!(uri_path("my%20buf.bin"), "my buf.bin");
+        assert_eq!(uri_path("textures/%E2%82%ACuro%2fwood.png"), "textures/\u{20ac}uro/wood.png");
+        assert_eq!(uri_path("plain.bin"), "plain.bin");
+        // Not an escape (no two hex digits, a sign, the end), or not UTF-8 once decoded: as written.
+        for uri in ["100%.bin", "a%2.bin", "%+1.bin", "%g0.bin", "end%2", "%ff.bin"] {
+            assert_eq!(uri_path(uri), uri);
+        }
+    }
 }

@@ -231,6 +231,45 @@ fn missing_and_corrupt_textures_warn_and_keep_the_constant() {
     common::assert_clean(&ctx);
 }
 
+/// An OBJ naming two material libraries in different directories: each material's textures
+/// are found beside its own library (they were looked up beside the first one, so `b/tex.png`
+/// was sought as `a/tex.png`, and the 4x4 map of `b` was read as `a`'s 2x2 one).
+#[test]
+fn obj_textures_are_found_beside_the_library_that_names_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (lib, size) in [("a", 2), ("b", 4)] {
+        std::fs::create_dir(d.join(lib)).unwrap();
+        std::fs::write(d.join(lib).join(format!("{lib}.mtl")), format!("newmtl {lib}\nmap_Kd tex.png\n")).unwrap();
+        std::fs::write(d.join(lib).join("tex.png"), png(size, size, [200, 100, 50, 255])).unwrap();
+    }
+    std::fs::create_dir(d.join("c")).unwrap();
+    std::fs::write(d.join("c/c.mtl"), "newmtl c\nmap_Kd only_c.png\n").unwrap();
+    std::fs::write(d.join("c/only_c.png"), png(8, 8, [10, 20, 30, 255])).unwrap();
+    let quad = |m: &str, y: f32| {
+        format!(
+            "o {m}\nv -1 {y} -1\nv -1 {y} 1\nv 1 {y} 1\nv 1 {y} -1\nvt 0 0\nvt 0 1\nvt 1 1\nvt 1 0\n\
+             usemtl {m}\nf -4/-4 -3/-3 -2/-2\nf -4/-4 -2/-2 -1/-1\n"
+        )
+    };
+    let obj = format!(
+        "mtllib a/a.mtl\nmtllib b/b.mtl\nmtllib c/c.mtl\n{}{}{}",
+        quad("a", 0.0),
+        quad("b", 0.1),
+        quad("c", 0.2)
+    );
+    std::fs::write(d.join("libs.obj"), obj).unwrap();
+    let scene = parse_in(d, &format!("{CAMERA}{SUN}[[objects]]\nmesh = \"libs.obj\"\n"));
+    assert!(!common::logged("libs.obj: material"), "{:?}", common::captured_log().lock().unwrap());
+    for (name, size) in [("a", 2), ("b", 4), ("c", 8)] {
+        let mesh = scene.meshes.iter().find(|m| m.name == format!("libs.obj/{name}")).unwrap();
+        let surface = mesh.surface.as_ref().unwrap_or_else(|| panic!("{name}: no texture"));
+        let base = surface.textures.base_color.as_ref().unwrap();
+        assert_eq!((base.width, base.height), (size, size), "{name}");
+    }
+    assert!(scene.sources.iter().any(|s| s.ends_with("b/tex.png")), "{:?}", scene.sources);
+}
+
 /// Emission: a glTF emissive factor times an sRGB emissive texture adds that radiance where the
 /// quad is (here without any light, so it is all there is), an OBJ material's `Ke` alone (no
 /// texture coordinates) emits its constant, and `map_Ke` on a face whose corners share one

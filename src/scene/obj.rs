@@ -42,11 +42,18 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
     let options = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
     let dir = path.parent().unwrap_or(Path::new(""));
     let material_files = RefCell::new(Vec::new());
+    // The directory of each library read and how many materials it gave: tobj appends them in
+    // the order the libraries are named.
+    let libraries = RefCell::new(Vec::new());
     let mut reader = LineCounter::new(&bytes);
     let loaded = tobj::load_obj_buf(&mut reader, &options, |mtl| {
         let mtl = dir.join(mtl);
         material_files.borrow_mut().push(mtl.clone());
-        load_mtl(path, &mtl)
+        let result = load_mtl(path, &mtl);
+        if let Ok((materials, _)) = &result {
+            libraries.borrow_mut().push((mtl.parent().unwrap_or(dir).to_path_buf(), materials.len()));
+        }
+        result
     });
     let (models, materials) = loaded.map_err(|e| ObjError::Parse(located(e, reader.lines)))?;
     let materials = materials.unwrap_or_else(|e| {
@@ -55,14 +62,16 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
     });
 
     let file_name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
-    // Texture paths are relative to the material library (the first one, when there are several).
-    let texture_dir = material_files.borrow().first().and_then(|m| m.parent().map(Path::to_path_buf));
-    let texture_dir = texture_dir.unwrap_or_else(|| dir.to_path_buf());
+    // Texture paths are relative to the material library that names them.
+    let texture_dirs: Vec<PathBuf> =
+        libraries.into_inner().into_iter().flat_map(|(dir, count)| std::iter::repeat_n(dir, count)).collect();
     let material_textures: Vec<Option<Arc<MaterialTextures>>> = materials
         .iter()
-        .map(|m| {
+        .enumerate()
+        .map(|(k, m)| {
             let label = format!("{file_name}: material {:?}", m.name);
-            let maps = texture_maps(m, &texture_dir, textures, &label);
+            let texture_dir = texture_dirs.get(k).map_or(dir, PathBuf::as_path);
+            let maps = texture_maps(m, texture_dir, textures, &label);
             (!maps.is_empty()).then(|| Arc::new(maps))
         })
         .collect();

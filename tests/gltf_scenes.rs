@@ -597,3 +597,33 @@ fn percent_encoded_uris_name_their_files() {
     assert!(scene.sources.iter().any(|s| s.ends_with("my buf.bin")), "{:?}", scene.sources);
     assert!(scene.sources.iter().any(|s| s.ends_with("grey tex.png")), "{:?}", scene.sources);
 }
+
+/// A point light beyond the distance the renderer's f32 frame holds is a warning naming the
+/// scene file and the light as the file counts it: rect lights count there (the warning named
+/// the index among the other lights, `lights[1]` for the file's `lights[2]`, and no file); a
+/// whole-file glTF scene's light is named by the glTF file and its place in node order.
+#[test]
+fn far_lights_are_named_as_the_file_counts_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U16));
+    let far = g.light(json!({ "type": "point", "intensity": 10.0 }));
+    // 2^41 m up, exact in f32.
+    g.node(json!({ "translation": [0.0, 2199023255552.0, 0.0], "extensions": { "KHR_lights_punctual": { "light": far } } }), true);
+    g.write_glb(&dir.path().join("far.glb"));
+    let text = format!(
+        "scene = \"far.glb\"\n{CAMERA}\
+         [[lights]]\ntype = \"rect\"\ncenter = [0.0, 2.0, 0.0]\nhalf_edge_u = [0.5, 0.0, 0.0]\nhalf_edge_v = [0.0, 0.0, 0.5]\n\
+         radiance = [1.0, 1.0, 1.0]\n{LIGHT}\
+         [[lights]]\ntype = \"point\"\nposition = [1e13, 3.0, 5.0]\nintensity = [1.0, 1.0, 1.0]\n\
+         [[lights]]\ntype = \"spot\"\nposition = [0.0, 3.0, 1e13]\ndirection = [0.0, -1.0, 0.0]\nintensity = [1.0, 1.0, 1.0]\n\
+         inner_deg = 10.0\nouter_deg = 20.0\n"
+    );
+    let scene = parse_in(dir.path(), &text).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.lights.len(), 4);
+    let tail =
+        "m from the camera, beyond the 1000000000000 m the renderer's frame holds; its light and shadows will be wrong";
+    assert!(common::logged(&format!("s.toml: lights[2]: 10000000000000 {tail}")));
+    assert!(common::logged(&format!("s.toml: lights[3]: 9999999999995 {tail}")));
+    assert!(common::logged(&format!("s.toml: scene (far.glb): light 0 in node order: 2199023255549 {tail}")));
+    assert!(!common::logged("lights[1]: "), "{:?}", common::captured_log().lock().unwrap());
+}

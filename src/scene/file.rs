@@ -278,6 +278,18 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
     // The glTF scene's lights come after the file's, so `lights[i]` keeps naming the same light.
     let gltf_lights = whole.as_ref().map_or(0, |(_, g)| g.lights.len());
     lights.extend(whole.iter().flat_map(|(_, g)| g.lights.iter().copied()));
+    // Named as the file has them (its rect lights count; `lights` leaves them out).
+    for (k, light) in lights.iter().enumerate() {
+        if let Some(why) = super::local::too_far_to_render(light, camera.eye) {
+            match (shadowed.get(k), &whole) {
+                (Some((path, _)), _) => log::warn!("{source_name}: {path}: {why}"),
+                (None, Some((source, _))) => {
+                    log::warn!("{source_name}: scene ({source}): light {} in node order: {why}", k - shadowed.len())
+                }
+                (None, None) => {}
+            }
+        }
+    }
 
     let mut meshes = Vec::new();
     let mut stats = LoadStats::default();

@@ -20,7 +20,8 @@ impl Scene {
     /// Meshes with a vertex more than `MAX_LOCAL_DISTANCE` from the camera are left out, each
     /// with a warning naming it; the origin is then the centre of the bounds of what is kept (or
     /// the camera when nothing is), so the kept geometry's coordinates stay below that distance.
-    /// Positions are still f64 here; the renderer rounds them to f32 as it uploads them.
+    /// Positions are still f64 here; the renderer rounds them to f32 as it uploads them. Point
+    /// and spot lights that far are kept: the loader has warned about them (`too_far_to_render`).
     pub fn local_frame(&self) -> (Scene, DVec3) {
         let eye = self.camera.eye;
         let within = |p: &DVec3| (*p - eye).abs().max_element() <= MAX_LOCAL_DISTANCE;
@@ -37,21 +38,23 @@ impl Scene {
             );
             false
         });
-        for (i, light) in kept.lights.iter().enumerate() {
-            if let Light::Point { position, .. } | Light::Spot { position, .. } = light {
-                if !within(position) {
-                    log::warn!(
-                        "lights[{i}]: {} m from the camera, beyond the {} m the renderer's frame holds; \
-                         its light and shadows will be wrong",
-                        super::error::short_number((*position - eye).length()),
-                        super::error::short_number(MAX_LOCAL_DISTANCE),
-                    );
-                }
-            }
-        }
         let origin = geometry_centre(&kept).unwrap_or(eye);
         (kept.translated(-origin), origin)
     }
+}
+
+/// Why `light` will render wrong from a camera at `eye`: a point or spot light further from it,
+/// along an axis, than `MAX_LOCAL_DISTANCE`. The loader warns with it, where it knows the
+/// light's name in the file.
+pub(super) fn too_far_to_render(light: &Light, eye: DVec3) -> Option<String> {
+    let (Light::Point { position, .. } | Light::Spot { position, .. }) = light else { return None };
+    ((*position - eye).abs().max_element() > MAX_LOCAL_DISTANCE).then(|| {
+        format!(
+            "{} m from the camera, beyond the {} m the renderer's frame holds; its light and shadows will be wrong",
+            super::error::short_number((*position - eye).length()),
+            super::error::short_number(MAX_LOCAL_DISTANCE),
+        )
+    })
 }
 
 /// Centre of the bounds of every mesh vertex, in world space; `None` without geometry.

@@ -112,3 +112,21 @@ fn non_finite_triangles_of_a_normal_mapped_obj_are_dropped() {
     // u runs along +X on the quad.
     assert!(surface.tangents.iter().all(|t| (t.truncate() - Vec3::X).length() < 1e-5), "{:?}", surface.tangents);
 }
+
+/// A no-break space between an OBJ keyword and its numbers separates them, as tobj reads the
+/// line: such a vertex is a vertex (the face on it was refused as naming no vertex) and such a
+/// face is checked (an index past the normals slipped through to tobj).
+#[test]
+fn unicode_white_space_separates_obj_words_as_tobj_reads_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("v.obj"), "v\u{a0}0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(d.join("f.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf\u{a0}1//7 2//1 3//1\n").unwrap();
+    let scene = parse_in(d, &format!("{LIGHT}{}", object("v.obj")), "v.toml").unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.triangle_count(), 1);
+    let message = parse_in(d, &format!("{LIGHT}{}", object("f.obj")), "f.toml").unwrap_err();
+    assert_eq!(
+        message,
+        "f.toml: objects[0].mesh: \"f.obj\" is not a valid OBJ file: line 5: f index 7 names no normal (there are 1)"
+    );
+}

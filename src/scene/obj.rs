@@ -126,8 +126,15 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
 
 /// Statements that make a file an OBJ file; tobj skips any other line without a word, so a text
 /// file (or a renamed PNG) named `.obj` would otherwise load as an empty mesh.
-const OBJ_KEYWORDS: &[&[u8]] =
-    &[b"v", b"vt", b"vn", b"vp", b"f", b"l", b"p", b"o", b"g", b"s", b"usemtl", b"mtllib", b"cstype", b"curv", b"surf"];
+const OBJ_KEYWORDS: &[&str] =
+    &["v", "vt", "vn", "vp", "f", "l", "p", "o", "g", "s", "usemtl", "mtllib", "cstype", "curv", "surf"];
+
+/// The file's text for the checks below, which read it as tobj does: a line ends at '\n' and
+/// splits into words by `str::split_whitespace` (Unicode white space, so a no-break space
+/// separates words too). Bytes that are not UTF-8 are replaced here; tobj refuses their line.
+fn obj_text(bytes: &[u8]) -> std::borrow::Cow<'_, str> {
+    String::from_utf8_lossy(bytes)
+}
 
 /// Refuses content that is not OBJ text: binary data (a NUL byte), or lines none of which is an
 /// OBJ statement. A file of comments and blank lines only is an empty OBJ, not a wrong one.
@@ -136,9 +143,9 @@ fn check_is_obj(bytes: &[u8]) -> Result<(), String> {
         return Err("binary data (a NUL byte), not OBJ text".to_owned());
     }
     let mut content = None;
-    for (n, line) in bytes.split(|&b| b == b'\n').enumerate() {
-        let Some(first) = line.split(|b| b.is_ascii_whitespace()).find(|w| !w.is_empty()) else { continue };
-        if first.starts_with(b"#") {
+    for (n, line) in obj_text(bytes).split('\n').enumerate() {
+        let Some(first) = line.split_whitespace().next() else { continue };
+        if first.starts_with('#') {
             continue;
         }
         if OBJ_KEYWORDS.contains(&first) {
@@ -158,31 +165,29 @@ fn check_is_obj(bytes: &[u8]) -> Result<(), String> {
 /// (a panic where overflow is checked; found by `tools/fuzz --afl`), so they are caught here,
 /// with the line.
 fn check_indices(bytes: &[u8]) -> Result<(), String> {
-    fn words(line: &[u8]) -> Vec<&[u8]> {
-        line.split(|b| b.is_ascii_whitespace()).filter(|w| !w.is_empty()).collect()
-    }
-    let lines = || bytes.split(|&b| b == b'\n');
-    const KINDS: [(&[u8], &str); 3] = [(b"v", "vertex"), (b"vt", "texture coordinate"), (b"vn", "normal")];
+    let text = obj_text(bytes);
+    let lines = || text.split('\n');
+    const KINDS: [(&str, &str); 3] = [("v", "vertex"), ("vt", "texture coordinate"), ("vn", "normal")];
     let mut total = [0i64; 3];
     for line in lines() {
-        if let Some(k) = words(line).first().and_then(|w| KINDS.iter().position(|(key, _)| key == w)) {
+        if let Some(k) = line.split_whitespace().next().and_then(|w| KINDS.iter().position(|(key, _)| *key == w)) {
             total[k] += 1;
         }
     }
     let mut seen = [0i64; 3];
     for (n, line) in lines().enumerate() {
-        let words = words(line);
+        let words: Vec<&str> = line.split_whitespace().collect();
         let Some(&first) = words.first() else { continue };
         if let Some(k) = KINDS.iter().position(|(key, _)| *key == first) {
             seen[k] += 1;
             continue;
         }
-        if !matches!(first, b"f" | b"l" | b"p") {
+        if !matches!(first, "f" | "l" | "p") {
             continue;
         }
         for corner in &words[1..] {
-            for (k, part) in corner.split(|&b| b == b'/').enumerate().take(3) {
-                let Some(index) = std::str::from_utf8(part).ok().and_then(|t| t.parse::<i64>().ok()) else { continue };
+            for (k, part) in corner.split('/').enumerate().take(3) {
+                let Ok(index) = part.parse::<i64>() else { continue };
                 if k > 0 && total[k] == 0 {
                     continue; // tobj ignores texture and normal indices of a file that has none
                 }
@@ -195,9 +200,8 @@ fn check_indices(bytes: &[u8]) -> Result<(), String> {
                     let (_, what) = KINDS[k];
                     let have = if index < 0 { seen[k] } else { total[k] };
                     return Err(format!(
-                        "line {}: {} index {index} names no {what} (there are {have}{})",
+                        "line {}: {first} index {index} names no {what} (there are {have}{})",
                         n + 1,
-                        String::from_utf8_lossy(first),
                         if index < 0 { " before it" } else { "" }
                     ));
                 }
@@ -210,11 +214,11 @@ fn check_indices(bytes: &[u8]) -> Result<(), String> {
 /// `f` lines with one or two vertex references, which tobj parses as points and lines and, with
 /// `ignore_points` and `ignore_lines`, leaves out without a word.
 fn count_short_faces(bytes: &[u8]) -> usize {
-    bytes
-        .split(|&b| b == b'\n')
+    obj_text(bytes)
+        .split('\n')
         .filter(|line| {
-            let mut words = line.split(|b| b.is_ascii_whitespace()).filter(|w| !w.is_empty());
-            words.next() == Some(b"f") && matches!(words.count(), 1 | 2)
+            let mut words = line.split_whitespace();
+            words.next() == Some("f") && matches!(words.count(), 1 | 2)
         })
         .count()
 }
@@ -425,6 +429,21 @@ mod tests {
         let past = b"v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 18446744073709551\n";
         assert!(check_indices(past).unwrap_err().starts_with("line 4: f index 18446744073709551 names no vertex"));
         assert!(check_indices(b"v 0 0 0\nf 0 1 1\n").unwrap_err().contains("index 0 names no vertex"));
+    }
+
+    /// tobj splits words at any Unicode white space (`str::split_whitespace`): a no-break space
+    /// (U+00A0) after `f` or `v` separates the keyword from the numbers. The checks split the
+    /// same way, so such a face is checked (its index 7 slipped past them) and such a vertex
+    /// counted (the face on it was refused as naming no vertex).
+    #[test]
+    fn lines_are_split_into_words_as_tobj_splits_them() {
+        let face = "v 0 0 0\nv 1 0 0\nv 0 1 0\nvn 0 0 1\nf\u{a0}1//7 2//1 3//1\n";
+        assert_eq!(check_indices(face.as_bytes()).unwrap_err(), "line 5: f index 7 names no normal (there are 1)");
+        let vertex = "v\u{a0}0 0 0\nv 1 0 0\u{2003}\nv 0 1 0\nf 1 2 3\n";
+        assert_eq!(check_indices(vertex.as_bytes()), Ok(()));
+        assert_eq!(check_is_obj("\u{a0}v\u{a0}0 0 0\n".as_bytes()), Ok(()));
+        assert_eq!(count_short_faces("f\u{a0}1 2\n".as_bytes()), 1);
+        assert_eq!(count_short_faces("f 1\u{a0}2 3\n".as_bytes()), 0);
     }
 
     #[test]

@@ -480,6 +480,11 @@ fn plane_segments_out_of_range_name_the_field() {
         ("shape = \"plane\"\nsegments = 2049\n", "inline.toml: objects[0].segments: 2049 is outside [1, 2048]"),
         ("shape = \"plane\"\nsegments = -4\n", "objects[0].segments: invalid value: integer `-4`"),
         ("shape = \"plane\"\nsegments = 1.5\n", "objects[0].segments: invalid type: floating point `1.5`"),
+        // An integer key takes integers only; the message keeps the `.0` that makes 16.0 a float.
+        (
+            "shape = \"plane\"\nsegments = 16.0\n",
+            "objects[0].segments: invalid type: floating point `16.0`, expected u32",
+        ),
         ("shape = \"cube\"\nsegments = 4\n", "inline.toml: objects[0].segments: only a sphere or a plane takes it"),
         ("mesh = \"../meshes/tetra.obj\"\nsegments = 4\n", "objects[0].segments: only built-in shapes take it"),
     ];

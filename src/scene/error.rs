@@ -80,7 +80,8 @@ pub(super) fn short_number(v: f64) -> String {
 }
 
 /// serde writes an unexpected float in full (``floating point `1000…000` ``, 301 digits for
-/// 1e300): rewrite each such number as `short_number` does.
+/// 1e300): rewrite each such number as `short_number` does, keeping a whole number's `.0`, which
+/// is what makes it a float (`segments = 16.0` is refused where an integer is expected).
 fn compact_floats(message: &str) -> String {
     const MARK: &str = "floating point `";
     let mut out = String::with_capacity(message.len());
@@ -90,7 +91,13 @@ fn compact_floats(message: &str) -> String {
         out.push_str(before);
         let end = after.find('`').unwrap_or(after.len());
         match after[..end].parse::<f64>() {
-            Ok(v) => out.push_str(&short_number(v)),
+            Ok(v) => {
+                let short = short_number(v);
+                out.push_str(&short);
+                if v.is_finite() && !short.contains(['.', 'e']) {
+                    out.push_str(".0");
+                }
+            }
             Err(_) => out.push_str(&after[..end]),
         }
         rest = &after[end..];
@@ -341,6 +348,12 @@ mod tests {
         let plain = "invalid type: floating point `2.5`, expected u32";
         assert_eq!(compact_floats(plain), plain);
         assert_eq!(compact_floats("floating point `"), "floating point `");
+        let whole = "invalid type: floating point `16.0`, expected u32";
+        assert_eq!(compact_floats(whole), whole, "16.0 is a float: its .0 stays");
+        assert_eq!(
+            compact_floats("floating point `-3.0`, floating point `inf`"),
+            "floating point `-3.0`, floating point `inf`"
+        );
     }
 
     #[test]

@@ -52,7 +52,13 @@ pub fn load(path: &Path) -> Result<EnvironmentMap, MapError> {
             check_header_size(width, height).map_err(MapError::Invalid)?;
             decode_exr(&bytes).map_err(invalid)?
         }
-        "hdr" => decode_hdr(&bytes).map_err(|e| MapError::Invalid(format!("is not a valid Radiance HDR file: {e}")))?,
+        "hdr" => {
+            let invalid = |e: String| MapError::Invalid(format!("is not a valid Radiance HDR file: {e}"));
+            let reader = image::ImageReader::with_format(std::io::Cursor::new(&bytes[..]), image::ImageFormat::Hdr);
+            let (width, height) = reader.into_dimensions().map_err(|e| invalid(e.to_string()))?;
+            check_header_size(width as usize, height as usize).map_err(MapError::Invalid)?;
+            decode_hdr(&bytes).map_err(invalid)?
+        }
         _ => unreachable!("checked above"),
     };
     from_texels(path.display().to_string(), width, height, texels).map_err(MapError::Invalid)
@@ -90,9 +96,16 @@ fn decode_exr(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>), String> {
     super::texture::decode_exr_rgba(bytes, 1, |texel: &mut [Vec3], [r, g, b, _]| texel[0] = Vec3::new(r, g, b))
 }
 
+/// A Radiance HDR file's texels, once `check_header_size` has passed its size: the `image`
+/// crate's default 512 MiB allocation limit would refuse maps over about 9450 texels wide, so
+/// its limits are the map's edges instead.
 fn decode_hdr(bytes: &[u8]) -> Result<(u32, u32, Vec<Vec3>), String> {
-    let image = image::load_from_memory_with_format(bytes, image::ImageFormat::Hdr).map_err(|e| e.to_string())?;
-    let rgb = image.to_rgb32f();
+    let mut reader = image::ImageReader::with_format(std::io::Cursor::new(bytes), image::ImageFormat::Hdr);
+    let mut limits = image::Limits::no_limits();
+    limits.max_image_width = Some(MAX_MAP_EDGE);
+    limits.max_image_height = Some(MAX_MAP_EDGE / 2);
+    reader.limits(limits);
+    let rgb = reader.decode().map_err(|e| e.to_string())?.into_rgb32f();
     let (width, height) = (rgb.width(), rgb.height());
     let texels = rgb.into_raw().chunks_exact(3).map(Vec3::from_slice).collect();
     Ok((width, height, texels))
@@ -202,5 +215,40 @@ mod tests {
         std::fs::write(dir.path().join("small.exr"), exr_claiming(8, 4)).unwrap();
         let map = load(&dir.path().join("small.exr")).unwrap_or_else(|e| panic!("{e:?}"));
         assert_eq!((map.width, map.height), (8, 4));
+    }
+
+    /// A Radiance HDR file of `width` x `height` texels of radiance 1 (RGBE 128, 128, 128, 129),
+    /// each scanline run-length encoded: about 600 bytes a line at 9472 wide.
+    fn hdr_of_ones(width: usize, height: usize) -> Vec<u8> {
+        let mut bytes = format!("#?RADIANCE\nFORMAT=32-bit_rle_rgbe\n\n-Y {height} +X {width}\n").into_bytes();
+        for _ in 0..height {
+            bytes.extend([2, 2, (width >> 8) as u8, width as u8]);
+            for value in [128, 128, 128, 129] {
+                let mut left = width;
+                while left > 0 {
+                    let run = left.min(127);
+                    bytes.extend([128 + run as u8, value]);
+                    left -= run;
+                }
+            }
+        }
+        bytes
+    }
+
+    /// The `image` crate's default 512 MiB limit refused HDR maps over about 9450 texels wide
+    /// ("Memory limit exceeded") though maps may be 16384 wide: a 9472x4736 map (538 MB of f32
+    /// RGB) loads. Sizes past the edges are refused from the header.
+    #[test]
+    fn hdr_maps_load_up_to_the_map_edge_limit() {
+        assert_eq!(invalid("wide.hdr", &hdr_of_ones(16400, 8200)), "is 16400x8200, wider than 16384");
+        assert_eq!(
+            invalid("tall.hdr", &hdr_of_ones(16, 8200)),
+            "is 16x8200, not 2:1 (an equirectangular map is twice as wide as it is high)"
+        );
+        let dir = tempfile::tempdir().unwrap();
+        std::fs::write(dir.path().join("big.hdr"), hdr_of_ones(9472, 4736)).unwrap();
+        let map = load(&dir.path().join("big.hdr")).unwrap_or_else(|e| panic!("{e:?}"));
+        assert_eq!((map.width, map.height), (9472, 4736));
+        assert_eq!((map.texels[0], map.texels[map.texels.len() - 1]), (Vec3::ONE, Vec3::ONE));
     }
 }

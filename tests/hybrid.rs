@@ -3,7 +3,8 @@
 //! (hard), every pixel of hybrid's visibility must match traced's but a stated few, while the
 //! rays cover a small, printed share of the pixels the light reaches; the `hybrid:N` view shows
 //! exactly which pixels those are. For a light with a size, the listed pixels get traced's own
-//! samples, so hybrid soft stays within a stated RMSE of traced soft. All with validation and
+//! samples, so hybrid soft stays within a stated RMSE of traced soft, and a pixel whose blockers
+//! can lie beyond the widest kernel is traced rather than decided. All with validation and
 //! synchronization validation.
 
 mod common;
@@ -125,5 +126,70 @@ fn a_hybrid_light_gets_a_map_a_classification_and_list_driven_rays_and_no_full_t
     s.shadows = vec![ShadowChoice { method: ShadowMethod::Hybrid, ..ShadowChoice::hard() }; 3];
     let live = r.plan(&s).expect("plan").live_pass_names();
     assert!(!live.contains(&"shadow trace"), "no full-frame trace: {live:?}");
+    common::assert_clean(&ctx);
+}
+
+/// A 0.3 m sphere of a spot 4 m over a floor, a 0.4 m box 1 m below it: the box is near the
+/// light, so its penumbra on the floor is over a metre wide with no umbra, and the region of the
+/// map its blockers can lie in, seen from the floor, is the light's cone at the map's near plane
+/// (the box's top, 0.8 m from the light): 0.24 m in radius there, some 150 texels of the default
+/// 1024^2 map, and 19 of a 128^2 one.
+const WIDE_PENUMBRA: &str = r#"
+[camera]
+eye = [0.0, 6.0, 0.01]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 50.0
+[[lights]]
+type = "spot"
+position = [0.0, 4.0, 0.0]
+direction = [0.0, -1.0, 0.0]
+intensity = [20.0, 20.0, 20.0]
+inner_deg = 35.0
+outer_deg = 45.0
+radius = 0.3
+[[objects]]
+shape = "plane"
+size = 12.0
+[[objects]]
+shape = "cube"
+size = 0.4
+translate = [0.0, 3.0, 0.0]
+"#;
+
+/// Light 0's debug `view` at 96x96 with `choice`, as RGBA floats.
+fn small_view(r: &mut Renderer, choice: ShadowChoice, view: DebugView) -> Vec<f32> {
+    let mut s = RenderSettings::new(96, 96, OutputKind::SceneLinear).all_lights(1, choice);
+    s.debug_view = Some(view);
+    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
+    assert!(pixels.iter().all(|x| x.is_finite()), "no NaN");
+    pixels
+}
+
+/// The kernel of a light with a size spans the map region its blockers can come from, sized at
+/// the near plane (it was sized at the receiver: 1/5 as wide here, so the taps all agreed in the
+/// outer penumbra and the pixels were called lit or shadowed outright); where that region is
+/// wider than `hybrid.max_radius`, the pixel is traced, not decided by taps too few to hold it.
+#[test]
+fn hybrid_traces_the_pixels_whose_blockers_its_kernel_cannot_hold() {
+    let (ctx, mut r) = renderer(WIDE_PENUMBRA);
+    let soft = ShadowChoice::soft(64);
+    let traced = red(&small_view(&mut r, soft, DebugView::Visibility(0)));
+    let penumbra = traced.iter().filter(|&&v| v > 0.05 && v < 0.95).count();
+    assert!(penumbra > 2000, "a wide penumbra in view: {penumbra} pixels");
+    // At the defaults the region is ~150 texels: every floor pixel is traced. At 128^2 with a
+    // 32-texel limit it is ~19: the map decides where its kernel's taps agree. Measured 0 and 0
+    // pixels (9006 and 5566 traced); with the kernel sized at the receiver, the map called
+    // penumbra pixels sure.
+    for (params, most) in [(&[][..], 0), (&[("hybrid.resolution", "128"), ("hybrid.max_radius", "32")][..], 10)] {
+        let mut hybrid = ShadowChoice { method: ShadowMethod::Hybrid, ..soft };
+        for (k, v) in params {
+            hybrid.set(k, v).unwrap();
+        }
+        let mine = red(&small_view(&mut r, hybrid, DebugView::Visibility(0)));
+        let listed = umbra::shadows::hybrid::traced_pixels(&small_view(&mut r, hybrid, DebugView::Hybrid(0)));
+        let differ = traced.iter().zip(&mine).filter(|(a, b)| (*a - *b).abs() > 0.25).count();
+        println!("{params:?}: {differ} of 9216 pixels differ from traced by over 0.25; {listed} traced");
+        assert!(differ <= most, "{params:?}: {differ} pixels differ by over 0.25 (at most {most})");
+    }
     common::assert_clean(&ctx);
 }

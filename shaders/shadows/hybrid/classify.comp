@@ -10,7 +10,8 @@
 // distance); it is clear when it does not. All clear: lit (1). All occluding: shadowed (0).
 // Anything else (a shadow edge, a caster thinner than the kernel, a surface seen edge-on) is
 // listed. The kernel is `radius` texels for a point-like light, and for a light with a size the
-// region its blockers can come from (as PCSS's blocker search sizes it).
+// region its blockers can come from (map_search_texels, as PCSS's blocker search sizes it; a
+// pixel whose region is wider than `max_radius` texels is listed).
 // The same facing and cone tests as the traced pass decide where the light reaches at all.
 #include "bindings.glsl"
 #include "gbuffer.glsl"
@@ -55,9 +56,11 @@ float classify(uint layer, vec3 p, vec3 ng, vec3 L, float light_size, bool persp
     float slope = min(sqrt(1.0 - cos_t * cos_t) / cos_t, 16.0);
     float radius = float(pc.map.z);
     if (pc.map.w != 0u && light_size > 0.0) {
-        float light_texels = perspective_light ? light_size / texel * (receiver - m.texel_near_far.y) / receiver
-                                               : light_size * (receiver - m.texel_near_far.y) / texel;
-        radius = clamp(light_texels, radius, pc.params.y);
+        float light_texels = map_search_texels(m, receiver, light_size, perspective_light);
+        // A kernel narrower than the region the blockers can come from cannot be sure: the
+        // taps could all agree while a blocker outside them hides part of the light.
+        if (light_texels > pc.params.y) return -1.0;
+        radius = max(light_texels, radius);
     }
     vec2 size = vec2(textureSize(shadow_map, 0).xy);
     ivec2 last = ivec2(size) - 1;

@@ -37,4 +37,18 @@ float map_texel(MapLayer m, float z) {
     return m.texel_near_far.w > 0.5 ? m.texel_near_far.x * z : m.texel_near_far.x;
 }
 
+// The radius in texels of the map region whose blockers can hide part of a light with a size
+// from a receiver at linear depth `receiver` (the PCSS blocker search; hybrid's kernel for such
+// lights). The widest cross-section of the cone from the receiver to the light among the depths
+// a caster can have is at the near plane: a sphere of radius `size` at the light's position
+// (perspective) spans size (receiver - near) / receiver there, measured in texels at the near
+// plane (a perspective texel grows with depth); a disk of half-angle atan(size) (directional,
+// orthographic: one texel size everywhere) size (receiver - near).
+float map_search_texels(MapLayer m, float receiver, float size, bool perspective_light) {
+    float near = m.texel_near_far.y;
+    float span = max(receiver - near, 0.0);
+    return perspective_light ? size * span / (max(receiver, near) * map_texel(m, near))
+                             : size * span / map_texel(m, receiver);
+}
+
 #endif

@@ -93,12 +93,14 @@ float layer_visibility(uint layer, vec3 p, vec3 n, float light_size, bool perspe
     if (pc.map.w == 0u || light_size <= 0.0) {
         return pcf(layer, uv, z, float(r), 2 * r + 1);
     }
-    // PCSS. The light's extent, in texels at the receiver: a sphere of radius R seen from the
-    // receiver (perspective lights), or a cone of half-angle atan(size) (directional).
+    // PCSS. The blocker search covers the map texels a blocker can lie in and still hide part
+    // of the light from the receiver at depth z_r: the cone from the receiver to the light, at
+    // its widest where blockers can begin, the map's near plane (no caster is nearer). A
+    // sphere of radius R (perspective lights) spans R (z_r - near) / z_r there, a disk of
+    // half-angle atan(size) (directional) size (z_r - near), each in texels at that depth.
     float receiver = map_linear_depth(m, z);
     float max_radius = pc.params.y;
-    float light_texels = perspective_light ? light_size / map_texel(m, receiver) * (receiver - m.texel_near_far.y) / receiver
-                                           : light_size * (receiver - m.texel_near_far.y) / map_texel(m, receiver);
+    float light_texels = map_search_texels(m, receiver, light_size, perspective_light);
     float search = clamp(light_texels, 1.0, max_radius);
     vec2 b = blockers(layer, uv, z, search);
     if (b.y == 0.0) return 1.0;

@@ -20,7 +20,8 @@ pub struct HybridParams {
     /// contacts and risks calling acne a shadow.
     pub margin: f32,
     /// Lights with a size: the largest kernel radius in texels (1..=32) over which blockers are
-    /// searched.
+    /// searched; a pixel whose blockers can lie farther out (a light large against the map's
+    /// texels, a caster near it) is traced.
     pub max_radius: u32,
 }
 

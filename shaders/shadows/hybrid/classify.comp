@@ -12,7 +12,10 @@
 // listed. The kernel is `radius` texels for a point-like light, and for a light with a size the
 // region its blockers can come from (map_search_texels, as PCSS's blocker search sizes it; a
 // pixel whose region is wider than `max_radius` texels is listed).
-// The same facing and cone tests as the traced pass decide where the light reaches at all.
+// Where the light reaches at all is decided as the listed pixels' rays decide it: the cone, and
+// for soft shadows of a light with a size any of its cap above the horizon (light_faces), else
+// its centre. Past the centre's horizon the map, seen from the centre, holds the receiver's own
+// surface in front of the point: such pixels are listed.
 #include "bindings.glsl"
 #include "gbuffer.glsl"
 #include "lights.glsl"
@@ -94,8 +97,16 @@ void main() {
         float dist;
         vec3 e;
         light_sample(l, position.xyz, L, dist, e);
-        if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
+        // Where the light reaches at all, as the listed pixels' rays decide it: for soft
+        // shadows of a light with a size while any of its cap is above the horizon.
+        bool soft = pc.map.w != 0u;
+        if (!(soft ? light_faces(l, position.xyz, n, L) : dot(n, L) > 0.0) || max(e.r, max(e.g, e.b)) <= 0.0) {
             v = 0.0;
+        } else if (soft && dot(n, L) <= 0.0) {
+            // The light's centre is below the horizon, part of its cap above it: the map, seen
+            // from the centre, holds the surface itself in front of the point, which hides none
+            // of the cap above its horizon. The rays decide.
+            v = -1.0;
         } else if (pc.map.x != 0u) {
             vec3 ng = gbuffer_geometric_normal(texelFetch(gbuffer_surface, ivec2(px), 0));
             uint layer = 0u;

@@ -7,8 +7,10 @@
 // cannot filter depth formats): percentage-closer filtering over (2r+1)^2 texels, or PCSS for
 // lights with a size (a blocker search, then a kernel as wide as the penumbra the light's size
 // predicts from the blockers' mean depth). A texel occludes only when it is nearer the light than
-// the point (reversed depth: nearer is greater); the hardware depth bias was applied when the
-// map was drawn. The same facing and cone tests as the traced pass decide where the light reaches.
+// the point (reversed depth: nearer is greater), and for a light with a size only when it also
+// lies above the point's tangent plane (Horizon); the hardware depth bias was applied when the
+// map was drawn. Where the light reaches at all is traced's soft test (light_faces: for a light
+// with a size, any of its cap above the horizon, which compose shades) and the cone.
 #include "bindings.glsl"
 #include "gbuffer.glsl"
 #include "lights.glsl"
@@ -34,9 +36,37 @@ layout(push_constant) uniform Push {
     vec4 forward;  // xyz: unit view direction
 } pc;
 
+// A light with a size lights a point through the part of its cap above the point's horizon
+// alone (compose shades that part; traced counts only the rays above it), and nothing below the
+// point's tangent plane can hide any of it. So for such a light (`on`) a texel occludes only
+// when what it holds also lies above the tangent plane (through `p`, shading normal `n`) by more
+// than `margin`; `inv` takes the layer's clip space back to the world. Past the horizon of the
+// light's centre this is what makes the map usable at all (seen from the centre, the receiver's
+// own surface lies in front of the point there), and near it on the lit side it keeps the
+// receiver's own surface out of the blocker search. It only ever drops occluders.
+struct Horizon {
+    bool on;
+    vec3 p;
+    vec3 n;
+    float margin;
+    mat4 inv;
+};
+
+// Whether the texel `texel` of `layer` (of a map `size` texels wide), holding reversed depth
+// `d`, occludes a receiver at depth `z`: it is nearer the light (greater), and where `h` is on
+// above the receiver's tangent plane. 0 is the clear value: nothing drawn there; a receiver
+// beyond the map's far plane (past every caster) has z < 0 and is not shadowed by it.
+bool occludes(ivec2 texel, vec2 size, float d, float z, Horizon h) {
+    if (d <= 0.0 || z >= d) return false;
+    if (!h.on) return true;
+    vec2 ndc = (vec2(texel) + 0.5) / size * 2.0 - 1.0;
+    vec4 q = h.inv * vec4(ndc, d, 1.0);
+    return dot(q.xyz / q.w - h.p, h.n) > h.margin;
+}
+
 // Share of the taps around `uv` on `layer` that do not occlude depth `z` (reversed: a tap
 // occludes when it is greater), `taps` per axis spread over +-`radius` texels.
-float pcf(uint layer, vec2 uv, float z, float radius, int taps) {
+float pcf(uint layer, vec2 uv, float z, float radius, int taps, Horizon h) {
     vec2 size = vec2(textureSize(shadow_map, 0).xy);
     ivec2 last = ivec2(size) - 1;
     float lit = 0.0;
@@ -47,16 +77,14 @@ float pcf(uint layer, vec2 uv, float z, float radius, int taps) {
             vec2 t = uv * size + vec2(dx, dy) * step_texels;
             ivec2 texel = clamp(ivec2(floor(t)), ivec2(0), last);
             float occluder = texelFetch(shadow_map, ivec3(texel, layer), 0).r;
-            // 0 is the clear value: nothing drawn there. A receiver beyond the map's far plane
-            // (past every caster) has z < 0 and must not be shadowed by it.
-            lit += occluder <= 0.0 || z >= occluder ? 1.0 : 0.0;
+            lit += occludes(texel, size, occluder, z, h) ? 0.0 : 1.0;
         }
     }
     return lit / float((2 * half_taps + 1) * (2 * half_taps + 1));
 }
 
 // Mean linear depth of the blockers within +-`radius` texels, and how many there are.
-vec2 blockers(uint layer, vec2 uv, float z, float radius) {
+vec2 blockers(uint layer, vec2 uv, float z, float radius, Horizon h) {
     vec2 size = vec2(textureSize(shadow_map, 0).xy);
     ivec2 last = ivec2(size) - 1;
     const int HALF = 3;
@@ -67,7 +95,7 @@ vec2 blockers(uint layer, vec2 uv, float z, float radius) {
             vec2 t = uv * size + vec2(dx, dy) * (radius / float(HALF));
             ivec2 texel = clamp(ivec2(floor(t)), ivec2(0), last);
             float d = texelFetch(shadow_map, ivec3(texel, layer), 0).r;
-            if (d > z && d > 0.0) {
+            if (occludes(texel, size, d, z, h)) {
                 sum += map_linear_depth(layers[layer], d);
                 count += 1.0;
             }
@@ -76,14 +104,17 @@ vec2 blockers(uint layer, vec2 uv, float z, float radius) {
     return vec2(count > 0.0 ? sum / count : 0.0, count);
 }
 
-// Visibility of `p` (normal `n`) in one layer; outside the layer (nothing drawn there) is lit.
-float layer_visibility(uint layer, vec3 p, vec3 n, float light_size, bool perspective_light) {
+// Visibility of `p` (geometric normal `n`, shading normal `ns`) in one layer; outside the layer
+// (nothing drawn there) is lit.
+float layer_visibility(uint layer, vec3 p, vec3 n, vec3 ns, float light_size, bool perspective_light) {
     MapLayer m = layers[layer];
     // The point's depth from the light first, to size the normal offset in texels there.
     vec4 clip = m.view_proj * vec4(p, 1.0);
     if (clip.w <= 0.0) return 1.0;
     float z_lin = map_linear_depth(m, clip.z / clip.w);
     float texel = map_texel(m, z_lin);
+    bool on = light_size > 0.0;
+    Horizon h = Horizon(on, p, ns, 2.0 * texel, on ? inverse(m.view_proj) : mat4(1.0));
     clip = m.view_proj * vec4(p + n * (pc.params.x * texel), 1.0);
     vec3 ndc = clip.xyz / clip.w;
     vec2 uv = ndc.xy * 0.5 + 0.5;
@@ -91,7 +122,7 @@ float layer_visibility(uint layer, vec3 p, vec3 n, float light_size, bool perspe
     float z = ndc.z;
     int r = int(pc.map.z);
     if (pc.map.w == 0u || light_size <= 0.0) {
-        return pcf(layer, uv, z, float(r), 2 * r + 1);
+        return pcf(layer, uv, z, float(r), 2 * r + 1, h);
     }
     // PCSS. The blocker search covers the map texels a blocker can lie in and still hide part
     // of the light from the receiver at depth z_r: the cone from the receiver to the light, at
@@ -102,13 +133,13 @@ float layer_visibility(uint layer, vec3 p, vec3 n, float light_size, bool perspe
     float max_radius = pc.params.y;
     float light_texels = map_search_texels(m, receiver, light_size, perspective_light);
     float search = clamp(light_texels, 1.0, max_radius);
-    vec2 b = blockers(layer, uv, z, search);
+    vec2 b = blockers(layer, uv, z, search, h);
     if (b.y == 0.0) return 1.0;
     // Penumbra half-width at the receiver, from similar triangles (Fernando 2005).
     float penumbra = perspective_light ? light_size * (receiver - b.x) / max(b.x, 1e-6)
                                        : light_size * (receiver - b.x);
     float radius = clamp(penumbra / map_texel(m, receiver), 1.0, max_radius);
-    return pcf(layer, uv, z, radius, 7);
+    return pcf(layer, uv, z, radius, 7, h);
 }
 
 void main() {
@@ -128,7 +159,9 @@ void main() {
         light_sample(l, position.xyz, L, dist, e);
         bool perspective_light = l.position_kind.w != LIGHT_DIRECTIONAL;
         float size = l.size.x;
-        if (dot(n, L) <= 0.0 || max(e.r, max(e.g, e.b)) <= 0.0) {
+        // Where the light reaches at all, as traced decides it for soft shadows and compose
+        // shades it: a light with a size while any of its cap is above the horizon.
+        if (!light_faces(l, position.xyz, n, L) || max(e.r, max(e.g, e.b)) <= 0.0) {
             v = 0.0;
         } else if (pc.map.y == MAP_CUBE) {
             vec3 d = position.xyz - l.position_kind.xyz;
@@ -136,7 +169,7 @@ void main() {
             uint face = a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
                       : a.y >= a.z ? (d.y >= 0.0 ? 2u : 3u)
                                    : (d.z >= 0.0 ? 4u : 5u);
-            v = layer_visibility(face, position.xyz, ng, size, true);
+            v = layer_visibility(face, position.xyz, ng, n, size, true);
         } else if (pc.map.y == MAP_CASCADES) {
             float along = dot(position.xyz - pc.eye.xyz, pc.forward.xyz);
             uint count = pc.map.x;
@@ -145,17 +178,17 @@ void main() {
             if (along > layers[count - 1u].split.x) {
                 v = 1.0; // beyond the shadow distance
             } else {
-                v = layer_visibility(c, position.xyz, ng, size, false);
+                v = layer_visibility(c, position.xyz, ng, n, size, false);
                 // Near the far end of a cascade, blend into the next so the seam does not show.
                 float end = layers[c].split.x;
                 float width = (end - layers[c].split.y) * pc.params.z;
                 if (c + 1u < count && width > 0.0 && along > end - width) {
                     float t = (along - (end - width)) / width;
-                    v = mix(v, layer_visibility(c + 1u, position.xyz, ng, size, false), t);
+                    v = mix(v, layer_visibility(c + 1u, position.xyz, ng, n, size, false), t);
                 }
             }
         } else {
-            v = layer_visibility(0u, position.xyz, ng, size, perspective_light);
+            v = layer_visibility(0u, position.xyz, ng, n, size, perspective_light);
         }
     }
     imageStore(visibility, ivec2(px), vec4(v));

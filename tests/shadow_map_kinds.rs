@@ -242,6 +242,46 @@ fn map_and_hybrid_light_the_band_past_the_terminator_of_a_light_with_a_size() {
     common::assert_clean(&ctx);
 }
 
+/// A point light 1 m over a 6 m board beside it, over a floor: the board's shadow on the floor
+/// crosses the seams of the light's cube map.
+const SEAMS: &str = r#"
+[camera]
+eye = [4.0, 1.5, 7.0]
+target = [4.0, 0.0, 0.0]
+vfov_deg = 60.0
+[[lights]]
+type = "point"
+position = [0.0, 4.0, 0.0]
+intensity = [20.0, 20.0, 20.0]
+[[objects]]
+shape = "plane"
+size = 30.0
+[[objects]]
+shape = "plane"
+size = 6.0
+translate = [3.5, 3.0, 0.0]
+"#;
+
+/// The normal offset moves a point near a cube seam across it, into the next face's frustum:
+/// the face is the offset point's. It was the point's own, where the offset point lay outside
+/// the face and read lit: a lit line along every seam through a shadow.
+#[test]
+fn a_cube_map_does_not_leak_light_along_its_seams() {
+    let (ctx, mut r) = renderer(SEAMS);
+    let (w, h) = (256, 256);
+    let traced = visibility(&mut r, ShadowChoice::hard(), w, h);
+    let map = visibility(&mut r, with(ShadowMethod::Map, &[("map.resolution", "256")]), w, h);
+    let shadowed = traced.iter().filter(|&&v| v == 0.0).count();
+    let away = common::away_from_edges(&traced, w, h, 2);
+    let leaks = away.iter().filter(|&&i| traced[i] == 0.0 && map[i] >= 0.5).count();
+    println!("cube seams: {leaks} of {shadowed} pixels traced shadows lit by the map, 2 px from shadow edges");
+    assert!(shadowed > 10000, "the board's shadow fills much of the view: {shadowed} pixels");
+    // Measured 0.
+    assert!(leaks <= 10, "{leaks} pixels leak light");
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
 /// Thin poles over a 400 m ground plane under a low sun, seen from 1.6 m above it looking along it.
 const FIELD: &str = r#"
 [camera]

@@ -104,22 +104,34 @@ vec2 blockers(uint layer, vec2 uv, float z, float radius, Horizon h) {
     return vec2(count > 0.0 ? sum / count : 0.0, count);
 }
 
-// Visibility of `p` (geometric normal `n`, shading normal `ns`) in one layer; outside the layer
-// (nothing drawn there) is lit.
-float layer_visibility(uint layer, vec3 p, vec3 n, vec3 ns, float light_size, bool perspective_light) {
+// The cube face a point lies in, from the point less the light's position: its major axis.
+uint cube_face(vec3 d) {
+    vec3 a = abs(d);
+    return a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u) : a.y >= a.z ? (d.y >= 0.0 ? 2u : 3u) : (d.z >= 0.0 ? 4u : 5u);
+}
+
+// The point to look up for `p` (geometric normal `n`) in `layer`: moved along its normal by
+// `normal_offset` texels of the layer at its depth.
+vec3 offset_point(uint layer, vec3 p, vec3 n) {
     MapLayer m = layers[layer];
-    // The point's depth from the light first, to size the normal offset in texels there.
     vec4 clip = m.view_proj * vec4(p, 1.0);
-    if (clip.w <= 0.0) return 1.0;
-    float z_lin = map_linear_depth(m, clip.z / clip.w);
-    float texel = map_texel(m, z_lin);
-    bool on = light_size > 0.0;
-    Horizon h = Horizon(on, p, ns, 2.0 * texel, on ? inverse(m.view_proj) : mat4(1.0));
-    clip = m.view_proj * vec4(p + n * (pc.params.x * texel), 1.0);
+    if (clip.w <= 0.0) return p;
+    return p + n * (pc.params.x * map_texel(m, map_linear_depth(m, clip.z / clip.w)));
+}
+
+// Visibility of `p` (shading normal `ns`) in one layer, looked up at `q` (offset_point); outside
+// the layer (nothing drawn there) is lit. A cube face holds every point picked for it, its edges
+// included.
+float layer_visibility(uint layer, vec3 p, vec3 q, vec3 ns, float light_size, bool perspective_light) {
+    MapLayer m = layers[layer];
+    vec4 clip = m.view_proj * vec4(q, 1.0);
     vec3 ndc = clip.xyz / clip.w;
     vec2 uv = ndc.xy * 0.5 + 0.5;
+    if (pc.map.y == MAP_CUBE) uv = clamp(uv, vec2(0.0), vec2(1.0 - 1e-6));
     if (clip.w <= 0.0 || any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(uv, vec2(1.0)))) return 1.0;
     float z = ndc.z;
+    bool on = light_size > 0.0;
+    Horizon h = Horizon(on, p, ns, 2.0 * map_texel(m, map_linear_depth(m, z)), on ? inverse(m.view_proj) : mat4(1.0));
     int r = int(pc.map.z);
     if (pc.map.w == 0u || light_size <= 0.0) {
         return pcf(layer, uv, z, float(r), 2 * r + 1, h);
@@ -164,12 +176,11 @@ void main() {
         if (!light_faces(l, position.xyz, n, L) || max(e.r, max(e.g, e.b)) <= 0.0) {
             v = 0.0;
         } else if (pc.map.y == MAP_CUBE) {
-            vec3 d = position.xyz - l.position_kind.xyz;
-            vec3 a = abs(d);
-            uint face = a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
-                      : a.y >= a.z ? (d.y >= 0.0 ? 2u : 3u)
-                                   : (d.z >= 0.0 ? 4u : 5u);
-            v = layer_visibility(face, position.xyz, ng, n, size, true);
+            // The normal offset can carry the point across a seam, out of the face it lay in and
+            // into the next one's frustum: it is looked up in the face of the point looked up.
+            vec3 light = l.position_kind.xyz;
+            vec3 q = offset_point(cube_face(position.xyz - light), position.xyz, ng);
+            v = layer_visibility(cube_face(q - light), position.xyz, q, n, size, true);
         } else if (pc.map.y == MAP_CASCADES) {
             float along = dot(position.xyz - pc.eye.xyz, pc.forward.xyz);
             uint count = pc.map.x;
@@ -178,17 +189,17 @@ void main() {
             if (along > layers[count - 1u].split.x) {
                 v = 1.0; // beyond the shadow distance
             } else {
-                v = layer_visibility(c, position.xyz, ng, n, size, false);
+                v = layer_visibility(c, position.xyz, offset_point(c, position.xyz, ng), n, size, false);
                 // Near the far end of a cascade, blend into the next so the seam does not show.
                 float end = layers[c].split.x;
                 float width = (end - layers[c].split.y) * pc.params.z;
                 if (c + 1u < count && width > 0.0 && along > end - width) {
                     float t = (along - (end - width)) / width;
-                    v = mix(v, layer_visibility(c + 1u, position.xyz, ng, n, size, false), t);
+                    v = mix(v, layer_visibility(c + 1u, position.xyz, offset_point(c + 1u, position.xyz, ng), n, size, false), t);
                 }
             }
         } else {
-            v = layer_visibility(0u, position.xyz, ng, n, size, perspective_light);
+            v = layer_visibility(0u, position.xyz, offset_point(0u, position.xyz, ng), n, size, perspective_light);
         }
     }
     imageStore(visibility, ivec2(px), vec4(v));

@@ -282,6 +282,47 @@ fn a_cube_map_does_not_leak_light_along_its_seams() {
     common::assert_clean(&ctx);
 }
 
+/// A long strip of ground under a 100 m board 5 m up, seen through a 4-degree telephoto lens
+/// from 3 m up: the view's slices are long and thin, so a cascade's bounding sphere, fitted to its
+/// own slice, reaches barely before the slice begins.
+const TELEPHOTO: &str = r#"
+[camera]
+eye = [0.0, 3.0, 0.0]
+target = [0.0, 0.0, -60.0]
+vfov_deg = 4.0
+[[lights]]
+type = "directional"
+direction = [0.0, -1.0, 0.0]
+irradiance = [3.0, 3.0, 3.0]
+[[objects]]
+shape = "plane"
+size = 400.0
+[[objects]]
+shape = "plane"
+size = 100.0
+translate = [0.0, 5.0, -100.0]
+"#;
+
+/// Cascades blend into the next one near a seam only where the next one's map holds the point:
+/// the blend band lies before the next cascade's slice, and outside its fit a lookup reads lit,
+/// which the blend mixed into the shadow (a lit line a cascade before each seam).
+#[test]
+fn cascades_blend_only_into_a_cascade_that_holds_the_point() {
+    let (ctx, mut r) = renderer(TELEPHOTO);
+    let (w, h) = (96, 96);
+    let traced = visibility(&mut r, ShadowChoice::hard(), w, h);
+    let cascades = visibility(&mut r, with(ShadowMethod::Cascades, &[("cascades.distance", "300")]), w, h);
+    let shadowed = traced.iter().filter(|&&v| v == 0.0).count();
+    let away = common::away_from_edges(&traced, w, h, 2);
+    let leaks = away.iter().filter(|&&i| traced[i] == 0.0 && cascades[i] > 0.05).count();
+    println!("telephoto cascades: {leaks} of {shadowed} pixels traced shadows read over 0.05, 2 px from edges");
+    assert!(shadowed > 1000, "the board's shadow is in view: {shadowed} pixels");
+    // Measured 0.
+    assert!(leaks == 0, "{leaks} pixels leak light");
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
 /// Thin poles over a 400 m ground plane under a low sun, seen from 1.6 m above it looking along it.
 const FIELD: &str = r#"
 [camera]

@@ -107,7 +107,9 @@ vec2 blockers(uint layer, vec2 uv, float z, float radius, Horizon h) {
 // The cube face a point lies in, from the point less the light's position: its major axis.
 uint cube_face(vec3 d) {
     vec3 a = abs(d);
-    return a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u) : a.y >= a.z ? (d.y >= 0.0 ? 2u : 3u) : (d.z >= 0.0 ? 4u : 5u);
+    return a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
+         : a.y >= a.z               ? (d.y >= 0.0 ? 2u : 3u)
+                                    : (d.z >= 0.0 ? 4u : 5u);
 }
 
 // The point to look up for `p` (geometric normal `n`) in `layer`: moved along its normal by
@@ -117,6 +119,14 @@ vec3 offset_point(uint layer, vec3 p, vec3 n) {
     vec4 clip = m.view_proj * vec4(p, 1.0);
     if (clip.w <= 0.0) return p;
     return p + n * (pc.params.x * map_texel(m, map_linear_depth(m, clip.z / clip.w)));
+}
+
+// Whether `layer`'s map holds the point `q`: it lies inside the layer's frustum, depth included.
+bool layer_holds(uint layer, vec3 q) {
+    vec4 clip = layers[layer].view_proj * vec4(q, 1.0);
+    vec3 ndc = clip.xyz / clip.w;
+    return clip.w > 0.0 && all(greaterThanEqual(ndc.xy, vec2(-1.0))) && all(lessThan(ndc.xy, vec2(1.0)))
+        && ndc.z >= 0.0 && ndc.z <= 1.0;
 }
 
 // Visibility of `p` (shading normal `ns`) in one layer, looked up at `q` (offset_point); outside
@@ -190,12 +200,17 @@ void main() {
                 v = 1.0; // beyond the shadow distance
             } else {
                 v = layer_visibility(c, position.xyz, offset_point(c, position.xyz, ng), n, size, false);
-                // Near the far end of a cascade, blend into the next so the seam does not show.
+                // Near the far end of a cascade, blend into the next so the seam does not show,
+                // where the next holds the point: it is fitted to its own slice, and the band
+                // lies before that (outside a layer reads lit).
                 float end = layers[c].split.x;
                 float width = (end - layers[c].split.y) * pc.params.z;
                 if (c + 1u < count && width > 0.0 && along > end - width) {
-                    float t = (along - (end - width)) / width;
-                    v = mix(v, layer_visibility(c + 1u, position.xyz, offset_point(c + 1u, position.xyz, ng), n, size, false), t);
+                    vec3 q = offset_point(c + 1u, position.xyz, ng);
+                    if (layer_holds(c + 1u, q)) {
+                        float t = (along - (end - width)) / width;
+                        v = mix(v, layer_visibility(c + 1u, position.xyz, q, n, size, false), t);
+                    }
                 }
             }
         } else {

@@ -323,6 +323,57 @@ fn cascades_blend_only_into_a_cascade_that_holds_the_point() {
     common::assert_clean(&ctx);
 }
 
+/// A spot 2 m over a floor with a box and a sphere, its cone a full hemisphere.
+const HEMISPHERE_SPOT: &str = r#"
+[camera]
+eye = [0.0, 5.0, 6.0]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 50.0
+[[lights]]
+type = "spot"
+position = [0.0, 2.0, 0.0]
+direction = [0.0, -1.0, 0.0]
+intensity = [20.0, 20.0, 20.0]
+inner_deg = 30.0
+outer_deg = 90.0
+[[objects]]
+shape = "plane"
+size = 12.0
+[[objects]]
+shape = "cube"
+size = 0.5
+translate = [1.5, 0.25, 0.0]
+[[objects]]
+shape = "sphere"
+radius = 0.3
+translate = [-1.0, 0.6, 1.0]
+"#;
+
+/// A spot wider than `MAX_SPOT_MAP_OUTER_DEG` is traced, with the reason logged, rather than
+/// mapped: the projection stops short of 180 degrees (the cone's rim had no map and read lit),
+/// and a map's texels widen with tan(outer) over all the cone (here the box's shadow was lost).
+#[test]
+fn spots_wider_than_a_map_serves_fall_back_to_traced_and_say_why() {
+    common::captured_log();
+    let (ctx, mut r) = renderer(HEMISPHERE_SPOT);
+    let (w, h) = (96, 96);
+    let traced = visibility(&mut r, ShadowChoice::hard(), w, h);
+    let shadowed = traced.iter().filter(|&&v| v == 0.0).count();
+    println!("hemisphere spot: {shadowed} pixels shadowed by traced");
+    assert!(shadowed > 100, "shadows in view: {shadowed}");
+    for method in [ShadowMethod::Map, ShadowMethod::Hybrid] {
+        let v = visibility(&mut r, with(method, &[]), w, h);
+        let plan = r.last_plan().expect("plan").to_string();
+        assert!(plan.contains("shadow trace (light 0") && !plan.contains("shadow map ("), "{method}:\n{plan}");
+        let differ = traced.iter().zip(&v).filter(|(a, b)| a != b).count();
+        assert_eq!(differ, 0, "{method}: the fallback is traced exactly");
+    }
+    let why = "light 0: its spot cone (outer_deg 90) is wider than a shadow map serves (80 degrees";
+    assert!(common::logged(why), "{:?}", common::captured_log().lock().unwrap());
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
 /// Thin poles over a 400 m ground plane under a low sun, seen from 1.6 m above it looking along it.
 const FIELD: &str = r#"
 [camera]

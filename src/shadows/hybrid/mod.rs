@@ -99,9 +99,10 @@ impl Pipelines {
     }
 }
 
-/// Whether `hybrid` can serve `light`: every kind (spot and sun: one map; point: a cube).
-pub fn serves(_light: &Light) -> Result<(), String> {
-    Ok(())
+/// Whether `hybrid` can serve `light`: every kind (spot and sun: one map; point: a cube) that
+/// `map` serves (a spot no wider than `MAX_SPOT_MAP_OUTER_DEG`).
+pub fn serves(light: &Light) -> Result<(), String> {
+    map::serves(light)
 }
 
 /// The map `hybrid` draws for `served`: `map`'s, at the hybrid resolution, with no bias (the

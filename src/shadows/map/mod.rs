@@ -15,7 +15,9 @@ use glam::{Mat4, UVec4, Vec3, Vec4};
 pub mod params;
 
 pub use self::params::MapParams;
-use super::light_space::{cube_face_view_proj, depth_range, directional_view_proj, spot_view_proj, Bounds};
+use super::light_space::{
+    cube_face_view_proj, depth_range, directional_view_proj, spot_view_proj, Bounds, MAX_SPOT_MAP_OUTER_DEG,
+};
 use super::{FrameInputs, Served};
 use crate::gpu_scene::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
@@ -251,9 +253,16 @@ fn depth_desc(
     }
 }
 
-/// Whether `map` can serve `light` (else the renderer traces it), and why not.
-pub fn serves(_light: &Light) -> Result<(), String> {
-    Ok(())
+/// Whether `map` can serve `light` (else the renderer traces it), and why not: every light but
+/// a spot wider than `MAX_SPOT_MAP_OUTER_DEG`.
+pub fn serves(light: &Light) -> Result<(), String> {
+    match *light {
+        Light::Spot { outer_deg, .. } if outer_deg > MAX_SPOT_MAP_OUTER_DEG => Err(format!(
+            "its spot cone (outer_deg {outer_deg}) is wider than a shadow map serves ({MAX_SPOT_MAP_OUTER_DEG} \
+             degrees: a map's texels widen with tan(outer_deg) over all the cone)"
+        )),
+        _ => Ok(()),
+    }
 }
 
 /// Bounds of the shadow casters (scene-local frame).
@@ -633,6 +642,24 @@ mod tests {
             let clip = persp * Vec4::new(0.0, 0.0, -dist, 1.0);
             assert!((linear_depth(&layer, clip.z / clip.w) - dist).abs() < 1e-3 * dist, "perspective at {dist}");
         }
+    }
+
+    #[test]
+    fn spots_wider_than_a_map_serves_are_refused_with_the_reason() {
+        let spot = |outer_deg: f32| Light::Spot {
+            position: DVec3::new(0.0, 2.0, 0.0),
+            direction: Vec3::NEG_Y,
+            intensity: Vec3::ONE,
+            inner_deg: 30.0,
+            outer_deg,
+            radius: 0.0,
+        };
+        assert_eq!(serves(&spot(MAX_SPOT_MAP_OUTER_DEG)), Ok(()));
+        let why = serves(&spot(85.0)).expect_err("an 85-degree cone");
+        assert!(why.contains("outer_deg 85") && why.contains("80 degrees"), "{why}");
+        assert_eq!(crate::shadows::hybrid::serves(&spot(85.0)), Err(why));
+        let point = Light::Point { position: DVec3::ZERO, intensity: Vec3::ONE, radius: 0.0 };
+        assert_eq!(serves(&point), Ok(()));
     }
 
     #[test]

@@ -197,3 +197,19 @@ fn hybrid_traces_the_pixels_whose_blockers_its_kernel_cannot_hold() {
     }
     common::assert_clean(&ctx);
 }
+
+/// hybrid.radius and hybrid.max_radius are checked together: a kernel radius above the largest
+/// one is refused with both values named (classify's clamp(x, radius, max_radius) was undefined
+/// in GLSL for it). Both at their ends, equal, are accepted.
+#[test]
+fn a_hybrid_radius_above_its_max_radius_is_refused() {
+    let mut c = ShadowChoice { method: ShadowMethod::Hybrid, ..ShadowChoice::hard() };
+    c.set("hybrid.max_radius", "4").unwrap();
+    let err = c.set("hybrid.radius", "5").expect_err("radius 5 over max_radius 4");
+    assert!(err.contains("hybrid.radius is 5 and hybrid.max_radius 4"), "{err}");
+    assert_eq!(c.hybrid.radius, 1, "a refused value leaves the choice as it was");
+    c.set("hybrid.radius", "4").unwrap();
+    let err = c.set("hybrid.max_radius", "3").expect_err("max_radius 3 under radius 4");
+    assert!(err.contains("hybrid.radius is 4 and hybrid.max_radius 3"), "{err}");
+    assert_eq!((c.hybrid.radius, c.hybrid.max_radius), (4, 4));
+}

@@ -12,8 +12,8 @@ pub struct HybridParams {
     /// where shadows are certain, so it can be coarser than a `map`.
     pub resolution: u32,
     /// Radius in texels of the kernel whose taps must all agree for a pixel to be sure (point-
-    /// like lights; 0..=8). Wider finds more of the casters thinner than a texel, and traces
-    /// more pixels.
+    /// like lights, and the least for lights with a size; 0..=8, at most `max_radius`). Wider
+    /// finds more of the casters thinner than a texel, and traces more pixels.
     pub radius: u32,
     /// Depth a lit surface's own texels may differ from it by, in texels of the map at its
     /// distance (on top of the surface's slope); 0..=64. Smaller traces fewer pixels near
@@ -41,6 +41,11 @@ impl HybridParams {
             Err(format!("hybrid.margin is {}: it takes 0 to 64 texels", self.margin))
         } else if !(1..=32).contains(&self.max_radius) {
             Err(format!("hybrid.max_radius is {}: it takes 1 to 32 texels", self.max_radius))
+        } else if self.radius > self.max_radius {
+            Err(format!(
+                "hybrid.radius is {} and hybrid.max_radius {}: the kernel's radius cannot be above its largest",
+                self.radius, self.max_radius
+            ))
         } else {
             Ok(())
         }

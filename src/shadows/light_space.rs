@@ -147,9 +147,10 @@ pub fn cube_face_view_proj(position: Vec3, face: usize, near: f32, far: f32) -> 
 
 /// A directional light's orthographic view-projection fitted to what matters: across the
 /// light, the visible receivers (nothing outside them is ever looked up); along it, from the
-/// nearest caster that can shadow them to the farthest receiver. Casters beside the receivers'
-/// footprint are left out of the depth range, so a huge scene with a small view keeps its depth
-/// precision. None when either set is empty or they do not overlap across the light.
+/// nearest caster to the farthest receiver. The depth range takes the box around all casters
+/// (`casters` is one box), including casters beside the receivers' footprint that cannot shadow
+/// them: a tall caster off to the side costs depth precision, not correctness. None when either
+/// set is empty or they do not overlap across the light.
 ///
 /// Depth clamp ("pancaking": the near plane at the receivers, casters in front of it clamped
 /// onto it) is not used here or in `fit_cascade`, though the device enables it where offered:

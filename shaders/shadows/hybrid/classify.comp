@@ -37,8 +37,8 @@ layout(push_constant) uniform Push {
     uvec4 dims;   // x: width, y: height, z: light, w: visibility layer
     uvec4 map;    // x: 1 when the map holds casters (else every reached pixel is lit), y: mode
                   // (MAP_SINGLE, MAP_CUBE), z: kernel radius (texels), w: 1 for a light with a size
-    vec4 params;  // x: margin (texels), y: largest kernel radius (texels), z: the light's size
-                  // (radius in m, or tan of half its angular diameter)
+    vec4 params;  // x: margin (texels), y: largest kernel radius (texels), zw: unused (the
+                  // light's size is read from its GpuLight, size.x)
 } pc;
 
 const uint LIST_GROUP = 64u;

@@ -31,7 +31,7 @@ layout(push_constant) uniform Push {
     uvec4 dims;    // x: width, y: height, z: light, w: visibility layer (unused: the bound view is that layer)
     uvec4 map;     // x: layers, y: mode (MAP_SINGLE, MAP_CUBE, MAP_CASCADES), z: PCF radius, w: PCSS on
     vec4 params;   // x: normal offset (texels), y: PCSS largest radius (texels), z: cascade blend
-                   // share, w: the light's size (radius in m, or tan of half its angular diameter)
+                   // share, w: unused (the light's size is read from its GpuLight, size.x)
     vec4 eye;      // xyz: camera (cascades measure distance along the view from it)
     vec4 forward;  // xyz: unit view direction
 } pc;

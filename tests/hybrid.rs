@@ -182,8 +182,8 @@ fn hybrid_traces_the_pixels_whose_blockers_its_kernel_cannot_hold() {
     assert!(penumbra > 2000, "a wide penumbra in view: {penumbra} pixels");
     // At the defaults the region is ~150 texels: every floor pixel is traced. At 128^2 with a
     // 32-texel limit it is ~19: the map decides where its kernel's taps agree. Measured 0 and 0
-    // pixels (9006 and 5566 traced); with the kernel sized at the receiver, the map called
-    // penumbra pixels sure.
+    // pixels (9006 and 5566 traced); with the kernel sized at the receiver and clamped, the map
+    // called penumbra pixels sure (defaults: 1204 pixels off, 544 traced).
     for (params, most) in [(&[][..], 0), (&[("hybrid.resolution", "128"), ("hybrid.max_radius", "32")][..], 10)] {
         let mut hybrid = ShadowChoice { method: ShadowMethod::Hybrid, ..soft };
         for (k, v) in params {

@@ -7,9 +7,9 @@
 // cannot filter depth formats): percentage-closer filtering over (2r+1)^2 texels, or PCSS for
 // lights with a size (a blocker search, then a kernel as wide as the penumbra the light's size
 // predicts from the blockers' mean depth). A texel occludes only when it is nearer the light than
-// the point (reversed depth: nearer is greater), and for a light with a size only when it also
-// lies above the point's tangent plane (Horizon); the hardware depth bias was applied when the
-// map was drawn. Where the light reaches at all is traced's soft test (light_faces: for a light
+// the point (reversed depth: nearer is greater), and past the horizon of a light's centre only
+// when it also lies above the point's tangent plane (Horizon); the hardware depth bias was
+// applied when the map was drawn. Where the light reaches at all is traced's soft test (light_faces: for a light
 // with a size, any of its cap above the horizon, which compose shades) and the cone.
 #include "bindings.glsl"
 #include "gbuffer.glsl"
@@ -36,14 +36,15 @@ layout(push_constant) uniform Push {
     vec4 forward;  // xyz: unit view direction
 } pc;
 
-// A light with a size lights a point through the part of its cap above the point's horizon
-// alone (compose shades that part; traced counts only the rays above it), and nothing below the
-// point's tangent plane can hide any of it. So for such a light (`on`) a texel occludes only
-// when what it holds also lies above the tangent plane (through `p`, shading normal `n`) by more
-// than `margin`; `inv` takes the layer's clip space back to the world. Past the horizon of the
-// light's centre this is what makes the map usable at all (seen from the centre, the receiver's
-// own surface lies in front of the point there), and near it on the lit side it keeps the
-// receiver's own surface out of the blocker search. It only ever drops occluders.
+// Past the horizon of a light's centre (a light with a size whose cap straddles the horizon),
+// the map, drawn from the centre, holds the receiver's own surface in front of the point; yet
+// only the part of the cap above the horizon lights the point (compose shades that part; traced
+// counts only the rays above it), and nothing below the point's tangent plane can hide any of
+// it. There (`on`) a texel occludes only when what it holds also lies above the tangent plane
+// (through `p`, shading normal `n`) by more than `margin`; `inv` takes the layer's clip space
+// back to the world. It only drops occluders. (On for every point of a light with a size, it
+// would also keep the receiver out of PCSS's blocker search on the lit side of the terminator,
+// and cure acne there, but bias would then no longer matter for such lights.)
 struct Horizon {
     bool on;
     vec3 p;
@@ -132,7 +133,9 @@ bool layer_holds(uint layer, vec3 q) {
 // Visibility of `p` (shading normal `ns`) in one layer, looked up at `q` (offset_point); outside
 // the layer (nothing drawn there) is lit. A cube face holds every point picked for it, its edges
 // included.
-float layer_visibility(uint layer, vec3 p, vec3 q, vec3 ns, float light_size, bool perspective_light) {
+// `past_horizon`: the light's centre is below the horizon of `ns` (see Horizon).
+float layer_visibility(uint layer, vec3 p, vec3 q, vec3 ns, float light_size, bool perspective_light,
+                       bool past_horizon) {
     MapLayer m = layers[layer];
     vec4 clip = m.view_proj * vec4(q, 1.0);
     vec3 ndc = clip.xyz / clip.w;
@@ -140,8 +143,8 @@ float layer_visibility(uint layer, vec3 p, vec3 q, vec3 ns, float light_size, bo
     if (pc.map.y == MAP_CUBE) uv = clamp(uv, vec2(0.0), vec2(1.0 - 1e-6));
     if (clip.w <= 0.0 || any(lessThan(uv, vec2(0.0))) || any(greaterThanEqual(uv, vec2(1.0)))) return 1.0;
     float z = ndc.z;
-    bool on = light_size > 0.0;
-    Horizon h = Horizon(on, p, ns, 2.0 * map_texel(m, map_linear_depth(m, z)), on ? inverse(m.view_proj) : mat4(1.0));
+    float margin = 2.0 * map_texel(m, map_linear_depth(m, z));
+    Horizon h = Horizon(past_horizon, p, ns, margin, past_horizon ? inverse(m.view_proj) : mat4(1.0));
     int r = int(pc.map.z);
     if (pc.map.w == 0u || light_size <= 0.0) {
         return pcf(layer, uv, z, float(r), 2 * r + 1, h);
@@ -181,6 +184,8 @@ void main() {
         light_sample(l, position.xyz, L, dist, e);
         bool perspective_light = l.position_kind.w != LIGHT_DIRECTIONAL;
         float size = l.size.x;
+        // Reached (below) with its centre below the horizon: only a light with a size is.
+        bool past_horizon = dot(n, L) <= 0.0;
         // Where the light reaches at all, as traced decides it for soft shadows and compose
         // shades it: a light with a size while any of its cap is above the horizon.
         if (!light_faces(l, position.xyz, n, L) || max(e.r, max(e.g, e.b)) <= 0.0) {
@@ -190,7 +195,7 @@ void main() {
             // into the next one's frustum: it is looked up in the face of the point looked up.
             vec3 light = l.position_kind.xyz;
             vec3 q = offset_point(cube_face(position.xyz - light), position.xyz, ng);
-            v = layer_visibility(cube_face(q - light), position.xyz, q, n, size, true);
+            v = layer_visibility(cube_face(q - light), position.xyz, q, n, size, true, past_horizon);
         } else if (pc.map.y == MAP_CASCADES) {
             float along = dot(position.xyz - pc.eye.xyz, pc.forward.xyz);
             uint count = pc.map.x;
@@ -199,7 +204,7 @@ void main() {
             if (along > layers[count - 1u].split.x) {
                 v = 1.0; // beyond the shadow distance
             } else {
-                v = layer_visibility(c, position.xyz, offset_point(c, position.xyz, ng), n, size, false);
+                v = layer_visibility(c, position.xyz, offset_point(c, position.xyz, ng), n, size, false, past_horizon);
                 // Near the far end of a cascade, blend into the next so the seam does not show,
                 // where the next holds the point: it is fitted to its own slice, and the band
                 // lies before that (outside a layer reads lit).
@@ -209,12 +214,13 @@ void main() {
                     vec3 q = offset_point(c + 1u, position.xyz, ng);
                     if (layer_holds(c + 1u, q)) {
                         float t = (along - (end - width)) / width;
-                        v = mix(v, layer_visibility(c + 1u, position.xyz, q, n, size, false), t);
+                        v = mix(v, layer_visibility(c + 1u, position.xyz, q, n, size, false, past_horizon), t);
                     }
                 }
             }
         } else {
-            v = layer_visibility(0u, position.xyz, offset_point(0u, position.xyz, ng), n, size, perspective_light);
+            vec3 q = offset_point(0u, position.xyz, ng);
+            v = layer_visibility(0u, position.xyz, q, n, size, perspective_light, past_horizon);
         }
     }
     imageStore(visibility, ivec2(px), vec4(v));

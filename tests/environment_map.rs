@@ -593,3 +593,95 @@ fn material_occlusion_and_emission_with_a_map() {
     assert!(worst < 2e-3, "{worst}");
     common::assert_clean(&ctx);
 }
+
+/// A map brighter than f16 holds (an unclipped HDR sun: 1e6 where f16 stops at 65504) is
+/// uploaded scaled by a power of two, which compose divides out: before, such a texel was +inf
+/// on the device and the SH projection made NaN irradiance (and the prefiltered layers inf).
+/// The frame has no NaN or inf, the GPU's SH coefficients match the CPU twin as closely as for
+/// an ordinary map (1e-3 of c0), the diffuse term matches the twin's irradiance, and the
+/// background is the map's sky (0.5) as given.
+#[test]
+fn a_map_brighter_than_f16_shades_finite_and_right() {
+    let ctx = common::gpu();
+    let dir = tempfile::tempdir().unwrap();
+    // A 0.5 sky and a two-texel sun of 1e6 toward the camera, 31 degrees up, on columns 0 and
+    // 63 (mirror images of each other, so the map is symmetric about the yz plane).
+    let (w, h, sun) = (64usize, 32usize, 1e6f32);
+    exr::prelude::write_rgb_file(dir.path().join("sun.exr"), w, h, |x, y| {
+        if y == 10 && (x == 0 || x == w - 1) {
+            (sun, sun, sun)
+        } else {
+            (0.5, 0.5, 0.5)
+        }
+    })
+    .expect("write EXR");
+    let map = load(dir.path(), "sun.exr");
+    assert_eq!(envmap::upload_scale(&map), 1.0 / 16.0, "1e6 / 16 = 62500 is the first under 65504");
+
+    let objects = sphere(-0.7, "{ base_color = [1.0, 1.0, 1.0], roughness = 0.5, metallic = 0.0 }")
+        + &sphere(0.7, "{ base_color = [0.5, 0.5, 0.5], roughness = 0.5, metallic = 0.0 }");
+    let scene = parse(dir.path(), &map_scene("sun.exr", "", &objects));
+    let env = EnvironmentGpu::new(&ctx, &scene.lighting, scene.lighting.environment_map.as_deref()).unwrap().unwrap();
+    let (sh, _) = env.map.as_ref().expect("the map's results").read_back(&ctx, &env.brdf_table).unwrap();
+    drop(env);
+    let twin = envmap::sh9_irradiance_coefficients(&map);
+    let c0 = twin[0].max_element();
+    let worst_coefficient = sh.iter().zip(&twin).map(|(g, c)| (*g - *c).abs().max_element() / c0).fold(0.0, f32::max);
+
+    let rays: Vec<Vec3> = (0..W * H).map(|i| camera_ray(&scene, i % W, i / W)).collect();
+    let sun_direction = map.texel_direction(0, 10).normalize();
+    let eye = scene.camera.eye.as_vec3();
+    let [radiance, normal, position, depth] = views(&ctx, scene);
+    let non_finite = radiance.iter().filter(|p| !p.truncate().is_finite()).count();
+    // Lambert's terms from mirrored pixel pairs (as in the furnace test above), against the CPU
+    // twin's SH irradiance / pi, relative to the brightest.
+    let half = W as usize / 2;
+    let (mut pairs, mut worst_diffuse, mut peak, mut worst_background) = (0, 0.0f32, 0.0f32, 0.0f32);
+    let mut diffs = Vec::new();
+    for i in 0..radiance.len() {
+        if depth[i].x <= 0.0 {
+            // Away from the sun's two texels, the background is the sky as given.
+            if rays[i].dot(sun_direction) < 0.9 {
+                worst_background = worst_background.max((radiance[i].x - 0.5).abs() / 0.5);
+            }
+            continue;
+        }
+        let (x, y) = (i % W as usize, i / W as usize);
+        let j = y * W as usize + (W as usize - 1 - x);
+        let n = normal[i].truncate().normalize();
+        let m = normal[j].truncate().normalize();
+        if x >= half || depth[j].x <= 0.0 || (m - Vec3::new(-n.x, n.y, n.z)).length() > 0.01 {
+            continue;
+        }
+        // Away from the sun's highlight, where the two spheres' specular terms differ by up to
+        // 1.5 % of the peak diffuse term: the prefiltered layers' 128 samples per texel are
+        // not mirror symmetric, which shows with a sun this bright.
+        let h = ((eye - position[i].truncate()).normalize() + sun_direction).normalize();
+        if n.dot(h) > 0.8 {
+            continue;
+        }
+        pairs += 1;
+        // Each pixel's own normal (they match only to 0.01, and the sun's irradiance is steep):
+        // 2 (L_i - L_j) = (2 E(n_i) - E(n_j)) / pi where the specular terms cancel.
+        let e = |n: Vec3| envmap::sh9_irradiance(&twin, n).x / std::f32::consts::PI;
+        let expected = 2.0 * e(n) - e(m);
+        peak = peak.max(expected);
+        diffs.push((2.0 * (radiance[i].x - radiance[j].x), expected));
+    }
+    for (got, expected) in diffs {
+        worst_diffuse = worst_diffuse.max((got - expected).abs() / peak);
+    }
+    println!(
+        "map with a 1e6 sun: {non_finite} non-finite pixels; SH within {worst_coefficient:.2e} of the CPU twin (of c0); \
+         {pairs} pairs' Lambert term within {:.3} % (of its peak {peak:.0}) of the twin's irradiance; background within {:.3} %",
+        worst_diffuse * 100.0,
+        worst_background * 100.0
+    );
+    assert_eq!(non_finite, 0);
+    assert!(worst_coefficient < 1e-3, "{worst_coefficient}");
+    assert!(pairs > 200, "{pairs}");
+    assert!(peak > 1000.0, "the sun lights the spheres: {peak}");
+    assert!(worst_diffuse < 0.01, "{worst_diffuse}");
+    assert!(worst_background < 1e-3, "{worst_background}");
+    common::assert_clean(&ctx);
+}

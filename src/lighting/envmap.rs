@@ -47,6 +47,10 @@ pub struct EnvironmentMapGpu {
     pub prefiltered: Image,
     /// Nine RGB irradiance coefficients (vec4 each): irradiance(n) = sum c_i Y_i(n).
     pub sh: Buffer,
+    /// What the map's values were multiplied by on the device (`upload_scale`), and so
+    /// `source`, `prefiltered` and `sh` hold: whoever reads them divides it out (compose does,
+    /// through the intensity it already multiplies by).
+    pub scale: f32,
     /// How long the upload and the precompute took (host clock, waited on), ms.
     pub bake_ms: f64,
 }
@@ -58,9 +62,15 @@ impl EnvironmentMapGpu {
         let start = std::time::Instant::now();
         let mut levels = vec![(map.width, map.height, map.texels.iter().map(|t| t.extend(1.0).to_array()).collect())];
         levels.extend(map.mip_chain());
-        // RGBA16F texels.
+        // RGBA16F texels, RGB times `scale` (alpha stays 1); the mips' box averages are no
+        // larger than the map's largest value, so they fit as it does.
+        let scale = upload_scale(map);
         let half_bytes = |texels: &Vec<[f32; 4]>| -> Vec<u8> {
-            texels.iter().flatten().flat_map(|v| half::f16::from_f32(*v).to_le_bytes()).collect()
+            texels
+                .iter()
+                .flat_map(|&[r, g, b, a]| [r * scale, g * scale, b * scale, a])
+                .flat_map(|v| half::f16::from_f32(v).to_le_bytes())
+                .collect()
         };
         let (data, copies) =
             crate::gpu_textures::mip_uploads(levels.iter().map(|(w, h, texels)| (*w, *h, half_bytes(texels))));
@@ -156,11 +166,11 @@ impl EnvironmentMapGpu {
             if passes.is_empty() { "" } else { " (GPU: " },
             if passes.is_empty() { String::new() } else { passes.join(", ") + ")" }
         );
-        Ok((EnvironmentMapGpu { source, prefiltered, sh, bake_ms }, brdf_table))
+        Ok((EnvironmentMapGpu { source, prefiltered, sh, scale, bake_ms }, brdf_table))
     }
 
-    /// The SH irradiance coefficients and `brdf_table` (the table `new` made) as the GPU
-    /// computed them (tests).
+    /// The SH irradiance coefficients (of the map as given: `scale` divided out) and
+    /// `brdf_table` (the table `new` made) as the GPU computed them (tests).
     pub fn read_back(&self, ctx: &Arc<GpuContext>, brdf_table: &Buffer) -> GpuResult<(Vec<Vec3>, Vec<Vec2>)> {
         let usage = vk::BufferUsageFlags::TRANSFER_DST;
         let sh_host = Buffer::new(ctx, "SH read-back", self.sh.size, usage, MemoryLocation::GpuToCpu)?;
@@ -201,8 +211,25 @@ impl EnvironmentMapGpu {
         ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
         let sh: &[glam::Vec4] = bytemuck::cast_slice(&sh_host.mapped()[..9 * 16]);
         let table: &[Vec2] = bytemuck::cast_slice(&table_host.mapped()[..table_host.size as usize]);
-        Ok((sh.iter().map(|c| c.truncate()).collect(), table.to_vec()))
+        Ok((sh.iter().map(|c| c.truncate() / self.scale).collect(), table.to_vec()))
     }
+}
+
+/// The power of two the map's values are multiplied by on the device, so the largest fits
+/// RGBA16F (`MAP_FORMAT`, at most 65504): 1 for a map that fits, else the largest 2^-k that
+/// brings it under. A texel above f16's range would be +inf there, and the SH projection and the
+/// prefiltered layers NaN and inf; scaling by a power of two changes no f32 value's mantissa, so
+/// a scaled map keeps f16's 11 bits relative (dim texels of a map with more than f16's dynamic
+/// range, about 1e9 : 1, fall into its subnormals and lose some). Compose multiplies by the
+/// map's intensity divided by this.
+pub fn upload_scale(map: &EnvironmentMap) -> f32 {
+    let max = map.texels.iter().fold(0.0f32, |m, t| m.max(t.max_element()));
+    let limit = half::f16::MAX.to_f32();
+    let mut scale = 1.0f32;
+    while max * scale > limit {
+        scale *= 0.5;
+    }
+    scale
 }
 
 /// The precompute's pipelines, made for one bake.

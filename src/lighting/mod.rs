@@ -39,7 +39,9 @@ pub fn environment_radiance(
 /// The scene's environment on the device: the split-sum table, uploaded once (a constant
 /// environment) or computed on the GPU with the map's irradiance and prefiltered layers.
 pub struct EnvironmentGpu {
-    /// The constant environment's radiance, or the map's scale (`intensity`) in each channel.
+    /// The constant environment's radiance, or the map's scale (`intensity`, divided by the
+    /// power of two the map was uploaded multiplied by, `EnvironmentMapGpu::scale`) in each
+    /// channel.
     pub radiance: Vec3,
     pub brdf_table: Buffer,
     /// The map and what was computed from it (`envmap`), where the scene has one.
@@ -58,8 +60,10 @@ impl EnvironmentGpu {
         if let Some(map) = map {
             // Compose reads the split-sum table the GPU made beside the map's results.
             let (baked, brdf_table) = envmap::EnvironmentMapGpu::new(ctx, map)?;
+            // The device holds the map times `baked.scale` (a power of two: exact, and 1 for
+            // a map that fits f16).
             return Ok(Some(EnvironmentGpu {
-                radiance: Vec3::splat(environment.intensity),
+                radiance: Vec3::splat(environment.intensity / baked.scale),
                 brdf_table,
                 map: Some(baked),
             }));

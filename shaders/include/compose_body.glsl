@@ -126,11 +126,12 @@ void main() {
 #endif
 #ifdef WITH_AREA_LIGHTS
         // A light with a size: the sphere or disk it is, by LTC (the branch is the same for
-        // every invocation, so a hard light pays no more than the test).
+        // every invocation, so a hard light pays no more than the test); one too small to
+        // integrate in f32 shades as its hard light below (light_cap_shaded).
         vec3 axis;
         float one_minus_cos;
         vec3 cap;
-        if (light_cap(lights[i], position.xyz, axis, one_minus_cos, cap)) {
+        if (light_cap_shaded(lights[i], position.xyz, axis, one_minus_cos, cap)) {
             if (cap_faces(n, axis, one_minus_cos)) {
                 sum += cap_radiance(axis, one_minus_cos, cap, n, v, material.rgb, material.a, normal_metallic.w) * vis;
             }

@@ -82,6 +82,16 @@ bool light_cap(GpuLight l, vec3 p, out vec3 axis, out float one_minus_cos, out v
     return true;
 }
 
+// The smallest cap shading integrates, as 1 - cos(theta) (theta = 1e-3 rad): below it a light
+// with a size shades as its hard light. Twin of shading::CAP_MIN_ONE_MINUS_COS, which says why.
+const float CAP_MIN_ONE_MINUS_COS = 5e-7;
+
+// light_cap, false also for a cap below CAP_MIN_ONE_MINUS_COS: the cap shading integrates (soft
+// shadows sample light_cap's). Twin of shading::shaded_cap.
+bool light_cap_shaded(GpuLight l, vec3 p, out vec3 axis, out float one_minus_cos, out vec3 radiance) {
+    return light_cap(l, p, axis, one_minus_cos, radiance) && one_minus_cos >= CAP_MIN_ONE_MINUS_COS;
+}
+
 // Whether a cap (light_cap) reaches above the horizon of unit normal n.
 bool cap_faces(vec3 n, vec3 axis, float one_minus_cos) {
     return dot(n, axis) > -sqrt(max(one_minus_cos * (2.0 - one_minus_cos), 0.0));

@@ -519,3 +519,51 @@ fn tiny_lights_shade_as_their_hard_light() {
     }
     common::assert_clean(&ctx);
 }
+
+/// A smooth lobe's specular tail from a small sun: roughness 0.05, a 0.53 degree sun from the
+/// mirror direction to 10 degrees off it, against numerical integration of the cap.
+fn smooth_lobe_tail_errors() -> Vec<(f32, f32, f32, f64)> {
+    let mut errors = Vec::new();
+    for view_deg in [30.0f32, 45.0, 55.0] {
+        for metallic in [1.0f32, 0.0] {
+            for off_deg in [0.0f32, 1.0, 2.0, 3.0, 5.0, 7.5, 10.0] {
+                let material = Material { base_color: Vec3::new(0.9, 0.6, 0.3), roughness: 0.05, metallic };
+                let (t, o) = (view_deg.to_radians(), off_deg.to_radians());
+                // The mirror direction turned by off_deg, half toward the normal, half sideways.
+                let mirror = Vec3::new(-t.sin(), 0.0, t.cos());
+                let axis = (mirror * o.cos()
+                    + Vec3::new(t.cos(), 0.0, t.sin()).normalize() * (o.sin() * 0.6)
+                    + Vec3::Y * (o.sin() * 0.8))
+                    .normalize();
+                let c = Cap { axis, ..cap(0.265, 0.0) };
+                errors.push((view_deg, metallic, off_deg, shading_error(view_deg, &material, &c, 60)));
+            }
+        }
+    }
+    errors
+}
+
+#[test]
+fn a_smooth_lobes_tail_from_a_small_sun() {
+    // The ratio correction (ltc::lobe_integral) used to fade out by the fitted cosine's z at
+    // the light, which a smooth lobe's matrix (entries ~240-480) sends to 0.04-0.10 for a light
+    // 2-10 degrees off the mirror: the tail got 45-55 % less than the integral (the metal; the
+    // dielectric's Lambert hid most of it). Fading on n.l alone it is within 0.6 %.
+    let (mut worst_tail, mut worst_mirror) = (0.0f64, 0.0f64);
+    for (view, metallic, off, error) in smooth_lobe_tail_errors() {
+        println!(
+            "roughness 0.05 metallic {metallic} view {view} sun {off:>4} deg off the mirror: error {:.2} %",
+            100.0 * error
+        );
+        if off == 0.0 {
+            worst_mirror = worst_mirror.max(error);
+        } else {
+            worst_tail = worst_tail.max(error);
+        }
+    }
+    println!("worst: {:.2} % in the tail, {:.2} % on the mirror", 100.0 * worst_tail, 100.0 * worst_mirror);
+    assert!(worst_tail < 0.01, "{worst_tail}");
+    // On the mirror direction the sun covers much of this lobe and the plain LTC (the fitted
+    // lobe's shape) takes over: 10 % measured, as before this change.
+    assert!(worst_mirror < 0.11, "{worst_mirror}");
+}

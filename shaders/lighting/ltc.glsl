@@ -127,7 +127,7 @@ vec2 ltc_lobe_integral(mat3 m, float share, vec3 form, vec3 v, float n_dot_v, fl
     }
     float ratio = fitted > 1e-30 ? clamp(exact / fitted, 0.0, 4.0) : 1.0;
     float trust = light_smoothstep(LTC_RATIO_FADE_N_DOT_V.x, LTC_RATIO_FADE_N_DOT_V.y, n_dot_v)
-        * light_smoothstep(0.0, LTC_RATIO_FADE_HORIZON, min(l.z, len > 0.0 ? lo.z / len : 0.0));
+        * light_smoothstep(0.0, LTC_RATIO_FADE_HORIZON, l.z);
     ratio = 1.0 + (ratio - 1.0) * trust;
     float coverage = clamp(abs(form.z) / share, 0.0, 1.0);
     float lobe = plain * (ratio + (1.0 - ratio) * coverage);

@@ -274,11 +274,12 @@ pub fn lobe_integral(
     };
     let ratio = if fitted > 1e-30 { (exact / fitted).clamp(0.0, 4.0) } else { 1.0 };
     // Near the horizon both lobes go to 0 and their ratio is ill-conditioned (f32 noise on the
-    // GPU against the CPU), and likewise near the fitted cosine's own horizon: no correction
-    // for a light whose mean direction lies within about 12 degrees of either.
-    let cosine = if len > 0.0 { lo.z / len } else { 0.0 };
+    // GPU against the CPU): no correction for a light whose mean direction lies within about 12
+    // degrees of it. Not faded by the fitted cosine's own z there: a smooth lobe's matrix sends
+    // directions a few degrees off the mirror to z 0.04-0.10 in the cosine's space, where the
+    // fitted density is a steady ~2x too low and the correction is what makes the tail right.
     let trust = crate::shading::smoothstep(RATIO_FADE_N_DOT_V[0], RATIO_FADE_N_DOT_V[1], n_dot_v)
-        * crate::shading::smoothstep(0.0, RATIO_FADE_HORIZON, l.z.min(cosine));
+        * crate::shading::smoothstep(0.0, RATIO_FADE_HORIZON, l.z);
     let ratio = 1.0 + (ratio - 1.0) * trust;
     let coverage = (form.z.abs() / share).clamp(0.0, 1.0);
     let lobe = plain * (ratio + (1.0 - ratio) * coverage);
@@ -455,8 +456,7 @@ const TRIANGLE_MIN_AREA: f32 = 1e-3;
 /// n.v where `lobe_integral`'s correction is gone (75 degrees) and where it is whole (60).
 pub const RATIO_FADE_N_DOT_V: [f32; 2] = [0.258_819, 0.5];
 
-/// n.l of the light's mean direction (and the fitted cosine's z there) below which
-/// `lobe_integral`'s correction fades to none.
+/// n.l of the light's mean direction below which `lobe_integral`'s correction fades to none.
 pub const RATIO_FADE_HORIZON: f32 = 0.2;
 
 /// The shading frame: x toward v in the tangent plane, z = n. Returns (x, y).

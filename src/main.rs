@@ -565,6 +565,16 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         log::warn!("--max-error does nothing: no light's shadows are auto (--shadows auto)");
     }
     let lights = scene.lights.clone();
+    // The library draws a missing light's view all lit (a scene without lights has nothing to
+    // shadow); asked for by name on the command line it is a typo, not a picture.
+    if let Some(view @ DebugView::Visibility(light)) = args.debug_view {
+        if light as usize >= lights.len() {
+            bail!(
+                "--debug-view {view}: light {light} does not exist; the scene has {} light(s), counted from 0",
+                lights.len()
+            );
+        }
+    }
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;
     let device_name = ctx.device_name();
     let mut renderer = Renderer::new(ctx.clone(), scene).context("preparing the scene")?;

@@ -306,6 +306,18 @@ mod tests {
         assert!(!agrees(0.02, 30.0) && !agrees(4.9, 10.0) && !agrees(1.0, 0.0));
     }
 
+    /// A calibration that chose flushed timestamps.
+    fn flushed() -> TimingCalibration {
+        TimingCalibration {
+            mode: Some(TimingMode::Flushed),
+            iterations: 1,
+            host_ms: 1.0,
+            plain_ms: 0.0,
+            flushed_ms: Some(1.0),
+            unavailable: None,
+        }
+    }
+
     #[test]
     fn report_lists_passes_frame_and_host_aligned() {
         let mut log = TimingLog::default();
@@ -313,14 +325,7 @@ mod tests {
             let gpu = GpuTimings { passes: vec![("geometry", a), ("shadow trace", b)], frame_ms: a + b };
             log.record(Some(&gpu), host);
         }
-        let cal = TimingCalibration {
-            mode: Some(TimingMode::Flushed),
-            iterations: 1,
-            host_ms: 1.0,
-            plain_ms: 0.0,
-            flushed_ms: Some(1.0),
-            unavailable: None,
-        };
+        let cal = flushed();
         let text = log.report(&cal);
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(
@@ -351,14 +356,7 @@ mod tests {
         assert_eq!(log.passes[0].0, "shadow map");
         assert_eq!(log.passes[0].1, [5.0, 7.0]);
         assert_eq!(log.counts, [2, 1]);
-        let cal = TimingCalibration {
-            mode: Some(TimingMode::Flushed),
-            iterations: 1,
-            host_ms: 1.0,
-            plain_ms: 0.0,
-            flushed_ms: Some(1.0),
-            unavailable: None,
-        };
+        let cal = flushed();
         let text = log.report(&cal);
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[1], "  shadow map            6.000 ms   IQR    1.000 ms   2 passes a frame, summed");

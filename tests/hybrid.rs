@@ -133,33 +133,6 @@ fn a_hybrid_light_gets_a_map_a_classification_and_list_driven_rays_and_no_full_t
     common::assert_clean(&ctx);
 }
 
-/// A 0.3 m sphere of a spot 4 m over a floor, a 0.4 m box 1 m below it: the box is near the
-/// light, so its penumbra on the floor is over a metre wide with no umbra, and the region of the
-/// map its blockers can lie in, seen from the floor, is the light's cone at the map's near plane
-/// (the box's top, 0.8 m from the light): 0.24 m in radius there, some 150 texels of the default
-/// 1024^2 map, and 19 of a 128^2 one.
-const WIDE_PENUMBRA: &str = r#"
-[camera]
-eye = [0.0, 6.0, 0.01]
-target = [0.0, 0.0, 0.0]
-vfov_deg = 50.0
-[[lights]]
-type = "spot"
-position = [0.0, 4.0, 0.0]
-direction = [0.0, -1.0, 0.0]
-intensity = [20.0, 20.0, 20.0]
-inner_deg = 35.0
-outer_deg = 45.0
-radius = 0.3
-[[objects]]
-shape = "plane"
-size = 12.0
-[[objects]]
-shape = "cube"
-size = 0.4
-translate = [0.0, 3.0, 0.0]
-"#;
-
 /// Light 0's debug `view` at 96x96 with `choice`, as RGBA floats.
 fn small_view(r: &mut Renderer, choice: ShadowChoice, view: DebugView) -> Vec<f32> {
     let mut s = RenderSettings::new(96, 96, OutputKind::SceneLinear).all_lights(1, choice);
@@ -175,7 +148,7 @@ fn small_view(r: &mut Renderer, choice: ShadowChoice, view: DebugView) -> Vec<f3
 /// wider than `hybrid.max_radius`, the pixel is traced, not decided by taps too few to hold it.
 #[test]
 fn hybrid_traces_the_pixels_whose_blockers_its_kernel_cannot_hold() {
-    let (ctx, mut r) = renderer(WIDE_PENUMBRA);
+    let (ctx, mut r) = renderer(common::WIDE_PENUMBRA);
     let soft = ShadowChoice::soft(64);
     let traced = red(&small_view(&mut r, soft, DebugView::Visibility(0)));
     let penumbra = traced.iter().filter(|&&v| v > 0.05 && v < 0.95).count();

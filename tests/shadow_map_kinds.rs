@@ -151,37 +151,13 @@ fn pcss_approaches_converged_traced_soft_shadows() {
     common::assert_clean(&ctx);
 }
 
-/// A 0.3 m sphere of a spot 4 m over a floor, a 0.4 m box 1 m below it: a penumbra over a metre
-/// wide on the floor, no umbra.
-const WIDE_PENUMBRA: &str = r#"
-[camera]
-eye = [0.0, 6.0, 0.01]
-target = [0.0, 0.0, 0.0]
-vfov_deg = 50.0
-[[lights]]
-type = "spot"
-position = [0.0, 4.0, 0.0]
-direction = [0.0, -1.0, 0.0]
-intensity = [20.0, 20.0, 20.0]
-inner_deg = 35.0
-outer_deg = 45.0
-radius = 0.3
-[[objects]]
-shape = "plane"
-size = 12.0
-[[objects]]
-shape = "cube"
-size = 0.4
-translate = [0.0, 3.0, 0.0]
-"#;
-
 /// PCSS's blocker search for a light with a size spans the light's cone where blockers can
 /// begin, the map's near plane (here the box's top, 0.8 m from the light), in texels there: it
 /// was sized in texels at the receiver (4 m), a fifth as wide, so the outer penumbra found no
 /// blocker and read fully lit. A 256^2 map and 32-texel kernels hold this penumbra (~25 texels).
 #[test]
 fn pcss_finds_the_blockers_of_the_whole_penumbra_of_a_sized_spot() {
-    let (ctx, mut r) = renderer(WIDE_PENUMBRA);
+    let (ctx, mut r) = renderer(common::WIDE_PENUMBRA);
     let (w, h) = (96, 96);
     let reference = visibility(&mut r, ShadowChoice::soft(256), w, h);
     let penumbra = reference.iter().filter(|&&v| v > 0.05 && v < 0.95).count();

@@ -46,6 +46,15 @@ fn text(out: &Output) -> String {
     format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr))
 }
 
+/// The frame count of the summary line `viewer: N frames presented`.
+fn frames_presented(text: &str) -> u64 {
+    text.split("viewer: ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("viewer summary line")
+}
+
 fn assert_ran_clean(out: &Output) {
     let text = text(out);
     assert!(out.status.success(), "viewer failed:\n{text}");
@@ -84,12 +93,7 @@ fn a_scripted_screenshot_that_cannot_be_written_is_logged_and_the_viewer_goes_on
     let text = text(&out);
     assert!(text.lines().any(|l| l.starts_with("error: screenshot failed: /proc/a.png")), "{text}");
     assert!(text.lines().any(|l| l.starts_with("error: capture failed: /proc/b.png")), "{text}");
-    let frames: u64 = text
-        .split("viewer: ")
-        .nth(1)
-        .and_then(|t| t.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("viewer summary line");
+    let frames = frames_presented(&text);
     assert!(frames >= 4, "the frames after the failures were drawn: {text}");
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -211,12 +215,7 @@ fn esc_in_a_script_quits() {
     let out = view(&dir, "frames 2\npress esc\nframes 40\n", &["--frames", "60"]);
     assert_ran_clean(&out);
     let text = text(&out);
-    let frames: u64 = text
-        .split("viewer: ")
-        .nth(1)
-        .and_then(|t| t.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .expect("viewer summary line");
+    let frames = frames_presented(&text);
     assert!(frames <= 3, "quit after the first two frames, not after --frames 60: {text}");
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -217,3 +217,30 @@ impl AsRef<std::path::Path> for ScratchDir {
 pub fn scratch_dir(name: &str) -> ScratchDir {
     ScratchDir(tempfile::Builder::new().prefix(&format!("umbra-{name}-")).tempdir().expect("a temporary directory"))
 }
+
+/// A 0.3 m sphere of a spot 4 m over a floor, a 0.4 m box 1 m below it: the box is near the
+/// light, so its penumbra on the floor is over a metre wide with no umbra, and the region of the
+/// map its blockers can lie in, seen from the floor, is the light's cone at the map's near plane
+/// (the box's top, 0.8 m from the light): 0.24 m in radius there, some 150 texels of the default
+/// 1024^2 map, and 19 of a 128^2 one.
+pub const WIDE_PENUMBRA: &str = r#"
+[camera]
+eye = [0.0, 6.0, 0.01]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 50.0
+[[lights]]
+type = "spot"
+position = [0.0, 4.0, 0.0]
+direction = [0.0, -1.0, 0.0]
+intensity = [20.0, 20.0, 20.0]
+inner_deg = 35.0
+outer_deg = 45.0
+radius = 0.3
+[[objects]]
+shape = "plane"
+size = 12.0
+[[objects]]
+shape = "cube"
+size = 0.4
+translate = [0.0, 3.0, 0.0]
+"#;

@@ -133,10 +133,20 @@ enum ShapeKind {
     Sphere,
 }
 
+/// The order an object's triangles reach the renderer: as its source lists them, or shuffled
+/// (a stress test: scanned and exported meshes often come in a spatially jumbled order).
+#[derive(Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "lowercase")]
+enum FaceOrder {
+    Given,
+    Shuffled,
+}
+
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 struct ObjectDesc {
     mesh: Option<String>,
+    face_order: Option<FaceOrder>,
     shape: Option<ShapeKind>,
     size: Option<f64>,
     radius: Option<f64>,
@@ -392,6 +402,17 @@ struct PlacedObject {
     short_faces: usize,
     transform: DMat4,
     material: MaterialOverride,
+}
+
+impl PlacedObject {
+    /// With `face_order = "shuffled"`, each mesh's triangles in a fixed pseudo-random order.
+    fn shuffle_faces(&mut self, order: Option<FaceOrder>) {
+        if order == Some(FaceOrder::Shuffled) {
+            for mesh in &mut self.meshes {
+                super::mesh::shuffle_triangles(&mut mesh.indices);
+            }
+        }
+    }
 }
 
 /// The scene's `material` fields, each replacing the MTL value when given.
@@ -652,6 +673,7 @@ impl Check<'_> {
                 if is_gltf(mesh) {
                     let loaded = self.gltf_file(&format!("{path}.mesh"), mesh, base_dir)?;
                     let mut placed = self.gltf_object(mesh.clone(), loaded);
+                    placed.shuffle_faces(object.face_order);
                     placed.transform = self.transform(path, object)?;
                     placed.material = self.material(&format!("{path}.material"), object.material.as_ref())?;
                     return Ok(placed);
@@ -668,7 +690,7 @@ impl Check<'_> {
             files.push(base_dir.join(mesh));
         }
         files.extend(loaded.material_files);
-        Ok(PlacedObject {
+        let mut placed = PlacedObject {
             source,
             instances: (0..loaded.meshes.len()).map(|k| (k, DMat4::IDENTITY)).collect(),
             meshes: loaded.meshes,
@@ -676,7 +698,9 @@ impl Check<'_> {
             short_faces: loaded.short_faces,
             transform: self.transform(path, object)?,
             material: self.material(&format!("{path}.material"), object.material.as_ref())?,
-        })
+        };
+        placed.shuffle_faces(object.face_order);
+        Ok(placed)
     }
 
     /// A loaded glTF file as an object at the identity, with no material override.

@@ -38,6 +38,28 @@ pub(super) struct ObjectSurface {
     pub textures: Option<Arc<MaterialTextures>>,
 }
 
+/// Puts the triangles of `indices` in a pseudo-random order, the same on every run and
+/// machine (a Fisher-Yates shuffle driven by SplitMix64 from a fixed seed). Each triangle keeps
+/// its corners in order, so its winding and its shading are unchanged.
+pub(super) fn shuffle_triangles(indices: &mut [u32]) {
+    let count = indices.len() / 3;
+    let mut state: u64 = 0x756d_6272_615f_7368; // "umbra_sh"
+    let mut next = move || {
+        state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = state;
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        z ^ (z >> 31)
+    };
+    for i in (1..count).rev() {
+        // Multiply-shift: an index in [0, i] without a division (bias below 2^-32 for any mesh).
+        let j = (((next() >> 32) * (i as u64 + 1)) >> 32) as usize;
+        for c in 0..3 {
+            indices.swap(3 * i + c, 3 * j + c);
+        }
+    }
+}
+
 /// Below this sine of the angle between two edges a triangle has no usable plane: its face
 /// normal is noise. Slightly above f32 epsilon: the renderer rounds the triangle to f32 (in its
 /// scene-local frame), and a plane thinner than that is noise there.
@@ -283,5 +305,27 @@ pub(crate) mod tests {
         let mesh = place("objects[0]", &bad, &DMat4::IDENTITY, Material::default(), true, &mut stats).unwrap();
         assert_eq!(mesh.triangle_count(), 2);
         assert!(mesh.normals.iter().all(|n| (*n - Vec3::Z).length() < 1e-6));
+    }
+
+    #[test]
+    fn shuffled_triangles_are_the_same_triangles_in_a_fixed_jumbled_order() {
+        let indices: Vec<u32> = (0..3 * 1000).collect();
+        let mut once = indices.clone();
+        shuffle_triangles(&mut once);
+        let mut twice = indices.clone();
+        shuffle_triangles(&mut twice);
+        assert_eq!(once, twice, "the same input must give the same order");
+        // Whole triangles, corners in order (winding kept), each exactly once.
+        let mut triangles: Vec<[u32; 3]> = once.chunks_exact(3).map(|t| [t[0], t[1], t[2]]).collect();
+        assert!(triangles.iter().all(|t| t[1] == t[0] + 1 && t[2] == t[0] + 2 && t[0] % 3 == 0));
+        let moved = triangles.iter().enumerate().filter(|(k, t)| t[0] as usize != 3 * k).count();
+        assert!(moved > 900, "only {moved} of 1000 triangles moved");
+        triangles.sort_unstable();
+        assert!(triangles.iter().enumerate().all(|(k, t)| t[0] as usize == 3 * k));
+        // A lone triangle, and no triangle at all, stay as they are.
+        let mut one = vec![4, 5, 6];
+        shuffle_triangles(&mut one);
+        assert_eq!(one, [4, 5, 6]);
+        shuffle_triangles(&mut []);
     }
 }

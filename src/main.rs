@@ -86,6 +86,10 @@ struct BenchRaysArgs {
     /// Khronos validation with synchronization validation; exits non-zero on any message.
     #[arg(long)]
     validate: bool,
+    /// Also time the ray query built over the casters in the scene's own order, beside the
+    /// BVH leaf order umbra gives the driver (a second structure: twice its memory).
+    #[arg(long)]
+    file_order: bool,
 }
 
 #[derive(clap::Args)]
@@ -701,6 +705,7 @@ fn bench_rays(args: BenchRaysArgs) -> Result<ExitCode> {
         repeats: args.repeats as usize,
         device: args.device,
         validate: args.validate,
+        file_order: args.file_order,
     })?;
     print!("{}", outcome.report);
     Ok(ExitCode::SUCCESS)

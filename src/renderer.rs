@@ -41,6 +41,9 @@ pub struct Renderer {
     volume_scene: std::sync::OnceLock<crate::shadows::volumes::VolumeScene>,
     /// The ray-query backend's acceleration structures, made when a frame first asks for them.
     ray_query: std::sync::OnceLock<RayQueryScene>,
+    /// The casters in the compute BVH's leaf order, kept (4 bytes a caster, on devices with ray
+    /// query only) as the order the ray-query build gets them in: see `RayQueryScene::with_masks`.
+    caster_order: Option<Vec<u32>>,
     pipelines: Pipelines,
     /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
     busy: std::sync::OnceLock<ComputePipeline>,
@@ -113,6 +116,7 @@ impl Renderer {
                 last_plan: None,
             }),
             ray_query: std::sync::OnceLock::new(),
+            caster_order: (ctx.capabilities.ray_query && !bvh.is_empty()).then(|| bvh.into_leaf_order()),
             volume_scene: std::sync::OnceLock::new(),
             pipelines,
             busy: std::sync::OnceLock::new(),
@@ -291,7 +295,8 @@ impl Renderer {
         }
         let scene = crate::vk::get_or_make(&self.ray_query, || {
             let masks = crate::scene::bvh::mask::caster_masks(&self.local);
-            RayQueryScene::with_masks(&self.ctx, &caster_triangles(&self.local), masks.as_ref())
+            let order = self.caster_order.as_deref();
+            RayQueryScene::with_masks(&self.ctx, &caster_triangles(&self.local), order, masks.as_ref())
         })?;
         Ok(Some(scene))
     }

@@ -393,7 +393,7 @@ fn ray_query_reads_the_masks_too() {
     let masks = bvh.masks().unwrap();
     let tris = umbra::scene::bvh::caster_triangles(&scene);
     let source = umbra::scene::bvh::mask::caster_masks(&scene);
-    let rq = RayQueryScene::with_masks(&ctx, &tris, source.as_ref()).unwrap();
+    let rq = RayQueryScene::with_masks(&ctx, &tris, Some(&bvh.wide().order), source.as_ref()).unwrap();
     assert!(rq.masked());
     let to_sun = -SUN_DIR.normalize();
     let rays: Vec<GpuRay> = (0..40_000)
@@ -525,4 +525,94 @@ fn scenes_without_masked_casters_carry_no_masks() {
     let ctx = common::gpu();
     let renderer = Renderer::new(ctx.clone(), scene).unwrap();
     assert!(!renderer.gpu_scene.bvh.masked());
+}
+
+/// A textured, alpha-masked leaf of 24 x 24 quads (the mask as its base colour, as `scene`'s)
+/// beside an opaque cube, with the leaf's faces as written or shuffled (`face_order`): the same
+/// scene either way, so every image must be the same. The shuffle moves masked triangles
+/// among themselves and, in the ray-query build (opaque casters first, each in the BVH's leaf
+/// order), moves every primitive index a mask lookup reads: a wrong index map would cut the
+/// shadow with another triangle's texture coordinates.
+fn gridded_leaf_scene(dir: &std::path::Path, shuffled: bool) -> Scene {
+    const CELLS: u32 = 24;
+    let mut g = Gltf::default();
+    let side = CELLS + 1;
+    let (mut p, mut n, mut uv, mut idx) = (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    for j in 0..side {
+        for i in 0..side {
+            let (u, v) = (i as f32 / CELLS as f32, j as f32 / CELLS as f32);
+            p.push([2.0 * u - 1.0, 1.0, 2.0 * v - 1.0]);
+            n.push([0.0, 1.0, 0.0]);
+            uv.push([u, v]);
+        }
+    }
+    for j in 0..CELLS {
+        for i in 0..CELLS {
+            let (a, b, c, d) = (j * side + i, (j + 1) * side + i, (j + 1) * side + i + 1, j * side + i + 1);
+            idx.extend_from_slice(&[a, b, c, a, c, d]);
+        }
+    }
+    let (positions, normals, uvs, indices) = (g.vec3(&p), g.vec3(&n), g.vec2(&uv), g.indices(&idx, U16));
+    let view = g.view(&mask_png(), None);
+    g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
+    let material = g.material(json!({ "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
+        "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8,
+            "baseColorTexture": { "index": 0 } } }));
+    let mesh = g.mesh(vec![json!({
+        "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
+        "indices": indices, "material": material
+    })]);
+    g.node(json!({ "mesh": mesh }), true);
+    g.write_glb(&dir.join("grid-leaf.glb"));
+    let order = if shuffled { "face_order = \"shuffled\"\n" } else { "" };
+    let text = format!(
+        "[camera]\neye = [1.0, 7.0, 0.01]\ntarget = [1.0, 0.0, 0.0]\nvfov_deg = 40.0\n\
+         [[lights]]\ntype = \"directional\"\ndirection = [{}, {}, {}]\nirradiance = [2.0, 2.0, 2.0]\n\
+         [[objects]]\nmesh = \"grid-leaf.glb\"\n{order}\
+         [[objects]]\nshape = \"cube\"\nsize = 0.5\ntranslate = [-1.5, 0.6, 1.6]\n\
+         [[objects]]\nshape = \"plane\"\nsize = 8.0\n",
+        SUN_DIR.x, SUN_DIR.y, SUN_DIR.z
+    );
+    Scene::parse(&text, "grid-leaf.toml", dir).unwrap_or_else(|e| panic!("{e}"))
+}
+
+#[test]
+fn a_shuffled_masked_mesh_renders_as_the_same_mesh_in_order() {
+    let dir = tempfile::tempdir().unwrap();
+    let ctx = common::gpu();
+    let mut runs = vec![
+        (ShadowMethod::Traced, ShadowBackend::Compute),
+        (ShadowMethod::Hybrid, ShadowBackend::Compute),
+        (ShadowMethod::Map, ShadowBackend::Compute),
+    ];
+    if ctx.capabilities.ray_query {
+        runs.push((ShadowMethod::Traced, ShadowBackend::RayQuery));
+    }
+    let mut images = Vec::new();
+    for shuffled in [false, true] {
+        let scene = gridded_leaf_scene(dir.path(), shuffled);
+        let leaf = &scene.meshes[0];
+        assert_eq!(leaf.indices.len(), 3 * 2 * 24 * 24);
+        let mut r = Renderer::new(ctx.clone(), scene).unwrap();
+        let mut these = Vec::new();
+        for &(method, backend) in &runs {
+            these.push(frame_with(&mut r, method, DebugView::Visibility(0), backend));
+            let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear)
+                .all_lights(1, ShadowChoice { method, ..ShadowChoice::hard() });
+            s.shadow_backend = backend;
+            these.push(common::floats(r.render(&s).unwrap_or_else(|e| panic!("{e}"))));
+        }
+        images.push(these);
+    }
+    // The mask cuts the shadow (not all lit, not the whole square dark), so the lookups count.
+    let traced = &images[0][0];
+    let shadowed = traced.iter().filter(|v| v.x < 0.5).count();
+    assert!(shadowed > 300 && shadowed < traced.len() / 2, "{shadowed} shadowed pixels");
+    for (k, (in_order, shuffled)) in images[0].iter().zip(&images[1]).enumerate() {
+        let (method, backend) = runs[k / 2];
+        let what = if k % 2 == 0 { "visibility" } else { "shaded image" };
+        let differing = in_order.iter().zip(shuffled).filter(|(a, b)| a != b).count();
+        assert_eq!(differing, 0, "{method:?} ({backend:?}) {what}: {differing} pixels differ");
+    }
+    common::assert_clean(&ctx);
 }

@@ -19,6 +19,7 @@ fn options(scene: Option<&str>, rays: RayKind, size: (u32, u32)) -> Options {
         repeats: 1,
         device: None,
         validate: true,
+        file_order: false,
     }
 }
 
@@ -51,5 +52,24 @@ fn every_kind_of_ray_agrees_on_the_default_scene() {
             outcome.occluded
         );
         assert_eq!(outcome.unexplained, 0, "{kind:?}");
+    }
+}
+
+/// `--file-order` adds the ray query over the casters in the scene's own order beside the BVH
+/// leaf order the renderer uses: on the shuffled stress scene both are timed, and every tracer,
+/// both ray queries among them, agrees on every ray that grazes no edge.
+#[test]
+fn the_shuffled_scene_traces_the_same_in_leaf_and_file_order() {
+    let mut options = options(Some("assets/scenes/stress/shuffled.toml"), RayKind::Shadow, (160, 120));
+    options.file_order = true;
+    let outcome = run(&options).unwrap_or_else(|e| panic!("{e:#}"));
+    print!("{}", outcome.report);
+    assert!(outcome.occluded > 1_000, "{} occluded: the sphere's shadow is in view", outcome.occluded);
+    assert_eq!(outcome.unexplained, 0);
+    let names: Vec<&str> = outcome.timings.iter().map(|t| t.name.as_str()).collect();
+    if common::gpu().capabilities.ray_query {
+        assert!(names.contains(&"ray query (device)") && names.contains(&"ray query, file order"), "{names:?}");
+    } else {
+        assert!(!names.iter().any(|n| n.contains("ray query")), "{names:?}");
     }
 }

@@ -158,3 +158,55 @@ fn casters_are_the_bvh_casters() {
     assert_eq!(tris.len(), ShadowBvh::build(&scene).triangle_count());
     assert!(tris.iter().flatten().all(|v: &Vec3| v.is_finite()));
 }
+
+/// The shuffled stress scene (a 65k-triangle sphere whose faces come in a jumbled order): the
+/// ray query, built from the compute BVH's leaf order, sees exactly the compute traversal's
+/// shadows, and the shuffled sphere renders exactly as the same sphere in order, on both
+/// backends (the order is the file's, never the picture's). Validation on.
+#[test]
+fn shuffled_faces_shadow_alike_on_both_backends_and_as_in_order() {
+    let path = Path::new("assets/scenes/stress/shuffled.toml");
+    let text = std::fs::read_to_string(path).expect("stress scene");
+    assert!(text.contains("face_order = \"shuffled\""), "the stress scene shuffles its sphere");
+    let shuffled = Scene::load(path).unwrap_or_else(|e| panic!("{e}"));
+    let in_order = Scene::parse(&text.replace("face_order = \"shuffled\"", ""), "in-order.toml", Path::new("."))
+        .unwrap_or_else(|e| panic!("{e}"));
+    // The same triangles, in another order.
+    let (a, b) = (umbra::scene::bvh::caster_triangles(&shuffled), umbra::scene::bvh::caster_triangles(&in_order));
+    assert_eq!(a.len(), 65_024 + 12, "the sphere and the slab");
+    assert_ne!(a, b, "the faces were not shuffled");
+    let key = |t: &[Vec3; 3]| t.map(|v| v.to_array().map(f32::to_bits));
+    let (mut ka, mut kb): (Vec<_>, Vec<_>) = (a.iter().map(key).collect(), b.iter().map(key).collect());
+    ka.sort_unstable();
+    kb.sort_unstable();
+    assert_eq!(ka, kb, "shuffling changed the triangles themselves");
+
+    let ctx = common::gpu();
+    let backends: &[ShadowBackend] = if ctx.capabilities.ray_query {
+        &[ShadowBackend::Compute, ShadowBackend::RayQuery]
+    } else {
+        &[ShadowBackend::Compute]
+    };
+    let (w, h) = (320, 240);
+    let mut images = Vec::new();
+    for scene in [shuffled, in_order] {
+        let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
+        for &backend in backends {
+            let vis = frame(&mut renderer, &settings(w, h, backend, Some(DebugView::Visibility(0))));
+            let shaded = frame(&mut renderer, &settings(w, h, backend, None));
+            images.push((backend, vis, shaded));
+        }
+    }
+    let (_, reference_vis, reference_shaded) = &images[0];
+    let occluded = reference_vis.iter().filter(|v| v.x == 0.0).count();
+    assert!(occluded > (w * h) as usize / 20, "the view must show the sphere's shadow ({occluded} occluded)");
+    for (k, (backend, vis, shaded)) in images.iter().enumerate() {
+        let order = if k < backends.len() { "shuffled" } else { "in order" };
+        let differing = vis.iter().zip(reference_vis).filter(|(a, b)| a.x != b.x).count();
+        let shaded_differing = shaded.iter().zip(reference_shaded).filter(|(a, b)| a != b).count();
+        println!("{order}, {backend:?}: visibility differs from shuffled compute in {differing} pixels, shading in {shaded_differing}");
+        assert_eq!(differing, 0, "{order}, {backend:?}: visibility");
+        assert_eq!(shaded_differing, 0, "{order}, {backend:?}: shaded image");
+    }
+    common::assert_clean(&ctx);
+}

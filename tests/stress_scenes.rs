@@ -96,7 +96,7 @@ fn binary_diff(a: &[f32], b: &[f32]) -> usize {
     a.iter().zip(b).filter(|(x, y)| (**x >= 0.5) != (**y >= 0.5)).count()
 }
 
-const SCENES: [&str; 8] = [
+const SCENES: [&str; 9] = [
     "grazing.toml",
     "field.toml",
     "inside-volume.toml",
@@ -105,6 +105,7 @@ const SCENES: [&str; 8] = [
     "terminator.toml",
     "light-inside.toml",
     "many-lights.toml",
+    "shuffled.toml",
 ];
 
 #[test]

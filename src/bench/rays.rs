@@ -47,6 +47,9 @@ pub struct Options {
     pub repeats: usize,
     pub device: Option<String>,
     pub validate: bool,
+    /// Also time the ray query over structures built from the casters in the scene's own
+    /// order, beside the BVH leaf order the renderer gives the driver (what the reorder buys).
+    pub file_order: bool,
 }
 
 /// One tracer's result.
@@ -122,16 +125,24 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let batch = std::cell::RefCell::new(TimedBatch::new(&ctx, &gpu_rays)?);
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
     let pipeline = ray_batch::pipeline(&ctx, buffers.masked())?;
-    let ray_query = if ctx.capabilities.ray_query {
-        let masks = crate::scene::bvh::mask::caster_masks(&local);
-        let scene = RayQueryScene::with_masks(&ctx, &tris, masks.as_ref())?;
-        let rq_pipeline = ray_batch::ray_query_pipeline(&ctx, scene.masked())?;
-        // The first trace builds the structures: not timed.
-        batch.borrow_mut().trace(&rq_pipeline, &Target::RayQuery(&scene)).context("tracing on the device")?;
-        Some((scene, rq_pipeline))
-    } else {
-        None
-    };
+    // The ray query as the renderer builds it (the casters in the BVH's leaf order), and with
+    // `file_order` also over the casters in the scene's own order. (Masked casters were refused
+    // above: no masks.)
+    let rq_pipeline = if ctx.capabilities.ray_query { Some(ray_batch::ray_query_pipeline(&ctx, false)?) } else { None };
+    let mut ray_queries: Vec<(&'static str, RayQueryScene)> = Vec::new();
+    if let Some(rq_pipeline) = &rq_pipeline {
+        let leaf_order: &[u32] = &bvh.wide().order;
+        let mut orders = vec![("ray query (device)", Some(leaf_order))];
+        if options.file_order {
+            orders.push(("ray query, file order", None));
+        }
+        for (label, order) in orders {
+            let scene = RayQueryScene::with_masks(&ctx, &tris, order, None)?;
+            // The first trace builds the structures: not timed.
+            batch.borrow_mut().trace(rq_pipeline, &Target::RayQuery(&scene)).context("tracing on the device")?;
+            ray_queries.push((label, scene));
+        }
+    }
 
     // The CPU: obvhs's own builds (its medium preset, which umbra's build followed before its
     // 4-wide collapse), binary and compressed 8-wide.
@@ -159,12 +170,12 @@ pub fn run(options: &Options) -> Result<Outcome> {
         "compute BVH (device)",
         Box::new(|| batch_trace(&batch, &pipeline, &Target::Compute(&buffers))),
     )];
-    if let Some((scene, rq_pipeline)) = &ray_query {
-        let batch = &batch;
-        tracers.push(Tracer::new(
-            "ray query (device)",
-            Box::new(move || batch_trace(batch, rq_pipeline, &Target::RayQuery(scene))),
-        ));
+    if let Some(rq_pipeline) = &rq_pipeline {
+        for (label, scene) in &ray_queries {
+            let batch = &batch;
+            tracers
+                .push(Tracer::new(label, Box::new(move || batch_trace(batch, rq_pipeline, &Target::RayQuery(scene)))));
+        }
     }
     let first_cpu = tracers.len();
     tracers.push(obvhs_tracer("obvhs BVH2 (CPU)", &binary, &obvhs_tris, &rays, options.threads));

@@ -180,6 +180,16 @@ impl ShadowBvh {
         ShadowBvh { reference, triangles: tris, wide, masks: None, triangle_count, depth }
     }
 
+    /// The casters' indices (into `caster_triangles`) in the order of the tree's leaves, taken
+    /// out of the tree without a copy: a spatially coherent order, which the ray-query backend
+    /// gives the driver's builder (`RayQueryScene::with_masks`). Empty for an empty tree.
+    pub fn into_leaf_order(self) -> Vec<u32> {
+        if self.is_empty() {
+            return Vec::new();
+        }
+        self.wide.order
+    }
+
     /// Shadow-casting triangles in the BVH (the dummy triangle of an empty BVH not counted).
     pub fn triangle_count(&self) -> usize {
         self.triangle_count

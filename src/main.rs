@@ -409,6 +409,9 @@ fn provenance(
         }
         None => format!("{frames} {counted}; hard shadows, 1 ray per pixel and light"),
     };
+    if let Some(spp) = rect_shadow_spp(scene).filter(|_| settings.debug_view.is_none()) {
+        samples.push_str(&format!("; rect lights at least {spp} rays per pixel a frame, {} in all", spp * frames));
+    }
     if frames > 1 && !settings.antialias {
         samples.push_str("; not anti-aliased");
     }
@@ -427,6 +430,14 @@ fn provenance(
     out.into_iter().map(|(k, v)| (k.to_owned(), v)).collect()
 }
 
+/// The fewest shadow rays per pixel and frame among the scene's rect lights that cast shadows
+/// (a rect casts none in a scene without casters: its LTC shading alone is exact); `None`
+/// when none does.
+fn rect_shadow_spp(scene: &Scene) -> Option<u32> {
+    let has_casters = scene.meshes.iter().any(|m| m.cast_shadows);
+    scene.rect_lights.iter().filter(|r| has_casters && r.spp > 0).map(|r| r.spp).min()
+}
+
 /// Samples per pixel a default render gathers for soft shadows, over accumulated frames.
 const CONVERGED_SPP: u32 = 64;
 
@@ -438,9 +449,9 @@ fn default_frames(settings: &RenderSettings, scene: &Scene) -> u32 {
         return 1;
     }
     let soft_spp = soft_traced_lights(settings, &scene.lights).min();
-    // Ambient occlusion converges over the same frames.
+    // Ambient occlusion converges over the same frames, and so do rect lights' shadow rays.
     let ao_spp = scene.lighting.occlusion_of_environment().filter(|_| settings.debug_view.is_none()).map(|ao| ao.spp);
-    soft_spp.into_iter().chain(ao_spp).min().map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
+    soft_spp.into_iter().chain(ao_spp).chain(rect_shadow_spp(scene)).min().map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
 }
 
 /// The scene file (or the built-in scene), its parse timed at -v.

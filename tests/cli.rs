@@ -632,3 +632,34 @@ fn verbosity_flags_sit_beside_rust_log() {
     assert!(stderr(&o).contains("warn: --spp 2 does nothing"), "RUST_LOG decides: {}", stderr(&o));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A scene whose only light is a rect light over a caster converges by default as soft shadows
+/// do: 64 shadow rays per pixel over 16 frames of its default 4 (it rendered one noisy frame),
+/// and the header counts them; without casters the rect casts no rays and one frame is exact.
+#[test]
+fn rect_only_scenes_converge_by_default() {
+    let dir = out_dir("rect-only");
+    let scene = |casts: bool| {
+        format!(
+            "[camera]\neye = [0.0, 2.0, 4.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 45.0\n\
+             [[lights]]\ntype = \"rect\"\ncenter = [0.0, 2.0, 0.0]\nhalf_edge_u = [0.5, 0.0, 0.0]\n\
+             half_edge_v = [0.0, 0.0, -0.5]\nradiance = [5.0, 5.0, 5.0]\n\
+             [[objects]]\nshape = \"plane\"\nsize = 6.0\ncast_shadows = false\n\
+             [[objects]]\nshape = \"cube\"\nsize = 0.5\ntranslate = [0.0, 0.25, 0.0]\ncast_shadows = {casts}\n"
+        )
+    };
+    for (casts, expected) in [(true, "16 frames;"), (false, "1 frame;")] {
+        let file = dir.join(format!("rect-{casts}.toml"));
+        std::fs::write(&file, scene(casts)).unwrap();
+        let exr = dir.join(format!("rect-{casts}.exr"));
+        let o = run(&["render", file.to_str().unwrap(), "--size", "32x24", "-o", exr.to_str().unwrap()]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let meta = exr::meta::MetaData::read_from_file(&exr, false).expect("an EXR header");
+        let samples = match meta.headers[0].own_attributes.other.get(&exr::prelude::Text::from("umbra:samples")) {
+            Some(exr::meta::attribute::AttributeValue::Text(t)) => t.to_string(),
+            other => panic!("umbra:samples: {other:?}"),
+        };
+        assert!(samples.starts_with(expected), "casters {casts}: {samples}");
+        assert_eq!(samples.contains("rect lights at least 4 rays per pixel a frame, 64 in all"), casts, "{samples}");
+    }
+}

@@ -137,7 +137,16 @@ pub(super) struct TextureCache {
     loaded: HashMap<(PathBuf, bool), Option<Arc<Texture>>>,
     /// Image files read (not the images inside a glTF buffer).
     files: Vec<PathBuf>,
+    /// Texels decoded so far, against `MAX_SCENE_TEXELS`.
+    texels: u64,
 }
+
+/// The most texels one scene's textures may hold in all: 2^27, 512 MiB as RGBA8 (680 MiB with
+/// their mip chains), checked from each image's header before it is decoded. A few kilobytes of
+/// compressed image can claim gigabytes of texels (a 16000x16000 grey PNG compresses to 250 KB
+/// and took 5 GB to load): past the budget a texture is left out with a warning, like any
+/// texture umbra cannot use.
+pub const MAX_SCENE_TEXELS: u64 = 1 << 27;
 
 impl TextureCache {
     /// The texture in `file` (`name` as the material wrote it), read on first use. `None`, with a
@@ -146,10 +155,10 @@ impl TextureCache {
         if !self.files.iter().any(|f| f == file) {
             self.files.push(file.to_owned());
         }
-        self.get_with(file, name, srgb, material, || {
+        self.get_with(file, name, srgb, material, |budget| {
             let bytes = input::read(file).map_err(|e| super::error::IoReason(&e).to_string())?;
             let is_exr = file.extension().is_some_and(|e| e.eq_ignore_ascii_case("exr"));
-            decode(&bytes, is_exr)
+            decode(&bytes, is_exr, budget)
         })
     }
 
@@ -163,7 +172,7 @@ impl TextureCache {
         srgb: bool,
         material: &str,
     ) -> Option<Arc<Texture>> {
-        self.get_with(key, name, srgb, material, || decode(bytes, false))
+        self.get_with(key, name, srgb, material, |budget| decode(bytes, false, budget))
     }
 
     fn get_with(
@@ -172,14 +181,17 @@ impl TextureCache {
         name: &str,
         srgb: bool,
         material: &str,
-        decode: impl FnOnce() -> Result<(u32, u32, Vec<u8>), String>,
+        decode: impl FnOnce(Budget) -> Result<(u32, u32, Vec<u8>), String>,
     ) -> Option<Arc<Texture>> {
         let key = (file.to_owned(), srgb);
         if let Some(found) = self.loaded.get(&key) {
             return found.clone();
         }
-        let texture = match decode() {
-            Ok((width, height, rgba8)) => Some(Arc::new(Texture { name: name.to_owned(), width, height, rgba8, srgb })),
+        let texture = match decode(Budget { used: self.texels }) {
+            Ok((width, height, rgba8)) => {
+                self.texels += u64::from(width) * u64::from(height);
+                Some(Arc::new(Texture { name: name.to_owned(), width, height, rgba8, srgb }))
+            }
             Err(reason) => {
                 log::warn!("{material}: texture {name:?} unusable ({reason}); the material's constant is used instead");
                 None
@@ -195,8 +207,42 @@ impl TextureCache {
     }
 }
 
-/// Width, height and RGBA8 texels of an image file's bytes.
-fn decode(bytes: &[u8], is_exr: bool) -> Result<(u32, u32, Vec<u8>), String> {
+/// The texels a scene's textures already hold, against `MAX_SCENE_TEXELS`.
+#[derive(Clone, Copy)]
+struct Budget {
+    used: u64,
+}
+
+impl Budget {
+    /// Whether a `width` x `height` image still fits: a one-line reason where it does not.
+    fn check(self, width: usize, height: usize) -> Result<(), String> {
+        let texels = width as u64 * height as u64;
+        if self.used + texels > MAX_SCENE_TEXELS {
+            return Err(format!(
+                "{width}x{height} would take the scene's textures past their budget of {MAX_SCENE_TEXELS} texels \
+                 (512 MiB as RGBA8; {} already used)",
+                self.used
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// The width and height an image file's header claims (PNG, JPEG, TGA, HDR), read without
+/// decoding a texel.
+fn image_size(bytes: &[u8]) -> Result<(usize, usize), String> {
+    let reader =
+        image::ImageReader::new(std::io::Cursor::new(bytes)).with_guessed_format().map_err(|e| e.to_string())?;
+    let (width, height) = reader.into_dimensions().map_err(|e| e.to_string())?;
+    Ok((width as usize, height as usize))
+}
+
+/// Width, height and RGBA8 texels of an image file's bytes, refused from its header alone
+/// when it is larger than an edge allows or than `budget` has room for.
+fn decode(bytes: &[u8], is_exr: bool, budget: Budget) -> Result<(u32, u32, Vec<u8>), String> {
+    let (width, height) = if is_exr { exr_size(bytes)? } else { image_size(bytes)? };
+    check_texture_size(width, height)?;
+    budget.check(width, height)?;
     let (width, height, rgba8) = if is_exr {
         decode_exr(bytes)?
     } else {
@@ -373,9 +419,67 @@ pub(crate) mod tests {
     #[test]
     fn an_exr_larger_than_the_limit_is_refused_before_decoding() {
         assert_eq!(exr_size(&exr_claiming(8, 4)), Ok((8, 4)));
-        let (w, h, texels) = decode(&exr_claiming(8, 4), true).unwrap_or_else(|e| panic!("{e}"));
+        let none = Budget { used: 0 };
+        let (w, h, texels) = decode(&exr_claiming(8, 4), true, none).unwrap_or_else(|e| panic!("{e}"));
         assert_eq!((w, h, texels.len()), (8, 4, 8 * 4 * 4));
-        assert_eq!(decode(&exr_claiming(40000, 20000), true).unwrap_err(), "40000x20000 is outside 1x1 to 16384x16384");
-        assert_eq!(decode(&exr_claiming(16, 16385), true).unwrap_err(), "16x16385 is outside 1x1 to 16384x16384");
+        assert_eq!(
+            decode(&exr_claiming(40000, 20000), true, none).unwrap_err(),
+            "40000x20000 is outside 1x1 to 16384x16384"
+        );
+        assert_eq!(decode(&exr_claiming(16, 16385), true, none).unwrap_err(), "16x16385 is outside 1x1 to 16384x16384");
+    }
+
+    /// A PNG whose header claims `width` x `height` 8-bit grey texels, and no texel data: the
+    /// header alone is what the size check may read (its data is an empty stream).
+    fn png_claiming(width: u32, height: u32) -> Vec<u8> {
+        fn crc32(bytes: &[u8]) -> u32 {
+            let mut crc = !0u32;
+            for &b in bytes {
+                crc ^= u32::from(b);
+                for _ in 0..8 {
+                    crc = if crc & 1 == 1 { (crc >> 1) ^ 0xedb8_8320 } else { crc >> 1 };
+                }
+            }
+            !crc
+        }
+        let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+        let mut chunk = |kind: &[u8], data: &[u8]| {
+            png.extend((data.len() as u32).to_be_bytes());
+            let body: Vec<u8> = kind.iter().chain(data).copied().collect();
+            png.extend(&body);
+            png.extend(crc32(&body).to_be_bytes());
+        };
+        let mut header = Vec::new();
+        header.extend(width.to_be_bytes());
+        header.extend(height.to_be_bytes());
+        header.extend([8, 0, 0, 0, 0]); // 8-bit grey, deflate, adaptive filters, no interlace
+        chunk(b"IHDR", &header);
+        chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]); // an empty zlib stream
+        chunk(b"IEND", &[]);
+        png
+    }
+
+    /// A 16000x16000 grey PNG (250 KB compressed) took 5 GB to load: within the edge limit, it
+    /// is now refused from its header for the scene's texel budget before a texel is decoded
+    /// (the file holds no image data, so a decode would fail with another message), and the
+    /// budget counts what earlier textures took.
+    #[test]
+    fn images_past_the_scenes_texel_budget_are_refused_from_their_headers() {
+        assert_eq!(image_size(&png_claiming(16000, 16000)), Ok((16000, 16000)));
+        let refused = decode(&png_claiming(16000, 16000), false, Budget { used: 0 }).unwrap_err();
+        assert!(
+            refused.starts_with("16000x16000 would take the scene's textures past their budget of 134217728 texels"),
+            "{refused}"
+        );
+        // 8192 x 8192 fits while the budget has room for it, and not one texel less.
+        let room = MAX_SCENE_TEXELS - 8192 * 8192;
+        assert!(Budget { used: room }.check(8192, 8192).is_ok());
+        let past = Budget { used: room + 1 }.check(8192, 8192).unwrap_err();
+        assert!(past.ends_with(&format!("{} already used)", room + 1)), "{past}");
+        // A real image within the budget still decodes.
+        let mut bytes = std::io::Cursor::new(Vec::new());
+        image::GrayImage::from_pixel(3, 2, image::Luma([7])).write_to(&mut bytes, image::ImageFormat::Png).unwrap();
+        let (w, h, rgba) = decode(bytes.get_ref(), false, Budget { used: 0 }).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!((w, h, &rgba[..4]), (3, 2, &[7, 7, 7, 255][..]));
     }
 }

@@ -627,3 +627,44 @@ fn far_lights_are_named_as_the_file_counts_them() {
     assert!(common::logged(&format!("s.toml: scene (far.glb): light 0 in node order: 2199023255549 {tail}")));
     assert!(!common::logged("lights[1]: "), "{:?}", common::captured_log().lock().unwrap());
 }
+
+/// A small glTF file whose nodes instance one mesh into more triangles than a scene may hold
+/// (2,049 nodes x 8,192 triangles, just past 2^24: a forest of instances once took more than
+/// 11 GB and then panicked) is refused in one line naming the object, the count and the
+/// budget, before the instances are flattened; the same mesh under 2,048 nodes is counted to
+/// the budget exactly (not loaded here: it would flatten 16.7M triangles).
+#[test]
+fn instancing_past_the_triangle_budget_is_refused_before_flattening() {
+    const CELLS: u32 = 64;
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = Gltf::default();
+    let side = CELLS + 1;
+    let p: Vec<[f32; 3]> =
+        (0..side * side).map(|k| [(k % side) as f32 / CELLS as f32, 0.0, (k / side) as f32 / CELLS as f32]).collect();
+    let mut idx = Vec::new();
+    for j in 0..CELLS {
+        for i in 0..CELLS {
+            let (a, b, c, d) = (j * side + i, (j + 1) * side + i, (j + 1) * side + i + 1, j * side + i + 1);
+            idx.extend_from_slice(&[a, b, c, a, c, d]);
+        }
+    }
+    let (positions, indices) = (g.vec3(&p), g.indices(&idx, U16));
+    let mesh = g.mesh(vec![json!({ "attributes": { "POSITION": positions }, "indices": indices })]);
+    let nodes = 2049;
+    for k in 0..nodes {
+        g.node(json!({ "mesh": mesh, "translation": [k as f32 * 1.5, 0.0, 0.0] }), true);
+    }
+    g.write_glb(&dir.path().join("forest.glb"));
+    let text = format!("{CAMERA}{LIGHT}[[objects]]\nshape = \"cube\"\n[[objects]]\nmesh = \"forest.glb\"\n");
+    let err = parse_in(dir.path(), &text).err().expect("refused");
+    let triangles = 12 + nodes as u64 * 2 * 64 * 64;
+    for needle in [
+        "s.toml: objects[1]",
+        "forest.glb (2049 instances of 1 meshes: 16785408 triangles)",
+        &format!("takes the scene to {triangles} triangles"),
+        "past the 16777216 one scene may hold",
+    ] {
+        assert!(err.contains(needle), "{needle:?} not in {err:?}");
+    }
+    assert_eq!(umbra::scene::MAX_SCENE_TRIANGLES, 2048 * 2 * 64 * 64);
+}

@@ -236,6 +236,11 @@ impl<'de> Deserialize<'de> for Scale {
     }
 }
 
+/// The most triangles a scene may hold once its instances are placed: 2^24 (the 10.5M-triangle
+/// `assets/scenes/bench/large-10m.toml` takes about 4 GB to load). Every instance is a copy in
+/// the shadow BVH, the ray-query structure and the shadow volumes' adjacency.
+pub const MAX_SCENE_TRIANGLES: u64 = 1 << 24;
+
 /// Largest image edge accepted; beyond this the renderer's images would not fit most devices.
 const MAX_IMAGE_EDGE: u32 = 16384;
 /// Sphere tessellation limits: below 3 it is not a solid; 2048 is ~4.2M triangles (2 segments
@@ -309,8 +314,24 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         let path = format!("objects[{i}]");
         check.object(&path, object, base_dir).map(|placed| (path, Some(object), placed))
     });
+    let mut triangles = 0u64;
     for next in whole_object.into_iter().map(Ok).chain(objects) {
         let (path, object, placed) = next?;
+        // Counted before the instances are flattened into world-space copies: a few kilobytes
+        // of glTF nodes can instance one mesh into more triangles than memory holds.
+        let object_triangles: u64 =
+            placed.instances.iter().map(|(k, _)| placed.meshes[*k].indices.len() as u64 / 3).sum();
+        triangles += object_triangles;
+        if triangles > MAX_SCENE_TRIANGLES {
+            let message = format!(
+                "{} ({} instances of {} meshes: {object_triangles} triangles) takes the scene to {triangles} triangles, \
+                 past the {MAX_SCENE_TRIANGLES} one scene may hold (each instance is a copy in the shadow BVH)",
+                shorten(&placed.source, MAX_MESSAGE_CHARS),
+                placed.instances.len(),
+                placed.meshes.len(),
+            );
+            return Err(check.fail(&path, message));
+        }
         sources.extend(placed.files.iter().cloned());
         let mut dropped = LoadStats::default();
         let meshes_before = meshes.len();

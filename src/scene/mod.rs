@@ -23,6 +23,7 @@ use glam::{DMat4, DVec3, Vec3};
 pub use environment::{AmbientOcclusion, Environment, SceneLighting, DEFAULT_BACKGROUND};
 pub use envmap::EnvironmentMap;
 pub use error::SceneError;
+pub use file::MAX_SCENE_TRIANGLES;
 pub use gltf::LUMENS_PER_WATT;
 pub use input::{DEFAULT_MAX_INPUT_BYTES, MAX_INPUT_BYTES_VAR};
 pub use local::MAX_LOCAL_DISTANCE;

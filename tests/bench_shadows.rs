@@ -446,11 +446,30 @@ fn references_round_trip_and_stale_files_are_refused() {
     assert_eq!(Reference::from_bytes(&bytes, "k1"), Some(r.clone()));
     assert_eq!(Reference::from_bytes(&bytes, "k2"), None, "another key");
     assert_eq!(Reference::from_bytes(&bytes[..bytes.len() - 1], "k1"), None, "truncated");
+    // Damaged at the same length: every method scored RMSE 5.45e36 against a garbled payload,
+    // and exactly 0 (none included) against a zeroed one. The checksum refuses both.
+    let header_end = bytes.len() - 32 - 24 - 2 * 6 * 5;
+    let mut garbled = bytes.clone();
+    garbled[header_end + 8] ^= 0x7f;
+    assert_eq!(Reference::from_bytes(&garbled, "k1"), None, "garbled payload");
+    let mut zeroed = bytes.clone();
+    zeroed[header_end..bytes.len() - 32].fill(0);
+    assert_eq!(Reference::from_bytes(&zeroed, "k1"), None, "zeroed payload");
+    // A well-formed file holding values no reference has (with its own checksum) is refused too.
+    let mut wild = r.clone();
+    wild.lights[0].visibility[1] = 5.45e36;
+    assert_eq!(Reference::from_bytes(&wild.to_bytes("k1"), "k1"), None, "visibility out of [0, 1]");
+    let mut wild = r.clone();
+    wild.lights[1].error = f64::INFINITY;
+    assert_eq!(Reference::from_bytes(&wild.to_bytes("k1"), "k1"), None, "error not finite");
     let dir = temp_dir("cache");
     let file = r.save(&dir, "k1").unwrap();
     assert!(file.ends_with("k1.ref"));
-    assert_eq!(Reference::load(&dir, "k1"), Some(r));
+    assert_eq!(Reference::load(&dir, "k1"), Some(r.clone()));
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 1, "no temporary file left");
+    // A damaged cached file is not loaded (the bench then traces the reference again).
+    std::fs::write(&file, &garbled).unwrap();
+    assert_eq!(Reference::load(&dir, "k1"), None);
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -32,7 +32,7 @@ pub const CALIBRATION_WIDTH: u32 = 320;
 /// Timed frames per candidate, after one warm-up frame.
 pub const TIMED: usize = 3;
 /// Bumped whenever what a calibration holds or how it is measured changes.
-const FORMAT_VERSION: u32 = 2;
+const FORMAT_VERSION: u32 = 3;
 
 /// One candidate's measurement for one light.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -55,7 +55,10 @@ impl Measure {
         let mut c = *base;
         c.method = ShadowMethod::parse(&self.method).map(|(m, _)| m).unwrap_or(ShadowMethod::Traced);
         for (k, v) in &self.set {
-            c.set(k, v).expect("a candidate's own parameters");
+            // A candidate's own parameters (`load` refuses any other), so this always holds.
+            if let Err(e) = c.set(k, v) {
+                log::warn!("auto: {}: {e}; left at the light's own value", self.label);
+            }
         }
         c
     }
@@ -179,8 +182,16 @@ fn calibrate(
         reference::load_or_compute(renderer, width, height, &device)?;
     let key = calibration_key(&ref_key, target, base, backend, asked);
     let dir = reference::cache_dir().map(|d| d.with_file_name("auto"));
-    if let Some(cached) = dir.as_ref().and_then(|d| load(d, &key)) {
-        return Ok(cached);
+    if let Some(d) = &dir {
+        let lights: Vec<Light> = asked.iter().map(|&n| renderer.scene().lights[n]).collect();
+        match load(d, &key, &lights) {
+            Ok(Some(cached)) => return Ok(cached),
+            Ok(None) => {}
+            Err(why) => log::warn!(
+                "auto: the cached calibration {} is unusable ({why}); measuring again",
+                d.join(format!("{key}.json")).display()
+            ),
+        }
     }
     let timestamps = renderer.calibrate_timings()?.mode.is_some();
     let how = How { reference: &reference, size: (width, height), target, backend, timestamps };
@@ -298,15 +309,60 @@ fn calibration_key(
     h.finalize().iter().map(|b| format!("{b:02x}")).collect()
 }
 
-fn load(dir: &std::path::Path, key: &str) -> Option<Vec<Vec<Measure>>> {
-    let text = std::fs::read_to_string(dir.join(format!("{key}.json"))).ok()?;
-    serde_json::from_str(&text).ok()
+/// A cached calibration: the measures and the SHA-256 of their JSON, so a file edited or
+/// damaged into other valid JSON is measured again rather than trusted.
+#[derive(Serialize, Deserialize)]
+struct CachedMeasures {
+    checksum: String,
+    measures: Vec<Vec<Measure>>,
 }
 
-fn save(dir: &std::path::Path, key: &str, measures: &[Vec<Measure>]) -> std::io::Result<PathBuf> {
+fn checksum(measures: &[Vec<Measure>]) -> String {
+    let json = serde_json::to_vec(measures).expect("measures serialise");
+    Sha256::digest(json).iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// The calibration cached in `dir` under `key` for `lights` (the asked lights, in order):
+/// `Ok(None)` when there is none, an error saying why when the file is not one this run could
+/// have written (a wrong checksum; a candidate that is not one of the light's, with parameters
+/// of its own; a time or an error out of range).
+pub fn load(dir: &std::path::Path, key: &str, lights: &[Light]) -> Result<Option<Vec<Vec<Measure>>>, String> {
+    let Ok(text) = std::fs::read_to_string(dir.join(format!("{key}.json"))) else { return Ok(None) };
+    let cached: CachedMeasures = serde_json::from_str(&text).map_err(|e| format!("not a calibration: {e}"))?;
+    if checksum(&cached.measures) != cached.checksum {
+        return Err("its checksum does not match its measures".into());
+    }
+    if cached.measures.len() != lights.len() {
+        return Err(format!("{} lights measured, {} asked", cached.measures.len(), lights.len()));
+    }
+    for (light, measures) in lights.iter().zip(&cached.measures) {
+        let known = candidates(light);
+        for m in measures {
+            let is_candidate = known.iter().any(|(method, set)| {
+                m.method == method.id()
+                    && m.set.len() == set.len()
+                    && m.set.iter().zip(set).all(|((k, v), (ck, cv))| k == ck && v == cv)
+            });
+            if !is_candidate {
+                return Err(format!("{:?} is not a candidate auto measures", m.label));
+            }
+            if !(m.time_ms.is_finite() && (0.0..1e7).contains(&m.time_ms)) {
+                return Err(format!("{}: time {} ms is out of range", m.label, m.time_ms));
+            }
+            if !(m.error.is_finite() && (0.0..=1.0).contains(&m.error)) {
+                return Err(format!("{}: error {} is out of range", m.label, m.error));
+            }
+        }
+    }
+    Ok(Some(cached.measures))
+}
+
+/// Writes `measures` to `dir` under `key` (atomically), with their checksum.
+pub fn save(dir: &std::path::Path, key: &str, measures: &[Vec<Measure>]) -> std::io::Result<PathBuf> {
     std::fs::create_dir_all(dir)?;
     let path = dir.join(format!("{key}.json"));
-    let text = serde_json::to_string_pretty(measures).map_err(std::io::Error::other)?;
+    let cached = CachedMeasures { checksum: checksum(measures), measures: measures.to_vec() };
+    let text = serde_json::to_string_pretty(&cached).map_err(std::io::Error::other)?;
     super::chart::write_atomic(&path, text.as_bytes()).map_err(std::io::Error::other)?;
     Ok(path)
 }
@@ -335,5 +391,52 @@ mod tests {
     fn calibration_keeps_the_aspect_at_most_320_wide() {
         assert_eq!(calibration_size(1920, 1080), (320, 180));
         assert_eq!(calibration_size(200, 100), (200, 100));
+    }
+
+    /// A cached calibration is used only as this run would have written it: the sweep found
+    /// that a cached `map.resolution=0` panicked, a cached `cascades.count=8` gave validation
+    /// errors and a time of -1e308 printed as a 300-digit number.
+    #[test]
+    fn damaged_or_foreign_calibrations_are_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let sun =
+            Light::Directional { direction: glam::Vec3::NEG_Y, irradiance: glam::Vec3::ONE, angular_diameter_deg: 0.0 };
+        let good = |time_ms: f64, error: f64, method: &str, set: &[(&str, &str)]| Measure {
+            label: method.into(),
+            method: method.into(),
+            set: set.iter().map(|(k, v)| (k.to_string(), v.to_string())).collect(),
+            time_ms,
+            error,
+        };
+        let measures = vec![vec![
+            good(1.5, 0.0, "traced", &[]),
+            good(0.5, 0.02, "cascades", &[("cascades.count", "4"), ("map.resolution", "1024")]),
+        ]];
+        assert_eq!(load(dir.path(), "none", &[sun]), Ok(None), "no file");
+        save(dir.path(), "k", &measures).unwrap();
+        assert_eq!(load(dir.path(), "k", &[sun]), Ok(Some(measures.clone())));
+        // Another number of lights than asked.
+        assert!(load(dir.path(), "k", &[sun, sun]).unwrap_err().contains("1 lights measured, 2 asked"));
+        // Edited in place, still valid JSON: the checksum tells.
+        let path = dir.path().join("k.json");
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(&path, text.replace("1.5", "-1e308")).unwrap();
+        assert!(load(dir.path(), "k", &[sun]).unwrap_err().contains("checksum"));
+        std::fs::write(&path, "{ not json").unwrap();
+        assert!(load(dir.path(), "k", &[sun]).unwrap_err().starts_with("not a calibration"));
+        // With a matching checksum, values this run could not have measured are refused too.
+        for (bad, why) in [
+            (good(1.0, 0.0, "map", &[("map.resolution", "0")]), "not a candidate"),
+            (good(1.0, 0.0, "cascades", &[("cascades.count", "8"), ("map.resolution", "1024")]), "not a candidate"),
+            (good(1.0, 0.0, "traced", &[("map.bogus", "1")]), "not a candidate"),
+            (good(-1e308, 0.0, "traced", &[]), "out of range"),
+            // JSON has no NaN: serde writes null, which is no time.
+            (good(f64::NAN, 0.0, "traced", &[]), "not a calibration"),
+            (good(1.0, 5.45e36, "traced", &[]), "out of range"),
+        ] {
+            save(dir.path(), "bad", &[vec![bad.clone()]]).unwrap();
+            let err = load(dir.path(), "bad", &[sun]).unwrap_err();
+            assert!(err.contains(why), "{bad:?}: {err}");
+        }
     }
 }

@@ -42,7 +42,7 @@ pub const FRAMES: u32 = 4;
 /// The first reference frame's `frame_index`; measured frames start at 0.
 pub const SEED: u32 = 0x4000_0000;
 /// Bumped whenever what a reference holds or how it is made changes.
-const FORMAT_VERSION: u32 = 2;
+const FORMAT_VERSION: u32 = 3;
 const MAGIC: &[u8; 8] = b"UMBRAREF";
 
 /// One light's reference.
@@ -155,7 +155,8 @@ struct LightHeader {
 impl Reference {
     /// The file layout: `UMBRAREF`, the format version (u32 LE), the header's length (u64 LE)
     /// and the header (JSON); then per light the mask (one byte per pixel) and the visibility
-    /// (f32 LE per pixel); then the frame (RGBA8).
+    /// (f32 LE per pixel); then the frame (RGBA8); last the SHA-256 of everything before it, so
+    /// a file damaged at the same length is not scored against.
     pub fn to_bytes(&self, key: &str) -> Vec<u8> {
         let header = Header {
             key: key.to_string(),
@@ -178,11 +179,37 @@ impl Reference {
             out.extend_from_slice(bytemuck::cast_slice(&l.visibility));
         }
         out.extend_from_slice(&self.display);
+        let digest = Sha256::digest(&out);
+        out.extend_from_slice(&digest);
         out
     }
 
-    /// Reads what `to_bytes` wrote, for `key`; `None` when the bytes are not such a reference.
+    /// Reads what `to_bytes` wrote, for `key`; `None` when the bytes are not such a reference
+    /// (another format or key, a wrong checksum, or values no reference holds).
     pub fn from_bytes(bytes: &[u8], key: &str) -> Option<Reference> {
+        Reference::check_bytes(bytes, key).ok()
+    }
+
+    /// `from_bytes`, saying why the bytes are not a reference for `key`.
+    fn check_bytes(bytes: &[u8], key: &str) -> Result<Reference, &'static str> {
+        let (body, digest) = bytes.split_at_checked(bytes.len().saturating_sub(32)).ok_or("too short")?;
+        if digest.len() != 32 || Sha256::digest(body).as_slice() != digest {
+            return Err("its checksum does not match its contents");
+        }
+        let reference = Reference::parse(body, key).ok_or("another format or scene")?;
+        let in_range = reference.lights.iter().all(|l| {
+            l.visibility.iter().all(|v| (0.0..=1.0).contains(v))
+                && l.error.is_finite()
+                && (0.0..=1.0).contains(&l.error)
+                && l.samples > 0
+        });
+        if !in_range {
+            return Err("it holds values no reference has");
+        }
+        Ok(reference)
+    }
+
+    fn parse(bytes: &[u8], key: &str) -> Option<Reference> {
         let rest = bytes.strip_prefix(MAGIC)?;
         let (version, rest) = rest.split_at_checked(4)?;
         if u32::from_le_bytes(version.try_into().ok()?) != FORMAT_VERSION {
@@ -211,10 +238,16 @@ impl Reference {
         Some(Reference { width: header.width, height: header.height, lights, display: rest.to_vec() })
     }
 
-    /// Loads the reference cached in `dir` under `key`, if there is a valid one.
+    /// Loads the reference cached in `dir` under `key`, if there is a valid one; a damaged one
+    /// is reported and left for the caller to trace again (and overwrite).
     pub fn load(dir: &Path, key: &str) -> Option<Reference> {
-        let bytes = std::fs::read(dir.join(format!("{key}.ref"))).ok()?;
-        Reference::from_bytes(&bytes, key)
+        let path = dir.join(format!("{key}.ref"));
+        let bytes = std::fs::read(&path).ok()?;
+        Reference::check_bytes(&bytes, key)
+            .map_err(|why| {
+                log::warn!("bench: the cached reference {} is unusable ({why}); tracing it again", path.display())
+            })
+            .ok()
     }
 
     /// Writes it to `dir` under `key` atomically (a temporary file beside it, then renamed);

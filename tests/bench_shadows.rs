@@ -586,3 +586,63 @@ fn flip_scores_a_lone_frame_whatever_the_frame_count_with_ambient_occlusion() {
     assert_eq!(one, four, "FLIP with 1 and 4 timed frames");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A missing texture and a missing MTL library are warnings for `render`, which renders
+/// without them: `render --shadows auto` and `bench shadows` on the same scene did fail (their
+/// reference key read every file the scene named). Now all three finish, saying so once each.
+#[test]
+fn missing_textures_and_libraries_are_warnings_for_auto_and_the_bench_too() {
+    let dir = temp_dir("missing-inputs");
+    std::fs::write(
+        dir.join("box.obj"),
+        "mtllib box.mtl\nmtllib gone.mtl\nusemtl wood\n\
+         v -0.5 0 -0.5\nv 0.5 0 -0.5\nv 0.5 0 0.5\nv -0.5 0 0.5\n\
+         v -0.5 1 -0.5\nv 0.5 1 -0.5\nv 0.5 1 0.5\nv -0.5 1 0.5\n\
+         vt 0 0\nvt 1 0\nvt 1 1\nvt 0 1\n\
+         f 1/1 2/2 3/3 4/4\nf 8/1 7/2 6/3 5/4\nf 1/1 5/2 6/3 2/4\nf 2/1 6/2 7/3 3/4\nf 3/1 7/2 8/3 4/4\nf 4/1 8/2 5/3 1/4\n",
+    )
+    .unwrap();
+    std::fs::write(dir.join("box.mtl"), "newmtl wood\nKd 0.6 0.5 0.4\nmap_Kd missing.png\n").unwrap();
+    let scene = dir.join("scene.toml");
+    std::fs::write(
+        &scene,
+        format!(
+            "[camera]\neye = [2.0, 2.5, 3.0]\ntarget = [0.0, 0.4, 0.0]\nvfov_deg = 45.0\n{BOX_AND_SUN}\
+             [[objects]]\nmesh = \"box.obj\"\n[[objects]]\nshape = \"plane\"\nsize = 6.0\ncast_shadows = false\n"
+        ),
+    )
+    .unwrap();
+    let cache = dir.join("cache");
+    let warned = |out: &Output| {
+        let err = String::from_utf8_lossy(&out.stderr).into_owned();
+        assert!(err.contains("missing.png") && err.contains("gone.mtl"), "{err}");
+    };
+    let png = dir.join("out.png");
+    let render = common::umbra()
+        .env("XDG_CACHE_HOME", &cache)
+        .args(["render", scene.to_str().unwrap(), "--size", "48x32", "--shadows", "auto", "-o", png.to_str().unwrap()])
+        .output()
+        .unwrap();
+    ok(&render);
+    warned(&render);
+    assert!(png.exists());
+    let out = dir.join("bench");
+    let run = bench(
+        &cache,
+        &[
+            scene.to_str().unwrap(),
+            "--methods",
+            "traced,map",
+            "--size",
+            "48x32",
+            "--frames",
+            "1",
+            "-o",
+            out.to_str().unwrap(),
+        ],
+    );
+    ok(&run);
+    warned(&run);
+    assert!(out.join("results.csv").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -98,7 +98,8 @@ pub struct Reference {
 
 /// The hex SHA-256 that names a reference: the bench's reference format and umbra's version;
 /// the device and driver (references from another device may differ on grazing rays); the size;
-/// the contents of every file the scene was read from (scene file, OBJ, MTL); and the resolved
+/// the contents of every file the scene was read from (scene file, OBJ, MTL; one it could not
+/// read, a missing texture say, by its name); and the resolved
 /// scene itself: camera, every light, every mesh's vertices, normals, indices and caster flag.
 pub fn cache_key(scene: &Scene, width: u32, height: u32, device: &str) -> Result<String, String> {
     let mut h = Sha256::new();
@@ -114,8 +115,12 @@ pub fn cache_key(scene: &Scene, width: u32, height: u32, device: &str) -> Result
     field("device", device.as_bytes());
     field("size", format!("{width}x{height}").as_bytes());
     for source in &scene.sources {
-        let bytes = std::fs::read(source).map_err(|e| format!("{}: {e}", source.display()))?;
-        field("source", &bytes);
+        // A texture or MTL library the scene names but could not read was a warning at load,
+        // and the render went on without it: its absence is part of what was rendered.
+        match std::fs::read(source) {
+            Ok(bytes) => field("source", &bytes),
+            Err(_) => field("unreadable source", source.as_os_str().as_encoded_bytes()),
+        }
     }
     field("camera", format!("{:?}", scene.camera).as_bytes());
     for light in &scene.lights {

@@ -147,6 +147,43 @@ pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     cleanup::persist(tmp, path)
 }
 
+/// Writes a set of files that belong together (a bench run's results and charts) all or
+/// nothing: every file goes to a temporary file beside its target first, and only when all are
+/// written and synced are they renamed into place. A failure on any (a full disk) removes the
+/// temporary files and leaves every target as it was, so a directory never mixes one run's
+/// chart with another's results. The error names the file that failed.
+pub fn write_files_atomic(files: &[(PathBuf, Vec<u8>)]) -> std::io::Result<()> {
+    use std::io::Write as _;
+    let mut written = Vec::with_capacity(files.len());
+    for (path, bytes) in files {
+        let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+        let dir = match path.parent() {
+            Some(dir) if !dir.as_os_str().is_empty() => dir,
+            _ => Path::new("."),
+        };
+        let result = cleanup::create(dir, &file_name).and_then(|mut tmp| {
+            match tmp.write_all(bytes).and_then(|()| tmp.as_file().sync_all()) {
+                Ok(()) => Ok(tmp),
+                Err(e) => {
+                    cleanup::discard(tmp);
+                    Err(e)
+                }
+            }
+        });
+        match result {
+            Ok(tmp) => written.push(tmp),
+            Err(e) => {
+                written.into_iter().for_each(cleanup::discard);
+                return Err(std::io::Error::new(e.kind(), format!("{}: {e}", path.display())));
+            }
+        }
+    }
+    for (tmp, (path, _)) in written.into_iter().zip(files) {
+        cleanup::persist(tmp, path).map_err(|e| std::io::Error::new(e.kind(), format!("{}: {e}", path.display())))?;
+    }
+    Ok(())
+}
+
 fn write_png(frame: &Frame, tmp: &NamedTempFile) -> Result<(), String> {
     let (width, height, bytes) = match frame {
         Frame::Rgba8 { width, height, pixels } => (*width, *height, pixels.clone()),
@@ -386,5 +423,25 @@ mod tests {
         let names: Vec<&[u8]> = exr_attributes(&bytes[0]).unwrap().iter().map(|a| a.name).collect();
         assert!(names.len() > provenance.len());
         assert!(names.is_sorted(), "{:?}", names.iter().map(|n| String::from_utf8_lossy(n)).collect::<Vec<_>>());
+    }
+
+    /// A set of files is written whole or not at all: when one of them cannot be written, the
+    /// others already written keep their old contents and no temporary file is left.
+    #[test]
+    fn a_set_of_files_is_written_whole_or_not_at_all() {
+        let dir = tempfile::tempdir().unwrap();
+        let (a, b) = (dir.path().join("results.csv"), dir.path().join("chart.png"));
+        fs::write(&a, b"old csv").unwrap();
+        fs::write(&b, b"old png").unwrap();
+        // The third file's folder does not exist: its temporary file cannot be made.
+        let missing = dir.path().join("gone").join("chart.svg");
+        let set = vec![(a.clone(), b"new csv".to_vec()), (b.clone(), b"new png".to_vec()), (missing, b"svg".to_vec())];
+        let err = write_files_atomic(&set).unwrap_err();
+        assert!(err.to_string().contains("chart.svg"), "{err}");
+        assert_eq!((fs::read(&a).unwrap(), fs::read(&b).unwrap()), (b"old csv".to_vec(), b"old png".to_vec()));
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file left");
+        write_files_atomic(&set[..2]).unwrap();
+        assert_eq!((fs::read(&a).unwrap(), fs::read(&b).unwrap()), (b"new csv".to_vec(), b"new png".to_vec()));
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2);
     }
 }

@@ -153,10 +153,17 @@ impl Chart {
         Ok(png)
     }
 
-    /// Writes `stem.svg` and `stem.png` beside each other, each atomically.
+    /// `stem.svg` and `stem.png` in `dir` with their bytes, for `output::write_files_atomic`.
+    pub fn files(&self, dir: &Path, stem: &str) -> Result<Vec<(std::path::PathBuf, Vec<u8>)>, String> {
+        Ok(vec![
+            (dir.join(format!("{stem}.svg")), self.svg()?.into_bytes()),
+            (dir.join(format!("{stem}.png")), self.png()?),
+        ])
+    }
+
+    /// Writes `stem.svg` and `stem.png` beside each other, both or neither.
     pub fn write(&self, dir: &Path, stem: &str) -> Result<(), String> {
-        write_atomic(&dir.join(format!("{stem}.svg")), self.svg()?.as_bytes())?;
-        write_atomic(&dir.join(format!("{stem}.png")), &self.png()?)
+        crate::output::write_files_atomic(&self.files(dir, stem)?).map_err(|e| e.to_string())
     }
 }
 

@@ -16,7 +16,7 @@ use anyhow::{bail, Context as _, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
-use super::chart::{write_atomic, Chart, Series};
+use super::chart::{Chart, Series};
 use super::metrics::{flip_mean, scored_error, visibility_error, VisibilityError};
 use super::reference::{self, LightReference};
 use super::report::{self, Row};
@@ -261,6 +261,8 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let say = |text: String| bar.suspend(|| println!("{text}"));
 
     let mut rows: Vec<Row> = Vec::new();
+    // Every chart and result file, written together at the end.
+    let mut results: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let mut scene_json = Vec::new();
     // Each scene's renderer calibrates its own timing: its mode and time axis are the scene's.
     let mut timing_labels: Vec<String> = Vec::new();
@@ -498,7 +500,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             front: front.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect(),
             auto: auto.map(|i| (rows[i].time_ms(), rows[i].scored_error)),
         };
-        chart.write(dir, &job.stem).map_err(anyhow::Error::msg)?;
+        results.extend(chart.files(dir, &job.stem).map_err(anyhow::Error::msg)?);
         scene_json.push(json!({
             "scene": job.label,
             "width": width,
@@ -557,11 +559,12 @@ pub fn run(options: &Options) -> Result<Outcome> {
         "scenes": scene_json,
         "rows": rows,
     });
-    let csv_path = dir.join("results.csv");
-    let json_path = dir.join("results.json");
-    write_atomic(&csv_path, report::to_csv(&rows).as_bytes()).map_err(anyhow::Error::msg)?;
     let text = serde_json::to_string_pretty(&doc).context("results as JSON")?;
-    write_atomic(&json_path, text.as_bytes()).map_err(anyhow::Error::msg)?;
+    results.push((dir.join("results.csv"), report::to_csv(&rows).into_bytes()));
+    results.push((dir.join("results.json"), text.into_bytes()));
+    // The whole set or nothing: on a failure (a full disk) the directory keeps the previous
+    // run's set whole.
+    crate::output::write_files_atomic(&results).context("writing the results")?;
     let summary = report::summary(&rows);
     Ok(Outcome { rows, summary, files: outputs, validation_messages: ctx.validation_messages() })
 }

@@ -12,8 +12,13 @@ use umbra::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, Shadow
 use umbra::output::{check_output, write_image_with, ImageFormat, WriteOptions};
 use umbra::renderer::Renderer;
 use umbra::scene::Scene;
-use umbra::timing::{TimingCalibration, TimingLog};
+use umbra::timing::TimingLog;
 use umbra::vk::{GpuContext, GpuOptions};
+
+/// `println!` whose failure to write (a full disk) is the calling function's error, not a panic.
+macro_rules! outln {
+    ($($arg:tt)*) => { umbra::output::print_stdout(&format!("{}\n", format_args!($($arg)*)))? };
+}
 
 #[derive(Parser)]
 #[command(name = "umbra", version, about = "Vulkan renderer with compute ray-traced shadows")]
@@ -504,7 +509,8 @@ fn parse_exposure(text: &str) -> Result<f32, String> {
 
 fn main() -> ExitCode {
     // A closed stdout (`umbra render ... | head`) ends the program quietly, as it does other
-    // Unix tools, instead of making println! panic on EPIPE: Rust ignores SIGPIPE by default.
+    // Unix tools, instead of an EPIPE error: Rust ignores SIGPIPE by default. Any other failure
+    // to write stdout (a full disk) is an error line (`outln!`).
     #[cfg(unix)]
     // SAFETY: nothing else runs yet; SIG_DFL is a valid disposition for SIGPIPE.
     unsafe {
@@ -597,7 +603,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         let start = Instant::now();
         let chosen = umbra::bench::auto::resolve(&mut renderer, &mut settings).context("auto: calibrating")?;
         for c in &chosen {
-            println!("{c}");
+            outln!("{c}");
         }
         log::info!("auto: calibrated in {:.1} s", start.elapsed().as_secs_f64());
     }
@@ -619,7 +625,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         let host_ms = start.elapsed().as_secs_f64() * 1e3;
         if i == 0 && args.print_plan {
             if let Some(plan) = renderer.last_plan() {
-                println!("{plan}");
+                outln!("{plan}");
             }
         }
         if args.timings {
@@ -631,14 +637,16 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     write_image_with(&frame, &output, &write_options)?;
     // Without -o, the full path: the user did not name the file, so say where it went.
     let shown = if given_output { output.clone() } else { std::path::absolute(&output).unwrap_or(output.clone()) };
-    println!("wrote {} ({width}x{height}) on {device_name}", shown.display());
+    outln!("wrote {} ({width}x{height}) on {device_name}", shown.display());
     if let Some(calibration) = &calibration {
-        print_timings(&timings, calibration);
+        // Per pass and for the whole frame, median and IQR; a header says how the GPU figures
+        // were taken (the calibration's choice), or why there are none.
+        umbra::output::print_stdout(&timings.report(calibration))?;
     }
     drop(renderer);
     if args.validate {
         let n = ctx.validation_messages();
-        println!("validation: {n} messages");
+        outln!("validation: {n} messages");
         if n > 0 {
             return Ok(ExitCode::FAILURE);
         }
@@ -688,18 +696,18 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         script,
     };
     let report = umbra::viewer::run(options)?;
-    println!("viewer: {} frames presented, {} turns without a frame", report.frames, report.skipped);
+    outln!("viewer: {} frames presented, {} turns without a frame", report.frames, report.skipped);
     if let Some(mode) = &report.present_mode {
-        println!("present mode: {mode}");
+        outln!("present mode: {mode}");
     }
     for shot in &report.screenshots {
-        println!("screenshot: {}", shot.display());
+        outln!("screenshot: {}", shot.display());
     }
     for capture in &report.captures {
-        println!("capture: {}", capture.display());
+        outln!("capture: {}", capture.display());
     }
     if args.validate {
-        println!("validation: {} messages", report.validation_messages);
+        outln!("validation: {} messages", report.validation_messages);
         if report.validation_messages > 0 {
             return Ok(ExitCode::FAILURE);
         }
@@ -718,7 +726,7 @@ fn bench_rays(args: BenchRaysArgs) -> Result<ExitCode> {
         validate: args.validate,
         file_order: args.file_order,
     })?;
-    print!("{}", outcome.report);
+    umbra::output::print_stdout(&outcome.report)?;
     Ok(ExitCode::SUCCESS)
 }
 
@@ -761,15 +769,15 @@ fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
         max_error: args.max_error,
     };
     let outcome = shadows::run(&options)?;
-    print!("{}", outcome.summary);
-    println!(
+    umbra::output::print_stdout(&outcome.summary)?;
+    outln!(
         "wrote {} rows to {} in {:.1} s",
         outcome.rows.len(),
         options.out_dir.display(),
         start.elapsed().as_secs_f64()
     );
     if args.validate {
-        println!("validation: {} messages", outcome.validation_messages);
+        outln!("validation: {} messages", outcome.validation_messages);
         if outcome.validation_messages > 0 {
             return Ok(ExitCode::FAILURE);
         }
@@ -780,23 +788,17 @@ fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
 fn devices() -> Result<ExitCode> {
     let list = umbra::vk::list_devices()?;
     if list.is_empty() {
-        println!("no Vulkan devices found; run tools/setup for lavapipe");
+        outln!("no Vulkan devices found; run tools/setup for lavapipe");
         return Ok(ExitCode::FAILURE);
     }
     for d in &list {
-        println!("{}: {} ({}), driver {}, Vulkan {}", d.index, d.name, d.kind, d.driver, d.api_version);
+        outln!("{}: {} ({}), driver {}, Vulkan {}", d.index, d.name, d.kind, d.driver, d.api_version);
         match &d.unusable {
-            None => println!("   {}", d.capabilities.describe()),
-            Some(why) => println!("   not usable by umbra: {why}"),
+            None => outln!("   {}", d.capabilities.describe()),
+            Some(why) => outln!("   not usable by umbra: {why}"),
         }
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Per pass and for the whole frame, median and IQR; a header says how the GPU figures were
-/// taken (the calibration's choice), or why there are none.
-fn print_timings(timings: &TimingLog, calibration: &TimingCalibration) {
-    print!("{}", timings.report(calibration));
 }
 
 #[cfg(test)]

@@ -184,6 +184,16 @@ pub fn write_files_atomic(files: &[(PathBuf, Vec<u8>)]) -> std::io::Result<()> {
     Ok(())
 }
 
+/// Writes `text` to standard output now (flushed): a failure (a full disk, `/dev/full`) is an
+/// error for the caller to report, where `print!` would panic. A closed pipe never gets here:
+/// the binary ends on SIGPIPE as other Unix tools do.
+pub fn print_stdout(text: &str) -> std::io::Result<()> {
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| std::io::Error::new(e.kind(), format!("cannot write to standard output: {e}")))
+}
+
 fn write_png(frame: &Frame, tmp: &NamedTempFile) -> Result<(), String> {
     let (width, height, bytes) = match frame {
         Frame::Rgba8 { width, height, pixels } => (*width, *height, pixels.clone()),

@@ -443,6 +443,25 @@ fn a_closed_stdout_ends_quietly() {
     assert!(o.status.success() || o.status.signal() == Some(libc::SIGPIPE), "{:?}: {err}", o.status);
 }
 
+/// Stdout on a full disk (`/dev/full`) made the first println! panic (exit 101): now one error
+/// line and exit 1. A render has written its image by then, and keeps it.
+#[test]
+fn a_full_stdout_is_one_error_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("f.png");
+    let full = || std::fs::OpenOptions::new().write(true).open("/dev/full").expect("/dev/full");
+    let runs: [&[&str]; 3] = [
+        &["devices"],
+        &["render", "-o", out.to_str().unwrap(), "--size", "32x24"],
+        &["bench", "rays", "--size", "16x12", "--repeats", "1"],
+    ];
+    for args in runs {
+        let o = umbra().args(args).stdout(full()).output().expect("run umbra");
+        assert_clear_error(&o, &["cannot write to standard output: No space left on device"]);
+    }
+    assert!(out.exists());
+}
+
 /// A size no frame fits names the size and what it needs, once: it was "vkBindImageMemory
 /// failed: A device memory allocation has failed" (and before that "memory allocation failed:
 /// Out of memory: Out of memory"). No image is written.

@@ -258,7 +258,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             .expect("a valid template")
             .progress_chars("=> "),
     );
-    let say = |text: String| bar.suspend(|| println!("{text}"));
+    let say = |text: String| bar.suspend(|| crate::output::print_stdout(&format!("{text}\n")));
 
     let mut rows: Vec<Row> = Vec::new();
     // Every chart and result file, written together at the end.
@@ -286,7 +286,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             (false, None) => {
                 format!("{}: reference traced in {seconds:.1} s (not cached: no cache directory)", job.label)
             }
-        });
+        })?;
         bar.inc(1);
 
         let lights = job.scene.lights.clone();

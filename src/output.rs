@@ -359,11 +359,16 @@ mod cleanup {
         });
     }
 
+    /// The longest file name: NAME_MAX on Linux and the BSDs.
+    const NAME_MAX: usize = 255;
+
     /// A new empty file `.<name>.XXXXXX.tmp` in `dir`, created exclusively (never through an
     /// existing name or link), with the mode a new file gets (0666 less the umask), and listed.
+    /// `<name>` is cut short where the whole would not fit in `NAME_MAX` bytes (an output named
+    /// with 244 bytes or more).
     pub(super) fn create(dir: &Path, name: &str) -> io::Result<NamedTempFile> {
         install_handler();
-        let prefix = format!(".{name}.");
+        let prefix = format!(".{}.", fit(name, NAME_MAX - ".".len() - ".XXXXXX.tmp".len()));
         let mut builder = tempfile::Builder::new();
         builder.prefix(&prefix).suffix(".tmp");
         #[cfg(unix)]
@@ -375,6 +380,15 @@ mod cleanup {
         let tmp = builder.tempfile_in(dir)?;
         pending.push(tmp.path().to_owned());
         Ok(tmp)
+    }
+
+    /// The longest start of `name` that is at most `bytes` long, cut between characters.
+    fn fit(name: &str, bytes: usize) -> &str {
+        let mut end = name.len().min(bytes);
+        while !name.is_char_boundary(end) {
+            end -= 1;
+        }
+        &name[..end]
     }
 
     /// Removes a temporary file that will not be used.

@@ -462,6 +462,18 @@ fn a_full_stdout_is_one_error_line() {
     assert!(out.exists());
 }
 
+/// An output name of up to 255 bytes (NAME_MAX) is written: the temporary name beside it,
+/// `.NAME.XXXXXX.tmp`, used to be too long past 243 bytes, after the render.
+#[test]
+fn the_longest_output_name_is_written() {
+    let dir = tempfile::tempdir().unwrap();
+    let name = format!("{}.png", "n".repeat(251));
+    let o = run(&["render", "-o", dir.path().join(&name).to_str().unwrap(), "--size", "16x12"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let left: Vec<_> = std::fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(left, vec![std::ffi::OsString::from(name)]);
+}
+
 /// A size no frame fits names the size and what it needs, once: it was "vkBindImageMemory
 /// failed: A device memory allocation has failed" (and before that "memory allocation failed:
 /// Out of memory: Out of memory"). No image is written.

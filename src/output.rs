@@ -4,9 +4,10 @@
 //!
 //! The temporary file is created exclusively under a random name (`tempfile`), so no other user
 //! can plant a file or a symlink there for the write to follow, and it is removed if the write
-//! fails, the program panics, or SIGINT or SIGTERM arrive while it exists. An existing output
-//! keeps its mode; a read-only one is replaced only when asked (`--force`), and an output that
-//! is one of the render's own inputs (the scene file, a mesh, a material library) never is.
+//! fails, the program panics, or SIGINT, SIGTERM, SIGHUP or SIGQUIT arrive while it exists. An
+//! existing output keeps its mode; a read-only one is replaced only when asked (`--force`), and
+//! an output that is one of the render's own inputs (the scene file, a mesh, a material library)
+//! never is.
 
 use std::fs;
 use std::io::{BufWriter, Write};
@@ -130,8 +131,9 @@ pub fn write_image_with(frame: &Frame, path: &Path, options: &WriteOptions) -> R
 }
 
 /// Writes `bytes` to `path` atomically: a temporary file beside it, created exclusively with
-/// the mode a new file gets (0666 less the umask), removed on failure or on SIGINT/SIGTERM, then
-/// renamed into place. For every other file umbra writes (bench results, charts).
+/// the mode a new file gets (0666 less the umask), removed on failure or on a signal that ends
+/// the process (as for images), then renamed into place. For every other file umbra writes
+/// (bench results, charts).
 pub fn write_file_atomic(path: &Path, bytes: &[u8]) -> std::io::Result<()> {
     use std::io::Write as _;
     let file_name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
@@ -310,8 +312,9 @@ pub fn read_exr(path: &Path) -> Result<(u32, u32, Vec<f32>), String> {
     Ok((size.width() as u32, size.height() as u32, image.layer_data.channel_data.pixels.1))
 }
 
-/// Temporary files that exist right now, removed by a signal thread on SIGINT or SIGTERM
-/// before the process ends as the signal's default action would end it.
+/// Temporary files that exist right now, removed by a signal thread on SIGINT, SIGTERM, SIGHUP
+/// (the terminal closed) or SIGQUIT before the process ends as the signal's default action
+/// would end it.
 ///
 /// The list's lock is held from creating a file until it is listed, and from renaming it until
 /// it is struck off, so the signal thread never misses a file nor removes a finished image.
@@ -332,15 +335,19 @@ mod cleanup {
     /// Starts the signal thread, once per process.
     fn install_handler() {
         HANDLER.call_once(|| {
-            use signal_hook::consts::{SIGINT, SIGTERM};
-            let mut signals = match signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) {
+            use signal_hook::consts::{SIGHUP, SIGINT, SIGQUIT, SIGTERM};
+            let unwatched = |e: io::Error| {
+                log::warn!(
+                    "cannot watch for SIGINT, SIGTERM, SIGHUP and SIGQUIT ({e}): an interrupted write may leave a \
+                     temporary file"
+                )
+            };
+            // A signal ignored when umbra started stays ignored (`nohup` ignores SIGHUP, a shell
+            // SIGINT and SIGQUIT for a background job): watching it would let it end the run.
+            let watched = [SIGINT, SIGTERM, SIGHUP, SIGQUIT].into_iter().filter(|&s| !ignored(s));
+            let mut signals = match signal_hook::iterator::Signals::new(watched) {
                 Ok(signals) => signals,
-                Err(e) => {
-                    log::warn!(
-                        "cannot watch for SIGINT/SIGTERM ({e}): an interrupted write may leave a temporary file"
-                    );
-                    return;
-                }
+                Err(e) => return unwatched(e),
             };
             let spawned = std::thread::Builder::new().name("umbra-signals".into()).spawn(move || {
                 if let Some(signal) = signals.forever().next() {
@@ -354,9 +361,18 @@ mod cleanup {
                 }
             });
             if let Err(e) = spawned {
-                log::warn!("cannot watch for SIGINT/SIGTERM ({e}): an interrupted write may leave a temporary file");
+                unwatched(e);
             }
         });
+    }
+
+    /// Whether `signal`'s disposition is to be ignored.
+    fn ignored(signal: i32) -> bool {
+        // SAFETY: with no new action, sigaction only reads the current one into `old`.
+        unsafe {
+            let mut old: libc::sigaction = std::mem::zeroed();
+            libc::sigaction(signal, std::ptr::null(), &mut old) == 0 && old.sa_sigaction == libc::SIG_IGN
+        }
     }
 
     /// The longest file name: NAME_MAX on Linux and the BSDs.

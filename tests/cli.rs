@@ -364,43 +364,33 @@ fn a_planted_link_at_the_old_temporary_name_is_not_followed() {
     assert_eq!(image::open(&out).expect("a PNG").to_rgb8().dimensions(), (64, 48));
 }
 
-/// SIGTERM or SIGINT while the image is being written removes the temporary file. The write of
-/// a 2048x2048 PNG lasts ~0.1 s: the test waits for the temporary file to appear, then signals.
+/// SIGTERM, SIGINT, SIGHUP (the terminal closed) or SIGQUIT while the image is being written
+/// removes the temporary file (SIGHUP and SIGQUIT used to leave it). The write of a 2048x2048
+/// PNG lasts ~0.1 s: the test waits for the temporary file to appear, then signals.
 #[test]
 fn a_signal_during_the_write_leaves_no_temporary_file() {
     use std::os::unix::process::ExitStatusExt;
     use std::process::Stdio;
-    let temporaries = |dir: &Path| -> Vec<String> {
-        std::fs::read_dir(dir)
-            .unwrap()
-            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
-            .filter(|n| n.ends_with(".tmp"))
-            .collect()
-    };
-    for signal in [libc::SIGTERM, libc::SIGINT] {
+    for signal in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP, libc::SIGQUIT] {
         let mut caught = false;
         for _attempt in 0..4 {
             let dir = tempfile::tempdir().unwrap();
             let out = dir.path().join("out.png");
-            let mut child = umbra()
+            let mut command = umbra();
+            command
                 .args(["render", "-o", out.to_str().unwrap(), "--size", "2048x2048", "--shadows", "none"])
                 .stdout(Stdio::null())
-                .stderr(Stdio::null())
-                .spawn()
-                .unwrap();
-            let start = std::time::Instant::now();
-            let mut seen = false;
-            while start.elapsed() < std::time::Duration::from_secs(120) {
-                if !temporaries(dir.path()).is_empty() {
-                    seen = true;
-                    break;
-                }
-                if child.try_wait().unwrap().is_some() {
-                    break;
-                }
-                std::thread::sleep(std::time::Duration::from_micros(200));
+                .stderr(Stdio::null());
+            // SAFETY: setrlimit is async-signal-safe. No core file for SIGQUIT's default action.
+            unsafe {
+                std::os::unix::process::CommandExt::pre_exec(&mut command, || {
+                    let none = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
+                    libc::setrlimit(libc::RLIMIT_CORE, &none);
+                    Ok(())
+                });
             }
-            if !seen {
+            let mut child = command.spawn().unwrap();
+            if !wait_for_write(&mut child, dir.path()) {
                 let _ = child.kill();
                 let _ = child.wait();
                 continue;
@@ -419,6 +409,66 @@ fn a_signal_during_the_write_leaves_no_temporary_file() {
         }
         assert!(caught, "never caught a write in progress for signal {signal}");
     }
+}
+
+/// A signal ignored when umbra starts stays ignored while it writes: `nohup umbra render`
+/// survives the terminal closing (SIGHUP), as it did before SIGHUP was watched.
+#[test]
+fn an_ignored_hangup_does_not_end_the_write() {
+    use std::process::Stdio;
+    for _attempt in 0..4 {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out.png");
+        let mut command = umbra();
+        command
+            .args(["render", "-o", out.to_str().unwrap(), "--size", "2048x2048", "--shadows", "none"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::piped());
+        // SAFETY: signal(2) is async-signal-safe; this is what nohup does before it runs a command.
+        unsafe {
+            std::os::unix::process::CommandExt::pre_exec(&mut command, || {
+                libc::signal(libc::SIGHUP, libc::SIG_IGN);
+                Ok(())
+            });
+        }
+        let mut child = command.spawn().unwrap();
+        if !wait_for_write(&mut child, dir.path()) {
+            let _ = child.wait();
+            continue;
+        }
+        // SAFETY: kill(2) on the child we started, which has not been waited for yet.
+        unsafe { libc::kill(child.id() as libc::pid_t, libc::SIGHUP) };
+        let o = child.wait_with_output().unwrap();
+        assert!(o.status.success(), "{:?}: {}", o.status, stderr(&o));
+        assert!(out.exists() && temporaries(dir.path()).is_empty());
+        return;
+    }
+    panic!("never caught a write in progress");
+}
+
+/// The temporary files (`*.tmp`) in `dir`.
+fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .filter(|n| n.ends_with(".tmp"))
+        .collect()
+}
+
+/// Waits until `child` has a temporary file in `dir` (its write has begun); false if it ends
+/// first or two minutes pass.
+fn wait_for_write(child: &mut std::process::Child, dir: &Path) -> bool {
+    let start = std::time::Instant::now();
+    while start.elapsed() < std::time::Duration::from_secs(120) {
+        if !temporaries(dir).is_empty() {
+            return true;
+        }
+        if child.try_wait().unwrap().is_some() {
+            return false;
+        }
+        std::thread::sleep(std::time::Duration::from_micros(200));
+    }
+    false
 }
 
 /// `umbra render ... --print-plan | true`: a closed stdout used to make println! panic

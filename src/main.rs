@@ -658,8 +658,10 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
     let scene = load_scene(args.scene.as_deref())?;
     let script = match &args.script {
         Some(path) => {
-            let text =
-                std::fs::read_to_string(path).with_context(|| format!("{}: cannot read script", path.display()))?;
+            // Guarded as scene files are: /dev/zero would be read without end, a FIFO wait forever.
+            let cannot = |why: String| anyhow::anyhow!("{}: cannot read script: {why}", path.display());
+            let bytes = umbra::scene::read_input_file(path).map_err(cannot)?;
+            let text = String::from_utf8(bytes).map_err(|_| cannot("not UTF-8 text".into()))?;
             umbra::viewer::script::parse(&text, &path.display().to_string())?
         }
         None => Vec::new(),

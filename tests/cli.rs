@@ -221,6 +221,12 @@ fn devices_and_fifos_are_refused_promptly() {
     let as_scene = run_within(PROMPTLY, &["render", fifo.to_str().unwrap(), "-o", o], &[]);
     assert_clear_error(&as_scene, &["pipe.obj: cannot read scene file: not a regular file (a FIFO)"]);
     assert!(!out.exists());
+    // A viewer script is guarded the same: /dev/zero was read into memory without end, a FIFO
+    // with no writer waited for ever. Both are refused before any window opens.
+    let zero = run_within(PROMPTLY, &["view", "--script", "/dev/zero"], &[]);
+    assert_clear_error(&zero, &["/dev/zero: cannot read script: not a regular file (a character device)"]);
+    let fifo_script = run_within(PROMPTLY, &["view", "--script", fifo.to_str().unwrap()], &[]);
+    assert_clear_error(&fifo_script, &["pipe.obj: cannot read script: not a regular file (a FIFO)"]);
 }
 
 #[test]

@@ -234,6 +234,13 @@ pub struct Scene {
     pub lighting: SceneLighting,
 }
 
+/// Reads a file umbra takes in besides a scene's (a viewer script) as the scene's inputs are
+/// read: a regular file only, no larger than `UMBRA_MAX_INPUT_BYTES`. The error is one line
+/// without an OS error number, for the caller to prefix with the file's name.
+pub fn read_input_file(path: &Path) -> Result<Vec<u8>, String> {
+    input::read(path).map_err(|e| error::IoReason(&e).to_string())
+}
+
 /// The built-in scene: built-in shapes only, so it needs no file beside the binary.
 const DEFAULT_SCENE: &str = include_str!("../../assets/default.toml");
 

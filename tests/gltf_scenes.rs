@@ -598,6 +598,50 @@ fn percent_encoded_uris_name_their_files() {
     assert!(scene.sources.iter().any(|s| s.ends_with("grey tex.png")), "{:?}", scene.sources);
 }
 
+/// A buffer or image URI reads files in the glTF file's folder or below it, never elsewhere: a
+/// `../` step or an absolute path (percent-encoded or not) is refused in one line naming the
+/// model and the URI. A subfolder is fine.
+#[test]
+fn uris_outside_the_models_folder_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let (top, model) = (dir.path(), dir.path().join("model"));
+    std::fs::create_dir_all(model.join("parts")).unwrap();
+    let g = quad_file(Some(U16));
+    std::fs::write(top.join("outside.bin"), &g.bin).unwrap();
+    std::fs::write(model.join("parts/inside.bin"), &g.bin).unwrap();
+    let write = |name: &str, doc: serde_json::Value| {
+        std::fs::write(model.join(name), serde_json::to_string(&doc).unwrap()).unwrap();
+    };
+    write("sub.gltf", g.document(Some("parts/inside.bin")));
+    let scene = parse_in(top, &format!("{CAMERA}[[objects]]\nmesh = \"model/sub.gltf\"\n")).unwrap();
+    assert_eq!(scene.triangle_count(), 2);
+
+    let absolute = top.join("outside.bin").to_str().unwrap().to_owned();
+    for uri in ["../outside.bin", "parts/../../outside.bin", "%2E%2E/outside.bin", absolute.as_str()] {
+        write("up.gltf", g.document(Some(uri)));
+        let message = parse_in(top, &format!("{CAMERA}[[objects]]\nmesh = \"model/up.gltf\"\n")).unwrap_err();
+        let expected = format!(
+            "\"model/up.gltf\" is not a valid glTF file: buffer 0: URI {uri:?} leaves the glTF file's folder; a glTF \
+             file reads only files in its folder or below"
+        );
+        assert!(message.contains(&expected), "{message}");
+    }
+    // An image too, where a missing one would only be a warning.
+    let mut textured = quad_file(Some(U16));
+    let (_, _, uv, _) = quad_xz();
+    let uvs = textured.vec2(&uv);
+    textured.meshes[0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(uvs);
+    textured.materials[0]["pbrMetallicRoughness"]["baseColorTexture"] = json!({ "index": 0 });
+    textured.images = vec![json!({ "uri": "../grey.png" })];
+    image::RgbaImage::from_pixel(2, 2, image::Rgba([128, 128, 128, 255])).save(top.join("grey.png")).unwrap();
+    textured.write_glb(&model.join("tex.glb"));
+    let message = parse_in(top, &format!("{CAMERA}[[objects]]\nmesh = \"model/tex.glb\"\n")).unwrap_err();
+    assert!(
+        message.contains("\"model/tex.glb\" is not a valid glTF file: image 0: URI \"../grey.png\" leaves"),
+        "{message}"
+    );
+}
+
 /// A point light beyond the distance the renderer's f32 frame holds is a warning naming the
 /// scene file and the light as the file counts it: rect lights count there (the warning named
 /// the index among the other lights, `lights[1]` for the file's `lights[2]`, and no file); a

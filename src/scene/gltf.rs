@@ -195,7 +195,7 @@ fn read_buffers(
         let index = buffer.index();
         let mut data = match buffer.source() {
             gltf::buffer::Source::Uri(uri) if !uri.starts_with("data:") => {
-                let file = base.join(uri_path(uri));
+                let file = uri_file(base, uri).map_err(|why| GltfError::Parse(format!("buffer {index}: {why}")))?;
                 let bytes = input::read(&file)
                     .map_err(|e| GltfError::Parse(format!("buffer {index}: cannot read {uri:?}: {}", IoReason(&e))))?;
                 files.push(file);
@@ -239,6 +239,19 @@ fn uri_path(uri: &str) -> String {
         }
     }
     String::from_utf8(decoded).unwrap_or_else(|_| uri.to_owned())
+}
+
+/// The file a URI (not a data URI) names: percent-decoded, in `base` (the glTF file's folder)
+/// or a folder below it. An absolute path or a `..` step is refused: a model would otherwise
+/// read any file the user can (`../../.ssh/id_rsa` as a texture). Links are followed as found.
+fn uri_file(base: &Path, uri: &str) -> Result<PathBuf, String> {
+    let path = PathBuf::from(uri_path(uri));
+    if !path.components().all(|c| matches!(c, std::path::Component::Normal(_) | std::path::Component::CurDir)) {
+        return Err(format!(
+            "URI {uri:?} leaves the glTF file's folder; a glTF file reads only files in its folder or below"
+        ));
+    }
+    Ok(base.join(path))
 }
 
 fn file_name(path: &Path) -> String {
@@ -640,7 +653,8 @@ impl MaterialMaps<'_> {
                 self.cache.get_bytes(&key, &bytes, &name, srgb, label)
             }
             gltf::image::Source::Uri { uri, .. } => {
-                let file = self.file.parent().unwrap_or(Path::new("")).join(uri_path(uri));
+                let base = self.file.parent().unwrap_or(Path::new(""));
+                let file = uri_file(base, uri).map_err(|why| format!("image {}: {why}", image.index()))?;
                 self.cache.get(&file, uri, srgb, label)
             }
         })

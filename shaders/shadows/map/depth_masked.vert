@@ -1,12 +1,16 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-#extension GL_EXT_multiview : require
 // Shadow map depth of alpha-masked casters (depth.vert, plus the texture coordinates the mask
 // is read at; depth_masked.frag discards where it is cut out).
 #include "bindings.glsl"
 #define MAP_LAYERS_BINDING MAP_DEPTH_LAYERS
 #include "map_layers.glsl"
 #include "instance.glsl"
+
+// The layer this rendering pass draws: each layer is its own pass, into its own view.
+layout(push_constant) uniform Push {
+    uint layer;
+} push;
 
 layout(location = 0) in vec3 in_position;
 layout(location = 8) in vec2 in_uv;
@@ -15,5 +19,5 @@ layout(location = 0) out vec2 out_uv;
 
 void main() {
     out_uv = in_uv;
-    gl_Position = layers[gl_ViewIndex].view_proj * vec4(instance_point(in_position), 1.0);
+    gl_Position = layers[push.layer].view_proj * vec4(instance_point(in_position), 1.0);
 }

@@ -1,4 +1,4 @@
-// A light's shadow-map layers, shared by the depth pass (one multiview view per layer) and the
+// A light's shadow-map layers, shared by the depth pass (one rendering pass per layer) and the
 // resolve. Twin of `MapLayer` in src/shadows/map/mod.rs.
 #ifndef UMBRA_MAP_LAYERS_GLSL
 #define UMBRA_MAP_LAYERS_GLSL

@@ -2,7 +2,7 @@
 //! distance is cut into `count` slices by `cascade_splits` (lambda mixes logarithmic and uniform
 //! splits); each slice gets an orthographic layer fitted to its bounding sphere and snapped to
 //! whole texels (`light_space::fit_cascade`), so the shadow neither swims as the camera turns nor
-//! shimmers as it moves. All cascades are one layered map drawn in one multiview pass with the
+//! shimmers as it moves. All cascades are one layered map, each drawn in its own pass, with the
 //! light's `map` parameters (resolution per cascade, bias, PCF); the resolve picks a point's
 //! cascade by its distance along the view and blends into the next across a seam.
 

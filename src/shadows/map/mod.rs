@@ -1,5 +1,5 @@
 //! Shadow maps (`map`, and the layers of `cascades`): for each light it serves, the casters'
-//! depth from the light into a layered depth image, every layer in one multiview pass (a spot
+//! depth from the light into a layered depth image, each layer in its own rendering pass (a spot
 //! light: one perspective layer; a directional light: one orthographic layer fitted to the
 //! casters that can shadow the visible receivers; a point light: the six faces of a cube; a
 //! directional light's cascades: one layer each), drawn only from the casters inside some layer's
@@ -105,15 +105,22 @@ pub struct LightMap {
 }
 
 pub struct MapPipelines {
-    /// The depth pass for 1..=MAX_LAYERS layers (multiview masks), each made on first use.
-    depth: [OnceLock<GraphicsPipeline>; MAX_LAYERS],
+    /// The depth pass of any one layer (`LayerPush` says which), made on first use.
+    depth: OnceLock<GraphicsPipeline>,
     /// The same for alpha-masked casters (texture coordinates, the material's set 1), made for
     /// scenes that have them (`prepare_masked`).
-    masked: [OnceLock<GraphicsPipeline>; MAX_LAYERS],
+    masked: OnceLock<GraphicsPipeline>,
     resolve: ComputePipeline,
     /// The `shadow-map` and `cascades` debug views.
     debug: ComputePipeline,
     ctx: Arc<GpuContext>,
+}
+
+/// The depth pass's push constant: the layer it draws (its matrix in the layer table).
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct LayerPush {
+    layer: u32,
 }
 
 #[repr(C)]
@@ -169,62 +176,57 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
 }
 
 impl MapPipelines {
-    /// The depth pipelines for layers 0..`layers`, made now if they were not.
+    /// The depth pipeline for maps of up to `layers` layers, made now if it was not.
+    ///
+    /// Each layer is its own rendering pass into that layer's own view, told its matrix by a
+    /// push constant. (Multiview, a view per layer, caps layers at the device's
+    /// maxMultiviewViewCount, 6 on lavapipe: 8 cascades broke it. All layers in one multiview
+    /// pass would draw each caster once; but llvmpipe (measured on Mesa 25.0.7) sends every
+    /// primitive it has to clip to view 0, so a floor larger than a cube face lands in the wrong
+    /// face; and one pass per layer culls draws per layer.)
     pub fn prepare_depth(&self, layers: usize) -> GpuResult<()> {
         assert!((1..=MAX_LAYERS).contains(&layers), "1..={MAX_LAYERS} layers");
-        (0..layers).try_for_each(|k| self.prepare_layer(k).map(|_| ()))
-    }
-
-    /// The depth pipeline for layer `k`: multiview with the one view `k`, so each layer is its
-    /// own rendering pass into its own view index. (All layers in one multiview pass would draw
-    /// each caster once; but llvmpipe (measured on Mesa 25.0.7) sends every primitive it has to
-    /// clip to view 0, so a floor larger than a cube face lands in the wrong face; and one pass
-    /// per layer culls draws per layer.)
-    fn prepare_layer(&self, k: usize) -> GpuResult<&GraphicsPipeline> {
-        crate::vk::get_or_make(&self.depth[k], || {
+        crate::vk::get_or_make(&self.depth, || {
             let desc = depth_desc("shadow map", spirv::SHADOWS_MAP_DEPTH_VERT, None);
             let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
-            let extras = GraphicsExtras { view_mask: 1u32 << k, instance, ..Default::default() };
+            GraphicsPipeline::with_extras(&self.ctx, &desc, &GraphicsExtras { instance, ..Default::default() })
+        })
+        .map(drop)
+    }
+
+    /// The masked depth pipeline, with the scene's material set layout (one scene per renderer,
+    /// so one layout per `MapPipelines`).
+    pub fn prepare_masked(&self, material_set: vk::DescriptorSetLayout) -> GpuResult<()> {
+        crate::vk::get_or_make(&self.masked, || {
+            let desc = depth_desc(
+                "shadow map (alpha-masked)",
+                spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
+                Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
+            );
+            let extras = GraphicsExtras {
+                instance: Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..])),
+                per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES[..])),
+                set_1: Some(material_set),
+                ..Default::default()
+            };
             GraphicsPipeline::with_extras(&self.ctx, &desc, &extras)
         })
+        .map(drop)
     }
 
-    /// The masked depth pipelines for layers 0..`layers`, with the scene's material set layout
-    /// (one scene per renderer, so one layout per `MapPipelines`).
-    pub fn prepare_masked(&self, layers: usize, material_set: vk::DescriptorSetLayout) -> GpuResult<()> {
-        (0..layers).try_for_each(|k| {
-            crate::vk::get_or_make(&self.masked[k], || {
-                let desc = depth_desc(
-                    "shadow map (alpha-masked)",
-                    spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
-                    Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
-                );
-                let extras = GraphicsExtras {
-                    view_mask: 1u32 << k,
-                    instance: Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..])),
-                    per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES[..])),
-                    set_1: Some(material_set),
-                    ..Default::default()
-                };
-                GraphicsPipeline::with_extras(&self.ctx, &desc, &extras)
-            })
-            .map(|_| ())
-        })
+    fn depth(&self) -> &GraphicsPipeline {
+        self.depth.get().expect("made by prepare_depth")
     }
 
-    fn depth(&self, layer: usize) -> &GraphicsPipeline {
-        self.depth[layer].get().expect("made by prepare_depth")
-    }
-
-    fn masked_depth(&self, layer: usize) -> &GraphicsPipeline {
-        self.masked[layer].get().expect("made by prepare_masked")
+    fn masked_depth(&self) -> &GraphicsPipeline {
+        self.masked.get().expect("made by prepare_masked")
     }
 
     /// `prepare_depth`, and `prepare_masked` where `scene` has alpha-masked materials.
     pub fn prepare_for(&self, scene: &SceneGpu, layers: usize) -> GpuResult<()> {
         self.prepare_depth(layers)?;
         match scene.materials.as_ref().filter(|m| m.masked) {
-            Some(materials) => self.prepare_masked(layers, materials.set_layout()),
+            Some(materials) => self.prepare_masked(materials.set_layout()),
             None => Ok(()),
         }
     }
@@ -247,7 +249,7 @@ fn depth_desc(
         color_formats: &[],
         depth_format: Some(DEPTH_FORMAT),
         bindings: &[(MAP_DEPTH_LAYERS, DescriptorKind::UniformBuffer)],
-        push_bytes: 0,
+        push_bytes: std::mem::size_of::<LayerPush>() as u32,
         cull_back_faces: false,
         dynamic_depth_bias: true,
     }
@@ -418,23 +420,21 @@ pub fn add_depth<'a>(
     let vb = pass.read(frame.vertices, Access::VertexBuffer);
     let ib = pass.read(frame.indices, Access::IndexBuffer);
     let layers_read = pass.read(&table, Access::VertexShaderReadUniformBuffer);
-    let depth = pass.write(&mut depth_image, Access::DepthAttachmentWrite);
+    let depth: Vec<_> =
+        (0..count as u32).map(|k| pass.write_layer(&mut depth_image, k, Access::DepthAttachmentWrite)).collect();
     let params = map.params;
     pass.render(move |ctx| {
         for (k, draws) in draws.iter().enumerate() {
-            let pipeline = pipelines.depth(k);
+            let pipeline = pipelines.depth();
+            let push = LayerPush { layer: k as u32 };
             let attachment = vk::RenderingAttachmentInfo::default()
-                .image_view(ctx.image(depth).1)
+                .image_view(ctx.image(depth[k]).1)
                 .image_layout(Access::DepthAttachmentWrite.info().layout)
                 .load_op(vk::AttachmentLoadOp::CLEAR)
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
             let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: res, height: res } };
-            let rendering = vk::RenderingInfo::default()
-                .render_area(area)
-                .layer_count(1)
-                .view_mask(1u32 << k)
-                .depth_attachment(&attachment);
+            let rendering = vk::RenderingInfo::default().render_area(area).layer_count(1).depth_attachment(&attachment);
             ctx.bind_set(
                 vk::PipelineBindPoint::GRAPHICS,
                 &pipeline.layout,
@@ -445,6 +445,8 @@ pub fn add_depth<'a>(
             unsafe {
                 d.cmd_begin_rendering(ctx.cmd, &rendering);
                 d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
+                let stages = vk::ShaderStageFlags::ALL_GRAPHICS;
+                d.cmd_push_constants(ctx.cmd, pipeline.layout.layout, stages, 0, bytemuck::bytes_of(&push));
                 let viewport = vk::Viewport {
                     x: 0.0,
                     y: 0.0,
@@ -475,14 +477,18 @@ pub fn add_depth<'a>(
                 let masked = scene.materials.as_ref().zip(draw.maps.filter(|m| m.masked));
                 if masked.is_some() != masked_now {
                     masked_now = masked.is_some();
-                    let used = if masked_now { pipelines.masked_depth(k) } else { pipeline };
+                    let used = if masked_now { pipelines.masked_depth() } else { pipeline };
                     ctx.bind_set(
                         vk::PipelineBindPoint::GRAPHICS,
                         &used.layout,
                         &[(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))],
                     )?;
                     // SAFETY: recording state, inside the rendering begun above.
-                    unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline) };
+                    unsafe {
+                        d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline);
+                        let stages = vk::ShaderStageFlags::ALL_GRAPHICS;
+                        d.cmd_push_constants(ctx.cmd, used.layout.layout, stages, 0, bytemuck::bytes_of(&push));
+                    }
                 }
                 // SAFETY: recording state; the material's set lives as long as the scene.
                 unsafe {
@@ -490,7 +496,7 @@ pub fn add_depth<'a>(
                         d.cmd_bind_descriptor_sets(
                             ctx.cmd,
                             vk::PipelineBindPoint::GRAPHICS,
-                            pipelines.masked_depth(k).layout.layout,
+                            pipelines.masked_depth().layout.layout,
                             1,
                             &[materials.sets[maps.set]],
                             &[],

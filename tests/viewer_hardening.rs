@@ -158,6 +158,31 @@ fn a_window_too_large_for_the_device_waits_for_a_smaller_size() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `--size` too large for the device at start is refused in one line: the window never got
+/// smaller, so the viewer spun a core for ever waiting for it (without a script to end it).
+#[test]
+fn a_starting_size_too_large_for_the_device_is_refused() {
+    let dir = scene_dir("too-large-start");
+    common::lavapipe_env();
+    std::fs::write(dir.join("script.txt"), "frames 3\nquit\n").unwrap();
+    let out = {
+        let _one_at_a_time = XVFB.lock().unwrap_or_else(|e| e.into_inner());
+        std::process::Command::new("xvfb-run")
+            .args(["-a", "-s", "-screen 0 1024x768x24", env!("CARGO_BIN_EXE_umbra"), "view"])
+            .arg(dir.join("scene.toml"))
+            .args(["--validate", "--size", "16384x16384", "--script"])
+            .arg(dir.join("script.txt"))
+            .output()
+            .expect("xvfb-run (installed by tools/setup)")
+    };
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{}", text(&out));
+    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
+    assert_eq!(errors.len(), 1, "{stderr}");
+    assert!(errors[0].starts_with("error: 16384x16384 needs") && errors[0].contains("smaller --size"), "{stderr}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// The case: a script resizing to 5120x2880 with three shadowed lights exited with
 /// "needs a 176947200-byte visibility buffer" (three f32 layers past lavapipe's 128 MiB storage
 /// binding). The visibility target is now an R8 layered image: the window renders at that size.

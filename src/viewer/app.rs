@@ -137,7 +137,8 @@ struct Running {
     screenshots: Vec<PathBuf>,
     /// A capture of the next presented frame, by name.
     pending_capture: Option<String>,
-    /// The last reason a frame was too large for the device, so it is logged once per size.
+    /// Why the last frame was too large for the device, so it is logged once per size; while
+    /// set, the loop idles as for a minimised window. Cleared when a frame is drawn.
     too_large_noted: Option<String>,
     quit: bool,
 }
@@ -200,9 +201,10 @@ impl ApplicationHandler for App {
 
     fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
         let Some(r) = &self.running else { return };
-        if r.presenter.is_minimised() {
+        if r.presenter.is_minimised() || r.too_large_noted.is_some() {
             // Nothing to draw, and a minimised window may get no redraws: tick the script and
-            // frame counters here instead, without spinning.
+            // frame counters here instead, without spinning. The same while the window is too
+            // large to draw, until a frame is drawn again.
             event_loop.set_control_flow(ControlFlow::WaitUntil(Instant::now() + Duration::from_millis(16)));
             if let Err(e) = self.frame(event_loop) {
                 self.fail(event_loop, e);
@@ -250,25 +252,27 @@ impl App {
         // The overlay shows pass times: find how this driver can time passes (a fraction of a
         // second, once) so they are right rather than plain stamps that some drivers defer.
         renderer.calibrate_timings().context("calibrating pass timings")?;
+        let settings = ViewerSettings {
+            shadow_backend: o.shadow_backend,
+            shadows: (0..o.scene.lights.len())
+                .map(|i| o.scene.light_shadows.get(i).copied().unwrap_or_default())
+                .collect(),
+            directional: o.scene.lights.iter().map(|l| matches!(l, crate::scene::Light::Directional { .. })).collect(),
+            ..ViewerSettings::new(o.scene.lights.len())
+        };
+        let camera = FlyCamera::from_scene(&o.scene.camera);
+        // A size asked for that no frame fits is refused now: waiting for the window to get
+        // smaller (as after a resize) would wait for ever if it never does.
+        let mut asked = settings.render_settings(camera.to_camera(o.scene.camera.vfov_deg));
+        (asked.width, asked.height) = o.size;
+        renderer.check_frame_size(&asked).map_err(anyhow::Error::msg)?;
         let size = window.inner_size();
         let presenter = Presenter::new(surface, size.width, size.height, o.vsync)?;
         log::info!("viewer on {} ({:?})", ctx.device_name(), presenter.present_mode());
         Ok(Running {
             presenter,
-            camera: FlyCamera::from_scene(&o.scene.camera),
-            settings: ViewerSettings {
-                shadow_backend: o.shadow_backend,
-                shadows: (0..o.scene.lights.len())
-                    .map(|i| o.scene.light_shadows.get(i).copied().unwrap_or_default())
-                    .collect(),
-                directional: o
-                    .scene
-                    .lights
-                    .iter()
-                    .map(|l| matches!(l, crate::scene::Light::Directional { .. }))
-                    .collect(),
-                ..ViewerSettings::new(o.scene.lights.len())
-            },
+            camera,
+            settings,
             renderer,
             window,
             ctx,
@@ -308,6 +312,7 @@ impl App {
         let capture = r.pending_capture.take();
         match r.presenter.draw(&r.renderer, &settings, lines.as_deref(), capture.is_some())? {
             Drawn::Frame { timings, captured } => {
+                r.too_large_noted = None;
                 self.report.present_mode = r.presenter.present_mode().map(|m| format!("{m:?}"));
                 if !timings.is_empty() {
                     r.timings = timings;

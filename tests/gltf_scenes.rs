@@ -642,6 +642,18 @@ fn uris_outside_the_models_folder_are_refused() {
     );
 }
 
+/// A material without a name is named by its index: it was `material Some(0)`.
+#[test]
+fn an_unnamed_material_is_named_by_its_index() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut g = quad_file(Some(U16));
+    g.materials[0]["alphaMode"] = json!("BLEND");
+    g.write_glb(&dir.path().join("blend.glb"));
+    parse_in(dir.path(), &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"blend.glb\"\n")).unwrap();
+    assert!(common::logged("blend.glb: material 0: alpha blending is drawn as an alpha mask at 0.5"));
+    assert!(!common::logged("Some(0)"), "{:?}", common::captured_log().lock().unwrap());
+}
+
 /// A point light beyond the distance the renderer's f32 frame holds is a warning naming the
 /// scene file and the light as the file counts it: rect lights count there (the warning named
 /// the index among the other lights, `lights[1]` for the file's `lights[2]`, and no file); a

@@ -505,7 +505,11 @@ impl MaterialMaps<'_> {
         let label = format!(
             "{}: material {}",
             self.name,
-            material.name().map_or_else(|| format!("{:?}", material.index()), |n| format!("{n:?}"))
+            match (material.name(), material.index()) {
+                (Some(name), _) => format!("{name:?}"),
+                (None, Some(index)) => index.to_string(),
+                (None, None) => "(the default)".to_owned(),
+            }
         );
         let pbr = material.pbr_metallic_roughness();
         // (map in `UvTransforms::in_order`'s order, its set) for each map present.

@@ -240,6 +240,11 @@ fn cameras_are_checked_on_the_f32_view_direction() {
     let cases = [
         ("eye = [0, 0, 0]\ntarget = [1e-50, 0, 0]\nvfov_deg = 40\n", "camera.target: must differ from camera.eye"),
         ("eye = [1e7, 0, 0]\ntarget = [1e7, 1, 0]\nvfov_deg = 40\n", "camera.up: is parallel to the view direction"),
+        // Each point is finite in f32, their distance is not: it was "must differ from camera.eye".
+        (
+            "eye = [1e38, 1e38, 1e38]\ntarget = [0, 0, 0]\nvfov_deg = 40\n",
+            "camera.target: is 1.7e38 m from camera.eye, too far for a view direction in single precision",
+        ),
     ];
     for (camera, expected) in cases {
         let message = parse_error(&format!("[camera]\n{camera}"));

@@ -487,6 +487,15 @@ impl Check<'_> {
         // points stay f64 until the renderer's scene-local frame), so `target = eye + 1e-7` is
         // a view direction, while a difference that underflows f32 is none.
         let up = up.as_vec3();
+        // Points far apart give an f32 difference whose length overflows: not a direction
+        // either, but not for the points being the same.
+        let apart = (target - eye).length();
+        if !(target - eye).as_vec3().length().is_finite() {
+            return Err(self.fail(
+                "camera.target",
+                format!("is {apart:.1e} m from camera.eye, too far for a view direction in single precision"),
+            ));
+        }
         let Some(view) = (target - eye).as_vec3().try_normalize() else {
             return Err(self.fail("camera.target", "must differ from camera.eye"));
         };

@@ -179,6 +179,10 @@ impl ShadowChoice {
         let section = table.get_mut(technique).and_then(|t| t.as_table_mut()).ok_or_else(|| {
             format!("{key:?}: no technique {technique:?} (traced, map, cascades, volumes, hybrid, auto)")
         })?;
+        // An empty value would parse as an empty TOML document, a table: "invalid type: map".
+        if value.trim().is_empty() {
+            return Err(format!("{key}: no value after `=`"));
+        }
         let parsed = parse_value(value);
         section.insert(field.to_string(), parsed);
         let mut next: ShadowChoice = table.try_into().map_err(|e: toml::de::Error| {

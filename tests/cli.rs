@@ -615,6 +615,9 @@ fn contradictory_and_impossible_options_are_refused() {
     assert_clear_error(&o, &["visibility:7", "light 7 does not exist", "3 light(s)"]);
     let o = run(&["render", "--size", "32x24", "--shadows", "traced-soft", "--hard", "-o", png.to_str().unwrap()]);
     assert_clear_error(&o, &["--hard contradicts --shadows traced-soft"]);
+    // An empty value was read as an empty TOML table: "invalid type: map".
+    let o = run(&["render", "--size", "32x24", "--param", "map.resolution=", "-o", png.to_str().unwrap()]);
+    assert_clear_error(&o, &["--param map.resolution=: map.resolution: no value after `=`"]);
     no_files_left(&dir);
     let o = run(&["view", "--frames", "0"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));

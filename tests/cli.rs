@@ -619,6 +619,12 @@ fn contradictory_and_impossible_options_are_refused() {
     let o = run(&["render", "--size", "32x24", "--param", "map.resolution=", "-o", png.to_str().unwrap()]);
     assert_clear_error(&o, &["--param map.resolution=: map.resolution: no value after `=`"]);
     no_files_left(&dir);
+    // A file where bench's results directory should be: it said "File exists (os error 17)".
+    let file = dir.join("results");
+    std::fs::write(&file, "").unwrap();
+    let o = run(&["bench", "shadows", "--quick", "-o", file.to_str().unwrap()]);
+    assert_clear_error(&o, &["results: not a directory"]);
+    std::fs::remove_file(&file).unwrap();
     let o = run(&["view", "--frames", "0"]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("1 or more"), "{}", stderr(&o));

@@ -231,8 +231,12 @@ pub fn run(options: &Options) -> Result<Outcome> {
     if options.methods.is_empty() {
         bail!("--methods: no method to measure");
     }
-    let jobs = prepare(options)?;
     let dir = &options.out_dir;
+    // Before the scenes load: creating the directory would only say "File exists".
+    if dir.exists() && !dir.is_dir() {
+        bail!("-o {}: not a directory (the results go into a directory, made if missing)", dir.display());
+    }
+    let jobs = prepare(options)?;
     let mut outputs = vec![dir.join("results.csv"), dir.join("results.json")];
     for j in &jobs {
         outputs.push(dir.join(format!("{}.svg", j.stem)));

@@ -71,8 +71,8 @@ pub struct Renderer {
 
 impl Renderer {
     /// Prepares `scene` for the GPU. Everything the GPU sees — vertices, BVH, lights, camera —
-    /// is moved (in f64) into a scene-local frame centred on the camera, so positions near it
-    /// stay small and f32 keeps its precision (and shadow-ray offsets stay tiny) wherever the scene
+    /// is moved (in f64) into a scene-local frame centred on the geometry around the camera,
+    /// so the positions it sees stay small and f32 keeps its precision (and shadow-ray offsets stay tiny) wherever the scene
     /// sits in the world. Meshes too far from the camera for f32 there are left out, with a
     /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {

@@ -324,6 +324,8 @@ vec3 rect_radiance(GpuRect rect, vec3 p, vec3 n, vec3 v, vec3 base_color, float 
 // LTC_CAP_CORNERS-gon of the same solid angle: its centre and its corners' offsets from it,
 // kept apart so that a small cap loses nothing to rounding (ltc::cap_polygon).
 const uint LTC_CAP_CORNERS = 8u;
+// The largest cap the polygon stands in for (ltc::CAP_MAX_ONE_MINUS_COS, which says why).
+const float LTC_CAP_MAX_ONE_MINUS_COS = 0.98;
 
 // (cos, sin) of the corners' angles 2 pi k / 8 (ltc::CAP_DIRECTIONS).
 const float LTC_H = 0.70710678;
@@ -429,7 +431,7 @@ vec2 ltc_cap_quadrature(LtcQuadrature q, vec3 centre, mat3 to_frame, vec3 t, vec
 vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v, vec3 base_color, float roughness,
                   float metallic) {
     const float N = float(LTC_CAP_CORNERS);
-    float e = clamp(one_minus_cos, 0.0, 1.0);
+    float e = clamp(one_minus_cos, 0.0, LTC_CAP_MAX_ONE_MINUS_COS);
     float omc_rho = clamp(sin(LTC_PI * e / N) / (sin(LTC_PI / N) * cos(LTC_PI * (1.0 - e) / N)), 0.0, 1.0);
     float sin_rho = sqrt(max(omc_rho * (2.0 - omc_rho), 0.0));
     vec3 t;
@@ -439,7 +441,8 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
     vec3 x = ltc_frame_x(n, v);
     mat3 to_frame = transpose(mat3(x, cross(n, x), n));
     vec3 centre = to_frame * (axis * (1.0 - omc_rho));
-    float diffuse_share = ltc_cap_diffuse(dot(n, axis), e * (2.0 - e));
+    float whole = clamp(one_minus_cos, 0.0, 1.0);
+    float diffuse_share = ltc_cap_diffuse(dot(n, axis), whole * (2.0 - whole));
     roughness = clamp(roughness, 0.0, 1.0);
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);

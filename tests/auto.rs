@@ -56,7 +56,7 @@ fn auto_picks_the_cheapest_method_under_the_bound_from_its_measurements() {
     assert_eq!(files.len(), 1, "one calibration, reused by the second run");
     let measures: Value =
         serde_json::from_str(&std::fs::read_to_string(files[0].as_ref().unwrap().path()).unwrap()).unwrap();
-    let light = measures[0].as_array().unwrap();
+    let light = measures["measures"][0].as_array().unwrap();
     let label = |m: &Value| m["label"].as_str().unwrap().to_string();
     let time = |m: &Value| m["time_ms"].as_f64().unwrap();
     let error = |m: &Value| m["error"].as_f64().unwrap();

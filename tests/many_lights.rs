@@ -104,3 +104,27 @@ fn a_frame_without_shadow_work_needs_no_visibility_target_at_any_size() {
     drop(renderer);
     common::assert_clean(&ctx);
 }
+
+/// 300 shadowed lights at 3840x2160 need a 2.3 GiB visibility target, one image: past
+/// lavapipe's 2 GiB per allocation the render ended with only "vkBindImageMemory failed", and
+/// the viewer closed on the same resize. The size check now names the target and the limit
+/// before anything is allocated (the viewer logs it and waits for a smaller window); at
+/// 1920x1080 the same lights fit.
+#[test]
+fn a_visibility_target_past_one_allocation_is_refused_in_one_line() {
+    let ctx = common::gpu();
+    let renderer = Renderer::new(ctx.clone(), ring_of_spots(300)).expect("renderer");
+    let at = |w, h| {
+        let mut s = RenderSettings::new(w, h, OutputKind::Display);
+        s.shadows = vec![ShadowChoice::hard(); 300];
+        renderer.check_frame_size(&s)
+    };
+    let err = at(3840, 2160).expect_err("2.3 GiB of visibility layers");
+    for needle in ["3840x2160 and 300 shadowed lights need 2373 MiB for the visibility target", "per allocation"] {
+        assert!(err.contains(needle), "{needle:?} not in {err:?}");
+    }
+    assert!(!err.contains('\n'), "{err}");
+    at(1920, 1080).unwrap_or_else(|e| panic!("300 lights at 1080p fit: {e}"));
+    drop(renderer);
+    common::assert_clean(&ctx);
+}

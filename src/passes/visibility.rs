@@ -92,6 +92,16 @@ pub fn check_limits(ctx: &GpuContext, extent: vk::Extent2D, lights: usize, layer
             max_allocation >> 20
         )));
     }
+    // The visibility target is one image, so one allocation (a layer per shadowed light: 300
+    // lights at 3840x2160 are 2.3 GiB, and the bind failed with no word of why).
+    if visibility > max_allocation {
+        return Err(GpuError::Unsupported(format!(
+            "{size} and {layers} shadowed lights need {} MiB for the visibility target (a byte per pixel and light), \
+             over this device's {} MiB per allocation ({smaller} or fewer shadowed lights)",
+            visibility >> 20,
+            max_allocation >> 20
+        )));
+    }
     if frame > heap / 2 {
         // Name the visibility target only where it is there to blame: `none` allocates none.
         let lights = if layers > 0 { format!(" and {layers} shadowed lights") } else { String::new() };

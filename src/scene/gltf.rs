@@ -88,6 +88,9 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
     for accessor in document.accessors() {
         check_accessor(&accessor, &buffers).map_err(GltfError::Parse)?;
     }
+    for light in document.lights().into_iter().flatten() {
+        check_light(&light).map_err(GltfError::Parse)?;
+    }
 
     // Primitives by (mesh, primitive) index, so instances share them.
     let mut primitives = Vec::new();
@@ -162,7 +165,12 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
             if light.range().is_some() {
                 ignored_ranges += 1;
             }
-            loaded.lights.extend(light_at(&world, &light));
+            match light_at(&world, &light) {
+                Ok(placed) => loaded.lights.push(placed),
+                Err(why) => {
+                    log::warn!("{name}: light {} on node {}: {why}; it is left out", light.index(), node.index())
+                }
+            }
         }
         let children: Vec<_> = node.children().map(|c| (c, world, Some(node.index()))).collect();
         stack.extend(children.into_iter().rev());
@@ -732,23 +740,61 @@ fn camera_at(world: &DMat4, yfov: f32) -> Option<Camera> {
     usable.then_some(Camera { eye, target: eye + forward, up, vfov_deg })
 }
 
+/// Refuses a KHR_lights_punctual light that glTF does not allow: a negative intensity (as a
+/// scene file's negative intensity is refused), or a spot cone outside 0 < outerConeAngle <= pi/2
+/// with 0 <= innerConeAngle <= outerConeAngle (equal angles, a hard edge, are common in exported
+/// files though glTF asks for inner < outer: they are read with inner just below outer).
+fn check_light(light: &gltf::khr_lights_punctual::Light) -> Result<(), String> {
+    let index = light.index();
+    let intensity = light.intensity();
+    if intensity < 0.0 {
+        return Err(format!("light {index} has the negative intensity {intensity}; glTF requires 0 or more"));
+    }
+    if let gltf::khr_lights_punctual::Kind::Spot { inner_cone_angle: inner, outer_cone_angle: outer } = light.kind() {
+        if !(outer > 0.0 && outer <= std::f32::consts::FRAC_PI_2) {
+            return Err(format!(
+                "light {index}: spot outerConeAngle {outer} rad ({:.1} degrees) is outside glTF's (0, pi/2]",
+                outer.to_degrees()
+            ));
+        }
+        if !(inner >= 0.0 && inner <= outer) {
+            return Err(format!(
+                "light {index}: spot innerConeAngle {inner} rad is outside [0, outerConeAngle {outer} rad]"
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// A KHR_lights_punctual light placed by its node (it shines down the node's -Z), in umbra's
-/// radiometric units (see `LUMENS_PER_WATT`).
-fn light_at(world: &DMat4, light: &gltf::khr_lights_punctual::Light) -> Option<Light> {
+/// radiometric units (see `LUMENS_PER_WATT`), or why it cannot be placed. `check_light` has
+/// refused what glTF does not allow.
+fn light_at(world: &DMat4, light: &gltf::khr_lights_punctual::Light) -> Result<Light, String> {
     use gltf::khr_lights_punctual::Kind;
     let position = world.transform_point3(DVec3::ZERO);
-    let direction = world.transform_vector3(DVec3::NEG_Z).try_normalize()?.as_vec3();
-    let power = Vec3::from(light.color()).max(Vec3::ZERO) * light.intensity().max(0.0) / LUMENS_PER_WATT;
-    if !power.is_finite() || !position.is_finite() {
-        return None;
+    let power = Vec3::from(light.color()).max(Vec3::ZERO) * light.intensity() / LUMENS_PER_WATT;
+    if !power.is_finite() {
+        let (color, intensity) = (light.color(), light.intensity());
+        return Err(format!("its colour {color:?} times its intensity {intensity:e} overflows f32"));
     }
-    Some(match light.kind() {
+    if !position.is_finite() {
+        return Err("its node's transform puts it at a position that is not finite".to_owned());
+    }
+    // A point light shines every way: a node that scales to nothing still places it.
+    let direction = || {
+        let direction = world.transform_vector3(DVec3::NEG_Z).try_normalize().map(|d| d.as_vec3());
+        direction.ok_or("its node's transform scales its direction to nothing (a scale of 0), so it points nowhere")
+    };
+    Ok(match light.kind() {
         Kind::Point => Light::Point { position, intensity: power, radius: 0.0 },
-        Kind::Directional => Light::Directional { direction, irradiance: power, angular_diameter_deg: 0.0 },
+        Kind::Directional => {
+            Light::Directional { direction: direction()?, irradiance: power, angular_diameter_deg: 0.0 }
+        }
         Kind::Spot { inner_cone_angle, outer_cone_angle } => {
             let outer = outer_cone_angle.to_degrees().clamp(0.01, 90.0);
             // umbra needs inner < outer; glTF files sometimes give them equal (a hard edge).
             let inner = inner_cone_angle.to_degrees().clamp(0.0, outer * 0.999);
+            let direction = direction()?;
             Light::Spot { position, direction, intensity: power, inner_deg: inner, outer_deg: outer, radius: 0.0 }
         }
     })

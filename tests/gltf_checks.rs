@@ -1,0 +1,123 @@
+//! glTF data that umbra once took without a word: KHR_lights_punctual values glTF does not
+//! allow, and lights no node can place. Each is now an error or a warning naming the file and
+//! the item. (tests/gltf_scenes.rs holds the files that load.)
+
+mod common;
+mod gltf_builder;
+
+use std::path::Path;
+
+use gltf_builder::{quad_xz, Gltf, U16};
+use serde_json::{json, Value};
+use umbra::scene::{Light, Scene};
+
+const CAMERA: &str = "[camera]\neye = [0.0, 3.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
+
+fn parse_in(dir: &Path, text: &str) -> Result<Scene, String> {
+    common::captured_log();
+    Scene::parse(text, "s.toml", dir).map_err(|e| {
+        let message = e.to_string();
+        assert!(!message.contains('\n') && !message.contains("panicked"), "{message:?}");
+        message
+    })
+}
+
+fn log_lines() -> Vec<String> {
+    common::captured_log().lock().unwrap().clone()
+}
+
+/// A unit quad (POSITION, NORMAL, TEXCOORD_0, u16 indices) with `material`, one node drawing it.
+fn quad(material: Value) -> Gltf {
+    let mut g = Gltf::default();
+    let (p, n, uv, idx) = quad_xz();
+    let (positions, normals, uvs, indices) = (g.vec3(&p), g.vec3(&n), g.vec2(&uv), g.indices(&idx, U16));
+    let material = g.material(material);
+    g.mesh(vec![json!({
+        "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
+        "indices": indices, "material": material
+    })]);
+    g.node(json!({ "mesh": 0 }), true);
+    g
+}
+
+/// The quad with a harmless point light 0 and `light` as light 1, on a node 3 m up (with
+/// `node`'s other keys); written as `name`.
+fn with_light(dir: &Path, name: &str, light: Value, node: Value) {
+    let mut g = quad(json!({}));
+    let fine = g.light(json!({ "type": "point", "intensity": 10.0 }));
+    g.node(json!({ "translation": [0.0, 2.0, 0.0], "extensions": { "KHR_lights_punctual": { "light": fine } } }), true);
+    let light = g.light(light);
+    let mut node_json =
+        json!({ "translation": [0.0, 3.0, 0.0], "extensions": { "KHR_lights_punctual": { "light": light } } });
+    for (key, value) in node.as_object().unwrap() {
+        node_json[key] = value.clone();
+    }
+    g.node(node_json, true);
+    g.write_glb(&dir.join(name));
+}
+
+/// A negative intensity (clamped to 0 before, where a scene file's is refused), a 120 degree
+/// spot cone (made 90 before) and an inner cone wider than the outer are errors naming the
+/// light, as glTF does not allow them; an inner cone equal to the outer (exporters write it for
+/// a hard edge) still loads.
+#[test]
+fn light_values_gltf_does_not_allow_are_refused_naming_the_light() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let spot = |inner: f64, outer: f64| json!({ "type": "spot", "intensity": 5.0, "spot": { "innerConeAngle": inner, "outerConeAngle": outer } });
+    with_light(d, "negative.glb", json!({ "type": "point", "intensity": -5.0 }), json!({}));
+    with_light(d, "wide.glb", spot(0.2, 120f64.to_radians()), json!({}));
+    with_light(d, "inverted.glb", spot(0.6, 0.4), json!({}));
+    with_light(d, "hard.glb", spot(0.5, 0.5), json!({}));
+    for (file, reason) in [
+        ("negative.glb", "light 1 has the negative intensity -5; glTF requires 0 or more"),
+        ("wide.glb", "light 1: spot outerConeAngle 2.0943952 rad (120.0 degrees) is outside glTF's (0, pi/2]"),
+        ("inverted.glb", "light 1: spot innerConeAngle 0.6 rad is outside [0, outerConeAngle 0.4 rad]"),
+    ] {
+        let message = parse_in(d, &format!("scene = \"{file}\"\n{CAMERA}")).unwrap_err();
+        assert_eq!(message, format!("s.toml: scene: \"{file}\" is not a valid glTF file: {reason}"));
+    }
+    let scene = parse_in(d, &format!("scene = \"hard.glb\"\n{CAMERA}")).unwrap_or_else(|e| panic!("{e}"));
+    match scene.lights[1] {
+        Light::Spot { inner_deg, outer_deg, .. } => {
+            assert!(inner_deg < outer_deg && (outer_deg - 0.5f32.to_degrees()).abs() < 1e-4, "{inner_deg} {outer_deg}")
+        }
+        ref other => panic!("{other:?}"),
+    }
+}
+
+/// A light whose colour times intensity overflows f32, and a spot or directional light whose
+/// node scales to nothing (it points nowhere), are left out with a warning naming the file, the
+/// light and its node (they were dropped without a word); a point light on such a node needs no
+/// direction and is kept.
+#[test]
+fn lights_that_cannot_be_placed_are_left_out_with_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let zero = json!({ "scale": [0.0, 0.0, 0.0] });
+    with_light(d, "overflow.glb", json!({ "type": "point", "color": [10.0, 1.0, 1.0], "intensity": 1e38 }), json!({}));
+    with_light(d, "flat_spot.glb", json!({ "type": "spot", "intensity": 5.0, "spot": {} }), zero.clone());
+    with_light(d, "flat_sun.glb", json!({ "type": "directional", "intensity": 5.0 }), zero.clone());
+    with_light(d, "flat_point.glb", json!({ "type": "point", "intensity": 683.0 }), zero);
+    let nowhere = "its node's transform scales its direction to nothing (a scale of 0), so it points nowhere";
+    for (file, why) in [
+        ("overflow.glb", "its colour [10.0, 1.0, 1.0] times its intensity 1e38 overflows f32"),
+        ("flat_spot.glb", nowhere),
+        ("flat_sun.glb", nowhere),
+    ] {
+        let scene = parse_in(d, &format!("scene = \"{file}\"\n{CAMERA}")).unwrap_or_else(|e| panic!("{e}"));
+        assert_eq!(scene.lights.len(), 1, "{file}: only light 0 is placed");
+        let line = format!("{file}: light 1 on node 2: {why}; it is left out");
+        assert!(common::logged(&line), "{line:?} not in {:?}", log_lines());
+    }
+    let scene = parse_in(d, &format!("scene = \"flat_point.glb\"\n{CAMERA}")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.lights.len(), 2);
+    match scene.lights[1] {
+        Light::Point { position, intensity, .. } => {
+            assert_eq!(position, glam::DVec3::new(0.0, 3.0, 0.0));
+            assert!((intensity - glam::Vec3::ONE).length() < 1e-6, "{intensity}");
+        }
+        ref other => panic!("{other:?}"),
+    }
+    assert!(!common::logged("flat_point.glb: light"), "{:?}", log_lines());
+}

@@ -1,6 +1,7 @@
 //! glTF data that umbra once took without a word: KHR_lights_punctual values glTF does not
-//! allow, and lights no node can place. Each is now an error or a warning naming the file and
-//! the item. (tests/gltf_scenes.rs holds the files that load.)
+//! allow, lights no node can place, a sparse index past its accessor, an attribute shorter than
+//! its primitive's positions. Each is now an error or a warning naming the file and the item.
+//! (tests/gltf_scenes.rs holds the files that load.)
 
 mod common;
 mod gltf_builder;
@@ -12,6 +13,7 @@ use serde_json::{json, Value};
 use umbra::scene::{Light, Scene};
 
 const CAMERA: &str = "[camera]\neye = [0.0, 3.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 40.0\n";
+const LIGHT: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\nirradiance = [1.0, 1.0, 1.0]\n";
 
 fn parse_in(dir: &Path, text: &str) -> Result<Scene, String> {
     common::captured_log();
@@ -120,4 +122,56 @@ fn lights_that_cannot_be_placed_are_left_out_with_a_warning() {
         ref other => panic!("{other:?}"),
     }
     assert!(!common::logged("flat_point.glb: light"), "{:?}", log_lines());
+}
+
+/// A sparse index past its accessor's elements (60000 in a 4-element accessor) is an error
+/// naming the accessor: the crate's reader skipped it, so the vertex it meant to move stayed.
+#[test]
+fn a_sparse_index_out_of_range_is_refused_naming_the_accessor() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (name, index) in [("far.glb", 60000u16), ("last.glb", 3)] {
+        let mut g = quad(json!({}));
+        let indices = g.view(&index.to_le_bytes(), None);
+        let values = g.view(&[0.5f32, 1.0, 0.5].iter().flat_map(|v| v.to_le_bytes()).collect::<Vec<u8>>(), None);
+        g.accessors[0]["sparse"] = json!({ "count": 1,
+            "indices": { "bufferView": indices, "componentType": U16 }, "values": { "bufferView": values } });
+        g.write_glb(&d.join(name));
+    }
+    let message = parse_in(d, &format!("{CAMERA}[[objects]]\nmesh = \"far.glb\"\n")).unwrap_err();
+    assert_eq!(
+        message,
+        "s.toml: objects[0].mesh: \"far.glb\" is not a valid glTF file: accessor 0's sparse index 60000 (entry 0) \
+         is out of range: the accessor has 4 elements"
+    );
+    let scene =
+        parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"last.glb\"\n")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(scene.meshes[0].positions.contains(&glam::DVec3::new(0.5, 1.0, 0.5)), "{:?}", scene.meshes[0].positions);
+}
+
+/// An attribute umbra reads with fewer (or more) elements than POSITION is an error naming the
+/// primitive and both counts: a TEXCOORD_0 of 1 element against 4 positions took the textures
+/// with it silently, a short NORMAL the smooth normals.
+#[test]
+fn an_attribute_whose_count_is_not_the_vertex_count_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut short_uv = quad(json!({}));
+    let one = short_uv.vec2(&[[0.0, 0.0]]);
+    short_uv.meshes[0]["primitives"][0]["attributes"]["TEXCOORD_0"] = json!(one);
+    short_uv.write_glb(&d.join("short_uv.glb"));
+    let mut long_normals = quad(json!({}));
+    let five = long_normals.vec3(&[[0.0, 1.0, 0.0]; 5]);
+    long_normals.meshes[0]["primitives"][0]["attributes"]["NORMAL"] = json!(five);
+    long_normals.write_glb(&d.join("long_normals.glb"));
+    for (file, reason) in [
+        ("short_uv.glb", "TEXCOORD_0 accessor 4 has 1 elements, not one per vertex (4 POSITION elements)"),
+        ("long_normals.glb", "NORMAL accessor 4 has 5 elements, not one per vertex (4 POSITION elements)"),
+    ] {
+        let message = parse_in(d, &format!("{CAMERA}[[objects]]\nmesh = \"{file}\"\n")).unwrap_err();
+        assert_eq!(
+            message,
+            format!("s.toml: objects[0].mesh: \"{file}\" is not a valid glTF file: mesh 0 primitive 0: {reason}")
+        );
+    }
 }

@@ -308,6 +308,25 @@ fn check_accessor(accessor: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> 
             element,
             buffers,
         )?;
+        // The crate's reader skips an index past the accessor's end without a word.
+        let view = indices.view();
+        let bytes = &buffers[view.buffer().index()][view.offset()..view.offset() + view.length()];
+        let stride = view.stride().unwrap_or(size);
+        for k in 0..n {
+            let at = indices.offset() + k * stride;
+            let sparse_index = match indices.index_type() {
+                gltf::accessor::sparse::IndexType::U8 => u64::from(bytes[at]),
+                gltf::accessor::sparse::IndexType::U16 => u64::from(u16::from_le_bytes([bytes[at], bytes[at + 1]])),
+                gltf::accessor::sparse::IndexType::U32 => {
+                    u64::from(u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]))
+                }
+            };
+            if sparse_index >= count as u64 {
+                return Err(format!(
+                    "accessor {index}'s sparse index {sparse_index} (entry {k}) is out of range: the accessor has {count} elements"
+                ));
+            }
+        }
     }
     Ok(())
 }
@@ -398,6 +417,27 @@ fn check_attribute_types(primitive: &gltf::Primitive) -> Result<(), String> {
     Ok(())
 }
 
+/// Refuses a primitive attribute umbra reads whose count is not its POSITION's: glTF requires
+/// one element per vertex in each, and a short one was dropped without a word (a TEXCOORD_0
+/// of 1 element took the primitive's textures with it).
+fn check_attribute_counts(primitive: &gltf::Primitive) -> Result<(), String> {
+    use gltf::mesh::Semantic;
+    let Some(positions) = primitive.get(&Semantic::Positions) else { return Ok(()) };
+    let vertices = positions.count();
+    for (semantic, accessor) in primitive.attributes() {
+        let read = matches!(semantic, Semantic::Normals | Semantic::Tangents | Semantic::TexCoords(_));
+        if read && accessor.count() != vertices {
+            return Err(format!(
+                "{} accessor {} has {} elements, not one per vertex ({vertices} POSITION elements)",
+                semantic.to_string(),
+                accessor.index(),
+                accessor.count()
+            ));
+        }
+    }
+    Ok(())
+}
+
 /// A triangle primitive as an object mesh (strips and fans made lists), or `None` for points
 /// and lines.
 fn read_primitive(
@@ -411,6 +451,7 @@ fn read_primitive(
     let reader = primitive.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
     let where_ = || format!("mesh {} primitive {}", mesh.index(), primitive.index());
     check_attribute_types(primitive).map_err(|reason| format!("{}: {reason}", where_()))?;
+    check_attribute_counts(primitive).map_err(|reason| format!("{}: {reason}", where_()))?;
     let positions: Vec<DVec3> = reader
         .read_positions()
         .ok_or_else(|| format!("{} has no POSITION attribute", where_()))?

@@ -1,7 +1,7 @@
 //! glTF data that umbra once took without a word: KHR_lights_punctual values glTF does not
 //! allow, lights no node can place, a sparse index past its accessor, an attribute shorter than
-//! its primitive's positions. Each is now an error or a warning naming the file and the item.
-//! (tests/gltf_scenes.rs holds the files that load.)
+//! its primitive's positions, a texture coordinate set the primitive lacks. Each is now an error
+//! or a warning naming the file and the item. (tests/gltf_scenes.rs holds the files that load.)
 
 mod common;
 mod gltf_builder;
@@ -174,4 +174,27 @@ fn an_attribute_whose_count_is_not_the_vertex_count_is_refused() {
             format!("s.toml: objects[0].mesh: \"{file}\" is not a valid glTF file: mesh 0 primitive 0: {reason}")
         );
     }
+}
+
+/// A material whose texture reads a set the primitive lacks (`texCoord: 7`) is drawn without
+/// its textures, with the notice the format documents naming the file, the primitive, the
+/// material and the set (there was none).
+#[test]
+fn a_texture_coordinate_set_the_primitive_lacks_is_a_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let image = image::RgbaImage::from_pixel(2, 2, image::Rgba([200, 100, 50, 255]));
+    let mut png = std::io::Cursor::new(Vec::new());
+    image.write_to(&mut png, image::ImageFormat::Png).unwrap();
+    let mut g =
+        quad(json!({ "name": "brick", "pbrMetallicRoughness": { "baseColorTexture": { "index": 0, "texCoord": 7 } } }));
+    let view = g.view(&png.into_inner(), None);
+    g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
+    g.write_glb(&d.join("set7.glb"));
+    let scene =
+        parse_in(d, &format!("{CAMERA}{LIGHT}[[objects]]\nmesh = \"set7.glb\"\n")).unwrap_or_else(|e| panic!("{e}"));
+    assert!(scene.meshes[0].surface.is_none());
+    let line = "set7.glb: mesh 0 primitive 0: material \"brick\" reads texture coordinate set 7, which the primitive \
+                lacks (no TEXCOORD_7); it is drawn without the material's textures";
+    assert!(common::logged(line), "{line:?} not in {:?}", log_lines());
 }

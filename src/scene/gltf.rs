@@ -498,12 +498,20 @@ fn read_primitive(
             && textures.roughness.is_none()
             && textures.normal.is_none()
             && textures.occlusion.is_none();
+        if uvs.is_none() && !constant_only {
+            log::warn!(
+                "{file}: {}: material {} reads texture coordinate set {set}, which the primitive lacks (no \
+                 TEXCOORD_{set}); it is drawn without the material's textures",
+                where_(),
+                material_name(&gltf_material)
+            );
+        }
         let uvs = uvs.or_else(|| constant_only.then(|| vec![glam::Vec2::ZERO; positions.len()]));
         if let Some(uvs) = uvs {
             // A primitive without the second set reads its maps with the first.
             let uvs_1 = second.map(|second| {
                 read(second).unwrap_or_else(|| {
-                    log::warn!("{}: no TEXCOORD_{second}; its maps on that set read set {set}", where_());
+                    log::warn!("{file}: {}: no TEXCOORD_{second}; its maps on that set read set {set}", where_());
                     uvs.clone()
                 })
             });
@@ -532,6 +540,15 @@ fn read_primitive(
 /// and the other set some of its maps use, if any (`UvTransforms::second_set` says which).
 type MaterialRead = (std::sync::Arc<MaterialTextures>, u32, Option<u32>);
 
+/// How messages name a material: by its name, else by its index.
+fn material_name(material: &gltf::Material) -> String {
+    match (material.name(), material.index()) {
+        (Some(name), _) => format!("{name:?}"),
+        (None, Some(index)) => index.to_string(),
+        (None, None) => "(the default)".to_owned(),
+    }
+}
+
 /// Reads a glTF file's materials' textures through the scene's texture cache, once per material.
 struct MaterialMaps<'a> {
     file: &'a Path,
@@ -551,15 +568,7 @@ impl MaterialMaps<'_> {
         if let Some((_, found)) = self.read.iter().find(|(i, _)| *i == material.index()) {
             return Ok(found.clone());
         }
-        let label = format!(
-            "{}: material {}",
-            self.name,
-            match (material.name(), material.index()) {
-                (Some(name), _) => format!("{name:?}"),
-                (None, Some(index)) => index.to_string(),
-                (None, None) => "(the default)".to_owned(),
-            }
-        );
+        let label = format!("{}: material {}", self.name, material_name(material));
         let pbr = material.pbr_metallic_roughness();
         // (map in `UvTransforms::in_order`'s order, its set) for each map present.
         let mut sets: Vec<(usize, u32)> = Vec::new();

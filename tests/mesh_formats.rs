@@ -130,3 +130,19 @@ fn unicode_white_space_separates_obj_words_as_tobj_reads_them() {
         "f.toml: objects[0].mesh: \"f.obj\" is not a valid OBJ file: line 5: f index 7 names no normal (there are 1)"
     );
 }
+
+/// A missing MTL library is one warning naming the OBJ, the library and what it costs (tobj's
+/// error after it was a second warning about the same library).
+#[test]
+fn a_missing_material_library_warns_once() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(dir.path().join("lonely.obj"), format!("mtllib absent.mtl\nusemtl red\n{TRIANGLE}")).unwrap();
+    let scene = parse_in(dir.path(), &format!("{LIGHT}{}", object("lonely.obj")), "lonely.toml")
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.meshes[0].material, umbra::scene::Material::default());
+    let lines: Vec<String> =
+        common::captured_log().lock().unwrap().iter().filter(|l| l.contains("lonely.obj")).cloned().collect();
+    assert_eq!(lines.len(), 1, "{lines:?}");
+    assert!(lines[0].contains("cannot read material library"), "{lines:?}");
+    assert!(lines[0].contains("absent.mtl") && lines[0].ends_with("get the default"), "{lines:?}");
+}

@@ -56,10 +56,8 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedObj
         result
     });
     let (models, materials) = loaded.map_err(|e| ObjError::Parse(located(e, reader.lines)))?;
-    let materials = materials.unwrap_or_else(|e| {
-        log::warn!("{}: material library unusable ({e}); using default materials", path.display());
-        Vec::new()
-    });
+    // Every library that failed was named in `load_mtl`'s warning already, once.
+    let materials = materials.unwrap_or_default();
 
     let file_name = path.file_name().map_or_else(|| path.display().to_string(), |n| n.to_string_lossy().into_owned());
     // Texture paths are relative to the material library that names them.
@@ -251,23 +249,25 @@ fn located(error: tobj::LoadError, lines_read: usize) -> String {
 }
 
 /// Reads an MTL library for tobj, refusing the lines tobj would panic on (a colour with fewer
-/// than three numbers).
+/// than three numbers). A library that cannot be used is one warning, here, naming it (tobj's
+/// own error after it says nothing more).
 fn load_mtl(obj: &Path, mtl: &Path) -> tobj::MTLLoadResult {
+    const COST: &str = "its materials are left out, and faces that use them get the default";
     let bytes = input::read(mtl).map_err(|e| {
-        log::warn!("{}: cannot read material library {}: {e}", obj.display(), mtl.display());
+        log::warn!("{}: cannot read material library {}: {e}; {COST}", obj.display(), mtl.display());
         tobj::LoadError::OpenFileFailed
     })?;
     let text = String::from_utf8_lossy(&bytes);
     for (n, line) in text.lines().enumerate() {
         let mut words = line.split_whitespace();
         if matches!(words.next(), Some("Ka" | "Kd" | "Ks" | "Ke")) && words.count() < 3 {
-            log::warn!("{}:{}: colour needs three numbers", mtl.display(), n + 1);
+            log::warn!("{}:{}: colour needs three numbers; {COST}", mtl.display(), n + 1);
             return Err(tobj::LoadError::MaterialParseError);
         }
     }
     let mut reader = LineCounter::new(text.as_bytes());
     tobj::load_mtl_buf(&mut reader).inspect_err(|e| {
-        log::warn!("{}:{}: {e}", mtl.display(), reader.lines);
+        log::warn!("{}:{}: {e}; {COST}", mtl.display(), reader.lines);
     })
 }
 

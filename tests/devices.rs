@@ -45,3 +45,33 @@ fn device_takes_an_index_or_a_name_and_refuses_others() {
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// A driver manifest that is not JSON (`VK_ICD_FILENAMES` naming `{not json`) loads no driver;
+/// the loader reports that as a failed host allocation, which umbra passed on ("A host memory
+/// allocation has failed"). Now the one error line says no driver could be loaded and names
+/// the variables that chose the drivers, for `devices` and for a render alike.
+#[test]
+fn a_driver_manifest_that_is_not_json_is_named_as_no_driver() {
+    let dir = tempfile::tempdir().unwrap();
+    let icd = dir.path().join("broken_icd.json");
+    std::fs::write(&icd, "{not json").unwrap();
+    let png = dir.path().join("a.png");
+    for args in [vec!["devices"], vec!["render", "--size", "16x16", "-o", png.to_str().unwrap()]] {
+        let run = common::umbra()
+            .args(&args)
+            .env("VK_ICD_FILENAMES", &icd)
+            .env("VK_DRIVER_FILES", &icd)
+            .output()
+            .expect("run umbra");
+        let err = String::from_utf8_lossy(&run.stderr);
+        assert_eq!(run.status.code(), Some(1), "{args:?}: {err}");
+        let errors: Vec<&str> = err.lines().filter(|l| l.starts_with("error:")).collect();
+        assert_eq!(errors.len(), 1, "{args:?}: {err}");
+        let line = errors[0];
+        assert!(line.contains("no Vulkan driver could be loaded"), "{args:?}: {line}");
+        let named = format!("VK_ICD_FILENAMES=\"{0}\" and VK_DRIVER_FILES=\"{0}\" choose the drivers", icd.display());
+        assert!(line.contains(&named), "{args:?}: {named:?} not in {line}");
+        assert!(!line.contains("host memory"), "{args:?}: {line}");
+        assert!(!png.exists());
+    }
+}

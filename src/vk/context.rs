@@ -352,7 +352,47 @@ fn create_instance(
         info = info.push_next(&mut features).push_next(&mut messenger);
     }
     // SAFETY: every pointer in `info` outlives the call.
-    unsafe { entry.create_instance(&info, None) }.vk("vkCreateInstance")
+    unsafe { entry.create_instance(&info, None) }.map_err(|e| match e {
+        vk::Result::ERROR_INCOMPATIBLE_DRIVER
+        | vk::Result::ERROR_OUT_OF_HOST_MEMORY
+        | vk::Result::ERROR_INITIALIZATION_FAILED => no_driver(Some(("vkCreateInstance", e))),
+        e => GpuError::Vk { call: "vkCreateInstance", result: e },
+    })
+}
+
+/// The physical devices of `instance`; none, or a failed enumeration, is `no_driver`'s error.
+fn physical_devices(instance: &ash::Instance) -> GpuResult<Vec<vk::PhysicalDevice>> {
+    // SAFETY: plain enumeration on a valid instance.
+    match unsafe { instance.enumerate_physical_devices() } {
+        Ok(devices) if !devices.is_empty() => Ok(devices),
+        Ok(_) => Err(no_driver(None)),
+        Err(e) => Err(no_driver(Some(("vkEnumeratePhysicalDevices", e)))),
+    }
+}
+
+/// No Vulkan driver could be loaded (or none reports a device): the loader reports a driver
+/// manifest it cannot parse as a failed host allocation, which named the wrong cause. The
+/// message names the loader's driver variables where set, as they pick the drivers.
+fn no_driver(failed: Option<(&str, vk::Result)>) -> GpuError {
+    let what = match failed {
+        Some((call, result)) => format!("no Vulkan driver could be loaded ({call}: {result:?})"),
+        None => "no Vulkan driver could be loaded (the loader reports no device)".to_owned(),
+    };
+    let set: Vec<String> = ["VK_ICD_FILENAMES", "VK_DRIVER_FILES"]
+        .iter()
+        .filter_map(|var| std::env::var_os(var).map(|v| format!("{var}={:?}", v.to_string_lossy())))
+        .collect();
+    let hint = match set.len() {
+        0 => "run tools/setup for lavapipe".to_owned(),
+        n => format!(
+            "{} {} the drivers: check that {} a readable, valid driver manifest (JSON) of an installed driver, or run \
+             tools/setup for lavapipe",
+            set.join(" and "),
+            if n == 1 { "chooses" } else { "choose" },
+            if n == 1 { "it names" } else { "they name" }
+        ),
+    };
+    GpuError::Unsupported(format!("{what}; {hint}"))
 }
 
 /// Every device the loader reports, with what umbra can use of it (`umbra devices`).
@@ -361,8 +401,8 @@ pub fn list_devices() -> GpuResult<Vec<DeviceListing>> {
     let entry = unsafe { ash::Entry::load()? };
     let log = ValidationLog::default();
     let instance = create_instance(&entry, false, &log, &[])?;
-    // SAFETY: enumeration and property queries on a valid instance.
-    let devices = unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices");
+    let devices = physical_devices(&instance);
+    // SAFETY: property queries on a valid instance.
     let listing = devices.map(|devices| {
         devices
             .into_iter()
@@ -427,8 +467,7 @@ fn pick_device(
     wanted: Option<&str>,
     present: Option<(&ash::khr::surface::Instance, vk::SurfaceKHR)>,
 ) -> GpuResult<(vk::PhysicalDevice, u32)> {
-    // SAFETY: enumeration and property queries on a valid instance.
-    let devices = unsafe { instance.enumerate_physical_devices() }.vk("vkEnumeratePhysicalDevices")?;
+    let devices = physical_devices(instance)?;
     let wanted_index = wanted.and_then(|w| w.trim().parse::<usize>().ok());
     let mut candidates = Vec::new();
     let mut names = Vec::new();

@@ -708,13 +708,18 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
     for capture in &report.captures {
         outln!("capture: {}", capture.display());
     }
+    // The session went on past them, but a script's output is missing: the run failed.
+    for failure in &report.failures {
+        eprintln!("error: {failure}");
+    }
+    let mut code = if report.failures.is_empty() { ExitCode::SUCCESS } else { ExitCode::FAILURE };
     if args.validate {
         outln!("validation: {} messages", report.validation_messages);
         if report.validation_messages > 0 {
-            return Ok(ExitCode::FAILURE);
+            code = ExitCode::FAILURE;
         }
     }
-    Ok(ExitCode::SUCCESS)
+    Ok(code)
 }
 
 fn bench_rays(args: BenchRaysArgs) -> Result<ExitCode> {

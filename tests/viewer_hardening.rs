@@ -1,6 +1,7 @@
 //! The viewer keeps running and replays the same: under Xvfb on lavapipe with validation on,
 //! screenshots and captures go to `--out-dir` and are named apart in the summary, a scripted
 //! screenshot or capture that cannot be written is logged and the session goes on (as F12),
+//! then ends in failure,
 //! a script moves the camera by a fixed step per frame (`--fixed-dt`, 1/60 s by default) so two
 //! runs give the same image, a 5120x2880 window with three shadowed lights renders, and a
 //! window too large for the device does not end the session.
@@ -83,13 +84,22 @@ fn screenshots_and_captures_go_to_out_dir_named_apart() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// The viewer's run ended in failure for a screenshot or capture it could not write, but
+/// drew on past it under validation.
+fn assert_failed_clean(out: &Output) {
+    let text = text(out);
+    assert_eq!(out.status.code(), Some(1), "the run reports the failure:\n{text}");
+    assert!(text.contains("validation: 0 messages") && !text.contains("panicked"), "{text}");
+}
+
 /// /proc takes no new files, even from root: a screenshot there fails as on a full or
-/// read-only disk. It was fatal from a script; now it is logged and the script goes on.
+/// read-only disk. It was fatal from a script; now it is logged and the script goes on, and
+/// the run ends in failure (it exited 0 with the script's files missing).
 #[test]
 fn a_scripted_screenshot_that_cannot_be_written_is_logged_and_the_viewer_goes_on() {
     let dir = scene_dir("unwritable");
     let out = view(&dir, "frames 2\nscreenshot a\ncapture b\nframes 3\nquit\n", &["--out-dir", "/proc"]);
-    assert_ran_clean(&out);
+    assert_failed_clean(&out);
     let text = text(&out);
     assert!(text.lines().any(|l| l.starts_with("error: screenshot failed: /proc/a.png")), "{text}");
     assert!(text.lines().any(|l| l.starts_with("error: capture failed: /proc/b.png")), "{text}");
@@ -210,8 +220,9 @@ fn a_5120x2880_window_with_three_shadowed_lights_keeps_rendering() {
 }
 
 /// Screenshots go beside the scene file by default, where its own files are: one named like an
-/// input (here the environment map, sky.exr) is refused and logged, the input kept; it was
-/// overwritten, as no other output of umbra's may be.
+/// input (here the environment map, sky.exr) is refused and logged, the input kept (it was
+/// overwritten, as no other output of umbra's may be); neither of its files is written (sky.png
+/// was, beside the refused EXR) and the run ends in failure (it exited 0).
 #[test]
 fn a_screenshot_never_replaces_a_file_the_scene_was_read_from() {
     let dir = scene_dir("inputs");
@@ -223,12 +234,36 @@ fn a_screenshot_never_replaces_a_file_the_scene_was_read_from() {
     assert!(scene.contains("map = \"sky.exr\""));
     std::fs::write(dir.join("scene.toml"), scene).unwrap();
     let before = std::fs::read(dir.join("sky.exr")).unwrap();
-    let out = view(&dir, "frames 2\nscreenshot sky\nframes 2\nquit\n", &[]);
-    assert_ran_clean(&out);
+    let out = view(&dir, "frames 2\nscreenshot sky\nframes 2\nscreenshot fine\nquit\n", &[]);
+    assert_failed_clean(&out);
     let text = text(&out);
     assert_eq!(std::fs::read(dir.join("sky.exr")).unwrap(), before, "the environment map is untouched");
-    assert!(text.contains("sky.exr: is an input of this render"), "{text}");
-    assert!(dir.join("sky.png").is_file(), "the PNG, which is no input, is written");
+    assert!(
+        text.contains("error: screenshot failed: ") && text.contains("sky.exr: is an input of this scene"),
+        "{text}"
+    );
+    assert!(!dir.join("sky.png").exists(), "half a screenshot is none: {text}");
+    assert!(dir.join("fine.png").is_file() && dir.join("fine.exr").is_file(), "the session went on: {text}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A read-only file where a screenshot goes is kept, and the message says what the viewer can
+/// do about it: it suggested `--force`, which `umbra view` does not take.
+#[test]
+fn a_read_only_screenshot_file_is_kept_without_suggesting_force() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = scene_dir("read-only");
+    std::fs::write(dir.join("ro.png"), b"mine").unwrap();
+    std::fs::set_permissions(dir.join("ro.png"), std::fs::Permissions::from_mode(0o444)).unwrap();
+    let out = view(&dir, "frames 2\nscreenshot ro\nquit\n", &[]);
+    assert_failed_clean(&out);
+    let text = text(&out);
+    let says =
+        "ro.png: the file exists and is read-only; the viewer never replaces it: choose another name or --out-dir";
+    assert!(text.contains(says), "{text}");
+    assert!(!text.contains("--force"), "{text}");
+    assert_eq!(std::fs::read(dir.join("ro.png")).unwrap(), b"mine");
+    assert!(!dir.join("ro.exr").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -58,6 +58,9 @@ pub struct ViewerReport {
     pub screenshots: Vec<PathBuf>,
     /// Files written by the script's `capture` (the presented frame as shown).
     pub captures: Vec<PathBuf>,
+    /// Screenshots and captures that failed, one line each (logged as they failed): the
+    /// session went on, but the run ends in failure.
+    pub failures: Vec<String>,
     /// The swapchain's present mode, as Vulkan names it.
     pub present_mode: Option<String>,
 }
@@ -135,6 +138,8 @@ struct Running {
     timings: Vec<(&'static str, f64)>,
     screenshot_dir: PathBuf,
     screenshots: Vec<PathBuf>,
+    /// Screenshots that failed, for the report (`ViewerReport::failures`).
+    failures: Vec<String>,
     /// A capture of the next presented frame, by name.
     pending_capture: Option<String>,
     /// Why the last frame was too large for the device, so it is logged once per size; while
@@ -216,7 +221,10 @@ impl ApplicationHandler for App {
     }
 
     fn exiting(&mut self, _: &ActiveEventLoop) {
-        if let Some(r) = self.running.take() {
+        if let Some(mut r) = self.running.take() {
+            // An F12 just before the window closed has no frame after it to report it.
+            self.report.screenshots.append(&mut r.screenshots);
+            self.report.failures.append(&mut r.failures);
             let _ = r.presenter.wait_idle();
             let ctx = r.ctx.clone();
             drop(r);
@@ -285,6 +293,7 @@ impl App {
             timings: Vec::new(),
             screenshot_dir: o.screenshot_dir.clone(),
             screenshots: Vec::new(),
+            failures: Vec::new(),
             pending_capture: None,
             too_large_noted: None,
             quit: false,
@@ -295,6 +304,7 @@ impl App {
         let Some(r) = self.running.as_mut() else { return Ok(()) };
         let draw = r.run_script(event_loop)?;
         self.report.screenshots.append(&mut r.screenshots);
+        self.report.failures.append(&mut r.failures);
         if !draw {
             return Ok(());
         }
@@ -322,7 +332,7 @@ impl App {
                     // A full or read-only disk costs the file, not the session (as F12).
                     match crate::output::write_image_with(&frame, &path, &r.screenshot_options()) {
                         Ok(()) => self.report.captures.push(path),
-                        Err(e) => log::error!("capture failed: {e}"),
+                        Err(e) => failed(&mut self.report.failures, "capture", &refused(e)),
                     }
                 }
                 r.fps.tick(now);
@@ -347,6 +357,7 @@ impl App {
             }
         }
         self.report.screenshots.append(&mut r.screenshots);
+        self.report.failures.append(&mut r.failures);
         if self.options.frames.is_some_and(|n| self.report.frames >= n) {
             event_loop.exit();
         }
@@ -374,7 +385,7 @@ impl Running {
                 Key::Escape => self.quit = true,
                 Key::F12 => {
                     if let Err(e) = self.screenshot(None) {
-                        log::error!("screenshot failed: {e:#}");
+                        failed(&mut self.failures, "screenshot", &e);
                     }
                 }
                 Key::B if !self.ctx.capabilities.ray_query => {
@@ -426,9 +437,9 @@ impl Running {
                 // Taken at this point of the script, before any later step changes the view.
                 ScriptStep::Screenshot(name) => {
                     // Logged and carried on from, as F12 is: a full or read-only disk costs the
-                    // file, not the session.
+                    // file, not the session (which then ends in failure).
                     if let Err(e) = self.screenshot(Some(name)) {
-                        log::error!("screenshot failed: {e:#}");
+                        failed(&mut self.failures, "screenshot", &e);
                     }
                 }
                 // Draws the frame it captures before the script goes on.
@@ -491,15 +502,47 @@ impl Running {
         if self.renderer.check_debug_view(&settings).is_err() {
             settings.debug_view = None;
         }
-        for (ext, output) in [("png", OutputKind::Display), ("exr", OutputKind::SceneLinear)] {
+        let options = self.screenshot_options();
+        let shots = [("png", OutputKind::Display), ("exr", OutputKind::SceneLinear)]
+            .map(|(ext, output)| (self.screenshot_dir.join(format!("{stem}.{ext}")), output));
+        // Both files or neither: `sky` beside an input sky.exr wrote sky.png, then refused.
+        for (path, _) in &shots {
+            crate::output::check_output(path, &options).map_err(refused)?;
+        }
+        for (path, output) in shots {
             settings.output = output;
             let frame = self.renderer.render(&settings)?;
-            let path = self.screenshot_dir.join(format!("{stem}.{ext}"));
-            crate::output::write_image_with(&frame, &path, &self.screenshot_options())?;
+            crate::output::write_image_with(&frame, &path, &options).map_err(refused)?;
             log::info!("screenshot: {}", path.display());
             self.screenshots.push(path);
         }
         Ok(())
+    }
+}
+
+/// Logs a screenshot or capture that failed and keeps the line for the report.
+fn failed(failures: &mut Vec<String>, what: &str, e: &anyhow::Error) {
+    let line = format!("{what} failed: {e:#}");
+    log::error!("{line}");
+    failures.push(line);
+}
+
+/// Why a screenshot or capture file was refused, in the viewer's terms: `umbra view` has no
+/// `--force` (the writer's own message suggests it), so a read-only file or an input of the
+/// scene is kept, and another name or `--out-dir` is the way out.
+fn refused(e: crate::output::OutputError) -> anyhow::Error {
+    use crate::output::OutputError;
+    match e {
+        OutputError::ReadOnly { path } => anyhow::anyhow!(
+            "{}: the file exists and is read-only; the viewer never replaces it: choose another name or --out-dir",
+            path.display()
+        ),
+        OutputError::IsInput { path, input } => anyhow::anyhow!(
+            "{}: is an input of this scene ({}); the viewer never replaces it: choose another name or --out-dir",
+            path.display(),
+            input.display()
+        ),
+        e => e.into(),
     }
 }
 

@@ -111,6 +111,22 @@ impl ShadowMethod {
         })
     }
 
+    /// Whether a light with this method may read `technique`'s parameters (`map` for
+    /// `map.resolution`): its own, those it borrows (cascades and hybrid draw with `map`'s
+    /// filtering, hybrid traces with `traced`'s), `traced`'s for a light it falls back to
+    /// tracing, and every technique's for `auto`, which may choose any. `none` reads none.
+    pub fn reads(self, technique: &str) -> bool {
+        match self {
+            ShadowMethod::None => false,
+            ShadowMethod::Auto => true,
+            ShadowMethod::Traced => technique == "traced",
+            ShadowMethod::Map => matches!(technique, "map" | "traced"),
+            ShadowMethod::Cascades => matches!(technique, "cascades" | "map" | "traced"),
+            ShadowMethod::Volumes => matches!(technique, "volumes" | "traced"),
+            ShadowMethod::Hybrid => matches!(technique, "hybrid" | "map" | "traced"),
+        }
+    }
+
     /// The next method in the viewer's cycle (`auto` is chosen before rendering, not cycled to).
     pub fn next(self) -> ShadowMethod {
         const CYCLE: [ShadowMethod; 6] = [

@@ -331,8 +331,24 @@ fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> 
         let (key, value) = assignment
             .split_once('=')
             .ok_or_else(|| anyhow::anyhow!("--param {param}: write KEY=VALUE, e.g. map.resolution=1024"))?;
-        for c in &mut choices[pick(light, &format!("--param {param}"))?] {
+        let lights = pick(light, &format!("--param {param}"))?;
+        for c in &mut choices[lights.clone()] {
             c.set(key.trim(), value.trim()).map_err(|e| anyhow::anyhow!("--param {param}: {e}"))?;
+        }
+        // Set, it is kept, but a technique no light draws with never reads it.
+        let technique = key.trim().split_once('.').map_or("", |(t, _)| t);
+        if !choices[lights.clone()].iter().any(|c| c.method.reads(technique)) {
+            let mut methods: Vec<&str> = choices[lights].iter().map(|c| c.method.id()).collect();
+            methods.sort_unstable();
+            methods.dedup();
+            let why = match light {
+                Some(i) => format!("light {i}'s shadows are {}, which reads no {technique} parameters", methods[0]),
+                None if methods.is_empty() => "the scene has no lights".to_owned(),
+                None => {
+                    format!("no light's shadows read {technique} parameters (their methods: {})", methods.join(", "))
+                }
+            };
+            log::warn!("--param {param} does nothing here: {why}");
         }
     }
     // `--shadows traced-soft` asks for soft shadows by name; --hard for hard ones.

@@ -106,6 +106,17 @@ fn parameters_come_from_the_scene_file_then_the_command_line() {
     assert!(ok && text.contains("shadow map (light 0, spot, 256x256"), "--param for light 0:\n{text}");
     let (ok, text) = run(&["--param", "map.resolution=1024", "--param", "traced.spp=4"]);
     assert!(ok && text.contains("shadow map (light 0, spot, 1024x1024"), "--param for all lights:\n{text}");
+    assert!(!text.contains("does nothing"), "each parameter is read by a light:\n{text}");
+    // A technique no light (or not the light named) draws with never reads its parameter: said
+    // once, as for other options that do nothing here (it was silent).
+    for (param, says) in [
+        ("volumes.zpass=true", "no light's shadows read volumes parameters (their methods: map, traced)"),
+        ("1:map.resolution=256", "light 1's shadows are traced, which reads no map parameters"),
+    ] {
+        let (ok, text) = run(&["--param", param]);
+        let warnings: Vec<&str> = text.lines().filter(|l| l.contains("does nothing")).collect();
+        assert!(ok && warnings == [format!("warn: --param {param} does nothing here: {says}")], "{param}:\n{text}");
+    }
     for (bad, says) in [
         (&["--param", "map.resolution=7"][..], "map.resolution is 7: it takes 16 to 8192 texels"),
         (&["--param", "5:map.resolution=512"][..], "light 5 does not exist"),

@@ -1,5 +1,7 @@
 //! Seeded mutation of the parsers' inputs, in-process and without Vulkan: the scene file (TOML),
-//! an OBJ mesh, its MTL library and a viewer script, each from its seed in tests/data/fuzz/,
+//! an OBJ mesh, its MTL library, a viewer script and a glTF file loaded whole (its camera,
+//! KHR_lights_punctual lights, a sparse accessor and a texture), each from its seed in
+//! tests/data/fuzz/,
 //! mutated a few thousand times (byte flips, deletions, duplications, spliced lines, tokens that
 //! have broken parsers before: huge and tiny numbers, nan, brackets, quotes). No case may panic,
 //! and every refusal must be one line naming the file it is about.
@@ -16,7 +18,7 @@ use rand::{Rng, SeedableRng};
 use umbra::scene::Scene;
 
 const SEEDS: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/fuzz");
-/// Cases per parser in the suite: about 6,000 in all, a few seconds here.
+/// Cases per parser in the suite: about 7,500 in all, a few seconds here.
 const DEFAULT_CASES: usize = 1500;
 
 /// What a mutation may insert: fragments that have made parsers misbehave.
@@ -93,12 +95,45 @@ const TOKENS: &[&str] = &[
     "mesh = \"mesh.obj\"\n",
 ];
 
+/// The glTF target's own: values its light, camera and accessor fields have been taken
+/// silently with (a negative intensity, a 120 degree cone, a sparse index past its accessor,
+/// a texture coordinate set no primitive has, a zero scale), for the number replacements and
+/// insertions; the other targets keep `TOKENS`, so their cases stay as they were.
+const GLTF_TOKENS: &[&str] = &[
+    "-5",
+    "2.0943951",
+    "1.5707964",
+    "60000",
+    "7",
+    "0",
+    "-1",
+    "1e39",
+    "3.5e38",
+    "1e-45",
+    "4294967295",
+    "0.0",
+    "\"scale\": [0, 0, 0], ",
+    "\"texCoord\": 7, ",
+    "\"intensity\": -5, ",
+    "\"spot\": {\"innerConeAngle\": 0.9, \"outerConeAngle\": 0.4}, ",
+    "\"count\": 1, ",
+    "\"yfov\": 3.2, ",
+    "\"children\": [0], ",
+    "[",
+    "]",
+    "{",
+    "}",
+    ",",
+    "\"",
+];
+
 #[derive(Clone, Copy, Debug)]
 enum Target {
     Scene,
     Obj,
     Mtl,
     Script,
+    Gltf,
 }
 
 impl Target {
@@ -108,6 +143,15 @@ impl Target {
             Target::Obj => "mesh.obj",
             Target::Mtl => "mat.mtl",
             Target::Script => "script.txt",
+            Target::Gltf => "lights.gltf",
+        }
+    }
+
+    /// What a mutation inserts, and (the first `numbers` of them) what replaces a number.
+    fn tokens(self) -> (&'static [&'static str], usize) {
+        match self {
+            Target::Gltf => (GLTF_TOKENS, 12),
+            _ => (TOKENS, 19),
         }
     }
 }
@@ -116,8 +160,8 @@ fn env_number<T: std::str::FromStr>(name: &str) -> Option<T> {
     std::env::var(name).ok().and_then(|v| v.parse().ok())
 }
 
-/// One to four edits of `seed`.
-fn mutate(rng: &mut StdRng, seed: &[u8]) -> Vec<u8> {
+/// One to four edits of `seed`, inserting `tokens` and replacing numbers by its first `numbers`.
+fn mutate(rng: &mut StdRng, seed: &[u8], (tokens, numbers): (&[&str], usize)) -> Vec<u8> {
     let mut data = seed.to_vec();
     for _ in 0..rng.gen_range(1..=4) {
         let len = data.len();
@@ -126,7 +170,7 @@ fn mutate(rng: &mut StdRng, seed: &[u8]) -> Vec<u8> {
             0 if len > 0 => data[at] ^= 1 << rng.gen_range(0..8),
             1 if len > 0 => data[at] = rng.gen(),
             2 => {
-                let token = TOKENS[rng.gen_range(0..TOKENS.len())].as_bytes();
+                let token = tokens[rng.gen_range(0..tokens.len())].as_bytes();
                 data.splice(at..at, token.iter().copied());
             }
             3 if len > 0 => {
@@ -156,7 +200,7 @@ fn mutate(rng: &mut StdRng, seed: &[u8]) -> Vec<u8> {
                 // A number replaced by a token: where most range checks live.
                 if let Some(start) = (at..len).find(|&i| data[i].is_ascii_digit()) {
                     let end = (start..len).find(|&i| !data[i].is_ascii_digit() && data[i] != b'.').unwrap_or(len);
-                    let token = TOKENS[rng.gen_range(0..19)].as_bytes();
+                    let token = tokens[rng.gen_range(0..numbers)].as_bytes();
                     data.splice(start..end, token.iter().copied());
                 }
             }
@@ -171,6 +215,10 @@ fn parse(dir: &Path, target: Target, data: &[u8]) -> Result<(), String> {
         Target::Script => {
             let text = std::str::from_utf8(data).map_err(|_| "script.txt: not UTF-8".to_owned())?;
             umbra::viewer::script::parse(text, "script.txt").map(drop).map_err(|e| e.to_string())
+        }
+        Target::Gltf => {
+            std::fs::write(dir.join(target.file()), data).unwrap();
+            Scene::load(&dir.join("gltf_scene.toml")).map(drop).map_err(|e| e.to_string())
         }
         _ => {
             std::fs::write(dir.join(target.file()), data).unwrap();
@@ -194,7 +242,7 @@ fn run(target: Target, seed: u64, cases: usize, deadline: Option<Instant>) -> (u
     let dir: PathBuf = std::env::temp_dir().join(format!("umbra-mutate-{target:?}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    for name in ["scene.toml", "mesh.obj", "mat.mtl"] {
+    for name in ["scene.toml", "mesh.obj", "mat.mtl", "gltf_scene.toml", "lights.gltf"] {
         std::fs::copy(Path::new(SEEDS).join(name), dir.join(name)).unwrap();
     }
     let original = std::fs::read(Path::new(SEEDS).join(target.file())).unwrap();
@@ -204,7 +252,7 @@ fn run(target: Target, seed: u64, cases: usize, deadline: Option<Instant>) -> (u
     let mut failures = Vec::new();
     let mut run = 0;
     while run < cases && deadline.is_none_or(|d| Instant::now() < d) {
-        let data = mutate(&mut rng, &original);
+        let data = mutate(&mut rng, &original, target.tokens());
         run += 1;
         let show = || {
             let text = String::from_utf8_lossy(&data);
@@ -256,4 +304,9 @@ fn mutated_mtl_files_never_panic() {
 #[test]
 fn mutated_viewer_scripts_never_panic_and_fail_in_one_line() {
     check(Target::Script);
+}
+
+#[test]
+fn mutated_gltf_scenes_never_panic_and_fail_in_one_line() {
+    check(Target::Gltf);
 }

@@ -16,7 +16,7 @@ impl Scratch {
         let dir = std::env::temp_dir().join(format!("umbra-fuzz-{}", std::process::id()));
         std::fs::create_dir_all(&dir).expect("scratch directory");
         let seeds = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tests/data/fuzz");
-        for name in ["scene.toml", "mesh.obj", "mat.mtl", "script.txt"] {
+        for name in ["scene.toml", "mesh.obj", "mat.mtl", "script.txt", "gltf_scene.toml", "lights.gltf"] {
             std::fs::copy(seeds.join(name), dir.join(name)).expect("fuzz seed");
         }
         Scratch { dir }
@@ -24,8 +24,13 @@ impl Scratch {
 
     /// Writes `data` as `name` (restoring the other seeds) and loads the scene.
     pub fn load_with(&self, name: &str, data: &[u8]) -> Result<(), String> {
+        self.load_scene_with(name, data, "scene.toml")
+    }
+
+    /// Writes `data` as `name` and loads the seed scene `scene` that names it.
+    pub fn load_scene_with(&self, name: &str, data: &[u8], scene: &str) -> Result<(), String> {
         std::fs::write(self.dir.join(name), data).expect("scratch write");
-        umbra::scene::Scene::load(&self.dir.join("scene.toml")).map(drop).map_err(|e| e.to_string())
+        umbra::scene::Scene::load(&self.dir.join(scene)).map(drop).map_err(|e| e.to_string())
     }
 }
 

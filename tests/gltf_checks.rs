@@ -198,3 +198,27 @@ fn a_texture_coordinate_set_the_primitive_lacks_is_a_warning() {
                 lacks (no TEXCOORD_7); it is drawn without the material's textures";
     assert!(common::logged(line), "{line:?} not in {:?}", log_lines());
 }
+
+/// A glTF camera with a yfov of 0 or 4 rad only made the scene say the file "places no
+/// perspective camera": now a warning names the camera, its node and its yfov, and a camera
+/// with a usable yfov is still the scene's.
+#[test]
+fn a_camera_with_an_unusable_yfov_is_named_with_the_reason() {
+    let dir = tempfile::tempdir().unwrap();
+    for (yfov, file) in [(0.0, "flat.glb"), (4.0, "wide.glb")] {
+        let mut g = quad(json!({}));
+        g.cameras = vec![json!({ "type": "perspective", "perspective": { "yfov": yfov, "znear": 0.1 } })];
+        g.node(json!({ "camera": 0, "translation": [0.0, 1.0, 4.0] }), true);
+        g.write_glb(&dir.path().join(file));
+        let err = parse_in(dir.path(), &format!("scene = \"{file}\"\n{LIGHT}")).expect_err("no usable camera");
+        assert!(err.contains("places no perspective camera"), "{err}");
+        let line = format!("{file}: camera 0 on node 1: its yfov {yfov} rad is outside (0, pi); it is left out");
+        assert!(common::logged(&line), "{line:?} not in {:?}", log_lines());
+    }
+    let mut g = quad(json!({}));
+    g.cameras = vec![json!({ "type": "perspective", "perspective": { "yfov": 0.7, "znear": 0.1 } })];
+    g.node(json!({ "camera": 0, "translation": [0.0, 1.0, 4.0] }), true);
+    g.write_glb(&dir.path().join("fine.glb"));
+    let scene = parse_in(dir.path(), &format!("scene = \"fine.glb\"\n{LIGHT}")).unwrap_or_else(|e| panic!("{e}"));
+    assert!((scene.camera.vfov_deg - 0.7f32.to_degrees()).abs() < 1e-4);
+}

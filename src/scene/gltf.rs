@@ -157,7 +157,14 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
             if let gltf::camera::Projection::Perspective(p) = camera.projection() {
                 let slot = &mut loaded.cameras[camera.index()];
                 if slot.is_none() {
-                    *slot = camera_at(&world, p.yfov());
+                    match camera_at(&world, p.yfov()) {
+                        Ok(placed) => *slot = Some(placed),
+                        Err(why) => log::warn!(
+                            "{name}: camera {} on node {}: {why}; it is left out",
+                            camera.index(),
+                            node.index()
+                        ),
+                    }
                 }
             }
         }
@@ -780,14 +787,23 @@ fn material(m: &gltf::Material) -> Material {
     }
 }
 
-/// A glTF camera looks down its node's -Z with +Y up.
-fn camera_at(world: &DMat4, yfov: f32) -> Option<Camera> {
-    let eye = world.transform_point3(DVec3::ZERO);
-    let forward = world.transform_vector3(DVec3::NEG_Z).try_normalize()?;
-    let up = world.transform_vector3(DVec3::Y).try_normalize()?.as_vec3();
+/// A glTF camera looks down its node's -Z with +Y up; why it cannot be used where it cannot.
+fn camera_at(world: &DMat4, yfov: f32) -> Result<Camera, String> {
     let vfov_deg = yfov.to_degrees();
-    let usable = eye.is_finite() && vfov_deg > 0.0 && vfov_deg < 180.0 && forward.as_vec3().cross(up).length() > 1e-6;
-    usable.then_some(Camera { eye, target: eye + forward, up, vfov_deg })
+    if !(vfov_deg > 0.0 && vfov_deg < 180.0) {
+        return Err(format!("its yfov {yfov} rad is outside (0, pi)"));
+    }
+    let eye = world.transform_point3(DVec3::ZERO);
+    if !eye.is_finite() {
+        return Err("its node places it at a non-finite position".to_owned());
+    }
+    let degenerate = || "its node's transform collapses its view or up direction".to_owned();
+    let forward = world.transform_vector3(DVec3::NEG_Z).try_normalize().ok_or_else(degenerate)?;
+    let up = world.transform_vector3(DVec3::Y).try_normalize().ok_or_else(degenerate)?.as_vec3();
+    if forward.as_vec3().cross(up).length() <= 1e-6 {
+        return Err("its node's transform makes its view and up directions parallel".to_owned());
+    }
+    Ok(Camera { eye, target: eye + forward, up, vfov_deg })
 }
 
 /// Refuses a KHR_lights_punctual light that glTF does not allow: a negative intensity (as a

@@ -712,7 +712,7 @@ fn instancing_past_the_triangle_budget_is_refused_before_flattening() {
     }
     g.write_glb(&dir.path().join("forest.glb"));
     let text = format!("{CAMERA}{LIGHT}[[objects]]\nshape = \"cube\"\n[[objects]]\nmesh = \"forest.glb\"\n");
-    let err = parse_in(dir.path(), &text).err().expect("refused");
+    let err = parse_in(dir.path(), &text).expect_err("refused");
     let triangles = 12 + nodes as u64 * 2 * 64 * 64;
     for needle in [
         "s.toml: objects[1]",

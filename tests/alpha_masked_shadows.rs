@@ -140,6 +140,20 @@ fn frame_with(r: &mut Renderer, method: ShadowMethod, view: DebugView, backend: 
     }
 }
 
+/// The methods and backends that cut shadows with alpha masks: traced, hybrid and map on the
+/// compute BVH, and traced on the ray query where the device has one.
+fn masked_runs(ctx: &umbra::vk::GpuContext) -> Vec<(ShadowMethod, ShadowBackend)> {
+    let mut runs = vec![
+        (ShadowMethod::Traced, ShadowBackend::Compute),
+        (ShadowMethod::Hybrid, ShadowBackend::Compute),
+        (ShadowMethod::Map, ShadowBackend::Compute),
+    ];
+    if ctx.capabilities.ray_query {
+        runs.push((ShadowMethod::Traced, ShadowBackend::RayQuery));
+    }
+    runs
+}
+
 /// With `traced`, `hybrid` and `map`, every floor pixel whose answer is sure (`expected_shadow`)
 /// is shadowed exactly where the mask's shadow falls: the masked shape, not the quad's square.
 /// Both sides are counted so the test cannot pass on an all-lit or all-dark floor, and the
@@ -151,14 +165,7 @@ fn traced_hybrid_and_map_shadows_have_the_masks_shape() {
     let scene = scene(dir.path());
     let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
     let position = frame(&mut renderer, ShadowMethod::Traced, DebugView::Position);
-    let mut runs = vec![
-        (ShadowMethod::Traced, ShadowBackend::Compute),
-        (ShadowMethod::Hybrid, ShadowBackend::Compute),
-        (ShadowMethod::Map, ShadowBackend::Compute),
-    ];
-    if ctx.capabilities.ray_query {
-        runs.push((ShadowMethod::Traced, ShadowBackend::RayQuery));
-    }
+    let runs = masked_runs(&ctx);
     for (method, backend) in runs {
         let visibility = frame_with(&mut renderer, method, DebugView::Visibility(0), backend);
         let method = format!("{method:?} ({backend:?})");
@@ -580,14 +587,7 @@ fn gridded_leaf_scene(dir: &std::path::Path, shuffled: bool) -> Scene {
 fn a_shuffled_masked_mesh_renders_as_the_same_mesh_in_order() {
     let dir = tempfile::tempdir().unwrap();
     let ctx = common::gpu();
-    let mut runs = vec![
-        (ShadowMethod::Traced, ShadowBackend::Compute),
-        (ShadowMethod::Hybrid, ShadowBackend::Compute),
-        (ShadowMethod::Map, ShadowBackend::Compute),
-    ];
-    if ctx.capabilities.ray_query {
-        runs.push((ShadowMethod::Traced, ShadowBackend::RayQuery));
-    }
+    let runs = masked_runs(&ctx);
     let mut images = Vec::new();
     for shuffled in [false, true] {
         let scene = gridded_leaf_scene(dir.path(), shuffled);

@@ -382,11 +382,8 @@ fn a_signal_during_the_write_leaves_no_temporary_file() {
         for _attempt in 0..4 {
             let dir = tempfile::tempdir().unwrap();
             let out = dir.path().join("out.png");
-            let mut command = umbra();
-            command
-                .args(["render", "-o", out.to_str().unwrap(), "--size", "2048x2048", "--shadows", "none"])
-                .stdout(Stdio::null())
-                .stderr(Stdio::null());
+            let mut command = slow_write(&out);
+            command.stderr(Stdio::null());
             // SAFETY: setrlimit is async-signal-safe. No core file for SIGQUIT's default action.
             unsafe {
                 std::os::unix::process::CommandExt::pre_exec(&mut command, || {
@@ -417,6 +414,16 @@ fn a_signal_during_the_write_leaves_no_temporary_file() {
     }
 }
 
+/// A render whose PNG write lasts long enough to be caught (2048x2048, ~0.1 s), to `out`, its
+/// standard output discarded.
+fn slow_write(out: &Path) -> std::process::Command {
+    let mut command = umbra();
+    command
+        .args(["render", "-o", out.to_str().unwrap(), "--size", "2048x2048", "--shadows", "none"])
+        .stdout(std::process::Stdio::null());
+    command
+}
+
 /// A signal ignored when umbra starts stays ignored while it writes: `nohup umbra render`
 /// survives the terminal closing (SIGHUP), as it did before SIGHUP was watched.
 #[test]
@@ -425,11 +432,8 @@ fn an_ignored_hangup_does_not_end_the_write() {
     for _attempt in 0..4 {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out.png");
-        let mut command = umbra();
-        command
-            .args(["render", "-o", out.to_str().unwrap(), "--size", "2048x2048", "--shadows", "none"])
-            .stdout(Stdio::null())
-            .stderr(Stdio::piped());
+        let mut command = slow_write(&out);
+        command.stderr(Stdio::piped());
         // SAFETY: signal(2) is async-signal-safe; this is what nohup does before it runs a command.
         unsafe {
             std::os::unix::process::CommandExt::pre_exec(&mut command, || {

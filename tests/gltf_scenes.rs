@@ -16,12 +16,7 @@ const CAMERA: &str = "[camera]\neye = [0.0, 3.0, 5.0]\ntarget = [0.0, 0.0, 0.0]\
 const LIGHT: &str = "[[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\nirradiance = [1.0, 1.0, 1.0]\n";
 
 fn parse_in(dir: &Path, text: &str) -> Result<Scene, String> {
-    common::captured_log();
-    Scene::parse(text, "s.toml", dir).map_err(|e| {
-        let message = e.to_string();
-        assert!(!message.contains('\n') && !message.contains("panicked"), "{message:?}");
-        message
-    })
+    common::parse_scene_in(dir, text)
 }
 
 /// One quad mesh with a material of base colour (0.2, 0.4, 0.6), roughness 0.3, metallic 0.1,

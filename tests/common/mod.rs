@@ -147,6 +147,17 @@ pub fn scene(parts: &[&str]) -> String {
     parts.join("\n")
 }
 
+/// `text` parsed as the scene file `s.toml` in `dir`, with the log captured; an error as its
+/// one line (checked to be one line and no panic).
+pub fn parse_scene_in(dir: &std::path::Path, text: &str) -> Result<umbra::scene::Scene, String> {
+    captured_log();
+    umbra::scene::Scene::parse(text, "s.toml", dir).map_err(|e| {
+        let message = e.to_string();
+        assert!(!message.contains('\n') && !message.contains("panicked"), "{message:?}");
+        message
+    })
+}
+
 /// Warnings and errors logged in this test process, one line each (the first call installs the
 /// logger). Tests of one file share it and tell theirs apart by the names in the lines.
 pub fn captured_log() -> &'static std::sync::Mutex<Vec<String>> {

@@ -47,11 +47,22 @@ fn main() {
             continue;
         }
         // A shader with a `// variants:` line: one SPIR-V per subset of its flags, indexed by
-        // the subset's bits (flag i is bit i).
+        // the subset's bits (flag i is bit i); a subset its `// variant-requires:` line rules out
+        // (a flag without the flag it needs) is not compiled, its entry empty.
         let count = 1usize << flags.len();
-        writeln!(index, "/// Indexed by the subset of {{{}}} (flag i is bit i).", flags.join(", ")).unwrap();
+        let requires = variant_requires(src, &flags);
+        writeln!(
+            index,
+            "/// Indexed by the subset of {{{}}} (flag i is bit i); empty where it cannot occur.",
+            flags.join(", ")
+        )
+        .unwrap();
         writeln!(index, "pub const {ident}: [&[u8]; {count}] = [").unwrap();
         for mask in 0..count {
+            if requires.iter().any(|&(flag, needs)| mask & (1 << flag) != 0 && mask & (1 << needs) == 0) {
+                writeln!(index, "    &[],").unwrap();
+                continue;
+            }
             let defines = flags.iter().enumerate().filter(|(i, _)| mask & (1 << i) != 0).map(|(_, f)| f.clone());
             let spv = out.join(format!("{file}.{mask}.spv"));
             writeln!(index, "    include_bytes!({:?}),", spv.display().to_string()).unwrap();
@@ -93,6 +104,28 @@ fn variant_flags(src: &Path) -> Vec<String> {
     let text = fs::read_to_string(src).unwrap_or_else(|e| panic!("{}: {e}", src.display()));
     let line = text.lines().find_map(|l| l.trim().strip_prefix("// variants:"));
     line.map(|l| l.split_whitespace().map(str::to_owned).collect()).unwrap_or_default()
+}
+
+/// The pairs of a shader's `// variant-requires: FLAG>NEEDED ...` line, as indices into `flags`:
+/// a variant with FLAG and without NEEDED cannot occur, so it is not compiled.
+fn variant_requires(src: &Path, flags: &[String]) -> Vec<(usize, usize)> {
+    let text = fs::read_to_string(src).unwrap_or_else(|e| panic!("{}: {e}", src.display()));
+    let Some(line) = text.lines().find_map(|l| l.trim().strip_prefix("// variant-requires:")) else {
+        return Vec::new();
+    };
+    let at = |name: &str| {
+        flags
+            .iter()
+            .position(|f| f == name)
+            .unwrap_or_else(|| panic!("{}: {name} is not a variant flag", src.display()))
+    };
+    line.split_whitespace()
+        .map(|pair| {
+            let (flag, needs) =
+                pair.split_once('>').unwrap_or_else(|| panic!("{}: {pair:?} is not FLAG>NEEDED", src.display()));
+            (at(flag), at(needs))
+        })
+        .collect()
 }
 
 fn run_tool(name: &str, cmd: &mut Command) {

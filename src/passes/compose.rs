@@ -91,6 +91,13 @@ impl Variant {
         }
     }
 
+    /// Whether a frame can ask for this variant: ambient occlusion and an environment map only
+    /// come with an environment (compose.comp's `// variant-requires:` line, which build.rs
+    /// follows: it compiles no other).
+    pub fn can_occur(self) -> bool {
+        self.environment || !(self.occluded || self.environment_map)
+    }
+
     fn name(self) -> String {
         let parts = [
             (!self.shadowed, "unshadowed"),
@@ -145,6 +152,8 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePip
         bindings.push((COMPOSE_ENV_PREFILTERED, crate::vk::DescriptorKind::FilteredImage));
         bindings.push((COMPOSE_ENV_MAP, crate::vk::DescriptorKind::FilteredImage));
     }
+    // A variant no frame asks for was not compiled (`Variant::can_occur`).
+    assert!(variant.can_occur(), "{} cannot occur: ambient occlusion or a map without an environment", variant.name());
     let spv = spirv::COMPOSE_COMP[variant.index()];
     // Pipelines keep a 'static name: every variant's, made once per process.
     static NAMES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
@@ -305,5 +314,19 @@ mod tests {
             assert_eq!(Variant::from_index(i).index(), i);
         }
         assert_eq!(VARIANTS, 256, "eight flags in compose.comp's variants line");
+    }
+
+    /// build.rs compiles exactly the variants that can occur: those whose ambient occlusion and
+    /// environment map come with an environment, as the renderer builds them.
+    #[test]
+    fn exactly_the_variants_that_can_occur_are_compiled() {
+        let mut compiled = 0;
+        for i in 0..VARIANTS {
+            let v = Variant::from_index(i);
+            let can_occur = v.can_occur();
+            assert_eq!(!spirv::COMPOSE_COMP[i].is_empty(), can_occur, "{}", v.name());
+            compiled += usize::from(can_occur);
+        }
+        assert_eq!(compiled, 160);
     }
 }

@@ -1,6 +1,6 @@
 //! What every fuzz target shares: the parser runs in-process on AFL++'s input; a panic is the
 //! only failure AFL sees (a crash), and a refusal that is not one line naming the file it is
-//! about is turned into one, so the harness checks what tests/parser_mutation.rs checks.
+//! about is turned into one, so the harness checks what tests/cpu/parser_mutation.rs checks.
 
 use std::path::{Path, PathBuf};
 

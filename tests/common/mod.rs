@@ -9,6 +9,10 @@ use umbra::vk::{GpuContext, GpuOptions};
 
 static ENV: Once = Once::new();
 
+/// One viewer at a time: `xvfb-run -a` picks a free display, but two started at once can pick
+/// the same one. Every test that starts Xvfb holds this.
+pub static XVFB: std::sync::Mutex<()> = std::sync::Mutex::new(());
+
 /// Points the loader at lavapipe unless the caller chose a driver already (tools/env.sh does):
 /// Mesa 25's copy under .deps/ where tools/setup unpacked one, else the system's.
 pub fn lavapipe_env() {

@@ -1,6 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// Compile check for shaders/include/{bvh,ray_offset}.glsl (tests/bvh_cpu.rs): one shadow ray
+// Compile check for shaders/include/{bvh,ray_offset}.glsl (tests/cpu/bvh_cpu.rs): one shadow ray
 // per invocation, as the shadow trace pass will cast them.
 #define BVH_SET 0
 #define BVH_NODES_BINDING 0

@@ -1,7 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 // Compile check, layout reflection and GPU twin check for shaders/include/{lights,random}.glsl
-// (tests/shading_cpu.rs): invocation i samples light i % light_count from query i / light_count
+// (tests/cpu/shading_cpu.rs): invocation i samples light i % light_count from query i / light_count
 // with the random numbers of that query's seed, as a soft shadow pass will.
 #include "lights.glsl"
 #include "random.glsl"

@@ -1,6 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// Compile check for shaders/include/{lights,brdf,tonemap}.glsl (tests/shading_cpu.rs): shade
+// Compile check for shaders/include/{lights,brdf,tonemap}.glsl (tests/cpu/shading_cpu.rs): shade
 // one G-buffer sample per invocation, unshadowed, as the compose pass will.
 #include "lights.glsl"
 #include "brdf.glsl"

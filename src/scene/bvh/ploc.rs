@@ -6,7 +6,7 @@
 //! the same nearest-neighbour search (radius 6, radius 1 for the first 2 passes), the same
 //! merges into the same node slots, then obvhs's reinsertion (`reinsertion`: the same, with its
 //! search on several threads). On ordinary input it builds exactly obvhs's tree for the same
-//! settings without leaf collapse (`tests/bvh_cpu.rs` compares them node for node): leaves are
+//! settings without leaf collapse (`tests/cpu/bvh_cpu.rs` compares them node for node): leaves are
 //! chosen later, in the linear scans before the 4-wide collapse (`wide::LeafPlan`), which cost
 //! less than obvhs's collapse and its second reinsertion.
 //!

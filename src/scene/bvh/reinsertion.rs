@@ -8,7 +8,7 @@
 //! which search the longest, come first). obvhs's `parallel` feature does the same search, but
 //! sorts the found reinsertions with the non-improving ones still in, which orders ties
 //! differently; here they are dropped first, as its sequential code does, so the tree is exactly
-//! the sequential one (`tests/bvh_cpu.rs` compares the build with obvhs's node for node).
+//! the sequential one (`tests/cpu/bvh_cpu.rs` compares the build with obvhs's node for node).
 
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::reinsertion::{find_reinsertion, reinsert_node, Reinsertion};

@@ -1,0 +1,21 @@
+//! Tests that need no Vulkan device: parsers, the BVH on the CPU, the frame graph's plans,
+//! the CPU twins of the shaders, the bench's metrics.
+//!
+//! One test binary (one link of umbra) whose modules share `common`. The suite has three:
+//! `cpu`, `gpu` and `viewer`; `cargo test --release --test gpu stress_scenes::` runs one module.
+
+#[path = "../common/mod.rs"]
+mod common;
+#[path = "../gltf_builder/mod.rs"]
+mod gltf_builder;
+
+mod bench_metrics;
+mod bvh_cpu;
+mod gltf_checks;
+mod graph_layers;
+mod graph_plan;
+mod ltc;
+mod mesh_formats;
+mod parser_mutation;
+mod scene_files;
+mod shading_cpu;

@@ -1,0 +1,30 @@
+//! The transient cache reuses what a frame needs again and frees what no frame has needed for a
+//! while, so rendering at many sizes (a window being resized) does not pile up images.
+
+use crate::common;
+
+use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowChoice};
+use umbra::scene::Scene;
+
+#[test]
+fn transients_are_reused_at_one_size_and_freed_after_a_size_is_left() {
+    let ctx = common::gpu();
+    let mut r = Renderer::new(ctx.clone(), Scene::default_scene()).unwrap();
+    // Hard shadows: soft ones would add the accumulation history, which is not transient.
+    let settings = |w, h| RenderSettings::new(w, h, OutputKind::Display).all_lights(3, ShadowChoice::hard());
+    r.render(&settings(64, 48)).unwrap();
+    let per_frame = r.transient_count();
+    assert!(per_frame >= 5, "G-buffer, visibility, radiance, display: {per_frame}");
+    for _ in 0..3 {
+        r.render(&settings(64, 48)).unwrap();
+    }
+    assert_eq!(r.transient_count(), per_frame, "the same frame again allocates nothing new");
+    for i in 0..24 {
+        r.render(&settings(40 + i, 30 + i)).unwrap();
+    }
+    // Only sizes used within the last 8 frames may still hold images.
+    assert!(r.transient_count() <= 8 * per_frame, "{} held after 24 sizes", r.transient_count());
+    assert!(r.transient_count() >= per_frame);
+    drop(r);
+    common::assert_clean(&ctx);
+}

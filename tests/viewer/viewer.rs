@@ -1,0 +1,174 @@
+//! The viewer under Xvfb on lavapipe with validation on: scripted input drives the real window,
+//! and the viewer's own screenshots show that the image changes as it should.
+
+use crate::common;
+
+use std::path::Path;
+use std::process::Output;
+
+use umbra::output::read_exr;
+
+/// A fresh directory holding a copy of the default scene (screenshots land beside it).
+fn scene_dir(name: &str) -> common::ScratchDir {
+    let dir = common::scratch_dir(&format!("viewer-{name}"));
+    let scene = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/default.toml")).unwrap();
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    dir
+}
+
+/// Runs `umbra view scene.toml --validate --script` under its own Xvfb server.
+fn view(dir: &Path, script: &str, extra: &[&str]) -> Output {
+    common::lavapipe_env();
+    std::fs::write(dir.join("script.txt"), script).unwrap();
+    let _one_at_a_time = common::XVFB.lock().unwrap_or_else(|e| e.into_inner());
+    let out = std::process::Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1024x768x24", env!("CARGO_BIN_EXE_umbra"), "view"])
+        .arg(dir.join("scene.toml"))
+        .args(["--validate", "--script"])
+        .arg(dir.join("script.txt"))
+        .args(extra)
+        .output()
+        .expect("xvfb-run (installed by tools/setup)");
+    let text = format!("{}{}", String::from_utf8_lossy(&out.stdout), String::from_utf8_lossy(&out.stderr));
+    assert!(out.status.success(), "viewer failed:\n{text}");
+    assert!(text.contains("validation: 0 messages"), "{text}");
+    out
+}
+
+fn luminance(p: &[f32]) -> f32 {
+    0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]
+}
+
+/// Mean x of the darkest lit-scene pixels (shadows), ignoring the flat background.
+fn shadow_centroid_x(path: &Path) -> f32 {
+    let (w, _, px) = read_exr(path).unwrap();
+    let bg = umbra::renderer::BACKGROUND;
+    let covered: Vec<(usize, f32)> = px
+        .chunks(4)
+        .enumerate()
+        .filter(|(_, p)| (p[0] - bg.x).abs() > 1e-6 || (p[1] - bg.y).abs() > 1e-6)
+        .map(|(i, p)| (i, luminance(p)))
+        .collect();
+    let mut l: Vec<f32> = covered.iter().map(|c| c.1).collect();
+    l.sort_by(f32::total_cmp);
+    let threshold = l[l.len() * 15 / 100];
+    let dark: Vec<usize> = covered.iter().filter(|c| c.1 <= threshold).map(|c| c.0 % w as usize).collect();
+    dark.iter().sum::<usize>() as f32 / dark.len() as f32
+}
+
+#[test]
+fn turning_the_camera_moves_the_shadows_on_screen() {
+    let dir = scene_dir("turn");
+    view(&dir, "frames 2\nscreenshot before\nmouse 120 0\nframes 2\nscreenshot turned\nquit\n", &[]);
+    let (before, after) = (shadow_centroid_x(&dir.join("before.exr")), shadow_centroid_x(&dir.join("turned.exr")));
+    // 120 counts turn the camera 0.3 rad to the right, so the scene slides left by ~100 px.
+    assert!(after < before - 30.0, "shadow centroid x {before} -> {after}");
+    assert!(dir.join("before.png").exists() && dir.join("turned.png").exists());
+}
+
+#[test]
+fn switching_a_light_to_no_shadows_brightens_its_shadows_only() {
+    let dir = scene_dir("none");
+    // T cycles traced -> map -> cascades -> volumes -> hybrid -> none.
+    let script = "frames 2\nscreenshot hard\npress T\npress T\npress T\npress T\npress T\nframes 2\nscreenshot \
+                  unshadowed\nquit\n";
+    view(&dir, script, &["--hard"]);
+    let (w, h, hard) = read_exr(&dir.join("hard.exr")).unwrap();
+    let (w2, h2, none) = read_exr(&dir.join("unshadowed.exr")).unwrap();
+    assert_eq!((w, h), (w2, h2));
+    let mut brighter = 0;
+    for (a, b) in hard.chunks(4).zip(none.chunks(4)) {
+        let (la, lb) = (luminance(a), luminance(b));
+        assert!(lb >= la - 1e-5, "removing a shadow darkened a pixel: {la} -> {lb}");
+        if lb > la * 1.2 + 1e-3 {
+            brighter += 1;
+        }
+    }
+    let n = (w * h) as usize;
+    assert!(brighter * 100 > n, "only {brighter} of {n} pixels brightened");
+}
+
+#[test]
+fn resizing_and_minimising_stay_validation_clean() {
+    let text = resize_and_minimise("resize", &[]);
+    // Lavapipe under Xvfb offers mailbox, which the viewer prefers.
+    assert!(text.contains("present mode: MAILBOX"), "{text}");
+}
+
+#[test]
+fn the_fifo_swapchain_resizes_and_minimises_cleanly_too() {
+    let text = resize_and_minimise("fifo", &["--vsync"]);
+    assert!(text.contains("present mode: FIFO"), "{text}");
+}
+
+fn resize_and_minimise(name: &str, extra: &[&str]) -> String {
+    let dir = scene_dir(name);
+    let script = "frames 2\nresize 200 150\nframes 3\nscreenshot small\nresize 480 360\nframes 3\nminimise\nframes 4\nrestore\nframes 3\nscreenshot big\nresize 320 240\nframes 2\nquit\n";
+    let out = view(&dir, script, extra);
+    let text = String::from_utf8_lossy(&out.stdout);
+    let small = image::open(dir.join("small.png")).unwrap();
+    let big = image::open(dir.join("big.png")).unwrap();
+    assert_eq!((small.width(), small.height()), (200, 150));
+    assert_eq!((big.width(), big.height()), (480, 360));
+    // While minimised the viewer presents nothing.
+    let skipped: u64 = text
+        .split("frames presented, ")
+        .nth(1)
+        .and_then(|t| t.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .expect("viewer summary line");
+    assert!(skipped >= 4, "{text}");
+    text.into_owned()
+}
+
+#[test]
+fn frames_closes_the_window_after_n_frames() {
+    let dir = scene_dir("frames");
+    let out = view(&dir, "", &["--frames", "5"]);
+    assert!(String::from_utf8_lossy(&out.stdout).contains("viewer: 5 frames presented"));
+}
+
+#[test]
+fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
+    let dir = scene_dir("overlay");
+    let script = "frames 2\ncapture shown\npress F1\nframes 2\ncapture plain\nscreenshot offline\npress F12\nquit\n";
+    view(&dir, script, &["--size", "640x480", "--hard"]);
+    let shown = image::open(dir.join("shown.png")).unwrap().to_rgb8();
+    let plain = image::open(dir.join("plain.png")).unwrap().to_rgb8();
+    let offline = image::open(dir.join("offline.png")).unwrap().to_rgb8();
+    // Without the overlay the window shows exactly what `umbra render` makes of the same view.
+    assert_eq!(plain.dimensions(), offline.dimensions());
+    let max_diff =
+        plain.pixels().zip(offline.pixels()).flat_map(|(a, b)| (0..3).map(move |c| a.0[c].abs_diff(b.0[c]))).max();
+    assert!(max_diff <= Some(1), "window and capture differ by {max_diff:?}");
+    // The overlay: white glyphs on a darkened box in the top-left corner, nothing elsewhere.
+    let (w, h) = plain.dimensions();
+    let (mut changed, mut white) = (0, 0);
+    let (mut box_w, mut box_h) = (0, 0);
+    for (x, y, p) in shown.enumerate_pixels() {
+        if p != plain.get_pixel(x, y) {
+            changed += 1;
+            box_w = box_w.max(x + 1);
+            box_h = box_h.max(y + 1);
+            white += (p.0 == [255, 255, 255]) as u32;
+        }
+    }
+    assert!(white > 200, "only {white} glyph pixels");
+    assert!(changed > white * 2, "the backdrop should darken the box too");
+    // A compact box in the corner: it leaves most of the window alone, and inside it the
+    // backdrop darkens nearly every pixel.
+    assert!(box_w < w * 3 / 4 && box_h < h / 2, "the overlay box is {box_w}x{box_h} of {w}x{h}");
+    assert!(changed as f64 > 0.8 * f64::from(box_w * box_h), "{changed} of {box_w}x{box_h} changed");
+    // F12 wrote a timestamped PNG and EXR pair beside the scene.
+    let names: Vec<String> =
+        std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into_owned()).collect();
+    for ext in ["png", "exr"] {
+        assert!(
+            names.iter().any(|n| n.starts_with("umbra-20")
+                && n.ends_with(ext)
+                && n.len() == "umbra-YYYYMMDD-HHMMSS-mmm.".len() + 3),
+            "no F12 {ext} among {names:?}"
+        );
+    }
+    assert!(!names.iter().any(|n| n.ends_with(".tmp")), "temporary files left: {names:?}");
+}

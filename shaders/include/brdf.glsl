@@ -1,5 +1,5 @@
 // Metalness/roughness BRDF: Lambert diffuse plus GGX specular with height-correlated Smith
-// visibility and Schlick Fresnel. Twin of src/shading.rs (same names), which documents it.
+// visibility and Schlick Fresnel. Twin of src/shading/brdf.rs (same names), which documents it.
 #ifndef UMBRA_BRDF_GLSL
 #define UMBRA_BRDF_GLSL
 

@@ -20,7 +20,7 @@
 //             rgb  emitted radiance, W/(m^2 sr); a  ambient occlusion (1: none), for the
 //                  environment and ambient lighting that read it
 // Position is stored rather than rebuilt from depth so that scenes far from the origin keep
-// every bit the rasteriser gives them. CPU twin of the surface channel: src/shading.rs
+// every bit the rasteriser gives them. CPU twin of the surface channel: src/shading/surface.rs
 // (`Surfaces`).
 #ifndef GBUFFER_GLSL
 #define GBUFFER_GLSL

@@ -1,5 +1,5 @@
 // The scene's lights as the GPU reads them, and what one light delivers to a point.
-// Twin of src/shading.rs (GpuLight, gpu_lights, light_sample, light_sample_point), which
+// Twin of src/shading/lights.rs (GpuLight, gpu_lights, light_sample, light_sample_point), which
 // documents the constants and the sampling.
 // The includer declares the buffer, e.g. `readonly buffer Lights { GpuLight lights[]; };`.
 #ifndef UMBRA_LIGHTS_GLSL

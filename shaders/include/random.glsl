@@ -1,5 +1,5 @@
 // Small integer-hash random numbers for the GPU: reproducible per (pixel, frame, sample), no
-// state to store between frames. Twin of pcg, hash_to_unit and random2 in src/shading.rs, so a
+// state to store between frames. Twin of pcg, hash_to_unit and random2 in src/shading/random.rs, so a
 // CPU test can rebuild any GPU sample bit for bit.
 #ifndef UMBRA_RANDOM_GLSL
 #define UMBRA_RANDOM_GLSL

@@ -2,7 +2,7 @@
 // of its triangle (`terminator_offset`, which the geometry pass stores in the G-buffer), then
 // pushed off its surface along the geometric normal by RAY_OFFSET_ULPS ulps of its largest
 // component, at least RAY_OFFSET_MIN metres. Twin of src/scene/bvh/ray_offset.rs (which explains
-// the constants) and src/shading.rs (`terminator_offset`).
+// the constants) and src/shading/surface.rs (`terminator_offset`).
 #ifndef UMBRA_RAY_OFFSET_GLSL
 #define UMBRA_RAY_OFFSET_GLSL
 

@@ -1,6 +1,6 @@
 // Scene radiance to display-linear [0, 1]: exposure 2^EV, then Narkowicz's 2015 ACES filmic
 // fit per channel (no extra 0.6 pre-scale), clamped. Twin of tonemap/srgb_encode in
-// src/shading.rs. The output applies srgb_encode unless it writes to an *_SRGB format.
+// src/shading/tonemap.rs. The output applies srgb_encode unless it writes to an *_SRGB format.
 #ifndef UMBRA_TONEMAP_GLSL
 #define UMBRA_TONEMAP_GLSL
 

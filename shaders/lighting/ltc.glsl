@@ -1,6 +1,6 @@
 // Linearly transformed cosines over a rect light or a cap (a sphere or disk light): twin of
 // src/lighting/ltc.rs (`lookup`, `form_factor`, `cap_polygon`, `cap_form_factor`, `lobe_over_polygon`, `frame`) and of
-// `shade_rect` and `shade_cap` in src/shading.rs.
+// `shade_rect` and `shade_cap` in src/shading/area.rs.
 // Contract: before including, declare `float ltc_table[]` (ltc::table(), 5 floats a node, x
 // fastest) and `vec2 brdf_table[]`, and include brdf.glsl, lights.glsl and
 // lighting/environment.glsl.

@@ -7,7 +7,7 @@
 //! The inverse matrices come from `ltc_ggx.bin`, fitted by umbra's own tool
 //! (`cargo run --release --example ltc_fit`, src/lighting/ltc_fit.rs) to umbra's BRDF. The scale
 //! and bias of F0 that the lobe integrates to are the split-sum table's (`split_sum`).
-//! tests/ltc.rs measures it on the CPU; shaders/lighting/ltc.glsl is its twin on the GPU
+//! tests/cpu/ltc.rs measures it on the CPU; shaders/lighting/ltc.glsl is its twin on the GPU
 //! (rect lights, `lighting::rects`).
 
 use std::sync::OnceLock;
@@ -141,7 +141,7 @@ pub const CAP_CORNERS: usize = 8;
 /// Returns the polygon's centre (`axis` cos(rho)) and its corners' offsets from it, which
 /// `cap_form_factor` keeps apart so that a small cap loses nothing to rounding. Matching solid
 /// angle leaves the cosine's integral over the polygon within 0.02 % of the cap's above the
-/// horizon and within 0.2 % where the horizon cuts it (tests/area_lights.rs). Twin of
+/// horizon and within 0.2 % where the horizon cuts it (tests/gpu/area_lights.rs). Twin of
 /// `cap_radiance` in ltc.glsl.
 pub fn cap_polygon(axis: Vec3, one_minus_cos: f32) -> (Vec3, [Vec3; CAP_CORNERS]) {
     let n = CAP_CORNERS as f32;
@@ -149,7 +149,7 @@ pub fn cap_polygon(axis: Vec3, one_minus_cos: f32) -> (Vec3, [Vec3; CAP_CORNERS]
     let e = one_minus_cos.clamp(0.0, CAP_MAX_ONE_MINUS_COS);
     let omc_rho = ((pi * e / n).sin() / ((pi / n).sin() * (pi * (1.0 - e) / n).cos())).clamp(0.0, 1.0);
     let sin_rho = (omc_rho * (2.0 - omc_rho)).max(0.0).sqrt();
-    let (t, b) = crate::shading::orthonormal_basis(axis);
+    let (t, b) = crate::shading::lights::orthonormal_basis(axis);
     let offsets = CAP_DIRECTIONS.map(|[c, s]| (t * c + b * s) * sin_rho);
     (axis * (1.0 - omc_rho), offsets)
 }
@@ -249,7 +249,7 @@ fn edge(a: Vec3, b: Vec3) -> Vec3 {
 /// blended out as the light covers more of the lobe (|form.z| / share): a small light gets the
 /// exact lobe at its direction (what a point light gets), a sky-filling one the plain LTC.
 /// From 60 to 75 degrees from the normal (and for a light near the horizon) the correction fades out: there the fitted lobe's
-/// shape is so far from GGX's that the ratio at one direction misleads (tests/ltc.rs measures
+/// shape is so far from GGX's that the ratio at one direction misleads (tests/cpu/ltc.rs measures
 /// both sides). Twin of `ltc_lobe_integral` in ltc.glsl.
 #[allow(clippy::too_many_arguments)]
 pub fn lobe_integral(
@@ -274,10 +274,12 @@ pub fn lobe_integral(
     } else {
         0.0
     };
-    let alpha = (roughness * roughness).max(crate::shading::BRDF_MIN_ALPHA);
+    let alpha = (roughness * roughness).max(crate::shading::brdf::BRDF_MIN_ALPHA);
     let h = (v + l).normalize_or_zero();
     let exact = if l.z > 0.0 {
-        crate::shading::ggx_d(h.z.clamp(0.0, 1.0), alpha) * crate::shading::smith_vis(l.z, n_dot_v, alpha) * l.z
+        crate::shading::brdf::ggx_d(h.z.clamp(0.0, 1.0), alpha)
+            * crate::shading::brdf::smith_vis(l.z, n_dot_v, alpha)
+            * l.z
     } else {
         0.0
     };
@@ -287,8 +289,8 @@ pub fn lobe_integral(
     // degrees of it. Not faded by the fitted cosine's own z there: a smooth lobe's matrix sends
     // directions a few degrees off the mirror to z 0.04-0.10 in the cosine's space, where the
     // fitted density is a steady ~2x too low and the correction is what makes the tail right.
-    let trust = crate::shading::smoothstep(RATIO_FADE_N_DOT_V[0], RATIO_FADE_N_DOT_V[1], n_dot_v)
-        * crate::shading::smoothstep(0.0, RATIO_FADE_HORIZON, l.z);
+    let trust = crate::shading::lights::smoothstep(RATIO_FADE_N_DOT_V[0], RATIO_FADE_N_DOT_V[1], n_dot_v)
+        * crate::shading::lights::smoothstep(0.0, RATIO_FADE_HORIZON, l.z);
     let ratio = 1.0 + (ratio - 1.0) * trust;
     let coverage = (form.z.abs() / share).clamp(0.0, 1.0);
     let lobe = plain * (ratio + (1.0 - ratio) * coverage);
@@ -311,7 +313,7 @@ pub fn lobe_integral(
 /// little and few points suffice, and it converges to the exact integral as points are added. Blended in from 45 to 50 degrees
 /// of view or for a light covering a tenth of the lobe, and from roughness 0.1 to 0.2
 /// (`QUADRATURE_FROM`); elsewhere `lobe_integral` (cheaper, and good for smooth lobes, where a
-/// lobe thinner than the points' spacing would defeat the quadrature). tests/ltc.rs measures
+/// lobe thinner than the points' spacing would defeat the quadrature). tests/cpu/ltc.rs measures
 /// both. Twin of `ltc_lobe_over_polygon` in ltc.glsl.
 #[allow(clippy::too_many_arguments)]
 pub fn lobe_over_polygon(
@@ -342,14 +344,14 @@ pub const QUADRATURE_FROM: [[f32; 2]; 3] = [[std::f32::consts::FRAC_1_SQRT_2, 0.
 
 /// Points per triangle along each axis of `lobe_over_polygon`'s quadrature over a rect (4
 /// triangles, 36 points) and over a cap's octagon (8 triangles, 32 points: as accurate as 3
-/// there, tests/area_lights.rs).
+/// there, tests/gpu/area_lights.rs).
 pub const QUADRATURE_SIDE: usize = 3;
 pub const CAP_QUADRATURE_SIDE: usize = 2;
 
 /// How much of `lobe_over_polygon` is its quadrature, for a light covering `coverage` of the
 /// fitted lobe (|form.z| / share).
 pub fn quadrature_weight(n_dot_v: f32, roughness: f32, coverage: f32) -> f32 {
-    use crate::shading::smoothstep;
+    use crate::shading::lights::smoothstep;
     let [view, rough, cover] = QUADRATURE_FROM;
     let grazing = 1.0 - smoothstep(view[1], view[0], n_dot_v);
     let large = smoothstep(cover[0], cover[1], coverage);
@@ -383,7 +385,7 @@ fn lobe_quadrature(
     let centre = clipped[..count].iter().copied().sum::<Vec3>().normalize_or_zero();
     let back = m.inverse();
     let det = m.determinant().abs();
-    let alpha = (roughness * roughness).max(crate::shading::BRDF_MIN_ALPHA);
+    let alpha = (roughness * roughness).max(crate::shading::brdf::BRDF_MIN_ALPHA);
     // The lobe over the cosine at a point w of the cosine's space (unit), as (F0's scale, bias);
     // and the cosine there. d(omega) in the lobe's space is |m l|^3 / |det m| d(omega').
     let at = |w: Vec3| -> (glam::Vec2, f32) {
@@ -393,8 +395,8 @@ fn lobe_quadrature(
         }
         let len = (m * l).length();
         let h = (v + l).normalize_or_zero();
-        let lobe = crate::shading::ggx_d(h.z.clamp(0.0, 1.0), alpha)
-            * crate::shading::smith_vis(l.z, n_dot_v, alpha)
+        let lobe = crate::shading::brdf::ggx_d(h.z.clamp(0.0, 1.0), alpha)
+            * crate::shading::brdf::smith_vis(l.z, n_dot_v, alpha)
             * l.z
             * (len * len * len / det);
         let s = schlick_weight(v, l);
@@ -471,7 +473,7 @@ pub const RATIO_FADE_HORIZON: f32 = 0.2;
 /// The shading frame: x toward v in the tangent plane, z = n. Returns (x, y).
 pub fn frame(n: Vec3, v: Vec3) -> (Vec3, Vec3) {
     let t = v - n * n.dot(v);
-    let x = if t.length_squared() > 1e-12 { t.normalize() } else { crate::shading::orthonormal_basis(n).0 };
+    let x = if t.length_squared() > 1e-12 { t.normalize() } else { crate::shading::lights::orthonormal_basis(n).0 };
     (x, n.cross(x))
 }
 

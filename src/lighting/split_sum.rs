@@ -23,7 +23,7 @@ pub const TABLE_SIZE: usize = 64;
 /// Samples per table entry.
 const SAMPLES: u32 = 2048;
 
-/// Smallest GGX alpha and n.v, as in brdf.glsl / shading.rs.
+/// Smallest GGX alpha and n.v, as in brdf.glsl / shading/brdf.rs.
 const MIN_ALPHA: f64 = 1e-3;
 const MIN_N_DOT_V: f64 = 1e-4;
 

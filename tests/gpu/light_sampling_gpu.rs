@@ -1,5 +1,5 @@
 //! lights.glsl's light_sample_point and random.glsl's random2, run on lavapipe, against their
-//! Rust twins in src/shading.rs on the same lights, points and seeds: the random numbers must
+//! Rust twins in src/shading/ on the same lights, points and seeds: the random numbers must
 //! match bit for bit, the sampled directions and distances to float rounding.
 
 use crate::common;

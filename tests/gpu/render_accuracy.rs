@@ -1,5 +1,5 @@
 //! Whole-renderer accuracy on lavapipe: shaded radiance and shadow visibility read back from the
-//! GPU against a CPU evaluation of the same pixels (src/shading.rs for the lights and the BRDF,
+//! GPU against a CPU evaluation of the same pixels (src/shading/ for the lights and the BRDF,
 //! obvhs's traversal of the scene's ShadowBvh for the shadow rays), the same scene 100 km from
 //! the origin, the empty-scene edge cases, and which passes each kind of frame schedules.
 //!
@@ -362,7 +362,7 @@ fn interior(region: impl Fn(usize) -> bool, pred: impl Fn(usize) -> bool, r: i64
 /// The renderer moves everything the GPU sees into a frame centred on the geometry (in f64),
 /// so the far scene is traced with the same small coordinates and the same tiny ray offsets as
 /// the near one (world positions are f64, so nothing is quantised at 7.8 mm on the way; the
-/// default scene 1e7 m out is `tests/far_from_origin.rs`).
+/// default scene 1e7 m out is `tests/gpu/far_from_origin.rs`).
 /// So: near and far renders must agree on all but 0.5% of covered pixels, with no acne and no
 /// leak away from shadow edges.
 #[test]

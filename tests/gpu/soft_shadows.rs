@@ -1,5 +1,5 @@
 //! Ray-traced soft shadows on lavapipe against a CPU evaluation with the same random samples
-//! (src/shading.rs twins shaders/include/{random,lights}.glsl and the ratio estimator's weights
+//! (src/shading/ twins shaders/include/{random,lights}.glsl and the ratio estimator's weights
 //! in trace_body.glsl), the ratio estimator against a numerical integral of the shadowed BRDF,
 //! progressive accumulation converging toward a high-sample reference, and the traced pass's
 //! spread (stratified or R2) samples converging faster than independent ones.

@@ -1,13 +1,14 @@
 //! Settings that every layer may name (scene file, command line, viewer, renderer), kept below
 //! all of them so imports point down the data path only.
 
-use serde::{Deserialize, Serialize};
+use serde::Serialize;
 
-use crate::scene::Camera;
+use crate::scene::camera::Camera;
 pub use crate::shadows::auto::AutoParams;
 pub use crate::shadows::cascades::params::CascadeParams;
 pub use crate::shadows::hybrid::params::HybridParams;
 pub use crate::shadows::map::params::MapParams;
+pub use crate::shadows::registry::{ShadowChoice, ShadowMethod};
 pub use crate::shadows::traced::params::TracedParams;
 pub use crate::shadows::volumes::params::VolumeParams;
 
@@ -42,58 +43,7 @@ impl ShadowBackend {
     }
 }
 
-/// How a light's shadows are made: one list of ids for the command line, the scene file
-/// (`[[lights]] shadows = "..."`), the viewer, CSV output and logs.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, PartialOrd, Ord)]
-pub enum ShadowMethod {
-    /// Shadow rays through the casters (`traced`): hard, or soft for lights with a size.
-    #[default]
-    Traced,
-    /// A shadow map with percentage-closer filtering (PCSS for lights with a size): spot
-    /// (perspective), directional (orthographic, fitted) and point lights (cube).
-    Map,
-    /// Cascaded shadow maps: directional lights (other kinds fall back to `traced`).
-    Cascades,
-    /// Stencil shadow volumes: closed 2-manifold casters only (else `traced`).
-    Volumes,
-    /// A coarse shadow map decides the pixels it is sure of; rays are traced for the rest.
-    Hybrid,
-    /// The cheapest method whose error, measured on the scene's own camera against the traced
-    /// reference, stays under `auto.max_error` (chosen by a calibration before rendering).
-    Auto,
-    /// Unshadowed: the light reaches every surface facing it.
-    None,
-}
-
 impl ShadowMethod {
-    pub const ALL: [ShadowMethod; 7] = [
-        ShadowMethod::Traced,
-        ShadowMethod::Map,
-        ShadowMethod::Cascades,
-        ShadowMethod::Volumes,
-        ShadowMethod::Hybrid,
-        ShadowMethod::Auto,
-        ShadowMethod::None,
-    ];
-
-    /// The methods that draw a light's shadows themselves (all but `auto`, which picks one of
-    /// them, and `none`).
-    pub const TECHNIQUES: [ShadowMethod; 5] =
-        [ShadowMethod::Traced, ShadowMethod::Map, ShadowMethod::Cascades, ShadowMethod::Volumes, ShadowMethod::Hybrid];
-
-    /// The stable id.
-    pub fn id(self) -> &'static str {
-        match self {
-            ShadowMethod::Traced => "traced",
-            ShadowMethod::Map => "map",
-            ShadowMethod::Cascades => "cascades",
-            ShadowMethod::Volumes => "volumes",
-            ShadowMethod::Hybrid => "hybrid",
-            ShadowMethod::Auto => "auto",
-            ShadowMethod::None => "none",
-        }
-    }
-
     /// The method an id names, and the softness the id implies: `ray-traced` is `traced`;
     /// `traced-soft` and `ray-traced-soft` are `traced` with soft sampling.
     pub fn parse(id: &str) -> Result<(ShadowMethod, Option<bool>), String> {
@@ -102,7 +52,7 @@ impl ShadowMethod {
             "traced-soft" | "ray-traced-soft" => return Ok((ShadowMethod::Traced, Some(true))),
             _ => {}
         }
-        ShadowMethod::ALL.into_iter().find(|m| m.id() == id).map(|m| (m, None)).ok_or_else(|| {
+        ShadowMethod::ALL.iter().find(|m| m.id() == id).map(|&m| (m, None)).ok_or_else(|| {
             let ids: Vec<_> = ShadowMethod::ALL.iter().map(|m| m.id()).collect();
             format!(
                 "unknown shadow method {id:?}: use one of {} (ray-traced and ray-traced-soft are aliases of traced)",
@@ -111,34 +61,12 @@ impl ShadowMethod {
         })
     }
 
-    /// Whether a light with this method may read `technique`'s parameters (`map` for
-    /// `map.resolution`): its own, those it borrows (cascades and hybrid draw with `map`'s
-    /// filtering, hybrid traces with `traced`'s), `traced`'s for a light it falls back to
-    /// tracing, and every technique's for `auto`, which may choose any. `none` reads none.
-    pub fn reads(self, technique: &str) -> bool {
-        match self {
-            ShadowMethod::None => false,
-            ShadowMethod::Auto => true,
-            ShadowMethod::Traced => technique == "traced",
-            ShadowMethod::Map => matches!(technique, "map" | "traced"),
-            ShadowMethod::Cascades => matches!(technique, "cascades" | "map" | "traced"),
-            ShadowMethod::Volumes => matches!(technique, "volumes" | "traced"),
-            ShadowMethod::Hybrid => matches!(technique, "hybrid" | "map" | "traced"),
-        }
-    }
-
-    /// The next method in the viewer's cycle (`auto` is chosen before rendering, not cycled to).
+    /// The next method in the viewer's cycle: the techniques, then `none` (`auto` is chosen
+    /// before rendering, not cycled to).
     pub fn next(self) -> ShadowMethod {
-        const CYCLE: [ShadowMethod; 6] = [
-            ShadowMethod::Traced,
-            ShadowMethod::Map,
-            ShadowMethod::Cascades,
-            ShadowMethod::Volumes,
-            ShadowMethod::Hybrid,
-            ShadowMethod::None,
-        ];
-        let i = CYCLE.iter().position(|&m| m == self).unwrap_or(0);
-        CYCLE[(i + 1) % CYCLE.len()]
+        let cycle: Vec<ShadowMethod> = ShadowMethod::TECHNIQUES.iter().copied().chain([ShadowMethod::None]).collect();
+        let i = cycle.iter().position(|&m| m == self).unwrap_or(0);
+        cycle[(i + 1) % cycle.len()]
     }
 }
 
@@ -152,22 +80,6 @@ impl Serialize for ShadowMethod {
     fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.serialize_str(self.id())
     }
-}
-
-/// One light's shadows: the method and every technique's parameters (only the chosen
-/// method's are used; keeping all of them lets the viewer and the bench switch methods
-/// without losing what the scene file set).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct ShadowChoice {
-    #[serde(skip)]
-    pub method: ShadowMethod,
-    pub traced: TracedParams,
-    pub map: MapParams,
-    pub cascades: CascadeParams,
-    pub volumes: VolumeParams,
-    pub hybrid: HybridParams,
-    pub auto: AutoParams,
 }
 
 impl ShadowChoice {
@@ -192,9 +104,10 @@ impl ShadowChoice {
             .split_once('.')
             .ok_or_else(|| format!("{key:?}: parameter keys are TECHNIQUE.FIELD, e.g. map.resolution"))?;
         let mut table = toml::Value::try_from(*self).map_err(|e| e.to_string())?;
-        let section = table.get_mut(technique).and_then(|t| t.as_table_mut()).ok_or_else(|| {
-            format!("{key:?}: no technique {technique:?} (traced, map, cascades, volumes, hybrid, auto)")
-        })?;
+        let section = table
+            .get_mut(technique)
+            .and_then(|t| t.as_table_mut())
+            .ok_or_else(|| format!("{key:?}: no technique {technique:?} ({})", ShadowChoice::TABLES.join(", ")))?;
         // An empty value would parse as an empty TOML document, a table: "invalid type: map".
         if value.trim().is_empty() {
             return Err(format!("{key}: no value after `=`"));
@@ -208,16 +121,6 @@ impl ShadowChoice {
         next.method = self.method;
         next.check().map_err(|e| format!("{key}={value}: {e}"))?;
         *self = next;
-        Ok(())
-    }
-
-    /// Every parameter in range.
-    pub fn check(&self) -> Result<(), String> {
-        self.traced.check()?;
-        self.map.check()?;
-        self.cascades.check()?;
-        self.hybrid.check()?;
-        self.auto.check()?;
         Ok(())
     }
 
@@ -367,7 +270,7 @@ pub struct RenderSettings {
     /// (`crate::passes::accumulate::jitter`: a box filter), so a still view converges to the
     /// anti-aliased image. Frame 0 stays at the pixel centre.
     pub antialias: bool,
-    /// Tests only: adds the pass "busy" (`passes/busy.rs`, this many loop iterations) after
+    /// Tests only: adds the pass "busy" (`diagnostics/busy.rs`, this many loop iterations) after
     /// the geometry pass, a GPU cost of known size for checking timings.
     pub busy_iterations: Option<u32>,
 }
@@ -389,25 +292,6 @@ impl RenderSettings {
             antialias: false,
             busy_iterations: None,
         }
-    }
-
-    /// Whether any light's shadows are sampled stochastically (and so worth accumulating).
-    pub fn is_stochastic(&self, lights: &[crate::scene::Light]) -> bool {
-        lights.iter().enumerate().any(|(i, l)| {
-            let c = self.shadow(i);
-            matches!(c.method, ShadowMethod::Traced | ShadowMethod::Hybrid) && c.traced.is_soft(l.has_size())
-        })
-    }
-
-    /// Whether successive frames of `scene` with these settings fold into a running mean
-    /// (`passes::accumulate`): stochastic shadows, ambient occlusion of the environment,
-    /// rect-light shadows, or anti-aliasing. What the accumulator and the bench (which scores a
-    /// lone frame against a converged reference) both decide by.
-    pub fn accumulates(&self, scene: &crate::scene::Scene) -> bool {
-        self.is_stochastic(&scene.lights)
-            || scene.lighting.occlusion_of_environment().is_some()
-            || scene.rect_lights.iter().any(|r| r.spp > 0)
-            || self.antialias
     }
 
     /// Light `light`'s shadows.

@@ -8,15 +8,16 @@ use ash::vk;
 use glam::Vec3;
 
 use crate::config::{OutputKind, RenderSettings};
+use crate::diagnostics::busy;
 use crate::gpu_scene::{CameraMatrices, SceneGpu, SCENE_ACCESS};
 use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs};
 use crate::passes::overlay::OverlayInputs;
-use crate::passes::{busy, compose, geometry, overlay, present, readback, tonemap, GBuffer, Pipelines};
+use crate::passes::{compose, geometry, overlay, present, readback, tonemap, GBuffer, Pipelines};
 use crate::scene::Scene;
-use crate::shadows::{self, Prepared, ShadowPlan};
-use crate::vk::{Buffer, ComputePipeline, ImageDesc};
+use crate::shadows::{self, ShadowPlan};
+use crate::vk::{Buffer, ComputePipeline, GpuResult, ImageDesc};
 
 /// Radiance of pixels no surface covers, W/(m^2 sr), unless the scene sets `background` or
 /// an environment: a dim, neutral backdrop.
@@ -41,14 +42,20 @@ pub enum Target<'a> {
 
 /// Everything a frame's graph is built from.
 pub struct FrameParts<'a> {
+    pub ctx: &'a std::sync::Arc<crate::vk::GpuContext>,
     pub pipelines: &'a Pipelines,
+    /// Where passes get the pipelines they ask for as they declare themselves.
+    pub pipeline_cache: &'a crate::vk::PipelineCache,
     /// Tests only: the busy pass's pipeline.
     pub busy: Option<&'a ComputePipeline>,
     pub scene_gpu: &'a SceneGpu,
     pub scene: &'a Scene,
     pub settings: &'a RenderSettings,
     pub shadows: ShadowPlan,
-    pub prepared: Prepared<'a>,
+    /// The casters' adjacency, when a light asks for `volumes`.
+    pub volumes: Option<&'a crate::shadows::volumes::VolumeScene>,
+    /// The driver's acceleration structures, when the frame's rays use them.
+    pub ray_query: Option<&'a crate::shadows::traced::accel::RayQueryScene>,
     /// The environment and ambient occlusion this frame uses.
     pub lighting: crate::lighting::Prepared<'a>,
     /// Compose's variant and pipeline (shaded frames; `None` for a debug view).
@@ -63,9 +70,25 @@ struct SceneHandles {
 }
 
 /// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
-pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<History<'a>>) -> RenderGraph<'a> {
-    let FrameParts { pipelines, busy, scene_gpu: s, scene, settings, shadows: plan, prepared, lighting, compose } =
-        parts;
+pub fn build<'a>(
+    parts: FrameParts<'a>,
+    target: Target<'a>,
+    history: Option<History<'a>>,
+) -> GpuResult<RenderGraph<'a>> {
+    let FrameParts {
+        ctx,
+        pipelines,
+        pipeline_cache,
+        busy,
+        scene_gpu: s,
+        scene,
+        settings,
+        shadows: plan,
+        volumes,
+        ray_query,
+        lighting,
+        compose,
+    } = parts;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let camera = CameraMatrices::new(
         &s.to_local(&settings.camera.unwrap_or(scene.camera)),
@@ -86,6 +109,8 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         g.export(result, Access::ComputeShaderReadStorageBuffer);
     }
     let inputs = shadows::FrameInputs {
+        ctx,
+        pipelines: pipeline_cache,
         scene: s,
         gbuffer: &gbuffer,
         vertices: &handles.vertices,
@@ -95,15 +120,17 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
         extent,
         frame_index: settings.frame_index,
         debug_view: settings.debug_view,
+        volumes,
+        ray_query,
     };
-    let visibility = shadows::add(&mut g, &inputs, &plan, prepared);
+    let visibility = shadows::add(&mut g, &inputs, &plan)?;
     let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer);
     if let (Some(view), Some(ao)) = (lighting.view, &occlusion) {
         let image = crate::lighting::ao::add_view(&mut g, view, ao, extent);
         let result =
             post_stage(&mut g, pipelines, settings, Lit { image, debug: true, toned: false, history: Accumulated::No });
         target_stage(&mut g, settings, result, target);
-        return g;
+        return Ok(g);
     }
     let ambient = Ambient {
         background: scene.lighting.background(),
@@ -117,7 +144,7 @@ pub fn build<'a>(parts: FrameParts<'a>, target: Target<'a>, history: Option<Hist
     );
     let result = post_stage(&mut g, pipelines, settings, lit);
     target_stage(&mut g, settings, result, target);
-    g
+    Ok(g)
 }
 
 fn gbuffer_stage<'a>(

@@ -11,10 +11,10 @@ use glam::{DMat3, DMat4, DVec3, Mat4, Vec3};
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
+use crate::maths::Bounds;
 use crate::scene::bvh::{ShadowBvh, WideNode};
 use crate::scene::{Camera, Material, Scene};
 use crate::shading::gpu_lights;
-use crate::shadows::light_space::Bounds;
 use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, TexelBuffer, TexelView};
 
 /// How frames find the scene's buffers: uploaded once and made visible to any read, so no
@@ -369,14 +369,11 @@ pub struct SceneGpu {
     /// (with no second set) at `surface_offset`, whose bytes it then reads as coordinates no map
     /// selects (`UvTransforms::second_set` is all false).
     pub second_uv_offset: Option<u64>,
-    /// The material textures and their pipeline; `None` in a scene without textures.
+    /// The material textures; `None` in a scene without textures.
     pub materials: Option<crate::gpu_textures::MaterialSets>,
     /// In a scene without textures, its materials, read in place of the G-buffer's material
     /// channel (which such a scene's geometry pass does not write).
     pub material_table: Option<MaterialTable>,
-    /// The untextured geometry pipeline without back-face culling, in a scene without textures
-    /// that has double-sided meshes (a textured scene's is in `materials`).
-    pub two_sided: Option<crate::vk::GraphicsPipeline>,
     pub indices: Buffer,
     pub draws: Vec<Draw>,
     pub lights: Buffer,
@@ -602,24 +599,13 @@ impl SceneGpu {
             vertex_bytes.extend_from_slice(bytemuck::cast_slice(&second_uvs));
             at
         });
-        // Pipelines without back-face culling only for scenes with double-sided meshes.
-        let two_sided = draws.iter().any(|d| d.double_sided);
         let materials = match textured {
-            true => Some(crate::gpu_textures::upload(
-                ctx,
-                &materials,
-                |layout, two_sided| crate::passes::geometry::textured_pipeline(ctx, layout, two_sided),
-                two_sided,
-            )?),
+            true => Some(crate::gpu_textures::upload(ctx, &materials)?),
             false => None,
         };
         let material_table = match textured {
             true => None,
             false => Some(MaterialTable::upload(ctx, &table_texels.texels)?),
-        };
-        let two_sided = match two_sided && !textured {
-            true => Some(crate::passes::geometry::untextured_pipeline(ctx, true)?),
-            false => None,
         };
         // The geometry pass reads both as texel buffers (a view holds at most this many texels).
         let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
@@ -663,7 +649,6 @@ impl SceneGpu {
             second_uv_offset,
             materials,
             material_table,
-            two_sided,
             indices,
             draws,
             lights,

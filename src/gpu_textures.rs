@@ -17,7 +17,7 @@ use ash::vk;
 
 use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
 use crate::scene::{MaterialTextures, Texture};
-use crate::vk::{bindings, Buffer, GpuContext, GpuResult, GraphicsPipeline, Image, ImageDesc, SamplerDesc, VkContext};
+use crate::vk::{bindings, Buffer, GpuContext, GpuResult, Image, ImageDesc, SamplerDesc, VkContext};
 
 /// What a textured draw reads: its material's set and which maps and channels are in it.
 #[derive(Clone, Copy, Debug)]
@@ -33,14 +33,10 @@ pub struct DrawMaps {
     pub normal_scale: f32,
 }
 
-/// The scene's material textures, their sets and the pipeline that reads them.
+/// The scene's material textures and their sets. The textured geometry pipeline (made with
+/// `set_layout`, `passes::geometry`) draws every mesh of such a scene, those without textures
+/// with `untextured`'s set, since its rendering has the emission attachment as well.
 pub struct MaterialSets {
-    /// The textured variant of the geometry pipeline (`passes::geometry`), made for this scene;
-    /// it draws every mesh of the scene (those without textures with `untextured`'s set), since
-    /// its rendering has the emission attachment as well.
-    pub pipeline: GraphicsPipeline,
-    /// The same without back-face culling, in a scene with double-sided meshes.
-    pub pipeline_two_sided: Option<GraphicsPipeline>,
     pub sets: Vec<vk::DescriptorSet>,
     /// The set of a mesh without textures: white texels, no emission.
     pub untextured: DrawMaps,
@@ -50,7 +46,7 @@ pub struct MaterialSets {
     /// Bytes of texels on the device (all mips).
     pub bytes: u64,
     _images: Vec<Image>,
-    // Last: destroyed after the pipeline whose layout names the set layout.
+    // Last. The pipelines whose layouts name the set layout are dropped before the scene.
     objects: SetObjects,
 }
 
@@ -77,14 +73,9 @@ impl MaterialSets {
 }
 
 /// Uploads every texture of `materials` (distinct `Arc`s; each `Texture` once however many
-/// materials share it) and makes a set per material; `pipeline` makes the textured geometry
-/// pipeline with the set layout. Set k + 1 is `materials[k]`'s (set 0: `untextured`).
-pub fn upload(
-    ctx: &Arc<GpuContext>,
-    materials: &[Arc<MaterialTextures>],
-    pipeline: impl Fn(vk::DescriptorSetLayout, bool) -> GpuResult<GraphicsPipeline>,
-    two_sided: bool,
-) -> GpuResult<MaterialSets> {
+/// materials share it) and makes a set per material. Set k + 1 is `materials[k]`'s (set 0:
+/// `untextured`).
+pub fn upload(ctx: &Arc<GpuContext>, materials: &[Arc<MaterialTextures>]) -> GpuResult<MaterialSets> {
     let device = &ctx.device;
     let max_anisotropy = if ctx.capabilities.sampler_anisotropy {
         (ctx.properties.limits.max_sampler_anisotropy as u32).min(16)
@@ -240,8 +231,6 @@ pub fn upload(
         unsafe { device.update_descriptor_sets(&writes, &[]) };
     }
     Ok(MaterialSets {
-        pipeline: pipeline(objects.layout, false)?,
-        pipeline_two_sided: two_sided.then(|| pipeline(objects.layout, true)).transpose()?,
         sets,
         untextured: draw_maps(0, &materials[0]),
         masked: materials.iter().any(|m| m.alpha_mask.is_some()),

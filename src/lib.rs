@@ -3,11 +3,13 @@
 
 pub mod bench;
 pub mod config;
+pub mod diagnostics;
 pub mod frame;
 pub mod gpu_scene;
 pub mod gpu_textures;
 pub mod graph;
 pub mod lighting;
+pub mod maths;
 pub mod output;
 pub mod passes;
 pub mod renderer;

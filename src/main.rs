@@ -337,7 +337,7 @@ fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> 
         }
         // Set, it is kept, but a technique no light draws with never reads it.
         let technique = key.trim().split_once('.').map_or("", |(t, _)| t);
-        if !choices[lights.clone()].iter().any(|c| c.method.reads(technique)) {
+        if !choices[lights.clone()].iter().any(|c| umbra::shadows::reads(c.method, technique)) {
             let mut methods: Vec<&str> = choices[lights].iter().map(|c| c.method.id()).collect();
             methods.sort_unstable();
             methods.dedup();
@@ -401,9 +401,7 @@ fn soft_traced_lights<'a>(
     (0..lights.len())
         .map(|i| settings.shadow(i))
         .zip(lights)
-        .filter(|(c, l)| {
-            matches!(c.method, ShadowMethod::Traced | ShadowMethod::Hybrid) && c.traced.is_soft(l.has_size())
-        })
+        .filter(|(c, l)| umbra::shadows::is_stochastic(c, l))
         .map(|(c, _)| c.traced.spp.max(1))
 }
 

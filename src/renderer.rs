@@ -8,11 +8,12 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
+use crate::diagnostics::busy;
 pub use crate::frame::{Target, BACKGROUND};
 pub use crate::gpu_scene::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
-use crate::passes::{busy, visibility, Pipelines};
+use crate::passes::{visibility, Pipelines};
 use crate::scene::bvh::{caster_triangles, ShadowBvh, WideNode};
 use crate::scene::Scene;
 use crate::shadows::traced::accel::RayQueryScene;
@@ -47,8 +48,9 @@ pub struct Renderer {
     pipelines: Pipelines,
     /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
     busy: std::sync::OnceLock<ComputePipeline>,
-    /// Each shadow technique's pipelines, made the first time a light uses it.
-    shadow_pipelines: crate::shadows::Pipelines,
+    /// The pipelines passes ask for as they declare themselves (the shadow techniques' so far),
+    /// each made the first time a frame asks.
+    pipeline_cache: crate::vk::PipelineCache,
     /// The environment's and AO's pipelines, made the first time a frame uses them.
     lighting_pipelines: crate::lighting::Pipelines,
     /// The scene's environment on the device (its split-sum table); `None` without one.
@@ -89,7 +91,7 @@ impl Renderer {
         );
         let start = std::time::Instant::now();
         let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
-        let pipelines = Pipelines::new(&ctx)?;
+        let pipelines = Pipelines::new(&ctx, &gpu_scene)?;
         log::info!(
             "upload: {} KiB of scene buffers in {:.1} ms; {} of {} draws flat-shaded (the geometry pass reads \
              none of their triangles)",
@@ -120,7 +122,7 @@ impl Renderer {
             volume_scene: std::sync::OnceLock::new(),
             pipelines,
             busy: std::sync::OnceLock::new(),
-            shadow_pipelines: Default::default(),
+            pipeline_cache: Default::default(),
             lighting_pipelines: Default::default(),
             environment: crate::lighting::EnvironmentGpu::new(
                 &ctx,
@@ -144,6 +146,11 @@ impl Renderer {
 
     pub fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    /// The pipelines frames have asked for so far (tests check which variants were made).
+    pub fn pipeline_cache(&self) -> &crate::vk::PipelineCache {
+        &self.pipeline_cache
     }
 
     /// The compiled plan for `settings`, for printing and inspection.
@@ -170,16 +177,7 @@ impl Renderer {
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
         visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())?;
         self.note_fallbacks(&plan);
-        let mut prepared =
-            self.shadow_pipelines.prepare(&self.ctx, &self.gpu_scene, &plan, volume_scene, settings.debug_view)?;
         let ray_query = self.ray_query_scene(settings)?;
-        if !plan.traced.is_empty() {
-            let masked = ray_query.map_or(self.gpu_scene.bvh.masked(), |rq| rq.masked());
-            let lights = &self.gpu_scene.local_lights;
-            let pipelines =
-                self.shadow_pipelines.traced.prepare(&self.ctx, ray_query.is_some(), masked, &plan.traced, lights)?;
-            prepared.traced = Some((pipelines, ray_query));
-        }
         let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
         let lighting = self.lighting_pipelines.prepare(
             &self.ctx,
@@ -207,17 +205,20 @@ impl Renderer {
             }
         };
         let parts = crate::frame::FrameParts {
+            ctx: &self.ctx,
             pipelines: &self.pipelines,
+            pipeline_cache: &self.pipeline_cache,
             busy,
             scene_gpu: &self.gpu_scene,
             scene: &self.scene,
             settings,
             shadows: plan,
-            prepared,
+            volumes: volume_scene,
+            ray_query,
             lighting,
             compose,
         };
-        Ok((crate::frame::build(parts, target, history), ray_query))
+        Ok((crate::frame::build(parts, target, history)?, ray_query))
     }
 
     /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
@@ -324,8 +325,8 @@ impl Renderer {
     /// before it is known they are timed the plain way.
     pub fn calibrate_timings(&self) -> GpuResult<&TimingCalibration> {
         crate::vk::get_or_make(&self.timing, || {
-            let found = crate::timing::calibrate(&self.ctx, self.busy_pipeline()?)?;
-            log::info!("{}", found.summary());
+            let found = crate::diagnostics::calibration::calibrate(&self.ctx, self.busy_pipeline()?)?;
+            log::info!("{}", crate::diagnostics::calibration::summary(&found));
             Ok(found)
         })
     }

@@ -93,20 +93,10 @@ impl std::fmt::Display for Chosen {
 
 /// The candidates for `light`: (method, parameters set on top of the light's choice).
 pub fn candidates(light: &Light) -> Vec<(ShadowMethod, Vec<(&'static str, &'static str)>)> {
-    let mut out = vec![
-        (ShadowMethod::Traced, vec![]),
-        (ShadowMethod::Hybrid, vec![("hybrid.resolution", "512")]),
-        (ShadowMethod::Hybrid, vec![("hybrid.resolution", "1024")]),
-        (ShadowMethod::Map, vec![("map.resolution", "512")]),
-        (ShadowMethod::Map, vec![("map.resolution", "1024")]),
-        (ShadowMethod::Map, vec![("map.resolution", "2048")]),
-    ];
-    if matches!(light, Light::Directional { .. }) {
-        out.push((ShadowMethod::Cascades, vec![("cascades.count", "2"), ("map.resolution", "1024")]));
-        out.push((ShadowMethod::Cascades, vec![("cascades.count", "4"), ("map.resolution", "1024")]));
-    }
-    out.push((ShadowMethod::Volumes, vec![("volumes.zpass", "false")]));
-    out
+    crate::shadows::TECHNIQUES
+        .iter()
+        .flat_map(|t| t.candidates(light).into_iter().map(|set| (t.method(), set)))
+        .collect()
 }
 
 /// The calibration's size for a `width` x `height` frame.

@@ -19,8 +19,8 @@ use glam::{Vec3, Vec3A};
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 
+use crate::diagnostics::ray_batch::{self, GpuRay, Target, TimedBatch};
 use crate::gpu_scene::BvhBuffers;
-use crate::passes::ray_batch::{self, GpuRay, Target, TimedBatch};
 use crate::scene::bvh::{caster_triangles, offset_ray_origin, ShadowBvh};
 use crate::scene::{Light, Scene};
 use crate::shadows::traced::accel::RayQueryScene;
@@ -108,7 +108,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
     if crate::scene::bvh::mask::caster_masks(&local).is_some() {
         bail!(
             "{name}: has alpha-masked casters; bench rays checks every tracer against obvhs, which has no alpha \
-             masks (tests/alpha_masked_shadows.rs checks the masked traversal)"
+             masks (tests/gpu/alpha_masked_shadows.rs checks the masked traversal)"
         );
     }
     let start = Instant::now();

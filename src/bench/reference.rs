@@ -389,7 +389,7 @@ pub fn compute(renderer: &mut Renderer, width: u32, height: u32) -> crate::vk::G
         lights.iter().map(|l| if l.has_size() { ShadowChoice::soft(SPP) } else { ShadowChoice::hard() }).collect();
     let mut shaded = settings(width, height, OutputKind::Display, shadows);
     shaded.frame_index = SEED;
-    let accumulates = shaded.accumulates(renderer.scene());
+    let accumulates = crate::passes::accumulate::accumulates(&shaded, renderer.scene());
     let mut display = Vec::new();
     // Successive renders with equal settings accumulate: FRAMES x SPP samples for soft lights,
     // FRAMES frames of ambient occlusion and of rect lights' shadows.

@@ -128,7 +128,8 @@ fn served(
     Ok((0..renderer.scene().lights.len())
         .map(|i| {
             let method = ShadowMethod::TECHNIQUES
-                .into_iter()
+                .iter()
+                .copied()
                 .find(|&m| plan.served(m).iter().any(|s| s.light as usize == i))
                 .unwrap_or(ShadowMethod::None);
             let why = plan.fallbacks.iter().find(|f| f.0 == i).map(|f| format!("{}: {}", f.1, f.2));
@@ -139,17 +140,7 @@ fn served(
 
 /// Map texels a light's shadows touch per frame, from its parameters.
 fn map_texels(served_by: ShadowMethod, choice: &ShadowChoice, light: &Light) -> u64 {
-    let res = u64::from(choice.map.resolution);
-    match served_by {
-        ShadowMethod::Map if matches!(light, Light::Point { .. }) => res * res * 6,
-        ShadowMethod::Map => res * res,
-        ShadowMethod::Cascades => res * res * u64::from(choice.cascades.count),
-        ShadowMethod::Hybrid => {
-            let res = u64::from(choice.hybrid.resolution);
-            res * res * if matches!(light, Light::Point { .. }) { 6 } else { 1 }
-        }
-        _ => 0,
-    }
+    crate::shadows::technique(served_by).map_or(0, |t| t.map_texels(choice, light))
 }
 
 /// Rays `hybrid` traced for light `n` in one frame: the pixels its `hybrid:N` view marks, times
@@ -331,7 +322,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
                 for (n, &choice) in point.choices.iter().enumerate().take(lights.len()) {
                     visibility.push(reference::light_visibility(&mut renderer, width, height, n, choice, 0)?);
                 }
-                if settings.accumulates(renderer.scene()) {
+                if crate::passes::accumulate::accumulates(&settings, renderer.scene()) {
                     // The timed frames accumulated (soft shadows, ambient occlusion, rect
                     // lights' shadows); the views since broke the run, so this frame stands
                     // alone, whatever `--frames`.

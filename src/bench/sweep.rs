@@ -107,38 +107,17 @@ pub fn parse_axis(text: &str) -> Result<Axis, String> {
 /// The axes swept when `--sweep` is not given, for `method` in a scene where some light has a
 /// size (`soft_lights`): the full sweep, or with `quick` a tiny one.
 pub fn default_axes(method: ShadowMethod, quick: bool, soft_lights: bool) -> Vec<Axis> {
-    let axis = |keys: &[&str], values: &[&str]| Axis {
-        keys: keys.iter().map(|k| k.to_string()).collect(),
-        values: values.iter().map(|v| v.to_string()).collect(),
+    // `auto` is measured by the methods it picks from (the bench rings its choice); `none` has
+    // nothing to sweep.
+    let Some(technique) = crate::shadows::technique(method) else {
+        return Vec::new();
     };
-    match (method, quick) {
-        (ShadowMethod::Map, true) => vec![axis(&["map.resolution"], &["512", "2048"])],
-        (ShadowMethod::Hybrid, true) => vec![axis(&["hybrid.resolution"], &["256", "1024"])],
-        (_, true) => Vec::new(),
-        (ShadowMethod::Traced, false) if soft_lights => vec![axis(&["traced.spp"], &["1", "4", "16", "64", "256"])],
-        (ShadowMethod::Traced, false) => Vec::new(),
-        (ShadowMethod::Map, false) => {
-            let mut axes = vec![
-                axis(&["map.resolution"], &["256", "512", "1024", "2048", "4096"]),
-                axis(&["map.pcf_radius"], &["0", "1", "2", "3"]),
-                axis(&["map.constant_bias", "map.slope_bias"], &["0", "1", "2", "4"]),
-            ];
-            if soft_lights {
-                // PCSS's kernel: the widest penumbra it can draw.
-                axes.push(axis(&["map.pcss_max_radius"], &["4", "8", "16", "32"]));
-            }
-            axes
-        }
-        (ShadowMethod::Cascades, false) => vec![axis(&["cascades.count"], &["1", "2", "3", "4", "5", "6"])],
-        (ShadowMethod::Volumes, false) => vec![axis(&["volumes.zpass"], &["false", "true"])],
-        (ShadowMethod::Hybrid, false) => vec![
-            axis(&["hybrid.resolution"], &["256", "512", "1024", "2048"]),
-            axis(&["hybrid.radius"], &["0", "1", "2"]),
-            axis(&["hybrid.margin"], &["0.5", "1", "2", "4"]),
-        ],
-        // `auto` is measured by the methods it picks from; the bench rings its choice.
-        (ShadowMethod::Auto | ShadowMethod::None, false) => Vec::new(),
-    }
+    let text = |list: &[&str]| list.iter().map(|k| k.to_string()).collect();
+    technique
+        .sweep(quick, soft_lights)
+        .into_iter()
+        .map(|(keys, values)| Axis { keys: text(keys), values: text(values) })
+        .collect()
 }
 
 /// One point of a method's sweep: the assignments made on top of each light's base choice, and

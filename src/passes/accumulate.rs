@@ -16,6 +16,17 @@ use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image};
 
+/// Whether successive frames of `scene` with `settings` fold into a running mean: stochastic
+/// shadows, ambient occlusion of the environment, rect-light shadows, or anti-aliasing. What the
+/// accumulator and the bench (which scores a lone frame against a converged reference) both
+/// decide by.
+pub fn accumulates(settings: &crate::config::RenderSettings, scene: &crate::scene::Scene) -> bool {
+    crate::shadows::any_stochastic(settings, &scene.lights)
+        || scene.lighting.occlusion_of_environment().is_some()
+        || scene.rect_lights.iter().any(|r| r.spp > 0)
+        || settings.antialias
+}
+
 /// How the history image is left at the end of each frame, and found at the start of the next.
 pub const HISTORY_ACCESS: Access = Access::ComputeShaderReadSampledImage;
 
@@ -152,7 +163,7 @@ impl Accumulator {
         key.timestamps = false;
         let still = self.last.as_ref() == Some(&key);
         self.last = Some(key);
-        if settings.debug_view.is_some() || !settings.accumulates(scene) {
+        if settings.debug_view.is_some() || !accumulates(settings, scene) {
             self.frames = 0;
             return Ok(None);
         }

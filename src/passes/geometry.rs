@@ -53,10 +53,16 @@ struct Push {
 /// `gl_PrimitiveID` in a fragment shader) it reads each fragment's triangle from the scene's
 /// vertex and index buffers (read through texel views of them, `SceneGpu::vertex_view`) for the terminator offset and
 /// the geometric normal; elsewhere the plain variant stores no offset and takes the geometric
-/// normal from screen derivatives. Only the one the device uses is built.
+/// normal from screen derivatives. Only the one the device uses is built. Beside it, those the
+/// scene's draws need: the textured variant (made with the scene's material set layout, so
+/// they are dropped before the scene) and, for double-sided meshes, variants without back-face
+/// culling.
 pub struct GeometryPipelines {
     pipeline: GraphicsPipeline,
     reads_triangles: bool,
+    textured: Option<GraphicsPipeline>,
+    textured_two_sided: Option<GraphicsPipeline>,
+    two_sided: Option<GraphicsPipeline>,
 }
 
 /// The geometry pipeline's description with `vertex` and `fragment` stages.
@@ -97,14 +103,25 @@ const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
     (bindings::GEOMETRY_INDICES, crate::vk::DescriptorKind::UniformTexelBuffer),
 ];
 
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<GeometryPipelines> {
+/// The pipelines `scene` is drawn with.
+pub fn pipelines(ctx: &Arc<GpuContext>, scene: &SceneGpu) -> GpuResult<GeometryPipelines> {
     let reads_triangles = ctx.capabilities.geometry_shader;
-    Ok(GeometryPipelines { pipeline: untextured_pipeline(ctx, false)?, reads_triangles })
+    let pipeline = untextured_pipeline(ctx, false)?;
+    // Without back-face culling only for scenes with double-sided meshes.
+    let two_sided = scene.draws.iter().any(|d| d.double_sided);
+    let layout = scene.materials.as_ref().map(|m| m.set_layout());
+    Ok(GeometryPipelines {
+        pipeline,
+        reads_triangles,
+        textured: layout.map(|l| textured_pipeline(ctx, l, false)).transpose()?,
+        textured_two_sided: layout.filter(|_| two_sided).map(|l| textured_pipeline(ctx, l, true)).transpose()?,
+        two_sided: (two_sided && layout.is_none()).then(|| untextured_pipeline(ctx, true)).transpose()?,
+    })
 }
 
 /// The untextured geometry pipeline; `two_sided`: without back-face culling (made only for
-/// scenes with double-sided meshes, `SceneGpu::two_sided`).
-pub fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<GraphicsPipeline> {
+/// scenes with double-sided meshes).
+fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<GraphicsPipeline> {
     let extras = GraphicsExtras { instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)), ..Default::default() };
     let vertex = spirv::GEOMETRY_VERT;
     let desc = match (ctx.capabilities.geometry_shader, two_sided) {
@@ -120,7 +137,7 @@ pub fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<
 /// 2, the second texture-coordinate set at binding 3, the material's textures in descriptor set 1 (`material_set`, see gpu_textures.rs). Made
 /// per scene, only for a scene with textures.
 /// `two_sided`: without back-face culling, for double-sided meshes.
-pub fn textured_pipeline(
+fn textured_pipeline(
     ctx: &Arc<GpuContext>,
     material_set: vk::DescriptorSetLayout,
     two_sided: bool,
@@ -260,12 +277,10 @@ pub fn add<'a>(
             // attachment); a mesh without textures reads the white set.
             let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));
             let used = match (textured, draw.double_sided) {
-                (Some((materials, _)), false) => &materials.pipeline,
-                (Some((materials, _)), true) => {
-                    materials.pipeline_two_sided.as_ref().expect("made for double-sided draws")
-                }
+                (Some(_), false) => pipelines.textured.as_ref().expect("made for textured scenes"),
+                (Some(_), true) => pipelines.textured_two_sided.as_ref().expect("made for double-sided draws"),
                 (None, false) => pipeline,
-                (None, true) => scene.two_sided.as_ref().expect("made for double-sided draws"),
+                (None, true) => pipelines.two_sided.as_ref().expect("made for double-sided draws"),
             };
             if current != Some((textured.is_some(), draw.double_sided)) {
                 current = Some((textured.is_some(), draw.double_sided));

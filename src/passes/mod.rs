@@ -2,13 +2,11 @@
 //! what it reads and writes and records its draw or dispatch; the graph does the rest.
 
 pub mod accumulate;
-pub mod busy;
 pub mod compose;
 pub mod debug_view;
 pub mod geometry;
 pub mod overlay;
 pub mod present;
-pub mod ray_batch;
 pub mod readback;
 pub mod tonemap;
 pub mod visibility;
@@ -62,7 +60,8 @@ pub struct GBuffer {
     pub emission: Option<Handle<ImageKind>>,
 }
 
-/// Every pipeline, built once per device and shared by all frames.
+/// The frame's own pipelines (besides the techniques'), built once per scene and shared by all
+/// its frames.
 pub struct Pipelines {
     pub geometry: geometry::GeometryPipelines,
     /// Compose's variants, each made the first time a frame needs it (`compose`).
@@ -73,9 +72,9 @@ pub struct Pipelines {
 }
 
 impl Pipelines {
-    pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
+    pub fn new(ctx: &Arc<GpuContext>, scene: &crate::gpu_scene::SceneGpu) -> GpuResult<Pipelines> {
         Ok(Pipelines {
-            geometry: geometry::pipelines(ctx)?,
+            geometry: geometry::pipelines(ctx, scene)?,
             compose: std::array::from_fn(|_| std::sync::OnceLock::new()),
             tonemap: tonemap::pipeline(ctx)?,
             debug_view: debug_view::pipelines(ctx)?,

@@ -12,7 +12,7 @@ use serde::Deserialize;
 use super::envmap::EnvironmentMap;
 
 use super::error::{short_number, SceneError};
-use super::file::Xyz;
+use super::values::Xyz;
 
 /// What the camera sees where no surface is drawn, without `background` or `[environment]`:
 /// a dim neutral backdrop, W/(m^2 sr).

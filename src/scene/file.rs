@@ -5,11 +5,12 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3, Vec3};
-use serde::de::{self, Deserializer, SeqAccess, Visitor};
+use serde::de::{self, Deserializer, Visitor};
 use serde::Deserialize;
 
 use super::error::{short_number, shorten, SceneError, MAX_MESSAGE_CHARS};
 use super::mesh::{self, ObjectMesh};
+use super::values::{Exact, Scale, Xyz};
 use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, RectLight, Scene};
 use crate::config::ShadowBackend;
 
@@ -92,38 +93,56 @@ enum LightKind {
     Rect,
 }
 
-/// One struct for every light type rather than a tagged enum: serde's tagged enums buffer their
-/// content and lose toml's spans, and per-type checks below give clearer messages anyway.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct LightDesc {
-    #[serde(rename = "type")]
-    kind: LightKind,
-    position: Option<Xyz>,
-    direction: Option<Xyz>,
-    intensity: Option<Xyz>,
-    irradiance: Option<Xyz>,
-    inner_deg: Option<f64>,
-    outer_deg: Option<f64>,
-    radius: Option<f64>,
-    angular_diameter_deg: Option<f64>,
-    center: Option<Xyz>,
-    half_edge_u: Option<Xyz>,
-    half_edge_v: Option<Xyz>,
-    radiance: Option<Xyz>,
-    two_sided: Option<bool>,
-    spp: Option<u32>,
-    /// The shadow method's id (`crate::config::ShadowMethod::parse`).
-    shadows: Option<String>,
-    /// Soft or hard traced shadows; unset: soft when the light has a size.
-    soft: Option<bool>,
-    traced: Option<crate::config::TracedParams>,
-    map: Option<crate::config::MapParams>,
-    cascades: Option<crate::config::CascadeParams>,
-    hybrid: Option<crate::config::HybridParams>,
-    auto: Option<crate::config::AutoParams>,
-    volumes: Option<crate::config::VolumeParams>,
+macro_rules! light_desc {
+    ($( $(#[$doc:meta])* $variant:ident $id:ident $params:path, )*) => {
+        /// One struct for every light type rather than a tagged enum: serde's tagged enums buffer
+        /// their content and lose toml's spans, and per-type checks below give clearer messages
+        /// anyway. Beside the light's own keys, a table per technique (`shadows::registry`).
+        #[derive(Deserialize)]
+        #[serde(deny_unknown_fields)]
+        struct LightDesc {
+            #[serde(rename = "type")]
+            kind: LightKind,
+            position: Option<Xyz>,
+            direction: Option<Xyz>,
+            intensity: Option<Xyz>,
+            irradiance: Option<Xyz>,
+            inner_deg: Option<f64>,
+            outer_deg: Option<f64>,
+            radius: Option<f64>,
+            angular_diameter_deg: Option<f64>,
+            center: Option<Xyz>,
+            half_edge_u: Option<Xyz>,
+            half_edge_v: Option<Xyz>,
+            radiance: Option<Xyz>,
+            two_sided: Option<bool>,
+            spp: Option<u32>,
+            /// The shadow method's id (`crate::config::ShadowMethod::parse`).
+            shadows: Option<String>,
+            /// Soft or hard traced shadows; unset: soft when the light has a size.
+            soft: Option<bool>,
+            $( $id: Option<$params>, )*
+            auto: Option<crate::config::AutoParams>,
+        }
+
+        impl LightDesc {
+            /// `method` with the technique tables the light gives, defaults for the others.
+            fn choice(&self, method: crate::config::ShadowMethod) -> crate::config::ShadowChoice {
+                crate::config::ShadowChoice {
+                    method,
+                    $( $id: self.$id.unwrap_or_default(), )*
+                    auto: self.auto.unwrap_or_default(),
+                }
+            }
+
+            /// Each technique table's key, and whether the light gives it.
+            fn tables_given(&self) -> Vec<(&'static str, bool)> {
+                vec![$( (stringify!($id), self.$id.is_some()), )* ("auto", self.auto.is_some())]
+            }
+        }
+    };
 }
+crate::shadows::registry::for_each_technique!(light_desc);
 
 #[derive(Clone, Copy, Deserialize)]
 #[serde(rename_all = "lowercase")]
@@ -165,75 +184,6 @@ struct MaterialDesc {
     base_color: Option<Xyz>,
     roughness: Option<f64>,
     metallic: Option<f64>,
-}
-
-/// A TOML array of exactly `N` values. serde's own `[T; N]` stops reading after `N` and drops
-/// the rest without a word, so `eye = [0, 1, 5, 7]` would pass as `[0, 1, 5]`.
-pub(super) struct Exact<T, const N: usize>(pub(super) [T; N]);
-
-/// `[x, y, z]`.
-pub(super) type Xyz = Exact<f64, 3>;
-
-impl<'de, T: Deserialize<'de>, const N: usize> Deserialize<'de> for Exact<T, N> {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct ExactVisitor<T, const N: usize>(std::marker::PhantomData<T>);
-        impl<'de, T: Deserialize<'de>, const N: usize> Visitor<'de> for ExactVisitor<T, N> {
-            type Value = Exact<T, N>;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                write!(f, "an array of length {N}")
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Exact<T, N>, A::Error> {
-                let mut items = Vec::with_capacity(N);
-                while items.len() < N {
-                    match seq.next_element::<T>()? {
-                        Some(item) => items.push(item),
-                        None => return Err(de::Error::invalid_length(items.len(), &self)),
-                    }
-                }
-                // Extra elements of any type count towards the length in the message.
-                let mut len = N;
-                while seq.next_element::<de::IgnoredAny>()?.is_some() {
-                    len += 1;
-                }
-                if len != N {
-                    return Err(de::Error::invalid_length(len, &self));
-                }
-                match items.try_into() {
-                    Ok(array) => Ok(Exact(array)),
-                    Err(_) => Err(de::Error::invalid_length(len, &self)), // N items: unreachable
-                }
-            }
-        }
-        deserializer.deserialize_seq(ExactVisitor(std::marker::PhantomData))
-    }
-}
-
-/// `scale = s` or `scale = [sx, sy, sz]`.
-struct Scale([f64; 3]);
-
-impl<'de> Deserialize<'de> for Scale {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct ScaleVisitor;
-        impl<'de> Visitor<'de> for ScaleVisitor {
-            type Value = Scale;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a number or an array of 3 numbers")
-            }
-            fn visit_f64<E: de::Error>(self, s: f64) -> Result<Scale, E> {
-                Ok(Scale([s; 3]))
-            }
-            fn visit_i64<E: de::Error>(self, s: i64) -> Result<Scale, E> {
-                Ok(Scale([s as f64; 3]))
-            }
-            fn visit_u64<E: de::Error>(self, s: u64) -> Result<Scale, E> {
-                Ok(Scale([s as f64; 3]))
-            }
-            fn visit_seq<A: SeqAccess<'de>>(self, seq: A) -> Result<Scale, A::Error> {
-                Xyz::deserialize(de::value::SeqAccessDeserializer::new(seq)).map(|xyz| Scale(xyz.0))
-            }
-        }
-        deserializer.deserialize_any(ScaleVisitor)
-    }
 }
 
 /// The most triangles a scene may hold once its instances are placed: 2^24 (the 10.5M-triangle
@@ -511,7 +461,7 @@ impl Check<'_> {
 
     /// The light's shadow method and parameters (`shadows`, `soft` and the technique tables).
     fn shadows(&self, path: &str, light: &LightDesc) -> Result<crate::config::ShadowChoice, SceneError> {
-        use crate::config::{ShadowChoice, ShadowMethod};
+        use crate::config::ShadowMethod;
         let (method, soft) = match &light.shadows {
             Some(id) => ShadowMethod::parse(id).map_err(|e| self.fail(&format!("{path}.shadows"), e))?,
             None => (ShadowMethod::default(), None),
@@ -523,31 +473,12 @@ impl Check<'_> {
                 return Err(self.fail(&format!("{path}.soft"), message));
             }
         }
-        let mut choice = ShadowChoice {
-            method,
-            traced: light.traced.unwrap_or_default(),
-            map: light.map.unwrap_or_default(),
-            cascades: light.cascades.unwrap_or_default(),
-            volumes: light.volumes.unwrap_or_default(),
-            hybrid: light.hybrid.unwrap_or_default(),
-            auto: light.auto.unwrap_or_default(),
-        };
+        let mut choice = light.choice(method);
         if light.traced.is_some_and(|t| t.soft.is_some()) {
             return Err(self.fail(&format!("{path}.traced.soft"), "write `soft` on the light itself"));
         }
         choice.traced.soft = light.soft.or(soft);
-        let checks: [(&str, Result<(), String>); 5] = [
-            ("traced", choice.traced.check()),
-            ("map", choice.map.check()),
-            ("cascades", choice.cascades.check()),
-            ("hybrid", choice.hybrid.check()),
-            ("auto", choice.auto.check()),
-        ];
-        for (table, result) in checks {
-            if let Err(e) = result {
-                return Err(self.fail(&format!("{path}.{table}"), e));
-            }
-        }
+        choice.check_tables().map_err(|(table, e)| self.fail(&format!("{path}.{table}"), e))?;
         Ok(choice)
     }
 
@@ -593,16 +524,8 @@ impl Check<'_> {
     /// Its shadows are not a per-light technique choice, so the shadow keys are refused.
     fn rect(&self, path: &str, light: &LightDesc) -> Result<RectLight, SceneError> {
         self.light_keys(path, light)?;
-        let shadow_keys = [
-            ("shadows", light.shadows.is_some()),
-            ("soft", light.soft.is_some()),
-            ("traced", light.traced.is_some()),
-            ("map", light.map.is_some()),
-            ("cascades", light.cascades.is_some()),
-            ("hybrid", light.hybrid.is_some()),
-            ("auto", light.auto.is_some()),
-            ("volumes", light.volumes.is_some()),
-        ];
+        let mut shadow_keys = vec![("shadows", light.shadows.is_some()), ("soft", light.soft.is_some())];
+        shadow_keys.extend(light.tables_given());
         if let Some((key, _)) = shadow_keys.iter().find(|(_, present)| *present) {
             let message = "a rect light takes no shadow settings (its shadows are always traced)";
             return Err(self.fail(&format!("{path}.{key}"), message));

@@ -29,3 +29,9 @@ impl AutoParams {
         Ok(())
     }
 }
+
+impl crate::shadows::parameters::TechniqueParams for AutoParams {
+    fn check(&self) -> Result<(), String> {
+        AutoParams::check(self)
+    }
+}

@@ -1,12 +1,16 @@
 //! Shadow techniques, one folder each (`traced/`, `map/`, `cascades/`, `volumes/`, `hybrid/`): its
-//! parameters (`params.rs`), its passes and, under `shaders/shadows/`, its shaders.
+//! parameters (`params.rs`), its passes and, under `shaders/shadows/`, its shaders. Each implements
+//! `Technique`, and `registry.rs` lists them, one line each: the renderer, the scene file, the
+//! command line, the viewer, the bench and `auto` go through that list and this trait, and never
+//! name a technique themselves.
 //!
 //! The contract every technique keeps: from the G-buffer, the scene on the device, the lights it
 //! serves and their parameters (`FrameInputs` and `Served`), it writes those lights' layers of the
 //! visibility target, and nothing else of it. Compose, the debug views and the bench read the
 //! target and never ask which technique wrote a layer. Each technique also says whether it can
-//! serve a light on this device and scene (`serves`); `plan` gives the lights it cannot to
-//! `traced`, with the reason, which the renderer prints once.
+//! serve a light on this device and scene (`Technique::serves`); `plan` gives the lights it cannot
+//! to `traced`, with the reason, which the renderer prints once. A technique asks the renderer's
+//! pipeline cache for its pipelines as it adds its passes.
 //!
 //! `light_space` holds the device-free maths the raster techniques share; `auto` the parameters
 //! of the method that picks one of the others.
@@ -16,21 +20,137 @@ pub mod cascades;
 pub mod hybrid;
 pub mod light_space;
 pub mod map;
+pub mod parameters;
+pub mod registry;
 pub mod traced;
 pub mod volumes;
 
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
 use ash::vk;
 
+use self::traced::accel::{RayQueryHandles, RayQueryScene};
+use self::volumes::VolumeScene;
 use crate::config::{DebugView, RenderSettings, ShadowChoice, ShadowMethod};
-use crate::gpu_scene::{CameraMatrices, SceneGpu};
-use crate::graph::{BufferKind, Handle};
+use crate::gpu_scene::{BvhHandles, CameraMatrices, SceneGpu};
+use crate::graph::{BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::visibility::LayerPlan;
 use crate::passes::GBuffer;
 use crate::scene::Light;
-use crate::vk::Capabilities;
+use crate::vk::{Capabilities, GpuContext, GpuResult, PipelineCache};
 
-/// What every technique may read: the frame's G-buffer, scene buffers, camera and size.
+/// One shadow technique, as the rest of umbra sees it. A unit type in the technique's folder
+/// implements it and `registry.rs` lists it; nothing outside the folder names the technique.
+pub trait Technique: Sync {
+    /// The method it implements.
+    fn method(&self) -> ShadowMethod;
+
+    /// The parameter tables a light with this method reads (`map` for `map.resolution`): its
+    /// own, those it borrows (cascades and hybrid draw with `map`'s filtering, hybrid traces
+    /// with `traced`'s), and `traced`'s, for a light it falls back to tracing.
+    fn reads(&self) -> &'static [&'static str];
+
+    /// Whether it can serve `light` on this device, and with this scene's casters (`volumes`:
+    /// their adjacency, made when a light asks for volumes); why not otherwise.
+    fn serves(&self, light: &Light, device: &Capabilities, volumes: Option<&VolumeScene>) -> Result<(), String>;
+
+    /// One light's choice in a few words, the parameters that matter (the viewer's overlay).
+    fn describe(&self, choice: &ShadowChoice, light: &Light) -> String;
+
+    /// Whether `light`'s shadows are sampled stochastically, so successive frames average.
+    fn is_stochastic(&self, _choice: &ShadowChoice, _light: &Light) -> bool {
+        false
+    }
+
+    /// Shadow-map texels a light's shadows touch per frame (the bench's memory column).
+    fn map_texels(&self, _choice: &ShadowChoice, _light: &Light) -> u64 {
+        0
+    }
+
+    /// What `umbra bench shadows` sweeps when `--sweep` is not given: axes of (keys set
+    /// together, values); `quick`: a tiny sweep; `soft_lights`: some light has a size.
+    fn sweep(&self, quick: bool, soft_lights: bool) -> Vec<(&'static [&'static str], &'static [&'static str])>;
+
+    /// `auto`'s candidates for `light`: parameter sets, each on top of the light's own choice.
+    fn candidates(&self, light: &Light) -> Vec<Vec<(&'static str, &'static str)>>;
+
+    /// Whether `view` is one of the debug views this technique draws, and whether it can show
+    /// it this frame for the lights it serves (`served`).
+    fn debug_view(&self, _view: DebugView, _served: &[Served], _scene: &SceneGpu) -> ViewAnswer {
+        ViewAnswer::NotMine
+    }
+
+    /// Whether the viewer offers `view` for a light with this method (`directional`: the light
+    /// is a sun).
+    fn offers_view(&self, _view: DebugView, _directional: bool) -> bool {
+        false
+    }
+
+    /// What its rays traverse this frame, if it traces any.
+    fn walks(&self, _frame: &FrameInputs) -> Walk {
+        Walk::Nothing
+    }
+
+    /// Adds its passes for the lights it serves this frame, writing their layers of `target`,
+    /// with its pipelines from `frame.pipelines`; its debug view when the frame shows one.
+    fn add<'a>(
+        &self,
+        g: &mut RenderGraph<'a>,
+        frame: &FrameInputs<'_, 'a>,
+        casters: &Casters,
+        served: &[Served],
+        target: &mut Handle<ImageKind>,
+    ) -> GpuResult<Option<Handle<ImageKind>>>;
+}
+
+macro_rules! technique_table {
+    ($( $(#[$doc:meta])* $variant:ident $id:ident $params:path, )*) => {
+        /// Every technique, in `registry.rs`'s order.
+        pub static TECHNIQUES: &[&dyn Technique] = &[$( &$id::$variant, )*];
+    };
+}
+registry::for_each_technique!(technique_table);
+
+/// The technique behind `method`; None for `auto` and `none`, which are not techniques.
+pub fn technique(method: ShadowMethod) -> Option<&'static dyn Technique> {
+    TECHNIQUES.iter().copied().find(|t| t.method() == method)
+}
+
+/// What a technique answers about a debug view.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ViewAnswer {
+    /// Not a view it draws.
+    NotMine,
+    /// It draws the view this frame.
+    Shown,
+    /// It draws such views, but not this one: it does not serve the view's light this frame.
+    NotServed(String),
+    /// It serves the view's light and cannot show this view of it (a layer past its last).
+    Refused(String),
+}
+
+/// What its rays traverse.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Walk {
+    Nothing,
+    /// The CPU-built BVH, walked by the shader.
+    Bvh,
+    /// The driver's acceleration structures (the ray-query backend).
+    RayQuery,
+}
+
+/// The casters as this frame's graph sees them, each imported once where a technique walks it.
+pub struct Casters {
+    pub bvh: Option<BvhHandles>,
+    pub ray_query: Option<RayQueryHandles>,
+}
+
+/// What every technique may read: the frame's G-buffer, scene buffers, camera and size, and
+/// where its pipelines and the casters' other structures are.
 pub struct FrameInputs<'h, 'a> {
+    pub ctx: &'a Arc<GpuContext>,
+    pub pipelines: &'a PipelineCache,
     pub scene: &'a SceneGpu,
     pub gbuffer: &'h GBuffer,
     pub vertices: &'h Handle<BufferKind>,
@@ -42,6 +162,10 @@ pub struct FrameInputs<'h, 'a> {
     pub frame_index: u32,
     /// The frame's debug view: a technique draws its own (`shadow-map`, `cascades`).
     pub debug_view: Option<DebugView>,
+    /// The casters' adjacency, when a light asks for `volumes`.
+    pub volumes: Option<&'a VolumeScene>,
+    /// The driver's acceleration structures, when the frame's rays use them.
+    pub ray_query: Option<&'a RayQueryScene>,
 }
 
 /// What the visibility stage hands on: the target and its light table, and a technique's own
@@ -52,37 +176,25 @@ pub struct Visibility {
     pub debug: Option<Handle<crate::graph::ImageKind>>,
 }
 
-/// Whether `view` is drawn by a technique, and that technique serves its light this frame;
-/// the reason it cannot be shown otherwise.
+/// Whether `view` is drawn by a technique that serves its light this frame; the reason it
+/// cannot be shown otherwise.
 pub fn check_debug_view(view: DebugView, plan: &ShadowPlan, scene: &SceneGpu) -> Result<(), String> {
-    let find = |light: u32, list: &[Served]| list.iter().any(|s| s.light == light);
-    match view {
-        DebugView::ShadowMap { light, layer } => {
-            let layers = if find(light, &plan.map) {
-                match scene.local_lights.get(light as usize) {
-                    Some(Light::Point { .. }) => 6,
-                    _ => 1,
-                }
-            } else if let Some(s) = plan.cascades.iter().find(|s| s.light == light) {
-                s.choice.cascades.count
-            } else {
-                return Err(format!("--debug-view {view}: light {light} has no shadow map this frame (its method is not map or cascades, or it cannot use one)"));
-            };
-            if layer >= layers {
-                return Err(format!("--debug-view {view}: light {light}'s map has {layers} layer(s), counted from 0"));
-            }
-            Ok(())
-        }
-        DebugView::Stencil(light) if !find(light, &plan.volumes) => {
-            Err(format!("--debug-view {view}: light {light} does not use shadow volumes this frame"))
-        }
-        DebugView::Cascades(light) if !find(light, &plan.cascades) => {
-            Err(format!("--debug-view {view}: light {light} does not use cascades this frame"))
-        }
-        DebugView::Hybrid(light) if !find(light, &plan.hybrid) => {
-            Err(format!("--debug-view {view}: light {light} does not use hybrid shadows this frame"))
-        }
-        _ => Ok(()),
+    let answers: Vec<ViewAnswer> =
+        TECHNIQUES.iter().map(|t| t.debug_view(view, plan.served(t.method()), scene)).collect();
+    if answers.contains(&ViewAnswer::Shown) {
+        return Ok(());
+    }
+    let refused = answers.iter().find_map(|a| match a {
+        ViewAnswer::Refused(why) => Some(why),
+        _ => None,
+    });
+    let not_served = answers.iter().find_map(|a| match a {
+        ViewAnswer::NotServed(why) => Some(why),
+        _ => None,
+    });
+    match refused.or(not_served) {
+        Some(why) => Err(format!("--debug-view {view}: {why}")),
+        None => Ok(()),
     }
 }
 
@@ -102,25 +214,15 @@ pub struct Served {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ShadowPlan {
     pub layers: LayerPlan,
-    pub traced: Vec<Served>,
-    pub map: Vec<Served>,
-    pub cascades: Vec<Served>,
-    pub volumes: Vec<Served>,
-    pub hybrid: Vec<Served>,
+    /// The lights each technique serves (techniques with none are absent).
+    pub served: BTreeMap<ShadowMethod, Vec<Served>>,
     /// Lights whose method cannot serve them, given to `traced` instead: (light, method, why).
     pub fallbacks: Vec<(usize, ShadowMethod, String)>,
 }
 
 impl ShadowPlan {
     pub fn served(&self, method: ShadowMethod) -> &[Served] {
-        match method {
-            ShadowMethod::Traced => &self.traced,
-            ShadowMethod::Map => &self.map,
-            ShadowMethod::Cascades => &self.cascades,
-            ShadowMethod::Volumes => &self.volumes,
-            ShadowMethod::Hybrid => &self.hybrid,
-            ShadowMethod::Auto | ShadowMethod::None => &[],
-        }
+        self.served.get(&method).map_or(&[], Vec::as_slice)
     }
 }
 
@@ -130,18 +232,36 @@ pub fn serves(
     method: ShadowMethod,
     light: &Light,
     caps: &Capabilities,
-    volumes: Option<&volumes::VolumeScene>,
+    volumes: Option<&VolumeScene>,
 ) -> Result<(), String> {
-    match method {
-        ShadowMethod::Traced | ShadowMethod::None => Ok(()),
-        ShadowMethod::Map => map::serves(light),
-        ShadowMethod::Cascades => cascades::serves(light),
-        ShadowMethod::Volumes => volumes::serves(light, caps, volumes),
-        ShadowMethod::Hybrid => hybrid::serves(light),
-        ShadowMethod::Auto => Err("auto is chosen by a calibration before rendering (umbra render, umbra bench), \
-                                   not within a frame"
+    match technique(method) {
+        Some(t) => t.serves(light, caps, volumes),
+        None if method == ShadowMethod::None => Ok(()),
+        None => Err("auto is chosen by a calibration before rendering (umbra render, umbra bench), \
+                     not within a frame"
             .into()),
     }
+}
+
+/// Whether a light with `method` may read `table`'s parameters (`map` for `map.resolution`):
+/// what its technique reads, every table for `auto` (which may choose any technique), none for
+/// `none`.
+pub fn reads(method: ShadowMethod, table: &str) -> bool {
+    match technique(method) {
+        Some(t) => t.reads().contains(&table),
+        None => method == ShadowMethod::Auto,
+    }
+}
+
+/// Whether light `i`'s shadows (`choice`) are sampled stochastically, so successive frames
+/// average.
+pub fn is_stochastic(choice: &ShadowChoice, light: &Light) -> bool {
+    technique(choice.method).is_some_and(|t| t.is_stochastic(choice, light))
+}
+
+/// Whether any light's shadows under `settings` are sampled stochastically.
+pub fn any_stochastic(settings: &RenderSettings, lights: &[Light]) -> bool {
+    lights.iter().enumerate().any(|(i, l)| is_stochastic(&settings.shadow(i), l))
 }
 
 /// Whether any light with shadows asks for `method`.
@@ -206,126 +326,41 @@ pub fn plan(
                 }
             },
         };
-        match method {
-            ShadowMethod::Map => plan.map.push(served),
-            ShadowMethod::Cascades => plan.cascades.push(served),
-            ShadowMethod::Volumes => plan.volumes.push(served),
-            ShadowMethod::Hybrid => plan.hybrid.push(served),
-            ShadowMethod::Traced | ShadowMethod::Auto | ShadowMethod::None => plan.traced.push(served),
-        }
+        // `auto` is resolved before a frame; a light still marked so, or `none` viewed, traces.
+        let method = if technique(method).is_some() { method } else { ShadowMethod::Traced };
+        plan.served.entry(method).or_default().push(served);
     }
     plan
-}
-
-/// Each technique's pipelines, made the first time a frame uses the technique.
-#[derive(Default)]
-pub struct Pipelines {
-    pub traced: traced::Pipelines,
-    map: std::sync::OnceLock<map::MapPipelines>,
-    volumes: std::sync::OnceLock<volumes::Pipelines>,
-    hybrid: std::sync::OnceLock<hybrid::Pipelines>,
-}
-
-/// What one frame's techniques draw and trace with, made before its graph is built.
-#[derive(Clone, Copy, Default)]
-pub struct Prepared<'a> {
-    /// The traced pipelines, and the ray-query scene when the rays use the driver's traversal.
-    pub traced: Option<(traced::Variants<'a>, Option<&'a traced::accel::RayQueryScene>)>,
-    pub map: Option<&'a map::MapPipelines>,
-    /// The volume pipelines and the casters' adjacency.
-    pub volumes: Option<(&'a volumes::Pipelines, &'a volumes::VolumeScene)>,
-    /// The hybrid's pipelines, and the variants of its list trace that its lights take.
-    pub hybrid: Option<(&'a hybrid::Pipelines, traced::Variants<'a>)>,
-}
-
-impl Pipelines {
-    /// The pipelines `plan` needs, except the traced ones (which depend on the backend, see
-    /// `Renderer`), made now if they were not.
-    pub fn prepare<'a>(
-        &'a self,
-        ctx: &std::sync::Arc<crate::vk::GpuContext>,
-        scene: &SceneGpu,
-        plan: &ShadowPlan,
-        volume_scene: Option<&'a volumes::VolumeScene>,
-        debug_view: Option<DebugView>,
-    ) -> crate::vk::GpuResult<Prepared<'a>> {
-        let map = match plan.map.is_empty() && plan.cascades.is_empty() && plan.hybrid.is_empty() {
-            true => None,
-            false => {
-                let pipelines = crate::vk::get_or_make(&self.map, || map::pipelines(ctx))?;
-                for s in plan.map.iter().chain(&plan.hybrid) {
-                    let cube = matches!(scene.local_lights[s.light as usize], Light::Point { .. });
-                    pipelines.prepare_for(scene, if cube { 6 } else { 1 })?;
-                }
-                for s in &plan.cascades {
-                    pipelines.prepare_for(scene, s.choice.cascades.count as usize)?;
-                }
-                Some(pipelines)
-            }
-        };
-        let volumes = match (plan.volumes.is_empty(), volume_scene) {
-            (false, Some(scene)) => Some((crate::vk::get_or_make(&self.volumes, || volumes::pipelines(ctx))?, scene)),
-            _ => None,
-        };
-        let hybrid = match plan.hybrid.is_empty() {
-            true => None,
-            false => {
-                let pipelines = crate::vk::get_or_make(&self.hybrid, || hybrid::pipelines(ctx, scene.bvh.masked()))?;
-                let trace = pipelines.prepare_trace(&plan.hybrid, &scene.local_lights)?;
-                if debug_view.is_some_and(|v| matches!(v, DebugView::Hybrid(_))) {
-                    pipelines.prepare_view()?;
-                }
-                Some((pipelines, trace))
-            }
-        };
-        Ok(Prepared { traced: None, map, volumes, hybrid })
-    }
 }
 
 /// The visibility stage: the light table and the target, then each technique's passes for
 /// the lights it serves. Nothing at all when no light has shadow work.
 pub fn add<'a>(
-    g: &mut crate::graph::RenderGraph<'a>,
+    g: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     plan: &ShadowPlan,
-    prepared: Prepared<'a>,
-) -> Option<Visibility> {
+) -> GpuResult<Option<Visibility>> {
     use crate::gpu_scene::SCENE_ACCESS;
     use crate::passes::visibility;
     if plan.layers.count() == 0 {
-        return None;
+        return Ok(None);
     }
     let table = visibility::add_light_table(g, &plan.layers);
     let mut target = visibility::create_target(g, frame.extent, plan.layers.count());
+    // The casters, imported once for whichever techniques walk them.
+    let walks = |walk: Walk| {
+        plan.served.iter().any(|(&m, s)| !s.is_empty() && technique(m).is_some_and(|t| t.walks(frame) == walk))
+    };
+    let casters = Casters {
+        bvh: walks(Walk::Bvh).then(|| frame.scene.bvh.import(g, SCENE_ACCESS)),
+        ray_query: frame.ray_query.filter(|_| walks(Walk::RayQuery)).map(|rq| rq.add(g)),
+    };
     let mut debug = None;
-    if let Some(pipelines) = prepared.map {
-        debug = debug.or(map::add(g, frame, pipelines, &plan.map, &mut target));
-        debug = debug.or(cascades::add(g, frame, pipelines, &plan.cascades, &mut target));
-    }
-    if let Some((pipelines, scene)) = prepared.volumes.filter(|_| !plan.volumes.is_empty()) {
-        debug = debug.or(volumes::add(g, frame, pipelines, scene, &plan.volumes, &mut target));
-    }
-    // The BVH, imported once for whichever passes walk it.
-    let s = frame.scene;
-    let bvh_walked = prepared.traced.is_some_and(|(_, rq)| rq.is_none() && !plan.traced.is_empty())
-        || (prepared.hybrid.is_some() && !plan.hybrid.is_empty());
-    let bvh = bvh_walked.then(|| s.bvh.import(g, SCENE_ACCESS));
-    if let (Some(pipelines), Some(maps), Some(walk)) = (prepared.hybrid, prepared.map, &bvh) {
-        debug = debug.or(hybrid::add(g, frame, maps, pipelines, walk, &plan.hybrid, &mut target));
-    }
-    if let Some((pipelines, ray_query)) = prepared.traced.filter(|_| !plan.traced.is_empty()) {
-        match (ray_query, &bvh) {
-            (Some(rq), _) => {
-                let handles = rq.add(g);
-                let casters = traced::Casters::RayQuery(&handles);
-                traced::add(g, frame, pipelines, casters, &plan.traced, &mut target);
-            }
-            (None, Some(walk)) => {
-                let casters = traced::Casters::Bvh(walk);
-                traced::add(g, frame, pipelines, casters, &plan.traced, &mut target);
-            }
-            (None, None) => unreachable!("imported above for the traced lights"),
+    for t in TECHNIQUES {
+        let served = plan.served(t.method());
+        if !served.is_empty() {
+            debug = debug.or(t.add(g, frame, &casters, served, &mut target)?);
         }
     }
-    Some(Visibility { target, table, debug })
+    Ok(Some(Visibility { target, table, debug }))
 }

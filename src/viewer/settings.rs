@@ -63,19 +63,18 @@ impl ViewerSettings {
     /// View `i` of `VIEWS` for the selected light, or None where it has nothing to show.
     fn view_at(&self, i: usize) -> Option<DebugView> {
         let light = self.selected_light as u32;
-        let method = self.shadows.get(self.selected_light).map(|c| c.method);
+        let technique = self.shadows.get(self.selected_light).and_then(|c| crate::shadows::technique(c.method));
         let directional = self.directional.get(self.selected_light).copied().unwrap_or(false);
-        let cascades = method == Some(ShadowMethod::Cascades) && directional;
+        // A technique's own views, where its method is the light's. (A light can still fall
+        // back, volumes with open casters: the renderer then refuses the view, so the viewer
+        // offers it only for what it can check here.)
+        let offered = |view: DebugView| technique.is_some_and(|t| t.offers_view(view, directional)).then_some(view);
         match VIEWS[i] {
             Some(DebugView::Visibility(_)) => Some(DebugView::Visibility(light)),
-            Some(DebugView::ShadowMap { .. }) => {
-                (method == Some(ShadowMethod::Map) || cascades).then_some(DebugView::ShadowMap { light, layer: 0 })
-            }
-            Some(DebugView::Cascades(_)) => cascades.then_some(DebugView::Cascades(light)),
-            // Volumes can still fall back (open casters): the renderer then refuses the view,
-            // so the viewer offers it only for what it can check here.
-            Some(DebugView::Stencil(_)) => (method == Some(ShadowMethod::Volumes)).then_some(DebugView::Stencil(light)),
-            Some(DebugView::Hybrid(_)) => (method == Some(ShadowMethod::Hybrid)).then_some(DebugView::Hybrid(light)),
+            Some(DebugView::ShadowMap { .. }) => offered(DebugView::ShadowMap { light, layer: 0 }),
+            Some(DebugView::Cascades(_)) => offered(DebugView::Cascades(light)),
+            Some(DebugView::Stencil(_)) => offered(DebugView::Stencil(light)),
+            Some(DebugView::Hybrid(_)) => offered(DebugView::Hybrid(light)),
             v => v,
         }
     }
@@ -165,33 +164,10 @@ fn cycle(v: u32, values: &[u32]) -> u32 {
 
 /// One light's technique and the parameters that matter to it, for the overlay.
 fn describe_choice(c: &ShadowChoice, light: &Light) -> String {
-    let m = &c.map;
-    match c.method {
-        ShadowMethod::Traced => {
-            let soft = if c.traced.is_soft(light.has_size()) { "soft" } else { "hard" };
-            format!("traced {soft}")
-        }
-        ShadowMethod::Map => format!(
-            "map {0}x{0} pcf {1} bias {2}/{3}{4}",
-            m.resolution,
-            m.pcf_radius,
-            m.constant_bias,
-            m.slope_bias,
-            if m.uses_pcss(light.has_size()) { " pcss" } else { "" }
-        ),
-        ShadowMethod::Cascades => {
-            format!("cascades {} of {1}x{1} pcf {2}", c.cascades.count, m.resolution, m.pcf_radius)
-        }
-        ShadowMethod::Volumes => format!("volumes {}", if c.volumes.zpass { "z-pass" } else { "z-fail" }),
-        ShadowMethod::Hybrid => {
-            let soft = if c.traced.is_soft(light.has_size()) { "soft" } else { "hard" };
-            format!(
-                "hybrid {0}x{0} r {1} margin {2}, {soft} rays",
-                c.hybrid.resolution, c.hybrid.radius, c.hybrid.margin
-            )
-        }
-        ShadowMethod::Auto => format!("auto max error {}", c.auto.max_error),
-        ShadowMethod::None => "none".into(),
+    match crate::shadows::technique(c.method) {
+        Some(t) => t.describe(c, light),
+        None if c.method == ShadowMethod::Auto => format!("auto max error {}", c.auto.max_error),
+        None => c.method.id().into(),
     }
 }
 

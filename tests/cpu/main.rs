@@ -14,6 +14,7 @@ mod bvh_cpu;
 mod gltf_checks;
 mod graph_layers;
 mod graph_plan;
+mod imports;
 mod ltc;
 mod mesh_formats;
 mod parser_mutation;

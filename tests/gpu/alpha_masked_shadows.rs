@@ -10,7 +10,7 @@ use glam::{Vec2, Vec3, Vec4};
 use gltf_builder::{quad_xz, Gltf, U16};
 use serde_json::json;
 use umbra::config::{DebugView, ShadowBackend, ShadowMethod};
-use umbra::passes::ray_batch::{self, GpuRay};
+use umbra::diagnostics::ray_batch::{self, GpuRay};
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
 use umbra::scene::bvh::mask::{triangle_hit, BvhMasks};
 use umbra::scene::bvh::ShadowBvh;
@@ -387,7 +387,7 @@ fn the_gpu_walk_equals_its_cpu_twin_with_masks() {
 /// barycentrics come from its own intersection test, not Möller–Trumbore's).
 #[test]
 fn ray_query_reads_the_masks_too() {
-    use umbra::passes::ray_batch::{Target, TimedBatch};
+    use umbra::diagnostics::ray_batch::{Target, TimedBatch};
     use umbra::shadows::traced::accel::RayQueryScene;
     let ctx = common::gpu();
     if !ctx.capabilities.ray_query {

@@ -5,7 +5,7 @@ use crate::common;
 
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
-use umbra::passes::ray_batch::{trace, GpuRay};
+use umbra::diagnostics::ray_batch::{trace, GpuRay};
 use umbra::scene::bvh::ShadowBvh;
 
 /// A lumpy sphere (a closed surface with varied triangle sizes) plus a scatter of loose

@@ -6,8 +6,8 @@ use crate::common;
 use ash::vk;
 use glam::Vec3;
 use gpu_allocator::MemoryLocation;
+use umbra::diagnostics::ray_batch::{self, GpuRay};
 use umbra::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
-use umbra::passes::ray_batch::{self, GpuRay};
 use umbra::scene::bvh::ShadowBvh;
 use umbra::vk::Buffer;
 

@@ -3,7 +3,7 @@
 //! for 8-wide nodes), read by the shader through uniform texel buffers. `occluded` is the
 //! line-for-line twin of `bvh_occluded` in shaders/include/bvh.glsl.
 //!
-//! Why this layout (measured with `umbra bench rays`, see the README):
+//! Why this layout (measured with `umbra bench rays`, see docs/performance.md):
 //! - 4 children per node: a node step tests four boxes in vec4 arithmetic, and the tree is half
 //!   as deep as the binary one, so a ray takes fewer dependent fetches.
 //! - 8-bit boxes: a node is 48 bytes (three RGBA32UI texels) instead of the 128 a

@@ -9,11 +9,14 @@
 pub mod params;
 
 use super::light_space::{cascade_splits, fit_cascades, ViewFrustum};
-use super::map::{self, LightMap, MapLayer, MapPipelines, Mode};
-use super::{FrameInputs, Served};
-use crate::gpu_scene::CameraMatrices;
+use super::map::{self, LightMap, MapLayer, Mode};
+use super::volumes::VolumeScene;
+use super::{Casters, FrameInputs, Served, ViewAnswer};
+use crate::config::{DebugView, ShadowChoice, ShadowMethod};
+use crate::gpu_scene::{CameraMatrices, SceneGpu};
 use crate::graph::{Handle, ImageKind, RenderGraph};
 use crate::scene::Light;
+use crate::vk::{Capabilities, GpuResult};
 
 /// Whether `cascades` can serve `light`, and why not.
 pub fn serves(light: &Light) -> Result<(), String> {
@@ -62,20 +65,88 @@ pub fn light_map(
     }
 }
 
-/// Writes the visibility layer of each light in `served` from its cascades.
-pub fn add<'a>(
-    graph: &mut RenderGraph<'a>,
-    frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a MapPipelines,
-    served: &[Served],
-    target: &mut Handle<ImageKind>,
-) -> Option<Handle<ImageKind>> {
-    let casters = map::caster_bounds(frame.scene);
-    let mut debug = None;
-    for s in served {
-        let light = &frame.scene.local_lights[s.light as usize];
-        let m = light_map(s, light, frame.camera, &casters);
-        debug = debug.or(map::add_light(graph, frame, pipelines, &m, target));
+/// Writes `cascades`' lights' layers from their cascades.
+pub struct Cascades;
+
+impl super::Technique for Cascades {
+    fn method(&self) -> ShadowMethod {
+        ShadowMethod::Cascades
     }
-    debug
+
+    fn reads(&self) -> &'static [&'static str] {
+        &["cascades", "map", "traced"]
+    }
+
+    fn serves(&self, light: &Light, _: &Capabilities, _: Option<&VolumeScene>) -> Result<(), String> {
+        serves(light)
+    }
+
+    fn describe(&self, choice: &ShadowChoice, _: &Light) -> String {
+        let m = &choice.map;
+        format!("cascades {} of {1}x{1} pcf {2}", choice.cascades.count, m.resolution, m.pcf_radius)
+    }
+
+    fn map_texels(&self, choice: &ShadowChoice, _: &Light) -> u64 {
+        let res = u64::from(choice.map.resolution);
+        res * res * u64::from(choice.cascades.count)
+    }
+
+    fn sweep(&self, quick: bool, _: bool) -> Vec<(&'static [&'static str], &'static [&'static str])> {
+        match quick {
+            true => Vec::new(),
+            false => vec![(&["cascades.count"], &["1", "2", "3", "4", "5", "6"])],
+        }
+    }
+
+    fn candidates(&self, light: &Light) -> Vec<Vec<(&'static str, &'static str)>> {
+        match light {
+            Light::Directional { .. } => vec![
+                vec![("cascades.count", "2"), ("map.resolution", "1024")],
+                vec![("cascades.count", "4"), ("map.resolution", "1024")],
+            ],
+            _ => Vec::new(),
+        }
+    }
+
+    fn debug_view(&self, view: DebugView, served: &[Served], _: &SceneGpu) -> ViewAnswer {
+        match view {
+            DebugView::ShadowMap { light, layer } => match served.iter().find(|s| s.light == light) {
+                None => ViewAnswer::NotServed(format!(
+                    "light {light} has no shadow map this frame (its method is not map or cascades, or it cannot use one)"
+                )),
+                Some(s) if layer >= s.choice.cascades.count => ViewAnswer::Refused(format!(
+                    "light {light}'s map has {} layer(s), counted from 0",
+                    s.choice.cascades.count
+                )),
+                Some(_) => ViewAnswer::Shown,
+            },
+            DebugView::Cascades(light) => match served.iter().any(|s| s.light == light) {
+                true => ViewAnswer::Shown,
+                false => ViewAnswer::NotServed(format!("light {light} does not use cascades this frame")),
+            },
+            _ => ViewAnswer::NotMine,
+        }
+    }
+
+    fn offers_view(&self, view: DebugView, directional: bool) -> bool {
+        directional && matches!(view, DebugView::ShadowMap { .. } | DebugView::Cascades(_))
+    }
+
+    fn add<'a>(
+        &self,
+        g: &mut RenderGraph<'a>,
+        frame: &FrameInputs<'_, 'a>,
+        _: &Casters,
+        served: &[Served],
+        target: &mut Handle<ImageKind>,
+    ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let casters = map::caster_bounds(frame.scene);
+        let mut debug = None;
+        for s in served {
+            let light = &frame.scene.local_lights[s.light as usize];
+            let m = light_map(s, light, frame.camera, &casters);
+            debug = debug.or(map::add_light(g, frame, &m, target)?);
+        }
+        Ok(debug)
+    }
 }

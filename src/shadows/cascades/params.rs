@@ -40,3 +40,9 @@ impl CascadeParams {
         }
     }
 }
+
+impl crate::shadows::parameters::TechniqueParams for CascadeParams {
+    fn check(&self) -> Result<(), String> {
+        CascadeParams::check(self)
+    }
+}

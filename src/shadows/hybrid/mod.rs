@@ -12,34 +12,23 @@
 
 pub mod params;
 
-use std::sync::{Arc, OnceLock};
-
 use glam::{UVec4, Vec4};
 
 pub use self::params::HybridParams;
 use super::light_space::Bounds;
-use super::map::{self, LightMap, MapParams, MapPipelines};
-use super::{traced, FrameInputs, Served};
+use super::map::{self, LightMap, MapParams};
+use super::volumes::VolumeScene;
+use super::{traced, Casters, FrameInputs, Served, ViewAnswer, Walk};
+use crate::config::{DebugView, ShadowChoice, ShadowMethod};
+use crate::gpu_scene::SceneGpu;
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::scene::Light;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, Capabilities, ComputePipeline, GpuResult, PipelineKey};
 
 /// Listed pixels per workgroup of the list-driven passes (`LIST_GROUP` in classify.comp).
 pub const LIST_GROUP: u32 = 64;
-
-pub struct Pipelines {
-    classify: ComputePipeline,
-    /// The traced pass over a list of pixels, hard and soft (`traced::Variants`), each made the
-    /// first time a frame's light takes it.
-    trace: [OnceLock<ComputePipeline>; 2],
-    /// The scene has alpha-masked casters (the list trace takes its masked variant).
-    masked: bool,
-    /// The `hybrid:N` debug view, made on first use.
-    view: OnceLock<ComputePipeline>,
-    ctx: Arc<GpuContext>,
-}
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -49,54 +38,43 @@ struct ClassifyPush {
     params: Vec4,
 }
 
-/// `masked`: the scene has alpha-masked casters (the list trace takes its masked variant).
-pub fn pipelines(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<Pipelines> {
-    let classify = ComputePipeline::new(
-        ctx,
-        "hybrid classify",
-        spirv::SHADOWS_HYBRID_CLASSIFY_COMP,
-        &[
-            sampled(HYBRID_POSITION),
-            sampled(HYBRID_NORMAL),
-            storage(HYBRID_LIGHTS),
-            sampled(HYBRID_DEPTH),
-            storage_image(HYBRID_VISIBILITY),
-            (HYBRID_LAYERS, crate::vk::DescriptorKind::UniformBuffer),
-            sampled(HYBRID_SURFACE),
-            storage(HYBRID_LIST),
-            storage(HYBRID_ARGS),
-        ],
-        std::mem::size_of::<ClassifyPush>() as u32,
-        TILE,
-    )?;
-    Ok(Pipelines { classify, trace: Default::default(), masked, view: OnceLock::new(), ctx: ctx.clone() })
+/// The classification of each pixel by the light's coarse map, from the cache.
+fn classify_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
+    let ctx = frame.ctx;
+    frame.pipelines.compute(PipelineKey::new("hybrid classify", 0), || {
+        ComputePipeline::new(
+            ctx,
+            "hybrid classify",
+            spirv::SHADOWS_HYBRID_CLASSIFY_COMP,
+            &[
+                sampled(HYBRID_POSITION),
+                sampled(HYBRID_NORMAL),
+                storage(HYBRID_LIGHTS),
+                sampled(HYBRID_DEPTH),
+                storage_image(HYBRID_VISIBILITY),
+                (HYBRID_LAYERS, crate::vk::DescriptorKind::UniformBuffer),
+                sampled(HYBRID_SURFACE),
+                storage(HYBRID_LIST),
+                storage(HYBRID_ARGS),
+            ],
+            std::mem::size_of::<ClassifyPush>() as u32,
+            TILE,
+        )
+    })
 }
 
-impl Pipelines {
-    fn view(&self) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.view, || {
-            ComputePipeline::new(
-                &self.ctx,
-                "hybrid view",
-                spirv::SHADOWS_HYBRID_VIEW_COMP,
-                &[sampled(HYBRID_VISIBILITY), storage(HYBRID_LIST), storage_image(HYBRID_VIEW_OUTPUT)],
-                16,
-                TILE,
-            )
-        })
-    }
-
-    /// What a frame showing `hybrid:N` needs beyond the passes themselves.
-    pub fn prepare_view(&self) -> GpuResult<()> {
-        self.view().map(|_| ())
-    }
-
-    /// The list trace's variants that `served` (lights of `lights`) take, made if they were not.
-    pub fn prepare_trace(&self, served: &[Served], lights: &[Light]) -> GpuResult<traced::Variants<'_>> {
-        traced::prepare_variants(&self.trace, served, lights, |soft| {
-            traced::list_pipeline(&self.ctx, LIST_GROUP, self.masked, soft)
-        })
-    }
+/// The `hybrid:N` debug view, from the cache.
+fn view_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
+    frame.pipelines.compute(PipelineKey::new("hybrid view", 0), || {
+        ComputePipeline::new(
+            frame.ctx,
+            "hybrid view",
+            spirv::SHADOWS_HYBRID_VIEW_COMP,
+            &[sampled(HYBRID_VISIBILITY), storage(HYBRID_LIST), storage_image(HYBRID_VIEW_OUTPUT)],
+            16,
+            TILE,
+        )
+    })
 }
 
 /// Whether `hybrid` can serve `light`: every kind (spot and sun: one map; point: a cube) that
@@ -124,31 +102,94 @@ pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &B
     Some(m)
 }
 
-/// Writes each served light's visibility layer: its map, the classification, the rays for the
-/// pixels the map is not sure of, with the list trace's variants its lights take
-/// (`Pipelines::prepare_trace`). Returns the `hybrid:N` view when the frame shows one.
-pub fn add<'a>(
-    graph: &mut RenderGraph<'a>,
-    frame: &FrameInputs<'_, 'a>,
-    map_pipelines: &'a MapPipelines,
-    (pipelines, trace_variants): (&'a Pipelines, traced::Variants<'a>),
-    bvh: &crate::gpu_scene::BvhHandles,
-    served: &[Served],
-    target: &mut Handle<ImageKind>,
-) -> Option<Handle<ImageKind>> {
-    let casters = map::caster_bounds(frame.scene);
-    let receivers = map::visible_bounds(frame);
-    let mut debug = None;
-    for s in served {
-        let light = &frame.scene.local_lights[s.light as usize];
-        let map = light_map(s, light, &casters, &receivers);
-        let (list, args) = classify(graph, frame, map_pipelines, pipelines, s, map.as_ref(), target);
-        trace(graph, frame, trace_variants, bvh, s, &list, &args, target);
-        if frame.debug_view == Some(crate::config::DebugView::Hybrid(s.light)) {
-            debug = Some(add_view(graph, frame, pipelines, s, &list, &args, target));
+/// Writes `hybrid`'s lights' layers: for each, its coarse map, the classification, and the rays
+/// for the pixels the map is not sure of; the `hybrid:N` view when the frame shows one.
+pub struct Hybrid;
+
+impl super::Technique for Hybrid {
+    fn method(&self) -> ShadowMethod {
+        ShadowMethod::Hybrid
+    }
+
+    fn reads(&self) -> &'static [&'static str] {
+        &["hybrid", "map", "traced"]
+    }
+
+    fn serves(&self, light: &Light, _: &Capabilities, _: Option<&VolumeScene>) -> Result<(), String> {
+        serves(light)
+    }
+
+    fn describe(&self, choice: &ShadowChoice, light: &Light) -> String {
+        let soft = if choice.traced.is_soft(light.has_size()) { "soft" } else { "hard" };
+        let h = &choice.hybrid;
+        format!("hybrid {0}x{0} r {1} margin {2}, {soft} rays", h.resolution, h.radius, h.margin)
+    }
+
+    fn is_stochastic(&self, choice: &ShadowChoice, light: &Light) -> bool {
+        choice.traced.is_soft(light.has_size())
+    }
+
+    fn map_texels(&self, choice: &ShadowChoice, light: &Light) -> u64 {
+        let res = u64::from(choice.hybrid.resolution);
+        res * res * if matches!(light, Light::Point { .. }) { 6 } else { 1 }
+    }
+
+    fn sweep(&self, quick: bool, _: bool) -> Vec<(&'static [&'static str], &'static [&'static str])> {
+        match quick {
+            true => vec![(&["hybrid.resolution"], &["256", "1024"])],
+            false => vec![
+                (&["hybrid.resolution"], &["256", "512", "1024", "2048"]),
+                (&["hybrid.radius"], &["0", "1", "2"]),
+                (&["hybrid.margin"], &["0.5", "1", "2", "4"]),
+            ],
         }
     }
-    debug
+
+    fn candidates(&self, _: &Light) -> Vec<Vec<(&'static str, &'static str)>> {
+        vec![vec![("hybrid.resolution", "512")], vec![("hybrid.resolution", "1024")]]
+    }
+
+    fn debug_view(&self, view: DebugView, served: &[Served], _: &SceneGpu) -> ViewAnswer {
+        match view {
+            DebugView::Hybrid(light) => match served.iter().any(|s| s.light == light) {
+                true => ViewAnswer::Shown,
+                false => ViewAnswer::NotServed(format!("light {light} does not use hybrid shadows this frame")),
+            },
+            _ => ViewAnswer::NotMine,
+        }
+    }
+
+    fn offers_view(&self, view: DebugView, _: bool) -> bool {
+        matches!(view, DebugView::Hybrid(_))
+    }
+
+    fn walks(&self, _: &FrameInputs) -> Walk {
+        Walk::Bvh
+    }
+
+    fn add<'a>(
+        &self,
+        g: &mut RenderGraph<'a>,
+        frame: &FrameInputs<'_, 'a>,
+        casters: &Casters,
+        served: &[Served],
+        target: &mut Handle<ImageKind>,
+    ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let bvh = casters.bvh.as_ref().expect("shadows::add imports the BVH that `walks` asks for");
+        let casters = map::caster_bounds(frame.scene);
+        let receivers = map::visible_bounds(frame);
+        let mut debug = None;
+        for s in served {
+            let light = &frame.scene.local_lights[s.light as usize];
+            let map = light_map(s, light, &casters, &receivers);
+            let (list, args) = classify(g, frame, s, map.as_ref(), target)?;
+            trace(g, frame, bvh, s, &list, &args, target)?;
+            if frame.debug_view == Some(DebugView::Hybrid(s.light)) {
+                debug = Some(add_view(g, frame, s, &list, &args, target)?);
+            }
+        }
+        Ok(debug)
+    }
 }
 
 /// The map (when something can cast onto what is seen) and the classification: the sure
@@ -156,12 +197,10 @@ pub fn add<'a>(
 fn classify<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    map_pipelines: &'a MapPipelines,
-    pipelines: &'a Pipelines,
     served: &Served,
     map: Option<&LightMap>,
     target: &mut Handle<ImageKind>,
-) -> (Handle<BufferKind>, Handle<BufferKind>) {
+) -> GpuResult<(Handle<BufferKind>, Handle<BufferKind>)> {
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
     // Without a map every reached pixel is lit; a one-texel stand-in keeps the bindings whole.
     let stand_in;
@@ -172,7 +211,7 @@ fn classify<'a>(
             &stand_in
         }
     };
-    let (depth, table) = map::add_depth(graph, frame, map_pipelines, drawn);
+    let (depth, table) = map::add_depth(graph, frame, drawn)?;
     let pixels = u64::from(extent.width) * u64::from(extent.height);
     let mut list = graph.create_buffer("hybrid list", 4 + 4 * pixels);
     let mut args = graph.create_buffer("hybrid dispatch", 12);
@@ -211,23 +250,21 @@ fn classify<'a>(
         map: UVec4::new(map.is_some() as u32, drawn.mode as u32, h.radius, sized as u32),
         params: Vec4::new(h.margin, h.max_radius as f32, 0.0, 0.0),
     };
-    let classify = &pipelines.classify;
+    let classify = classify_pipeline(frame)?;
     pass.render(move |ctx| ctx.dispatch(classify, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    (list, args)
+    Ok((list, args))
 }
 
 /// The traced pass's rays for the listed pixels.
-#[allow(clippy::too_many_arguments)]
 fn trace<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: traced::Variants<'a>,
     bvh: &crate::gpu_scene::BvhHandles,
     served: &Served,
     list: &Handle<BufferKind>,
     args: &Handle<BufferKind>,
     target: &mut Handle<ImageKind>,
-) {
+) -> GpuResult<()> {
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
     let mut pass = graph.add_pass("shadow hybrid trace");
     pass.detail(format!("light {}", served.light));
@@ -250,23 +287,22 @@ fn trace<'a>(
     let light = &frame.scene.local_lights[served.light as usize];
     let rays = traced::rays(served, light);
     let push = traced::push_constants(extent, frame.frame_index, frame.camera.eye, served, rays);
-    let pipeline = pipelines.get(rays);
+    let pipeline = traced::list_trace_pipeline(frame, LIST_GROUP, rays)?;
     pass.render(move |ctx| ctx.dispatch_indirect(pipeline, &bound, bytemuck::bytes_of(&push), dispatch));
+    Ok(())
 }
 
 /// The `hybrid:N` view: the light's visibility in grey, the traced pixels in red-orange.
-#[allow(clippy::too_many_arguments)]
 fn add_view<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a Pipelines,
     served: &Served,
     list: &Handle<BufferKind>,
     args: &Handle<BufferKind>,
     target: &Handle<ImageKind>,
-) -> Handle<ImageKind> {
+) -> GpuResult<Handle<ImageKind>> {
     let extent = frame.extent;
-    let view = pipelines.view.get().expect("made by prepare_view");
+    let view = view_pipeline(frame)?;
     let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
     let mut out = graph.create_image("debug view", desc);
     for listed in [false, true] {
@@ -291,7 +327,7 @@ fn add_view<'a>(
             pass.render(move |ctx| ctx.dispatch(view, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
         }
     }
-    out
+    Ok(out)
 }
 
 /// Pixels of a `hybrid:N` view (RGBA floats) whose rays were traced: the red-orange ones,

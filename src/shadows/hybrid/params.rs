@@ -51,3 +51,9 @@ impl HybridParams {
         }
     }
 }
+
+impl crate::shadows::parameters::TechniqueParams for HybridParams {
+    fn check(&self) -> Result<(), String> {
+        HybridParams::check(self)
+    }
+}

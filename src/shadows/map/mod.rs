@@ -7,7 +7,7 @@
 //! writes the light's visibility layer: the point picks its layer, moves along its normal by
 //! `normal_offset` texels, and is filtered by hand (PCF, or PCSS for lights with a size).
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use ash::vk;
 use glam::{Mat4, UVec4, Vec3, Vec4};
@@ -18,15 +18,17 @@ pub use self::params::MapParams;
 use super::light_space::{
     cube_face_view_proj, depth_range, directional_view_proj, spot_view_proj, Bounds, MAX_SPOT_MAP_OUTER_DEG,
 };
-use super::{FrameInputs, Served};
+use super::volumes::VolumeScene;
+use super::{Casters, FrameInputs, Served, ViewAnswer};
+use crate::config::{DebugView, ShadowChoice, ShadowMethod};
 use crate::gpu_scene::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, ROWS};
 use crate::scene::Light;
 use crate::vk::bindings::*;
 use crate::vk::{
-    spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline,
-    GraphicsPipelineDesc,
+    spirv, Capabilities, ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline,
+    GraphicsPipelineDesc, PipelineKey,
 };
 
 /// Most layers one light's map has (cube faces, cascades); `MAP_MAX_LAYERS` in map_layers.glsl.
@@ -104,18 +106,6 @@ pub struct LightMap {
     pub what: String,
 }
 
-pub struct MapPipelines {
-    /// The depth pass of any one layer (`LayerPush` says which), made on first use.
-    depth: OnceLock<GraphicsPipeline>,
-    /// The same for alpha-masked casters (texture coordinates, the material's set 1), made for
-    /// scenes that have them (`prepare_masked`).
-    masked: OnceLock<GraphicsPipeline>,
-    resolve: ComputePipeline,
-    /// The `shadow-map` and `cascades` debug views.
-    debug: ComputePipeline,
-    ctx: Arc<GpuContext>,
-}
-
 /// The depth pass's push constant: the layer it draws (its matrix in the layer table).
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -141,8 +131,9 @@ struct ResolvePush {
     forward: Vec4,
 }
 
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
-    let resolve = ComputePipeline::new(
+/// The resolve: each pixel's visibility from the light's map (PCF or PCSS), into its layer.
+pub fn resolve_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(
         ctx,
         "shadow map resolve",
         spirv::SHADOWS_MAP_RESOLVE_COMP,
@@ -157,8 +148,12 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
         ],
         std::mem::size_of::<ResolvePush>() as u32,
         ROWS,
-    )?;
-    let debug = ComputePipeline::new(
+    )
+}
+
+/// The `shadow-map` and `cascades` debug views.
+fn debug_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(
         ctx,
         "shadow map view",
         spirv::SHADOWS_MAP_DEBUG_COMP,
@@ -171,65 +166,45 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<MapPipelines> {
         ],
         std::mem::size_of::<DebugPush>() as u32,
         ROWS,
-    )?;
-    Ok(MapPipelines { depth: Default::default(), masked: Default::default(), resolve, debug, ctx: ctx.clone() })
+    )
 }
 
-impl MapPipelines {
-    /// The depth pipeline for maps of up to `layers` layers, made now if it was not.
-    ///
-    /// Each layer is its own rendering pass into that layer's own view, told its matrix by a
-    /// push constant. (Multiview, a view per layer, caps layers at the device's
-    /// maxMultiviewViewCount, 6 on lavapipe: 8 cascades broke it. All layers in one multiview
-    /// pass would draw each caster once; but llvmpipe (measured on Mesa 25.0.7) sends every
-    /// primitive it has to clip to view 0, so a floor larger than a cube face lands in the wrong
-    /// face; and one pass per layer culls draws per layer.)
-    pub fn prepare_depth(&self, layers: usize) -> GpuResult<()> {
-        assert!((1..=MAX_LAYERS).contains(&layers), "1..={MAX_LAYERS} layers");
-        crate::vk::get_or_make(&self.depth, || {
-            let desc = depth_desc("shadow map", spirv::SHADOWS_MAP_DEPTH_VERT, None);
-            let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
-            GraphicsPipeline::with_extras(&self.ctx, &desc, &GraphicsExtras { instance, ..Default::default() })
-        })
-        .map(drop)
-    }
+/// The depth pipeline, drawing any one layer (`LayerPush` says which), from the cache.
+///
+///
+/// Each layer is its own rendering pass into that layer's own view, told its matrix by a
+/// push constant. (Multiview, a view per layer, caps layers at the device's
+/// maxMultiviewViewCount, 6 on lavapipe: 8 cascades broke it. All layers in one multiview
+/// pass would draw each caster once; but llvmpipe (measured on Mesa 25.0.7) sends every
+/// primitive it has to clip to view 0, so a floor larger than a cube face lands in the wrong
+/// face; and one pass per layer culls draws per layer.)
+fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipeline> {
+    frame.pipelines.graphics(PipelineKey::new("shadow map", 0), || {
+        let desc = depth_desc("shadow map", spirv::SHADOWS_MAP_DEPTH_VERT, None);
+        let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
+        GraphicsPipeline::with_extras(frame.ctx, &desc, &GraphicsExtras { instance, ..Default::default() })
+    })
+}
 
-    /// The masked depth pipeline, with the scene's material set layout (one scene per renderer,
-    /// so one layout per `MapPipelines`).
-    pub fn prepare_masked(&self, material_set: vk::DescriptorSetLayout) -> GpuResult<()> {
-        crate::vk::get_or_make(&self.masked, || {
-            let desc = depth_desc(
-                "shadow map (alpha-masked)",
-                spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
-                Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
-            );
-            let extras = GraphicsExtras {
-                instance: Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..])),
-                per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES[..])),
-                set_1: Some(material_set),
-                ..Default::default()
-            };
-            GraphicsPipeline::with_extras(&self.ctx, &desc, &extras)
-        })
-        .map(drop)
-    }
-
-    fn depth(&self) -> &GraphicsPipeline {
-        self.depth.get().expect("made by prepare_depth")
-    }
-
-    fn masked_depth(&self) -> &GraphicsPipeline {
-        self.masked.get().expect("made by prepare_masked")
-    }
-
-    /// `prepare_depth`, and `prepare_masked` where `scene` has alpha-masked materials.
-    pub fn prepare_for(&self, scene: &SceneGpu, layers: usize) -> GpuResult<()> {
-        self.prepare_depth(layers)?;
-        match scene.materials.as_ref().filter(|m| m.masked) {
-            Some(materials) => self.prepare_masked(materials.set_layout()),
-            None => Ok(()),
-        }
-    }
+/// The depth pipeline for alpha-masked casters (texture coordinates, the material's set 1),
+/// with the scene's material set layout (one scene per renderer, so one per cache), from the
+/// cache.
+fn masked_depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipeline> {
+    let materials = frame.scene.materials.as_ref().expect("alpha-masked casters have material sets");
+    frame.pipelines.graphics(PipelineKey::new("shadow map (alpha-masked)", 0), || {
+        let desc = depth_desc(
+            "shadow map (alpha-masked)",
+            spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
+            Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
+        );
+        let extras = GraphicsExtras {
+            instance: Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..])),
+            per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES[..])),
+            set_1: Some(materials.set_layout()),
+            ..Default::default()
+        };
+        GraphicsPipeline::with_extras(frame.ctx, &desc, &extras)
+    })
 }
 
 /// A shadow map's depth pipeline: positions only, depth with a dynamic bias, both faces (thin
@@ -325,31 +300,101 @@ pub fn light_map(served: &Served, light: &Light, casters: &Bounds, receivers: &B
     Some(LightMap { light: served.light, layer: served.layer, mode, layers, params, pcss, blend: 0.0, what })
 }
 
-/// Writes the visibility layer of each light in `served`: its map, then the resolve.
-pub fn add<'a>(
-    graph: &mut RenderGraph<'a>,
-    frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a MapPipelines,
-    served: &[Served],
-    target: &mut Handle<ImageKind>,
-) -> Option<Handle<ImageKind>> {
-    let casters = caster_bounds(frame.scene);
-    let receivers = visible_bounds(frame);
-    let mut debug = None;
-    for s in served {
-        let light = &frame.scene.local_lights[s.light as usize];
-        match light_map(s, light, &casters, &receivers) {
-            Some(map) => {
-                debug = debug.or(add_light(graph, frame, pipelines, &map, target));
-            }
-            // Nothing casts onto what is seen: the light's layer is the unshadowed facing test.
-            None => {
-                let map = LightMap::nothing(s, 16);
-                debug = debug.or(add_light(graph, frame, pipelines, &map, target));
-            }
+/// Writes `map`'s lights' layers: each light's map, then the resolve.
+pub struct Map;
+
+impl super::Technique for Map {
+    fn method(&self) -> ShadowMethod {
+        ShadowMethod::Map
+    }
+
+    fn reads(&self) -> &'static [&'static str] {
+        &["map", "traced"]
+    }
+
+    fn serves(&self, light: &Light, _: &Capabilities, _: Option<&VolumeScene>) -> Result<(), String> {
+        serves(light)
+    }
+
+    fn describe(&self, choice: &ShadowChoice, light: &Light) -> String {
+        let m = &choice.map;
+        format!(
+            "map {0}x{0} pcf {1} bias {2}/{3}{4}",
+            m.resolution,
+            m.pcf_radius,
+            m.constant_bias,
+            m.slope_bias,
+            if m.uses_pcss(light.has_size()) { " pcss" } else { "" }
+        )
+    }
+
+    fn map_texels(&self, choice: &ShadowChoice, light: &Light) -> u64 {
+        let res = u64::from(choice.map.resolution);
+        res * res * if matches!(light, Light::Point { .. }) { 6 } else { 1 }
+    }
+
+    fn sweep(&self, quick: bool, soft_lights: bool) -> Vec<(&'static [&'static str], &'static [&'static str])> {
+        if quick {
+            return vec![(&["map.resolution"], &["512", "2048"])];
+        }
+        let mut axes: Vec<(&'static [&'static str], &'static [&'static str])> = vec![
+            (&["map.resolution"], &["256", "512", "1024", "2048", "4096"]),
+            (&["map.pcf_radius"], &["0", "1", "2", "3"]),
+            (&["map.constant_bias", "map.slope_bias"], &["0", "1", "2", "4"]),
+        ];
+        if soft_lights {
+            // PCSS's kernel: the widest penumbra it can draw.
+            axes.push((&["map.pcss_max_radius"], &["4", "8", "16", "32"]));
+        }
+        axes
+    }
+
+    fn candidates(&self, _: &Light) -> Vec<Vec<(&'static str, &'static str)>> {
+        vec![vec![("map.resolution", "512")], vec![("map.resolution", "1024")], vec![("map.resolution", "2048")]]
+    }
+
+    fn debug_view(&self, view: DebugView, served: &[Served], scene: &SceneGpu) -> ViewAnswer {
+        let DebugView::ShadowMap { light, layer } = view else {
+            return ViewAnswer::NotMine;
+        };
+        if !served.iter().any(|s| s.light == light) {
+            return ViewAnswer::NotServed(format!(
+                "light {light} has no shadow map this frame (its method is not map or cascades, or it cannot use one)"
+            ));
+        }
+        let layers = match scene.local_lights.get(light as usize) {
+            Some(Light::Point { .. }) => 6,
+            _ => 1,
+        };
+        match layer < layers {
+            true => ViewAnswer::Shown,
+            false => ViewAnswer::Refused(format!("light {light}'s map has {layers} layer(s), counted from 0")),
         }
     }
-    debug
+
+    fn offers_view(&self, view: DebugView, _directional: bool) -> bool {
+        matches!(view, DebugView::ShadowMap { .. })
+    }
+
+    fn add<'a>(
+        &self,
+        g: &mut RenderGraph<'a>,
+        frame: &FrameInputs<'_, 'a>,
+        _: &Casters,
+        served: &[Served],
+        target: &mut Handle<ImageKind>,
+    ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let casters = caster_bounds(frame.scene);
+        let receivers = visible_bounds(frame);
+        let mut debug = None;
+        for s in served {
+            let light = &frame.scene.local_lights[s.light as usize];
+            // Nothing casts onto what is seen: the light's layer is the unshadowed facing test.
+            let map = light_map(s, light, &casters, &receivers).unwrap_or_else(|| LightMap::nothing(s, 16));
+            debug = debug.or(add_light(g, frame, &map, target)?);
+        }
+        Ok(debug)
+    }
 }
 
 /// Whether a box can touch the frustum of `view_proj` (reversed depth, clip z in [0, w]): false
@@ -398,10 +443,16 @@ fn add_layer_table(graph: &mut RenderGraph<'_>, map: &LightMap) -> Handle<Buffer
 pub fn add_depth<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a MapPipelines,
     map: &LightMap,
-) -> (Handle<ImageKind>, Handle<BufferKind>) {
+) -> GpuResult<(Handle<ImageKind>, Handle<BufferKind>)> {
+    assert!((1..=MAX_LAYERS).contains(&map.layers.len()), "1..={MAX_LAYERS} layers");
     let scene = frame.scene;
+    let pipeline = depth_pipeline(frame)?;
+    // Alpha-masked casters draw with the masked pipeline, made for scenes that have them.
+    let masked_pipeline = match scene.materials.as_ref().is_some_and(|m| m.masked) {
+        true => Some(masked_depth_pipeline(frame)?),
+        false => None,
+    };
     let res = map.params.resolution;
     let count = map.layers.len();
     let table = add_layer_table(graph, map);
@@ -425,7 +476,6 @@ pub fn add_depth<'a>(
     let params = map.params;
     pass.render(move |ctx| {
         for (k, draws) in draws.iter().enumerate() {
-            let pipeline = pipelines.depth();
             let push = LayerPush { layer: k as u32 };
             let attachment = vk::RenderingAttachmentInfo::default()
                 .image_view(ctx.image(depth[k]).1)
@@ -477,7 +527,10 @@ pub fn add_depth<'a>(
                 let masked = scene.materials.as_ref().zip(draw.maps.filter(|m| m.masked));
                 if masked.is_some() != masked_now {
                     masked_now = masked.is_some();
-                    let used = if masked_now { pipelines.masked_depth() } else { pipeline };
+                    let used = match masked_now {
+                        true => masked_pipeline.expect("made for scenes with alpha-masked casters"),
+                        false => pipeline,
+                    };
                     ctx.bind_set(
                         vk::PipelineBindPoint::GRAPHICS,
                         &used.layout,
@@ -496,7 +549,7 @@ pub fn add_depth<'a>(
                         d.cmd_bind_descriptor_sets(
                             ctx.cmd,
                             vk::PipelineBindPoint::GRAPHICS,
-                            pipelines.masked_depth().layout.layout,
+                            masked_pipeline.expect("made for scenes with alpha-masked casters").layout.layout,
                             1,
                             &[materials.sets[maps.set]],
                             &[],
@@ -517,7 +570,7 @@ pub fn add_depth<'a>(
         }
         Ok(())
     });
-    (depth_image, table)
+    Ok((depth_image, table))
 }
 
 /// Renders `map` from the casters inside its layers' frusta and resolves it into its layer;
@@ -525,14 +578,13 @@ pub fn add_depth<'a>(
 pub fn add_light<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a MapPipelines,
     map: &LightMap,
     visibility: &mut Handle<ImageKind>,
-) -> Option<Handle<ImageKind>> {
+) -> GpuResult<Option<Handle<ImageKind>>> {
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
     let params = map.params;
     let count = map.layers.len();
-    let (depth_image, table) = add_depth(graph, frame, pipelines, map);
+    let (depth_image, table) = add_depth(graph, frame, map)?;
 
     let mut pass = graph.add_pass("shadow map resolve");
     let read = Access::ComputeShaderReadSampledImage;
@@ -553,26 +605,27 @@ pub fn add_light<'a>(
         eye: frame.camera.eye.extend(0.0),
         forward: forward.extend(0.0),
     };
-    let resolve = &pipelines.resolve;
+    let resolve = frame.pipelines.compute(PipelineKey::new("shadow map resolve", 0), || resolve_pipeline(frame.ctx))?;
     pass.render(move |ctx| ctx.dispatch(resolve, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    add_debug_view(graph, frame, pipelines, map, &depth_image, &table, visibility)
+    add_debug_view(graph, frame, map, &depth_image, &table, visibility)
 }
 
 /// The `shadow-map:N:C` or `cascades:N` view of `map`, when the frame shows it.
 fn add_debug_view<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a MapPipelines,
     map: &LightMap,
     depth: &Handle<ImageKind>,
     table: &Handle<BufferKind>,
     visibility: &Handle<ImageKind>,
-) -> Option<Handle<ImageKind>> {
+) -> GpuResult<Option<Handle<ImageKind>>> {
     use crate::config::DebugView;
-    let (mode, arg) = match frame.debug_view? {
-        DebugView::ShadowMap { light, layer } if light == map.light => (0, layer),
-        DebugView::Cascades(light) if light == map.light && map.mode == Mode::Cascades => (1, map.layers.len() as u32),
-        _ => return None,
+    let (mode, arg) = match frame.debug_view {
+        Some(DebugView::ShadowMap { light, layer }) if light == map.light => (0, layer),
+        Some(DebugView::Cascades(light)) if light == map.light && map.mode == Mode::Cascades => {
+            (1, map.layers.len() as u32)
+        }
+        _ => return Ok(None),
     };
     let extent = frame.extent;
     let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
@@ -591,9 +644,9 @@ fn add_debug_view<'a>(
         eye: frame.camera.eye.extend(0.0),
         forward: frame.camera.forward.extend(0.0),
     };
-    let pipeline = &pipelines.debug;
+    let pipeline = frame.pipelines.compute(PipelineKey::new("shadow map view", 0), || debug_pipeline(frame.ctx))?;
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    Some(out)
+    Ok(Some(out))
 }
 
 /// The camera's unit view direction (scene-local frame).

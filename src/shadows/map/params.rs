@@ -58,3 +58,9 @@ impl MapParams {
         self.pcss.unwrap_or(light_has_size)
     }
 }
+
+impl crate::shadows::parameters::TechniqueParams for MapParams {
+    fn check(&self) -> Result<(), String> {
+        MapParams::check(self)
+    }
+}

@@ -4,92 +4,118 @@
 //! rays. Hard shadows are one ray toward the light's centre; soft ones `spp` rays over the
 //! solid angle it fills per frame (spread evenly: `shading::soft_sample`), weighted as the
 //! light's analytic shading weighs their directions (the ratio estimator, trace_body.glsl). Hard
-//! and soft lights run their own pipeline variant (`Variants`), made only when a frame has such
+//! and soft lights run their own pipeline variant, made only when a frame has such
 //! a light. Writes each served light's visibility layer (1 lit, 0 shadowed).
 
 pub mod accel;
 pub mod params;
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 
-use self::accel::{RayQueryHandles, RayQuerySlots};
-use super::{FrameInputs, Served};
+use self::accel::RayQuerySlots;
+use super::volumes::VolumeScene;
+use super::{Casters, FrameInputs, Served, Walk};
+use crate::config::{ShadowChoice, ShadowMethod};
 use crate::gpu_scene::BvhSlots;
 use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, TILE};
+use crate::scene::Light;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult};
+use crate::vk::{spirv, Capabilities, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey};
 
-/// The two traversals' pipelines in their hard and soft variants (trace_body.glsl's
-/// TRACE_SOFT), each made the first time a frame uses it (the compute one for the scene's BVH:
-/// masked where it has alpha-masked casters, see `pipeline`).
-#[derive(Default)]
-pub struct Pipelines {
-    /// Indexed by `soft as usize`.
-    compute: [OnceLock<ComputePipeline>; 2],
-    ray_query: [OnceLock<ComputePipeline>; 2],
-}
+/// Writes `traced`'s lights' layers (`add`); see the module's doc.
+pub struct Traced;
 
-impl Pipelines {
-    /// The variants `served` needs (None for one no light of them takes), over the compute BVH
-    /// or, with `ray_query`, the driver's traversal (only on devices with ray query).
-    pub fn prepare<'a>(
-        &'a self,
-        ctx: &Arc<GpuContext>,
-        ray_query: bool,
-        masked: bool,
-        served: &[Served],
-        lights: &[crate::scene::Light],
-    ) -> GpuResult<Variants<'a>> {
-        match ray_query {
-            true => prepare_variants(&self.ray_query, served, lights, |soft| ray_query_pipeline(ctx, masked, soft)),
-            false => prepare_variants(&self.compute, served, lights, |soft| pipeline(ctx, masked, soft)),
+impl super::Technique for Traced {
+    fn method(&self) -> ShadowMethod {
+        ShadowMethod::Traced
+    }
+
+    fn reads(&self) -> &'static [&'static str] {
+        &["traced"]
+    }
+
+    fn serves(&self, _: &Light, _: &Capabilities, _: Option<&VolumeScene>) -> Result<(), String> {
+        Ok(())
+    }
+
+    fn describe(&self, choice: &ShadowChoice, light: &Light) -> String {
+        let soft = if choice.traced.is_soft(light.has_size()) { "soft" } else { "hard" };
+        format!("traced {soft}")
+    }
+
+    fn is_stochastic(&self, choice: &ShadowChoice, light: &Light) -> bool {
+        choice.traced.is_soft(light.has_size())
+    }
+
+    fn sweep(&self, quick: bool, soft_lights: bool) -> Vec<(&'static [&'static str], &'static [&'static str])> {
+        match (quick, soft_lights) {
+            (false, true) => vec![(&["traced.spp"], &["1", "4", "16", "64", "256"])],
+            _ => Vec::new(),
         }
     }
-}
 
-/// The variants of `slots` (indexed by `soft as usize`) that `served`'s lights (of `lights`)
-/// take, each made by `make(soft)` the first time a frame takes it: the traced pass's and the
-/// hybrid's list trace's.
-pub fn prepare_variants<'a>(
-    slots: &'a [OnceLock<ComputePipeline>; 2],
-    served: &[Served],
-    lights: &[crate::scene::Light],
-    make: impl Fn(bool) -> GpuResult<ComputePipeline>,
-) -> GpuResult<Variants<'a>> {
-    let mut variants = Variants::default();
-    for soft in [false, true] {
-        if served.iter().any(|s| is_soft(rays(s, &lights[s.light as usize])) == soft) {
-            *variants.slot(soft) = Some(crate::vk::get_or_make(&slots[soft as usize], || make(soft))?);
-        }
+    fn candidates(&self, _: &Light) -> Vec<Vec<(&'static str, &'static str)>> {
+        vec![vec![]]
     }
-    Ok(variants)
-}
 
-/// A frame's traced pipelines: the hard and the soft variant, where a light of the frame takes it.
-#[derive(Clone, Copy, Default)]
-pub struct Variants<'a> {
-    pub hard: Option<&'a ComputePipeline>,
-    pub soft: Option<&'a ComputePipeline>,
-}
-
-impl<'a> Variants<'a> {
-    fn slot(&mut self, soft: bool) -> &mut Option<&'a ComputePipeline> {
-        if soft {
-            &mut self.soft
+    fn walks(&self, frame: &FrameInputs) -> Walk {
+        if frame.ray_query.is_some() {
+            Walk::RayQuery
         } else {
-            &mut self.hard
+            Walk::Bvh
         }
     }
 
-    /// The variant for `rays`, which `Pipelines::prepare` made for a light of the frame.
-    pub fn get(&self, rays: Rays) -> &'a ComputePipeline {
-        let soft = is_soft(rays);
-        if soft { self.soft } else { self.hard }.expect("Pipelines::prepare makes the variants a frame's lights take")
+    fn add<'a>(
+        &self,
+        g: &mut RenderGraph<'a>,
+        frame: &FrameInputs<'_, 'a>,
+        casters: &Casters,
+        served: &[Served],
+        target: &mut Handle<ImageKind>,
+    ) -> GpuResult<Option<Handle<ImageKind>>> {
+        add(g, frame, casters, served, target)?;
+        Ok(None)
     }
+}
+
+/// The trace pipeline `rays` take, over the compute BVH or, where the frame has them, the
+/// driver's structures (alpha-masked variants where the casters have masks), from the cache.
+fn trace_pipeline<'a>(frame: &FrameInputs<'_, 'a>, rays: Rays) -> GpuResult<&'a ComputePipeline> {
+    let soft = is_soft(rays);
+    match frame.ray_query {
+        Some(rq) => {
+            let masked = rq.masked();
+            let key = PipelineKey::new("shadow trace (ray query)", variant_bits(masked, soft));
+            frame.pipelines.compute(key, || ray_query_pipeline(frame.ctx, masked, soft))
+        }
+        None => {
+            let masked = frame.scene.bvh.masked();
+            let key = PipelineKey::new("shadow trace", variant_bits(masked, soft));
+            frame.pipelines.compute(key, || pipeline(frame.ctx, masked, soft))
+        }
+    }
+}
+
+/// The list trace `hybrid` runs over the pixels its map is unsure of (`list_pipeline`), from
+/// the cache.
+pub fn list_trace_pipeline<'a>(
+    frame: &FrameInputs<'_, 'a>,
+    list_group: u32,
+    rays: Rays,
+) -> GpuResult<&'a ComputePipeline> {
+    let (masked, soft) = (frame.scene.bvh.masked(), is_soft(rays));
+    let key = PipelineKey::new("shadow trace (list)", variant_bits(masked, soft) | list_group << 2);
+    frame.pipelines.compute(key, || list_pipeline(frame.ctx, list_group, masked, soft))
+}
+
+/// A trace variant's bits in its cache key.
+fn variant_bits(masked: bool, soft: bool) -> u32 {
+    masked as u32 | (soft as u32) << 1
 }
 
 /// Whether `rays` take the soft variant (TRACE_SOFT); hard rays and none (the facing test) take
@@ -175,14 +201,6 @@ pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> Gp
     ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
 }
 
-/// What the rays traverse.
-pub enum Casters<'h> {
-    /// The CPU-built BVH, walked by the shader.
-    Bvh(&'h crate::gpu_scene::BvhHandles),
-    /// The driver's acceleration structures.
-    RayQuery(&'h RayQueryHandles),
-}
-
 /// The rays a light gets in one frame.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Rays {
@@ -206,15 +224,14 @@ pub fn rays(served: &Served, light: &crate::scene::Light) -> Rays {
 
 /// Writes each light's layer of `visibility`: one dispatch per light, so every dispatch runs
 /// one sample loop with no untaken branch for other lights' kinds of shadow, in the pipeline
-/// variant of its kind (`pipelines`, prepared for these lights).
-pub fn add<'a>(
+/// variant of its kind.
+fn add<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: Variants<'a>,
-    casters: Casters<'_>,
+    casters: &Casters,
     served: &[Served],
     visibility: &mut Handle<ImageKind>,
-) {
+) -> GpuResult<()> {
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
     let mut pass = graph.add_pass("shadow trace");
     let lights: Vec<String> = served.iter().map(|s| s.light.to_string()).collect();
@@ -226,9 +243,10 @@ pub fn add<'a>(
         (SHADOW_MATERIAL, Bound::Image(pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage))),
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
-    match casters {
-        Casters::Bvh(walk) => bound.extend(walk.bind(&mut pass, &BVH_SLOTS)),
-        Casters::RayQuery(rq) => bound.extend(rq.bind(&mut pass, &RAY_QUERY_SLOTS)),
+    match (&casters.ray_query, &casters.bvh) {
+        (Some(rq), _) => bound.extend(rq.bind(&mut pass, &RAY_QUERY_SLOTS)),
+        (None, Some(walk)) => bound.extend(walk.bind(&mut pass, &BVH_SLOTS)),
+        (None, None) => unreachable!("shadows::add imports what `walks` asks for"),
     }
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.
@@ -240,7 +258,7 @@ pub fn add<'a>(
         for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
             let mut push = push;
             push.frame.w = x | y << 16;
-            work.push((pipelines.get(rays), push, layer, [w, h]));
+            work.push((trace_pipeline(frame, rays)?, push, layer, [w, h]));
         }
     }
     pass.render(move |ctx| {
@@ -252,6 +270,7 @@ pub fn add<'a>(
         }
         Ok(())
     });
+    Ok(())
 }
 
 /// The trace shaders' push constants (trace_body.glsl's `Push`).

@@ -71,3 +71,9 @@ impl TracedParams {
         Ok(())
     }
 }
+
+impl crate::shadows::parameters::TechniqueParams for TracedParams {
+    fn check(&self) -> Result<(), String> {
+        TracedParams::check(self)
+    }
+}

@@ -12,7 +12,7 @@
 use std::collections::HashMap;
 use std::fmt;
 
-use glam::Vec3;
+use glam::{Vec3, Vec4};
 
 /// Why a mesh cannot cast shadow volumes, with the edge (welded positions) that shows it.
 #[derive(Clone, Debug, PartialEq)]
@@ -139,13 +139,30 @@ pub fn build(positions: &[Vec3], indices: &[u32]) -> Result<Adjacency, NotManifo
     Ok(Adjacency { positions: welded, triangles, with_adjacency })
 }
 
+/// Lexicographic order of positions.
+fn before(p: Vec3, q: Vec3) -> bool {
+    p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)))
+}
+
+/// Whether triangle `a, b, c` (counter-clockwise seen from outside) faces `light`. Rotated to
+/// start at its smallest corner first, so that the triangle and its neighbours get the same
+/// answer bit for bit whichever corner each starts from.
+pub fn faces_light(mut a: Vec3, mut b: Vec3, mut c: Vec3, light: Vec4) -> bool {
+    if before(b, a) && before(b, c) {
+        (a, b, c) = (b, c, a);
+    } else if before(c, a) && before(c, b) {
+        (a, b, c) = (c, a, b);
+    }
+    (b - a).cross(c - a).dot(light.truncate() - a * light.w) > 0.0
+}
+
 impl Adjacency {
     /// Silhouette edges as seen from a point light at `light` (CPU twin of the geometry
     /// shader's test): edges whose two triangles face it differently, oriented so the
     /// triangle that faces the light is on their left. Each is (from, to) over `positions`.
     pub fn silhouette(&self, light: Vec3) -> Vec<(u32, u32)> {
         let p = |i: u32| self.positions[i as usize];
-        let faces = |a: u32, b: u32, c: u32| super::extrude::faces_light(p(a), p(b), p(c), light.extend(1.0));
+        let faces = |a: u32, b: u32, c: u32| faces_light(p(a), p(b), p(c), light.extend(1.0));
         let mut edges = Vec::new();
         for (t, tri) in self.triangles.iter().enumerate() {
             if !faces(tri[0], tri[1], tri[2]) {

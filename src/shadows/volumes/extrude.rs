@@ -5,7 +5,7 @@
 
 use glam::{Vec3, Vec4};
 
-use super::adjacency::Adjacency;
+use super::adjacency::{faces_light, Adjacency};
 use crate::scene::Light;
 
 /// The light as a homogeneous point: `(position, 1)` for point and spot lights, `(-direction,
@@ -16,23 +16,6 @@ pub fn light_point(light: &Light) -> Vec4 {
         Light::Point { position, .. } | Light::Spot { position, .. } => position.as_vec3().extend(1.0),
         Light::Directional { direction, .. } => (-direction).extend(0.0),
     }
-}
-
-/// Lexicographic order of positions.
-fn before(p: Vec3, q: Vec3) -> bool {
-    p.x < q.x || (p.x == q.x && (p.y < q.y || (p.y == q.y && p.z < q.z)))
-}
-
-/// Whether triangle `a, b, c` (counter-clockwise seen from outside) faces `light`. Rotated to
-/// start at its smallest corner first, so that the triangle and its neighbours get the same
-/// answer bit for bit whichever corner each starts from.
-pub fn faces_light(mut a: Vec3, mut b: Vec3, mut c: Vec3, light: Vec4) -> bool {
-    if before(b, a) && before(b, c) {
-        (a, b, c) = (b, c, a);
-    } else if before(c, a) && before(c, b) {
-        (a, b, c) = (c, a, b);
-    }
-    (b - a).cross(c - a).dot(light.truncate() - a * light.w) > 0.0
 }
 
 /// `p` seen from `light`, pushed to infinity: a direction, w = 0.

@@ -36,15 +36,16 @@ use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
 pub use self::params::VolumeParams;
-use super::{FrameInputs, Served};
-use crate::gpu_scene::{upload, SCENE_ACCESS};
+use super::{Casters as FrameCasters, FrameInputs, Served, ViewAnswer};
+use crate::config::{DebugView, ShadowChoice, ShadowMethod};
+use crate::gpu_scene::{upload, SceneGpu, SCENE_ACCESS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, ROWS};
 use crate::scene::{Light, Scene};
 use crate::vk::bindings::*;
 use crate::vk::{
     spirv, Buffer, Capabilities, ComputePipeline, DepthState, GpuContext, GpuError, GpuResult, GraphicsExtras,
-    GraphicsPipeline, GraphicsPipelineDesc, StencilState,
+    GraphicsPipeline, GraphicsPipelineDesc, PipelineKey, StencilState,
 };
 
 /// Depth-stencil formats the volumes can count in, best first: D32 keeps the G-buffer's depth
@@ -156,17 +157,6 @@ impl VolumeScene {
     }
 }
 
-/// The volume passes' pipelines.
-pub struct Pipelines {
-    format: vk::Format,
-    depth: GraphicsPipeline,
-    zfail: GraphicsPipeline,
-    zpass: GraphicsPipeline,
-    resolve: ComputePipeline,
-    /// The `stencil:N` debug view.
-    stencil_view: ComputePipeline,
-}
-
 /// `extrude.geom`'s push constants.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -179,29 +169,40 @@ struct ExtrudePush {
     mode: UVec4,
 }
 
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
-    let format = depth_stencil_format(ctx)
-        .ok_or_else(|| GpuError::Unsupported("no depth-stencil format for shadow volumes".into()))?;
-    let depth = GraphicsPipeline::with_extras(
-        ctx,
-        &GraphicsPipelineDesc {
-            name: "shadow volumes depth",
-            vertex: spirv::SHADOWS_VOLUMES_FULLSCREEN_VERT,
-            fragment: Some(spirv::SHADOWS_VOLUMES_DEPTH_FRAG),
-            vertex_stride: 0,
-            attributes: &[],
-            color_formats: &[],
-            depth_format: Some(format),
-            bindings: &[sampled(VOLUMES_DEPTH)],
-            push_bytes: 0,
-            cull_back_faces: false,
-            dynamic_depth_bias: false,
-        },
-        &GraphicsExtras {
-            depth: Some(DepthState { test: true, write: true, compare: vk::CompareOp::ALWAYS }),
-            ..Default::default()
-        },
-    )?;
+/// The copy of the G-buffer's depth into the depth-stencil image, from the cache.
+fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>, format: vk::Format) -> GpuResult<&'a GraphicsPipeline> {
+    let ctx = frame.ctx;
+    frame.pipelines.graphics(PipelineKey::new("shadow volumes depth", format.as_raw() as u32), || {
+        GraphicsPipeline::with_extras(
+            ctx,
+            &GraphicsPipelineDesc {
+                name: "shadow volumes depth",
+                vertex: spirv::SHADOWS_VOLUMES_FULLSCREEN_VERT,
+                fragment: Some(spirv::SHADOWS_VOLUMES_DEPTH_FRAG),
+                vertex_stride: 0,
+                attributes: &[],
+                color_formats: &[],
+                depth_format: Some(format),
+                bindings: &[sampled(VOLUMES_DEPTH)],
+                push_bytes: 0,
+                cull_back_faces: false,
+                dynamic_depth_bias: false,
+            },
+            &GraphicsExtras {
+                depth: Some(DepthState { test: true, write: true, compare: vk::CompareOp::ALWAYS }),
+                ..Default::default()
+            },
+        )
+    })
+}
+
+/// The extrusion through `extrude.geom`, counting z-fail (`zfail`) or z-pass, from the cache.
+fn extrude_pipeline<'a>(
+    frame: &FrameInputs<'_, 'a>,
+    format: vk::Format,
+    zfail: bool,
+) -> GpuResult<&'a GraphicsPipeline> {
+    let ctx = frame.ctx;
     let face = |pass_op, depth_fail_op| vk::StencilOpState {
         fail_op: vk::StencilOp::KEEP,
         pass_op,
@@ -213,7 +214,13 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
     };
     let (keep, incr, decr) =
         (vk::StencilOp::KEEP, vk::StencilOp::INCREMENT_AND_WRAP, vk::StencilOp::DECREMENT_AND_WRAP);
-    let extrude = |name, stencil| {
+    // Counted where the face is behind the surface (z-fail) or in front of it (z-pass); the
+    // faces are wound with their outside counter-clockwise, so entering a volume is a front face.
+    let (name, stencil) = match zfail {
+        true => ("shadow volumes z-fail", StencilState { front: face(keep, decr), back: face(keep, incr) }),
+        false => ("shadow volumes z-pass", StencilState { front: face(incr, keep), back: face(decr, keep) }),
+    };
+    frame.pipelines.graphics(PipelineKey::new(name, format.as_raw() as u32), || {
         GraphicsPipeline::with_extras(
             ctx,
             &GraphicsPipelineDesc {
@@ -239,34 +246,43 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
                 ..Default::default()
             },
         )
-    };
-    // Counted where the face is behind the surface (z-fail) or in front of it (z-pass); the
-    // faces are wound with their outside counter-clockwise, so entering a volume is a front face.
-    let zfail = extrude("shadow volumes z-fail", StencilState { front: face(keep, decr), back: face(keep, incr) })?;
-    let zpass = extrude("shadow volumes z-pass", StencilState { front: face(incr, keep), back: face(decr, keep) })?;
-    let stencil_view = ComputePipeline::new(
-        ctx,
-        "shadow volumes stencil view",
-        spirv::SHADOWS_VOLUMES_STENCIL_VIEW_COMP,
-        &[sampled(VOLUMES_STENCIL), storage_image(VOLUMES_VIEW_OUTPUT)],
-        std::mem::size_of::<UVec4>() as u32,
-        ROWS,
-    )?;
-    let resolve = ComputePipeline::new(
-        ctx,
-        "shadow volumes resolve",
-        spirv::SHADOWS_VOLUMES_RESOLVE_COMP,
-        &[
-            sampled(VOLUMES_POSITION),
-            sampled(VOLUMES_NORMAL),
-            storage(VOLUMES_LIGHTS),
-            sampled(VOLUMES_STENCIL),
-            storage_image(VOLUMES_VISIBILITY),
-        ],
-        std::mem::size_of::<UVec4>() as u32,
-        ROWS,
-    )?;
-    Ok(Pipelines { format, depth, zfail, zpass, resolve, stencil_view })
+    })
+}
+
+/// The resolve: each pixel's visibility from its stencil count, from the cache.
+fn resolve_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
+    let ctx = frame.ctx;
+    frame.pipelines.compute(PipelineKey::new("shadow volumes resolve", 0), || {
+        ComputePipeline::new(
+            ctx,
+            "shadow volumes resolve",
+            spirv::SHADOWS_VOLUMES_RESOLVE_COMP,
+            &[
+                sampled(VOLUMES_POSITION),
+                sampled(VOLUMES_NORMAL),
+                storage(VOLUMES_LIGHTS),
+                sampled(VOLUMES_STENCIL),
+                storage_image(VOLUMES_VISIBILITY),
+            ],
+            std::mem::size_of::<UVec4>() as u32,
+            ROWS,
+        )
+    })
+}
+
+/// The `stencil:N` debug view, from the cache.
+fn stencil_view_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
+    let ctx = frame.ctx;
+    frame.pipelines.compute(PipelineKey::new("shadow volumes stencil view", 0), || {
+        ComputePipeline::new(
+            ctx,
+            "shadow volumes stencil view",
+            spirv::SHADOWS_VOLUMES_STENCIL_VIEW_COMP,
+            &[sampled(VOLUMES_STENCIL), storage_image(VOLUMES_VIEW_OUTPUT)],
+            std::mem::size_of::<UVec4>() as u32,
+            ROWS,
+        )
+    })
 }
 
 /// Whether `volumes` can serve `light` on this device and scene, and why not. Every kind of
@@ -284,16 +300,79 @@ pub fn serves(light: &Light, caps: &Capabilities, scene: Option<&VolumeScene>) -
     }
 }
 
+/// Writes `volumes`' lights' layers from their stencil counts.
+pub struct Volumes;
+
+impl super::Technique for Volumes {
+    fn method(&self) -> ShadowMethod {
+        ShadowMethod::Volumes
+    }
+
+    fn reads(&self) -> &'static [&'static str] {
+        &["volumes", "traced"]
+    }
+
+    fn serves(&self, light: &Light, device: &Capabilities, volumes: Option<&VolumeScene>) -> Result<(), String> {
+        serves(light, device, volumes)
+    }
+
+    fn describe(&self, choice: &ShadowChoice, _: &Light) -> String {
+        format!("volumes {}", if choice.volumes.zpass { "z-pass" } else { "z-fail" })
+    }
+
+    fn sweep(&self, quick: bool, _: bool) -> Vec<(&'static [&'static str], &'static [&'static str])> {
+        match quick {
+            true => Vec::new(),
+            false => vec![(&["volumes.zpass"], &["false", "true"])],
+        }
+    }
+
+    fn candidates(&self, _: &Light) -> Vec<Vec<(&'static str, &'static str)>> {
+        vec![vec![("volumes.zpass", "false")]]
+    }
+
+    fn debug_view(&self, view: DebugView, served: &[Served], _: &SceneGpu) -> ViewAnswer {
+        match view {
+            DebugView::Stencil(light) => match served.iter().any(|s| s.light == light) {
+                true => ViewAnswer::Shown,
+                false => ViewAnswer::NotServed(format!("light {light} does not use shadow volumes this frame")),
+            },
+            _ => ViewAnswer::NotMine,
+        }
+    }
+
+    fn offers_view(&self, view: DebugView, _: bool) -> bool {
+        matches!(view, DebugView::Stencil(_))
+    }
+
+    fn add<'a>(
+        &self,
+        g: &mut RenderGraph<'a>,
+        frame: &FrameInputs<'_, 'a>,
+        _: &FrameCasters,
+        served: &[Served],
+        target: &mut Handle<ImageKind>,
+    ) -> GpuResult<Option<Handle<ImageKind>>> {
+        match frame.volumes {
+            Some(scene) => add(g, frame, scene, served, target),
+            None => Ok(None),
+        }
+    }
+}
+
 /// Writes the visibility layer of each light in `served` from its stencil count.
-pub fn add<'a>(
+fn add<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    pipelines: &'a Pipelines,
     scene: &'a VolumeScene,
     served: &[Served],
     target: &mut Handle<ImageKind>,
-) -> Option<Handle<ImageKind>> {
-    let casters = scene.casters.as_ref().filter(|_| !served.is_empty())?;
+) -> GpuResult<Option<Handle<ImageKind>>> {
+    let Some(casters) = scene.casters.as_ref().filter(|_| !served.is_empty()) else {
+        return Ok(None);
+    };
+    let format = depth_stencil_format(frame.ctx)
+        .ok_or_else(|| GpuError::Unsupported("no depth-stencil format for shadow volumes".into()))?;
     let mut debug = None;
     let extent = frame.extent;
     let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
@@ -306,12 +385,12 @@ pub fn add<'a>(
         max_depth: 1.0,
     };
     let mut depth_stencil =
-        graph.create_image("volume depth-stencil", ImageDesc::new(pipelines.format, extent.width, extent.height));
+        graph.create_image("volume depth-stencil", ImageDesc::new(format, extent.width, extent.height));
 
     let mut pass = graph.add_pass("shadow volumes depth");
     let source = pass.read(&frame.gbuffer.depth, Access::FragmentShaderReadSampledImage);
     let dst = pass.write(&mut depth_stencil, Access::DepthStencilAttachmentWrite);
-    let pipeline = &pipelines.depth;
+    let pipeline = depth_pipeline(frame, format)?;
     pass.render(move |ctx| {
         let attachment = vk::RenderingAttachmentInfo::default()
             .image_view(ctx.image(dst).1)
@@ -360,7 +439,7 @@ pub fn add<'a>(
             light: extrude::light_point(light),
             mode: UVec4::new(u32::from(zfail), 0, 0, 0),
         };
-        let pipeline = if zfail { &pipelines.zfail } else { &pipelines.zpass };
+        let pipeline = extrude_pipeline(frame, format, zfail)?;
         let index_count = casters.index_count;
         pass.render(move |ctx| {
             let view = ctx.image(attached).1;
@@ -413,7 +492,7 @@ pub fn add<'a>(
             (VOLUMES_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
         ];
         let push = UVec4::new(extent.width, extent.height, served.light, served.layer);
-        let pipeline = &pipelines.resolve;
+        let pipeline = resolve_pipeline(frame)?;
         pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
         if frame.debug_view == Some(crate::config::DebugView::Stencil(served.light)) {
             let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
@@ -423,14 +502,14 @@ pub fn add<'a>(
                 (VOLUMES_STENCIL, Bound::Image(pass.read(&depth_stencil, Access::ComputeShaderReadStencil))),
                 (VOLUMES_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
             ];
-            let pipeline = &pipelines.stencil_view;
+            let pipeline = stencil_view_pipeline(frame)?;
             pass.render(move |ctx| {
                 ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height)
             });
             debug = Some(out);
         }
     }
-    debug
+    Ok(debug)
 }
 
 #[cfg(test)]

@@ -7,9 +7,9 @@ use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
-use super::storage;
 use crate::gpu_scene::{BvhBuffers, BvhHandles, BvhSlots};
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
+use crate::passes::storage;
 use crate::scene::bvh::ShadowBvh;
 use crate::shadows::traced::accel::RayQuerySlots;
 use crate::vk::bindings::*;
@@ -111,7 +111,7 @@ pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResu
     let r = g.import_buffer("rays", &ray_buf.buffer, crate::gpu_scene::SCENE_ACCESS);
     let walk = bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS);
     let hits = add(&mut g, &pipeline, (&r, ray_buf.view()), &walk, count);
-    super::readback::add_buffer(&mut g, &hits, &out);
+    crate::passes::readback::add_buffer(&mut g, &hits, &out);
     let plan = CompiledGraph::compile(&g);
     ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
     let flags: &[u32] = bytemuck::cast_slice(&out.mapped()[..rays.len() * 4]);

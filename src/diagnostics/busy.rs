@@ -10,8 +10,8 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{storage, DISPLAY_FORMAT};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{storage, DISPLAY_FORMAT};
 use crate::vk::bindings::BUSY_OUTPUT;
 use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
 

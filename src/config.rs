@@ -331,7 +331,8 @@ mod tests {
         assert_eq!(ShadowMethod::parse("ray-traced-soft"), Ok((ShadowMethod::Traced, Some(true))));
         assert_eq!(ShadowMethod::parse("traced-soft"), Ok((ShadowMethod::Traced, Some(true))));
         let err = ShadowMethod::parse("shadowmap").unwrap_err();
-        assert!(err.contains("traced, map, cascades, volumes, hybrid, auto, none"), "{err}");
+        let ids: Vec<&str> = ShadowMethod::ALL.iter().map(|m| m.id()).collect();
+        assert!(err.contains(&format!("use one of {}", ids.join(", "))), "{err}");
         let mut m = ShadowMethod::Traced;
         let mut seen = Vec::new();
         for _ in 0..ShadowMethod::ALL.len() - 1 {

@@ -101,9 +101,10 @@ struct BenchRaysArgs {
 struct BenchShadowsArgs {
     /// Scene files (TOML); the built-in default scene if none.
     scenes: Vec<PathBuf>,
-    /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, hybrid, none.
-    #[arg(long, default_value = umbra::bench::sweep::DEFAULT_METHODS)]
-    methods: String,
+    /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, hybrid,
+    /// none. Default: every technique (all but traced-soft and none).
+    #[arg(long)]
+    methods: Option<String>,
     /// The error bound (visibility RMSE) under which each chart rings the cheapest row whose
     /// every light is within it: `--shadows auto`'s rule with one setting for every light, among
     /// the points measured.
@@ -754,7 +755,8 @@ fn bench_rays(args: BenchRaysArgs) -> Result<ExitCode> {
 fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
     use umbra::bench::{shadows, sweep};
     let start = Instant::now();
-    let methods = sweep::parse_methods(&args.methods).map_err(anyhow::Error::msg)?;
+    let methods = args.methods.clone().unwrap_or_else(sweep::default_methods);
+    let methods = sweep::parse_methods(&methods).map_err(anyhow::Error::msg)?;
     let axes = match args.sweeps.is_empty() {
         true => None,
         false => Some(

@@ -20,8 +20,10 @@ pub struct MethodSpec {
     pub soft: Option<bool>,
 }
 
-/// The methods measured when `--methods` is not given.
-pub const DEFAULT_METHODS: &str = "traced,map,cascades,volumes,hybrid";
+/// The methods measured when `--methods` is not given: every technique of the registry.
+pub fn default_methods() -> String {
+    ShadowMethod::TECHNIQUES.iter().map(|m| m.id()).collect::<Vec<_>>().join(",")
+}
 
 /// Parses `--methods`: method ids (and their aliases) separated by commas, each once.
 pub fn parse_methods(text: &str) -> Result<Vec<MethodSpec>, String> {

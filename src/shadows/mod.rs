@@ -16,14 +16,9 @@
 //! of the method that picks one of the others.
 
 pub mod auto;
-pub mod cascades;
-pub mod hybrid;
 pub mod light_space;
-pub mod map;
 pub mod parameters;
 pub mod registry;
-pub mod traced;
-pub mod volumes;
 
 use std::collections::BTreeMap;
 use std::sync::Arc;
@@ -106,6 +101,9 @@ pub trait Technique: Sync {
 
 macro_rules! technique_table {
     ($( $(#[$doc:meta])* $variant:ident $id:ident $params:path, )*) => {
+        // Each technique's folder (`traced/`, `map/`, ...), declared by its line in the registry.
+        $( pub mod $id; )*
+
         /// Every technique, in `registry.rs`'s order.
         pub static TECHNIQUES: &[&dyn Technique] = &[$( &$id::$variant, )*];
     };

@@ -181,13 +181,8 @@ mod tests {
         let methods = |s: &ViewerSettings| s.shadows.iter().map(|c| c.method).collect::<Vec<_>>();
         s.on_key(Key::T);
         assert_eq!(methods(&s), vec![ShadowMethod::Map, ShadowMethod::Traced, ShadowMethod::Traced]);
-        for next in [
-            ShadowMethod::Cascades,
-            ShadowMethod::Volumes,
-            ShadowMethod::Hybrid,
-            ShadowMethod::None,
-            ShadowMethod::Traced,
-        ] {
+        // Every technique of the registry after map, then none, then back to traced.
+        for next in ShadowMethod::TECHNIQUES[2..].iter().copied().chain([ShadowMethod::None, ShadowMethod::Traced]) {
             s.on_key(Key::T);
             assert_eq!(s.shadows[0].method, next);
         }

@@ -25,11 +25,8 @@ const LAYERS: &[(&str, u32)] = &[
     ("shadows::parameters", 3),
     ("shadows::registry", 3),
     ("shadows::auto", 3),
-    ("shadows::traced::params", 3),
-    ("shadows::map::params", 3),
-    ("shadows::cascades::params", 3),
-    ("shadows::volumes::params", 3),
-    ("shadows::hybrid::params", 3),
+    // Every technique's `params.rs`, whichever the technique.
+    ("shadows::*::params", 3),
     ("config", 4),
     // The CPU scene: files, meshes, the BVH; and the CPU twins of the shaders.
     ("scene", 5),
@@ -60,11 +57,18 @@ const LAYERS: &[(&str, u32)] = &[
     ("viewer", 15),
 ];
 
+/// The layer of the longest prefix in `LAYERS` that `module` starts with; a `*` segment in a
+/// prefix stands for any one segment (of two matching prefixes as long, the one without wins).
 fn layer(module: &str) -> Option<u32> {
+    let segments: Vec<&str> = module.split("::").collect();
+    let matches = |prefix: &str| {
+        let p: Vec<&str> = prefix.split("::").collect();
+        p.len() <= segments.len() && p.iter().zip(&segments).all(|(a, b)| *a == "*" || a == b)
+    };
     LAYERS
         .iter()
-        .filter(|(prefix, _)| module == *prefix || module.starts_with(&format!("{prefix}::")))
-        .max_by_key(|(prefix, _)| prefix.len())
+        .filter(|(prefix, _)| matches(prefix))
+        .max_by_key(|(prefix, _)| (prefix.split("::").count(), !prefix.contains('*')))
         .map(|&(_, l)| l)
 }
 

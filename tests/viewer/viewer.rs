@@ -69,10 +69,10 @@ fn turning_the_camera_moves_the_shadows_on_screen() {
 #[test]
 fn switching_a_light_to_no_shadows_brightens_its_shadows_only() {
     let dir = scene_dir("none");
-    // T cycles traced -> map -> cascades -> volumes -> hybrid -> none.
-    let script = "frames 2\nscreenshot hard\npress T\npress T\npress T\npress T\npress T\nframes 2\nscreenshot \
-                  unshadowed\nquit\n";
-    view(&dir, script, &["--hard"]);
+    // T cycles through every technique (traced first), then none.
+    let presses = "press T\n".repeat(umbra::config::ShadowMethod::TECHNIQUES.len());
+    let script = format!("frames 2\nscreenshot hard\n{presses}frames 2\nscreenshot unshadowed\nquit\n");
+    view(&dir, &script, &["--hard"]);
     let (w, h, hard) = read_exr(&dir.join("hard.exr")).unwrap();
     let (w2, h2, none) = read_exr(&dir.join("unshadowed.exr")).unwrap();
     assert_eq!((w, h), (w2, h2));

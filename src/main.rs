@@ -102,7 +102,7 @@ struct BenchShadowsArgs {
     /// Scene files (TOML); the built-in default scene if none.
     scenes: Vec<PathBuf>,
     /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, hybrid,
-    /// none. Default: every technique (all but traced-soft and none).
+    /// evsm, none. Default: every technique (all but traced-soft and none).
     #[arg(long)]
     methods: Option<String>,
     /// The error bound (visibility RMSE) under which each chart rings the cheapest row whose
@@ -227,7 +227,7 @@ struct RenderArgs {
     /// Exposure in stops for PNG output.
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true, value_parser = parse_exposure)]
     exposure: f32,
-    /// Shadow method for every light (traced, map, cascades, volumes, hybrid, auto, none; ray-traced is an
+    /// Shadow method for every light (traced, map, cascades, volumes, hybrid, evsm, auto, none; ray-traced is an
     /// alias of traced, traced-soft and ray-traced-soft of soft traced), or per light counting
     /// from 0: `0=map,2=none`. Default: each light's `shadows` in the scene file, else traced.
     #[arg(long, value_parser = parse_shadows)]

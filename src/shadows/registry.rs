@@ -32,6 +32,8 @@ macro_rules! for_each_technique {
             Volumes volumes crate::shadows::volumes::params::VolumeParams,
             /// A coarse shadow map decides the pixels it is sure of; rays are traced for the rest.
             Hybrid hybrid crate::shadows::hybrid::params::HybridParams,
+            /// Exponential variance shadow maps: filtered moments, soft edges at one lookup.
+            Evsm evsm crate::shadows::evsm::params::EvsmParams,
         }
     };
 }

@@ -24,6 +24,7 @@ mod devices;
 mod double_sided;
 mod environment;
 mod environment_map;
+mod evsm;
 mod far_from_origin;
 mod gltf_scenes;
 mod hybrid;

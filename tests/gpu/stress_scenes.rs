@@ -96,7 +96,7 @@ fn binary_diff(a: &[f32], b: &[f32]) -> usize {
     a.iter().zip(b).filter(|(x, y)| (**x >= 0.5) != (**y >= 0.5)).count()
 }
 
-const SCENES: [&str; 9] = [
+const SCENES: [&str; 10] = [
     "grazing.toml",
     "field.toml",
     "inside-volume.toml",
@@ -106,6 +106,7 @@ const SCENES: [&str; 9] = [
     "light-inside.toml",
     "many-lights.toml",
     "shuffled.toml",
+    "stacked.toml",
 ];
 
 #[test]
@@ -121,7 +122,7 @@ fn every_method_renders_every_stress_scene_without_nan_or_validation_messages() 
             let v = b.vis(0, method, &[("map.resolution", "512")], 96, 72);
             assert!(v.iter().all(|&x| (0.0..=1.0).contains(&x)), "{name} {method}: visibility in [0, 1]");
         }
-        println!("{name}: 5 methods rendered, no NaN");
+        println!("{name}: {} methods rendered, no NaN", ShadowMethod::ALL.len());
         b.finish();
     }
 }
@@ -368,3 +369,35 @@ fn many_lights_every_method_one_layer_per_shadowed_light() {
     }
     b.finish();
 }
+
+#[test]
+fn stacked_occluders_bleed_light_through_evsm_and_bleed_reduction_cuts_it() {
+    let mut b = Bench::new(load("stacked.toml"));
+    let mask = b.covered(W, H);
+    let traced = b.vis(0, ShadowMethod::Traced, &[], W, H);
+    let error = |v: &[f32]| visibility_error(&traced, v, W as usize, H as usize, Some(&mask));
+    let map = error(&b.vis(0, ShadowMethod::Map, &[], W, H));
+    let bleeding = error(&b.vis(0, ShadowMethod::Evsm, &[("evsm.bleed", "0")], W, H));
+    let reduced = error(&b.vis(0, ShadowMethod::Evsm, &[("evsm.bleed", "0.5")], W, H));
+    let shadowed = traced.iter().zip(&mask).filter(|(v, m)| **m && **v < 0.5).count();
+    println!(
+        "stacked: {} covered px, {shadowed} traced-shadowed; light leak: map {:.2} %, evsm bleed 0 {:.2} %, \
+         bleed 0.5 {:.2} % (false shadow {:.2} %, bleed 0 {:.2} %)",
+        map.pixels,
+        100.0 * map.light_leak,
+        100.0 * bleeding.light_leak,
+        100.0 * reduced.light_leak,
+        100.0 * reduced.false_shadow,
+        100.0 * bleeding.false_shadow
+    );
+    assert!(shadowed > 1000, "the bench's and the slab's shadows are in view");
+    assert!(bleeding.light_leak > STACKED_LEAK_MIN, "evsm bleeds light between the stacked occluders");
+    assert!(bleeding.light_leak > 3.0 * map.light_leak, "more than the depth-compared map leaks");
+    assert!(reduced.light_leak < 0.7 * bleeding.light_leak, "bleed reduction cuts the leak");
+    assert!(reduced.false_shadow > bleeding.false_shadow, "and darkens penumbrae in exchange");
+    b.finish();
+}
+
+/// Measured (160x120, evsm at its defaults but `bleed`): 3.10 % of covered pixels leak light at
+/// bleed 0 (map: 0.81 %); bleed 0.5 leaks on 0.82 % and shadows 1.54 % falsely (bleed 0: 0.19 %).
+const STACKED_LEAK_MIN: f64 = 0.02;

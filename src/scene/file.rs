@@ -1,190 +1,21 @@
-//! The TOML scene file: serde types that mirror docs/scene-format.md, and the checks that turn
-//! them into a `Scene`. Every check names its key path, so a message alone says what to fix.
+//! The TOML scene file: serde types that mirror docs/scene-format.md (`desc.rs`), and the checks
+//! that turn them into a `Scene`. Every check names its key path, so a message alone says what to
+//! fix.
 
-use std::fmt;
 use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3, Vec3};
-use serde::de::{self, Deserializer, Visitor};
-use serde::Deserialize;
 
 use super::error::{short_number, shorten, SceneError, MAX_MESSAGE_CHARS};
 use super::mesh::{self, ObjectMesh};
-use super::values::{Exact, Scale, Xyz};
+use super::values::Xyz;
 use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, RectLight, Scene};
-use crate::config::ShadowBackend;
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SceneFile {
-    image: Option<ImageDesc>,
-    /// A glTF file whose whole default scene (meshes, cameras, lights) joins this one.
-    scene: Option<String>,
-    camera: Option<CameraChoice>,
-    #[serde(default)]
-    lights: Vec<LightDesc>,
-    #[serde(default)]
-    objects: Vec<ObjectDesc>,
-    render: Option<RenderDesc>,
-    background: Option<Xyz>,
-    environment: Option<super::environment::EnvironmentDesc>,
-    ambient_occlusion: Option<super::environment::AmbientOcclusionDesc>,
-}
-
-/// `[render]`: how the scene asks to be rendered, where the command line says nothing.
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct RenderDesc {
-    shadow_backend: Option<ShadowBackend>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ImageDesc {
-    width: u32,
-    height: u32,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct CameraDesc {
-    eye: Xyz,
-    target: Xyz,
-    up: Option<Xyz>,
-    vfov_deg: f64,
-}
-
-/// `[camera]`, or `camera = N`: the glTF `scene`'s camera N.
-enum CameraChoice {
-    Table(CameraDesc),
-    Index(u64),
-}
-
-impl<'de> Deserialize<'de> for CameraChoice {
-    fn deserialize<D: Deserializer<'de>>(deserializer: D) -> Result<Self, D::Error> {
-        struct ChoiceVisitor;
-        impl<'de> Visitor<'de> for ChoiceVisitor {
-            type Value = CameraChoice;
-            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
-                f.write_str("a [camera] table, or the index of a camera of `scene`")
-            }
-            fn visit_u64<E: de::Error>(self, n: u64) -> Result<CameraChoice, E> {
-                Ok(CameraChoice::Index(n))
-            }
-            fn visit_i64<E: de::Error>(self, n: i64) -> Result<CameraChoice, E> {
-                u64::try_from(n)
-                    .map(CameraChoice::Index)
-                    .map_err(|_| E::custom(format!("camera index {n} is negative")))
-            }
-            fn visit_map<A: de::MapAccess<'de>>(self, map: A) -> Result<CameraChoice, A::Error> {
-                CameraDesc::deserialize(de::value::MapAccessDeserializer::new(map)).map(CameraChoice::Table)
-            }
-        }
-        deserializer.deserialize_any(ChoiceVisitor)
-    }
-}
-
-#[derive(Clone, Copy, Deserialize, PartialEq)]
-#[serde(rename_all = "lowercase")]
-enum LightKind {
-    Point,
-    Directional,
-    Spot,
-    Rect,
-}
-
-macro_rules! light_desc {
-    ($( $(#[$doc:meta])* $variant:ident $id:ident $params:path, )*) => {
-        /// One struct for every light type rather than a tagged enum: serde's tagged enums buffer
-        /// their content and lose toml's spans, and per-type checks below give clearer messages
-        /// anyway. Beside the light's own keys, a table per technique (`shadows::registry`).
-        #[derive(Deserialize)]
-        #[serde(deny_unknown_fields)]
-        struct LightDesc {
-            #[serde(rename = "type")]
-            kind: LightKind,
-            position: Option<Xyz>,
-            direction: Option<Xyz>,
-            intensity: Option<Xyz>,
-            irradiance: Option<Xyz>,
-            inner_deg: Option<f64>,
-            outer_deg: Option<f64>,
-            radius: Option<f64>,
-            angular_diameter_deg: Option<f64>,
-            center: Option<Xyz>,
-            half_edge_u: Option<Xyz>,
-            half_edge_v: Option<Xyz>,
-            radiance: Option<Xyz>,
-            two_sided: Option<bool>,
-            spp: Option<u32>,
-            /// The shadow method's id (`crate::config::ShadowMethod::parse`).
-            shadows: Option<String>,
-            /// Soft or hard traced shadows; unset: soft when the light has a size.
-            soft: Option<bool>,
-            $( $id: Option<$params>, )*
-            auto: Option<crate::config::AutoParams>,
-        }
-
-        impl LightDesc {
-            /// `method` with the technique tables the light gives, defaults for the others.
-            fn choice(&self, method: crate::config::ShadowMethod) -> crate::config::ShadowChoice {
-                crate::config::ShadowChoice {
-                    method,
-                    $( $id: self.$id.unwrap_or_default(), )*
-                    auto: self.auto.unwrap_or_default(),
-                }
-            }
-
-            /// Each technique table's key, and whether the light gives it.
-            fn tables_given(&self) -> Vec<(&'static str, bool)> {
-                vec![$( (stringify!($id), self.$id.is_some()), )* ("auto", self.auto.is_some())]
-            }
-        }
-    };
-}
-crate::shadows::registry::for_each_technique!(light_desc);
-
-#[derive(Clone, Copy, Deserialize)]
-#[serde(rename_all = "lowercase")]
-enum ShapeKind {
-    Plane,
-    Cube,
-    Sphere,
-}
-
-/// The order an object's triangles reach the renderer: as its source lists them, or shuffled
-/// (a stress test: scanned and exported meshes often come in a spatially jumbled order).
-#[derive(Clone, Copy, Deserialize, PartialEq)]
-#[serde(rename_all = "lowercase")]
-enum FaceOrder {
-    Given,
-    Shuffled,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct ObjectDesc {
-    mesh: Option<String>,
-    face_order: Option<FaceOrder>,
-    shape: Option<ShapeKind>,
-    size: Option<f64>,
-    radius: Option<f64>,
-    segments: Option<u32>,
-    transform: Option<Exact<Exact<f64, 4>, 4>>,
-    translate: Option<Xyz>,
-    rotate_deg: Option<Xyz>,
-    scale: Option<Scale>,
-    material: Option<MaterialDesc>,
-    cast_shadows: Option<bool>,
-}
-
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct MaterialDesc {
-    base_color: Option<Xyz>,
-    roughness: Option<f64>,
-    metallic: Option<f64>,
-}
+mod desc;
+use desc::{
+    CameraChoice, CameraDesc, FaceOrder, ImageDesc, LightDesc, LightKind, MaterialDesc, ObjectDesc, SceneFile,
+    ShapeKind,
+};
 
 /// The most triangles a scene may hold once its instances are placed: 2^24 (the 10.5M-triangle
 /// `assets/scenes/bench/large-10m.toml` takes about 4 GB to load). Every instance is a copy in

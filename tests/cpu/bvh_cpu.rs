@@ -432,7 +432,7 @@ fn bvh_glsl_compiles_with_the_rust_layout() {
     assert_eq!(size_of::<WideNode>(), 48);
     let glsl = std::fs::read_to_string("shaders/include/bvh.glsl").unwrap();
     assert!(glsl.contains("int at = int(3u * child);"));
-    // Where the child codes and first indices lie (wide.rs's `encode` and `node_meta`).
+    // Where the child codes and first indices lie (`encode` and `node_meta` in wide/node.rs).
     assert!(glsl.contains("uint meta = (head.w >> 24) | ((t2.w >> 28) << 8) | ((t2.z >> 28) << 12);"));
     assert!(glsl.contains("group = (t2.z & BVH_FIRST_MASK) |"));
     assert!(glsl.contains("first = t2.w & BVH_FIRST_MASK;"));

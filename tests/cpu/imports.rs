@@ -55,6 +55,9 @@ const LAYERS: &[(&str, u32)] = &[
     ("output", 13),
     ("bench", 15),
     ("viewer", 15),
+    // The binary's modules (`src/main/`, declared by `#[path]` in main.rs), above everything:
+    // they name the library as `umbra::`.
+    ("main", 16),
 ];
 
 /// The layer of the longest prefix in `LAYERS` that `module` starts with; a `*` segment in a

@@ -14,10 +14,10 @@ use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs};
 use crate::passes::overlay::OverlayInputs;
-use crate::passes::{compose, geometry, overlay, present, readback, tonemap, GBuffer, Pipelines};
+use crate::passes::{compose, geometry, overlay, present, readback, tonemap, GBuffer};
 use crate::scene::Scene;
 use crate::shadows::{self, ShadowPlan};
-use crate::vk::{Buffer, ComputePipeline, GpuResult, ImageDesc};
+use crate::vk::{Buffer, ComputePipeline, GpuResult, ImageDesc, PipelineSource};
 
 /// Radiance of pixels no surface covers, W/(m^2 sr), unless the scene sets `background` or
 /// an environment: a dim, neutral backdrop.
@@ -42,10 +42,8 @@ pub enum Target<'a> {
 
 /// Everything a frame's graph is built from.
 pub struct FrameParts<'a> {
-    pub ctx: &'a std::sync::Arc<crate::vk::GpuContext>,
-    pub pipelines: &'a Pipelines,
     /// Where passes get the pipelines they ask for as they declare themselves.
-    pub pipeline_cache: &'a crate::vk::PipelineCache,
+    pub pipelines: PipelineSource<'a>,
     /// Tests only: the busy pass's pipeline.
     pub busy: Option<&'a ComputePipeline>,
     pub scene_gpu: &'a SceneGpu,
@@ -76,9 +74,7 @@ pub fn build<'a>(
     history: Option<History<'a>>,
 ) -> GpuResult<RenderGraph<'a>> {
     let FrameParts {
-        ctx,
         pipelines,
-        pipeline_cache,
         busy,
         scene_gpu: s,
         scene,
@@ -102,15 +98,15 @@ pub fn build<'a>(
         None => camera,
     };
     let mut g = RenderGraph::new();
-    let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, extent);
+    let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, extent)?;
     // Tests only: a compute pass of known cost right after the rendering pass, kept by its export.
     if let (Some(iterations), Some(pipeline)) = (settings.busy_iterations, busy) {
         let result = busy::add(&mut g, pipeline, iterations);
         g.export(result, Access::ComputeShaderReadStorageBuffer);
     }
     let inputs = shadows::FrameInputs {
-        ctx,
-        pipelines: pipeline_cache,
+        ctx: pipelines.ctx,
+        pipelines: pipelines.cache,
         scene: s,
         gbuffer: &gbuffer,
         vertices: &handles.vertices,
@@ -127,8 +123,8 @@ pub fn build<'a>(
     let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer);
     if let (Some(view), Some(ao)) = (lighting.view, &occlusion) {
         let image = crate::lighting::ao::add_view(&mut g, view, ao, extent);
-        let result =
-            post_stage(&mut g, pipelines, settings, Lit { image, debug: true, toned: false, history: Accumulated::No });
+        let lit = Lit { image, debug: true, toned: false, history: Accumulated::No };
+        let result = post_stage(&mut g, pipelines, settings, lit)?;
         target_stage(&mut g, settings, result, target);
         return Ok(g);
     }
@@ -141,24 +137,24 @@ pub fn build<'a>(
     };
     let lit = lighting_stage(
         &mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history, ambient,
-    );
-    let result = post_stage(&mut g, pipelines, settings, lit);
+    )?;
+    let result = post_stage(&mut g, pipelines, settings, lit)?;
     target_stage(&mut g, settings, result, target);
     Ok(g)
 }
 
 fn gbuffer_stage<'a>(
     g: &mut RenderGraph<'a>,
-    pipelines: &'a Pipelines,
+    pipelines: PipelineSource<'a>,
     s: &'a SceneGpu,
     camera: &CameraMatrices,
     extent: vk::Extent2D,
-) -> (SceneHandles, GBuffer) {
+) -> GpuResult<(SceneHandles, GBuffer)> {
     let vertices = g.import_buffer("vertices", &s.vertices, SCENE_ACCESS);
     let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
     let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
-    let gbuffer = geometry::add(g, &pipelines.geometry, s, &vertices, &indices, *camera, extent);
-    (SceneHandles { vertices, indices, lights }, gbuffer)
+    let gbuffer = geometry::add(g, pipelines, s, &vertices, &indices, *camera, extent)?;
+    Ok((SceneHandles { vertices, indices, lights }, gbuffer))
 }
 
 /// Traced ambient occlusion, where the frame has the pass (`crate::lighting::ao`).
@@ -233,7 +229,7 @@ pub fn compose_accumulates(lighting: &crate::lighting::Prepared, accumulated: bo
 #[allow(clippy::too_many_arguments)]
 fn lighting_stage<'a>(
     g: &mut RenderGraph<'a>,
-    pipelines: &'a Pipelines,
+    pipelines: PipelineSource<'a>,
     s: &'a SceneGpu,
     settings: &RenderSettings,
     plan: &ShadowPlan,
@@ -243,7 +239,7 @@ fn lighting_stage<'a>(
     camera: &CameraMatrices,
     history: Option<History<'a>>,
     ambient: Ambient<'a>,
-) -> Lit {
+) -> GpuResult<Lit> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let display = settings.output == OutputKind::Display;
     // A technique's own view (checked by the renderer before the graph was built).
@@ -252,7 +248,7 @@ fn lighting_stage<'a>(
         None => (None, None),
     };
     if let Some(image) = technique_view {
-        return Lit { image, debug: true, toned: false, history: Accumulated::No };
+        return Ok(Lit { image, debug: true, toned: false, history: Accumulated::No });
     }
     if let Some(view) = settings.debug_view {
         let layer = view.light().and_then(|l| plan.layers.layers.get(l).copied().flatten());
@@ -265,8 +261,8 @@ fn lighting_stage<'a>(
             display,
         };
         // Float even for PNG: the shader already mapped values to [0,1] for display.
-        let image = debug_view::add(g, &pipelines.debug_view, gbuffer, inputs, extent);
-        return Lit { image, debug: true, toned: false, history: Accumulated::No };
+        let image = debug_view::add(g, pipelines, gbuffer, inputs, extent)?;
+        return Ok(Lit { image, debug: true, toned: false, history: Accumulated::No });
     }
     let lighting = &ambient.lighting;
     let area = lighting.area.map(|t| {
@@ -317,10 +313,10 @@ fn lighting_stage<'a>(
     };
     let composed = compose::add(g, gbuffer, inputs, extent);
     if variant.history {
-        return match composed.history {
+        return Ok(match composed.history {
             Some(mean) => Lit { image: composed.image, debug: false, toned: true, history: Accumulated::Beside(mean) },
             None => Lit { image: composed.image, debug: false, toned: false, history: Accumulated::Image },
-        };
+        });
     }
     let mut image = composed.image;
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
@@ -329,14 +325,14 @@ fn lighting_stage<'a>(
         image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &bvh, camera, frame, extent);
     }
     let Some(h) = &history else {
-        return Lit { image, debug: false, toned: variant.display, history: Accumulated::No };
+        return Ok(Lit { image, debug: false, toned: variant.display, history: Accumulated::No });
     };
     // Display output: accumulate also writes the mean's display values (no tone-map pass).
     let exposure_ev = display.then_some(settings.exposure_ev);
-    match accumulate::add(g, &pipelines.accumulate, &image, h, exposure_ev, extent) {
+    Ok(match accumulate::add(g, pipelines, &image, h, exposure_ev, extent)? {
         (mean, Some(shown)) => Lit { image: shown, debug: false, toned: true, history: Accumulated::Beside(mean) },
         (mean, None) => Lit { image: mean, debug: false, toned: false, history: Accumulated::Image },
-    }
+    })
 }
 
 /// What the post stage hands on: the frame's result, and the history to export after it.
@@ -351,7 +347,12 @@ struct Result {
 
 /// Tone mapping for display output of shaded frames that compose and accumulate left linear
 /// (a single frame with rect lights).
-fn post_stage<'a>(g: &mut RenderGraph<'a>, pipelines: &'a Pipelines, settings: &RenderSettings, lit: Lit) -> Result {
+fn post_stage<'a>(
+    g: &mut RenderGraph<'a>,
+    pipelines: PipelineSource<'a>,
+    settings: &RenderSettings,
+    lit: Lit,
+) -> GpuResult<Result> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let Lit { image, debug, toned, history } = lit;
     let is_history = matches!(history, Accumulated::Image);
@@ -359,16 +360,16 @@ fn post_stage<'a>(g: &mut RenderGraph<'a>, pipelines: &'a Pipelines, settings: &
         Accumulated::Beside(h) => Some(h),
         Accumulated::No | Accumulated::Image => None,
     };
-    match () {
+    Ok(match () {
         _ if debug => Result { image, debug: true, is_history: false, history_out: None },
         _ if toned => Result { image, debug: false, is_history: false, history_out: beside },
         _ if settings.output == OutputKind::Display => {
             debug_assert!(!is_history, "accumulate tone-maps display frames itself");
-            let toned = tonemap::add(g, &pipelines.tonemap, &image, settings.exposure_ev, extent);
+            let toned = tonemap::add(g, pipelines, &image, settings.exposure_ev, extent)?;
             Result { image: toned, debug: false, is_history: false, history_out: None }
         }
         _ => Result { image, debug: false, is_history, history_out: None },
-    }
+    })
 }
 
 /// Sends the result where `target` says, and leaves histories in the access the next frame's

@@ -13,7 +13,7 @@ pub use crate::frame::{Target, BACKGROUND};
 pub use crate::gpu_scene::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
-use crate::passes::{visibility, Pipelines};
+use crate::passes::visibility;
 use crate::scene::bvh::{caster_triangles, ShadowBvh, WideNode};
 use crate::scene::Scene;
 use crate::shadows::traced::accel::RayQueryScene;
@@ -45,14 +45,10 @@ pub struct Renderer {
     /// The casters in the compute BVH's leaf order, kept (4 bytes a caster, on devices with ray
     /// query only) as the order the ray-query build gets them in: see `RayQueryScene::with_masks`.
     caster_order: Option<Vec<u32>>,
-    pipelines: Pipelines,
-    /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
-    busy: std::sync::OnceLock<ComputePipeline>,
-    /// The pipelines passes ask for as they declare themselves (the shadow techniques' so far),
-    /// each made the first time a frame asks.
+    /// The pipelines passes ask for as they declare themselves, each made the first time a
+    /// frame (or the timing calibration) asks; some are made with the scene's material set
+    /// layout, so this goes before the scene.
     pipeline_cache: crate::vk::PipelineCache,
-    /// The environment's and AO's pipelines, made the first time a frame uses them.
-    lighting_pipelines: crate::lighting::Pipelines,
     /// The scene's environment on the device (its split-sum table); `None` without one.
     environment: Option<crate::lighting::EnvironmentGpu>,
     /// The scene's rect lights on the device; `None` without one.
@@ -91,7 +87,6 @@ impl Renderer {
         );
         let start = std::time::Instant::now();
         let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
-        let pipelines = Pipelines::new(&ctx, &gpu_scene)?;
         log::info!(
             "upload: {} KiB of scene buffers in {:.1} ms; {} of {} draws flat-shaded (the geometry pass reads \
              none of their triangles)",
@@ -120,10 +115,7 @@ impl Renderer {
             ray_query: std::sync::OnceLock::new(),
             caster_order: (ctx.capabilities.ray_query && !bvh.is_empty()).then(|| bvh.into_leaf_order()),
             volume_scene: std::sync::OnceLock::new(),
-            pipelines,
-            busy: std::sync::OnceLock::new(),
             pipeline_cache: Default::default(),
-            lighting_pipelines: Default::default(),
             environment: crate::lighting::EnvironmentGpu::new(
                 &ctx,
                 &scene.lighting,
@@ -179,8 +171,8 @@ impl Renderer {
         self.note_fallbacks(&plan);
         let ray_query = self.ray_query_scene(settings)?;
         let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
-        let lighting = self.lighting_pipelines.prepare(
-            &self.ctx,
+        let lighting = crate::lighting::prepare(
+            self.pipeline_source(),
             &self.scene.lighting,
             self.environment.as_ref(),
             self.rects.as_ref(),
@@ -201,13 +193,11 @@ impl Renderer {
                     display: crate::frame::compose_displays(settings, &lighting),
                     history: crate::frame::compose_accumulates(&lighting, history.is_some()),
                 };
-                Some((variant, self.pipelines.compose(&self.ctx, variant)?))
+                Some((variant, crate::passes::compose_pipeline(self.pipeline_source(), variant)?))
             }
         };
         let parts = crate::frame::FrameParts {
-            ctx: &self.ctx,
-            pipelines: &self.pipelines,
-            pipeline_cache: &self.pipeline_cache,
+            pipelines: self.pipeline_source(),
             busy,
             scene_gpu: &self.gpu_scene,
             scene: &self.scene,
@@ -223,7 +213,12 @@ impl Renderer {
 
     /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
     fn busy_pipeline(&self) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.busy, || busy::pipeline(&self.ctx))
+        self.pipeline_source().compute(crate::vk::PipelineKey::new("busy", 0), busy::pipeline)
+    }
+
+    /// Where this renderer's passes get their pipelines.
+    fn pipeline_source(&self) -> crate::vk::PipelineSource<'_> {
+        crate::vk::PipelineSource { ctx: &self.ctx, cache: &self.pipeline_cache }
     }
 
     /// Whether the frame `settings` describe can show its debug view (a technique's own view

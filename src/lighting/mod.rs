@@ -9,7 +9,7 @@ pub mod ltc_fit;
 pub mod rects;
 pub mod split_sum;
 
-use std::sync::{Arc, OnceLock};
+use std::sync::Arc;
 
 use ash::vk;
 use glam::{Vec2, Vec3};
@@ -106,14 +106,6 @@ impl AreaTables {
     }
 }
 
-/// The AO passes and the rect lights' pass: each made the first time a frame uses it.
-#[derive(Default)]
-pub struct Pipelines {
-    pub(crate) ao: OnceLock<ComputePipeline>,
-    pub(crate) ao_view: OnceLock<ComputePipeline>,
-    rects: OnceLock<ComputePipeline>,
-}
-
 /// What a frame's lighting needs of this module, made before its graph is built (frame.rs).
 #[derive(Default)]
 pub struct Prepared<'a> {
@@ -129,47 +121,47 @@ pub struct Prepared<'a> {
     pub area: Option<&'a AreaTables>,
 }
 
-impl Pipelines {
-    /// What a frame with `view` needs for `lighting` (`environment` on the device); AO and
-    /// rect-light rays read alpha masks when `masked`.
-    #[allow(clippy::too_many_arguments)]
-    pub fn prepare<'a>(
-        &'a self,
-        ctx: &Arc<GpuContext>,
-        lighting: &SceneLighting,
-        environment: Option<&'a EnvironmentGpu>,
-        rect_lights: Option<&'a rects::RectsGpu>,
-        area: Option<&'a AreaTables>,
-        view: Option<crate::config::DebugView>,
-        masked: bool,
-    ) -> GpuResult<Prepared<'a>> {
-        let mut prepared = Prepared::default();
-        let ao_pipeline = || crate::vk::get_or_make(&self.ao, || ao::pipeline(ctx, masked));
-        match view {
-            Some(crate::config::DebugView::AmbientOcclusion) => {
-                let params = lighting.ambient_occlusion.ok_or_else(|| {
-                    crate::vk::GpuError::Unsupported(
-                        "--debug-view ao: the scene has no [ambient_occlusion] table".to_owned(),
-                    )
-                })?;
-                prepared.occlusion = Some((params, ao_pipeline()?));
-                prepared.view = Some(crate::vk::get_or_make(&self.ao_view, || ao::view_pipeline(ctx))?);
+/// What a frame with `view` needs for `lighting` (`environment` on the device), its passes'
+/// pipelines from the cache; AO and rect-light rays read alpha masks when `masked`.
+#[allow(clippy::too_many_arguments)]
+pub fn prepare<'a>(
+    pipelines: crate::vk::PipelineSource<'a>,
+    lighting: &SceneLighting,
+    environment: Option<&'a EnvironmentGpu>,
+    rect_lights: Option<&'a rects::RectsGpu>,
+    area: Option<&'a AreaTables>,
+    view: Option<crate::config::DebugView>,
+    masked: bool,
+) -> GpuResult<Prepared<'a>> {
+    use crate::vk::PipelineKey;
+    let mut prepared = Prepared::default();
+    let ao_pipeline =
+        || pipelines.compute(PipelineKey::new("ambient occlusion", masked as u32), |ctx| ao::pipeline(ctx, masked));
+    match view {
+        Some(crate::config::DebugView::AmbientOcclusion) => {
+            let params = lighting.ambient_occlusion.ok_or_else(|| {
+                crate::vk::GpuError::Unsupported(
+                    "--debug-view ao: the scene has no [ambient_occlusion] table".to_owned(),
+                )
+            })?;
+            prepared.occlusion = Some((params, ao_pipeline()?));
+            prepared.view = Some(pipelines.compute(PipelineKey::new("ambient occlusion view", 0), ao::view_pipeline)?);
+        }
+        Some(_) => {}
+        None => {
+            prepared.area = area;
+            if let Some(r) = rect_lights {
+                let key = PipelineKey::new("rect lights", masked as u32);
+                prepared.rects = Some((r, pipelines.compute(key, |ctx| rects::pipeline(ctx, masked))?));
             }
-            Some(_) => {}
-            None => {
-                prepared.area = area;
-                if let Some(r) = rect_lights {
-                    prepared.rects = Some((r, crate::vk::get_or_make(&self.rects, || rects::pipeline(ctx, masked))?));
-                }
-                if let Some(environment) = environment {
-                    let occlusion = lighting.occlusion_of_environment();
-                    prepared.environment = Some(environment);
-                    if let Some(params) = occlusion {
-                        prepared.occlusion = Some((params, ao_pipeline()?));
-                    }
+            if let Some(environment) = environment {
+                let occlusion = lighting.occlusion_of_environment();
+                prepared.environment = Some(environment);
+                if let Some(params) = occlusion {
+                    prepared.occlusion = Some((params, ao_pipeline()?));
                 }
             }
         }
-        Ok(prepared)
     }
+    Ok(prepared)
 }

@@ -14,7 +14,7 @@ use glam::{UVec4, Vec4};
 use super::{sampled, storage_image, DISPLAY_FORMAT, ROWS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image};
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image, PipelineKey, PipelineSource};
 
 /// Whether successive frames of `scene` with `settings` fold into a running mean: stochastic
 /// shadows, ambient occlusion of the environment, rect-light shadows, or anti-aliasing. What the
@@ -37,27 +37,17 @@ struct Push {
     exposure: Vec4,
 }
 
-/// The accumulate pipelines: the mean alone, and the mean with its display image.
-pub struct Pipelines {
-    pub mean: ComputePipeline,
-    pub display: ComputePipeline,
-}
-
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<Pipelines> {
+/// The running mean's pass: `display` also writes the mean's display values.
+fn pipeline(ctx: &Arc<GpuContext>, display: bool) -> GpuResult<ComputePipeline> {
     let bindings = [sampled(ACCUM_CURRENT), storage_image(ACCUM_HISTORY)];
     let push = std::mem::size_of::<Push>() as u32;
     let with_display = [bindings[0], bindings[1], storage_image(ACCUM_DISPLAY)];
-    Ok(Pipelines {
-        mean: ComputePipeline::new(ctx, "accumulate", spirv::ACCUMULATE_COMP[0], &bindings, push, ROWS)?,
-        display: ComputePipeline::new(
-            ctx,
-            "accumulate (tone-mapped)",
-            spirv::ACCUMULATE_COMP[1],
-            &with_display,
-            push,
-            ROWS,
-        )?,
-    })
+    match display {
+        false => ComputePipeline::new(ctx, "accumulate", spirv::ACCUMULATE_COMP[0], &bindings, push, ROWS),
+        true => {
+            ComputePipeline::new(ctx, "accumulate (tone-mapped)", spirv::ACCUMULATE_COMP[1], &with_display, push, ROWS)
+        }
+    }
 }
 
 /// A history image and how many frames it holds (0: start afresh).
@@ -101,12 +91,14 @@ pub fn jitter(frame: u32) -> glam::Vec2 {
 /// `exposure_ev` (display output) the mean's display image.
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipelines: &'a Pipelines,
+    pipelines: PipelineSource<'a>,
     radiance: &Handle<ImageKind>,
     history: &History<'_>,
     exposure_ev: Option<f32>,
     extent: vk::Extent2D,
-) -> (Handle<ImageKind>, Option<Handle<ImageKind>>) {
+) -> GpuResult<(Handle<ImageKind>, Option<Handle<ImageKind>>)> {
+    let shown = exposure_ev.is_some();
+    let pipeline = pipelines.compute(PipelineKey::new("accumulate", shown as u32), |ctx| pipeline(ctx, shown))?;
     // A fresh image has no layout yet; a used one may still be read by the frame before.
     let mut mean = history.import(graph);
     let display_desc = ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height);
@@ -126,9 +118,8 @@ pub fn add<'a>(
         dims: UVec4::new(extent.width, extent.height, history.frames, 0),
         exposure: Vec4::new(exposure_ev.unwrap_or(0.0), 0.0, 0.0, 0.0),
     };
-    let pipeline = if exposure_ev.is_some() { &pipelines.display } else { &pipelines.mean };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    (mean, display)
+    Ok((mean, display))
 }
 
 /// Owns a history image and decides, frame by frame, whether the view is still (same settings

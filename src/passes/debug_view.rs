@@ -9,7 +9,7 @@ use glam::{UVec4, Vec4};
 use super::{sampled, storage_image, GBuffer, RADIANCE_FORMAT, ROWS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 pub use crate::config::DebugView;
 
@@ -21,14 +21,16 @@ struct Push {
     params: UVec4,
 }
 
-pub struct DebugPipelines {
-    channel: ComputePipeline,
-    visibility: ComputePipeline,
-    /// The geometric normal, decoded from the integer surface channel.
-    geometric_normal: ComputePipeline,
+/// Which of the views' pipelines: a G-buffer channel (`debug_view.comp`), a light's
+/// visibility, or the geometric normal decoded from the integer surface channel.
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    Channel = 0,
+    Visibility = 1,
+    GeometricNormal = 2,
 }
 
-pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
+fn pipeline(ctx: &Arc<GpuContext>, kind: Kind) -> GpuResult<ComputePipeline> {
     let push = std::mem::size_of::<Push>() as u32;
     let common = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)];
     // debug_view_body.glsl's views also read the material channel (the albedo view).
@@ -36,18 +38,15 @@ pub fn pipelines(ctx: &Arc<GpuContext>) -> GpuResult<DebugPipelines> {
     channel.push(sampled(DISPLAY_MATERIAL));
     let mut with_vis = channel.clone();
     with_vis.push(sampled(DISPLAY_VISIBILITY));
-    Ok(DebugPipelines {
-        channel: ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &channel, push, ROWS)?,
-        visibility: ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, ROWS)?,
-        geometric_normal: ComputePipeline::new(
-            ctx,
-            "debug geometric normal",
-            spirv::DEBUG_GEOMETRIC_NORMAL_COMP,
-            &common,
-            push,
-            ROWS,
-        )?,
-    })
+    match kind {
+        Kind::Channel => ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &channel, push, ROWS),
+        Kind::Visibility => {
+            ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, ROWS)
+        }
+        Kind::GeometricNormal => {
+            ComputePipeline::new(ctx, "debug geometric normal", spirv::DEBUG_GEOMETRIC_NORMAL_COMP, &common, push, ROWS)
+        }
+    }
 }
 
 pub struct DebugInputs<'h> {
@@ -87,11 +86,11 @@ fn shader_view(view: DebugView) -> u32 {
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipelines: &'a DebugPipelines,
+    pipelines: PipelineSource<'a>,
     gbuffer: &GBuffer,
     inputs: DebugInputs<'_>,
     extent: vk::Extent2D,
-) -> Handle<ImageKind> {
+) -> GpuResult<Handle<ImageKind>> {
     let mut out = graph.create_image("debug view", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let source = match inputs.view {
         DebugView::Normal => &gbuffer.normal,
@@ -103,16 +102,17 @@ pub fn add<'a>(
         (DISPLAY_INPUT, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
         (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
     ];
-    let pipeline = match inputs.visibility.filter(|_| matches!(inputs.view, DebugView::Visibility(_))) {
+    let kind = match inputs.visibility.filter(|_| matches!(inputs.view, DebugView::Visibility(_))) {
         Some((v, l)) => {
             // The light's layer alone: other lights' shadow passes are culled.
             let layer = pass.read_layer(v, l, Access::ComputeShaderReadSampledImage);
             bound.push((DISPLAY_VISIBILITY, Bound::Image(layer)));
-            &pipelines.visibility
+            Kind::Visibility
         }
-        None if inputs.view == DebugView::GeometricNormal => &pipelines.geometric_normal,
-        None => &pipelines.channel,
+        None if inputs.view == DebugView::GeometricNormal => Kind::GeometricNormal,
+        None => Kind::Channel,
     };
+    let pipeline = pipelines.compute(PipelineKey::new("debug view", kind as u32), |ctx| pipeline(ctx, kind))?;
     if inputs.view != DebugView::GeometricNormal {
         let material = pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage);
         bound.push((DISPLAY_MATERIAL, Bound::Image(material)));
@@ -123,5 +123,5 @@ pub fn add<'a>(
         params: UVec4::new(extent.width, extent.height, shader_view(inputs.view), inputs.display as u32),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    out
+    Ok(out)
 }

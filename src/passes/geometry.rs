@@ -22,7 +22,10 @@ use crate::gpu_scene::{
     SECOND_UV_STRIDE, SURFACE_ATTRIBUTES, TABLE_ACCESS,
 };
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
-use crate::vk::{bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc};
+use crate::vk::{
+    bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc, PipelineKey,
+    PipelineSource,
+};
 
 const INSTANCE_STRIDE: u32 = std::mem::size_of::<InstanceRows>() as u32;
 
@@ -49,20 +52,38 @@ struct Push {
     draw: UVec4,
 }
 
-/// The geometry pass's pipeline. Where the device has the geometryShader feature (needed for
-/// `gl_PrimitiveID` in a fragment shader) it reads each fragment's triangle from the scene's
-/// vertex and index buffers (read through texel views of them, `SceneGpu::vertex_view`) for the terminator offset and
-/// the geometric normal; elsewhere the plain variant stores no offset and takes the geometric
-/// normal from screen derivatives. Only the one the device uses is built. Beside it, those the
-/// scene's draws need: the textured variant (made with the scene's material set layout, so
-/// they are dropped before the scene) and, for double-sided meshes, variants without back-face
-/// culling.
-pub struct GeometryPipelines {
-    pipeline: GraphicsPipeline,
-    reads_triangles: bool,
-    textured: Option<GraphicsPipeline>,
-    textured_two_sided: Option<GraphicsPipeline>,
-    two_sided: Option<GraphicsPipeline>,
+/// The pipelines a scene's draws take, from the cache. Where the device has the geometryShader
+/// feature (needed for `gl_PrimitiveID` in a fragment shader) the pass reads each fragment's
+/// triangle from the scene's vertex and index buffers (read through texel views of them,
+/// `SceneGpu::vertex_view`) for the terminator offset and the geometric normal; elsewhere the
+/// plain variant stores no offset and takes the geometric normal from screen derivatives. Only
+/// the one the device uses is made. A textured scene draws with the textured variant (made with
+/// the scene's material set layout: the cache is the renderer's, so one scene's), and
+/// double-sided meshes with variants without back-face culling.
+struct ScenePipelines<'a> {
+    untextured: Option<&'a GraphicsPipeline>,
+    textured: Option<&'a GraphicsPipeline>,
+    textured_two_sided: Option<&'a GraphicsPipeline>,
+    two_sided: Option<&'a GraphicsPipeline>,
+}
+
+/// The cache key of a geometry variant.
+fn key(textured: bool, two_sided: bool) -> PipelineKey {
+    PipelineKey::new("geometry", textured as u32 | (two_sided as u32) << 1)
+}
+
+fn scene_pipelines<'a>(pipelines: PipelineSource<'a>, scene: &SceneGpu) -> GpuResult<ScenePipelines<'a>> {
+    let two_sided = scene.draws.iter().any(|d| d.double_sided);
+    let layout = scene.materials.as_ref().map(|m| m.set_layout());
+    let untextured = |sided: bool| pipelines.graphics(key(false, sided), |ctx| untextured_pipeline(ctx, sided));
+    let textured =
+        |layout, sided: bool| pipelines.graphics(key(true, sided), |ctx| textured_pipeline(ctx, layout, sided));
+    Ok(ScenePipelines {
+        untextured: layout.is_none().then(|| untextured(false)).transpose()?,
+        textured: layout.map(|l| textured(l, false)).transpose()?,
+        textured_two_sided: layout.filter(|_| two_sided).map(|l| textured(l, true)).transpose()?,
+        two_sided: (two_sided && layout.is_none()).then(|| untextured(true)).transpose()?,
+    })
 }
 
 /// The geometry pipeline's description with `vertex` and `fragment` stages.
@@ -102,22 +123,6 @@ const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
     (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::UniformTexelBuffer),
     (bindings::GEOMETRY_INDICES, crate::vk::DescriptorKind::UniformTexelBuffer),
 ];
-
-/// The pipelines `scene` is drawn with.
-pub fn pipelines(ctx: &Arc<GpuContext>, scene: &SceneGpu) -> GpuResult<GeometryPipelines> {
-    let reads_triangles = ctx.capabilities.geometry_shader;
-    let pipeline = untextured_pipeline(ctx, false)?;
-    // Without back-face culling only for scenes with double-sided meshes.
-    let two_sided = scene.draws.iter().any(|d| d.double_sided);
-    let layout = scene.materials.as_ref().map(|m| m.set_layout());
-    Ok(GeometryPipelines {
-        pipeline,
-        reads_triangles,
-        textured: layout.map(|l| textured_pipeline(ctx, l, false)).transpose()?,
-        textured_two_sided: layout.filter(|_| two_sided).map(|l| textured_pipeline(ctx, l, true)).transpose()?,
-        two_sided: (two_sided && layout.is_none()).then(|| untextured_pipeline(ctx, true)).transpose()?,
-    })
-}
 
 /// The untextured geometry pipeline; `two_sided`: without back-face culling (made only for
 /// scenes with double-sided meshes).
@@ -162,13 +167,15 @@ fn textured_pipeline(
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipelines: &'a GeometryPipelines,
+    pipelines: PipelineSource<'a>,
     scene: &'a SceneGpu,
     vertices: &Handle<BufferKind>,
     indices: &Handle<BufferKind>,
     camera: CameraMatrices,
     extent: vk::Extent2D,
-) -> GBuffer {
+) -> GpuResult<GBuffer> {
+    let reads_triangles = pipelines.ctx.capabilities.geometry_shader;
+    let pipelines = scene_pipelines(pipelines, scene)?;
     let image = |format| ImageDesc::new(format, extent.width, extent.height);
     let mut gbuffer = GBuffer {
         depth: graph.create_image("depth", image(DEPTH_FORMAT)),
@@ -181,7 +188,6 @@ pub fn add<'a>(
         surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
         emission: scene.materials.as_ref().map(|_| graph.create_image("gbuffer emission", image(EMISSION_FORMAT))),
     };
-    let (pipeline, reads_triangles) = (&pipelines.pipeline, pipelines.reads_triangles);
     let mut pass = graph.add_pass("geometry");
     let vb = pass.read(vertices, Access::VertexBuffer);
     let ib = pass.read(indices, Access::IndexBuffer);
@@ -277,10 +283,10 @@ pub fn add<'a>(
             // attachment); a mesh without textures reads the white set.
             let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));
             let used = match (textured, draw.double_sided) {
-                (Some(_), false) => pipelines.textured.as_ref().expect("made for textured scenes"),
-                (Some(_), true) => pipelines.textured_two_sided.as_ref().expect("made for double-sided draws"),
-                (None, false) => pipeline,
-                (None, true) => pipelines.two_sided.as_ref().expect("made for double-sided draws"),
+                (Some(_), false) => pipelines.textured.expect("made for textured scenes"),
+                (Some(_), true) => pipelines.textured_two_sided.expect("made for double-sided draws"),
+                (None, false) => pipelines.untextured.expect("made for scenes without textures"),
+                (None, true) => pipelines.two_sided.expect("made for double-sided draws"),
             };
             if current != Some((textured.is_some(), draw.double_sided)) {
                 current = Some((textured.is_some(), draw.double_sided));
@@ -334,5 +340,5 @@ pub fn add<'a>(
         unsafe { d.cmd_end_rendering(ctx.cmd) };
         Ok(())
     });
-    gbuffer
+    Ok(gbuffer)
 }

@@ -11,12 +11,10 @@ pub mod readback;
 pub mod tonemap;
 pub mod visibility;
 
-use std::sync::Arc;
-
 use ash::vk;
 
 use crate::graph::{Handle, ImageKind};
-use crate::vk::{ComputePipeline, DescriptorKind, GpuContext, GpuResult};
+use crate::vk::{ComputePipeline, DescriptorKind, GpuResult};
 
 /// Workgroup size of the full-screen compute passes that cast rays (shadow trace, ambient
 /// occlusion, rect lights, the hybrid's classification; specialisation constants 0 and 1): on a
@@ -60,32 +58,13 @@ pub struct GBuffer {
     pub emission: Option<Handle<ImageKind>>,
 }
 
-/// The frame's own pipelines (besides the techniques'), built once per scene and shared by all
-/// its frames.
-pub struct Pipelines {
-    pub geometry: geometry::GeometryPipelines,
-    /// Compose's variants, each made the first time a frame needs it (`compose`).
-    compose: [std::sync::OnceLock<ComputePipeline>; compose::VARIANTS],
-    pub tonemap: ComputePipeline,
-    pub debug_view: debug_view::DebugPipelines,
-    pub accumulate: accumulate::Pipelines,
-}
-
-impl Pipelines {
-    pub fn new(ctx: &Arc<GpuContext>, scene: &crate::gpu_scene::SceneGpu) -> GpuResult<Pipelines> {
-        Ok(Pipelines {
-            geometry: geometry::pipelines(ctx, scene)?,
-            compose: std::array::from_fn(|_| std::sync::OnceLock::new()),
-            tonemap: tonemap::pipeline(ctx)?,
-            debug_view: debug_view::pipelines(ctx)?,
-            accumulate: accumulate::pipelines(ctx)?,
-        })
-    }
-
-    /// The compose variant's pipeline, made the first time it is asked for.
-    pub fn compose(&self, ctx: &Arc<GpuContext>, variant: compose::Variant) -> GpuResult<&ComputePipeline> {
-        crate::vk::get_or_make(&self.compose[variant.index()], || compose::pipeline(ctx, variant))
-    }
+/// The compose variant's pipeline, from the cache.
+pub fn compose_pipeline<'a>(
+    pipelines: crate::vk::PipelineSource<'a>,
+    variant: compose::Variant,
+) -> GpuResult<&'a ComputePipeline> {
+    let key = crate::vk::PipelineKey::new("compose", variant.index() as u32);
+    pipelines.compute(key, |ctx| compose::pipeline(ctx, variant))
 }
 
 pub(crate) fn storage(binding: u32) -> (u32, DescriptorKind) {

@@ -9,7 +9,7 @@ use glam::{UVec4, Vec4};
 use super::{sampled, storage_image, DISPLAY_FORMAT, ROWS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -18,7 +18,7 @@ struct Push {
     dims: UVec4,
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
     ComputePipeline::new(
         ctx,
         "tonemap",
@@ -31,11 +31,12 @@ pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a ComputePipeline,
+    pipelines: PipelineSource<'a>,
     radiance: &Handle<ImageKind>,
     exposure_ev: f32,
     extent: vk::Extent2D,
-) -> Handle<ImageKind> {
+) -> GpuResult<Handle<ImageKind>> {
+    let pipeline = pipelines.compute(PipelineKey::new("tonemap", 0), pipeline)?;
     let mut display = graph.create_image("display", ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("tonemap");
     let bound = [
@@ -45,5 +46,5 @@ pub fn add<'a>(
     let push =
         Push { exposure: Vec4::new(exposure_ev, 0.0, 0.0, 0.0), dims: UVec4::new(extent.width, extent.height, 0, 0) };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    display
+    Ok(display)
 }

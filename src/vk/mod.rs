@@ -17,7 +17,7 @@ pub use pipeline::{
     fit_workgroup, ComputePipeline, DepthState, DescriptorKind, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc,
     PipelineLayout, StencilState,
 };
-pub use pipeline_cache::{PipelineCache, PipelineKey};
+pub use pipeline_cache::{PipelineCache, PipelineKey, PipelineSource};
 pub use resources::{subresource_range, texel_bytes, Buffer, Image, ImageDesc, TexelBuffer, TexelView};
 pub use sampler::{SamplerCache, SamplerDesc};
 pub use swapchain::{Acquired, Swapchain, SWAPCHAIN_USAGE};

@@ -10,9 +10,37 @@
 //! exactly as long as that layout.
 
 use std::collections::HashMap;
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 
-use super::{ComputePipeline, GpuResult, GraphicsPipeline};
+use super::{ComputePipeline, GpuContext, GpuResult, GraphicsPipeline};
+
+/// Where a pass gets its pipelines while it declares itself: the device, to make one, and the
+/// renderer's cache, to keep it.
+#[derive(Clone, Copy)]
+pub struct PipelineSource<'a> {
+    pub ctx: &'a Arc<GpuContext>,
+    pub cache: &'a PipelineCache,
+}
+
+impl<'a> PipelineSource<'a> {
+    /// The compute pipeline `key` names, made by `make` the first time.
+    pub fn compute(
+        self,
+        key: PipelineKey,
+        make: impl FnOnce(&Arc<GpuContext>) -> GpuResult<ComputePipeline>,
+    ) -> GpuResult<&'a ComputePipeline> {
+        self.cache.compute(key, || make(self.ctx))
+    }
+
+    /// The graphics pipeline `key` names, made by `make` the first time.
+    pub fn graphics(
+        self,
+        key: PipelineKey,
+        make: impl FnOnce(&Arc<GpuContext>) -> GpuResult<GraphicsPipeline>,
+    ) -> GpuResult<&'a GraphicsPipeline> {
+        self.cache.graphics(key, || make(self.ctx))
+    }
+}
 
 /// Which pipeline: its name (the shader and its layout) and its variant.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]

@@ -384,11 +384,17 @@ fn a_signal_during_the_write_leaves_no_temporary_file() {
             let out = dir.path().join("out.png");
             let mut command = slow_write(&out);
             command.stderr(Stdio::null());
-            // SAFETY: setrlimit is async-signal-safe. No core file for SIGQUIT's default action.
+            // SAFETY: setrlimit and signal are async-signal-safe. No core file for SIGQUIT's
+            // default action; and each signal back to its default disposition, since a suite
+            // started in the background (nohup, `&` in a script) ignores SIGINT and SIGQUIT and
+            // an ignored disposition is inherited across exec.
             unsafe {
                 std::os::unix::process::CommandExt::pre_exec(&mut command, || {
                     let none = libc::rlimit { rlim_cur: 0, rlim_max: 0 };
                     libc::setrlimit(libc::RLIMIT_CORE, &none);
+                    for s in [libc::SIGTERM, libc::SIGINT, libc::SIGHUP, libc::SIGQUIT] {
+                        libc::signal(s, libc::SIG_DFL);
+                    }
                     Ok(())
                 });
             }

@@ -9,7 +9,7 @@ use glam::Vec3;
 
 use crate::config::{OutputKind, RenderSettings};
 use crate::diagnostics::busy;
-use crate::gpu_scene::{CameraMatrices, SceneGpu, SCENE_ACCESS};
+use crate::gpu::{CameraMatrices, SceneGpu, SCENE_ACCESS};
 use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs};

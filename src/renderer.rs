@@ -10,7 +10,7 @@ use gpu_allocator::MemoryLocation;
 pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
 use crate::diagnostics::busy;
 pub use crate::frame::{Target, BACKGROUND};
-pub use crate::gpu_scene::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
+pub use crate::gpu::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
 use crate::passes::visibility;

@@ -20,7 +20,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 
 use crate::diagnostics::ray_batch::{self, GpuRay, Target, TimedBatch};
-use crate::gpu_scene::BvhBuffers;
+use crate::gpu::BvhBuffers;
 use crate::scene::bvh::{caster_triangles, offset_ray_origin, ShadowBvh};
 use crate::scene::{Light, Scene};
 use crate::shadows::traced::accel::RayQueryScene;

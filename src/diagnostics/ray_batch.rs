@@ -7,7 +7,7 @@ use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
-use crate::gpu_scene::{BvhBuffers, BvhHandles, BvhSlots};
+use crate::gpu::{BvhBuffers, BvhHandles, BvhSlots};
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
 use crate::passes::storage;
 use crate::scene::bvh::ShadowBvh;
@@ -108,8 +108,8 @@ pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResu
     )?;
     let mut cache = TransientCache::new(ctx)?;
     let mut g = RenderGraph::new();
-    let r = g.import_buffer("rays", &ray_buf.buffer, crate::gpu_scene::SCENE_ACCESS);
-    let walk = bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS);
+    let r = g.import_buffer("rays", &ray_buf.buffer, crate::gpu::SCENE_ACCESS);
+    let walk = bvh.import(&mut g, crate::gpu::SCENE_ACCESS);
     let hits = add(&mut g, &pipeline, (&r, ray_buf.view()), &walk, count);
     crate::passes::readback::add_buffer(&mut g, &hits, &out);
     let plan = CompiledGraph::compile(&g);
@@ -164,7 +164,7 @@ impl TimedBatch {
     /// around the submission.
     pub fn trace(&mut self, pipeline: &ComputePipeline, target: &Target<'_>) -> GpuResult<(Vec<bool>, f64)> {
         let mut g = RenderGraph::new();
-        let rays = g.import_buffer("rays", &self.rays.buffer, crate::gpu_scene::SCENE_ACCESS);
+        let rays = g.import_buffer("rays", &self.rays.buffer, crate::gpu::SCENE_ACCESS);
         let mut hits = g.import_buffer("hits", &self.hits, Access::Nothing);
         let (rq, walk);
         let traversal = match target {
@@ -173,7 +173,7 @@ impl TimedBatch {
                 Traversal::RayQuery(&rq)
             }
             Target::Compute(bvh) => {
-                walk = bvh.import(&mut g, crate::gpu_scene::SCENE_ACCESS);
+                walk = bvh.import(&mut g, crate::gpu::SCENE_ACCESS);
                 Traversal::Bvh(&walk)
             }
         };
@@ -212,6 +212,6 @@ fn upload_rays(ctx: &Arc<GpuContext>, rays: &[GpuRay]) -> GpuResult<TexelBuffer>
         )));
     }
     let usage = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-    let [buffer] = crate::gpu_scene::upload(ctx, [("rays", bytemuck::cast_slice(rays), usage)])?;
+    let [buffer] = crate::gpu::upload(ctx, [("rays", bytemuck::cast_slice(rays), usage)])?;
     TexelBuffer::new(ctx, buffer, RAY_TEXEL_FORMAT)
 }

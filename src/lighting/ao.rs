@@ -28,12 +28,8 @@ struct Push {
 }
 
 /// Where ao.comp binds the BVH.
-const BVH_SLOTS: crate::gpu_scene::BvhSlots = crate::gpu_scene::BvhSlots {
-    nodes: AO_BVH_NODES,
-    triangles: AO_BVH_TRIANGLES,
-    root: AO_BVH_ROOT,
-    masks: AO_BVH_MASKS,
-};
+const BVH_SLOTS: crate::gpu::BvhSlots =
+    crate::gpu::BvhSlots { nodes: AO_BVH_NODES, triangles: AO_BVH_TRIANGLES, root: AO_BVH_ROOT, masks: AO_BVH_MASKS };
 
 /// `masked`: the variant that reads alpha masks, for scenes with alpha-masked casters.
 pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
@@ -54,7 +50,7 @@ pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
     gbuffer: &GBuffer,
-    bvh: &crate::gpu_scene::BvhHandles,
+    bvh: &crate::gpu::BvhHandles,
     params: AmbientOcclusion,
     frame_index: u32,
     extent: vk::Extent2D,

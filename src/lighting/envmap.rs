@@ -73,7 +73,7 @@ impl EnvironmentMapGpu {
                 .collect()
         };
         let (data, copies) =
-            crate::gpu_textures::mip_uploads(levels.iter().map(|(w, h, texels)| (*w, *h, half_bytes(texels))));
+            crate::gpu::textures::mip_uploads(levels.iter().map(|(w, h, texels)| (*w, *h, half_bytes(texels))));
         let staging = Buffer::with_data(ctx, "environment map staging", &data, vk::BufferUsageFlags::TRANSFER_SRC)?;
         let desc = ImageDesc { mips: levels.len() as u32, ..ImageDesc::new(MAP_FORMAT, map.width, map.height) };
         let source =
@@ -146,8 +146,8 @@ impl EnvironmentMapGpu {
 
         g.export(source_h, read);
         g.export(prefiltered_h, read);
-        g.export(sh_h, crate::gpu_scene::SCENE_ACCESS);
-        g.export(table_h, crate::gpu_scene::SCENE_ACCESS);
+        g.export(sh_h, crate::gpu::SCENE_ACCESS);
+        g.export(table_h, crate::gpu::SCENE_ACCESS);
         let plan = CompiledGraph::compile(&g);
         let mut cache = TransientCache::new(ctx)?;
         // With -v, each pass's GPU time too (stamps flushed after each, which lavapipe needs
@@ -176,7 +176,7 @@ impl EnvironmentMapGpu {
         let sh_host = Buffer::new(ctx, "SH read-back", self.sh.size, usage, MemoryLocation::GpuToCpu)?;
         let table_host = Buffer::new(ctx, "table read-back", brdf_table.size, usage, MemoryLocation::GpuToCpu)?;
         let mut g = RenderGraph::new();
-        let scene = crate::gpu_scene::SCENE_ACCESS;
+        let scene = crate::gpu::SCENE_ACCESS;
         let mut pairs = [
             (
                 g.import_buffer("environment SH", &self.sh, scene),

@@ -69,7 +69,7 @@ impl EnvironmentGpu {
             }));
         }
         let table = split_sum::table();
-        let [brdf_table] = crate::gpu_scene::upload(
+        let [brdf_table] = crate::gpu::upload(
             ctx,
             [("split-sum table", bytemuck::cast_slice(table), vk::BufferUsageFlags::STORAGE_BUFFER)],
         )?;
@@ -95,7 +95,7 @@ impl AreaTables {
             return Ok(None);
         }
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let [ltc, split_sum] = crate::gpu_scene::upload(
+        let [ltc, split_sum] = crate::gpu::upload(
             ctx,
             [
                 ("LTC table", bytemuck::cast_slice(ltc::table()), usage),

@@ -56,7 +56,7 @@ impl RectsGpu {
             .map(|r| GpuRect::from(&RectLight { spp: if has_casters { r.spp } else { 0 }, ..*r }))
             .collect();
         let usage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let [rects_buffer] = crate::gpu_scene::upload(ctx, [("rect lights", bytemuck::cast_slice(&packed), usage)])?;
+        let [rects_buffer] = crate::gpu::upload(ctx, [("rect lights", bytemuck::cast_slice(&packed), usage)])?;
         Ok(Some(RectsGpu { rects: rects_buffer, count: packed.len() as u32 }))
     }
 }
@@ -70,7 +70,7 @@ struct Push {
 }
 
 /// Where rect_lights.comp binds the BVH.
-const BVH_SLOTS: crate::gpu_scene::BvhSlots = crate::gpu_scene::BvhSlots {
+const BVH_SLOTS: crate::gpu::BvhSlots = crate::gpu::BvhSlots {
     nodes: RECT_BVH_NODES,
     triangles: RECT_BVH_TRIANGLES,
     root: RECT_BVH_ROOT,
@@ -104,12 +104,12 @@ pub fn add<'a>(
     tables: &'a super::AreaTables,
     gbuffer: &GBuffer,
     radiance: &Handle<ImageKind>,
-    bvh: &crate::gpu_scene::BvhHandles,
-    camera: &crate::gpu_scene::CameraMatrices,
+    bvh: &crate::gpu::BvhHandles,
+    camera: &crate::gpu::CameraMatrices,
     frame_index: u32,
     extent: vk::Extent2D,
 ) -> Handle<ImageKind> {
-    let scene = crate::gpu_scene::SCENE_ACCESS;
+    let scene = crate::gpu::SCENE_ACCESS;
     let lights = graph.import_buffer("rect lights", &rects.rects, scene);
     let ltc = graph.import_buffer("LTC table", &tables.ltc, scene);
     let brdf = graph.import_buffer("split-sum table (area lights)", &tables.split_sum, scene);

@@ -17,7 +17,7 @@ use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
 use super::{GBuffer, DEPTH_FORMAT, EMISSION_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
-use crate::gpu_scene::{
+use crate::gpu::{
     CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SECOND_UV_ATTRIBUTES,
     SECOND_UV_STRIDE, SURFACE_ATTRIBUTES, TABLE_ACCESS,
 };
@@ -139,7 +139,7 @@ fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<Grap
 }
 
 /// The geometry pipeline for textured draws: texture coordinates and tangents at vertex binding
-/// 2, the second texture-coordinate set at binding 3, the material's textures in descriptor set 1 (`material_set`, see gpu_textures.rs). Made
+/// 2, the second texture-coordinate set at binding 3, the material's textures in descriptor set 1 (`material_set`, see gpu/textures.rs). Made
 /// per scene, only for a scene with textures.
 /// `two_sided`: without back-face culling, for double-sided meshes.
 fn textured_pipeline(

@@ -46,7 +46,7 @@ pub struct GBuffer {
     pub position: Handle<ImageKind>,
     pub normal: Handle<ImageKind>,
     /// Base colour and roughness per pixel in scenes with material textures; in the others the
-    /// scene's material table (`gpu_scene::MaterialTable`, imported, not the frame's size),
+    /// scene's material table (`gpu::MaterialTable`, imported, not the frame's size),
     /// indexed by the position's w (gbuffer.glsl's `gbuffer_material_texel`).
     pub material: Handle<ImageKind>,
     /// What shadow rays leave the surface with: the shadow-terminator offset and the geometric

@@ -28,7 +28,7 @@ use ash::vk;
 use self::traced::accel::{RayQueryHandles, RayQueryScene};
 use self::volumes::VolumeScene;
 use crate::config::{DebugView, RenderSettings, ShadowChoice, ShadowMethod};
-use crate::gpu_scene::{BvhHandles, CameraMatrices, SceneGpu};
+use crate::gpu::{BvhHandles, CameraMatrices, SceneGpu};
 use crate::graph::{BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::visibility::LayerPlan;
 use crate::passes::GBuffer;
@@ -338,7 +338,7 @@ pub fn add<'a>(
     frame: &FrameInputs<'_, 'a>,
     plan: &ShadowPlan,
 ) -> GpuResult<Option<Visibility>> {
-    use crate::gpu_scene::SCENE_ACCESS;
+    use crate::gpu::SCENE_ACCESS;
     use crate::passes::visibility;
     if plan.layers.count() == 0 {
         return Ok(None);

@@ -395,7 +395,7 @@ impl GraphicsPipeline {
             .line_width(1.0);
         let multisample =
             vk::PipelineMultisampleStateCreateInfo::default().rasterization_samples(vk::SampleCountFlags::TYPE_1);
-        // Reversed depth (see gpu_scene::CameraMatrices): nearer is greater.
+        // Reversed depth (see gpu::CameraMatrices): nearer is greater.
         let has_depth = desc.depth_format.is_some();
         let depth_state =
             extras.depth.unwrap_or(DepthState { test: has_depth, write: has_depth, compare: vk::CompareOp::GREATER });

@@ -35,8 +35,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("lighting::ltc_fit", 5),
     ("lighting::split_sum", 5),
     // The scene on the device, the passes every frame has, then light and shadow passes.
-    ("gpu_scene", 6),
-    ("gpu_textures", 6),
+    ("gpu", 6),
     ("passes", 7),
     ("lighting", 8),
     ("shadows", 9),

@@ -301,7 +301,7 @@ fn gltf_scene_renders_as_the_cpu_twin_predicts() {
 #[test]
 fn instances_are_uploaded_once_and_render_like_copies() {
     use umbra::config::ShadowMethod;
-    use umbra::gpu_scene::{InstanceRows, Vertex};
+    use umbra::gpu::{InstanceRows, Vertex};
     let dir = tempfile::tempdir().unwrap();
     let mut g = quad_file(Some(U16));
     let (s, c) = (0.4f32).sin_cos();

@@ -18,7 +18,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
     let usage = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
     let rays = Buffer::new(&ctx, "rays", 64 * 32, usage, MemoryLocation::GpuOnly).unwrap();
     let rays_view = umbra::vk::TexelView::new(&ctx, &rays, ray_batch::RAY_TEXEL_FORMAT).unwrap();
-    let bvh = umbra::gpu_scene::BvhBuffers::upload(&ctx, &bvh).unwrap();
+    let bvh = umbra::gpu::BvhBuffers::upload(&ctx, &bvh).unwrap();
     let staging = Buffer::with_data(
         &ctx,
         "ray source",

@@ -198,7 +198,7 @@ fn texcoord_1_and_the_extensions_override() {
 /// second set: 8 bytes more per vertex.
 #[test]
 fn maps_on_different_sets_read_their_own() {
-    use umbra::gpu_scene::{InstanceRows, SurfaceVertex, Vertex};
+    use umbra::gpu::{InstanceRows, SurfaceVertex, Vertex};
     let dir = tempfile::tempdir().unwrap();
     let ctx = common::gpu();
     let (offset_a, rotation_a, scale_a) = ([0.3, -0.2], 0.7, [1.5, 0.75]);
@@ -239,7 +239,7 @@ fn maps_on_different_sets_read_their_own() {
 /// per vertex, to the byte; and set 1 alone still reads set 1.
 #[test]
 fn one_set_scenes_carry_no_second_set() {
-    use umbra::gpu_scene::{InstanceRows, SurfaceVertex, Vertex};
+    use umbra::gpu::{InstanceRows, SurfaceVertex, Vertex};
     let dir = tempfile::tempdir().unwrap();
     let ctx = common::gpu();
     for (name, set) in [("set0.glb", 0usize), ("set1only.glb", 1)] {

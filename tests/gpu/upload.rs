@@ -5,7 +5,7 @@
 use crate::common;
 
 use ash::vk;
-use umbra::gpu_scene::{unified_memory, upload, upload_staged};
+use umbra::gpu::{unified_memory, upload, upload_staged};
 
 #[test]
 fn in_place_and_staged_uploads_hold_the_same_bytes() {

@@ -13,7 +13,7 @@ use super::map::{self, LightMap, MapLayer, Mode};
 use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served, ViewAnswer};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
-use crate::gpu_scene::{CameraMatrices, SceneGpu};
+use crate::gpu::{CameraMatrices, SceneGpu};
 use crate::graph::{Handle, ImageKind, RenderGraph};
 use crate::scene::Light;
 use crate::vk::{Capabilities, GpuResult};

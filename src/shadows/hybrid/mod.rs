@@ -20,7 +20,7 @@ use super::map::{self, LightMap, MapParams};
 use super::volumes::VolumeScene;
 use super::{traced, Casters, FrameInputs, Served, ViewAnswer, Walk};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
-use crate::gpu_scene::SceneGpu;
+use crate::gpu::SceneGpu;
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::scene::Light;
@@ -259,7 +259,7 @@ fn classify<'a>(
 fn trace<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    bvh: &crate::gpu_scene::BvhHandles,
+    bvh: &crate::gpu::BvhHandles,
     served: &Served,
     list: &Handle<BufferKind>,
     args: &Handle<BufferKind>,

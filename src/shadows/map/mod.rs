@@ -21,7 +21,7 @@ use super::light_space::{
 use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served, ViewAnswer};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
-use crate::gpu_scene::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
+use crate::gpu::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
 use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, ROWS};
 use crate::scene::Light;
@@ -253,7 +253,7 @@ pub fn visible_bounds(frame: &FrameInputs<'_, '_>) -> Bounds {
 }
 
 /// Bounds of the draws whose bounds reach `camera`'s frustum.
-pub fn visible_receivers(scene: &SceneGpu, camera: &crate::gpu_scene::CameraMatrices) -> Bounds {
+pub fn visible_receivers(scene: &SceneGpu, camera: &crate::gpu::CameraMatrices) -> Bounds {
     let vp = camera.view_proj_relative;
     let eye = camera.eye;
     scene

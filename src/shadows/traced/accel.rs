@@ -98,7 +98,7 @@ impl RayQueryHandles {
 }
 
 /// The binding numbers a ray-query shader gives the structures (bindings.glsl): the ray-query
-/// twin of `gpu_scene::BvhSlots`.
+/// twin of `gpu::BvhSlots`.
 pub struct RayQuerySlots {
     pub tlas: u32,
     /// Bound in the masked variant only.
@@ -175,13 +175,13 @@ impl RayQueryScene {
             .collect();
         let input = vk::BufferUsageFlags::ACCELERATION_STRUCTURE_BUILD_INPUT_READ_ONLY_KHR
             | vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
-        let [positions] = crate::gpu_scene::upload(ctx, [("caster positions", bytemuck::cast_slice(&flat), input)])?;
+        let [positions] = crate::gpu::upload(ctx, [("caster positions", bytemuck::cast_slice(&flat), input)])?;
         let masks = match masks.filter(|_| !masked.is_empty()) {
             Some(source) => {
                 let texels = crate::scene::bvh::mask::BvhMasks::new(source, &masked).texels;
                 let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
                 let [buffer] =
-                    crate::gpu_scene::upload(ctx, [("ray-query alpha masks", bytemuck::cast_slice(&texels), texel)])?;
+                    crate::gpu::upload(ctx, [("ray-query alpha masks", bytemuck::cast_slice(&texels), texel)])?;
                 Some(crate::vk::TexelBuffer::new(ctx, buffer, vk::Format::R32G32B32A32_UINT)?)
             }
             None => None,
@@ -213,7 +213,7 @@ impl RayQueryScene {
                 std::mem::size_of::<vk::AccelerationStructureInstanceKHR>(),
             )
         };
-        let [instances] = crate::gpu_scene::upload(ctx, [("TLAS instances", instance_bytes, input)])?;
+        let [instances] = crate::gpu::upload(ctx, [("TLAS instances", instance_bytes, input)])?;
         let top_geometry = [top_geometry(instances.device_address())];
         let top_sizes = build_sizes(&loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, &top_geometry, &[1]);
         let top = Structure::new(
@@ -262,7 +262,7 @@ impl RayQueryScene {
         let masks = self
             .masks
             .as_ref()
-            .map(|m| (g.import_buffer("ray-query alpha masks", &m.buffer, crate::gpu_scene::SCENE_ACCESS), m.view()));
+            .map(|m| (g.import_buffer("ray-query alpha masks", &m.buffer, crate::gpu::SCENE_ACCESS), m.view()));
         if self.built.load(Ordering::Acquire) {
             // Built by an earlier frame, whose shadow pass already made them visible to rays.
             return RayQueryHandles {
@@ -272,8 +272,8 @@ impl RayQueryScene {
                 masks,
             };
         }
-        let positions = g.import_buffer("caster positions", &self.positions, crate::gpu_scene::SCENE_ACCESS);
-        let instances = g.import_buffer("TLAS instances", &self.instances, crate::gpu_scene::SCENE_ACCESS);
+        let positions = g.import_buffer("caster positions", &self.positions, crate::gpu::SCENE_ACCESS);
+        let instances = g.import_buffer("TLAS instances", &self.instances, crate::gpu::SCENE_ACCESS);
         let mut bottom = g.import_buffer("BLAS", &self.bottom.buffer, Access::Nothing);
         let mut top = g.import_buffer("TLAS", &self.top.buffer, Access::Nothing);
         // One scratch buffer serves both builds; the graph orders the second after the first.

@@ -19,7 +19,7 @@ use self::accel::RayQuerySlots;
 use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served, Walk};
 use crate::config::{ShadowChoice, ShadowMethod};
-use crate::gpu_scene::BvhSlots;
+use crate::gpu::BvhSlots;
 use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::scene::Light;

@@ -38,7 +38,7 @@ use glam::{Mat4, UVec4, Vec4};
 pub use self::params::VolumeParams;
 use super::{Casters as FrameCasters, FrameInputs, Served, ViewAnswer};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
-use crate::gpu_scene::{upload, SceneGpu, SCENE_ACCESS};
+use crate::gpu::{upload, SceneGpu, SCENE_ACCESS};
 use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, ROWS};
 use crate::scene::{Light, Scene};

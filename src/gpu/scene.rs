@@ -1,0 +1,408 @@
+//! The scene's buffers on the device: vertices, indices, lights, draws (with their caster flag
+//! and bounds), the material table of a scene without textures, and `SceneGpu::upload`.
+
+use std::sync::Arc;
+
+use std::collections::HashMap;
+
+use ash::vk;
+use glam::{DVec3, Vec3};
+
+use crate::graph::Access;
+use crate::maths::Bounds;
+use crate::scene::bvh::ShadowBvh;
+use crate::scene::{Camera, Material, Scene};
+use crate::shading::gpu_lights;
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, TexelView};
+
+use super::*;
+
+/// One mesh's slice of the shared vertex and index buffers.
+pub struct Draw {
+    pub first_index: u32,
+    pub index_count: u32,
+    pub vertex_offset: i32,
+    /// Its `InstanceRows` (0: the identity).
+    pub instance: u32,
+    /// Its material's textures (`SceneGpu::materials`), where it has any.
+    pub maps: Option<crate::gpu::textures::DrawMaps>,
+    pub material: Material,
+    /// In a scene without textures, its material's texel in `SceneGpu::material_table`.
+    pub table_texel: u32,
+    pub cast_shadows: bool,
+    /// Drawn without back-face culling (glTF doubleSided).
+    pub double_sided: bool,
+    /// Flat-shaded (`shading::flat_shaded`): the geometry pass reads none of its triangles.
+    pub flat: bool,
+    /// The mesh's bounds in the scene-local frame (shadow maps cull draws by them).
+    pub bounds: Bounds,
+}
+
+/// The scene on the device: uploaded once, imported into every frame's graph.
+pub struct SceneGpu {
+    /// `vertices` and `indices` as RG32F and R32UI texels: how the geometry pass reads each
+    /// fragment's triangle (a texel fetch is one call that reads every lane's texel on lavapipe,
+    /// where a storage load whose address it cannot prove the same for every lane is a loop over
+    /// them). Declared before
+    /// the buffers, so they are dropped first.
+    pub vertex_view: TexelView,
+    pub index_view: TexelView,
+    /// `vertex_count` `Vertex`es, then the `InstanceRows` from byte `instance_offset`: one
+    /// buffer, so every pass that binds the vertices has the instances too.
+    pub vertices: Buffer,
+    pub vertex_count: u32,
+    pub instance_offset: u64,
+    /// Where the `SurfaceVertex`es start in `vertices` (after the instances), in a scene with
+    /// textures; they are bound at vertex binding 2 by textured draws.
+    pub surface_offset: Option<u64>,
+    /// Where the second texture-coordinate set starts in `vertices` (after the `SurfaceVertex`es),
+    /// in a scene where some material's maps use two sets; `None` otherwise, and the vertex
+    /// buffer is as large as it was with one set. Textured draws bind vertex binding 3 here, or
+    /// (with no second set) at `surface_offset`, whose bytes it then reads as coordinates no map
+    /// selects (`UvTransforms::second_set` is all false).
+    pub second_uv_offset: Option<u64>,
+    /// The material textures; `None` in a scene without textures.
+    pub materials: Option<crate::gpu::textures::MaterialSets>,
+    /// In a scene without textures, its materials, read in place of the G-buffer's material
+    /// channel (which such a scene's geometry pass does not write).
+    pub material_table: Option<MaterialTable>,
+    pub indices: Buffer,
+    pub draws: Vec<Draw>,
+    pub lights: Buffer,
+    pub light_count: u32,
+    /// The lights in the scene-local frame (what the buffer holds, before packing).
+    pub local_lights: Vec<crate::scene::Light>,
+    pub bvh: BvhBuffers,
+    pub has_casters: bool,
+    /// Bounds of the geometry in the scene-local frame.
+    pub bounds: (Vec3, Vec3),
+    /// World position of the scene-local frame's origin (see `Renderer::new`).
+    pub origin: DVec3,
+    /// The scene's own camera, in the scene-local frame.
+    pub camera: Camera,
+}
+
+/// A scene without textures: its distinct materials as the G-buffer's material channel would
+/// hold them (gbuffer.glsl), RGBA16F texels of linear base colour and roughness,
+/// `GBUFFER_TABLE_WIDTH` a row. Every draw's material is a constant there, so the geometry pass
+/// writes, instead of an 8-byte material attachment per pixel, the material's texel number into
+/// the position channel's w, and the passes that read the channel bind this image in its place
+/// (on one lavapipe thread at 1080p, one attachment fewer took the 100k bench scene's geometry
+/// pass from 118 to 99 ms: `tools/bench-passes`, six alternated rounds).
+pub struct MaterialTable {
+    pub image: crate::vk::Image,
+}
+
+/// The table's texels as f16 bits, one per distinct material, numbered as they are met.
+#[derive(Default)]
+struct TableTexels {
+    texels: Vec<[u16; 4]>,
+    numbers: HashMap<[u16; 4], u32>,
+}
+
+impl TableTexels {
+    /// `material`'s texel number: its base colour and roughness in f16 (`f16_toward_zero`).
+    fn texel(&mut self, material: Material) -> u32 {
+        let c = material.base_color;
+        let bits = [c.x, c.y, c.z, material.roughness].map(f16_toward_zero);
+        *self.numbers.entry(bits).or_insert_with(|| {
+            self.texels.push(bits);
+            self.texels.len() as u32 - 1
+        })
+    }
+}
+
+/// `v` as f16 bits, rounded toward zero, as lavapipe's RGBA16F colour attachments store (Vulkan
+/// lets a device round either to nearest or toward zero): a material read from the table is then
+/// the value the per-pixel material channel held on the test device, and renders there are byte
+/// for byte what they were with the channel. Past f16's range: its largest finite value.
+fn f16_toward_zero(v: f32) -> u16 {
+    let nearest = half::f16::from_f32(v);
+    match nearest.to_f32().abs() > v.abs() {
+        // One step toward zero: the magnitude is the bits below the sign.
+        true => nearest.to_bits() - 1,
+        false => nearest.to_bits(),
+    }
+}
+
+impl MaterialTable {
+    /// The table of `texels` (at least one texel: a scene with no draws still binds it).
+    fn upload(ctx: &Arc<GpuContext>, texels: &[[u16; 4]]) -> GpuResult<MaterialTable> {
+        let width = crate::vk::bindings::GBUFFER_TABLE_WIDTH;
+        let count = (texels.len() as u32).max(1);
+        let (w, h) = (count.min(width), count.div_ceil(width));
+        // Every Vulkan device makes 2D images of 4096 rows (maxImageDimension2D's minimum).
+        let limit = 4096;
+        if h > limit {
+            return Err(GpuError::Unsupported(format!(
+                "the scene has {count} distinct materials; the material table holds at most {} \
+                 ({width} a row, {limit} rows): use fewer materials",
+                width * limit
+            )));
+        }
+        let mut data: Vec<[u16; 4]> = texels.to_vec();
+        data.resize((w * h) as usize, [0; 4]);
+        let desc = crate::vk::ImageDesc::new(vk::Format::R16G16B16A16_SFLOAT, w, h);
+        let usage = vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_DST;
+        let image = crate::vk::Image::new(ctx, "material table", desc, usage)?;
+        let (bytes, copies) =
+            crate::gpu::textures::mip_uploads(std::iter::once((w, h, bytemuck::cast_slice(&data).to_vec())));
+        crate::gpu::textures::fill_images(ctx, &[(&image, bytes, copies)], TABLE_ACCESS)?;
+        Ok(MaterialTable { image })
+    }
+}
+
+/// How the material table is left between frames and imported into each: read by compute
+/// shaders, which are all that read it.
+pub const TABLE_ACCESS: Access = Access::ComputeShaderReadSampledImage;
+
+impl SceneGpu {
+    /// Uploads `scene`, already moved into the local frame whose origin is `origin`
+    /// (`Scene::local_frame`); positions are rounded to f32 here.
+    pub fn upload(ctx: &Arc<GpuContext>, scene: &Scene, bvh: &ShadowBvh, origin: DVec3) -> GpuResult<SceneGpu> {
+        let mut vertices = Vec::new();
+        let mut indices = Vec::new();
+        let mut draws = Vec::new();
+        let mut instances = vec![InstanceRows::IDENTITY];
+        // Shared geometry already uploaded: its first index and vertex offset.
+        let mut shared = HashMap::new();
+        // Parallel to `vertices` once any mesh has textures.
+        let textured = scene.meshes.iter().any(|m| m.surface.is_some());
+        let mut surface_vertices: Vec<SurfaceVertex> = Vec::new();
+        // Parallel to `vertices` once any material's maps use two texture-coordinate sets.
+        let two_sets = scene.meshes.iter().any(|m| m.surface.as_ref().is_some_and(|s| !s.uvs_1.is_empty()));
+        let mut second_uvs: Vec<[f32; 2]> = Vec::new();
+        let mut materials: Vec<std::sync::Arc<crate::scene::MaterialTextures>> = Vec::new();
+        let mut table_texels = TableTexels::default();
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
+            let mut bounds = Bounds::EMPTY;
+            // The local frame's f32: where the GPU's triangles are (for an instance, where its
+            // world-space copy is).
+            let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+            positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
+            for p in &positions {
+                lo = lo.min(*p);
+                hi = hi.max(*p);
+            }
+            let (first_index, index_count, vertex_offset, instance, flat) = match &mesh.instance {
+                Some(instance) => {
+                    let g = &instance.geometry;
+                    let (first, offset, flat) = *shared.entry(std::sync::Arc::as_ptr(g)).or_insert_with(|| {
+                        let at = (
+                            indices.len() as u32,
+                            vertices.len() as i32,
+                            crate::shading::flat_shaded(&g.positions, &g.normals, &g.indices),
+                        );
+                        vertices.extend(
+                            g.positions
+                                .iter()
+                                .zip(&g.normals)
+                                .map(|(p, n)| Vertex { position: p.to_array(), normal: n.to_array() }),
+                        );
+                        if !g.uvs.is_empty() {
+                            surface_vertices.resize(at.1 as usize, SurfaceVertex::default());
+                            for (k, uv) in g.uvs.iter().enumerate() {
+                                let tangent = g.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                                surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+                            }
+                        }
+                        if !g.uvs_1.is_empty() {
+                            second_uvs.resize(at.1 as usize, [0.0; 2]);
+                            second_uvs.extend(g.uvs_1.iter().map(|uv| uv.to_array()));
+                        }
+                        indices.extend_from_slice(&g.indices);
+                        at
+                    });
+                    instances.push(InstanceRows::of(&instance.to_world));
+                    (first, g.indices.len() as u32, offset, instances.len() as u32 - 1, flat)
+                }
+                None => {
+                    let at = (
+                        indices.len() as u32,
+                        mesh.indices.len() as u32,
+                        vertices.len() as i32,
+                        0,
+                        crate::shading::flat_shaded(&positions, &mesh.normals, &mesh.indices),
+                    );
+                    for (p, n) in positions.iter().zip(&mesh.normals) {
+                        vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
+                    }
+                    if let Some(surface) = &mesh.surface {
+                        surface_vertices.resize(at.2 as usize, SurfaceVertex::default());
+                        for (k, uv) in surface.uvs.iter().enumerate() {
+                            let tangent = surface.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                            surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+                        }
+                        if !surface.uvs_1.is_empty() {
+                            second_uvs.resize(at.2 as usize, [0.0; 2]);
+                            second_uvs.extend(surface.uvs_1.iter().map(|uv| uv.to_array()));
+                        }
+                    }
+                    indices.extend_from_slice(&mesh.indices);
+                    at
+                }
+            };
+            let maps = mesh.surface.as_ref().map(|surface| {
+                // Set 0 is for meshes without textures (textures::upload).
+                let set = 1 + match materials.iter().position(|m| std::sync::Arc::ptr_eq(m, &surface.textures)) {
+                    Some(set) => set,
+                    None => {
+                        materials.push(surface.textures.clone());
+                        materials.len() - 1
+                    }
+                };
+                crate::gpu::textures::draw_maps(set, &surface.textures)
+            });
+            draws.push(Draw {
+                first_index,
+                index_count,
+                vertex_offset,
+                instance,
+                maps,
+                material: mesh.material,
+                table_texel: table_texels.texel(mesh.material),
+                cast_shadows: mesh.cast_shadows,
+                double_sided: mesh.double_sided,
+                flat,
+                bounds,
+            });
+        }
+        if draws.is_empty() {
+            lo = Vec3::ZERO;
+            hi = Vec3::ZERO;
+        }
+        let lights = gpu_lights(&scene.lights);
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let vertex_count = vertices.len() as u32;
+        let mut vertex_bytes: Vec<u8> = bytemuck::cast_slice(&vertices).to_vec();
+        let instance_offset = vertex_bytes.len() as u64;
+        vertex_bytes.extend_from_slice(bytemuck::cast_slice(&instances));
+        let surface_offset = textured.then(|| {
+            surface_vertices.resize(vertices.len(), SurfaceVertex::default());
+            let at = vertex_bytes.len() as u64;
+            vertex_bytes.extend_from_slice(bytemuck::cast_slice(&surface_vertices));
+            at
+        });
+        let second_uv_offset = two_sets.then(|| {
+            second_uvs.resize(vertices.len(), [0.0; 2]);
+            let at = vertex_bytes.len() as u64;
+            vertex_bytes.extend_from_slice(bytemuck::cast_slice(&second_uvs));
+            at
+        });
+        let materials = match textured {
+            true => Some(crate::gpu::textures::upload(ctx, &materials)?),
+            false => None,
+        };
+        let material_table = match textured {
+            true => None,
+            false => Some(MaterialTable::upload(ctx, &table_texels.texels)?),
+        };
+        // The geometry pass reads both as texel buffers (a view holds at most this many texels).
+        let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
+        for (what, bytes, format) in [
+            ("vertices", vertex_bytes.len(), VERTEX_TEXEL_FORMAT),
+            ("triangle indices", std::mem::size_of_val(indices.as_slice()), INDEX_TEXEL_FORMAT),
+        ] {
+            let texel = crate::vk::texel_bytes(format);
+            if bytes as u64 / texel > limit {
+                return Err(GpuError::Unsupported(format!(
+                    "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one texel buffer \
+                     (maxTexelBufferElements of {texel} bytes): use fewer or simpler meshes",
+                    bytes >> 20,
+                    ctx.device_name(),
+                    (limit * texel) >> 20
+                )));
+            }
+        }
+        BvhBuffers::check(ctx, bvh)?;
+        let bvh_triangle_texels = bvh.wide().triangle_texels();
+        let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        let [vertices, indices, lights, bvh_nodes, bvh_triangles, bvh_root] = upload(
+            ctx,
+            [
+                ("vertices", &vertex_bytes, vk::BufferUsageFlags::VERTEX_BUFFER | texel),
+                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | texel),
+                ("lights", bytemuck::cast_slice(&lights), storage),
+                ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
+                ("bvh triangles", bytemuck::cast_slice(&bvh_triangle_texels), texel),
+                ("bvh root", BvhBuffers::root_bytes(bvh), vk::BufferUsageFlags::UNIFORM_BUFFER),
+            ],
+        )?;
+        let bvh_buffers = BvhBuffers::new(ctx, [bvh_nodes, bvh_triangles, bvh_root], bvh)?;
+        Ok(SceneGpu {
+            vertex_view: TexelView::new(ctx, &vertices, VERTEX_TEXEL_FORMAT)?,
+            index_view: TexelView::new(ctx, &indices, INDEX_TEXEL_FORMAT)?,
+            vertices,
+            vertex_count,
+            instance_offset,
+            surface_offset,
+            second_uv_offset,
+            materials,
+            material_table,
+            indices,
+            draws,
+            lights,
+            light_count: scene.lights.len() as u32,
+            local_lights: scene.lights.clone(),
+            bvh: bvh_buffers,
+            has_casters: !bvh.is_empty(),
+            bounds: (lo, hi),
+            origin,
+            camera: scene.camera,
+        })
+    }
+
+    /// Bytes of the scene's buffers on the device.
+    pub fn bytes(&self) -> u64 {
+        [&self.vertices, &self.indices, &self.lights, &self.bvh.nodes.buffer, &self.bvh.triangles.buffer]
+            .iter()
+            .map(|b| b.size)
+            .sum::<u64>()
+            + self.bvh.masks.as_ref().map_or(0, |m| m.buffer.size)
+    }
+
+    /// A world-space camera in the scene-local frame (subtracted in f64).
+    pub fn to_local(&self, cam: &Camera) -> Camera {
+        Camera { eye: cam.eye - self.origin, target: cam.target - self.origin, ..*cam }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn value(bits: u16) -> f32 {
+        half::f16::from_bits(bits).to_f32()
+    }
+
+    #[test]
+    fn f16_toward_zero_keeps_exact_values_and_truncates_the_rest() {
+        for exact in [0.0, 0.5, 0.8125, 1.0, -2.25, 65504.0] {
+            assert_eq!(value(f16_toward_zero(exact)), exact);
+        }
+        // 0.72 lies between two f16 values; nearest is the upper one, toward zero the lower.
+        let (down, up) = (0.719_726_56_f32, 0.720_214_84_f32);
+        assert!(down < 0.72 && 0.72 < up && (up - 0.72) < (0.72 - down));
+        assert_eq!(value(f16_toward_zero(0.72)), down);
+        assert_eq!(half::f16::from_f32(0.72).to_f32(), up, "nearest rounds up here");
+        assert_eq!(value(f16_toward_zero(-0.72)), -down);
+        // Just below 1: the largest f16 under it, not 1.
+        assert_eq!(value(f16_toward_zero(0.99999)), 1.0 - 1.0 / 2048.0);
+        assert_eq!(value(f16_toward_zero(1e6)), 65504.0);
+    }
+
+    #[test]
+    fn materials_share_a_texel_when_their_f16_values_do() {
+        let mut t = TableTexels::default();
+        let m = |r: f32, roughness: f32| Material { base_color: Vec3::new(r, 0.5, 0.25), roughness, metallic: 0.0 };
+        assert_eq!(t.texel(m(0.5, 0.5)), 0);
+        assert_eq!(t.texel(m(0.72, 0.5)), 1);
+        // Metallic is not in the table (the normal channel holds it), and 0.5 + 1e-5 is 0.5 in f16.
+        assert_eq!(t.texel(Material { metallic: 1.0, ..m(0.5 + 1e-5, 0.5) }), 0);
+        assert_eq!(t.texel(m(0.5, 0.75)), 2);
+        assert_eq!(t.texels.len(), 3);
+        assert_eq!(t.texels[1][0], f16_toward_zero(0.72));
+    }
+}

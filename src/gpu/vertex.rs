@@ -1,0 +1,75 @@
+//! The geometry passes' vertex formats and the texel formats passes read vertices and indices
+//! through.
+
+use ash::vk;
+use glam::{DMat3, DMat4};
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct Vertex {
+    pub position: [f32; 3],
+    pub normal: [f32; 3],
+}
+
+/// Per-instance vertex data (vertex binding 1, read per instance): the rows of the
+/// object-to-local-frame matrix and of its normal matrix (inverse transpose). Instance 0 is the
+/// identity, which every mesh drawn once uses: its vertices are already in the local frame, and
+/// multiplying by exact ones and zeros leaves them bit for bit as they are.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct InstanceRows {
+    pub model: [[f32; 4]; 3],
+    pub normal: [[f32; 4]; 3],
+}
+
+impl InstanceRows {
+    pub const IDENTITY: InstanceRows = InstanceRows {
+        model: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+        normal: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
+    };
+
+    /// The rows of `to_local` (affine, computed in f64 and rounded once).
+    pub(super) fn of(to_local: &DMat4) -> InstanceRows {
+        let normal = DMat3::from_mat4(*to_local).inverse().transpose();
+        let row4 = |r: usize| [0, 1, 2, 3].map(|c| to_local.col(c)[r] as f32);
+        let row3 = |r: usize| [normal.col(0)[r] as f32, normal.col(1)[r] as f32, normal.col(2)[r] as f32, 0.0];
+        InstanceRows { model: [row4(0), row4(1), row4(2)], normal: [row3(0), row3(1), row3(2)] }
+    }
+}
+
+/// The geometry passes' vertex inputs: `Vertex` at binding 0, `InstanceRows` at binding 1
+/// (locations 2-4 the model rows, 5-7 the normal rows).
+pub const INSTANCE_ATTRIBUTES: [(u32, vk::Format, u32); 6] = [
+    (2, vk::Format::R32G32B32A32_SFLOAT, 0),
+    (3, vk::Format::R32G32B32A32_SFLOAT, 16),
+    (4, vk::Format::R32G32B32A32_SFLOAT, 32),
+    (5, vk::Format::R32G32B32A32_SFLOAT, 48),
+    (6, vk::Format::R32G32B32A32_SFLOAT, 64),
+    (7, vk::Format::R32G32B32A32_SFLOAT, 80),
+];
+
+/// Per-vertex data of textured meshes (vertex binding 2, parallel to the `Vertex`es: zeros for
+/// meshes without textures): texture coordinates (locations 8) and the tangent with the
+/// bitangent's sign in w (9; zeros without a normal map).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct SurfaceVertex {
+    pub uv: [f32; 2],
+    pub tangent: [f32; 4],
+}
+
+pub const SURFACE_ATTRIBUTES: [(u32, vk::Format, u32); 2] =
+    [(8, vk::Format::R32G32_SFLOAT, 0), (9, vk::Format::R32G32B32A32_SFLOAT, 8)];
+
+/// The second texture-coordinate set (vertex binding 3, location 10: one `[f32; 2]` per vertex,
+/// parallel to the `Vertex`es), stored only in a scene where some material's maps use two sets
+/// (`SceneGpu::second_uv_offset`).
+pub const SECOND_UV_ATTRIBUTES: [(u32, vk::Format, u32); 1] = [(10, vk::Format::R32G32_SFLOAT, 0)];
+pub const SECOND_UV_STRIDE: u32 = 8;
+
+/// The texels of `SceneGpu::vertex_view`: a `Vertex` (24 bytes) is three of them. RG32F
+/// is the widest float format every device can read from a uniform texel buffer that divides a
+/// vertex (RGB32F is optional), and each fetch is a gather on lavapipe: 9 per triangle, not 18.
+pub const VERTEX_TEXEL_FORMAT: vk::Format = vk::Format::R32G32_SFLOAT;
+/// The texels of `SceneGpu::index_view`: one index each.
+pub const INDEX_TEXEL_FORMAT: vk::Format = vk::Format::R32_UINT;

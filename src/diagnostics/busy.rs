@@ -72,15 +72,8 @@ pub fn add_clear(graph: &mut RenderGraph<'_>) -> Handle<ImageKind> {
             .load_op(vk::AttachmentLoadOp::CLEAR)
             .store_op(vk::AttachmentStoreOp::STORE)
             .clear_value(vk::ClearValue { color: vk::ClearColorValue { float32: [0.0, 0.0, 0.0, 1.0] } })];
-        let rendering = vk::RenderingInfo::default()
-            .render_area(vk::Rect2D { offset: vk::Offset2D::default(), extent })
-            .layer_count(1)
-            .color_attachments(&attachment);
-        // SAFETY: recording state; the image is resolved for this frame.
-        unsafe {
-            ctx.device.cmd_begin_rendering(ctx.cmd, &rendering);
-            ctx.device.cmd_end_rendering(ctx.cmd);
-        }
+        ctx.begin_rendering(extent, &attachment, None, None);
+        ctx.end_rendering();
         Ok(())
     });
     image

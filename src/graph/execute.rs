@@ -372,6 +372,47 @@ pub struct PassContext<'e> {
 }
 
 impl PassContext<'_> {
+    /// Begins dynamic rendering over all of `extent`, one layer, into `colors` and the `depth`
+    /// and `stencil` attachments given, with the viewport (depth 0 to 1) and the scissor set to
+    /// the same area. End it with `end_rendering`.
+    pub fn begin_rendering(
+        &self,
+        extent: vk::Extent2D,
+        colors: &[vk::RenderingAttachmentInfo<'_>],
+        depth: Option<&vk::RenderingAttachmentInfo<'_>>,
+        stencil: Option<&vk::RenderingAttachmentInfo<'_>>,
+    ) {
+        let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
+        let mut rendering = vk::RenderingInfo::default().render_area(area).layer_count(1).color_attachments(colors);
+        if let Some(depth) = depth {
+            rendering = rendering.depth_attachment(depth);
+        }
+        if let Some(stencil) = stencil {
+            rendering = rendering.stencil_attachment(stencil);
+        }
+        let viewport = vk::Viewport {
+            x: 0.0,
+            y: 0.0,
+            width: extent.width as f32,
+            height: extent.height as f32,
+            min_depth: 0.0,
+            max_depth: 1.0,
+        };
+        // SAFETY: a pass records inside its command buffer's recording state; the attachments'
+        // views are resolved for this frame.
+        unsafe {
+            self.device.cmd_begin_rendering(self.cmd, &rendering);
+            self.device.cmd_set_viewport(self.cmd, 0, &[viewport]);
+            self.device.cmd_set_scissor(self.cmd, 0, &[area]);
+        }
+    }
+
+    /// Ends the rendering `begin_rendering` began.
+    pub fn end_rendering(&self) {
+        // SAFETY: recording state, inside a rendering begun by `begin_rendering`.
+        unsafe { self.device.cmd_end_rendering(self.cmd) };
+    }
+
     /// The image behind `r` and the view that names what `r` declared: one layer's 2D view for
     /// `read_layer` / `write_layer`, else the whole image's view.
     pub fn image(&self, r: Ref<ImageKind>) -> (vk::Image, vk::ImageView) {

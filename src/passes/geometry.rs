@@ -242,26 +242,10 @@ pub fn add<'a>(
             .load_op(vk::AttachmentLoadOp::CLEAR)
             .store_op(vk::AttachmentStoreOp::STORE)
             .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
-        let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
-        let rendering = vk::RenderingInfo::default()
-            .render_area(area)
-            .layer_count(1)
-            .color_attachments(&color_attachments)
-            .depth_attachment(&depth_attachment);
+        ctx.begin_rendering(extent, &color_attachments, Some(&depth_attachment), None);
         let d = ctx.device;
         // SAFETY: recording state; every object is resolved for this frame and outlives it.
         unsafe {
-            d.cmd_begin_rendering(ctx.cmd, &rendering);
-            let viewport = vk::Viewport {
-                x: 0.0,
-                y: 0.0,
-                width: extent.width as f32,
-                height: extent.height as f32,
-                min_depth: 0.0,
-                max_depth: 1.0,
-            };
-            d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
-            d.cmd_set_scissor(ctx.cmd, 0, &[area]);
             if !scene.draws.is_empty() {
                 let vb = ctx.buffer(vb);
                 match scene.surface_offset {
@@ -336,8 +320,7 @@ pub fn add<'a>(
                 d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, draw.instance);
             }
         }
-        // SAFETY: recording state; ends the rendering begun above.
-        unsafe { d.cmd_end_rendering(ctx.cmd) };
+        ctx.end_rendering();
         Ok(())
     });
     Ok(gbuffer)

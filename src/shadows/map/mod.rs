@@ -483,8 +483,7 @@ pub fn add_depth<'a>(
                 .load_op(vk::AttachmentLoadOp::CLEAR)
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
-            let area = vk::Rect2D { offset: vk::Offset2D::default(), extent: vk::Extent2D { width: res, height: res } };
-            let rendering = vk::RenderingInfo::default().render_area(area).layer_count(1).depth_attachment(&attachment);
+            ctx.begin_rendering(vk::Extent2D { width: res, height: res }, &[], Some(&attachment), None);
             ctx.bind_set(
                 vk::PipelineBindPoint::GRAPHICS,
                 &pipeline.layout,
@@ -493,20 +492,9 @@ pub fn add_depth<'a>(
             let d = ctx.device;
             // SAFETY: recording state; every object is resolved for this frame and outlives it.
             unsafe {
-                d.cmd_begin_rendering(ctx.cmd, &rendering);
                 d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
                 let stages = vk::ShaderStageFlags::ALL_GRAPHICS;
                 d.cmd_push_constants(ctx.cmd, pipeline.layout.layout, stages, 0, bytemuck::bytes_of(&push));
-                let viewport = vk::Viewport {
-                    x: 0.0,
-                    y: 0.0,
-                    width: res as f32,
-                    height: res as f32,
-                    min_depth: 0.0,
-                    max_depth: 1.0,
-                };
-                d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
-                d.cmd_set_scissor(ctx.cmd, 0, &[area]);
                 // Reversed depth: away from the light is smaller, so the bias is negative.
                 d.cmd_set_depth_bias(ctx.cmd, -params.constant_bias, 0.0, -params.slope_bias);
                 if !draws.is_empty() {
@@ -565,8 +553,7 @@ pub fn add_depth<'a>(
                     );
                 }
             }
-            // SAFETY: recording state; ends the rendering begun above.
-            unsafe { d.cmd_end_rendering(ctx.cmd) };
+            ctx.end_rendering();
         }
         Ok(())
     });

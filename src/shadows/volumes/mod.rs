@@ -375,15 +375,6 @@ fn add<'a>(
         .ok_or_else(|| GpuError::Unsupported("no depth-stencil format for shadow volumes".into()))?;
     let mut debug = None;
     let extent = frame.extent;
-    let area = vk::Rect2D { offset: vk::Offset2D::default(), extent };
-    let viewport = vk::Viewport {
-        x: 0.0,
-        y: 0.0,
-        width: extent.width as f32,
-        height: extent.height as f32,
-        min_depth: 0.0,
-        max_depth: 1.0,
-    };
     let mut depth_stencil =
         graph.create_image("volume depth-stencil", ImageDesc::new(format, extent.width, extent.height));
 
@@ -397,21 +388,14 @@ fn add<'a>(
             .image_layout(Access::DepthStencilAttachmentWrite.info().layout)
             .load_op(vk::AttachmentLoadOp::DONT_CARE)
             .store_op(vk::AttachmentStoreOp::STORE);
-        let rendering = vk::RenderingInfo::default().render_area(area).layer_count(1).depth_attachment(&attachment);
+        ctx.begin_rendering(extent, &[], Some(&attachment), None);
         let d = ctx.device;
         // SAFETY: recording state; every object is resolved for this frame and outlives it.
-        unsafe {
-            d.cmd_begin_rendering(ctx.cmd, &rendering);
-            d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
-            d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
-            d.cmd_set_scissor(ctx.cmd, 0, &[area]);
-        }
+        unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline) };
         ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &pipeline.layout, &[(VOLUMES_DEPTH, Bound::Image(source))])?;
         // SAFETY: as above; the pipeline makes its three vertices from gl_VertexIndex.
-        unsafe {
-            d.cmd_draw(ctx.cmd, 3, 1, 0, 0);
-            d.cmd_end_rendering(ctx.cmd);
-        }
+        unsafe { d.cmd_draw(ctx.cmd, 3, 1, 0, 0) };
+        ctx.end_rendering();
         Ok(())
     });
 
@@ -455,18 +439,11 @@ fn add<'a>(
                 .load_op(vk::AttachmentLoadOp::CLEAR)
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
-            let rendering = vk::RenderingInfo::default()
-                .render_area(area)
-                .layer_count(1)
-                .depth_attachment(&depth)
-                .stencil_attachment(&stencil);
+            ctx.begin_rendering(extent, &[], Some(&depth), Some(&stencil));
             let d = ctx.device;
             // SAFETY: recording state; every object is resolved for this frame and outlives it.
             unsafe {
-                d.cmd_begin_rendering(ctx.cmd, &rendering);
                 d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline);
-                d.cmd_set_viewport(ctx.cmd, 0, &[viewport]);
-                d.cmd_set_scissor(ctx.cmd, 0, &[area]);
                 d.cmd_push_constants(
                     ctx.cmd,
                     pipeline.layout.layout,
@@ -477,8 +454,8 @@ fn add<'a>(
                 d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[ctx.buffer(vb)], &[0]);
                 d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
                 d.cmd_draw_indexed(ctx.cmd, index_count, 1, 0, 0, 0);
-                d.cmd_end_rendering(ctx.cmd);
             }
+            ctx.end_rendering();
             Ok(())
         });
 

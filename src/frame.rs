@@ -105,8 +105,7 @@ pub fn build<'a>(
         g.export(result, Access::ComputeShaderReadStorageBuffer);
     }
     let inputs = shadows::FrameInputs {
-        ctx: pipelines.ctx,
-        pipelines: pipelines.cache,
+        pipelines,
         scene: s,
         gbuffer: &gbuffer,
         vertices: &handles.vertices,

@@ -21,7 +21,6 @@ pub mod parameters;
 pub mod registry;
 
 use std::collections::BTreeMap;
-use std::sync::Arc;
 
 use ash::vk;
 
@@ -33,7 +32,7 @@ use crate::graph::{BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::visibility::LayerPlan;
 use crate::passes::GBuffer;
 use crate::scene::Light;
-use crate::vk::{Capabilities, GpuContext, GpuResult, PipelineCache};
+use crate::vk::{Capabilities, GpuResult, PipelineSource};
 
 /// One shadow technique, as the rest of umbra sees it. A unit type in the technique's folder
 /// implements it and `registry.rs` lists it; nothing outside the folder names the technique.
@@ -147,8 +146,8 @@ pub struct Casters {
 /// What every technique may read: the frame's G-buffer, scene buffers, camera and size, and
 /// where its pipelines and the casters' other structures are.
 pub struct FrameInputs<'h, 'a> {
-    pub ctx: &'a Arc<GpuContext>,
-    pub pipelines: &'a PipelineCache,
+    /// Where a technique gets its pipelines (and the device, to make them).
+    pub pipelines: PipelineSource<'a>,
     pub scene: &'a SceneGpu,
     pub gbuffer: &'h GBuffer,
     pub vertices: &'h Handle<BufferKind>,

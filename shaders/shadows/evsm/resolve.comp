@@ -50,31 +50,6 @@ vec4 moments_at(uint layer, vec2 uv) {
     return mix(mix(a, b, f.x), mix(c, d, f.x), f.y);
 }
 
-// The cube face a point lies in, from the point less the light's position: its major axis.
-uint cube_face(vec3 d) {
-    vec3 a = abs(d);
-    return a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
-         : a.y >= a.z               ? (d.y >= 0.0 ? 2u : 3u)
-                                    : (d.z >= 0.0 ? 4u : 5u);
-}
-
-// `p` (geometric normal `n`) moved along its normal by `normal_offset` texels of `layer` at
-// its depth.
-vec3 offset_point(uint layer, vec3 p, vec3 n) {
-    MapLayer m = layers[layer];
-    vec4 clip = m.view_proj * vec4(p, 1.0);
-    if (clip.w <= 0.0) return p;
-    return p + n * (pc.params.x * map_texel(m, map_linear_depth(m, clip.z / clip.w)));
-}
-
-// Whether `layer`'s map holds the point `q`: inside its frustum, depth included.
-bool layer_holds(uint layer, vec3 q) {
-    vec4 clip = layers[layer].view_proj * vec4(q, 1.0);
-    vec3 ndc = clip.xyz / clip.w;
-    return clip.w > 0.0 && all(greaterThanEqual(ndc.xy, vec2(-1.0))) && all(lessThan(ndc.xy, vec2(1.0)))
-        && ndc.z >= 0.0 && ndc.z <= 1.0;
-}
-
 // Visibility of the point `q` in `layer`; outside the layer (nothing drawn there) it is lit.
 float layer_visibility(uint layer, vec3 q) {
     MapLayer m = layers[layer];
@@ -115,8 +90,8 @@ void main() {
             // The offset can carry the point across a seam: it is looked up in the face of the
             // point looked up.
             vec3 light = l.position_kind.xyz;
-            vec3 q = offset_point(cube_face(position.xyz - light), position.xyz, ng);
-            v = layer_visibility(cube_face(q - light), q);
+            vec3 q = map_offset_point(layers[map_cube_face(position.xyz - light)], position.xyz, ng, pc.params.x);
+            v = layer_visibility(map_cube_face(q - light), q);
         } else if (pc.map.y == MAP_CASCADES) {
             float along = dot(position.xyz - pc.eye.xyz, pc.forward.xyz);
             uint count = pc.map.x;
@@ -125,19 +100,19 @@ void main() {
             if (along > layers[count - 1u].split.x) {
                 v = 1.0; // beyond the shadow distance
             } else {
-                v = layer_visibility(c, offset_point(c, position.xyz, ng));
+                v = layer_visibility(c, map_offset_point(layers[c], position.xyz, ng, pc.params.x));
                 float end = layers[c].split.x;
                 float width = (end - layers[c].split.y) * pc.params.w;
                 if (c + 1u < count && width > 0.0 && along > end - width) {
-                    vec3 q = offset_point(c + 1u, position.xyz, ng);
-                    if (layer_holds(c + 1u, q)) {
+                    vec3 q = map_offset_point(layers[c + 1u], position.xyz, ng, pc.params.x);
+                    if (map_layer_holds(layers[c + 1u], q)) {
                         float t = (along - (end - width)) / width;
                         v = mix(v, layer_visibility(c + 1u, q), t);
                     }
                 }
             }
         } else {
-            v = layer_visibility(0u, offset_point(0u, position.xyz, ng));
+            v = layer_visibility(0u, map_offset_point(layers[0u], position.xyz, ng, pc.params.x));
         }
     }
     imageStore(visibility, ivec2(px), vec4(v));

@@ -1,5 +1,5 @@
 // A light's shadow-map layers, shared by the depth pass (one rendering pass per layer) and the
-// resolve. Twin of `MapLayer` in src/shadows/map/mod.rs.
+// resolves (`map`'s and `evsm`'s), with how a resolve picks and reads a layer. Twin of `MapLayer` in src/shadows/map/mod.rs.
 #ifndef UMBRA_MAP_LAYERS_GLSL
 #define UMBRA_MAP_LAYERS_GLSL
 
@@ -49,6 +49,30 @@ float map_search_texels(MapLayer m, float receiver, float size, bool perspective
     float span = max(receiver - near, 0.0);
     return perspective_light ? size * span / (max(receiver, near) * map_texel(m, near))
                              : size * span / map_texel(m, receiver);
+}
+
+// The cube face a point lies in, from the point less the light's position: its major axis.
+uint map_cube_face(vec3 d) {
+    vec3 a = abs(d);
+    return a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
+         : a.y >= a.z               ? (d.y >= 0.0 ? 2u : 3u)
+                                    : (d.z >= 0.0 ? 4u : 5u);
+}
+
+// `p` (geometric normal `n`) moved along its normal by `texels` texels of layer `m` at its depth
+// (the resolves' normal offset).
+vec3 map_offset_point(MapLayer m, vec3 p, vec3 n, float texels) {
+    vec4 clip = m.view_proj * vec4(p, 1.0);
+    if (clip.w <= 0.0) return p;
+    return p + n * (texels * map_texel(m, map_linear_depth(m, clip.z / clip.w)));
+}
+
+// Whether layer `m`'s map holds the point `q`: it lies inside the layer's frustum, depth included.
+bool map_layer_holds(MapLayer m, vec3 q) {
+    vec4 clip = m.view_proj * vec4(q, 1.0);
+    vec3 ndc = clip.xyz / clip.w;
+    return clip.w > 0.0 && all(greaterThanEqual(ndc.xy, vec2(-1.0))) && all(lessThan(ndc.xy, vec2(1.0)))
+        && ndc.z >= 0.0 && ndc.z <= 1.0;
 }
 
 #endif

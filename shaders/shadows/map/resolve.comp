@@ -105,32 +105,7 @@ vec2 blockers(uint layer, vec2 uv, float z, float radius, Horizon h) {
     return vec2(count > 0.0 ? sum / count : 0.0, count);
 }
 
-// The cube face a point lies in, from the point less the light's position: its major axis.
-uint cube_face(vec3 d) {
-    vec3 a = abs(d);
-    return a.x >= a.y && a.x >= a.z ? (d.x >= 0.0 ? 0u : 1u)
-         : a.y >= a.z               ? (d.y >= 0.0 ? 2u : 3u)
-                                    : (d.z >= 0.0 ? 4u : 5u);
-}
-
-// The point to look up for `p` (geometric normal `n`) in `layer`: moved along its normal by
-// `normal_offset` texels of the layer at its depth.
-vec3 offset_point(uint layer, vec3 p, vec3 n) {
-    MapLayer m = layers[layer];
-    vec4 clip = m.view_proj * vec4(p, 1.0);
-    if (clip.w <= 0.0) return p;
-    return p + n * (pc.params.x * map_texel(m, map_linear_depth(m, clip.z / clip.w)));
-}
-
-// Whether `layer`'s map holds the point `q`: it lies inside the layer's frustum, depth included.
-bool layer_holds(uint layer, vec3 q) {
-    vec4 clip = layers[layer].view_proj * vec4(q, 1.0);
-    vec3 ndc = clip.xyz / clip.w;
-    return clip.w > 0.0 && all(greaterThanEqual(ndc.xy, vec2(-1.0))) && all(lessThan(ndc.xy, vec2(1.0)))
-        && ndc.z >= 0.0 && ndc.z <= 1.0;
-}
-
-// Visibility of `p` (shading normal `ns`) in one layer, looked up at `q` (offset_point); outside
+// Visibility of `p` (shading normal `ns`) in one layer, looked up at `q` (map_offset_point); outside
 // the layer (nothing drawn there) is lit. A cube face holds every point picked for it, its edges
 // included.
 // `past_horizon`: the light's centre is below the horizon of `ns` (see Horizon).
@@ -194,8 +169,8 @@ void main() {
             // The normal offset can carry the point across a seam, out of the face it lay in and
             // into the next one's frustum: it is looked up in the face of the point looked up.
             vec3 light = l.position_kind.xyz;
-            vec3 q = offset_point(cube_face(position.xyz - light), position.xyz, ng);
-            v = layer_visibility(cube_face(q - light), position.xyz, q, n, size, true, past_horizon);
+            vec3 q = map_offset_point(layers[map_cube_face(position.xyz - light)], position.xyz, ng, pc.params.x);
+            v = layer_visibility(map_cube_face(q - light), position.xyz, q, n, size, true, past_horizon);
         } else if (pc.map.y == MAP_CASCADES) {
             float along = dot(position.xyz - pc.eye.xyz, pc.forward.xyz);
             uint count = pc.map.x;
@@ -204,22 +179,23 @@ void main() {
             if (along > layers[count - 1u].split.x) {
                 v = 1.0; // beyond the shadow distance
             } else {
-                v = layer_visibility(c, position.xyz, offset_point(c, position.xyz, ng), n, size, false, past_horizon);
+                vec3 q = map_offset_point(layers[c], position.xyz, ng, pc.params.x);
+                v = layer_visibility(c, position.xyz, q, n, size, false, past_horizon);
                 // Near the far end of a cascade, blend into the next so the seam does not show,
                 // where the next holds the point: it is fitted to its own slice, and the band
                 // lies before that (outside a layer reads lit).
                 float end = layers[c].split.x;
                 float width = (end - layers[c].split.y) * pc.params.z;
                 if (c + 1u < count && width > 0.0 && along > end - width) {
-                    vec3 q = offset_point(c + 1u, position.xyz, ng);
-                    if (layer_holds(c + 1u, q)) {
+                    vec3 q = map_offset_point(layers[c + 1u], position.xyz, ng, pc.params.x);
+                    if (map_layer_holds(layers[c + 1u], q)) {
                         float t = (along - (end - width)) / width;
                         v = mix(v, layer_visibility(c + 1u, position.xyz, q, n, size, false, past_horizon), t);
                     }
                 }
             }
         } else {
-            vec3 q = offset_point(0u, position.xyz, ng);
+            vec3 q = map_offset_point(layers[0u], position.xyz, ng, pc.params.x);
             v = layer_visibility(0u, position.xyz, q, n, size, perspective_light, past_horizon);
         }
     }

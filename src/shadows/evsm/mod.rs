@@ -231,9 +231,9 @@ fn add_light<'a>(
 }
 
 fn moments_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("evsm moments", 0), || {
+    frame.pipelines.compute(PipelineKey::new("evsm moments", 0), |ctx| {
         ComputePipeline::new(
-            frame.ctx,
+            ctx,
             "evsm moments",
             spirv::SHADOWS_EVSM_MOMENTS_COMP,
             &[
@@ -248,9 +248,9 @@ fn moments_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePip
 }
 
 fn blur_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("evsm blur", 0), || {
+    frame.pipelines.compute(PipelineKey::new("evsm blur", 0), |ctx| {
         ComputePipeline::new(
-            frame.ctx,
+            ctx,
             "evsm blur",
             spirv::SHADOWS_EVSM_BLUR_COMP,
             &[storage_image(EVSM_BLUR_SOURCE), storage_image(EVSM_BLUR_OUTPUT)],
@@ -260,8 +260,8 @@ fn blur_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeli
     })
 }
 
-/// The resolve's pipeline (public for the tests that make it on its own).
-pub fn resolve_pipeline_on(ctx: &std::sync::Arc<GpuContext>) -> GpuResult<ComputePipeline> {
+/// The resolve: each pixel's visibility from the light's filtered moments.
+fn make_resolve(ctx: &std::sync::Arc<GpuContext>) -> GpuResult<ComputePipeline> {
     ComputePipeline::new(
         ctx,
         "evsm resolve",
@@ -281,7 +281,7 @@ pub fn resolve_pipeline_on(ctx: &std::sync::Arc<GpuContext>) -> GpuResult<Comput
 }
 
 fn resolve_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("evsm resolve", 0), || resolve_pipeline_on(frame.ctx))
+    frame.pipelines.compute(PipelineKey::new("evsm resolve", 0), make_resolve)
 }
 
 /// The exponential warps of a depth `t` in [0, 1] (twin of `evsm_warp` in evsm.glsl).
@@ -335,9 +335,10 @@ mod tests {
     fn a_receiver_in_front_of_every_occluder_is_lit_and_behind_them_all_is_dark() {
         let c = [40.0, 5.0];
         let m = moments(&[0.5; 9], c);
-        for k in 0..2 {
-            assert_eq!(chebyshev(m[k], warp(0.4, c)[k], 1e-6), 1.0, "in front, warp {k}");
-            assert!(chebyshev(m[k], warp(0.6, c)[k], 1e-6) < 1e-3, "behind, warp {k}");
+        let (front, behind) = (warp(0.4, c), warp(0.6, c));
+        for (k, moments) in m.iter().enumerate() {
+            assert_eq!(chebyshev(*moments, front[k], 1e-6), 1.0, "in front, warp {k}");
+            assert!(chebyshev(*moments, behind[k], 1e-6) < 1e-3, "behind, warp {k}");
         }
     }
 

@@ -40,8 +40,7 @@ struct ClassifyPush {
 
 /// The classification of each pixel by the light's coarse map, from the cache.
 fn classify_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    let ctx = frame.ctx;
-    frame.pipelines.compute(PipelineKey::new("hybrid classify", 0), || {
+    frame.pipelines.compute(PipelineKey::new("hybrid classify", 0), |ctx| {
         ComputePipeline::new(
             ctx,
             "hybrid classify",
@@ -65,9 +64,9 @@ fn classify_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePi
 
 /// The `hybrid:N` debug view, from the cache.
 fn view_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("hybrid view", 0), || {
+    frame.pipelines.compute(PipelineKey::new("hybrid view", 0), |ctx| {
         ComputePipeline::new(
-            frame.ctx,
+            ctx,
             "hybrid view",
             spirv::SHADOWS_HYBRID_VIEW_COMP,
             &[sampled(HYBRID_VISIBILITY), storage(HYBRID_LIST), storage_image(HYBRID_VIEW_OUTPUT)],

@@ -179,10 +179,10 @@ fn debug_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
 /// primitive it has to clip to view 0, so a floor larger than a cube face lands in the wrong
 /// face; and one pass per layer culls draws per layer.)
 fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipeline> {
-    frame.pipelines.graphics(PipelineKey::new("shadow map", 0), || {
+    frame.pipelines.graphics(PipelineKey::new("shadow map", 0), |ctx| {
         let desc = depth_desc("shadow map", spirv::SHADOWS_MAP_DEPTH_VERT, None);
         let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
-        GraphicsPipeline::with_extras(frame.ctx, &desc, &GraphicsExtras { instance, ..Default::default() })
+        GraphicsPipeline::with_extras(ctx, &desc, &GraphicsExtras { instance, ..Default::default() })
     })
 }
 
@@ -191,7 +191,7 @@ fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipe
 /// cache.
 fn masked_depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipeline> {
     let materials = frame.scene.materials.as_ref().expect("alpha-masked casters have material sets");
-    frame.pipelines.graphics(PipelineKey::new("shadow map (alpha-masked)", 0), || {
+    frame.pipelines.graphics(PipelineKey::new("shadow map (alpha-masked)", 0), |ctx| {
         let desc = depth_desc(
             "shadow map (alpha-masked)",
             spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
@@ -203,7 +203,7 @@ fn masked_depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a Graph
             set_1: Some(materials.set_layout()),
             ..Default::default()
         };
-        GraphicsPipeline::with_extras(frame.ctx, &desc, &extras)
+        GraphicsPipeline::with_extras(ctx, &desc, &extras)
     })
 }
 
@@ -592,7 +592,7 @@ pub fn add_light<'a>(
         eye: frame.camera.eye.extend(0.0),
         forward: forward.extend(0.0),
     };
-    let resolve = frame.pipelines.compute(PipelineKey::new("shadow map resolve", 0), || resolve_pipeline(frame.ctx))?;
+    let resolve = frame.pipelines.compute(PipelineKey::new("shadow map resolve", 0), resolve_pipeline)?;
     pass.render(move |ctx| ctx.dispatch(resolve, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     add_debug_view(graph, frame, map, &depth_image, &table, visibility)
 }
@@ -631,7 +631,7 @@ fn add_debug_view<'a>(
         eye: frame.camera.eye.extend(0.0),
         forward: frame.camera.forward.extend(0.0),
     };
-    let pipeline = frame.pipelines.compute(PipelineKey::new("shadow map view", 0), || debug_pipeline(frame.ctx))?;
+    let pipeline = frame.pipelines.compute(PipelineKey::new("shadow map view", 0), debug_pipeline)?;
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     Ok(Some(out))
 }

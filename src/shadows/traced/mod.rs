@@ -91,12 +91,12 @@ fn trace_pipeline<'a>(frame: &FrameInputs<'_, 'a>, rays: Rays) -> GpuResult<&'a 
         Some(rq) => {
             let masked = rq.masked();
             let key = PipelineKey::new("shadow trace (ray query)", variant_bits(masked, soft));
-            frame.pipelines.compute(key, || ray_query_pipeline(frame.ctx, masked, soft))
+            frame.pipelines.compute(key, |ctx| ray_query_pipeline(ctx, masked, soft))
         }
         None => {
             let masked = frame.scene.bvh.masked();
             let key = PipelineKey::new("shadow trace", variant_bits(masked, soft));
-            frame.pipelines.compute(key, || pipeline(frame.ctx, masked, soft))
+            frame.pipelines.compute(key, |ctx| pipeline(ctx, masked, soft))
         }
     }
 }
@@ -110,7 +110,7 @@ pub fn list_trace_pipeline<'a>(
 ) -> GpuResult<&'a ComputePipeline> {
     let (masked, soft) = (frame.scene.bvh.masked(), is_soft(rays));
     let key = PipelineKey::new("shadow trace (list)", variant_bits(masked, soft) | list_group << 2);
-    frame.pipelines.compute(key, || list_pipeline(frame.ctx, list_group, masked, soft))
+    frame.pipelines.compute(key, |ctx| list_pipeline(ctx, list_group, masked, soft))
 }
 
 /// A trace variant's bits in its cache key.

@@ -171,8 +171,7 @@ struct ExtrudePush {
 
 /// The copy of the G-buffer's depth into the depth-stencil image, from the cache.
 fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>, format: vk::Format) -> GpuResult<&'a GraphicsPipeline> {
-    let ctx = frame.ctx;
-    frame.pipelines.graphics(PipelineKey::new("shadow volumes depth", format.as_raw() as u32), || {
+    frame.pipelines.graphics(PipelineKey::new("shadow volumes depth", format.as_raw() as u32), |ctx| {
         GraphicsPipeline::with_extras(
             ctx,
             &GraphicsPipelineDesc {
@@ -202,7 +201,6 @@ fn extrude_pipeline<'a>(
     format: vk::Format,
     zfail: bool,
 ) -> GpuResult<&'a GraphicsPipeline> {
-    let ctx = frame.ctx;
     let face = |pass_op, depth_fail_op| vk::StencilOpState {
         fail_op: vk::StencilOp::KEEP,
         pass_op,
@@ -220,7 +218,7 @@ fn extrude_pipeline<'a>(
         true => ("shadow volumes z-fail", StencilState { front: face(keep, decr), back: face(keep, incr) }),
         false => ("shadow volumes z-pass", StencilState { front: face(incr, keep), back: face(decr, keep) }),
     };
-    frame.pipelines.graphics(PipelineKey::new(name, format.as_raw() as u32), || {
+    frame.pipelines.graphics(PipelineKey::new(name, format.as_raw() as u32), |ctx| {
         GraphicsPipeline::with_extras(
             ctx,
             &GraphicsPipelineDesc {
@@ -251,8 +249,7 @@ fn extrude_pipeline<'a>(
 
 /// The resolve: each pixel's visibility from its stencil count, from the cache.
 fn resolve_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    let ctx = frame.ctx;
-    frame.pipelines.compute(PipelineKey::new("shadow volumes resolve", 0), || {
+    frame.pipelines.compute(PipelineKey::new("shadow volumes resolve", 0), |ctx| {
         ComputePipeline::new(
             ctx,
             "shadow volumes resolve",
@@ -272,8 +269,7 @@ fn resolve_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePip
 
 /// The `stencil:N` debug view, from the cache.
 fn stencil_view_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    let ctx = frame.ctx;
-    frame.pipelines.compute(PipelineKey::new("shadow volumes stencil view", 0), || {
+    frame.pipelines.compute(PipelineKey::new("shadow volumes stencil view", 0), |ctx| {
         ComputePipeline::new(
             ctx,
             "shadow volumes stencil view",
@@ -371,7 +367,7 @@ fn add<'a>(
     let Some(casters) = scene.casters.as_ref().filter(|_| !served.is_empty()) else {
         return Ok(None);
     };
-    let format = depth_stencil_format(frame.ctx)
+    let format = depth_stencil_format(frame.pipelines.ctx)
         .ok_or_else(|| GpuError::Unsupported("no depth-stencil format for shadow volumes".into()))?;
     let mut debug = None;
     let extent = frame.extent;

@@ -47,6 +47,25 @@ fn main() {
                 writeln!(index, "pub const {ident}_MASKED: &[u8] = include_bytes!({path:?});").unwrap();
                 jobs.push((src.clone(), masked, vec!["BVH_MASKED".to_owned()]));
             }
+            // One that walks the BVH (it includes bvh.glsl) gets two more, for scenes where
+            // something moves (BVH_INSTANCED: a two-level BVH), and one array of the four indexed
+            // by `masked | instanced << 1` (crate::gpu::BvhVariant).
+            if text.contains("#include \"bvh.glsl\"") {
+                let mut walks = vec![out.join(format!("{file}.spv")), out.join(format!("{file}.masked.spv"))];
+                for (suffix, defines) in
+                    [("instanced", vec!["BVH_INSTANCED"]), ("masked.instanced", vec!["BVH_MASKED", "BVH_INSTANCED"])]
+                {
+                    let spv = out.join(format!("{file}.{suffix}.spv"));
+                    jobs.push((src.clone(), spv.clone(), defines.into_iter().map(str::to_owned).collect()));
+                    walks.push(spv);
+                }
+                writeln!(index, "/// Indexed by `masked | instanced << 1` (BVH_MASKED, BVH_INSTANCED).").unwrap();
+                writeln!(index, "pub const {ident}_WALKS: [&[u8]; 4] = [").unwrap();
+                for spv in walks {
+                    writeln!(index, "    include_bytes!({:?}),", spv.display().to_string()).unwrap();
+                }
+                writeln!(index, "];").unwrap();
+            }
             continue;
         }
         // A shader with a `// variants:` line: one SPIR-V per subset of its flags, indexed by

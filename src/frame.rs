@@ -9,7 +9,7 @@ use glam::Vec3;
 
 use crate::config::{OutputKind, RenderSettings};
 use crate::diagnostics::busy;
-use crate::gpu::{CameraMatrices, SceneGpu, SCENE_ACCESS};
+use crate::gpu::{BvhHandles, CameraMatrices, SceneGpu, SCENE_ACCESS};
 use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs};
@@ -53,7 +53,7 @@ pub struct FrameParts<'a> {
     /// The casters' adjacency, when a light asks for `volumes`.
     pub volumes: Option<&'a crate::shadows::volumes::VolumeScene>,
     /// The driver's acceleration structures, when the frame's rays use them.
-    pub ray_query: Option<&'a crate::shadows::traced::accel::RayQueryScene>,
+    pub ray_query: Option<&'a crate::gpu::accel::RayQueryScene>,
     /// The environment and ambient occlusion this frame uses.
     pub lighting: crate::lighting::Prepared<'a>,
     /// Compose's variant and pipeline (shaded frames; `None` for a debug view).
@@ -65,6 +65,9 @@ struct SceneHandles {
     vertices: Handle<BufferKind>,
     indices: Handle<BufferKind>,
     lights: Handle<BufferKind>,
+    /// The casters' compute BVH, imported once for every pass that walks it (a moving scene's
+    /// new top level written first).
+    bvh: BvhHandles,
 }
 
 /// Builds the frame's graph: passes chosen by the scene and the settings, result sent to `target`.
@@ -111,6 +114,7 @@ pub fn build<'a>(
         vertices: &handles.vertices,
         indices: &handles.indices,
         lights: &handles.lights,
+        bvh: &handles.bvh,
         camera: &camera,
         extent,
         frame_index: settings.frame_index,
@@ -119,7 +123,7 @@ pub fn build<'a>(
         ray_query,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan)?;
-    let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer);
+    let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer, &handles.bvh);
     if let (Some(view), Some(ao)) = (lighting.view, &occlusion) {
         let image = crate::lighting::ao::add_view(&mut g, view, ao, extent);
         let lit = Lit { image, debug: true, toned: false, history: Accumulated::No };
@@ -152,8 +156,9 @@ fn gbuffer_stage<'a>(
     let vertices = g.import_buffer("vertices", &s.vertices, SCENE_ACCESS);
     let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
     let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
+    let bvh = s.bvh.import(g, SCENE_ACCESS);
     let gbuffer = geometry::add(g, pipelines, s, &vertices, &indices, *camera, extent)?;
-    Ok((SceneHandles { vertices, indices, lights }, gbuffer))
+    Ok((SceneHandles { vertices, indices, lights, bvh }, gbuffer))
 }
 
 /// Traced ambient occlusion, where the frame has the pass (`crate::lighting::ao`).
@@ -163,6 +168,7 @@ fn occlusion_stage<'a>(
     settings: &RenderSettings,
     lighting: &crate::lighting::Prepared<'a>,
     gbuffer: &GBuffer,
+    bvh: &BvhHandles,
 ) -> Option<Handle<ImageKind>> {
     let (mut params, pipeline) = lighting.occlusion?;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
@@ -170,8 +176,7 @@ fn occlusion_stage<'a>(
         // Nothing to hit (and no BVH to walk): radius 0 writes 1 without a ray.
         params.radius = 0.0;
     }
-    let bvh = s.bvh.import(g, SCENE_ACCESS);
-    Some(crate::lighting::ao::add(g, pipeline, gbuffer, &bvh, params, settings.frame_index, extent))
+    Some(crate::lighting::ao::add(g, pipeline, gbuffer, bvh, params, settings.frame_index, extent))
 }
 
 /// What compose adds beside the lights: the background, the environment and its occlusion.
@@ -319,9 +324,8 @@ fn lighting_stage<'a>(
     }
     let mut image = composed.image;
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
-        let bvh = s.bvh.import(g, SCENE_ACCESS);
         let frame = settings.frame_index;
-        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &bvh, camera, frame, extent);
+        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &handles.bvh, camera, frame, extent);
     }
     let Some(h) = &history else {
         return Ok(Lit { image, debug: false, toned: variant.display, history: Accumulated::No });

@@ -16,7 +16,7 @@ use crate::passes::accumulate::{self, History};
 use crate::passes::visibility;
 use crate::scene::bvh::{caster_triangles, ShadowBvh, WideNode};
 use crate::scene::Scene;
-use crate::shadows::traced::accel::RayQueryScene;
+use crate::gpu::accel::RayQueryScene;
 use crate::timing::TimingCalibration;
 use crate::vk::{Buffer, ComputePipeline, GpuContext, GpuError, GpuResult};
 
@@ -178,7 +178,7 @@ impl Renderer {
             self.rects.as_ref(),
             self.area_tables.as_ref(),
             settings.debug_view,
-            self.gpu_scene.bvh.masked(),
+            self.gpu_scene.bvh.variant(),
         )?;
         let compose = match settings.debug_view {
             Some(_) => None,

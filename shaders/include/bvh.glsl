@@ -12,6 +12,12 @@
 // src/scene/bvh/mask.rs gives the layout), and a hit on a masked triangle whose base-colour alpha
 // at the hit is below the material's cutoff is no hit. Without BVH_MASKED the walk compiles
 // exactly as it did before masks existed.
+//
+// Two levels (src/scene/bvh/levels.rs gives the layout): build.rs also compiles every shader that
+// includes this file with BVH_INSTANCED defined (`..._INSTANCED` SPIR-V, and with BVH_MASKED too),
+// used only for scenes where something moves. That variant also needs BVH_TOP_BINDING, the texel
+// buffer `bvh_top` (instance records, then the top tree's nodes), and `BvhRoot` holds the top
+// tree's root. Without BVH_INSTANCED the walk compiles exactly as it did before instances existed.
 #ifndef UMBRA_BVH_GLSL
 #define UMBRA_BVH_GLSL
 
@@ -32,7 +38,18 @@ layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform usamplerBuffer bv
 // bench rays` about 3 % faster).
 layout(set = BVH_SET, binding = BVH_ROOT_BINDING, std140) uniform BvhRoot {
     uvec4 bvh_root[3];
+#ifdef BVH_INSTANCED
+    // x: the texel of `bvh_top` where the top tree's nodes start (after the instance records).
+    uvec4 bvh_top_info;
+#endif
 };
+
+#ifdef BVH_INSTANCED
+#ifndef BVH_TOP_BINDING
+#error "define BVH_TOP_BINDING before including bvh.glsl with BVH_INSTANCED"
+#endif
+layout(set = BVH_SET, binding = BVH_TOP_BINDING) uniform usamplerBuffer bvh_top;
+#endif
 
 // Bits of a node's first child and first triangle (the bits above hold child codes).
 const uint BVH_FIRST_MASK = 0x0FFFFFFFu;
@@ -150,8 +167,8 @@ void bvh_node_step(uvec4 head, uvec4 qxy, uvec4 t2, vec3 origin, vec3 inv_dir, f
     triangles = span.x | span.y | span.z | span.w;
 }
 
-// True when a triangle (either face) lies on the ray at t in (0, tmax). dir need not be unit;
-// t is in units of |dir|.
+// True when a triangle (either face) of the tree whose root node's texels are r0, r1, r2 lies on
+// the ray at t in (0, tmax). dir need not be unit; t is in units of |dir|.
 //
 // The walk keeps one group in registers: the first of a node's inner children and the mask of
 // those the ray touches that are still to visit (first | mask << 28; inner child i is node
@@ -174,14 +191,14 @@ void bvh_node_step(uvec4 head, uvec4 qxy, uvec4 t2, vec3 origin, vec3 inv_dir, f
 // tree's bound). Against one array for the whole stack and the single loop before, `umbra bench
 // rays` on one lavapipe thread, alternated: 100k scene 141 -> 124-131 ms on Mesa 25, 179-188 ->
 // 148 on Mesa 22.3; the spill's branch costs about 4 % against registers alone.
-bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
+bool bvh_walk(uvec4 r0, uvec4 r1, uvec4 r2, vec3 origin, vec3 dir, float tmax) {
     vec3 inv_dir = 1.0 / vec3(bvh_safe_component(dir.x), bvh_safe_component(dir.y),
                               bvh_safe_component(dir.z));
     uint s0 = 0u, s1 = 0u, s2 = 0u, s3 = 0u, s4 = 0u, s5 = 0u, s6 = 0u, s7 = 0u;
     uint spill[BVH_STACK_SIZE - BVH_REGISTER_STACK];
     uint stack_len = 0u;
     uint group, first, triangles;
-    bvh_node_step(bvh_root[0], bvh_root[1], bvh_root[2], origin, inv_dir, tmax, group, first, triangles);
+    bvh_node_step(r0, r1, r2, origin, inv_dir, tmax, group, first, triangles);
     for (;;) {
         while (triangles == 0u) {
             if ((group >> 28) == 0u) {
@@ -222,5 +239,68 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
     }
     return false;
 }
+
+#ifndef BVH_INSTANCED
+// True when a triangle (either face) lies on the ray at t in (0, tmax): the one tree's walk.
+bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
+    return bvh_walk(bvh_root[0], bvh_root[1], bvh_root[2], origin, dir, tmax);
+}
+#else
+// The same over two levels: the top tree's walk (the loops of bvh_walk, its stack an array: the
+// top tree is shallow) hands each instance whose box the ray touches to bvh_walk over its bottom
+// tree, the ray moved into the instance's space by its world-to-object rows. The rows are affine,
+// so t means the same on both rays and tmax carries over.
+bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
+    vec3 inv_dir = 1.0 / vec3(bvh_safe_component(dir.x), bvh_safe_component(dir.y),
+                              bvh_safe_component(dir.z));
+    uint stack[BVH_STACK_SIZE];
+    uint stack_len = 0u;
+    uint nodes = bvh_top_info.x;
+    uint group, first, instances;
+    bvh_node_step(bvh_root[0], bvh_root[1], bvh_root[2], origin, inv_dir, tmax, group, first, instances);
+    for (;;) {
+        while (instances == 0u) {
+            if ((group >> 28) == 0u) {
+                if (stack_len == 0u) {
+                    return false;
+                }
+                stack_len--;
+                group = stack[stack_len];
+            }
+            uint mask = group >> 28;
+            uint rest = mask & (mask - 1u);
+            uint child = (group & BVH_FIRST_MASK) + uint(findLSB(mask));
+            if (rest != 0u) {
+                stack[min(stack_len, BVH_STACK_SIZE - 1u)] = (group & BVH_FIRST_MASK) | (rest << 28);
+                stack_len++;
+            }
+            int at = int(nodes + 3u * child);
+            bvh_node_step(texelFetch(bvh_top, at), texelFetch(bvh_top, at + 1), texelFetch(bvh_top, at + 2),
+                          origin, inv_dir, tmax, group, first, instances);
+        }
+        while (instances != 0u) {
+            uint i = first + uint(findLSB(instances));
+            instances &= instances - 1u;
+            int at = int(4u * i);
+            vec4 x = uintBitsToFloat(texelFetch(bvh_top, at));
+            vec4 y = uintBitsToFloat(texelFetch(bvh_top, at + 1));
+            vec4 z = uintBitsToFloat(texelFetch(bvh_top, at + 2));
+            int root = int(3u * texelFetch(bvh_top, at + 3).x);
+            // Written out term by term as the CPU twin (levels.rs' to_object) computes them.
+            vec3 o = vec3(x.x * origin.x + x.y * origin.y + x.z * origin.z + x.w,
+                          y.x * origin.x + y.y * origin.y + y.z * origin.z + y.w,
+                          z.x * origin.x + z.y * origin.y + z.z * origin.z + z.w);
+            vec3 d = vec3(x.x * dir.x + x.y * dir.y + x.z * dir.z,
+                          y.x * dir.x + y.y * dir.y + y.z * dir.z,
+                          z.x * dir.x + z.y * dir.y + z.z * dir.z);
+            if (bvh_walk(texelFetch(bvh_nodes, root), texelFetch(bvh_nodes, root + 1), texelFetch(bvh_nodes, root + 2),
+                         o, d, tmax)) {
+                return true;
+            }
+        }
+    }
+    return false;
+}
+#endif
 
 #endif

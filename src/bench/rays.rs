@@ -23,7 +23,7 @@ use crate::diagnostics::ray_batch::{self, GpuRay, Target, TimedBatch};
 use crate::gpu::BvhBuffers;
 use crate::scene::bvh::{caster_triangles, offset_ray_origin, ShadowBvh};
 use crate::scene::{Light, Scene};
-use crate::shadows::traced::accel::RayQueryScene;
+use crate::gpu::accel::RayQueryScene;
 use crate::timing::median;
 use crate::vk::{GpuContext, GpuOptions};
 
@@ -124,7 +124,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
     // Both device tracers trace these rays, one after the other.
     let batch = std::cell::RefCell::new(TimedBatch::new(&ctx, &gpu_rays)?);
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
-    let pipeline = ray_batch::pipeline(&ctx, buffers.masked())?;
+    let pipeline = ray_batch::pipeline(&ctx, buffers.variant())?;
     // The ray query as the renderer builds it (the casters in the BVH's leaf order), and with
     // `file_order` also over the casters in the scene's own order. (Masked casters were refused
     // above: no masks.)

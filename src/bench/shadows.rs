@@ -72,7 +72,7 @@ const QUICK_WARMUP: u32 = 1;
 /// ray-query structures' builds ("build BLAS", "build TLAS") run in the first frame only,
 /// which is a warm-up frame.
 pub fn is_shadow_pass(name: &str) -> bool {
-    use crate::shadows::traced::accel::{BUILD_BOTTOM, BUILD_TOP};
+    use crate::gpu::accel::{BUILD_BOTTOM, BUILD_TOP};
     name.starts_with("shadow") || name == BUILD_BOTTOM || name == BUILD_TOP
 }
 

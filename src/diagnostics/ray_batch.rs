@@ -7,22 +7,29 @@ use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
-use crate::gpu::{BvhBuffers, BvhHandles, BvhSlots};
+use crate::gpu::accel::RayQuerySlots;
+use crate::gpu::{BvhBuffers, BvhHandles, BvhSlots, BvhVariant, CasterSlots, Casters};
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
 use crate::passes::storage;
+use crate::scene::bvh::levels::{Placement, TwoLevel};
 use crate::scene::bvh::ShadowBvh;
-use crate::shadows::traced::accel::RayQuerySlots;
 use crate::vk::bindings::*;
 use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuError, GpuResult, TexelBuffer};
 
 const GROUP: [u32; 2] = [64, 1];
 
 /// Where bvh_rays.comp binds the BVH.
-const BVH_SLOTS: BvhSlots =
-    BvhSlots { nodes: RAYS_BVH_NODES, triangles: RAYS_BVH_TRIANGLES, root: RAYS_BVH_ROOT, masks: RAYS_BVH_MASKS };
+const BVH_SLOTS: BvhSlots = BvhSlots {
+    nodes: RAYS_BVH_NODES,
+    triangles: RAYS_BVH_TRIANGLES,
+    root: RAYS_BVH_ROOT,
+    masks: RAYS_BVH_MASKS,
+    top: RAYS_BVH_TOP,
+};
 
-/// Where bvh_rays_rq.comp binds the structures.
-const RAY_QUERY_SLOTS: RayQuerySlots = RayQuerySlots { tlas: RAYS_TLAS, masks: RAYS_BVH_MASKS };
+/// Where bvh_rays.comp and bvh_rays_rq.comp bind the casters.
+const CASTER_SLOTS: CasterSlots =
+    CasterSlots { bvh: BVH_SLOTS, ray_query: Some(RayQuerySlots { tlas: RAYS_TLAS, masks: RAYS_BVH_MASKS }) };
 
 /// The format the shaders read rays in: a `GpuRay` is two of its texels.
 pub const RAY_TEXEL_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
@@ -41,20 +48,12 @@ impl GpuRay {
     }
 }
 
-/// `masked`: the variant that reads alpha masks, for BVHs with alpha-masked casters.
-pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+/// `variant`: the build for the BVH's casters (alpha masks, two levels).
+pub fn pipeline(ctx: &Arc<GpuContext>, variant: BvhVariant) -> GpuResult<ComputePipeline> {
     let bindings = [(RAYS_INPUT, DescriptorKind::UniformTexelBuffer), storage(RAYS_OUTPUT)];
-    let bindings = BVH_SLOTS.with(&bindings, masked);
-    let spirv = if masked { spirv::BVH_RAYS_COMP_MASKED } else { spirv::BVH_RAYS_COMP };
-    ComputePipeline::new(ctx, "bvh rays", spirv, &bindings, 16, GROUP)
-}
-
-/// What a ray-batch pass traverses, as the graph holds it: the matching pipeline is
-/// `pipeline`'s for `Bvh`, `ray_query_pipeline`'s for `RayQuery`.
-#[derive(Clone, Copy)]
-enum Traversal<'h> {
-    Bvh(&'h BvhHandles),
-    RayQuery(&'h crate::shadows::traced::accel::RayQueryHandles),
+    let bindings = BVH_SLOTS.with(&bindings, variant);
+    let names = ["bvh rays", "bvh rays (alpha masks)", "bvh rays (two levels)", "bvh rays (alpha masks, two levels)"];
+    ComputePipeline::new(ctx, variant.name(names), variant.spirv(spirv::BVH_RAYS_COMP_WALKS), &bindings, 16, GROUP)
 }
 
 /// Declares the query pass: reads `rays` (through `rays_view`, `RAY_TEXEL_FORMAT` texels) and
@@ -67,16 +66,17 @@ pub fn add<'a>(
     count: u32,
 ) -> Handle<BufferKind> {
     let mut hits = graph.create_buffer("hits", u64::from(count.max(1)) * 4);
-    add_into(graph, pipeline, rays, Traversal::Bvh(bvh), &mut hits, count);
+    add_into(graph, pipeline, rays, &Casters::bvh(bvh), &mut hits, count);
     hits
 }
 
-/// `add`, writing the flags into `hits` (at least `count` u32s), through `traversal`.
+/// `add`, writing the flags into `hits` (at least `count` u32s), through `casters` (the matching
+/// pipeline is `pipeline`'s for the compute BVH, `ray_query_pipeline`'s for the driver's).
 fn add_into<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
     (rays, rays_view): (&Handle<BufferKind>, vk::BufferView),
-    traversal: Traversal<'_>,
+    casters: &Casters<'_>,
     hits: &mut Handle<BufferKind>,
     count: u32,
 ) {
@@ -85,19 +85,37 @@ fn add_into<'a>(
         (RAYS_INPUT, Bound::TexelBuffer(pass.read(rays, Access::ComputeShaderReadUniformTexelBuffer), rays_view)),
         (RAYS_OUTPUT, Bound::Buffer(pass.write(hits, Access::ComputeShaderWrite))),
     ];
-    bound.extend(match traversal {
-        Traversal::Bvh(bvh) => bvh.bind(&mut pass, &BVH_SLOTS),
-        Traversal::RayQuery(rq) => rq.bind(&mut pass, &RAY_QUERY_SLOTS),
-    });
+    bound.extend(casters.bind(&mut pass, &CASTER_SLOTS));
     let push = UVec4::new(count, 0, 0, 0);
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), count, 1));
 }
 
 /// Traces `rays` through `bvh` on the GPU and returns whether each is occluded.
 pub fn trace(ctx: &Arc<GpuContext>, bvh: &ShadowBvh, rays: &[GpuRay]) -> GpuResult<Vec<bool>> {
-    let pipeline = pipeline(ctx, bvh.masks().is_some())?;
+    trace_buffers(ctx, &BvhBuffers::upload(ctx, bvh)?, rays)
+}
+
+/// Traces `rays` through two levels of BVH on the GPU (after `levels` placed its instances) and
+/// returns whether each is occluded. `move_to`: where the instances go next, written by the
+/// frame's first pass as a moving scene's frames write them (so the test covers that pass).
+pub fn trace_levels(
+    ctx: &Arc<GpuContext>,
+    levels: &mut TwoLevel,
+    move_to: Option<&[Placement]>,
+    rays: &[GpuRay],
+) -> GpuResult<Vec<bool>> {
+    let buffers = BvhBuffers::upload_levels(ctx, levels)?;
+    if let Some(placements) = move_to {
+        levels.place(placements);
+        buffers.place(levels);
+    }
+    trace_buffers(ctx, &buffers, rays)
+}
+
+/// Traces `rays` through `bvh`'s buffers on the GPU.
+fn trace_buffers(ctx: &Arc<GpuContext>, bvh: &BvhBuffers, rays: &[GpuRay]) -> GpuResult<Vec<bool>> {
+    let pipeline = pipeline(ctx, bvh.variant())?;
     let ray_buf = upload_rays(ctx, rays)?;
-    let bvh = BvhBuffers::upload(ctx, bvh)?;
     let count = rays.len() as u32;
     let out = Buffer::new(
         ctx,
@@ -123,14 +141,14 @@ pub enum Target<'s> {
     /// The compute traversal of the CPU-built BVH.
     Compute(&'s BvhBuffers),
     /// The driver's acceleration structures (VK_KHR_ray_query).
-    RayQuery(&'s crate::shadows::traced::accel::RayQueryScene),
+    RayQuery(&'s crate::gpu::accel::RayQueryScene),
 }
 
 /// The ray-query twin of `pipeline`; only on devices with ray query. `masked`: the variant for
 /// a `RayQueryScene` with alpha-masked casters.
 pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
     let bindings = [(RAYS_INPUT, DescriptorKind::UniformTexelBuffer), storage(RAYS_OUTPUT)];
-    let bindings = RAY_QUERY_SLOTS.with(&bindings, masked);
+    let bindings = CASTER_SLOTS.ray_query.as_ref().expect("bvh_rays_rq.comp binds the TLAS").with(&bindings, masked);
     let spirv = if masked { spirv::BVH_RAYS_RQ_COMP_MASKED } else { spirv::BVH_RAYS_RQ_COMP };
     ComputePipeline::new(ctx, "bvh rays (ray query)", spirv, &bindings, 16, GROUP)
 }
@@ -167,17 +185,17 @@ impl TimedBatch {
         let rays = g.import_buffer("rays", &self.rays.buffer, crate::gpu::SCENE_ACCESS);
         let mut hits = g.import_buffer("hits", &self.hits, Access::Nothing);
         let (rq, walk);
-        let traversal = match target {
+        let casters = match target {
             Target::RayQuery(scene) => {
                 rq = scene.add(&mut g);
-                Traversal::RayQuery(&rq)
+                Casters::ray_query(&rq)
             }
             Target::Compute(bvh) => {
                 walk = bvh.import(&mut g, crate::gpu::SCENE_ACCESS);
-                Traversal::Bvh(&walk)
+                Casters::bvh(&walk)
             }
         };
-        add_into(&mut g, pipeline, (&rays, self.rays.view()), traversal, &mut hits, self.count);
+        add_into(&mut g, pipeline, (&rays, self.rays.view()), &casters, &mut hits, self.count);
         g.export(hits, Access::HostRead);
         let plan = CompiledGraph::compile(&g);
         let timing = self.ctx.timestamp_period_ns.map(|_| crate::graph::TimingMode::Flushed);

@@ -1,11 +1,13 @@
-//! The shadow BVH on the device: its buffers, how a frame imports them, and where each pass
-//! that walks it binds them.
+//! The shadow BVH on the device: its buffers (one level, or two for scenes where something
+//! moves), how a frame imports them (writing a new top level first where placements changed),
+//! and where each pass that walks it binds them.
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use ash::vk;
 
 use crate::graph::{Access, RenderGraph};
+use crate::scene::bvh::levels::TwoLevel;
 use crate::scene::bvh::{ShadowBvh, WideNode};
 use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, TexelBuffer};
 
@@ -19,9 +21,44 @@ pub struct BvhBuffers {
     /// The alpha masks of masked casters (RGBA32UI, `crate::scene::bvh::mask`), only in scenes
     /// that have them: the passes that walk the BVH then take their masked variant.
     pub masks: Option<TexelBuffer>,
-    /// The root node again, as a uniform buffer: every ray reads it (bvh.glsl's `BvhRoot`).
+    /// The root node again, as a uniform buffer: every ray reads it (bvh.glsl's `BvhRoot`). In
+    /// two levels, the top tree's root and where its nodes start.
     pub root: Buffer,
+    /// Two levels only: instance records, then the top tree's nodes (`levels.rs`), with room
+    /// for the most nodes a top tree over its instances can have.
+    pub top: Option<TexelBuffer>,
+    /// The top buffer's and root's new texels, where placements changed since the last frame:
+    /// the next frame's first pass writes them (`import`).
+    pending: Mutex<Option<(Vec<[u32; 4]>, [[u32; 4]; 4])>>,
 }
+
+/// Which build of a shader that walks the BVH a scene's casters need: with alpha masks
+/// (BVH_MASKED) and over two levels (BVH_INSTANCED).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct BvhVariant {
+    pub masked: bool,
+    pub instanced: bool,
+}
+
+impl BvhVariant {
+    /// Its index in a shader's `..._WALKS` array, and its bits in a pipeline key.
+    pub fn bits(self) -> u32 {
+        self.masked as u32 | (self.instanced as u32) << 1
+    }
+
+    /// Its build among a shader's four (`..._WALKS`, build.rs).
+    pub fn spirv(self, walks: [&'static [u8]; 4]) -> &'static [u8] {
+        walks[self.bits() as usize]
+    }
+
+    /// One of four names: plain, alpha masks, two levels, both.
+    pub fn name(self, names: [&'static str; 4]) -> &'static str {
+        names[self.bits() as usize]
+    }
+}
+
+/// Bytes one `cmd_update_buffer` may write.
+const UPDATE_LIMIT: usize = 65_536;
 
 impl BvhBuffers {
     /// Whether `bvh` fits `ctx`'s texel buffers: an error naming the limit where it does not.
@@ -60,12 +97,79 @@ impl BvhBuffers {
             triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
             masks,
             root,
+            top: None,
+            pending: Mutex::new(None),
         })
+    }
+
+    /// Uploads `levels`: its bottom trees as one tree's buffers, its top level, and the root.
+    pub fn upload_levels(ctx: &Arc<GpuContext>, levels: &TwoLevel) -> GpuResult<BvhBuffers> {
+        let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        let dst = vk::BufferUsageFlags::TRANSFER_DST;
+        let mut top = levels.top_texels();
+        // A wide tree over n instances has fewer than n nodes (each node holds at least two
+        // children); room for n + 1 keeps every later placement's tree.
+        let capacity = levels.instance_count().max(1) * crate::scene::bvh::levels::INSTANCE_TEXELS
+            + (levels.instance_count() + 1) * WideNode::TEXELS;
+        let limit = ctx.capabilities.max_texel_buffer_elements as usize;
+        let node_texels = levels.nodes().len() * WideNode::TEXELS;
+        let triangles = levels.triangle_texels();
+        for (what, texels) in [("nodes", node_texels), ("triangles", triangles.len()), ("top level", capacity)] {
+            if texels > limit {
+                return Err(GpuError::Unsupported(format!(
+                    "the shadow BVH's {what} need {texels} texels in one texel buffer; {} allows at most {limit} \
+                     (maxTexelBufferElements): use fewer triangles or instances",
+                    ctx.device_name()
+                )));
+            }
+        }
+        top.resize(capacity.max(top.len()), [0; 4]);
+        let root = levels.root_texels();
+        let [nodes, triangles, root, top] = upload(
+            ctx,
+            [
+                ("bvh nodes", bytemuck::cast_slice(levels.nodes()), texel),
+                ("bvh triangles", bytemuck::cast_slice(&triangles), texel),
+                ("bvh root", bytemuck::cast_slice(&root), vk::BufferUsageFlags::UNIFORM_BUFFER | dst),
+                ("bvh top", bytemuck::cast_slice(&top), texel | dst),
+            ],
+        )?;
+        let masks = match levels.masks() {
+            Some(masks) => {
+                let [buffer] = upload(ctx, [("bvh alpha masks", bytemuck::cast_slice(&masks.texels), texel)])?;
+                Some(TexelBuffer::new(ctx, buffer, vk::Format::R32G32B32A32_UINT)?)
+            }
+            None => None,
+        };
+        Ok(BvhBuffers {
+            nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
+            triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
+            masks,
+            root,
+            top: Some(TexelBuffer::new(ctx, top, vk::Format::R32G32B32A32_UINT)?),
+            pending: Mutex::new(None),
+        })
+    }
+
+    /// Has the next frame write `levels`' top level and root (after `TwoLevel::place`).
+    /// Returns the bytes the frame will move.
+    pub fn place(&self, levels: &TwoLevel) -> u64 {
+        let Some(top) = &self.top else { return 0 };
+        let texels = levels.top_texels();
+        assert!((texels.len() * 16) as u64 <= top.buffer.size, "a top level outgrew its buffer");
+        let bytes = (texels.len() * 16 + 64) as u64;
+        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = Some((texels, levels.root_texels()));
+        bytes
     }
 
     /// Whether the passes that walk this BVH need their masked variant (and bind `masks`).
     pub fn masked(&self) -> bool {
         self.masks.is_some()
+    }
+
+    /// The build of the walking shaders these buffers need.
+    pub fn variant(&self) -> BvhVariant {
+        BvhVariant { masked: self.masks.is_some(), instanced: self.top.is_some() }
     }
 
     /// Uploads `bvh` alone (the ray benchmark and tests; a scene uploads it with its other
@@ -98,17 +202,48 @@ impl BvhBuffers {
             + self.triangles.buffer.size
             + self.root.size
             + self.masks.as_ref().map_or(0, |m| m.buffer.size)
+            + self.top.as_ref().map_or(0, |t| t.buffer.size)
     }
 
-    /// Imports both into `g` for a frame's passes to read.
+    /// Imports the buffers into `g` for a frame's passes to read. In two levels, where
+    /// placements changed since the last frame, a first pass writes the new top level and root
+    /// (after every read of the old ones that earlier frames submitted).
     pub fn import<'a>(&'a self, g: &mut RenderGraph<'a>, access: Access) -> BvhHandles {
+        let mut root = g.import_buffer("bvh root", &self.root, access);
+        let mut top = self.top.as_ref().map(|t| (g.import_buffer("bvh top", &t.buffer, access), t.view()));
+        let pending = self.pending.lock().unwrap_or_else(|e| e.into_inner()).take();
+        if let (Some((texels, root_texels)), Some((top_handle, _))) = (pending, top.as_mut()) {
+            let mut pass = g.add_pass("bvh top level");
+            pass.detail(format!("{} KiB", (texels.len() * 16 + 64) >> 10));
+            let top_dst = pass.write(top_handle, Access::TransferWrite);
+            let root_dst = pass.write(&mut root, Access::TransferWrite);
+            pass.render(move |ctx| {
+                let bytes: &[u8] = bytemuck::cast_slice(&texels);
+                for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
+                    // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of 4
+                    // bytes, inside the buffer (`place` checked its size).
+                    unsafe {
+                        ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(top_dst), (k * UPDATE_LIMIT) as u64, chunk)
+                    };
+                }
+                // SAFETY: as above; the root holds four texels.
+                unsafe {
+                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(root_dst), 0, bytemuck::cast_slice(&root_texels))
+                };
+                Ok(())
+            });
+            // Exported, so the write survives a frame whose passes read neither.
+            g.export_version(top_handle, access);
+            g.export_version(&root, access);
+        }
         BvhHandles {
             nodes: g.import_buffer("bvh nodes", &self.nodes.buffer, access),
             triangles: g.import_buffer("bvh triangles", &self.triangles.buffer, access),
-            root: g.import_buffer("bvh root", &self.root, access),
+            root,
             node_view: self.nodes.view(),
             triangle_view: self.triangles.view(),
             masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view())),
+            top,
         }
     }
 }
@@ -122,6 +257,8 @@ pub struct BvhHandles {
     pub triangle_view: vk::BufferView,
     /// The alpha masks, in scenes with masked casters.
     pub masks: Option<(crate::graph::Handle<crate::graph::BufferKind>, vk::BufferView)>,
+    /// The top level, in two-level BVHs.
+    pub top: Option<(crate::graph::Handle<crate::graph::BufferKind>, vk::BufferView)>,
 }
 
 impl BvhHandles {
@@ -142,7 +279,15 @@ impl BvhHandles {
         if let Some((buffer, view)) = &self.masks {
             bound.push((slots.masks, Bound::TexelBuffer(pass.read(buffer, read), *view)));
         }
+        if let Some((buffer, view)) = &self.top {
+            bound.push((slots.top, Bound::TexelBuffer(pass.read(buffer, read), *view)));
+        }
         bound
+    }
+
+    /// The build of the walking shaders these handles need.
+    pub fn variant(&self) -> BvhVariant {
+        BvhVariant { masked: self.masks.is_some(), instanced: self.top.is_some() }
     }
 }
 
@@ -153,22 +298,28 @@ pub struct BvhSlots {
     pub root: u32,
     /// Bound in the masked variant only.
     pub masks: u32,
+    /// Bound in the instanced (two-level) variant only.
+    pub top: u32,
 }
 
 impl BvhSlots {
-    /// `bindings` with the BVH's added (its alpha masks' where `masked`).
+    /// `bindings` with the BVH's added (its alpha masks' and top level's where `variant` has
+    /// them).
     pub fn with(
         &self,
         bindings: &[(u32, crate::vk::DescriptorKind)],
-        masked: bool,
+        variant: BvhVariant,
     ) -> Vec<(u32, crate::vk::DescriptorKind)> {
         use crate::vk::DescriptorKind;
         let mut all = bindings.to_vec();
         all.push((self.nodes, DescriptorKind::UniformTexelBuffer));
         all.push((self.triangles, DescriptorKind::UniformTexelBuffer));
         all.push((self.root, DescriptorKind::UniformBuffer));
-        if masked {
+        if variant.masked {
             all.push((self.masks, DescriptorKind::UniformTexelBuffer));
+        }
+        if variant.instanced {
+            all.push((self.top, DescriptorKind::UniformTexelBuffer));
         }
         all
     }

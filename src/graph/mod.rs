@@ -204,7 +204,14 @@ impl<'a> RenderGraph<'a> {
     /// Marks a result as leaving the graph, to be used next with `access`: the passes that lead
     /// to it survive culling and a final barrier brings it to that access.
     pub fn export<K>(&mut self, handle: Handle<K>, access: Access) {
-        self.check_version(&handle);
+        self.export_version(&handle, access);
+    }
+
+    /// `export` of the handle's current version, which later passes may still read (a write
+    /// after this call would leave the export stale, which `check_version` catches at the
+    /// write's next use).
+    pub fn export_version<K>(&mut self, handle: &Handle<K>, access: Access) {
+        self.check_version(handle);
         self.exports.push(ExportDecl { resource: handle.id, access });
     }
 

@@ -29,14 +29,26 @@ struct Push {
 
 /// Where ao.comp binds the BVH.
 const BVH_SLOTS: crate::gpu::BvhSlots =
-    crate::gpu::BvhSlots { nodes: AO_BVH_NODES, triangles: AO_BVH_TRIANGLES, root: AO_BVH_ROOT, masks: AO_BVH_MASKS };
+    crate::gpu::BvhSlots {
+        nodes: AO_BVH_NODES,
+        triangles: AO_BVH_TRIANGLES,
+        root: AO_BVH_ROOT,
+        masks: AO_BVH_MASKS,
+        top: AO_BVH_TOP,
+    };
 
-/// `masked`: the variant that reads alpha masks, for scenes with alpha-masked casters.
-pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+/// `variant`: the build for the scene's casters (alpha masks, two levels).
+pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuResult<ComputePipeline> {
     let bindings = [sampled(AO_POSITION), sampled(AO_NORMAL), sampled(AO_SURFACE), storage_image(AO_OUTPUT)];
-    let bindings = BVH_SLOTS.with(&bindings, masked);
-    let spirv = if masked { spirv::LIGHTING_AO_COMP_MASKED } else { spirv::LIGHTING_AO_COMP };
-    ComputePipeline::new(ctx, "ambient occlusion", spirv, &bindings, 32, TILE)
+    let bindings = BVH_SLOTS.with(&bindings, variant);
+    let names = [
+        "ambient occlusion",
+        "ambient occlusion (alpha masks)",
+        "ambient occlusion (two levels)",
+        "ambient occlusion (alpha masks, two levels)",
+    ];
+    let spirv = variant.spirv(spirv::LIGHTING_AO_COMP_WALKS);
+    ComputePipeline::new(ctx, variant.name(names), spirv, &bindings, 32, TILE)
 }
 
 pub fn view_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {

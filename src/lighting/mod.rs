@@ -122,7 +122,7 @@ pub struct Prepared<'a> {
 }
 
 /// What a frame with `view` needs for `lighting` (`environment` on the device), its passes'
-/// pipelines from the cache; AO and rect-light rays read alpha masks when `masked`.
+/// pipelines from the cache, in the build `variant` of the BVH walk the scene's casters need.
 #[allow(clippy::too_many_arguments)]
 pub fn prepare<'a>(
     pipelines: crate::vk::PipelineSource<'a>,
@@ -131,12 +131,12 @@ pub fn prepare<'a>(
     rect_lights: Option<&'a rects::RectsGpu>,
     area: Option<&'a AreaTables>,
     view: Option<crate::config::DebugView>,
-    masked: bool,
+    variant: crate::gpu::BvhVariant,
 ) -> GpuResult<Prepared<'a>> {
     use crate::vk::PipelineKey;
     let mut prepared = Prepared::default();
     let ao_pipeline =
-        || pipelines.compute(PipelineKey::new("ambient occlusion", masked as u32), |ctx| ao::pipeline(ctx, masked));
+        || pipelines.compute(PipelineKey::new("ambient occlusion", variant.bits()), |ctx| ao::pipeline(ctx, variant));
     match view {
         Some(crate::config::DebugView::AmbientOcclusion) => {
             let params = lighting.ambient_occlusion.ok_or_else(|| {
@@ -151,8 +151,8 @@ pub fn prepare<'a>(
         None => {
             prepared.area = area;
             if let Some(r) = rect_lights {
-                let key = PipelineKey::new("rect lights", masked as u32);
-                prepared.rects = Some((r, pipelines.compute(key, |ctx| rects::pipeline(ctx, masked))?));
+                let key = PipelineKey::new("rect lights", variant.bits());
+                prepared.rects = Some((r, pipelines.compute(key, |ctx| rects::pipeline(ctx, variant))?));
             }
             if let Some(environment) = environment {
                 let occlusion = lighting.occlusion_of_environment();

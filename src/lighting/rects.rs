@@ -75,10 +75,11 @@ const BVH_SLOTS: crate::gpu::BvhSlots = crate::gpu::BvhSlots {
     triangles: RECT_BVH_TRIANGLES,
     root: RECT_BVH_ROOT,
     masks: RECT_BVH_MASKS,
+    top: RECT_BVH_TOP,
 };
 
-/// `masked`: the variant that reads alpha masks, for scenes with alpha-masked casters.
-pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
+/// `variant`: the build for the scene's casters (alpha masks, two levels).
+pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuResult<ComputePipeline> {
     let bindings = [
         sampled(RECT_POSITION),
         sampled(RECT_NORMAL),
@@ -91,9 +92,10 @@ pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipelin
         (RECT_SURFACE, crate::vk::DescriptorKind::SampledImage),
     ];
     let size = std::mem::size_of::<Push>() as u32;
-    let bindings = BVH_SLOTS.with(&bindings, masked);
-    let spirv = if masked { spirv::LIGHTING_RECT_LIGHTS_COMP_MASKED } else { spirv::LIGHTING_RECT_LIGHTS_COMP };
-    ComputePipeline::new(ctx, "rect lights", spirv, &bindings, size, TILE)
+    let bindings = BVH_SLOTS.with(&bindings, variant);
+    let names = ["rect lights", "rect lights (alpha masks)", "rect lights (two levels)", "rect lights (alpha masks, two levels)"];
+    let spirv = variant.spirv(spirv::LIGHTING_RECT_LIGHTS_COMP_WALKS);
+    ComputePipeline::new(ctx, variant.name(names), spirv, &bindings, size, TILE)
 }
 
 /// `radiance` with the rect lights added (a new image).

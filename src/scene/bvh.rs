@@ -12,6 +12,7 @@ use obvhs::triangle::Triangle;
 
 use super::Scene;
 
+pub mod levels;
 pub mod mask;
 mod ploc;
 mod ray_offset;

@@ -24,7 +24,7 @@ use std::collections::BTreeMap;
 
 use ash::vk;
 
-use self::traced::accel::{RayQueryHandles, RayQueryScene};
+use crate::gpu::accel::RayQueryScene;
 use self::volumes::VolumeScene;
 use crate::config::{DebugView, RenderSettings, ShadowChoice, ShadowMethod};
 use crate::gpu::{BvhHandles, CameraMatrices, SceneGpu};
@@ -92,7 +92,7 @@ pub trait Technique: Sync {
         &self,
         g: &mut RenderGraph<'a>,
         frame: &FrameInputs<'_, 'a>,
-        casters: &Casters,
+        casters: &Casters<'_>,
         served: &[Served],
         target: &mut Handle<ImageKind>,
     ) -> GpuResult<Option<Handle<ImageKind>>>;
@@ -137,11 +137,7 @@ pub enum Walk {
     RayQuery,
 }
 
-/// The casters as this frame's graph sees them, each imported once where a technique walks it.
-pub struct Casters {
-    pub bvh: Option<BvhHandles>,
-    pub ray_query: Option<RayQueryHandles>,
-}
+pub use crate::gpu::Casters;
 
 /// What every technique may read: the frame's G-buffer, scene buffers, camera and size, and
 /// where its pipelines and the casters' other structures are.
@@ -153,6 +149,8 @@ pub struct FrameInputs<'h, 'a> {
     pub vertices: &'h Handle<BufferKind>,
     pub indices: &'h Handle<BufferKind>,
     pub lights: &'h Handle<BufferKind>,
+    /// The compute BVH, imported once for every pass of the frame that walks it.
+    pub bvh: &'h BvhHandles,
     pub camera: &'h CameraMatrices,
     pub extent: vk::Extent2D,
     /// Seeds stochastic samples, so successive frames draw fresh ones.
@@ -337,7 +335,6 @@ pub fn add<'a>(
     frame: &FrameInputs<'_, 'a>,
     plan: &ShadowPlan,
 ) -> GpuResult<Option<Visibility>> {
-    use crate::gpu::SCENE_ACCESS;
     use crate::passes::visibility;
     if plan.layers.count() == 0 {
         return Ok(None);
@@ -348,10 +345,8 @@ pub fn add<'a>(
     let walks = |walk: Walk| {
         plan.served.iter().any(|(&m, s)| !s.is_empty() && technique(m).is_some_and(|t| t.walks(frame) == walk))
     };
-    let casters = Casters {
-        bvh: walks(Walk::Bvh).then(|| frame.scene.bvh.import(g, SCENE_ACCESS)),
-        ray_query: frame.ray_query.filter(|_| walks(Walk::RayQuery)).map(|rq| rq.add(g)),
-    };
+    let ray_query = frame.ray_query.filter(|_| walks(Walk::RayQuery)).map(|rq| rq.add(g));
+    let casters = Casters { bvh: walks(Walk::Bvh).then_some(frame.bvh), ray_query: ray_query.as_ref() };
     let mut debug = None;
     for t in TECHNIQUES {
         let served = plan.served(t.method());

@@ -388,7 +388,7 @@ fn the_gpu_walk_equals_its_cpu_twin_with_masks() {
 #[test]
 fn ray_query_reads_the_masks_too() {
     use umbra::diagnostics::ray_batch::{Target, TimedBatch};
-    use umbra::shadows::traced::accel::RayQueryScene;
+    use umbra::gpu::accel::RayQueryScene;
     let ctx = common::gpu();
     if !ctx.capabilities.ray_query {
         eprintln!("skipped: {} has no ray query", ctx.device_name());

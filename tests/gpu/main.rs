@@ -51,4 +51,5 @@ mod timings;
 mod trace_variants;
 mod traced_tiles;
 mod transient_cache;
+mod two_level_bvh;
 mod upload;

@@ -8,8 +8,8 @@ use umbra::vk::SamplerDesc;
 #[test]
 fn pipeline_layouts_share_one_sampler_per_description() {
     let ctx = common::gpu();
-    let trace = umbra::shadows::traced::pipeline(&ctx, false, false).unwrap();
-    let again = umbra::shadows::traced::pipeline(&ctx, false, false).unwrap();
+    let trace = umbra::shadows::traced::pipeline(&ctx, Default::default(), false).unwrap();
+    let again = umbra::shadows::traced::pipeline(&ctx, Default::default(), false).unwrap();
     let resolve = umbra::shadows::map::resolve_pipeline(&ctx).unwrap();
     drop(resolve);
     assert_eq!(trace.layout.sampler, again.layout.sampler, "two layouts, one sampler");

@@ -14,7 +14,7 @@ use umbra::vk::Buffer;
 fn run(declare_the_read: bool) -> Vec<String> {
     let ctx = common::gpu();
     let bvh = ShadowBvh::from_triangles(&[[Vec3::ZERO, Vec3::X, Vec3::Y]]);
-    let pipeline = ray_batch::pipeline(&ctx, false).unwrap();
+    let pipeline = ray_batch::pipeline(&ctx, Default::default()).unwrap();
     let usage = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
     let rays = Buffer::new(&ctx, "rays", 64 * 32, usage, MemoryLocation::GpuOnly).unwrap();
     let rays_view = umbra::vk::TexelView::new(&ctx, &rays, ray_batch::RAY_TEXEL_FORMAT).unwrap();

@@ -485,44 +485,14 @@ impl WideBvh {
         tmax: f32,
         deepest: &mut usize,
     ) -> bool {
-        let inv_dir = Vec3::ONE / safe_dir(dir);
-        let mut stack = [0u32; STACK_SIZE];
-        let mut len = 0usize;
-        let (mut group, mut first, mut triangles) = node_step(&self.nodes[0], origin, inv_dir, tmax);
-        loop {
-            while triangles == 0 {
-                if group >> 28 == 0 {
-                    if len == 0 {
-                        return false;
-                    }
-                    len -= 1;
-                    group = stack[len];
-                }
-                let mask = group >> 28;
-                let c = mask.trailing_zeros();
-                let rest = mask & (mask - 1);
-                let child = (group & FIRST_MASK) + c;
-                if rest != 0 {
-                    stack[len.min(STACK_SIZE - 1)] = (group & FIRST_MASK) | rest << 28;
-                    len += 1;
-                    *deepest = (*deepest).max(len);
-                }
-                (group, first, triangles) = node_step(&self.nodes[child as usize], origin, inv_dir, tmax);
+        walk_nodes(&self.nodes, 0, origin, dir, tmax, deepest, |index| {
+            let triangle = &self.triangles[index as usize];
+            match masks {
+                None => triangle_occludes(triangle, origin, dir, tmax),
+                Some(masks) => super::mask::triangle_hit(triangle, origin, dir, tmax)
+                    .is_some_and(|(u, v)| !masks.passes(index, u, v)),
             }
-            while triangles != 0 {
-                let index = first + triangles.trailing_zeros();
-                triangles &= triangles - 1;
-                let triangle = &self.triangles[index as usize];
-                let hit = match masks {
-                    None => triangle_occludes(triangle, origin, dir, tmax),
-                    Some(masks) => super::mask::triangle_hit(triangle, origin, dir, tmax)
-                        .is_some_and(|(u, v)| !masks.passes(index, u, v)),
-                };
-                if hit {
-                    return true;
-                }
-            }
-        }
+        })
     }
 
     /// The triangle buffer's RGBA32UI texels (see the module docs): each triangle's nine floats'
@@ -532,6 +502,54 @@ impl WideBvh {
             self.triangles.iter().flatten().flat_map(|v| v.to_array().map(f32::to_bits)).collect();
         words.resize(4 * triangle_texel_count(self.triangles.len()), 0);
         words.chunks_exact(4).map(|t| [t[0], t[1], t[2], t[3]]).collect()
+    }
+}
+
+/// The walk of bvh.glsl's `bvh_walk` over `nodes` from node `root`: descend until a node has
+/// leaf items to test, then hand each to `leaf` (true: occluded, the walk ends). The items are
+/// triangles in a bottom-level tree and instances in the top level (`levels.rs`), whose leaf
+/// test walks a bottom tree in turn. Records in `deepest` the most entries its stack held.
+#[inline(always)]
+pub(super) fn walk_nodes(
+    nodes: &[WideNode],
+    root: usize,
+    origin: Vec3,
+    dir: Vec3,
+    tmax: f32,
+    deepest: &mut usize,
+    mut leaf: impl FnMut(u32) -> bool,
+) -> bool {
+    let inv_dir = Vec3::ONE / safe_dir(dir);
+    let mut stack = [0u32; STACK_SIZE];
+    let mut len = 0usize;
+    let (mut group, mut first, mut items) = node_step(&nodes[root], origin, inv_dir, tmax);
+    loop {
+        while items == 0 {
+            if group >> 28 == 0 {
+                if len == 0 {
+                    return false;
+                }
+                len -= 1;
+                group = stack[len];
+            }
+            let mask = group >> 28;
+            let c = mask.trailing_zeros();
+            let rest = mask & (mask - 1);
+            let child = (group & FIRST_MASK) + c;
+            if rest != 0 {
+                stack[len.min(STACK_SIZE - 1)] = (group & FIRST_MASK) | rest << 28;
+                len += 1;
+                *deepest = (*deepest).max(len);
+            }
+            (group, first, items) = node_step(&nodes[child as usize], origin, inv_dir, tmax);
+        }
+        while items != 0 {
+            let index = first + items.trailing_zeros();
+            items &= items - 1;
+            if leaf(index) {
+                return true;
+            }
+        }
     }
 }
 

@@ -85,7 +85,7 @@ impl super::Technique for Evsm {
         &self,
         g: &mut RenderGraph<'a>,
         frame: &FrameInputs<'_, 'a>,
-        _: &Casters,
+        _: &Casters<'_>,
         served: &[Served],
         target: &mut Handle<ImageKind>,
     ) -> GpuResult<Option<Handle<ImageKind>>> {

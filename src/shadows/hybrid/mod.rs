@@ -170,19 +170,18 @@ impl super::Technique for Hybrid {
         &self,
         g: &mut RenderGraph<'a>,
         frame: &FrameInputs<'_, 'a>,
-        casters: &Casters,
+        casters: &Casters<'_>,
         served: &[Served],
         target: &mut Handle<ImageKind>,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
-        let bvh = casters.bvh.as_ref().expect("shadows::add imports the BVH that `walks` asks for");
-        let casters = map::caster_bounds(frame.scene);
+        let bounds = map::caster_bounds(frame.scene);
         let receivers = map::visible_bounds(frame);
         let mut debug = None;
         for s in served {
             let light = &frame.scene.local_lights[s.light as usize];
-            let map = light_map(s, light, &casters, &receivers);
+            let map = light_map(s, light, &bounds, &receivers);
             let (list, args) = classify(g, frame, s, map.as_ref(), target)?;
-            trace(g, frame, bvh, s, &list, &args, target)?;
+            trace(g, frame, casters, s, &list, &args, target)?;
             if frame.debug_view == Some(DebugView::Hybrid(s.light)) {
                 debug = Some(add_view(g, frame, s, &list, &args, target)?);
             }
@@ -258,7 +257,7 @@ fn classify<'a>(
 fn trace<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    bvh: &crate::gpu::BvhHandles,
+    casters: &Casters<'_>,
     served: &Served,
     list: &Handle<BufferKind>,
     args: &Handle<BufferKind>,
@@ -271,7 +270,7 @@ fn trace<'a>(
     pass.read_layer(target, served.layer, Access::ComputeShaderReadStorageImage);
     let read = Access::ComputeShaderReadSampledImage;
     let storage_read = Access::ComputeShaderReadStorageBuffer;
-    let walk = bvh.bind(&mut pass, &crate::shadows::traced::BVH_SLOTS);
+    let walk = casters.bind(&mut pass, &traced::LIST_CASTER_SLOTS);
     let mut bound = vec![
         (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),

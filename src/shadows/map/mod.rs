@@ -380,7 +380,7 @@ impl super::Technique for Map {
         &self,
         g: &mut RenderGraph<'a>,
         frame: &FrameInputs<'_, 'a>,
-        _: &Casters,
+        _: &Casters<'_>,
         served: &[Served],
         target: &mut Handle<ImageKind>,
     ) -> GpuResult<Option<Handle<ImageKind>>> {

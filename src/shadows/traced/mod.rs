@@ -7,7 +7,7 @@
 //! and soft lights run their own pipeline variant, made only when a frame has such
 //! a light. Writes each served light's visibility layer (1 lit, 0 shadowed).
 
-pub mod accel;
+
 pub mod params;
 
 use std::sync::Arc;
@@ -15,11 +15,11 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 
-use self::accel::RayQuerySlots;
+use crate::gpu::accel::RayQuerySlots;
 use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served, Walk};
 use crate::config::{ShadowChoice, ShadowMethod};
-use crate::gpu::BvhSlots;
+use crate::gpu::{BvhSlots, BvhVariant, CasterSlots};
 use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, TILE};
 use crate::scene::Light;
@@ -74,7 +74,7 @@ impl super::Technique for Traced {
         &self,
         g: &mut RenderGraph<'a>,
         frame: &FrameInputs<'_, 'a>,
-        casters: &Casters,
+        casters: &Casters<'_>,
         served: &[Served],
         target: &mut Handle<ImageKind>,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
@@ -94,9 +94,9 @@ fn trace_pipeline<'a>(frame: &FrameInputs<'_, 'a>, rays: Rays) -> GpuResult<&'a 
             frame.pipelines.compute(key, |ctx| ray_query_pipeline(ctx, masked, soft))
         }
         None => {
-            let masked = frame.scene.bvh.masked();
-            let key = PipelineKey::new("shadow trace", variant_bits(masked, soft));
-            frame.pipelines.compute(key, |ctx| pipeline(ctx, masked, soft))
+            let variant = frame.scene.bvh.variant();
+            let key = PipelineKey::new("shadow trace", variant.bits() | (soft as u32) << 2);
+            frame.pipelines.compute(key, |ctx| pipeline(ctx, variant, soft))
         }
     }
 }
@@ -108,9 +108,9 @@ pub fn list_trace_pipeline<'a>(
     list_group: u32,
     rays: Rays,
 ) -> GpuResult<&'a ComputePipeline> {
-    let (masked, soft) = (frame.scene.bvh.masked(), is_soft(rays));
-    let key = PipelineKey::new("shadow trace (list)", variant_bits(masked, soft) | list_group << 2);
-    frame.pipelines.compute(key, |ctx| list_pipeline(ctx, list_group, masked, soft))
+    let (variant, soft) = (frame.scene.bvh.variant(), is_soft(rays));
+    let key = PipelineKey::new("shadow trace (list)", variant.bits() | (soft as u32) << 2 | list_group << 3);
+    frame.pipelines.compute(key, |ctx| list_pipeline(ctx, list_group, variant, soft))
 }
 
 /// A trace variant's bits in its cache key.
@@ -135,7 +135,14 @@ pub const BVH_SLOTS: BvhSlots = BvhSlots {
     triangles: SHADOW_BVH_TRIANGLES,
     root: SHADOW_BVH_ROOT,
     masks: SHADOW_BVH_MASKS,
+    top: SHADOW_BVH_TOP,
 };
+
+/// Where the trace shaders bind the casters: the compute walk's slots, or the driver's.
+pub const CASTER_SLOTS: CasterSlots = CasterSlots { bvh: BVH_SLOTS, ray_query: Some(RAY_QUERY_SLOTS) };
+
+/// Where trace_list.comp binds them: it walks the compute BVH only.
+pub const LIST_CASTER_SLOTS: CasterSlots = CasterSlots { bvh: BVH_SLOTS, ray_query: None };
 
 /// The compute-BVH trace's bindings (trace.comp and trace_list.comp) but the BVH's.
 const BVH_BINDINGS: [(u32, DescriptorKind); 6] = [
@@ -150,32 +157,52 @@ const BVH_BINDINGS: [(u32, DescriptorKind); 6] = [
 /// Where trace_rq.comp binds the structures.
 const RAY_QUERY_SLOTS: RayQuerySlots = RayQuerySlots { tlas: SHADOW_TLAS, masks: SHADOW_BVH_MASKS };
 
-/// The trace over the compute BVH; `masked`: the variant that reads alpha masks (bvh.glsl's
-/// BVH_MASKED), for scenes with alpha-masked casters only; `soft`: soft lights' variant.
-pub fn pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> GpuResult<ComputePipeline> {
-    let names =
-        ["shadow trace", "shadow trace (alpha masks)", "shadow trace (soft)", "shadow trace (soft, alpha masks)"];
-    let spirv = if masked { spirv::SHADOWS_TRACED_TRACE_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_COMP };
-    let bindings = BVH_SLOTS.with(&BVH_BINDINGS, masked);
-    let name = variant_name(names, masked, soft);
-    ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
+/// The trace over the compute BVH; `variant`: the build for the scene's casters (bvh.glsl's
+/// BVH_MASKED for alpha-masked casters, BVH_INSTANCED for two levels); `soft`: soft lights'
+/// variant.
+pub fn pipeline(ctx: &Arc<GpuContext>, variant: BvhVariant, soft: bool) -> GpuResult<ComputePipeline> {
+    let names = if soft {
+        [
+            "shadow trace (soft)",
+            "shadow trace (soft, alpha masks)",
+            "shadow trace (soft, two levels)",
+            "shadow trace (soft, alpha masks, two levels)",
+        ]
+    } else {
+        ["shadow trace", "shadow trace (alpha masks)", "shadow trace (two levels)", "shadow trace (alpha masks, two levels)"]
+    };
+    let spirv = variant.spirv(spirv::SHADOWS_TRACED_TRACE_COMP_WALKS);
+    let bindings = BVH_SLOTS.with(&BVH_BINDINGS, variant);
+    ComputePipeline::specialized(ctx, variant.name(names), spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
 }
 
 /// The same rays over the compute BVH for the pixels of a list only (`hybrid`), one
 /// invocation per listed pixel, `list_group` to a workgroup (an indirect dispatch).
-pub fn list_pipeline(ctx: &Arc<GpuContext>, list_group: u32, masked: bool, soft: bool) -> GpuResult<ComputePipeline> {
-    let mut bindings = BVH_SLOTS.with(&BVH_BINDINGS, masked);
+pub fn list_pipeline(
+    ctx: &Arc<GpuContext>,
+    list_group: u32,
+    variant: BvhVariant,
+    soft: bool,
+) -> GpuResult<ComputePipeline> {
+    let mut bindings = BVH_SLOTS.with(&BVH_BINDINGS, variant);
     bindings.push((SHADOW_LIST, DescriptorKind::StorageBuffer));
-    let names = [
-        "shadow trace (list)",
-        "shadow trace (list, alpha masks)",
-        "shadow trace (list, soft)",
-        "shadow trace (list, soft, alpha masks)",
-    ];
-    let spirv =
-        if masked { spirv::SHADOWS_TRACED_TRACE_LIST_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_LIST_COMP };
-    let name = variant_name(names, masked, soft);
-    ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, [list_group, 1], &[soft as u32])
+    let names = if soft {
+        [
+            "shadow trace (list, soft)",
+            "shadow trace (list, soft, alpha masks)",
+            "shadow trace (list, soft, two levels)",
+            "shadow trace (list, soft, alpha masks, two levels)",
+        ]
+    } else {
+        [
+            "shadow trace (list)",
+            "shadow trace (list, alpha masks)",
+            "shadow trace (list, two levels)",
+            "shadow trace (list, alpha masks, two levels)",
+        ]
+    };
+    let spirv = variant.spirv(spirv::SHADOWS_TRACED_TRACE_LIST_COMP_WALKS);
+    ComputePipeline::specialized(ctx, variant.name(names), spirv, &bindings, PUSH_SIZE, [list_group, 1], &[soft as u32])
 }
 
 /// The same pass over a top-level acceleration structure; only on devices with ray query.
@@ -228,7 +255,7 @@ pub fn rays(served: &Served, light: &crate::scene::Light) -> Rays {
 fn add<'a>(
     graph: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    casters: &Casters,
+    casters: &Casters<'_>,
     served: &[Served],
     visibility: &mut Handle<ImageKind>,
 ) -> GpuResult<()> {
@@ -243,11 +270,7 @@ fn add<'a>(
         (SHADOW_MATERIAL, Bound::Image(pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage))),
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
-    match (&casters.ray_query, &casters.bvh) {
-        (Some(rq), _) => bound.extend(rq.bind(&mut pass, &RAY_QUERY_SLOTS)),
-        (None, Some(walk)) => bound.extend(walk.bind(&mut pass, &BVH_SLOTS)),
-        (None, None) => unreachable!("shadows::add imports what `walks` asks for"),
-    }
+    bound.extend(casters.bind(&mut pass, &CASTER_SLOTS));
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.
     let mut work: Vec<(&ComputePipeline, Push, Bound, [u32; 2])> = Vec::new();

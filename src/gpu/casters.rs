@@ -1,0 +1,53 @@
+//! The shadow casters as a frame's graph holds them, one type for every pass that traces rays
+//! (shadows, hybrid's list, ambient occlusion, rect lights, `bench rays`): the compute BVH's
+//! buffers (`bvh.rs`, one level or two) and the driver's acceleration structures (`accel.rs`),
+//! each imported once per frame where some pass walks it.
+
+use super::accel::{RayQueryHandles, RayQuerySlots};
+use super::bvh::{BvhHandles, BvhSlots, BvhVariant};
+use crate::graph::{Bound, PassBuilder};
+
+/// The casters as this frame's graph sees them, each imported once where a pass walks it.
+pub struct Casters<'h> {
+    pub bvh: Option<&'h BvhHandles>,
+    pub ray_query: Option<&'h RayQueryHandles>,
+}
+
+/// Where a shader binds the casters: the compute walk's slots and the ray-query build's.
+pub struct CasterSlots {
+    pub bvh: BvhSlots,
+    pub ray_query: Option<RayQuerySlots>,
+}
+
+impl<'h> Casters<'h> {
+    /// The compute BVH alone.
+    pub fn bvh(handles: &'h BvhHandles) -> Casters<'h> {
+        Casters { bvh: Some(handles), ray_query: None }
+    }
+
+    /// The driver's structures alone.
+    pub fn ray_query(handles: &'h RayQueryHandles) -> Casters<'h> {
+        Casters { bvh: None, ray_query: Some(handles) }
+    }
+
+    /// Declares `pass`'s reads of what it walks, the driver's structures where the frame has
+    /// them (and `slots` a place for them), else the compute BVH, and returns them bound.
+    pub fn bind(&self, pass: &mut PassBuilder<'_, '_>, slots: &CasterSlots) -> Vec<(u32, Bound)> {
+        match (&self.ray_query, &slots.ray_query, &self.bvh) {
+            (Some(rq), Some(rq_slots), _) => rq.bind(pass, rq_slots),
+            (_, _, Some(bvh)) => bvh.bind(pass, &slots.bvh),
+            _ => unreachable!("a pass binds casters its frame imported"),
+        }
+    }
+
+    /// Whether `bind` binds the driver's structures.
+    pub fn walks_ray_query(&self, slots: &CasterSlots) -> bool {
+        self.ray_query.is_some() && slots.ray_query.is_some()
+    }
+
+    /// The build of the compute walk's shaders these casters need (plain where only the
+    /// driver's structures were imported).
+    pub fn variant(&self) -> BvhVariant {
+        self.bvh.map(BvhHandles::variant).unwrap_or_default()
+    }
+}

@@ -68,7 +68,6 @@
 #define RAYS_TLAS 4
 #define RAYS_BVH_MASKS 5
 #define RAYS_BVH_ROOT 6
-#define RAYS_BVH_TOP 16
 
 // overlay.comp: text over the presented image
 #define OVERLAY_CANVAS 0
@@ -105,8 +104,6 @@
 #define SHADOW_MATERIAL 10
 // shadows/traced/trace*.comp: the BVH's root node as a uniform block (bvh.glsl)
 #define SHADOW_BVH_ROOT 11
-// shadows/traced/trace*.comp's instanced variants: the top level of a two-level BVH (bvh.glsl)
-#define SHADOW_BVH_TOP 16
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
@@ -155,7 +152,6 @@
 #define AO_VIEW_OUTPUT 6
 #define AO_BVH_MASKS 7
 #define AO_BVH_ROOT 8
-#define AO_BVH_TOP 16
 
 // lighting/rect_lights.comp: rect lights' unshadowed LTC shading added to compose's radiance,
 // times their traced visibility (ratio estimator), and their emitters where the camera sees
@@ -173,7 +169,6 @@
 #define RECT_BVH_TRIANGLES 10
 #define RECT_BVH_MASKS 11
 #define RECT_BVH_ROOT 12
-#define RECT_BVH_TOP 16
 
 // lighting/envmap_*.comp: an environment map's precompute at load (src/lighting/envmap.rs)
 #define ENVMAP_SOURCE 0

@@ -13,7 +13,6 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 #define BVH_NODES_BINDING RECT_BVH_NODES
 #define BVH_TRIANGLES_BINDING RECT_BVH_TRIANGLES
 #define BVH_ROOT_BINDING RECT_BVH_ROOT
-#define BVH_TOP_BINDING RECT_BVH_TOP
 #define BVH_MASKS_BINDING RECT_BVH_MASKS
 #include "bvh.glsl"
 #include "gbuffer.glsl"

@@ -21,6 +21,7 @@ use obvhs::triangle::Triangle;
 
 use crate::diagnostics::ray_batch::{self, GpuRay, Target, TimedBatch};
 use crate::gpu::BvhBuffers;
+use crate::scene::bvh::levels::{Placement, TwoLevel};
 use crate::scene::bvh::{caster_triangles, offset_ray_origin, ShadowBvh};
 use crate::scene::{Light, Scene};
 use crate::gpu::accel::RayQueryScene;
@@ -78,6 +79,45 @@ pub struct Outcome {
     pub report: String,
 }
 
+/// Instances of the top-level build's benchmark (`top_level_build_ms`), and its rounds.
+const TOP_BENCH_INSTANCES: usize = 10_000;
+const TOP_BENCH_ROUNDS: usize = 9;
+
+/// Median time of `TwoLevel::place` over `TOP_BENCH_INSTANCES` placements of `levels`' first
+/// tree, scattered and turned at random (a fixed seed): what a frame in which that many
+/// instances moved spends on the CPU before its upload.
+fn top_level_build_ms(levels: &mut TwoLevel) -> f64 {
+    let mut seed = 0x7091u64;
+    let mut next = move || {
+        seed = seed.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1_442_695_040_888_963_407);
+        (seed >> 40) as f32 / (1u64 << 24) as f32
+    };
+    let side = (TOP_BENCH_INSTANCES as f32).sqrt() * 4.0;
+    let placements: Vec<Placement> = (0..TOP_BENCH_INSTANCES)
+        .map(|_| {
+            let at = glam::Vec3::new(next() * side, next() * 4.0, next() * side);
+            let turn = glam::Quat::from_rotation_y(next() * std::f32::consts::TAU);
+            Placement { bottom: 0, to_world: glam::Affine3A::from_rotation_translation(turn, at) }
+        })
+        .collect();
+    levels.make_room(TOP_BENCH_INSTANCES);
+    let mut times: Vec<f64> = (0..TOP_BENCH_ROUNDS)
+        .map(|_| {
+            let start = Instant::now();
+            levels.place(&placements);
+            start.elapsed().as_secs_f64() * 1e3
+        })
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times[times.len() / 2]
+}
+
+/// Device bytes an instance adds beyond its tree: its record and its share of the top tree's
+/// nodes (at most one node per instance, `BvhBuffers::upload_levels`).
+fn level_bytes_per_instance() -> usize {
+    16 * (crate::scene::bvh::levels::INSTANCE_TEXELS + crate::scene::bvh::WideNode::TEXELS)
+}
+
 /// Barycentric tolerance under which two f32 implementations may disagree (as the tests use).
 const EDGE_EPS: f64 = 1e-6;
 
@@ -125,6 +165,14 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let batch = std::cell::RefCell::new(TimedBatch::new(&ctx, &gpu_rays)?);
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
     let pipeline = ray_batch::pipeline(&ctx, buffers.variant())?;
+    // The same casters as a moving scene's static group: one bottom tree placed once at the
+    // identity, walked through the top level (what two levels cost a ray where nothing moves).
+    let identity = [Placement { bottom: 0, to_world: glam::Affine3A::IDENTITY }];
+    let mut levels = TwoLevel::build(vec![tris.clone()], None, &identity);
+    let level_buffers = BvhBuffers::upload_levels(&ctx, &levels)?;
+    let level_pipeline = ray_batch::pipeline(&ctx, level_buffers.variant())?;
+    // (After the upload: the device keeps the identity placement.)
+    let top_ms = top_level_build_ms(&mut levels);
     // The ray query as the renderer builds it (the casters in the BVH's leaf order), and with
     // `file_order` also over the casters in the scene's own order. (Masked casters were refused
     // above: no masks.)
@@ -166,10 +214,13 @@ pub fn run(options: &Options) -> Result<Outcome> {
     // Every tracer once per round, the rounds one after another, so that the machine's speed,
     // which drifts over minutes, weighs on all of them alike.
     // In this order: the compute traversal, the ray query where there is one, the CPU tracers.
-    let mut tracers: Vec<Tracer<'_>> = vec![Tracer::new(
-        "compute BVH (device)",
-        Box::new(|| batch_trace(&batch, &pipeline, &Target::Compute(&buffers))),
-    )];
+    let mut tracers: Vec<Tracer<'_>> = vec![
+        Tracer::new("compute BVH (device)", Box::new(|| batch_trace(&batch, &pipeline, &Target::Compute(&buffers)))),
+        Tracer::new(
+            "compute, 2 levels",
+            Box::new(|| batch_trace(&batch, &level_pipeline, &Target::Compute(&level_buffers))),
+        ),
+    ];
     if let Some(rq_pipeline) = &rq_pipeline {
         for (label, scene) in &ray_queries {
             let batch = &batch;
@@ -190,7 +241,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
     }
     let hits: Vec<Vec<bool>> = tracers.iter_mut().map(|t| t.hits.take().expect("traced at least once")).collect();
     let gpu_hits = &hits[0];
-    let rq_disagree = (first_cpu > 1).then(|| gpu_hits.iter().zip(&hits[1]).filter(|(a, b)| a != b).count());
+    let rq_disagree = (first_cpu > 2).then(|| gpu_hits.iter().zip(&hits[2]).filter(|(a, b)| a != b).count());
     // Each tracer against the CPU tracer with the lowest median: the median of the ratios of
     // their times in the same round.
     let best = tracers[first_cpu..]
@@ -229,13 +280,16 @@ pub fn run(options: &Options) -> Result<Outcome> {
         "{name}: {} {} rays from {width}x{height} ({:.1} % occluded), {} triangles; {} lavapipe/CPU thread(s)\n\
          BVH build {build_ms:.0} ms (umbra: PLOC + reinsertion + SAH 4-wide collapse), {binary_build_ms:.0} ms \
          (obvhs medium BVH2, as umbra built before), {cw_build_ms:.0} ms (obvhs medium CWBVH); device BVH \
-         {:.1} bytes per triangle\n",
+         {:.1} bytes per triangle\n\
+         top level over {TOP_BENCH_INSTANCES} instances of that tree at random placements: built in {top_ms:.2} ms \
+         (median of {TOP_BENCH_ROUNDS}), {} bytes per instance on the device\n",
         rays.len(),
         format!("{:?}", options.rays).to_lowercase(),
         100.0 * occluded as f64 / rays.len() as f64,
         tris.len(),
         options.threads,
         buffers.bytes() as f64 / tris.len() as f64,
+        level_bytes_per_instance(),
     );
     report += &format!(
         "{:<22} {:>9} {:>8} {:>12} {:>11} {:>12}\n",

@@ -19,13 +19,8 @@ use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuE
 const GROUP: [u32; 2] = [64, 1];
 
 /// Where bvh_rays.comp binds the BVH.
-const BVH_SLOTS: BvhSlots = BvhSlots {
-    nodes: RAYS_BVH_NODES,
-    triangles: RAYS_BVH_TRIANGLES,
-    root: RAYS_BVH_ROOT,
-    masks: RAYS_BVH_MASKS,
-    top: RAYS_BVH_TOP,
-};
+const BVH_SLOTS: BvhSlots =
+    BvhSlots { nodes: RAYS_BVH_NODES, triangles: RAYS_BVH_TRIANGLES, root: RAYS_BVH_ROOT, masks: RAYS_BVH_MASKS };
 
 /// Where bvh_rays.comp and bvh_rays_rq.comp bind the casters.
 const CASTER_SLOTS: CasterSlots =

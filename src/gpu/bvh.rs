@@ -24,12 +24,11 @@ pub struct BvhBuffers {
     /// The root node again, as a uniform buffer: every ray reads it (bvh.glsl's `BvhRoot`). In
     /// two levels, the top tree's root and where its nodes start.
     pub root: Buffer,
-    /// Two levels only: instance records, then the top tree's nodes (`levels.rs`), with room
-    /// for the most nodes a top tree over its instances can have.
-    pub top: Option<TexelBuffer>,
-    /// The top buffer's and root's new texels, where placements changed since the last frame:
-    /// the next frame's first pass writes them (`import`).
-    pending: Mutex<Option<(Vec<[u32; 4]>, [[u32; 4]; 4])>>,
+    /// Two levels: the nodes end in the top region (`levels.rs`), which moves rewrite.
+    pub levels: bool,
+    /// The top region's first texel and new texels, and the root's, where placements changed
+    /// since the last frame: the next frame's first pass writes them (`import`).
+    pending: Mutex<Option<Pending>>,
 }
 
 /// Which build of a shader that walks the BVH a scene's casters need: with alpha masks
@@ -56,6 +55,9 @@ impl BvhVariant {
         names[self.bits() as usize]
     }
 }
+
+/// A new top level waiting for the next frame: (texel of the node buffer, texels), root texels.
+type Pending = ((usize, Vec<[u32; 4]>), [[u32; 4]; 4]);
 
 /// Bytes one `cmd_update_buffer` may write.
 const UPDATE_LIMIT: usize = 65_536;
@@ -97,24 +99,20 @@ impl BvhBuffers {
             triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
             masks,
             root,
-            top: None,
+            levels: false,
             pending: Mutex::new(None),
         })
     }
 
-    /// Uploads `levels`: its bottom trees as one tree's buffers, its top level, and the root.
+    /// Uploads `levels`: its nodes (the bottom trees' and the top region), triangles, masks and
+    /// root.
     pub fn upload_levels(ctx: &Arc<GpuContext>, levels: &TwoLevel) -> GpuResult<BvhBuffers> {
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         let dst = vk::BufferUsageFlags::TRANSFER_DST;
-        let mut top = levels.top_texels();
-        // A wide tree over n instances has fewer than n nodes (each node holds at least two
-        // children); room for n + 1 keeps every later placement's tree.
-        let capacity = levels.instance_count().max(1) * crate::scene::bvh::levels::INSTANCE_TEXELS
-            + (levels.instance_count() + 1) * WideNode::TEXELS;
         let limit = ctx.capabilities.max_texel_buffer_elements as usize;
-        let node_texels = levels.nodes().len() * WideNode::TEXELS;
+        let nodes = levels.node_texels();
         let triangles = levels.triangle_texels();
-        for (what, texels) in [("nodes", node_texels), ("triangles", triangles.len()), ("top level", capacity)] {
+        for (what, texels) in [("nodes", nodes.len()), ("triangles", triangles.len())] {
             if texels > limit {
                 return Err(GpuError::Unsupported(format!(
                     "the shadow BVH's {what} need {texels} texels in one texel buffer; {} allows at most {limit} \
@@ -123,15 +121,13 @@ impl BvhBuffers {
                 )));
             }
         }
-        top.resize(capacity.max(top.len()), [0; 4]);
         let root = levels.root_texels();
-        let [nodes, triangles, root, top] = upload(
+        let [nodes, triangles, root] = upload(
             ctx,
             [
-                ("bvh nodes", bytemuck::cast_slice(levels.nodes()), texel),
+                ("bvh nodes", bytemuck::cast_slice(&nodes), texel | dst),
                 ("bvh triangles", bytemuck::cast_slice(&triangles), texel),
                 ("bvh root", bytemuck::cast_slice(&root), vk::BufferUsageFlags::UNIFORM_BUFFER | dst),
-                ("bvh top", bytemuck::cast_slice(&top), texel | dst),
             ],
         )?;
         let masks = match levels.masks() {
@@ -146,19 +142,21 @@ impl BvhBuffers {
             triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
             masks,
             root,
-            top: Some(TexelBuffer::new(ctx, top, vk::Format::R32G32B32A32_UINT)?),
+            levels: true,
             pending: Mutex::new(None),
         })
     }
 
-    /// Has the next frame write `levels`' top level and root (after `TwoLevel::place`).
+    /// Has the next frame write `levels`' top region and root (after `TwoLevel::place`).
     /// Returns the bytes the frame will move.
     pub fn place(&self, levels: &TwoLevel) -> u64 {
-        let Some(top) = &self.top else { return 0 };
-        let texels = levels.top_texels();
-        assert!((texels.len() * 16) as u64 <= top.buffer.size, "a top level outgrew its buffer");
+        if !self.levels {
+            return 0;
+        }
+        let (at, texels) = levels.region();
+        assert!(((at + texels.len()) * 16) as u64 <= self.nodes.buffer.size, "a top region outgrew its buffer");
         let bytes = (texels.len() * 16 + 64) as u64;
-        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = Some((texels, levels.root_texels()));
+        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = Some(((at, texels.to_vec()), levels.root_texels()));
         bytes
     }
 
@@ -169,7 +167,7 @@ impl BvhBuffers {
 
     /// The build of the walking shaders these buffers need.
     pub fn variant(&self) -> BvhVariant {
-        BvhVariant { masked: self.masks.is_some(), instanced: self.top.is_some() }
+        BvhVariant { masked: self.masks.is_some(), instanced: self.levels }
     }
 
     /// Uploads `bvh` alone (the ray benchmark and tests; a scene uploads it with its other
@@ -202,29 +200,27 @@ impl BvhBuffers {
             + self.triangles.buffer.size
             + self.root.size
             + self.masks.as_ref().map_or(0, |m| m.buffer.size)
-            + self.top.as_ref().map_or(0, |t| t.buffer.size)
     }
 
     /// Imports the buffers into `g` for a frame's passes to read. In two levels, where
-    /// placements changed since the last frame, a first pass writes the new top level and root
+    /// placements changed since the last frame, a first pass writes the new top region and root
     /// (after every read of the old ones that earlier frames submitted).
     pub fn import<'a>(&'a self, g: &mut RenderGraph<'a>, access: Access) -> BvhHandles {
         let mut root = g.import_buffer("bvh root", &self.root, access);
-        let mut top = self.top.as_ref().map(|t| (g.import_buffer("bvh top", &t.buffer, access), t.view()));
+        let mut nodes = g.import_buffer("bvh nodes", &self.nodes.buffer, access);
         let pending = self.pending.lock().unwrap_or_else(|e| e.into_inner()).take();
-        if let (Some((texels, root_texels)), Some((top_handle, _))) = (pending, top.as_mut()) {
+        if let Some(((at, texels), root_texels)) = pending {
             let mut pass = g.add_pass("bvh top level");
             pass.detail(format!("{} KiB", (texels.len() * 16 + 64) >> 10));
-            let top_dst = pass.write(top_handle, Access::TransferWrite);
+            let nodes_dst = pass.write(&mut nodes, Access::TransferWrite);
             let root_dst = pass.write(&mut root, Access::TransferWrite);
             pass.render(move |ctx| {
                 let bytes: &[u8] = bytemuck::cast_slice(&texels);
                 for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
+                    let offset = (16 * at + k * UPDATE_LIMIT) as u64;
                     // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of 4
-                    // bytes, inside the buffer (`place` checked its size).
-                    unsafe {
-                        ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(top_dst), (k * UPDATE_LIMIT) as u64, chunk)
-                    };
+                    // bytes, inside the buffer (`place` checked).
+                    unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(nodes_dst), offset, chunk) };
                 }
                 // SAFETY: as above; the root holds four texels.
                 unsafe {
@@ -233,17 +229,17 @@ impl BvhBuffers {
                 Ok(())
             });
             // Exported, so the write survives a frame whose passes read neither.
-            g.export_version(top_handle, access);
+            g.export_version(&nodes, access);
             g.export_version(&root, access);
         }
         BvhHandles {
-            nodes: g.import_buffer("bvh nodes", &self.nodes.buffer, access),
+            nodes,
             triangles: g.import_buffer("bvh triangles", &self.triangles.buffer, access),
             root,
             node_view: self.nodes.view(),
             triangle_view: self.triangles.view(),
             masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view())),
-            top,
+            levels: self.levels,
         }
     }
 }
@@ -257,8 +253,8 @@ pub struct BvhHandles {
     pub triangle_view: vk::BufferView,
     /// The alpha masks, in scenes with masked casters.
     pub masks: Option<(crate::graph::Handle<crate::graph::BufferKind>, vk::BufferView)>,
-    /// The top level, in two-level BVHs.
-    pub top: Option<(crate::graph::Handle<crate::graph::BufferKind>, vk::BufferView)>,
+    /// Two levels: the walking shaders take their BVH_INSTANCED build.
+    pub levels: bool,
 }
 
 impl BvhHandles {
@@ -279,15 +275,12 @@ impl BvhHandles {
         if let Some((buffer, view)) = &self.masks {
             bound.push((slots.masks, Bound::TexelBuffer(pass.read(buffer, read), *view)));
         }
-        if let Some((buffer, view)) = &self.top {
-            bound.push((slots.top, Bound::TexelBuffer(pass.read(buffer, read), *view)));
-        }
         bound
     }
 
     /// The build of the walking shaders these handles need.
     pub fn variant(&self) -> BvhVariant {
-        BvhVariant { masked: self.masks.is_some(), instanced: self.top.is_some() }
+        BvhVariant { masked: self.masks.is_some(), instanced: self.levels }
     }
 }
 
@@ -298,13 +291,10 @@ pub struct BvhSlots {
     pub root: u32,
     /// Bound in the masked variant only.
     pub masks: u32,
-    /// Bound in the instanced (two-level) variant only.
-    pub top: u32,
 }
 
 impl BvhSlots {
-    /// `bindings` with the BVH's added (its alpha masks' and top level's where `variant` has
-    /// them).
+    /// `bindings` with the BVH's added (its alpha masks' where `variant` has them).
     pub fn with(
         &self,
         bindings: &[(u32, crate::vk::DescriptorKind)],
@@ -317,9 +307,6 @@ impl BvhSlots {
         all.push((self.root, DescriptorKind::UniformBuffer));
         if variant.masked {
             all.push((self.masks, DescriptorKind::UniformTexelBuffer));
-        }
-        if variant.instanced {
-            all.push((self.top, DescriptorKind::UniformTexelBuffer));
         }
         all
     }

@@ -29,13 +29,7 @@ struct Push {
 
 /// Where ao.comp binds the BVH.
 const BVH_SLOTS: crate::gpu::BvhSlots =
-    crate::gpu::BvhSlots {
-        nodes: AO_BVH_NODES,
-        triangles: AO_BVH_TRIANGLES,
-        root: AO_BVH_ROOT,
-        masks: AO_BVH_MASKS,
-        top: AO_BVH_TOP,
-    };
+    crate::gpu::BvhSlots { nodes: AO_BVH_NODES, triangles: AO_BVH_TRIANGLES, root: AO_BVH_ROOT, masks: AO_BVH_MASKS };
 
 /// `variant`: the build for the scene's casters (alpha masks, two levels).
 pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuResult<ComputePipeline> {

@@ -75,7 +75,6 @@ const BVH_SLOTS: crate::gpu::BvhSlots = crate::gpu::BvhSlots {
     triangles: RECT_BVH_TRIANGLES,
     root: RECT_BVH_ROOT,
     masks: RECT_BVH_MASKS,
-    top: RECT_BVH_TOP,
 };
 
 /// `variant`: the build for the scene's casters (alpha masks, two levels).

@@ -9,7 +9,6 @@ layout(local_size_x_id = 0, local_size_y_id = 1) in;
 #define BVH_NODES_BINDING SHADOW_BVH_NODES
 #define BVH_TRIANGLES_BINDING SHADOW_BVH_TRIANGLES
 #define BVH_ROOT_BINDING SHADOW_BVH_ROOT
-#define BVH_TOP_BINDING SHADOW_BVH_TOP
 #define BVH_MASKS_BINDING SHADOW_BVH_MASKS
 #include "bvh.glsl"
 

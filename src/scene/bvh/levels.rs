@@ -1,31 +1,36 @@
 //! Two levels of shadow BVH, for scenes where something moves: one bottom-level tree per group of
 //! casters that move together (the static casters are one group), each in the 4-wide layout of
-//! `wide.rs` and built once in its own space, and a top-level tree of the same layout over the
-//! groups' placements (instances), rebuilt whenever a placement changes. Rigid motion so costs a
-//! top-level build over a few boxes, never a rebuild of the triangles' trees.
+//! `wide.rs` and built once in its own space, and a top-level tree of the same node layout over
+//! the groups' placements (instances), rebuilt whenever a placement changes. Rigid motion so
+//! costs a top-level build over a few boxes, never a rebuild of the triangles' trees.
 //!
-//! `occluded` is the line-for-line twin of bvh.glsl's `BVH_INSTANCED` walk: the top tree's walk
-//! hands each instance it reaches to the bottom walk, with the ray moved into the instance's
-//! space by its world-to-object matrix. The matrix is affine, so a point at parameter t on the
-//! world ray is the point at t on the moved ray: `tmax` and every hit distance are unchanged.
+//! `occluded` is the line-for-line twin of bvh.glsl's `BVH_INSTANCED` walk: one loop and one
+//! stack for both levels, as the single-level walk. The top tree's lowest nodes have as children
+//! *proxies*: per instance a copy of its bottom tree's root node, all in one run of nodes. Where
+//! the walk goes down to a proxy it pushes a marker, moves the ray into the instance's space by
+//! its world-to-object rows and walks on through the bottom tree; popping the marker restores the
+//! world ray. The rows are affine, so a point at parameter t on the world ray is the point at t on
+//! the moved ray: `tmax` and every hit distance carry over. (Walking the bottom tree in a loop
+//! nested in the top tree's cost 1.4-1.6x the single-level walk on `umbra bench rays`, lavapipe:
+//! both loops' lanes waited for each other.)
 //!
-//! # Layout on the device
-//! - `nodes`, `triangles`: every bottom tree's nodes and triangles one after another, each
-//!   tree's child and triangle indices shifted to where its arrays landed (so a bottom walk
-//!   reads the same buffers as a single-level tree's, from the root node its instance names).
-//! - `top` (one RGBA32UI texel buffer): four texels per instance in the top tree's leaf order,
-//!   the rows of its world-to-object matrix (f32 bits, `x, y, z, translation`) and then its
-//!   bottom tree's root node in `x`; after them, the top tree's nodes (three texels each) from
-//!   texel `4 * instances`.
-//! - the root uniform (`BvhRoot`): the top tree's root node, then a texel whose `x` is the
-//!   texel where the top tree's nodes start.
+//! # Layout on the device: the single-level buffers, the nodes extended
+//! - `nodes`: every bottom tree's nodes one after another (each tree's child and triangle
+//!   indices shifted to where its arrays landed), then the *top region*: the top tree's nodes
+//!   from node `top_start` (its root first), the proxies from node `proxy_start` (instance k's
+//!   at `proxy_start + k`), and from texel `record_start` four texels per instance: the rows of
+//!   its world-to-object matrix (f32 bits, `x, y, z, translation`), then a padding texel. The
+//!   region is rewritten whenever the instances move; its room is fixed at upload.
+//! - `triangles`: every bottom tree's triangles one after another.
+//! - the root uniform (`BvhRoot`): the top tree's root node, then a texel of `proxy_start` and
+//!   `record_start`.
 
 use glam::{Affine3A, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::{node::Bvh2Node, Bvh2};
 
 use super::mask::{BvhMasks, MaskSource};
-use super::wide::{walk_nodes, WideBvh, WideNode};
+use super::wide::{encode, node_step, safe_dir, WideBvh, WideNode, CHILD_INNER, FIRST_MASK, STACK_SIZE};
 use super::ShadowBvh;
 
 /// Where one bottom tree is drawn: its group's object-to-world transform (in the renderer's
@@ -36,69 +41,70 @@ pub struct Placement {
     pub to_world: Affine3A,
 }
 
-/// Texels per instance record in the top buffer.
+/// Texels per instance record (its three rows and a padding texel).
 pub const INSTANCE_TEXELS: usize = 4;
-/// Instances per leaf of the top tree (its median split stops there).
+/// Instances under one of the top tree's lowest nodes (its median split stops there).
 const TOP_LEAF_SIZE: usize = 4;
+/// The stack entry that marks where a walk entered an instance (a group with no children, which
+/// the walk never pushes otherwise).
+const ENTERED: u32 = 0;
 
 /// The bottom trees, concatenated as uploaded, and the top tree over their placements.
 pub struct TwoLevel {
     bottoms: Vec<ShadowBvh>,
     /// Each bottom tree's root node in `nodes`.
     roots: Vec<u32>,
-    /// Each bottom tree's first triangle in `triangles`.
-    triangle_bases: Vec<u32>,
+    /// The bottom trees' nodes, then the top region (see the module docs).
     nodes: Vec<WideNode>,
     triangles: Vec<[Vec3; 3]>,
     masks: Option<BvhMasks>,
-    top: Top,
-    triangle_count: usize,
-}
-
-/// The top tree: its nodes over the instances' world boxes, and the instance records in its leaf
-/// order.
-#[derive(Default)]
-struct Top {
-    wide: WideBvh,
-    records: Vec<[u32; 4]>,
+    /// Nodes of the bottom trees: where the top region starts.
+    top_start: u32,
+    /// The most instances the top region has room for (`with_room`).
+    room: usize,
+    /// The current placements in proxy order, and the top region's texels.
     placements: Vec<Placement>,
+    region: Vec<[u32; 4]>,
+    triangle_count: usize,
 }
 
 impl TwoLevel {
     /// Builds a bottom tree over each group of `groups` (triangles in the group's own space;
     /// each triangle's index in the concatenation of all groups is its index in `masks`, where
-    /// the casters have alpha masks), then the top tree over `placements`.
+    /// the casters have alpha masks), then the top tree over `placements`, with room in the top
+    /// region for as many placements as `placements` has.
     pub fn build(groups: Vec<Vec<[Vec3; 3]>>, masks: Option<&MaskSource>, placements: &[Placement]) -> TwoLevel {
         let bottoms: Vec<ShadowBvh> = groups.into_iter().map(ShadowBvh::from_triangle_vec).collect();
         let mut levels = TwoLevel {
             roots: Vec::with_capacity(bottoms.len()),
-            triangle_bases: Vec::with_capacity(bottoms.len()),
             nodes: Vec::new(),
             triangles: Vec::new(),
             masks: None,
-            top: Top::default(),
+            top_start: 0,
+            room: placements.len(),
+            placements: Vec::new(),
+            region: Vec::new(),
             triangle_count: bottoms.iter().map(ShadowBvh::triangle_count).sum(),
             bottoms: Vec::new(),
         };
-        // Where each group's input triangles start, and every leaf's input triangle.
+        // Every leaf's input triangle, over the groups' concatenated inputs.
         let mut order = Vec::new();
         let mut input_base = 0u32;
         for bottom in &bottoms {
             let wide = bottom.wide();
             let (node_base, triangle_base) = (levels.nodes.len() as u32, levels.triangles.len() as u32);
             levels.roots.push(node_base);
-            levels.triangle_bases.push(triangle_base);
             levels.nodes.extend(wide.nodes.iter().map(|&node| shifted(node, node_base, triangle_base)));
             levels.triangles.extend_from_slice(&wide.triangles);
             if bottom.is_empty() {
-                // The empty tree's one dummy triangle belongs to no input.
-                order.push(u32::MAX);
+                order.push(u32::MAX); // the empty tree's dummy triangle belongs to no input
             } else {
                 order.extend(wide.order.iter().map(|&k| k + input_base));
             }
             input_base += bottom.triangle_count() as u32;
         }
         assert!(levels.triangles.len() < super::wide::MAX_TRIANGLES, "the bottom trees exceed the layout's 2^28");
+        levels.top_start = levels.nodes.len() as u32;
         levels.masks = masks.map(|source| BvhMasks::new(source, &order));
         levels.bottoms = bottoms;
         levels.place(placements);
@@ -106,61 +112,145 @@ impl TwoLevel {
     }
 
     /// Rebuilds the top tree over `placements` (the bottom trees stay): what a frame in which
-    /// something moved rigidly costs.
+    /// something moved rigidly costs. Placements of empty groups are left out; at most `room`
+    /// are kept (the rest are dropped with a warning: the device's region has no room for them).
     pub fn place(&mut self, placements: &[Placement]) {
-        let drawn: Vec<Placement> =
+        let mut drawn: Vec<Placement> =
             placements.iter().copied().filter(|p| !self.bottoms[p.bottom].is_empty()).collect();
+        if drawn.len() > self.room {
+            log::warn!("{} instances placed where room was made for {}: the rest cast no shadow", drawn.len(), self.room);
+            drawn.truncate(self.room);
+        }
         let boxes: Vec<Aabb> = drawn.iter().map(|p| world_box(&self.bottoms[p.bottom], &p.to_world)).collect();
-        let bvh = if boxes.is_empty() { Bvh2::default() } else { median_split_boxes(&boxes) };
-        // The collapse reads boxes from the binary nodes; its triangles are unused here (a box's
-        // corners stand in for each instance's).
-        let stand_ins: Vec<[Vec3; 3]> = boxes.iter().map(|b| [b.min.into(), b.max.into(), b.max.into()]).collect();
-        let wide = WideBvh::from_bvh2(&bvh, &stand_ins);
-        let placements: Vec<Placement> = if drawn.is_empty() {
-            Vec::new()
-        } else {
-            wide.order.iter().map(|&k| drawn[k as usize]).collect()
+        let mut top = TopBuild {
+            boxes: &boxes,
+            nodes: vec![WideNode::default()], // a root without children hits nothing
+            proxies: Vec::new(),
+            top_start: self.top_start,
+            proxy_start: self.proxy_start(),
         };
-        let mut records = Vec::with_capacity(INSTANCE_TEXELS * placements.len().max(1));
-        for p in &placements {
-            let to_object = p.to_world.inverse();
-            let m = to_object.matrix3;
-            let t = to_object.translation;
-            for r in 0..3 {
-                records.push([m.x_axis[r], m.y_axis[r], m.z_axis[r], t[r]].map(f32::to_bits));
+        if !boxes.is_empty() {
+            let bvh = median_split_boxes(&boxes);
+            let need = top.emit(&bvh, 0, 0) + self.bottoms.iter().map(ShadowBvh::stack_need).max().unwrap_or(0);
+            if need > STACK_SIZE {
+                log::warn!("the two-level BVH's walk could need {need} stack entries, over the shader's {STACK_SIZE}");
             }
-            records.push([self.roots[p.bottom], 0, 0, 0]);
         }
-        if records.is_empty() {
-            records.resize(INSTANCE_TEXELS, [0; 4]); // buffers are never empty
+        self.placements = top.proxies.iter().map(|&k| drawn[k as usize]).collect();
+        // The region: the top tree's nodes, the proxies after room for the most top nodes, the
+        // records after room for the most proxies.
+        let mut region = vec![[0u32; 4]; self.region_texels()];
+        for (k, node) in top.nodes.iter().enumerate() {
+            region[3 * k..3 * k + 3].copy_from_slice(&node.texels);
         }
-        self.top = Top { wide, records, placements };
+        let proxies = 3 * (self.proxy_start() - self.top_start) as usize;
+        let records = (self.record_start() - 3 * self.top_start) as usize;
+        for (k, p) in self.placements.iter().enumerate() {
+            let root = self.nodes[self.roots[p.bottom] as usize];
+            region[proxies + 3 * k..][..3].copy_from_slice(&root.texels);
+            let to_object = p.to_world.inverse();
+            let (m, t) = (to_object.matrix3, to_object.translation);
+            for r in 0..3 {
+                region[records + INSTANCE_TEXELS * k + r] = [m.x_axis[r], m.y_axis[r], m.z_axis[r], t[r]].map(f32::to_bits);
+            }
+        }
+        self.region = region;
     }
 
-    /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` in its `BVH_INSTANCED` variant:
-    /// true when a triangle (either face) of a placed group lies on `origin + t dir` for t in
-    /// (0, tmax). Alpha masks apply where the casters have them.
+    /// Makes room in the top region for `instances` placements (at least), placing the current
+    /// ones again. The region's size changes: call before uploading.
+    pub fn make_room(&mut self, instances: usize) {
+        self.room = self.room.max(instances);
+        let placements = self.placements.clone();
+        self.place(&placements);
+    }
+
+    /// Node of the first proxy: after room for the top tree's most nodes (a 4-wide tree over
+    /// `room` instances in leaves of at most `TOP_LEAF_SIZE` has fewer than `room` nodes).
+    fn proxy_start(&self) -> u32 {
+        self.top_start + self.room.max(1) as u32
+    }
+
+    /// Texel of the first instance record: after room for every proxy.
+    fn record_start(&self) -> u32 {
+        3 * (self.proxy_start() + self.room.max(1) as u32)
+    }
+
+    /// Texels of the top region.
+    fn region_texels(&self) -> usize {
+        (self.record_start() - 3 * self.top_start) as usize + INSTANCE_TEXELS * self.room.max(1)
+    }
+
+    /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` in its `BVH_INSTANCED` variant
+    /// (whose comments explain the walk): true when a triangle (either face) of a placed group
+    /// lies on `origin + t dir` for t in (0, tmax). Alpha masks apply where the casters have them.
     pub fn occluded(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        let records = &self.top.records;
-        walk_nodes(&self.top.wide.nodes, 0, origin, dir, tmax, &mut 0, |i| {
-            let record = &records[INSTANCE_TEXELS * i as usize..][..INSTANCE_TEXELS];
-            let (o, d) = to_object(record, origin, dir);
-            walk_nodes(&self.nodes, record[3][0] as usize, o, d, tmax, &mut 0, |t| {
-                let triangle = &self.triangles[t as usize];
-                match &self.masks {
+        let node = |i: u32| -> WideNode {
+            match i.checked_sub(self.top_start) {
+                None => self.nodes[i as usize],
+                Some(k) => {
+                    let k = 3 * k as usize;
+                    WideNode { texels: [self.region[k], self.region[k + 1], self.region[k + 2]] }
+                }
+            }
+        };
+        let proxy_start = self.proxy_start();
+        let records = (self.record_start() - 3 * self.top_start) as usize;
+        let (world_origin, world_dir) = (origin, dir);
+        let world_inv = Vec3::ONE / safe_dir(dir);
+        let (mut o, mut d, mut inv) = (origin, dir, world_inv);
+        let mut stack = [0u32; STACK_SIZE];
+        let mut len = 0usize;
+        let (mut group, mut first, mut triangles) = node_step(&node(self.top_start), o, inv, tmax);
+        loop {
+            while triangles == 0 {
+                if group >> 28 == 0 {
+                    if len == 0 {
+                        return false;
+                    }
+                    len -= 1;
+                    group = stack[len];
+                    if group == ENTERED {
+                        (o, d, inv) = (world_origin, world_dir, world_inv);
+                        continue;
+                    }
+                }
+                let mask = group >> 28;
+                let rest = mask & (mask - 1);
+                let child = (group & FIRST_MASK) + mask.trailing_zeros();
+                if rest != 0 {
+                    stack[len.min(STACK_SIZE - 1)] = (group & FIRST_MASK) | rest << 28;
+                    len += 1;
+                }
+                if child >= proxy_start {
+                    stack[len.min(STACK_SIZE - 1)] = ENTERED;
+                    len += 1;
+                    let record = &self.region[records + INSTANCE_TEXELS * (child - proxy_start) as usize..][..3];
+                    (o, d) = to_object(record, world_origin, world_dir);
+                    inv = Vec3::ONE / safe_dir(d);
+                }
+                (group, first, triangles) = node_step(&node(child), o, inv, tmax);
+            }
+            while triangles != 0 {
+                let index = first + triangles.trailing_zeros();
+                triangles &= triangles - 1;
+                let triangle = &self.triangles[index as usize];
+                let hit = match &self.masks {
                     None => super::wide::triangle_occludes(triangle, o, d, tmax),
                     Some(masks) => super::mask::triangle_hit(triangle, o, d, tmax)
-                        .is_some_and(|(u, v)| !masks.passes(t, u, v)),
+                        .is_some_and(|(u, v)| !masks.passes(index, u, v)),
+                };
+                if hit {
+                    return true;
                 }
-            })
-        })
+            }
+        }
     }
 
     /// Every placed group's triangles in world space (`v0, v1, v2`): what a single-level tree
     /// over the posed scene would hold (tests compare the two).
     pub fn posed_triangles(&self) -> Vec<[Vec3; 3]> {
-        self.top
-            .placements
+        self.placements
             .iter()
             .flat_map(|p| {
                 let bottom = &self.bottoms[p.bottom];
@@ -169,9 +259,17 @@ impl TwoLevel {
             .collect()
     }
 
-    /// Bottom nodes (all trees, shifted), as uploaded.
-    pub fn nodes(&self) -> &[WideNode] {
-        &self.nodes
+    /// The node buffer's texels as uploaded: the bottom trees' nodes, then the top region.
+    pub fn node_texels(&self) -> Vec<[u32; 4]> {
+        let mut texels: Vec<[u32; 4]> = self.nodes.iter().flat_map(|n| n.texels).collect();
+        texels.extend_from_slice(&self.region);
+        texels
+    }
+
+    /// The top region's texels and the texel of the node buffer where they go: what a frame
+    /// in which the instances moved writes.
+    pub fn region(&self) -> (usize, &[[u32; 4]]) {
+        (3 * self.top_start as usize, &self.region)
     }
 
     /// Bottom triangles (all trees) as RGBA32UI texels, as `WideBvh::triangle_texels` packs them.
@@ -179,17 +277,11 @@ impl TwoLevel {
         WideBvh { triangles: self.triangles.clone(), ..WideBvh::default() }.triangle_texels()
     }
 
-    /// The top buffer's texels: instance records, then the top tree's nodes.
-    pub fn top_texels(&self) -> Vec<[u32; 4]> {
-        let mut texels = self.top.records.clone();
-        texels.extend(self.top.wide.nodes.iter().flat_map(|n| n.texels));
-        texels
-    }
-
-    /// The root uniform's bytes: the top tree's root node, then where its nodes start.
+    /// The root uniform's texels: the top tree's root node, then `proxy_start` and
+    /// `record_start`.
     pub fn root_texels(&self) -> [[u32; 4]; 4] {
-        let [a, b, c] = self.top.wide.nodes[0].texels;
-        [a, b, c, [self.top.records.len() as u32, 0, 0, 0]]
+        let [a, b, c] = [self.region[0], self.region[1], self.region[2]];
+        [a, b, c, [self.proxy_start(), self.record_start(), 0, 0]]
     }
 
     pub fn masks(&self) -> Option<&BvhMasks> {
@@ -203,18 +295,75 @@ impl TwoLevel {
 
     /// Instances the top tree holds (placements of empty groups are left out).
     pub fn instance_count(&self) -> usize {
-        self.top.placements.len()
+        self.placements.len()
     }
 
     /// The bottom trees, in group order.
     pub fn bottoms(&self) -> &[ShadowBvh] {
         &self.bottoms
     }
+}
 
-    /// The deepest either level's walk stack can get.
-    pub fn stack_need(&self) -> usize {
-        self.bottoms.iter().map(ShadowBvh::stack_need).chain([self.top.wide.stack_need]).max().unwrap_or(1)
+/// The top tree being emitted in the 4-wide layout: its nodes (the root first), and the
+/// instances (indices into `boxes`) in the order of their proxies.
+struct TopBuild<'b> {
+    boxes: &'b [Aabb],
+    nodes: Vec<WideNode>,
+    proxies: Vec<u32>,
+    top_start: u32,
+    proxy_start: u32,
+}
+
+impl TopBuild<'_> {
+    /// Fills node `slot` from binary node `index` of `bvh`: a leaf's instances become proxies
+    /// (the node's children, next to each other in the proxy run); an inner node's children are
+    /// the binary subtrees it opens into (up to four, widest first), each a node of its own,
+    /// placed together and then filled in turn. Returns the stack the walk below can need.
+    fn emit(&mut self, bvh: &Bvh2, index: usize, slot: usize) -> usize {
+        let node = &bvh.nodes[index];
+        let mut codes = [0u32; 4];
+        if node.prim_count > 0 {
+            let first = self.proxies.len() as u32;
+            let items = &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize];
+            self.proxies.extend_from_slice(items);
+            let boxes: Vec<(Vec3, Vec3)> =
+                items.iter().map(|&k| (self.boxes[k as usize].min.into(), self.boxes[k as usize].max.into())).collect();
+            codes[..boxes.len()].fill(CHILD_INNER);
+            self.nodes[slot] = encode(&boxes, codes, self.proxy_start + first, 0);
+            // Entering a proxy pushes the rest of the group and the marker.
+            return 2;
+        }
+        let children = open(bvh, index);
+        let first_child = self.nodes.len();
+        self.nodes.resize(first_child + children.len(), WideNode::default());
+        let boxes: Vec<(Vec3, Vec3)> =
+            children.iter().map(|&c| (bvh.nodes[c].aabb.min.into(), bvh.nodes[c].aabb.max.into())).collect();
+        codes[..children.len()].fill(CHILD_INNER);
+        self.nodes[slot] = encode(&boxes, codes, self.top_start + first_child as u32, 0);
+        let mut need = 0;
+        for (k, &c) in children.iter().enumerate() {
+            need = need.max(self.emit(bvh, c, first_child + k));
+        }
+        1 + need
     }
+}
+
+/// The up to four binary subtrees that binary node `index` opens into: its two children, then
+/// the inner one of largest surface area opened in place while there are fewer than four.
+fn open(bvh: &Bvh2, index: usize) -> Vec<usize> {
+    let first = bvh.nodes[index].first_index as usize;
+    let mut children = vec![first, first + 1];
+    while children.len() < 4 {
+        let widest = children
+            .iter()
+            .enumerate()
+            .filter(|(_, &c)| bvh.nodes[c].prim_count == 0)
+            .max_by(|a, b| bvh.nodes[*a.1].aabb.half_area().total_cmp(&bvh.nodes[*b.1].aabb.half_area()));
+        let Some((k, &c)) = widest else { break };
+        let grand = bvh.nodes[c].first_index as usize;
+        children.splice(k..=k, [grand, grand + 1]);
+    }
+    children
 }
 
 /// `node` of a bottom tree whose nodes now start at `node_base` and triangles at

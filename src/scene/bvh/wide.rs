@@ -63,7 +63,7 @@ use obvhs::bvh2::Bvh2;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 mod node;
-use node::{encode, node_step, safe_dir};
+pub(super) use node::{encode, node_step, safe_dir};
 
 /// Entries in the traversal stack (`BVH_STACK_SIZE` in bindings.glsl, which bvh.glsl reads).
 /// `WideBvh::stack_need` says how many a tree can use; a build that needs more is rebuilt
@@ -71,7 +71,7 @@ use node::{encode, node_step, safe_dir};
 pub const STACK_SIZE: usize = crate::vk::bindings::BVH_STACK_SIZE as usize;
 
 /// Bits of a node's first child and first triangle.
-const FIRST_MASK: u32 = (1 << 28) - 1;
+pub(super) const FIRST_MASK: u32 = (1 << 28) - 1;
 /// The most triangles a leaf child holds (its code is its count; codes go up to 8). Against 8,
 /// alternated on one lavapipe thread: `umbra bench rays` 100k 2-3 % and 1M 1-3 % faster, the
 /// room's AO 118 -> 97 ms and shadow trace 33 -> 25, the spheres showcase's AO 94 -> 92; 42.5
@@ -103,7 +103,7 @@ struct Collapsed {
 }
 
 /// A child's 4-bit code in a node's meta: none, a leaf of 1-8 triangles (the count), or inner.
-const CHILD_INNER: u32 = 15;
+pub(super) const CHILD_INNER: u32 = 15;
 
 /// A 4-wide quantised BVH and its triangles in leaf order.
 #[derive(Clone, Debug, Default)]

@@ -135,7 +135,6 @@ pub const BVH_SLOTS: BvhSlots = BvhSlots {
     triangles: SHADOW_BVH_TRIANGLES,
     root: SHADOW_BVH_ROOT,
     masks: SHADOW_BVH_MASKS,
-    top: SHADOW_BVH_TOP,
 };
 
 /// Where the trace shaders bind the casters: the compute walk's slots, or the driver's.

@@ -26,7 +26,7 @@ fn decode(origin: f32, q: u32, scale: f32) -> f32 {
 /// A node's texels for children with true boxes `boxes` and codes `codes` (`node_meta`), whose
 /// inner children's nodes start at `first_child` and leaf children's triangles at
 /// `first_triangle`.
-pub(super) fn encode(boxes: &[(Vec3, Vec3)], codes: [u32; 4], first_child: u32, first_triangle: u32) -> WideNode {
+pub(in crate::scene::bvh) fn encode(boxes: &[(Vec3, Vec3)], codes: [u32; 4], first_child: u32, first_triangle: u32) -> WideNode {
     let lo = boxes.iter().fold(Vec3::splat(f32::INFINITY), |m, b| m.min(b.0));
     let hi = boxes.iter().fold(Vec3::splat(f32::NEG_INFINITY), |m, b| m.max(b.1));
     let mut node = WideNode::default();
@@ -80,7 +80,7 @@ fn bytes(word: u32) -> Vec4 {
 /// decoded boxes it touches (first child | mask << 28, bit i: child first + i) and its leaf
 /// children's triangles it must test (bit j: triangle first + j), as (group, first triangle,
 /// triangle mask). bvh.glsl's `bvh_node_step`, operation for operation.
-pub(super) fn node_step(node: &WideNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> (u32, u32, u32) {
+pub(in crate::scene::bvh) fn node_step(node: &WideNode, origin: Vec3, inv_dir: Vec3, tmax: f32) -> (u32, u32, u32) {
     let [t0, qxy, t2] = node.texels;
     let base = Vec3::new(f32::from_bits(t0[0]), f32::from_bits(t0[1]), f32::from_bits(t0[2]));
     let scale = Vec3::new(
@@ -130,7 +130,7 @@ fn max(a: Vec4, b: Vec4) -> Vec4 {
     Vec4::select(a.cmpgt(b), a, b)
 }
 
-pub(super) fn safe_dir(d: Vec3) -> Vec3 {
+pub(in crate::scene::bvh) fn safe_dir(d: Vec3) -> Vec3 {
     let fix = |c: f32| {
         if c.abs() < MIN_DIR_COMPONENT {
             if c < 0.0 {

@@ -153,7 +153,7 @@ fn gbuffer_stage<'a>(
     camera: &CameraMatrices,
     extent: vk::Extent2D,
 ) -> GpuResult<(SceneHandles, GBuffer)> {
-    let vertices = g.import_buffer("vertices", &s.vertices, SCENE_ACCESS);
+    let vertices = s.import_vertices(g);
     let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
     let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
     let bvh = s.bvh.import(g, SCENE_ACCESS);

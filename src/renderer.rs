@@ -86,7 +86,7 @@ impl Renderer {
             scene.lights.len(),
         );
         let start = std::time::Instant::now();
-        let gpu_scene = SceneGpu::upload(&ctx, &local, &bvh, origin)?;
+        let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::One(&bvh), &[], origin)?;
         log::info!(
             "upload: {} KiB of scene buffers in {:.1} ms; {} of {} draws flat-shaded (the geometry pass reads \
              none of their triangles)",

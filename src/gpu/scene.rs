@@ -9,6 +9,7 @@ use ash::vk;
 use glam::{DVec3, Vec3};
 
 use crate::graph::Access;
+use crate::gpu::SCENE_ACCESS;
 use crate::maths::Bounds;
 use crate::scene::bvh::ShadowBvh;
 use crate::scene::{Camera, Material, Scene};
@@ -80,6 +81,11 @@ pub struct SceneGpu {
     pub origin: DVec3,
     /// The scene's own camera, in the scene-local frame.
     pub camera: Camera,
+    /// The draws whose meshes move, in draw order (empty in a static scene).
+    pub moving: Vec<MovingDraw>,
+    /// The moving draws' new instance rows (their `row`s in order), where the scene was posed
+    /// since the last frame: the next frame's first pass writes them (`import_vertices`).
+    pending_rows: std::sync::Mutex<Option<Vec<InstanceRows>>>,
 }
 
 /// A scene without textures: its distinct materials as the G-buffer's material channel would
@@ -156,202 +162,348 @@ impl MaterialTable {
 /// shaders, which are all that read it.
 pub const TABLE_ACCESS: Access = Access::ComputeShaderReadSampledImage;
 
-impl SceneGpu {
-    /// Uploads `scene`, already moved into the local frame whose origin is `origin`
-    /// (`Scene::local_frame`); positions are rounded to f32 here.
-    pub fn upload(ctx: &Arc<GpuContext>, scene: &Scene, bvh: &ShadowBvh, origin: DVec3) -> GpuResult<SceneGpu> {
-        let mut vertices = Vec::new();
-        let mut indices = Vec::new();
-        let mut draws = Vec::new();
-        let mut instances = vec![InstanceRows::IDENTITY];
-        // Shared geometry already uploaded: its first index and vertex offset.
-        let mut shared = HashMap::new();
-        // Parallel to `vertices` once any mesh has textures.
-        let textured = scene.meshes.iter().any(|m| m.surface.is_some());
-        let mut surface_vertices: Vec<SurfaceVertex> = Vec::new();
-        // Parallel to `vertices` once any material's maps use two texture-coordinate sets.
-        let two_sets = scene.meshes.iter().any(|m| m.surface.as_ref().is_some_and(|s| !s.uvs_1.is_empty()));
-        let mut second_uvs: Vec<[f32; 2]> = Vec::new();
-        let mut materials: Vec<std::sync::Arc<crate::scene::MaterialTextures>> = Vec::new();
-        let mut table_texels = TableTexels::default();
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for mesh in scene.meshes.iter().filter(|m| !m.indices.is_empty()) {
-            let mut bounds = Bounds::EMPTY;
-            // The local frame's f32: where the GPU's triangles are (for an instance, where its
-            // world-space copy is).
-            let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
-            positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
-            for p in &positions {
-                lo = lo.min(*p);
-                hi = hi.max(*p);
+/// The casters' BVH as the scene uploads it: one level, or two for a scene where something moves.
+pub enum BvhSource<'b> {
+    One(&'b ShadowBvh),
+    Two(&'b crate::scene::bvh::levels::TwoLevel),
+}
+
+/// A draw whose mesh moves: its instance row is rewritten whenever the scene is posed.
+#[derive(Clone, Debug)]
+pub struct MovingDraw {
+    /// Its index in `SceneGpu::draws` and in `Scene::meshes` (the uploaded scene's).
+    pub draw: usize,
+    pub mesh: usize,
+    /// Its own instance row (`InstanceRows`).
+    pub row: u32,
+    /// The mesh's placement before the motion: its shared geometry's to-local transform, or the
+    /// identity for a mesh uploaded in place.
+    pub base: glam::DMat4,
+    /// Its bounds at rest (moved with it to give `Draw::bounds`).
+    pub rest_bounds: Bounds,
+}
+
+/// The scene's meshes packed for the device, mesh by mesh (`add`), before the upload.
+#[derive(Default)]
+struct Packing {
+    vertices: Vec<Vertex>,
+    indices: Vec<u32>,
+    draws: Vec<Draw>,
+    instances: Vec<InstanceRows>,
+    /// Shared geometry already packed: its first index, vertex offset and flatness.
+    shared: HashMap<*const crate::scene::InstanceGeometry, (u32, i32, bool)>,
+    /// Parallel to `vertices` once any mesh has textures.
+    textured: bool,
+    surface_vertices: Vec<SurfaceVertex>,
+    /// Parallel to `vertices` once any material's maps use two texture-coordinate sets.
+    two_sets: bool,
+    second_uvs: Vec<[f32; 2]>,
+    materials: Vec<Arc<crate::scene::MaterialTextures>>,
+    table_texels: TableTexels,
+    moving: Vec<MovingDraw>,
+    lo: Vec3,
+    hi: Vec3,
+}
+
+/// The vertex buffer's bytes and where its parts start (see `SceneGpu`'s fields).
+struct VertexBytes {
+    bytes: Vec<u8>,
+    instance_offset: u64,
+    surface_offset: Option<u64>,
+    second_uv_offset: Option<u64>,
+}
+
+impl Packing {
+    fn new(scene: &Scene) -> Packing {
+        Packing {
+            instances: vec![InstanceRows::IDENTITY],
+            textured: scene.meshes.iter().any(|m| m.surface.is_some()),
+            two_sets: scene.meshes.iter().any(|m| m.surface.as_ref().is_some_and(|s| !s.uvs_1.is_empty())),
+            lo: Vec3::splat(f32::INFINITY),
+            hi: Vec3::splat(f32::NEG_INFINITY),
+            ..Packing::default()
+        }
+    }
+
+    /// Packs mesh `index` of the scene (`moving`: its instance row is its own, rewritten as the
+    /// scene is posed).
+    fn add(&mut self, index: usize, mesh: &crate::scene::Mesh, moving: bool) {
+        let mut bounds = Bounds::EMPTY;
+        // The local frame's f32: where the GPU's triangles are (for an instance, where its
+        // world-space copy is).
+        let positions: Vec<Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
+        positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
+        for p in &positions {
+            self.lo = self.lo.min(*p);
+            self.hi = self.hi.max(*p);
+        }
+        let (first_index, index_count, vertex_offset, instance, flat) = match &mesh.instance {
+            Some(instance) => {
+                let (first, offset, flat) = self.add_shared(&instance.geometry);
+                self.instances.push(InstanceRows::of(&instance.to_world));
+                (first, instance.geometry.indices.len() as u32, offset, self.instances.len() as u32 - 1, flat)
             }
-            let (first_index, index_count, vertex_offset, instance, flat) = match &mesh.instance {
-                Some(instance) => {
-                    let g = &instance.geometry;
-                    let (first, offset, flat) = *shared.entry(std::sync::Arc::as_ptr(g)).or_insert_with(|| {
-                        let at = (
-                            indices.len() as u32,
-                            vertices.len() as i32,
-                            crate::shading::flat_shaded(&g.positions, &g.normals, &g.indices),
-                        );
-                        vertices.extend(
-                            g.positions
-                                .iter()
-                                .zip(&g.normals)
-                                .map(|(p, n)| Vertex { position: p.to_array(), normal: n.to_array() }),
-                        );
-                        if !g.uvs.is_empty() {
-                            surface_vertices.resize(at.1 as usize, SurfaceVertex::default());
-                            for (k, uv) in g.uvs.iter().enumerate() {
-                                let tangent = g.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
-                                surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
-                            }
-                        }
-                        if !g.uvs_1.is_empty() {
-                            second_uvs.resize(at.1 as usize, [0.0; 2]);
-                            second_uvs.extend(g.uvs_1.iter().map(|uv| uv.to_array()));
-                        }
-                        indices.extend_from_slice(&g.indices);
-                        at
-                    });
-                    instances.push(InstanceRows::of(&instance.to_world));
-                    (first, g.indices.len() as u32, offset, instances.len() as u32 - 1, flat)
-                }
+            None => {
+                let row = if moving {
+                    self.instances.push(InstanceRows::IDENTITY);
+                    self.instances.len() as u32 - 1
+                } else {
+                    0
+                };
+                let at = (
+                    self.indices.len() as u32,
+                    mesh.indices.len() as u32,
+                    self.vertices.len() as i32,
+                    row,
+                    crate::shading::flat_shaded(&positions, &mesh.normals, &mesh.indices),
+                );
+                self.add_own(mesh, &positions, at.2 as usize);
+                at
+            }
+        };
+        if moving {
+            let base = mesh.instance.as_ref().map_or(glam::DMat4::IDENTITY, |i| i.to_world);
+            self.moving.push(MovingDraw { draw: self.draws.len(), mesh: index, row: instance, base, rest_bounds: bounds });
+        }
+        let maps = mesh.surface.as_ref().map(|surface| {
+            // Set 0 is for meshes without textures (textures::upload).
+            let set = 1 + match self.materials.iter().position(|m| Arc::ptr_eq(m, &surface.textures)) {
+                Some(set) => set,
                 None => {
-                    let at = (
-                        indices.len() as u32,
-                        mesh.indices.len() as u32,
-                        vertices.len() as i32,
-                        0,
-                        crate::shading::flat_shaded(&positions, &mesh.normals, &mesh.indices),
-                    );
-                    for (p, n) in positions.iter().zip(&mesh.normals) {
-                        vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
-                    }
-                    if let Some(surface) = &mesh.surface {
-                        surface_vertices.resize(at.2 as usize, SurfaceVertex::default());
-                        for (k, uv) in surface.uvs.iter().enumerate() {
-                            let tangent = surface.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
-                            surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
-                        }
-                        if !surface.uvs_1.is_empty() {
-                            second_uvs.resize(at.2 as usize, [0.0; 2]);
-                            second_uvs.extend(surface.uvs_1.iter().map(|uv| uv.to_array()));
-                        }
-                    }
-                    indices.extend_from_slice(&mesh.indices);
-                    at
+                    self.materials.push(surface.textures.clone());
+                    self.materials.len() - 1
                 }
             };
-            let maps = mesh.surface.as_ref().map(|surface| {
-                // Set 0 is for meshes without textures (textures::upload).
-                let set = 1 + match materials.iter().position(|m| std::sync::Arc::ptr_eq(m, &surface.textures)) {
-                    Some(set) => set,
-                    None => {
-                        materials.push(surface.textures.clone());
-                        materials.len() - 1
-                    }
-                };
-                crate::gpu::textures::draw_maps(set, &surface.textures)
-            });
-            draws.push(Draw {
-                first_index,
-                index_count,
-                vertex_offset,
-                instance,
-                maps,
-                material: mesh.material,
-                table_texel: table_texels.texel(mesh.material),
-                cast_shadows: mesh.cast_shadows,
-                double_sided: mesh.double_sided,
-                flat,
-                bounds,
-            });
-        }
-        if draws.is_empty() {
-            lo = Vec3::ZERO;
-            hi = Vec3::ZERO;
-        }
-        let lights = gpu_lights(&scene.lights);
-        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
-        let vertex_count = vertices.len() as u32;
-        let mut vertex_bytes: Vec<u8> = bytemuck::cast_slice(&vertices).to_vec();
-        let instance_offset = vertex_bytes.len() as u64;
-        vertex_bytes.extend_from_slice(bytemuck::cast_slice(&instances));
-        let surface_offset = textured.then(|| {
-            surface_vertices.resize(vertices.len(), SurfaceVertex::default());
-            let at = vertex_bytes.len() as u64;
-            vertex_bytes.extend_from_slice(bytemuck::cast_slice(&surface_vertices));
-            at
+            crate::gpu::textures::draw_maps(set, &surface.textures)
         });
-        let second_uv_offset = two_sets.then(|| {
-            second_uvs.resize(vertices.len(), [0.0; 2]);
-            let at = vertex_bytes.len() as u64;
-            vertex_bytes.extend_from_slice(bytemuck::cast_slice(&second_uvs));
-            at
+        self.draws.push(Draw {
+            first_index,
+            index_count,
+            vertex_offset,
+            instance,
+            maps,
+            material: mesh.material,
+            table_texel: self.table_texels.texel(mesh.material),
+            cast_shadows: mesh.cast_shadows,
+            double_sided: mesh.double_sided,
+            flat,
+            bounds,
         });
-        let materials = match textured {
-            true => Some(crate::gpu::textures::upload(ctx, &materials)?),
-            false => None,
-        };
-        let material_table = match textured {
-            true => None,
-            false => Some(MaterialTable::upload(ctx, &table_texels.texels)?),
-        };
-        // The geometry pass reads both as texel buffers (a view holds at most this many texels).
-        let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
-        for (what, bytes, format) in [
-            ("vertices", vertex_bytes.len(), VERTEX_TEXEL_FORMAT),
-            ("triangle indices", std::mem::size_of_val(indices.as_slice()), INDEX_TEXEL_FORMAT),
-        ] {
-            let texel = crate::vk::texel_bytes(format);
-            if bytes as u64 / texel > limit {
-                return Err(GpuError::Unsupported(format!(
-                    "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one texel buffer \
-                     (maxTexelBufferElements of {texel} bytes): use fewer or simpler meshes",
-                    bytes >> 20,
-                    ctx.device_name(),
-                    (limit * texel) >> 20
-                )));
+    }
+
+    /// Packs shared geometry the first time a mesh draws it; returns its first index, vertex
+    /// offset and flatness.
+    fn add_shared(&mut self, g: &Arc<crate::scene::InstanceGeometry>) -> (u32, i32, bool) {
+        if let Some(&at) = self.shared.get(&Arc::as_ptr(g)) {
+            return at;
+        }
+        let at = (
+            self.indices.len() as u32,
+            self.vertices.len() as i32,
+            crate::shading::flat_shaded(&g.positions, &g.normals, &g.indices),
+        );
+        self.vertices.extend(
+            g.positions.iter().zip(&g.normals).map(|(p, n)| Vertex { position: p.to_array(), normal: n.to_array() }),
+        );
+        if !g.uvs.is_empty() {
+            self.surface_vertices.resize(at.1 as usize, SurfaceVertex::default());
+            for (k, uv) in g.uvs.iter().enumerate() {
+                let tangent = g.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                self.surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
             }
         }
-        BvhBuffers::check(ctx, bvh)?;
-        let bvh_triangle_texels = bvh.wide().triangle_texels();
+        if !g.uvs_1.is_empty() {
+            self.second_uvs.resize(at.1 as usize, [0.0; 2]);
+            self.second_uvs.extend(g.uvs_1.iter().map(|uv| uv.to_array()));
+        }
+        self.indices.extend_from_slice(&g.indices);
+        self.shared.insert(Arc::as_ptr(g), at);
+        at
+    }
+
+    /// Packs a mesh uploaded in place (its local-frame `positions`), from vertex `first`.
+    fn add_own(&mut self, mesh: &crate::scene::Mesh, positions: &[Vec3], first: usize) {
+        for (p, n) in positions.iter().zip(&mesh.normals) {
+            self.vertices.push(Vertex { position: p.to_array(), normal: n.to_array() });
+        }
+        if let Some(surface) = &mesh.surface {
+            self.surface_vertices.resize(first, SurfaceVertex::default());
+            for (k, uv) in surface.uvs.iter().enumerate() {
+                let tangent = surface.tangents.get(k).map_or([0.0; 4], |t| t.to_array());
+                self.surface_vertices.push(SurfaceVertex { uv: uv.to_array(), tangent });
+            }
+            if !surface.uvs_1.is_empty() {
+                self.second_uvs.resize(first, [0.0; 2]);
+                self.second_uvs.extend(surface.uvs_1.iter().map(|uv| uv.to_array()));
+            }
+        }
+        self.indices.extend_from_slice(&mesh.indices);
+    }
+
+    /// The vertex buffer: vertices, instance rows, then the surface vertices and the second
+    /// texture-coordinate set where the scene has them.
+    fn vertex_bytes(&mut self) -> VertexBytes {
+        let mut bytes: Vec<u8> = bytemuck::cast_slice(&self.vertices).to_vec();
+        let instance_offset = bytes.len() as u64;
+        bytes.extend_from_slice(bytemuck::cast_slice(&self.instances));
+        let count = self.vertices.len();
+        let surface_offset = self.textured.then(|| {
+            self.surface_vertices.resize(count, SurfaceVertex::default());
+            let at = bytes.len() as u64;
+            bytes.extend_from_slice(bytemuck::cast_slice(&self.surface_vertices));
+            at
+        });
+        let second_uv_offset = self.two_sets.then(|| {
+            self.second_uvs.resize(count, [0.0; 2]);
+            let at = bytes.len() as u64;
+            bytes.extend_from_slice(bytemuck::cast_slice(&self.second_uvs));
+            at
+        });
+        VertexBytes { bytes, instance_offset, surface_offset, second_uv_offset }
+    }
+}
+
+/// Whether the geometry pass can read `vertex_bytes` and `indices` as texel buffers (a view holds
+/// at most `maxTexelBufferElements` texels): an error naming the limit where it cannot.
+fn check_texel_limits(ctx: &GpuContext, vertex_bytes: usize, indices: &[u32]) -> GpuResult<()> {
+    let limit = u64::from(ctx.capabilities.max_texel_buffer_elements);
+    for (what, bytes, format) in [
+        ("vertices", vertex_bytes, VERTEX_TEXEL_FORMAT),
+        ("triangle indices", std::mem::size_of_val(indices), INDEX_TEXEL_FORMAT),
+    ] {
+        let texel = crate::vk::texel_bytes(format);
+        if bytes as u64 / texel > limit {
+            return Err(GpuError::Unsupported(format!(
+                "the scene's {what} take {} MiB, over {}'s limit of {} MiB for one texel buffer \
+                 (maxTexelBufferElements of {texel} bytes): use fewer or simpler meshes",
+                bytes >> 20,
+                ctx.device_name(),
+                (limit * texel) >> 20
+            )));
+        }
+    }
+    Ok(())
+}
+
+impl SceneGpu {
+    /// Uploads `scene`, already moved into the local frame whose origin is `origin`
+    /// (`Scene::local_frame`); positions are rounded to f32 here. `moving`: per mesh, whether it
+    /// moves (its draw gets an instance row of its own, `SceneGpu::moving`).
+    pub fn upload(
+        ctx: &Arc<GpuContext>,
+        scene: &Scene,
+        bvh: BvhSource<'_>,
+        moving: &[bool],
+        origin: DVec3,
+    ) -> GpuResult<SceneGpu> {
+        let mut packing = Packing::new(scene);
+        for (index, mesh) in scene.meshes.iter().enumerate().filter(|(_, m)| !m.indices.is_empty()) {
+            packing.add(index, mesh, moving.get(index).copied().unwrap_or(false));
+        }
+        let (lo, hi) = if packing.draws.is_empty() { (Vec3::ZERO, Vec3::ZERO) } else { (packing.lo, packing.hi) };
+        let lights = gpu_lights(&scene.lights);
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
+        let vertex_count = packing.vertices.len() as u32;
+        let vertex = packing.vertex_bytes();
+        let materials = match packing.textured {
+            true => Some(crate::gpu::textures::upload(ctx, &packing.materials)?),
+            false => None,
+        };
+        let material_table = match packing.textured {
+            true => None,
+            false => Some(MaterialTable::upload(ctx, &packing.table_texels.texels)?),
+        };
+        check_texel_limits(ctx, vertex.bytes.len(), &packing.indices)?;
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-        let [vertices, indices, lights, bvh_nodes, bvh_triangles, bvh_root] = upload(
+        // A moving scene's frames rewrite the instance rows.
+        let rows = if packing.moving.is_empty() { vk::BufferUsageFlags::empty() } else { vk::BufferUsageFlags::TRANSFER_DST };
+        let [vertices, indices, lights] = upload(
             ctx,
             [
-                ("vertices", &vertex_bytes, vk::BufferUsageFlags::VERTEX_BUFFER | texel),
-                ("indices", bytemuck::cast_slice(&indices), vk::BufferUsageFlags::INDEX_BUFFER | texel),
+                ("vertices", &vertex.bytes, vk::BufferUsageFlags::VERTEX_BUFFER | texel | rows),
+                ("indices", bytemuck::cast_slice(&packing.indices), vk::BufferUsageFlags::INDEX_BUFFER | texel),
                 ("lights", bytemuck::cast_slice(&lights), storage),
-                ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
-                ("bvh triangles", bytemuck::cast_slice(&bvh_triangle_texels), texel),
-                ("bvh root", BvhBuffers::root_bytes(bvh), vk::BufferUsageFlags::UNIFORM_BUFFER),
             ],
         )?;
-        let bvh_buffers = BvhBuffers::new(ctx, [bvh_nodes, bvh_triangles, bvh_root], bvh)?;
+        let (bvh_buffers, has_casters) = match bvh {
+            BvhSource::One(bvh) => (BvhBuffers::upload(ctx, bvh)?, !bvh.is_empty()),
+            BvhSource::Two(levels) => (BvhBuffers::upload_levels(ctx, levels)?, levels.triangle_count() > 0),
+        };
         Ok(SceneGpu {
             vertex_view: TexelView::new(ctx, &vertices, VERTEX_TEXEL_FORMAT)?,
             index_view: TexelView::new(ctx, &indices, INDEX_TEXEL_FORMAT)?,
             vertices,
             vertex_count,
-            instance_offset,
-            surface_offset,
-            second_uv_offset,
+            instance_offset: vertex.instance_offset,
+            surface_offset: vertex.surface_offset,
+            second_uv_offset: vertex.second_uv_offset,
             materials,
             material_table,
             indices,
-            draws,
+            draws: packing.draws,
             lights,
             light_count: scene.lights.len() as u32,
             local_lights: scene.lights.clone(),
             bvh: bvh_buffers,
-            has_casters: !bvh.is_empty(),
+            has_casters,
             bounds: (lo, hi),
             origin,
             camera: scene.camera,
+            moving: packing.moving,
+            pending_rows: std::sync::Mutex::new(None),
         })
+    }
+
+    /// Poses the moving draws: `delta(mesh)` is the local-frame transform from mesh `mesh`'s
+    /// rest pose to its pose now (`None`: at rest). Their bounds and the scene's follow at once;
+    /// their instance rows are written by the next frame's first pass. Returns the bytes that
+    /// frame will move.
+    pub fn pose(&mut self, delta: impl Fn(usize) -> Option<glam::DMat4>) -> u64 {
+        if self.moving.is_empty() {
+            return 0;
+        }
+        let mut rows = Vec::with_capacity(self.moving.len());
+        for m in &self.moving {
+            let d = delta(m.mesh).unwrap_or(glam::DMat4::IDENTITY);
+            rows.push(InstanceRows::of(&(d * m.base)));
+            let moved = m.rest_bounds.transformed(&d.as_mat4());
+            self.draws[m.draw].bounds = moved;
+        }
+        let all = self.draws.iter().fold(Bounds::EMPTY, |b, d| b.union(&d.bounds));
+        if !all.is_empty() {
+            self.bounds = (all.min, all.max);
+        }
+        let bytes = std::mem::size_of_val(rows.as_slice()) as u64;
+        *self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()) = Some(rows);
+        bytes
+    }
+
+    /// Imports the vertex buffer into `g`; where the scene was posed since the last frame, a
+    /// first pass writes the moving draws' instance rows (after every read of the old ones that
+    /// earlier frames submitted).
+    pub fn import_vertices<'a>(&'a self, g: &mut crate::graph::RenderGraph<'a>) -> crate::graph::Handle<crate::graph::BufferKind> {
+        let mut vertices = g.import_buffer("vertices", &self.vertices, SCENE_ACCESS);
+        let Some(rows) = self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()).take() else {
+            return vertices;
+        };
+        let mut pass = g.add_pass("instance rows");
+        pass.detail(format!("{} moving draws", rows.len()));
+        let dst = pass.write(&mut vertices, Access::TransferWrite);
+        let at: Vec<u64> = self
+            .moving
+            .iter()
+            .map(|m| self.instance_offset + u64::from(m.row) * std::mem::size_of::<InstanceRows>() as u64)
+            .collect();
+        pass.render(move |ctx| {
+            for (row, offset) in rows.iter().zip(&at) {
+                // SAFETY: recording state; each row is 96 bytes inside the buffer.
+                unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), *offset, bytemuck::bytes_of(row)) };
+            }
+            Ok(())
+        });
+        // Exported, so the write survives a frame that draws nothing.
+        g.export_version(&vertices, SCENE_ACCESS);
+        vertices
     }
 
     /// Bytes of the scene's buffers on the device.

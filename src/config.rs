@@ -273,6 +273,10 @@ pub struct RenderSettings {
     /// Tests only: adds the pass "busy" (`diagnostics/busy.rs`, this many loop iterations) after
     /// the geometry pass, a GPU cost of known size for checking timings.
     pub busy_iterations: Option<u32>,
+    /// The instant of a moving scene to render, in seconds of its animation (`None`: its first
+    /// frame). A static scene renders the same whatever it is. Part of the settings so that a
+    /// frame at another instant starts its accumulation afresh.
+    pub time: Option<f64>,
 }
 
 impl RenderSettings {
@@ -291,6 +295,7 @@ impl RenderSettings {
             frame_index: 0,
             antialias: false,
             busy_iterations: None,
+            time: None,
         }
     }
 

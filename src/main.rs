@@ -17,6 +17,8 @@ use umbra::vk::{GpuContext, GpuOptions};
 
 #[path = "main/cli.rs"]
 mod cli;
+#[path = "main/sequence.rs"]
+mod sequence;
 use cli::{log_level, BenchCommand, BenchRaysArgs, BenchShadowsArgs, Cli, Command, RenderArgs, ViewArgs};
 
 /// `println!` whose failure to write (a full disk) is the calling function's error, not a panic.
@@ -174,6 +176,9 @@ fn provenance(
     if let Some(view) = settings.debug_view {
         out.push(("debug_view", view.to_string()));
     }
+    if let (Some(t), true) = (settings.time, scene.is_animated()) {
+        out.push(("time", format!("{t} s")));
+    }
     out.into_iter().map(|(k, v)| (k.to_owned(), v)).collect()
 }
 
@@ -252,6 +257,53 @@ fn main() -> ExitCode {
 /// Where `umbra render` writes without `-o`: the scene file's name with `.png`, or `out.png`
 /// for the built-in scene, in the current directory (not beside the scene, whose folder may be
 /// read-only or shared).
+/// One image to write: the instant it shows (`None`: the scene's first) and its file.
+type Image = (Option<f64>, PathBuf);
+
+/// With `--sequence`: each frame this process renders (its shard's), as (instant, file), every
+/// file checked as the single output is; `None` without. Warns where `--time` does nothing.
+fn sequence_images(
+    args: &RenderArgs,
+    scene: &Scene,
+    output: &Path,
+    options: &WriteOptions,
+) -> Result<Option<Vec<Image>>> {
+    let span = scene.animation_span();
+    if args.time.is_some() && span.is_none() {
+        log::warn!("--time does nothing here: nothing in the scene moves");
+    }
+    let Some(asked) = args.sequence else {
+        if args.shard.is_some() || args.shards.is_some() {
+            bail!("--shard and --shards split a --sequence's frames: give --sequence");
+        }
+        return Ok(None);
+    };
+    let Some((start, end)) = span else {
+        bail!("--sequence: nothing in the scene moves (every frame would be the same image)")
+    };
+    let (from, to) = match asked {
+        cli::Span::All => (start, end),
+        cli::Span::Range(a, b) => (a, b),
+    };
+    let frames = sequence::Frames::new(from, to.max(from), args.fps);
+    let shard = sequence::resolve_shard(args.shard, args.shards.map(|n| n as usize), |k| std::env::var(k).ok())?;
+    let mut out = Vec::new();
+    for i in (0..frames.count).filter(|&i| shard.owns(i)) {
+        let path = sequence::numbered(output, i + 1)?;
+        check_output(&path, options)?;
+        out.push((Some(frames.time(i)), path));
+    }
+    if out.is_empty() {
+        log::warn!(
+            "--shard {}/{}: the sequence's {} frames leave none to this part",
+            shard.index,
+            shard.count,
+            frames.count
+        );
+    }
+    Ok(Some(out))
+}
+
 fn default_output(scene: Option<&Path>) -> PathBuf {
     let mut name = scene.and_then(|p| p.file_stem()).map_or_else(|| "out".into(), |s| s.to_os_string());
     name.push(".png");
@@ -277,6 +329,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     let mut write_options = WriteOptions { force: args.force, inputs: scene.sources.clone(), provenance: Vec::new() };
     check_output(&output, &write_options)?;
     let (width, height) = args.size.or(scene.image_size).unwrap_or((320, 240));
+    let images = sequence_images(&args, &scene, &output, &write_options)?;
     let mut settings = RenderSettings {
         width,
         height,
@@ -290,6 +343,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         frame_index: 0,
         antialias: false,
         busy_iterations: args.busy_pass,
+        time: args.time,
     };
     let auto = settings.shadows.iter().any(|c| c.method == ShadowMethod::Auto);
     if args.max_error.is_some() && !auto {
@@ -328,26 +382,43 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     // Before the first frame, so its host time holds no calibration.
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
     let mut timings = TimingLog::default();
-    let mut frame = None;
-    for i in 0..frames {
-        let start = Instant::now();
-        frame = Some(renderer.render(&settings)?);
-        let host_ms = start.elapsed().as_secs_f64() * 1e3;
-        if i == 0 && args.print_plan {
-            if let Some(plan) = renderer.last_plan() {
-                outln!("{plan}");
+    let progress = images.as_ref().map(|list| sequence::progress(list.len(), frames));
+    for (k, (time, path)) in images.clone().unwrap_or_else(|| vec![(args.time, output.clone())]).into_iter().enumerate()
+    {
+        settings.time = time;
+        let mut frame = None;
+        for i in 0..frames {
+            let start = Instant::now();
+            frame = Some(renderer.render(&settings)?);
+            let host_ms = start.elapsed().as_secs_f64() * 1e3;
+            if i == 0 && k == 0 && args.print_plan {
+                if let Some(plan) = renderer.last_plan() {
+                    outln!("{plan}");
+                }
+            }
+            if args.timings {
+                timings.record(renderer.last_gpu_timings()?.as_ref(), host_ms);
+            }
+            if let Some(bar) = &progress {
+                bar.inc(1);
             }
         }
-        if args.timings {
-            timings.record(renderer.last_gpu_timings()?.as_ref(), host_ms);
+        let frame = frame.expect("at least one frame");
+        write_options.provenance = provenance(&args, &settings, renderer.scene(), frames, &device_name);
+        write_image_with(&frame, &path, &write_options)?;
+        if images.is_none() {
+            // Without -o, the full path: the user did not name the file, so say where it went.
+            let shown = if given_output { path.clone() } else { std::path::absolute(&path).unwrap_or(path.clone()) };
+            outln!("wrote {} ({width}x{height}) on {device_name}", shown.display());
+        } else {
+            log::info!("wrote {} (t = {:.4} s)", path.display(), time.unwrap_or_default());
         }
     }
-    let frame = frame.expect("at least one frame");
-    write_options.provenance = provenance(&args, &settings, renderer.scene(), frames, &device_name);
-    write_image_with(&frame, &output, &write_options)?;
-    // Without -o, the full path: the user did not name the file, so say where it went.
-    let shown = if given_output { output.clone() } else { std::path::absolute(&output).unwrap_or(output.clone()) };
-    outln!("wrote {} ({width}x{height}) on {device_name}", shown.display());
+    if let (Some(list), Some(bar)) = (&images, progress) {
+        bar.finish_and_clear();
+        let first = list.first().map(|(_, p)| p.display().to_string()).unwrap_or_default();
+        outln!("wrote {} frames ({width}x{height}, first {first}) on {device_name}", list.len());
+    }
     if let Some(calibration) = &calibration {
         // Per pass and for the whole frame, median and IQR; a header says how the GPU figures
         // were taken (the calibration's choice), or why there are none.

@@ -10,13 +10,13 @@ use gpu_allocator::MemoryLocation;
 pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
 use crate::diagnostics::busy;
 pub use crate::frame::{Target, BACKGROUND};
+use crate::gpu::accel::RayQueryScene;
 pub use crate::gpu::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
 use crate::passes::accumulate::{self, History};
 use crate::passes::visibility;
 use crate::scene::bvh::{caster_triangles, ShadowBvh, WideNode};
 use crate::scene::Scene;
-use crate::gpu::accel::RayQueryScene;
 use crate::timing::TimingCalibration;
 use crate::vk::{Buffer, ComputePipeline, GpuContext, GpuError, GpuResult};
 
@@ -59,6 +59,9 @@ pub struct Renderer {
     fallbacks_noted: std::sync::Mutex<std::collections::BTreeSet<(usize, ShadowMethod)>>,
     /// How passes are timed on this device, found the first time timings are asked for.
     timing: std::sync::OnceLock<TimingCalibration>,
+    /// A moving scene's casters on the CPU and the instant they are posed at; `None` when
+    /// nothing moves.
+    motion: Option<Motion>,
     pub gpu_scene: SceneGpu,
     scene: Scene,
     /// `scene` in the local frame the GPU sees, less what f32 cannot hold there
@@ -75,6 +78,9 @@ impl Renderer {
     /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
         let (local, origin) = scene.local_frame();
+        if local.is_animated() {
+            return Renderer::new_moving(ctx, scene, local, origin);
+        }
         let start = std::time::Instant::now();
         let bvh = ShadowBvh::build(&local);
         log::info!(
@@ -129,11 +135,93 @@ impl Renderer {
             )?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
+            motion: None,
             gpu_scene,
             scene,
             local,
             ctx,
         })
+    }
+
+    /// `new` for a scene where something moves: its casters in two levels (a bottom tree per
+    /// group that moves together, the static ones in one), its moving draws with instance rows
+    /// of their own, posed at the animation's start.
+    fn new_moving(ctx: Arc<GpuContext>, scene: Scene, local: Scene, origin: glam::DVec3) -> GpuResult<Renderer> {
+        let start = std::time::Instant::now();
+        let (levels, groups) = Motion::build_levels(&local);
+        log::info!(
+            "BVH build, two levels: {} bottom trees over {} shadow-casting triangles in {:.1} ms ({} moving groups)",
+            levels.bottoms().len(),
+            levels.triangle_count(),
+            start.elapsed().as_secs_f64() * 1e3,
+            levels.bottoms().len() - 1,
+        );
+        let moving: Vec<bool> = local.meshes.iter().map(|m| m.motion.is_some()).collect();
+        let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::Two(&levels), &moving, origin)?;
+        log::info!(
+            "upload: {} KiB of scene buffers, {} moving draws; shadow BVH on the device {} KiB",
+            gpu_scene.bytes() >> 10,
+            gpu_scene.moving.len(),
+            gpu_scene.bvh.bytes() >> 10
+        );
+        Ok(Renderer {
+            capture: Some(Capture {
+                cache: TransientCache::new(&ctx)?,
+                readback: None,
+                accumulator: accumulate::Accumulator::default(),
+                last_plan: None,
+            }),
+            ray_query: std::sync::OnceLock::new(),
+            caster_order: None,
+            volume_scene: std::sync::OnceLock::new(),
+            pipeline_cache: Default::default(),
+            environment: crate::lighting::EnvironmentGpu::new(
+                &ctx,
+                &scene.lighting,
+                scene.lighting.environment_map.as_deref(),
+            )?,
+            rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
+            area_tables: crate::lighting::AreaTables::new(
+                &ctx,
+                local.lights.iter().any(crate::scene::Light::has_size),
+                !local.rect_lights.is_empty(),
+            )?,
+            fallbacks_noted: Default::default(),
+            timing: std::sync::OnceLock::new(),
+            motion: Some(Motion { levels, groups, posed_at: None }),
+            gpu_scene,
+            scene,
+            local,
+            ctx,
+        })
+    }
+
+    /// Poses a moving scene at `time` seconds of its animation: the top level of its casters
+    /// rebuilt (on the CPU), its moving draws' instance rows and bounds and its camera, written
+    /// by the next frame's first passes. Returns what the update took: CPU milliseconds and the
+    /// bytes the next frame moves to the device. Nothing to do for a static scene, or at the
+    /// instant already posed.
+    pub fn set_time(&mut self, time: f64) -> MotionUpdate {
+        let Some(motion) = &mut self.motion else { return MotionUpdate::default() };
+        if motion.posed_at == Some(time) {
+            return MotionUpdate::default();
+        }
+        let start = std::time::Instant::now();
+        let deltas = self.local.mesh_motion(time);
+        let placements = motion.placements(&deltas);
+        motion.levels.place(&placements);
+        let mut bytes = self.gpu_scene.bvh.place(&motion.levels);
+        bytes += self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
+        let camera = self.scene.camera_at(time);
+        self.gpu_scene.camera = self.gpu_scene.to_local(&camera);
+        self.scene.camera = camera;
+        motion.posed_at = Some(time);
+        MotionUpdate { cpu_ms: start.elapsed().as_secs_f64() * 1e3, bytes }
+    }
+
+    /// Whether anything in the scene moves.
+    pub fn is_moving(&self) -> bool {
+        self.motion.is_some()
     }
 
     pub fn scene(&self) -> &Scene {
@@ -289,6 +377,15 @@ impl Renderer {
         if !self.gpu_scene.has_casters {
             return Ok(None);
         }
+        if self.motion.is_some() {
+            if self.fallbacks_noted.lock().is_ok_and(|mut seen| seen.insert((usize::MAX, ShadowMethod::Traced))) {
+                log::warn!(
+                    "the ray-query backend builds its structures once, and casters in this scene move: \
+                     shadow rays walk the compute BVH's two levels instead"
+                );
+            }
+            return Ok(None);
+        }
         let scene = crate::vk::get_or_make(&self.ray_query, || {
             let masks = crate::scene::bvh::mask::caster_masks(&self.local);
             let order = self.caster_order.as_deref();
@@ -328,6 +425,9 @@ impl Renderer {
     /// Renders one frame and reads it back. Successive calls with the same settings and
     /// stochastic (soft) shadows return the running mean of all their frames.
     pub fn render(&mut self, settings: &RenderSettings) -> GpuResult<Frame> {
+        if let Some(start) = self.scene.animation_span().map(|(start, _)| start) {
+            self.set_time(settings.time.unwrap_or(start));
+        }
         let bytes8 = settings.output == OutputKind::Display && settings.debug_view.is_none();
         let texel = if bytes8 { 4 } else { 16 };
         let bytes = u64::from(settings.width) * u64::from(settings.height) * texel;
@@ -417,4 +517,84 @@ fn execute(
     log::debug!("{plan}");
     cache.execute_timed(graph, &plan, cmd, timing)?;
     Ok(plan)
+}
+
+/// What posing a moving scene took (`Renderer::set_time`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct MotionUpdate {
+    /// CPU time: the placements, the top level's build, the instance rows.
+    pub cpu_ms: f64,
+    /// Bytes the next frame writes to the device (top region, root, instance rows).
+    pub bytes: u64,
+}
+
+/// A moving scene's casters on the CPU: two levels, and which group each mesh's triangles went to.
+struct Motion {
+    levels: crate::scene::bvh::levels::TwoLevel,
+    /// Per mesh of the local scene: the bottom tree its triangles are in (0: the static casters),
+    /// `None` for a mesh that casts no shadow.
+    groups: Vec<Option<usize>>,
+    posed_at: Option<f64>,
+}
+
+impl Motion {
+    /// The casters of `local` in two levels: the static ones in bottom tree 0, each group of
+    /// meshes that move together (the same animated node and rest pose) in a tree of its own,
+    /// in their rest pose; all placed at rest.
+    fn build_levels(local: &Scene) -> (crate::scene::bvh::levels::TwoLevel, Vec<Option<usize>>) {
+        use crate::scene::bvh::levels::{Placement, TwoLevel};
+        let mut keys: Vec<Option<(usize, [u64; 16])>> = vec![None];
+        let mut groups = Vec::with_capacity(local.meshes.len());
+        let mut triangles: Vec<Vec<[glam::Vec3; 3]>> = vec![Vec::new()];
+        // Each caster triangle's index in `caster_triangles`' order, grouped: the masks follow.
+        let mut order: Vec<Vec<usize>> = vec![Vec::new()];
+        let mut caster_index = 0usize;
+        for mesh in &local.meshes {
+            if !mesh.cast_shadows {
+                groups.push(None);
+                continue;
+            }
+            let key = mesh.motion.as_ref().map(|m| (m.node, m.rest.to_cols_array().map(f64::to_bits)));
+            let group = match keys.iter().position(|k| *k == key) {
+                Some(g) => g,
+                None => {
+                    keys.push(key);
+                    triangles.push(Vec::new());
+                    order.push(Vec::new());
+                    keys.len() - 1
+                }
+            };
+            groups.push(Some(group));
+            for tri in crate::scene::bvh::mesh_caster_triangles(mesh) {
+                triangles[group].push(tri);
+                order[group].push(caster_index);
+                caster_index += 1;
+            }
+        }
+        let masks = crate::scene::bvh::mask::caster_masks(local).map(|source| crate::scene::bvh::mask::MaskSource {
+            triangles: order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()).collect(),
+            materials: source.materials,
+        });
+        let placements: Vec<Placement> =
+            (0..triangles.len()).map(|bottom| Placement { bottom, to_world: glam::Affine3A::IDENTITY }).collect();
+        (TwoLevel::build(triangles, masks.as_ref(), &placements), groups)
+    }
+
+    /// Each bottom tree's placement for the per-mesh `deltas` (local frame; `None`: at rest).
+    fn placements(&self, deltas: &[Option<glam::DMat4>]) -> Vec<crate::scene::bvh::levels::Placement> {
+        let bottoms = self.levels.bottoms().len();
+        let mut to_world = vec![glam::Affine3A::IDENTITY; bottoms];
+        for (mesh, group) in self.groups.iter().enumerate() {
+            if let (Some(g), Some(Some(d))) = (group, deltas.get(mesh)) {
+                if *g > 0 {
+                    to_world[*g] = glam::Affine3A::from_mat4(d.as_mat4());
+                }
+            }
+        }
+        to_world
+            .into_iter()
+            .enumerate()
+            .map(|(bottom, to_world)| crate::scene::bvh::levels::Placement { bottom, to_world })
+            .collect()
+    }
 }

@@ -20,11 +20,11 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 
 use crate::diagnostics::ray_batch::{self, GpuRay, Target, TimedBatch};
+use crate::gpu::accel::RayQueryScene;
 use crate::gpu::BvhBuffers;
 use crate::scene::bvh::levels::{Placement, TwoLevel};
 use crate::scene::bvh::{caster_triangles, offset_ray_origin, ShadowBvh};
 use crate::scene::{Light, Scene};
-use crate::gpu::accel::RayQueryScene;
 use crate::timing::median;
 use crate::vk::{GpuContext, GpuOptions};
 

@@ -8,8 +8,8 @@ use std::collections::HashMap;
 use ash::vk;
 use glam::{DVec3, Vec3};
 
-use crate::graph::Access;
 use crate::gpu::SCENE_ACCESS;
+use crate::graph::Access;
 use crate::maths::Bounds;
 use crate::scene::bvh::ShadowBvh;
 use crate::scene::{Camera, Material, Scene};
@@ -263,7 +263,13 @@ impl Packing {
         };
         if moving {
             let base = mesh.instance.as_ref().map_or(glam::DMat4::IDENTITY, |i| i.to_world);
-            self.moving.push(MovingDraw { draw: self.draws.len(), mesh: index, row: instance, base, rest_bounds: bounds });
+            self.moving.push(MovingDraw {
+                draw: self.draws.len(),
+                mesh: index,
+                row: instance,
+                base,
+                rest_bounds: bounds,
+            });
         }
         let maps = mesh.surface.as_ref().map(|surface| {
             // Set 0 is for meshes without textures (textures::upload).
@@ -416,7 +422,8 @@ impl SceneGpu {
         check_texel_limits(ctx, vertex.bytes.len(), &packing.indices)?;
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         // A moving scene's frames rewrite the instance rows.
-        let rows = if packing.moving.is_empty() { vk::BufferUsageFlags::empty() } else { vk::BufferUsageFlags::TRANSFER_DST };
+        let rows =
+            if packing.moving.is_empty() { vk::BufferUsageFlags::empty() } else { vk::BufferUsageFlags::TRANSFER_DST };
         let [vertices, indices, lights] = upload(
             ctx,
             [
@@ -481,7 +488,10 @@ impl SceneGpu {
     /// Imports the vertex buffer into `g`; where the scene was posed since the last frame, a
     /// first pass writes the moving draws' instance rows (after every read of the old ones that
     /// earlier frames submitted).
-    pub fn import_vertices<'a>(&'a self, g: &mut crate::graph::RenderGraph<'a>) -> crate::graph::Handle<crate::graph::BufferKind> {
+    pub fn import_vertices<'a>(
+        &'a self,
+        g: &mut crate::graph::RenderGraph<'a>,
+    ) -> crate::graph::Handle<crate::graph::BufferKind> {
         let mut vertices = g.import_buffer("vertices", &self.vertices, SCENE_ACCESS);
         let Some(rows) = self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()).take() else {
             return vertices;

@@ -92,7 +92,12 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuRe
     ];
     let size = std::mem::size_of::<Push>() as u32;
     let bindings = BVH_SLOTS.with(&bindings, variant);
-    let names = ["rect lights", "rect lights (alpha masks)", "rect lights (two levels)", "rect lights (alpha masks, two levels)"];
+    let names = [
+        "rect lights",
+        "rect lights (alpha masks)",
+        "rect lights (two levels)",
+        "rect lights (alpha masks, two levels)",
+    ];
     let spirv = variant.spirv(spirv::LIGHTING_RECT_LIGHTS_COMP_WALKS);
     ComputePipeline::new(ctx, variant.name(names), spirv, &bindings, size, TILE)
 }

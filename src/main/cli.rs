@@ -7,6 +7,8 @@ use clap::{Parser, Subcommand};
 
 use umbra::config::{DebugView, ShadowBackend, ShadowMethod};
 
+use crate::sequence;
+
 #[derive(Parser)]
 #[command(name = "umbra", version, about = "Vulkan renderer with compute ray-traced shadows")]
 pub(crate) struct Cli {
@@ -252,6 +254,63 @@ pub(crate) struct RenderArgs {
     /// each) after the geometry pass, a GPU cost of known size for checking timings.
     #[arg(long, hide = true, value_parser = clap::value_parser!(u32).range(1..=65535))]
     pub(crate) busy_pass: Option<u32>,
+    /// A moving scene's instant to render, in seconds of its animation (default: its start).
+    #[arg(long, value_parser = parse_seconds, conflicts_with = "sequence")]
+    pub(crate) time: Option<f64>,
+    /// Render a span of a moving scene's animation, START:END in seconds (END not included;
+    /// without a value: the whole animation), one image per frame at --fps into numbered files:
+    /// the output's run of # becomes the frame number (frames/shot_####.png), or _0001, _0002,
+    /// ... go before its extension. Each image gets --frames frames, as a single render does.
+    #[arg(long, value_parser = parse_span, num_args = 0..=1, default_missing_value = "all")]
+    pub(crate) sequence: Option<Span>,
+    /// Frames per second of --sequence.
+    #[arg(long, default_value_t = 24.0, value_parser = parse_fps)]
+    pub(crate) fps: f64,
+    /// Render only part K of N of --sequence (frames dealt round-robin: frame i is part
+    /// i mod N + 1). Without it, a Slurm job array's task or a Kubernetes Indexed Job's
+    /// JOB_COMPLETION_INDEX (with --shards) says which part.
+    #[arg(long, value_parser = sequence::parse_shard, value_name = "K/N")]
+    pub(crate) shard: Option<sequence::Shard>,
+    /// The number of parts when JOB_COMPLETION_INDEX gives this process's (a Kubernetes Indexed
+    /// Job's completions).
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub(crate) shards: Option<u64>,
+}
+
+/// `--sequence`'s span of the animation.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub(crate) enum Span {
+    /// The whole animation.
+    All,
+    /// From, to (not included), in seconds.
+    Range(f64, f64),
+}
+
+fn parse_seconds(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(t) if t.is_finite() && t >= 0.0 => Ok(t),
+        _ => Err(format!("{text:?}: give a time in seconds, 0 or more")),
+    }
+}
+
+fn parse_span(text: &str) -> Result<Span, String> {
+    if text == "all" {
+        return Ok(Span::All);
+    }
+    let bad = || format!("{text:?}: write START:END in seconds, START before END (e.g. 0:2.5)");
+    let (a, b) = text.split_once(':').ok_or_else(bad)?;
+    let (a, b) = (parse_seconds(a).map_err(|_| bad())?, parse_seconds(b).map_err(|_| bad())?);
+    if a >= b {
+        return Err(bad());
+    }
+    Ok(Span::Range(a, b))
+}
+
+fn parse_fps(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(f) if f.is_finite() && f > 0.0 && f <= 10_000.0 => Ok(f),
+        _ => Err(format!("{text:?}: give frames per second, above 0 and at most 10000")),
+    }
 }
 
 /// `--shadows`: one method for every light (`map`), or per light, counting from 0

@@ -70,6 +70,15 @@ pub fn caster_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
     tris
 }
 
+/// One mesh's caster triangles as `caster_triangles` lists them (rounded to f32, those with a
+/// non-finite vertex left out), whatever its `cast_shadows`.
+pub fn mesh_caster_triangles(mesh: &super::Mesh) -> impl Iterator<Item = [Vec3; 3]> + '_ {
+    mesh.indices
+        .chunks_exact(3)
+        .map(|k| [0, 1, 2].map(|c| mesh.positions[k[c] as usize].as_vec3()))
+        .filter(|tri| tri.iter().all(|v| v.is_finite()))
+}
+
 /// Items at least this many are made on several threads (`parallel_map`).
 const PARALLEL_MIN_ITEMS: usize = 65_536;
 

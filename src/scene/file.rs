@@ -12,6 +12,7 @@ use super::values::Xyz;
 use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, RectLight, Scene};
 
 mod desc;
+mod motion;
 use desc::{
     CameraChoice, CameraDesc, FaceOrder, ImageDesc, LightDesc, LightKind, MaterialDesc, ObjectDesc, SceneFile,
     ShapeKind,
@@ -60,6 +61,11 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         None => None,
     };
     let camera = check.camera_choice(file.camera.as_ref(), whole.as_ref().map(|(s, g)| (s.as_str(), g)))?;
+    let camera_path = match &file.camera {
+        Some(CameraChoice::Table(desc)) => check.camera_path(desc, camera.up.as_dvec3())?,
+        _ => None,
+    };
+    let mut rig = super::animation::Rig::default();
     // Rect lights go to their own list; the others keep their shadow choices in step.
     let (mut lights, mut rect_lights, mut shadowed) = (Vec::new(), Vec::new(), Vec::new());
     for (i, light) in file.lights.iter().enumerate() {
@@ -97,7 +103,18 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
     });
     let mut triangles = 0u64;
     for next in whole_object.into_iter().map(Ok).chain(objects) {
-        let (path, object, placed) = next?;
+        let (path, object, mut placed) = next?;
+        // A keyed object follows a rig node of its own, placed at its first key.
+        let keyed = match object {
+            Some(object) => check.keyed_node(&path, object)?,
+            None => None,
+        };
+        let motion = keyed.map(|node| {
+            let rest = node.local(node.translation.as_ref().map_or(0.0, |c| c.times[0]));
+            rig.nodes.push(node);
+            placed.transform = rest;
+            super::animation::MeshMotion { node: rig.nodes.len() - 1, rest }
+        });
         // Counted before the instances are flattened into world-space copies: a few kilobytes
         // of glTF nodes can instance one mesh into more triangles than memory holds.
         let object_triangles: u64 =
@@ -128,6 +145,9 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
                 if to_world.determinant() > 0.0 {
                     m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
                 }
+            }
+            if let Some(m) = &mut placed_mesh {
+                m.motion = motion.clone();
             }
             meshes.extend(placed_mesh);
         }
@@ -187,6 +207,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         sources,
         light_shadows,
         lighting,
+        animation: check.animation(rig, camera_path, file.animation.as_ref())?.map(std::sync::Arc::new),
     })
 }
 

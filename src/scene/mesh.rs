@@ -166,6 +166,7 @@ pub(super) fn place(
     }
     let surface = place_surface(&mesh.surface, &out.sources, object_to_world, mirrored);
     Some(Mesh {
+        motion: None,
         name: mesh.name.clone(),
         object: object.to_owned(),
         positions: out.positions,

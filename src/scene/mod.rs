@@ -1,6 +1,7 @@
 //! The scene as the renderer sees it: camera, lights and world-space triangle meshes with
 //! materials. Loaded from a TOML scene file (see docs/scene-format.md) or built in.
 
+pub mod animation;
 pub mod bvh;
 pub mod camera;
 mod environment;
@@ -77,6 +78,9 @@ pub struct Mesh {
     /// Both faces are drawn, a back face with its normals turned toward the viewer (glTF
     /// `doubleSided`); otherwise back faces are culled (glTF's default, and every other source's).
     pub double_sided: bool,
+    /// Set when the mesh moves: the rig node it follows (`Scene::animation`); its positions are
+    /// its rest pose.
+    pub motion: Option<animation::MeshMotion>,
 }
 
 /// Per vertex (parallel to `Mesh::positions`): texture coordinates, and with a normal map the
@@ -149,6 +153,8 @@ pub struct Scene {
     pub sources: Vec<PathBuf>,
     /// `background`, `[environment]` and `[ambient_occlusion]` (scene/environment.rs).
     pub lighting: SceneLighting,
+    /// What moves, and when; `None` in a static scene.
+    pub animation: Option<Arc<animation::Animation>>,
 }
 
 /// Reads a file umbra takes in besides a scene's (a viewer script) as the scene's inputs are
@@ -217,7 +223,78 @@ impl Scene {
             if let Some(instance) = &mut mesh.instance {
                 instance.to_world = DMat4::from_translation(offset) * instance.to_world;
             }
+            if let Some(motion) = &mut mesh.motion {
+                motion.rest = DMat4::from_translation(offset) * motion.rest;
+            }
         }
+        if let Some(animation) = &mut scene.animation {
+            Arc::make_mut(animation).shift += offset;
+        }
+        scene
+    }
+
+    /// Whether anything in the scene moves.
+    pub fn is_animated(&self) -> bool {
+        self.animation.is_some()
+    }
+
+    /// The scene seconds its animation lasts, from 0; `None` in a static scene.
+    pub fn animation_span(&self) -> Option<(f64, f64)> {
+        self.animation.as_ref().map(|a| a.span())
+    }
+
+    /// Per mesh (in `meshes` order): the transform from its stored positions to its pose at
+    /// scene time `t`, `None` for a mesh that does not move.
+    pub fn mesh_motion(&self, t: f64) -> Vec<Option<DMat4>> {
+        let Some(animation) = &self.animation else { return vec![None; self.meshes.len()] };
+        let world = animation.world(t);
+        self.meshes.iter().map(|m| m.motion.as_ref().map(|mm| world[mm.node] * mm.rest.inverse())).collect()
+    }
+
+    /// The camera at scene time `t`: its path's, or the scene's own.
+    pub fn camera_at(&self, t: f64) -> Camera {
+        match self.animation.as_ref().and_then(|a| a.camera.as_ref().map(|path| (a, path))) {
+            Some((animation, path)) => {
+                let (eye, target) = path.sample(animation.clip_time(t));
+                let shift = animation.shift;
+                Camera { eye: eye + shift, target: target + shift, ..self.camera }
+            }
+            None => self.camera,
+        }
+    }
+
+    /// The scene at time `t` as a static scene: moving meshes' positions, normals and tangents
+    /// moved in f64 (normals by the inverse-transpose), the camera at `t`. A static scene's is
+    /// itself.
+    pub fn posed(&self, t: f64) -> Scene {
+        if self.animation.is_none() {
+            return self.clone();
+        }
+        let motion = self.mesh_motion(t);
+        let mut scene = self.clone();
+        scene.camera = self.camera_at(t);
+        for (mesh, delta) in scene.meshes.iter_mut().zip(motion) {
+            let Some(d) = delta else { continue };
+            for p in &mut mesh.positions {
+                *p = d.transform_point3(*p);
+            }
+            let normal_matrix = glam::DMat3::from_mat4(d).inverse().transpose();
+            for n in &mut mesh.normals {
+                *n = (normal_matrix * n.as_dvec3()).normalize_or_zero().as_vec3();
+            }
+            if let Some(surface) = &mut mesh.surface {
+                let linear = glam::DMat3::from_mat4(d);
+                for t in &mut surface.tangents {
+                    let v = (linear * t.truncate().as_dvec3()).normalize_or_zero().as_vec3();
+                    *t = v.extend(t.w);
+                }
+            }
+            if let Some(instance) = &mut mesh.instance {
+                instance.to_world = d * instance.to_world;
+            }
+            mesh.motion = None;
+        }
+        scene.animation = None;
         scene
     }
 }

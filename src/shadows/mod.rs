@@ -24,9 +24,9 @@ use std::collections::BTreeMap;
 
 use ash::vk;
 
-use crate::gpu::accel::RayQueryScene;
 use self::volumes::VolumeScene;
 use crate::config::{DebugView, RenderSettings, ShadowChoice, ShadowMethod};
+use crate::gpu::accel::RayQueryScene;
 use crate::gpu::{BvhHandles, CameraMatrices, SceneGpu};
 use crate::graph::{BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::visibility::LayerPlan;

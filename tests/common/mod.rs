@@ -39,10 +39,18 @@ pub fn lavapipe_env() {
     });
 }
 
+/// The device the tests run on: lavapipe ("llvmpipe"), or part of another device's name from
+/// `UMBRA_TEST_DEVICE` (with `VK_DRIVER_FILES` pointing the loader at its driver): the suite
+/// then runs on that GPU, and the tests whose figures were measured on lavapipe say so when they
+/// fail.
+pub fn test_device() -> String {
+    std::env::var("UMBRA_TEST_DEVICE").unwrap_or_else(|_| "llvmpipe".to_owned())
+}
+
 /// A validated lavapipe context. Every GPU test ends with `assert_clean`.
 pub fn gpu() -> Arc<GpuContext> {
     lavapipe_env();
-    let ctx = GpuContext::new(&GpuOptions { validate: true, device_name: Some("llvmpipe".into()) })
+    let ctx = GpuContext::new(&GpuOptions { validate: true, device_name: Some(test_device()) })
         .expect("lavapipe with validation; run tools/setup");
     assert!(ctx.validation_enabled());
     ctx

@@ -165,6 +165,7 @@ fn empty_bvh_uploads_a_dummy_and_never_occludes() {
 fn scene_build_takes_only_shadow_casters() {
     let mesh = |name: &str, y: f64, cast_shadows| Mesh {
         name: name.into(),
+        motion: None,
         object: name.into(),
         positions: vec![DVec3::new(-1.0, y, -1.0), DVec3::new(1.0, y, -1.0), DVec3::new(0.0, y, 1.0)],
         normals: vec![Vec3::Y; 3],
@@ -186,6 +187,7 @@ fn scene_build_takes_only_shadow_casters() {
         light_shadows: vec![],
         sources: vec![],
         lighting: Default::default(),
+        animation: None,
     };
     let bvh = ShadowBvh::build(&scene);
     assert_eq!(bvh.triangle_count(), 1);

@@ -9,6 +9,7 @@ mod common;
 #[path = "../gltf_builder/mod.rs"]
 mod gltf_builder;
 
+mod animation;
 mod bench_metrics;
 mod bvh_cpu;
 mod gltf_checks;

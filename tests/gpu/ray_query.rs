@@ -9,11 +9,11 @@ use std::path::Path;
 
 use glam::{Vec3, Vec4};
 use umbra::config::DebugView;
+use umbra::gpu::accel::{BUILD_BOTTOM, BUILD_TOP};
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowBackend};
 use umbra::scene::bvh::ShadowBvh;
 use umbra::scene::Scene;
 use umbra::shading::{gpu_lights, light_sample, Surfaces};
-use umbra::gpu::accel::{BUILD_BOTTOM, BUILD_TOP};
 
 /// `ShadowBvh::ray_near_edge` tolerance, as in render_accuracy.rs: about 8 ulps of the
 /// largest coordinate of these scenes.

@@ -16,9 +16,10 @@ fn served(light: u32) -> Served {
     Served { light, layer: light, choice: ShadowChoice::default(), unshadowed: false }
 }
 
-/// The trace over the compute BVH, hard (variant 0) and soft (variant 2), in the cache's keys.
+/// The trace over the compute BVH, hard and soft, in the cache's keys: the key's bits are the
+/// BVH walk's build (`BvhVariant::bits`, two bits), then soft.
 const HARD: PipelineKey = PipelineKey::new("shadow trace", 0);
-const SOFT: PipelineKey = PipelineKey::new("shadow trace", 2);
+const SOFT: PipelineKey = PipelineKey::new("shadow trace", 1 << 2);
 
 #[test]
 fn hard_and_soft_lights_take_their_own_variant_made_only_when_needed() {

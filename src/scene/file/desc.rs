@@ -25,6 +25,51 @@ pub(super) struct SceneFile {
     pub(super) background: Option<Xyz>,
     pub(super) environment: Option<crate::scene::environment::EnvironmentDesc>,
     pub(super) ambient_occlusion: Option<crate::scene::environment::AmbientOcclusionDesc>,
+    pub(super) animation: Option<AnimationDesc>,
+}
+
+/// `[animation]`: how scene time maps onto the keys.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct AnimationDesc {
+    pub(super) speed: Option<f64>,
+    #[serde(rename = "loop")]
+    pub(super) looping: Option<bool>,
+    pub(super) start: Option<f64>,
+    pub(super) end: Option<f64>,
+}
+
+/// One of an object's `keys`: its transform at `time`, made as the object's own is.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct KeyDesc {
+    pub(super) time: f64,
+    pub(super) translate: Option<Xyz>,
+    pub(super) rotate_deg: Option<Xyz>,
+    pub(super) scale: Option<Scale>,
+}
+
+/// One of the camera's `keys`.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct CameraKeyDesc {
+    pub(super) time: f64,
+    pub(super) eye: Xyz,
+    pub(super) target: Xyz,
+}
+
+#[derive(Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "lowercase")]
+pub(super) enum KeyInterpolation {
+    Linear,
+    Step,
+}
+
+#[derive(Clone, Copy, Deserialize, PartialEq)]
+#[serde(rename_all = "kebab-case")]
+pub(super) enum CameraPathDesc {
+    Linear,
+    CatmullRom,
 }
 
 /// `[render]`: how the scene asks to be rendered, where the command line says nothing.
@@ -48,6 +93,9 @@ pub(super) struct CameraDesc {
     pub(super) target: Xyz,
     pub(super) up: Option<Xyz>,
     pub(super) vfov_deg: f64,
+    /// A path: the camera at each key's time (the table's eye and target are its rest).
+    pub(super) keys: Option<Vec<CameraKeyDesc>>,
+    pub(super) path: Option<CameraPathDesc>,
 }
 
 /// `[camera]`, or `camera = N`: the glTF `scene`'s camera N.
@@ -172,6 +220,9 @@ pub(super) struct ObjectDesc {
     pub(super) scale: Option<Scale>,
     pub(super) material: Option<MaterialDesc>,
     pub(super) cast_shadows: Option<bool>,
+    /// Keyframed placement, in place of translate/rotate_deg/scale or transform.
+    pub(super) keys: Option<Vec<KeyDesc>>,
+    pub(super) interpolation: Option<KeyInterpolation>,
 }
 
 #[derive(Deserialize)]

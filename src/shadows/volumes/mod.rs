@@ -125,6 +125,12 @@ impl VolumeScene {
     /// `local`: the scene in the frame `SceneGpu` holds, whose origin is `origin` in the world.
     pub fn new(ctx: &Arc<GpuContext>, local: &Scene, origin: glam::DVec3) -> GpuResult<VolumeScene> {
         let refuse = |why: String| Ok(VolumeScene { refused: Some(why), casters: None });
+        if let Some(mesh) = local.meshes.iter().find(|m| m.cast_shadows && m.motion.is_some()) {
+            return refuse(format!(
+                "{} ({}) moves, and `volumes` extrudes the casters as loaded (its adjacency is not rebuilt per frame)",
+                mesh.object, mesh.name
+            ));
+        }
         if depth_stencil_format(ctx).is_none() {
             return refuse(
                 "`volumes` needs a depth-stencil format (D32S8 or D24S8) this device can attach and sample".into(),

@@ -26,7 +26,12 @@ fn decode(origin: f32, q: u32, scale: f32) -> f32 {
 /// A node's texels for children with true boxes `boxes` and codes `codes` (`node_meta`), whose
 /// inner children's nodes start at `first_child` and leaf children's triangles at
 /// `first_triangle`.
-pub(in crate::scene::bvh) fn encode(boxes: &[(Vec3, Vec3)], codes: [u32; 4], first_child: u32, first_triangle: u32) -> WideNode {
+pub(in crate::scene::bvh) fn encode(
+    boxes: &[(Vec3, Vec3)],
+    codes: [u32; 4],
+    first_child: u32,
+    first_triangle: u32,
+) -> WideNode {
     let lo = boxes.iter().fold(Vec3::splat(f32::INFINITY), |m, b| m.min(b.0));
     let hi = boxes.iter().fold(Vec3::splat(f32::NEG_INFINITY), |m, b| m.max(b.1));
     let mut node = WideNode::default();

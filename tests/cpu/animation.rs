@@ -1,0 +1,203 @@
+//! Animation sampling (src/scene/animation.rs) against values worked by hand: glTF's cubic
+//! spline, slerp over more than 180 degrees taking the shorter arc, STEP holding, clamping
+//! outside the keys, looping and speed; a posed scene against the same pose written as a static
+//! scene file; the scene file's keys and their errors.
+
+use std::path::Path;
+
+use glam::{DQuat, DVec3};
+use umbra::scene::animation::{Animation, Channel, Interpolation, Rig, RigNode};
+use umbra::scene::Scene;
+
+fn close(a: DVec3, b: DVec3) -> bool {
+    (a - b).length() < 1e-12
+}
+
+#[test]
+fn linear_step_and_clamping() {
+    let c =
+        Channel::new(vec![1.0, 3.0], vec![DVec3::ZERO, DVec3::new(2.0, 4.0, 6.0)], Interpolation::Linear, "t").unwrap();
+    assert!(close(c.sample(2.0), DVec3::new(1.0, 2.0, 3.0)));
+    assert!(close(c.sample(2.5), DVec3::new(1.5, 3.0, 4.5)));
+    // Outside the keys: the first and last values.
+    assert!(close(c.sample(-5.0), DVec3::ZERO));
+    assert!(close(c.sample(9.0), DVec3::new(2.0, 4.0, 6.0)));
+    let s = Channel { interpolation: Interpolation::Step, ..c };
+    assert!(close(s.sample(2.999), DVec3::ZERO), "STEP holds the earlier key");
+    assert!(close(s.sample(3.0), DVec3::new(2.0, 4.0, 6.0)));
+}
+
+#[test]
+fn cubic_spline_follows_the_hermite_form_with_tangents_scaled_by_the_interval() {
+    // Keys at 0 and 2 (dt = 2): values 0 and 1, out-tangent of key 0 = 1, in-tangent of key 1 = 0.
+    // p(s) = (2s^3 - 3s^2 + 1) 0 + dt (s^3 - 2s^2 + s) 1 + (-2s^3 + 3s^2) 1 + dt (s^3 - s^2) 0.
+    // At t = 1 (s = 1/2): 2 (1/8 - 1/2 + 1/2) + (-1/4 + 3/4) = 1/4 + 1/2 = 0.75.
+    let x = |v: f64| DVec3::new(v, 0.0, 0.0);
+    let values = vec![x(0.0), x(0.0), x(1.0), x(0.0), x(1.0), x(0.0)];
+    let c = Channel::new(vec![0.0, 2.0], values, Interpolation::CubicSpline, "t").unwrap();
+    assert!((c.sample(1.0).x - 0.75).abs() < 1e-12, "{}", c.sample(1.0).x);
+    // s = 1/4: 2 (1/64 - 1/8 + 1/4) + (-1/32 + 3/16) = 0.28125 + 0.15625 = 0.4375.
+    assert!((c.sample(0.5).x - 0.4375).abs() < 1e-12);
+    assert!(close(c.sample(2.0), x(1.0)) && close(c.sample(0.0), x(0.0)));
+    // Three values a key: two keys with two values are refused.
+    assert!(Channel::new(vec![0.0, 1.0], vec![x(0.0), x(1.0)], Interpolation::CubicSpline, "k").is_err());
+}
+
+#[test]
+fn slerp_over_more_than_half_a_turn_takes_the_shorter_arc() {
+    // 0 to 300 degrees about Y: the shorter way is -60, so a quarter of the way is -15.
+    let a = DQuat::IDENTITY;
+    let b = DQuat::from_rotation_y(300f64.to_radians());
+    let c = Channel::new(vec![0.0, 4.0], vec![a, b], Interpolation::Linear, "r").unwrap();
+    let q = c.sample(1.0);
+    let expect = DQuat::from_rotation_y(-15f64.to_radians());
+    assert!(q.dot(expect).abs() > 1.0 - 1e-12, "{q:?}");
+    assert!((q.length() - 1.0).abs() < 1e-12);
+}
+
+#[test]
+fn bad_channels_are_named() {
+    let x = DVec3::X;
+    let err = Channel::new(vec![0.0, 0.0], vec![x, x], Interpolation::Linear, "objects[1].keys").unwrap_err();
+    assert!(err.starts_with("objects[1].keys: key times must increase"), "{err}");
+    let err = Channel::new(vec![0.0, f64::NAN], vec![x, x], Interpolation::Linear, "k").unwrap_err();
+    assert!(err.contains("not finite"), "{err}");
+    let err = Channel::new(vec![0.0], vec![DQuat::from_xyzw(f64::NAN, 0.0, 0.0, 1.0)], Interpolation::Step, "q");
+    assert!(err.unwrap_err().contains("not finite"));
+}
+
+#[test]
+fn looping_and_speed_map_scene_time_onto_the_clip() {
+    let node = RigNode {
+        parent: None,
+        rest: (DVec3::ZERO, DQuat::IDENTITY, DVec3::ONE),
+        translation: Some(
+            Channel::new(vec![1.0, 3.0], vec![DVec3::ZERO, DVec3::X * 2.0], Interpolation::Linear, "t").unwrap(),
+        ),
+        rotation: None,
+        scale: None,
+    };
+    let mut a = Animation::new(Rig { nodes: vec![node] }, None);
+    assert_eq!((a.start, a.end), (1.0, 3.0));
+    assert_eq!(a.span(), (0.0, 2.0));
+    assert_eq!(a.clip_time(0.5), 1.5);
+    assert_eq!(a.clip_time(10.0), 3.0, "held at the end without looping");
+    a.looping = true;
+    assert_eq!(a.clip_time(2.5), 1.5, "wrapped");
+    a.speed = 2.0;
+    assert_eq!(a.span(), (0.0, 1.0));
+    assert_eq!(a.clip_time(0.25), 1.5);
+    assert!(close(a.world(0.25)[0].w_axis.truncate(), DVec3::new(0.5, 0.0, 0.0)));
+}
+
+const KEYED: &str = r#"
+[camera]
+eye = [0.0, 2.0, 6.0]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 45.0
+keys = [{ time = 0.0, eye = [0.0, 2.0, 6.0], target = [0.0, 0.0, 0.0] },
+        { time = 2.0, eye = [6.0, 2.0, 0.0], target = [0.0, 0.0, 0.0] }]
+
+[[objects]]
+shape = "cube"
+keys = [{ time = 0.0, translate = [0.0, 0.5, 0.0] },
+        { time = 2.0, translate = [1.0, 0.5, -1.0], rotate_deg = [0.0, 90.0, 0.0], scale = 2.0 }]
+
+[[objects]]
+shape = "plane"
+"#;
+
+/// The same cube at t = 1 as the keys interpolate it: halfway, 45 degrees, scale 1.5.
+const BAKED: &str = r#"
+[camera]
+eye = [0.0, 2.0, 6.0]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 45.0
+
+[[objects]]
+shape = "cube"
+translate = [0.5, 0.5, -0.5]
+rotate_deg = [0.0, 45.0, 0.0]
+scale = 1.5
+
+[[objects]]
+shape = "plane"
+"#;
+
+#[test]
+fn a_posed_scene_is_the_same_pose_written_as_a_static_scene() {
+    let keyed = Scene::parse(KEYED, "keyed.toml", Path::new(".")).unwrap();
+    let baked = Scene::parse(BAKED, "baked.toml", Path::new(".")).unwrap();
+    assert!(keyed.is_animated() && !baked.is_animated());
+    assert_eq!(keyed.animation_span(), Some((0.0, 2.0)));
+    assert!(keyed.meshes[0].motion.is_some() && keyed.meshes[1].motion.is_none());
+    assert_eq!(keyed.mesh_motion(1.0)[1], None);
+    let posed = keyed.posed(1.0);
+    assert!(!posed.is_animated() && posed.meshes.iter().all(|m| m.motion.is_none()));
+    for (p, q) in posed.meshes[0].positions.iter().zip(&baked.meshes[0].positions) {
+        assert!((*p - *q).length() <= 1e-9 * (1.0 + q.length()), "{p} against {q}");
+    }
+    for (n, m) in posed.meshes[0].normals.iter().zip(&baked.meshes[0].normals) {
+        assert!((*n - *m).length() < 1e-6);
+    }
+    // The camera's path: halfway along the straight line between its keys; its orientation half
+    // of the turn between the keys' look-at rotations (the second is the first turned 90 degrees
+    // about Y, so halfway is 45: the first key's view direction (0, -2, -6) turned by 45).
+    let camera = keyed.camera_at(1.0);
+    assert!((camera.eye - DVec3::new(3.0, 2.0, 3.0)).length() < 1e-9, "{}", camera.eye);
+    let aim = (camera.target - camera.eye).normalize();
+    let expect = DQuat::from_rotation_y(45f64.to_radians()) * DVec3::new(0.0, -2.0, -6.0).normalize();
+    assert!(aim.dot(expect) > 1.0 - 1e-9, "aims along {aim}, not {expect}");
+    assert!(((camera.target - camera.eye).length() - 40f64.sqrt()).abs() < 1e-9, "the keys' distance");
+}
+
+#[test]
+fn the_local_frame_and_posing_commute() {
+    let keyed = Scene::parse(KEYED, "keyed.toml", Path::new(".")).unwrap();
+    let offset = DVec3::new(1e5, -3.0, 250.0);
+    let a = keyed.translated(offset).posed(0.7);
+    let b = keyed.posed(0.7).translated(offset);
+    for (p, q) in a.meshes[0].positions.iter().zip(&b.meshes[0].positions) {
+        assert!((*p - *q).length() < 1e-9 * (1.0 + q.length()), "{p} against {q}");
+    }
+    assert!((a.camera.eye - b.camera.eye).length() < 1e-9);
+}
+
+#[test]
+fn a_static_scene_has_no_animation() {
+    let scene = Scene::parse(BAKED, "baked.toml", Path::new(".")).unwrap();
+    assert!(scene.animation.is_none() && scene.meshes.iter().all(|m| m.motion.is_none()));
+    assert_eq!(scene.animation_span(), None);
+}
+
+#[test]
+fn bad_keys_are_one_line_naming_the_key() {
+    let cases = [
+        (
+            KEYED.replace("{ time = 2.0, translate = [1.0", "{ time = 0.0, translate = [1.0"),
+            "objects[0].keys[1].time",
+            "increase",
+        ),
+        (KEYED.replace("scale = 2.0 }", "scale = 0.0 }"), "objects[0].keys[1].scale", "non-zero"),
+        (KEYED.replace("shape = \"cube\"\n", "shape = \"cube\"\nscale = 2.0\n"), "objects[0].keys", "not both"),
+        (
+            KEYED.replace(
+                "{ time = 2.0, eye = [6.0, 2.0, 0.0], target = [0.0, 0.0, 0.0] }",
+                "{ time = 2.0, eye = [0.0, 0.0, 0.0], target = [0.0, 0.0, 0.0] }",
+            ),
+            "camera.keys[1].target",
+            "differ",
+        ),
+        (BAKED.to_owned() + "\n[animation]\nloop = true\n", "animation", "nothing"),
+        (KEYED.to_owned() + "\n[animation]\nend = -1.0\n", "animation.end", "before"),
+        (
+            KEYED.replace("shape = \"plane\"", "shape = \"plane\"\ninterpolation = \"step\""),
+            "objects[1].interpolation",
+            "only `keys`",
+        ),
+    ];
+    for (text, key, says) in cases {
+        let err = Scene::parse(&text, "keyed.toml", Path::new(".")).expect_err(key).to_string();
+        assert!(err.contains(key) && err.contains(says) && !err.contains('\n'), "{key}: {err}");
+    }
+}

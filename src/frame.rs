@@ -176,7 +176,8 @@ fn occlusion_stage<'a>(
         // Nothing to hit (and no BVH to walk): radius 0 writes 1 without a ray.
         params.radius = 0.0;
     }
-    Some(crate::lighting::ao::add(g, pipeline, gbuffer, bvh, params, settings.frame_index, extent))
+    let casters = crate::gpu::Casters::bvh(bvh);
+    Some(crate::lighting::ao::add(g, pipeline, gbuffer, &casters, params, settings.frame_index, extent))
 }
 
 /// What compose adds beside the lights: the background, the environment and its occlusion.
@@ -325,7 +326,8 @@ fn lighting_stage<'a>(
     let mut image = composed.image;
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
         let frame = settings.frame_index;
-        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &handles.bvh, camera, frame, extent);
+        let casters = crate::gpu::Casters::bvh(&handles.bvh);
+        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &casters, camera, frame, extent);
     }
     let Some(h) = &history else {
         return Ok(Lit { image, debug: false, toned: variant.display, history: Accumulated::No });

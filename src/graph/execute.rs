@@ -54,7 +54,7 @@ pub struct TransientCache {
     ctx: Arc<GpuContext>,
     images: HashMap<SlotKey, Vec<Image>>,
     buffers: HashMap<SlotKey, Vec<Buffer>>,
-    descriptor_pool: vk::DescriptorPool,
+    descriptor_pools: std::cell::RefCell<DescriptorPools>,
     queries: Option<(vk::QueryPool, u32)>,
     /// Names of the passes timed in the last execution, in order.
     timed_passes: Vec<&'static str>,
@@ -67,8 +67,29 @@ pub struct TransientCache {
 const POOL_SETS: u32 = 64;
 const EVICT_AFTER: u64 = 8;
 
-impl TransientCache {
-    pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<TransientCache> {
+/// The descriptor pools a frame's passes allocate their sets from: one to start, another of the
+/// same size whenever the ones before are full (a frame of 64 shadowed lights at 1080p binds
+/// hundreds of sets; lavapipe lets a pool give more sets than it was made for, a discrete GPU's
+/// driver does not), all reset when the next frame on this cache starts.
+pub(crate) struct DescriptorPools {
+    ctx: Arc<GpuContext>,
+    pools: Vec<vk::DescriptorPool>,
+    /// The pool sets come from now; those before it are full.
+    current: usize,
+    /// Sets taken from the current pool: at `POOL_SETS` the next pool is used, whether or not
+    /// the driver would refuse (so every driver grows the pools alike).
+    taken: u32,
+}
+
+impl DescriptorPools {
+    fn new(ctx: &Arc<GpuContext>) -> GpuResult<DescriptorPools> {
+        let mut pools = DescriptorPools { ctx: ctx.clone(), pools: Vec::new(), current: 0, taken: 0 };
+        pools.pools.push(pools.make()?);
+        Ok(pools)
+    }
+
+    fn make(&self) -> GpuResult<vk::DescriptorPool> {
+        let ctx = &self.ctx;
         let mut sizes = vec![
             vk::DescriptorPoolSize { ty: vk::DescriptorType::STORAGE_BUFFER, descriptor_count: POOL_SETS * 4 },
             vk::DescriptorPoolSize { ty: vk::DescriptorType::UNIFORM_BUFFER, descriptor_count: POOL_SETS * 2 },
@@ -82,17 +103,84 @@ impl TransientCache {
         }
         let info = vk::DescriptorPoolCreateInfo::default().max_sets(POOL_SETS).pool_sizes(&sizes);
         // SAFETY: valid device.
-        let descriptor_pool = unsafe { ctx.device.create_descriptor_pool(&info, None) }.vk("vkCreateDescriptorPool")?;
+        unsafe { ctx.device.create_descriptor_pool(&info, None) }.vk("vkCreateDescriptorPool")
+    }
+
+    /// A set of `layout`, from the current pool or, where it is full, the next (made if need be).
+    fn allocate(&mut self, layout: vk::DescriptorSetLayout) -> GpuResult<vk::DescriptorSet> {
+        let layouts = [layout];
+        loop {
+            if self.taken == POOL_SETS {
+                self.next()?;
+            }
+            let info = vk::DescriptorSetAllocateInfo::default()
+                .descriptor_pool(self.pools[self.current])
+                .set_layouts(&layouts);
+            // SAFETY: pool and layout are valid; pools are reset only after the frame completes.
+            match unsafe { self.ctx.device.allocate_descriptor_sets(&info) } {
+                Ok(sets) => {
+                    self.taken += 1;
+                    return Ok(sets[0]);
+                }
+                // Out of some kind of descriptor before the sets ran out.
+                Err(vk::Result::ERROR_OUT_OF_POOL_MEMORY | vk::Result::ERROR_FRAGMENTED_POOL) if self.taken > 0 => {
+                    self.next()?
+                }
+                Err(e) => return Err(e).vk("vkAllocateDescriptorSets"),
+            }
+        }
+    }
+
+    /// Moves on to the next pool, made if there is none.
+    fn next(&mut self) -> GpuResult<()> {
+        self.current += 1;
+        self.taken = 0;
+        if self.current == self.pools.len() {
+            let pool = self.make()?;
+            self.pools.push(pool);
+        }
+        Ok(())
+    }
+
+    /// Frees every set: the submission that used them has completed.
+    fn reset(&mut self) -> GpuResult<()> {
+        for &pool in &self.pools {
+            // SAFETY: the previous submission that used these sets has completed.
+            unsafe { self.ctx.device.reset_descriptor_pool(pool, vk::DescriptorPoolResetFlags::empty()) }
+                .vk("vkResetDescriptorPool")?;
+        }
+        self.current = 0;
+        self.taken = 0;
+        Ok(())
+    }
+}
+
+impl Drop for DescriptorPools {
+    fn drop(&mut self) {
+        for &pool in &self.pools {
+            // SAFETY: the owner waits for the GPU before dropping the cache.
+            unsafe { self.ctx.device.destroy_descriptor_pool(pool, None) };
+        }
+    }
+}
+
+impl TransientCache {
+    pub fn new(ctx: &Arc<GpuContext>) -> GpuResult<TransientCache> {
         Ok(TransientCache {
             ctx: ctx.clone(),
             images: HashMap::new(),
             buffers: HashMap::new(),
-            descriptor_pool,
+            descriptor_pools: std::cell::RefCell::new(DescriptorPools::new(ctx)?),
             queries: None,
             timed_passes: Vec::new(),
             executions: 0,
             last_used: HashMap::new(),
         })
+    }
+
+    /// Descriptor pools made so far (a frame that binds more sets than one holds makes more).
+    pub fn descriptor_pool_count(&self) -> usize {
+        self.descriptor_pools.borrow().pools.len()
     }
 
     /// Number of images and buffers the cache holds (for tests of reuse).
@@ -216,9 +304,7 @@ impl TransientCache {
         cmd: vk::CommandBuffer,
         timing: Option<TimingMode>,
     ) -> GpuResult<()> {
-        // SAFETY: the previous submission that used these sets has completed.
-        unsafe { self.ctx.device.reset_descriptor_pool(self.descriptor_pool, vk::DescriptorPoolResetFlags::empty()) }
-            .vk("vkResetDescriptorPool")?;
+        self.descriptor_pools.get_mut().reset()?;
         self.evict_idle(plan);
         // Which occurrence of each slot key a slot is, so equal keys map to distinct objects.
         let mut seen: HashMap<SlotKey, usize> = HashMap::new();
@@ -264,7 +350,7 @@ impl TransientCache {
                 }
             }
             let mut pctx =
-                PassContext { cmd, device: &device, resolved: &resolved, descriptor_pool: self.descriptor_pool };
+                PassContext { cmd, device: &device, resolved: &resolved, descriptor_pools: &self.descriptor_pools };
             if let Some(run) = decl.run {
                 run(&mut pctx)?;
             }
@@ -289,7 +375,6 @@ impl Drop for TransientCache {
             if let Some((pool, _)) = self.queries {
                 self.ctx.device.destroy_query_pool(pool, None);
             }
-            self.ctx.device.destroy_descriptor_pool(self.descriptor_pool, None);
         }
     }
 }
@@ -368,7 +453,7 @@ pub struct PassContext<'e> {
     pub cmd: vk::CommandBuffer,
     pub device: &'e ash::Device,
     resolved: &'e [Option<External>],
-    descriptor_pool: vk::DescriptorPool,
+    descriptor_pools: &'e std::cell::RefCell<DescriptorPools>,
 }
 
 impl PassContext<'_> {
@@ -452,11 +537,7 @@ impl PassContext<'_> {
         layout: &PipelineLayout,
         bound: &[(u32, Bound)],
     ) -> GpuResult<()> {
-        let set_layouts = [layout.set_layout];
-        let alloc =
-            vk::DescriptorSetAllocateInfo::default().descriptor_pool(self.descriptor_pool).set_layouts(&set_layouts);
-        // SAFETY: pool and layout are valid; the pool is reset only after the frame completes.
-        let set = unsafe { self.device.allocate_descriptor_sets(&alloc) }.vk("vkAllocateDescriptorSets")?[0];
+        let set = self.descriptor_pools.borrow_mut().allocate(layout.set_layout)?;
         let mut image_infos = Vec::with_capacity(bound.len());
         let mut buffer_infos = Vec::with_capacity(bound.len());
         let mut structures = Vec::with_capacity(bound.len());

@@ -31,6 +31,9 @@ struct Push {
 const BVH_SLOTS: crate::gpu::BvhSlots =
     crate::gpu::BvhSlots { nodes: AO_BVH_NODES, triangles: AO_BVH_TRIANGLES, root: AO_BVH_ROOT, masks: AO_BVH_MASKS };
 
+/// Where ao.comp binds the casters: it walks the compute BVH only.
+const CASTER_SLOTS: crate::gpu::CasterSlots = crate::gpu::CasterSlots { bvh: BVH_SLOTS, ray_query: None };
+
 /// `variant`: the build for the scene's casters (alpha masks, two levels).
 pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuResult<ComputePipeline> {
     let bindings = [sampled(AO_POSITION), sampled(AO_NORMAL), sampled(AO_SURFACE), storage_image(AO_OUTPUT)];
@@ -56,7 +59,7 @@ pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipeline: &'a ComputePipeline,
     gbuffer: &GBuffer,
-    bvh: &crate::gpu::BvhHandles,
+    casters: &crate::gpu::Casters<'_>,
     params: AmbientOcclusion,
     frame_index: u32,
     extent: vk::Extent2D,
@@ -64,7 +67,7 @@ pub fn add<'a>(
     let mut image = graph.create_image("ambient occlusion", ImageDesc::new(AO_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("ambient occlusion");
     let read = Access::ComputeShaderReadSampledImage;
-    let walk = bvh.bind(&mut pass, &BVH_SLOTS);
+    let walk = casters.bind(&mut pass, &CASTER_SLOTS);
     let mut bound = vec![
         (AO_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (AO_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),

@@ -77,6 +77,9 @@ const BVH_SLOTS: crate::gpu::BvhSlots = crate::gpu::BvhSlots {
     masks: RECT_BVH_MASKS,
 };
 
+/// Where rect_lights.comp binds the casters: it walks the compute BVH only.
+const CASTER_SLOTS: crate::gpu::CasterSlots = crate::gpu::CasterSlots { bvh: BVH_SLOTS, ray_query: None };
+
 /// `variant`: the build for the scene's casters (alpha masks, two levels).
 pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuResult<ComputePipeline> {
     let bindings = [
@@ -110,7 +113,7 @@ pub fn add<'a>(
     tables: &'a super::AreaTables,
     gbuffer: &GBuffer,
     radiance: &Handle<ImageKind>,
-    bvh: &crate::gpu::BvhHandles,
+    casters: &crate::gpu::Casters<'_>,
     camera: &crate::gpu::CameraMatrices,
     frame_index: u32,
     extent: vk::Extent2D,
@@ -123,7 +126,7 @@ pub fn add<'a>(
     let mut out = graph.create_image("radiance (rects)", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("rect lights");
     let read = Access::ComputeShaderReadSampledImage;
-    let walk = bvh.bind(&mut pass, &BVH_SLOTS);
+    let walk = casters.bind(&mut pass, &CASTER_SLOTS);
     let mut bound = vec![
         (RECT_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
         (RECT_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),

@@ -134,6 +134,8 @@ struct Running {
     script_frames: u64,
     script_wait_until: Option<Instant>,
     last_frame: Instant,
+    /// A moving scene's clock: the instant shown, and whether it runs.
+    playback: Option<Playback>,
     fps: FrameRate,
     timings: Vec<(&'static str, f64)>,
     screenshot_dir: PathBuf,
@@ -289,6 +291,7 @@ impl App {
             script_frames: 0,
             script_wait_until: None,
             last_frame: Instant::now(),
+            playback: Playback::of(&o.scene),
             fps: FrameRate::default(),
             timings: Vec::new(),
             screenshot_dir: o.screenshot_dir.clone(),
@@ -312,7 +315,12 @@ impl App {
         let dt = self.options.fixed_dt.unwrap_or((now - r.last_frame).as_secs_f32().min(0.25));
         r.last_frame = now;
         r.camera.update(&r.input, dt);
+        if let Some(p) = &mut r.playback {
+            p.advance(f64::from(dt));
+            r.renderer.set_time(p.time);
+        }
         let mut settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
+        settings.time = r.playback.as_ref().map(|p| p.time);
         // A technique's view of a light it cannot serve (volumes on an open caster, say)
         // shows the shaded frame instead.
         if r.renderer.check_debug_view(&settings).is_err() {
@@ -380,9 +388,20 @@ impl Running {
                 }
             }
             InputEvent::Scroll(steps) => self.camera.scroll(steps),
+            InputEvent::Time(t) => match &mut self.playback {
+                Some(p) => {
+                    p.time = t;
+                    p.playing = false;
+                }
+                None => log::warn!("time {t}: nothing in the scene moves"),
+            },
             InputEvent::KeyDown(key) => match key {
                 Key::Home => self.camera.reset(&self.renderer.scene().camera),
                 Key::Escape => self.quit = true,
+                Key::Space | Key::Comma | Key::Period => match &mut self.playback {
+                    Some(p) => p.on_key(key),
+                    None => log::warn!("{key:?}: nothing in the scene moves"),
+                },
                 Key::F12 => {
                     if let Err(e) = self.screenshot(None) {
                         failed(&mut self.failures, "screenshot", &e);
@@ -467,6 +486,9 @@ impl Running {
             vec![format!("umbra {:6.1} fps {:7.2} ms  {}x{}", self.fps.fps(), self.fps.frame_ms(), extent.0, extent.1)];
         let scene = self.renderer.scene();
         lines.push(format!("{} triangles  {} lights", scene.triangle_count(), scene.lights.len()));
+        if let Some(p) = &self.playback {
+            lines.push(p.describe());
+        }
         lines.extend(self.settings.describe(&scene.lights));
         if self.presenter.accumulated_frames() > 0 {
             lines.push(format!("accumulated {} frames", self.presenter.accumulated_frames()));
@@ -496,6 +518,7 @@ impl Running {
         let stem = name.unwrap_or_else(timestamp_name);
         let extent = self.presenter.extent().unwrap_or(ash::vk::Extent2D { width: 320, height: 240 });
         let mut settings = self.settings.render_settings(self.camera.to_camera(self.renderer.scene().camera.vfov_deg));
+        settings.time = self.playback.map(|p| p.time);
         settings.width = extent.width;
         settings.height = extent.height;
         settings.timestamps = false;
@@ -572,6 +595,9 @@ fn map_key(code: KeyCode) -> Option<Key> {
         KeyCode::BracketLeft => Key::BracketLeft,
         KeyCode::BracketRight => Key::BracketRight,
         KeyCode::Escape => Key::Escape,
+        KeyCode::Space => Key::Space,
+        KeyCode::Comma => Key::Comma,
+        KeyCode::Period => Key::Period,
         _ => return None,
     })
 }
@@ -639,12 +665,89 @@ impl FrameRate {
 
 #[cfg(test)]
 mod tests {
-    use super::civil_from_days;
+    use super::{civil_from_days, Key, Playback};
+
+    #[test]
+    fn playback_loops_stops_and_steps() {
+        let mut p = Playback { time: 3.5, playing: true, span: (0.0, 4.0), looping: true };
+        p.advance(1.0);
+        assert!((p.time - 0.5).abs() < 1e-12 && p.playing, "wrapped: {p:?}");
+        p.looping = false;
+        p.advance(10.0);
+        assert_eq!((p.time, p.playing), (4.0, false), "held at the end");
+        p.on_key(Key::Comma);
+        assert!((p.time - (4.0 - super::STEP_SECONDS)).abs() < 1e-12);
+        p.on_key(Key::Space);
+        assert!(p.playing);
+        p.on_key(Key::Period);
+        assert!(!p.playing, "a step pauses");
+    }
 
     #[test]
     fn civil_dates_from_the_epoch() {
         assert_eq!(civil_from_days(0), (1970, 1, 1));
         assert_eq!(civil_from_days(20_416), (2025, 11, 24));
         assert_eq!(civil_from_days(11_016), (2000, 2, 29));
+    }
+}
+
+/// Seconds a step (`,` and `.`) moves a paused scene: one frame at 24 per second.
+pub const STEP_SECONDS: f64 = 1.0 / 24.0;
+
+/// A moving scene's clock in the viewer: Space plays and pauses, `,` and `.` step, the script's
+/// `time T` sets it (paused). Playing, it runs at real time (or the fixed step `--fixed-dt`
+/// gives), wrapping at the end of a looping animation and stopping at the end of another.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Playback {
+    pub time: f64,
+    pub playing: bool,
+    /// The animation's span in scene seconds.
+    pub span: (f64, f64),
+    pub looping: bool,
+}
+
+impl Playback {
+    /// Playing from the start, for a scene that moves.
+    pub fn of(scene: &crate::scene::Scene) -> Option<Playback> {
+        let animation = scene.animation.as_ref()?;
+        Some(Playback { time: 0.0, playing: true, span: animation.span(), looping: animation.looping })
+    }
+
+    pub fn on_key(&mut self, key: Key) {
+        match key {
+            Key::Space => self.playing = !self.playing,
+            Key::Comma => {
+                self.playing = false;
+                self.time = (self.time - STEP_SECONDS).max(self.span.0);
+            }
+            Key::Period => {
+                self.playing = false;
+                self.time = (self.time + STEP_SECONDS).min(self.span.1);
+            }
+            _ => {}
+        }
+    }
+
+    /// Moves the clock on by `dt` seconds while playing.
+    pub fn advance(&mut self, dt: f64) {
+        if !self.playing {
+            return;
+        }
+        let (start, end) = self.span;
+        self.time += dt;
+        if self.time > end {
+            if self.looping && end > start {
+                self.time = start + (self.time - start).rem_euclid(end - start);
+            } else {
+                self.time = end;
+                self.playing = false;
+            }
+        }
+    }
+
+    /// Its overlay line.
+    pub fn describe(&self) -> String {
+        let state = if self.playing { "playing" } else { "paused" };
+        format!("t {:6.2} s of {:.2}  {state} (Space, , .)", self.time, self.span.1)
     }
 }

@@ -39,6 +39,11 @@ pub enum Key {
     BracketLeft,
     BracketRight,
     Escape,
+    /// Play or pause a moving scene.
+    Space,
+    /// Step a moving scene back / on by one frame of `STEP_SECONDS`.
+    Comma,
+    Period,
 }
 
 impl Key {
@@ -68,6 +73,9 @@ impl Key {
             "[" | "BRACKETLEFT" => Key::BracketLeft,
             "]" | "BRACKETRIGHT" => Key::BracketRight,
             "ESCAPE" | "ESC" => Key::Escape,
+            "SPACE" => Key::Space,
+            "," | "COMMA" => Key::Comma,
+            "." | "PERIOD" => Key::Period,
             _ => return None,
         })
     }
@@ -88,6 +96,8 @@ pub enum InputEvent {
     /// Wheel steps; positive is away from the user.
     Scroll(f32),
     Resize(u32, u32),
+    /// Show a moving scene at this many seconds, paused (scripts' `time T`).
+    Time(f64),
 }
 
 /// Which keys and buttons are held.

@@ -4,11 +4,12 @@
 //! ```text
 //! frames 10            # draw 10 frames with the current input (1..=1000000)
 //! key down W           # hold a key: W A S D Q E shift home F1 F12 L T V
-//!                      # plus minus [ ] esc (any case)
+//!                      # plus minus [ ] esc space , . (any case)
 //! key up W
 //! press T              # down and up
 //! mouse 120 -30        # look: raw motion with the right button held
 //! scroll 2             # wheel steps (speed x1.25 each)
+//! time 1.5             # a moving scene at 1.5 s, paused (`press space` plays it again)
 //! resize 640 480       # 1..=16384 each
 //! minimise             # and `restore`
 //! screenshot NAME      # NAME.png and NAME.exr beside the scene
@@ -116,6 +117,14 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
                     ScriptStep::Input(InputEvent::RightButton(false)),
                 ]);
             }
+            "time" => {
+                expect_args(1)?;
+                let t = number(words.get(1), "seconds")?;
+                if t < 0.0 {
+                    return Err(fail(format!("time {t}: seconds must be 0 or more")));
+                }
+                steps.push(ScriptStep::Input(InputEvent::Time(f64::from(t))));
+            }
             "scroll" => {
                 expect_args(1)?;
                 steps.push(ScriptStep::Input(InputEvent::Scroll(number(words.get(1), "wheel steps")?)));
@@ -189,6 +198,8 @@ mod tests {
         assert_eq!(err("press X"), "demo.txt:1: unknown key \"X\"");
         assert!(err("frames -1").contains("whole number"));
         assert!(err("resize 0 10").contains("minimise"));
+        assert!(err("time -1").contains("0 or more"), "{}", err("time -1"));
+        assert_eq!(parse("time 1.5\npress space", "s").unwrap()[0], ScriptStep::Input(InputEvent::Time(1.5)));
         assert!(err("screenshot ../x").contains("letters"));
         assert!(err("key sideways W").contains("down or up"));
         assert!(err("mouse 1").contains("takes 2 argument"));

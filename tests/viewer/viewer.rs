@@ -172,3 +172,20 @@ fn the_window_shows_the_captured_frame_with_an_overlay_that_f1_hides() {
     }
     assert!(!names.iter().any(|n| n.ends_with(".tmp")), "temporary files left: {names:?}");
 }
+
+#[test]
+fn a_moving_scene_plays_pauses_and_goes_to_an_instant() {
+    let dir = common::scratch_dir("viewer-moving");
+    let scene = std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/anim/spinning.toml"))
+        .unwrap();
+    std::fs::write(dir.join("scene.toml"), scene).unwrap();
+    // `time` pauses at an instant; Space plays on; the overlay says which.
+    let script = "time 0.5\nframes 2\nscreenshot early\ntime 1.75\nframes 2\nscreenshot late\npress space\nframes 3\npress .\nframes 1\nquit\n";
+    view(&dir, script, &["--fixed-dt", "0.1"]);
+    let (w, h, early) = read_exr(&dir.join("early.exr")).unwrap();
+    let (_, _, late) = read_exr(&dir.join("late.exr")).unwrap();
+    let moved = early.chunks(4).zip(late.chunks(4)).filter(|(a, b)| (luminance(a) - luminance(b)).abs() > 0.01).count();
+    let n = (w * h) as usize;
+    // The ball slides 1.25 m and the box turns 112 degrees between the two instants.
+    assert!(moved * 50 > n, "only {moved} of {n} pixels changed between t = 0.5 and t = 1.75");
+}

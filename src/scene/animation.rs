@@ -162,6 +162,9 @@ impl<T: Keyed> Channel<T> {
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigNode {
     pub parent: Option<usize>,
+    /// A fixed transform between the parent (or the world, for a root) and the node: where a
+    /// scene file places a glTF file's root nodes.
+    pub offset: DMat4,
     pub rest: (DVec3, DQuat, DVec3),
     pub translation: Option<Channel<DVec3>>,
     pub rotation: Option<Channel<DQuat>>,
@@ -201,8 +204,8 @@ impl Rig {
         for node in &self.nodes {
             let local = node.local(t);
             world.push(match node.parent {
-                Some(p) => world[p] * local,
-                None => local,
+                Some(p) => world[p] * node.offset * local,
+                None => node.offset * local,
             });
         }
         world

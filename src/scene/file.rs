@@ -115,6 +115,27 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
             placed.transform = rest;
             super::animation::MeshMotion { node: rig.nodes.len() - 1, rest }
         });
+        // A glTF file's animated nodes join the rig under the object's placement: its keyed
+        // node, or its fixed transform.
+        let file_rig = placed.rig.take().map(|(file_rig, instance_nodes)| {
+            let base = rig.nodes.len();
+            log::info!(
+                "{source_name}: {path}: glTF {} animates {} nodes",
+                file_rig.clip,
+                file_rig.moves.iter().filter(|&&m| m).count()
+            );
+            for mut node in file_rig.nodes {
+                node.parent = match node.parent {
+                    Some(p) => Some(base + p),
+                    None => motion.as_ref().map(|m| m.node),
+                };
+                if node.parent.is_none() {
+                    node.offset = placed.transform;
+                }
+                rig.nodes.push(node);
+            }
+            (base, file_rig.moves, instance_nodes)
+        });
         // Counted before the instances are flattened into world-space copies: a few kilobytes
         // of glTF nodes can instance one mesh into more triangles than memory holds.
         let object_triangles: u64 =
@@ -135,7 +156,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         let meshes_before = meshes.len();
         let cast_shadows = object.and_then(|o| o.cast_shadows).unwrap_or(true);
         let shared = mesh::shared_geometry(&placed.meshes, &placed.instances);
-        for (k, instance) in &placed.instances {
+        for (i, (k, instance)) in placed.instances.iter().enumerate() {
             let local = &placed.meshes[*k];
             let material = placed.material.apply(local.material.unwrap_or_default());
             let to_world = placed.transform * *instance;
@@ -147,7 +168,14 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
                 }
             }
             if let Some(m) = &mut placed_mesh {
-                m.motion = motion.clone();
+                m.motion = match &file_rig {
+                    // Placed at `to_world`: its motion is its node's world from there.
+                    Some((base, moves, nodes)) if moves[nodes[i]] => {
+                        Some(super::animation::MeshMotion { node: base + nodes[i], rest: to_world })
+                    }
+                    // A still node of a keyed object moves with the object.
+                    _ => motion.clone(),
+                };
             }
             meshes.extend(placed_mesh);
         }
@@ -225,6 +253,8 @@ struct PlacedObject {
     short_faces: usize,
     transform: DMat4,
     material: MaterialOverride,
+    /// A glTF file's animated nodes, and each instance's node among them.
+    rig: Option<(gltf::animation::GltfRig, Vec<usize>)>,
 }
 
 impl PlacedObject {
@@ -503,6 +533,7 @@ impl Check<'_> {
             short_faces: loaded.short_faces,
             transform: self.transform(path, object)?,
             material: self.material(&format!("{path}.material"), object.material.as_ref())?,
+            rig: None,
         };
         placed.shuffle_faces(object.face_order);
         Ok(placed)
@@ -518,6 +549,7 @@ impl Check<'_> {
             short_faces: 0,
             transform: DMat4::IDENTITY,
             material: MaterialOverride { base_color: None, roughness: None, metallic: None },
+            rig: loaded.rig.map(|rig| (rig, loaded.instances.iter().map(|i| i.node).collect())),
         }
     }
 

@@ -15,6 +15,7 @@ use super::mesh::{ObjectMesh, ObjectSurface};
 use super::texture::TextureCache;
 use super::{tangents, Camera, Light};
 
+pub(super) mod animation;
 mod materials;
 use materials::{data_uri, material, material_name, MaterialMaps};
 
@@ -37,6 +38,8 @@ pub(super) enum GltfError {
 pub(super) struct GltfInstance {
     pub primitive: usize,
     pub transform: DMat4,
+    /// The drawing node's place in `LoadedGltf::visited` (its rig node where the file animates).
+    pub node: usize,
 }
 
 /// A glTF file as loaded, in the file's own space (the scene places it).
@@ -51,6 +54,8 @@ pub(super) struct LoadedGltf {
     pub lights: Vec<Light>,
     /// Buffers read from files beside it.
     pub files: Vec<PathBuf>,
+    /// The nodes and the first clip as a rig, where the file animates some node of its scene.
+    pub rig: Option<animation::GltfRig>,
 }
 
 pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGltf, GltfError> {
@@ -122,11 +127,14 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
         cameras: vec![None; document.cameras().len()],
         lights: Vec::new(),
         files,
+        rig: None,
     };
+    let mut visited_nodes: Vec<animation::Visited> = Vec::new();
     let scene = document.default_scene().or_else(|| document.scenes().next());
-    // (node, its parent's node-to-file transform, the parent node: None for a root).
-    let mut stack: Vec<(gltf::Node, DMat4, Option<usize>)> = match &scene {
-        Some(scene) => scene.nodes().map(|n| (n, DMat4::IDENTITY, None)).collect(),
+    // (node, its parent's node-to-file transform, the parent node: None for a root, the parent's
+    // place in `visited_nodes`).
+    let mut stack: Vec<(gltf::Node, DMat4, Option<usize>, Option<usize>)> = match &scene {
+        Some(scene) => scene.nodes().map(|n| (n, DMat4::IDENTITY, None, None)).collect(),
         None => Vec::new(),
     };
     stack.reverse();
@@ -135,7 +143,7 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
     // node reached twice would be drawn twice, and a cycle (or a DAG of shared children) would
     // grow without end. Each node is visited once at most.
     let mut visited = vec![false; document.nodes().len()];
-    while let Some((node, parent, parent_node)) = stack.pop() {
+    while let Some((node, parent, parent_node, parent_visit)) = stack.pop() {
         if std::mem::replace(&mut visited[node.index()], true) {
             let n = node.index();
             let is_root = scene.as_ref().is_some_and(|s| s.nodes().any(|root| root.index() == n));
@@ -148,11 +156,22 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
         }
         let local = DMat4::from_cols_array_2d(&node.transform().matrix().map(|c| c.map(f64::from)));
         let world = parent * local;
+        let visit = visited_nodes.len();
+        let (t, r, s) = node.transform().decomposed();
+        visited_nodes.push(animation::Visited {
+            node: node.index(),
+            parent: parent_visit,
+            rest: (
+                DVec3::from(t.map(f64::from)),
+                glam::DQuat::from_array(r.map(f64::from)).normalize(),
+                DVec3::from(s.map(f64::from)),
+            ),
+        });
         if let Some(mesh) = node.mesh() {
             let first = first_primitive[mesh.index()];
             for k in 0..mesh.primitives().len() {
                 if primitives[first + k].is_some() {
-                    loaded.instances.push(GltfInstance { primitive: first + k, transform: world });
+                    loaded.instances.push(GltfInstance { primitive: first + k, transform: world, node: visit });
                 }
             }
         }
@@ -182,12 +201,13 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
                 }
             }
         }
-        let children: Vec<_> = node.children().map(|c| (c, world, Some(node.index()))).collect();
+        let children: Vec<_> = node.children().map(|c| (c, world, Some(node.index()), Some(visit))).collect();
         stack.extend(children.into_iter().rev());
     }
     if ignored_ranges > 0 {
         log::warn!("{name}: {ignored_ranges} lights give a `range`, which umbra has no equivalent for; ignored");
     }
+    loaded.rig = animation::read(&name, &document, &buffers, &visited_nodes, None).map_err(GltfError::Parse)?;
     // Keep only the primitives some node draws, renumbered.
     let mut renumber = vec![usize::MAX; primitives.len()];
     for instance in &mut loaded.instances {

@@ -70,6 +70,7 @@ fn bad_channels_are_named() {
 fn looping_and_speed_map_scene_time_onto_the_clip() {
     let node = RigNode {
         parent: None,
+        offset: glam::DMat4::IDENTITY,
         rest: (DVec3::ZERO, DQuat::IDENTITY, DVec3::ONE),
         translation: Some(
             Channel::new(vec![1.0, 3.0], vec![DVec3::ZERO, DVec3::X * 2.0], Interpolation::Linear, "t").unwrap(),
@@ -200,4 +201,78 @@ fn bad_keys_are_one_line_naming_the_key() {
         let err = Scene::parse(&text, "keyed.toml", Path::new(".")).expect_err(key).to_string();
         assert!(err.contains(key) && err.contains(says) && !err.contains('\n'), "{key}: {err}");
     }
+}
+
+/// A glTF file with a quad on node 1, child of node 0, whose clip turns node 0 about Y
+/// (LINEAR, 0 to 180 degrees over 2 s, through 90 at 1 s) and moves node 1 up by 1 m over 2 s;
+/// node 2 draws the quad too and does not move.
+fn animated_gltf(dir: &Path, rotation: [[f32; 4]; 3]) -> std::path::PathBuf {
+    use crate::gltf_builder::{quad_xz, Gltf, U32};
+    use serde_json::json;
+    let mut g = Gltf::default();
+    let (positions, normals, _, indices) = quad_xz();
+    let (p, n, i) = (g.vec3(&positions), g.vec3(&normals), g.indices(&indices, U32));
+    let mesh = g.mesh(vec![json!({ "attributes": { "POSITION": p, "NORMAL": n }, "indices": i })]);
+    g.node(json!({ "children": [1], "translation": [2.0, 0.0, 0.0] }), true);
+    g.node(json!({ "mesh": mesh }), false);
+    g.node(json!({ "mesh": mesh, "translation": [0.0, 0.0, -5.0] }), true);
+    let times = g.times(&[0.0, 1.0, 2.0]);
+    let rotations = g.outputs(&rotation.concat(), "VEC4");
+    let up_times = g.times(&[0.0, 2.0]);
+    let up = g.outputs(&[0.0, 0.0, 0.0, 0.0, 1.0, 0.0], "VEC3");
+    g.animations.push(json!({
+        "name": "turn",
+        "samplers": [
+            { "input": times, "output": rotations, "interpolation": "LINEAR" },
+            { "input": up_times, "output": up, "interpolation": "LINEAR" }
+        ],
+        "channels": [
+            { "sampler": 0, "target": { "node": 0, "path": "rotation" } },
+            { "sampler": 1, "target": { "node": 1, "path": "translation" } }
+        ]
+    }));
+    let path = dir.join("turn.glb");
+    g.write_glb(&path);
+    path
+}
+
+#[test]
+fn a_gltf_clip_moves_its_nodes_and_their_children() {
+    let dir = tempfile::tempdir().unwrap();
+    let y = |deg: f32| [0.0, (deg.to_radians() / 2.0).sin(), 0.0, (deg.to_radians() / 2.0).cos()];
+    animated_gltf(dir.path(), [y(0.0), y(90.0), y(180.0)]);
+    let text = "[camera]\neye = [0.0, 3.0, 8.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 45.0\n\
+                [[objects]]\nmesh = \"turn.glb\"\ntranslate = [0.0, 0.0, 1.0]\n";
+    let scene = Scene::parse(text, "turn.toml", dir.path()).unwrap();
+    assert_eq!(scene.animation_span(), Some((0.0, 2.0)));
+    let moving: Vec<bool> = scene.meshes.iter().map(|m| m.motion.is_some()).collect();
+    assert_eq!(moving, [true, false], "the child of the turning node moves; node 2's quad does not");
+    // At 1 s node 0 has turned 90 degrees about Y and node 1 risen 0.5 m: a point p of the quad
+    // lands at T(0,0,1) (the object) * T(2,0,0) * Ry(90) * T(0,0.5,0) p.
+    let posed = scene.posed(1.0);
+    let rest = &scene.meshes[0];
+    let m = glam::DMat4::from_translation(DVec3::new(2.0, 0.0, 1.0))
+        * glam::DMat4::from_rotation_y(std::f64::consts::FRAC_PI_2)
+        * glam::DMat4::from_translation(DVec3::new(0.0, 0.5, 0.0));
+    // The rest positions are the quad placed at the file's static pose: T(0,0,1) T(2,0,0).
+    let object = glam::DMat4::from_translation(DVec3::new(2.0, 0.0, 1.0));
+    for (p, q) in posed.meshes[0].positions.iter().zip(&rest.positions) {
+        let expect = m.transform_point3(object.inverse().transform_point3(*q));
+        assert!((*p - expect).length() < 1e-6, "{p} against {expect}");
+    }
+    assert_eq!(posed.meshes[1].positions, scene.meshes[1].positions);
+}
+
+#[test]
+fn a_gltf_rotation_that_is_not_a_quaternion_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    animated_gltf(dir.path(), [[0.0, 0.0, 0.0, 1.0], [0.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0]]);
+    let text = "[camera]\neye = [0.0, 3.0, 8.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 45.0\n\
+                [[objects]]\nmesh = \"turn.glb\"\n";
+    let err = Scene::parse(text, "turn.toml", dir.path()).expect_err("a zero quaternion").to_string();
+    assert!(
+        err.contains("objects[0].mesh") && err.contains("\"turn\", channel 0") && err.contains("rotation 1"),
+        "{err}"
+    );
+    assert!(!err.contains('\n'), "{err}");
 }

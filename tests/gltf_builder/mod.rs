@@ -19,6 +19,7 @@ pub struct Gltf {
     pub cameras: Vec<Value>,
     pub lights: Vec<Value>,
     pub images: Vec<Value>,
+    pub animations: Vec<Value>,
     /// The default scene's root nodes.
     pub roots: Vec<usize>,
     pub extensions_used: Vec<String>,
@@ -85,6 +86,27 @@ impl Gltf {
         self.accessor(json!({ "bufferView": view, "componentType": kind, "count": data.len(), "type": "SCALAR" }))
     }
 
+    /// A SCALAR float accessor with its min and max (an animation sampler's key times).
+    pub fn times(&mut self, data: &[f32]) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(&bytes, None);
+        let (min, max) = (
+            data.iter().copied().fold(f32::INFINITY, f32::min),
+            data.iter().copied().fold(f32::NEG_INFINITY, f32::max),
+        );
+        self.accessor(json!({
+            "bufferView": view, "componentType": F32, "count": data.len(), "type": "SCALAR", "min": [min], "max": [max]
+        }))
+    }
+
+    /// A float accessor of `kind` (VEC3, VEC4) for an animation sampler's output.
+    pub fn outputs(&mut self, data: &[f32], kind: &str) -> usize {
+        let width = if kind == "VEC4" { 4 } else { 3 };
+        let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(&bytes, None);
+        self.accessor(json!({ "bufferView": view, "componentType": F32, "count": data.len() / width, "type": kind }))
+    }
+
     pub fn material(&mut self, material: Value) -> usize {
         self.materials.push(material);
         self.materials.len() - 1
@@ -139,6 +161,9 @@ impl Gltf {
         }
         if !self.cameras.is_empty() {
             doc["cameras"] = json!(self.cameras);
+        }
+        if !self.animations.is_empty() {
+            doc["animations"] = json!(self.animations);
         }
         if !used.is_empty() {
             doc["extensionsUsed"] = json!(used);

@@ -64,6 +64,7 @@ impl Check<'_> {
         let channel = |values| Channel { times: times.clone(), values, interpolation };
         Ok(Some(RigNode {
             parent: None,
+            offset: glam::DMat4::IDENTITY,
             rest: trs[0],
             translation: Some(channel(trs.iter().map(|k| k.0).collect())),
             rotation: Some(Channel { times: times.clone(), values: trs.iter().map(|k| k.1).collect(), interpolation }),

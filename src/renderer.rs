@@ -111,6 +111,20 @@ impl Renderer {
                 gpu_scene.bvh.triangles.buffer.size as usize / bvh.wide().triangles.len()
             );
         }
+        let caster_order = (ctx.capabilities.ray_query && !bvh.is_empty()).then(|| bvh.into_leaf_order());
+        Renderer::assemble(ctx, scene, local, gpu_scene, caster_order, None)
+    }
+
+    /// The renderer around `gpu_scene` (uploaded from `local`, `scene` in the local frame): the
+    /// lighting's structures on the device, the capture state, and nothing else made yet.
+    fn assemble(
+        ctx: Arc<GpuContext>,
+        scene: Scene,
+        local: Scene,
+        gpu_scene: SceneGpu,
+        caster_order: Option<Vec<u32>>,
+        motion: Option<Motion>,
+    ) -> GpuResult<Renderer> {
         Ok(Renderer {
             capture: Some(Capture {
                 cache: TransientCache::new(&ctx)?,
@@ -119,7 +133,7 @@ impl Renderer {
                 last_plan: None,
             }),
             ray_query: std::sync::OnceLock::new(),
-            caster_order: (ctx.capabilities.ray_query && !bvh.is_empty()).then(|| bvh.into_leaf_order()),
+            caster_order,
             volume_scene: std::sync::OnceLock::new(),
             pipeline_cache: Default::default(),
             environment: crate::lighting::EnvironmentGpu::new(
@@ -135,7 +149,7 @@ impl Renderer {
             )?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
-            motion: None,
+            motion,
             gpu_scene,
             scene,
             local,
@@ -164,36 +178,7 @@ impl Renderer {
             gpu_scene.moving.len(),
             gpu_scene.bvh.bytes() >> 10
         );
-        Ok(Renderer {
-            capture: Some(Capture {
-                cache: TransientCache::new(&ctx)?,
-                readback: None,
-                accumulator: accumulate::Accumulator::default(),
-                last_plan: None,
-            }),
-            ray_query: std::sync::OnceLock::new(),
-            caster_order: None,
-            volume_scene: std::sync::OnceLock::new(),
-            pipeline_cache: Default::default(),
-            environment: crate::lighting::EnvironmentGpu::new(
-                &ctx,
-                &scene.lighting,
-                scene.lighting.environment_map.as_deref(),
-            )?,
-            rects: crate::lighting::rects::RectsGpu::new(&ctx, &local.rect_lights, gpu_scene.has_casters)?,
-            area_tables: crate::lighting::AreaTables::new(
-                &ctx,
-                local.lights.iter().any(crate::scene::Light::has_size),
-                !local.rect_lights.is_empty(),
-            )?,
-            fallbacks_noted: Default::default(),
-            timing: std::sync::OnceLock::new(),
-            motion: Some(Motion { levels, groups, posed_at: None }),
-            gpu_scene,
-            scene,
-            local,
-            ctx,
-        })
+        Renderer::assemble(ctx, scene, local, gpu_scene, None, Some(Motion { levels, groups, posed_at: None }))
     }
 
     /// Poses a moving scene at `time` seconds of its animation: the top level of its casters

@@ -184,6 +184,24 @@ void bvh_node_step(uvec4 head, uvec4 qxy, uvec4 t2, vec3 origin, vec3 inv_dir, f
 // tree's bound). Against one array for the whole stack and the single loop before, `umbra bench
 // rays` on one lavapipe thread, alternated: 100k scene 141 -> 124-131 ms on Mesa 25, 179-188 ->
 // 148 on Mesa 22.3; the spill's branch costs about 4 % against registers alone.
+// The stack's push and pop, shared by both walks (the variables s0..s7, spill and stack_len are
+// the walk's). The clamp only keeps a corrupt buffer from writing out of bounds: the build keeps
+// every tree's depth within the stack.
+#define BVH_PUSH(entry) \
+    if (stack_len >= BVH_REGISTER_STACK) { \
+        spill[min(stack_len - BVH_REGISTER_STACK, BVH_STACK_SIZE - BVH_REGISTER_STACK - 1u)] = s7; \
+    } \
+    s7 = s6; s6 = s5; s5 = s4; s4 = s3; s3 = s2; s2 = s1; s1 = s0; \
+    s0 = (entry); \
+    stack_len++
+#define BVH_POP(into) \
+    stack_len--; \
+    into = s0; \
+    s0 = s1; s1 = s2; s2 = s3; s3 = s4; s4 = s5; s5 = s6; s6 = s7; \
+    if (stack_len >= BVH_REGISTER_STACK) { \
+        s7 = spill[stack_len - BVH_REGISTER_STACK]; \
+    }
+
 bool bvh_walk(uvec4 r0, uvec4 r1, uvec4 r2, vec3 origin, vec3 dir, float tmax) {
     vec3 inv_dir = 1.0 / vec3(bvh_safe_component(dir.x), bvh_safe_component(dir.y),
                               bvh_safe_component(dir.z));
@@ -198,25 +216,13 @@ bool bvh_walk(uvec4 r0, uvec4 r1, uvec4 r2, vec3 origin, vec3 dir, float tmax) {
                 if (stack_len == 0u) {
                     return false;
                 }
-                stack_len--;
-                group = s0;
-                s0 = s1; s1 = s2; s2 = s3; s3 = s4; s4 = s5; s5 = s6; s6 = s7;
-                if (stack_len >= BVH_REGISTER_STACK) {
-                    s7 = spill[stack_len - BVH_REGISTER_STACK];
-                }
+                BVH_POP(group);
             }
             uint mask = group >> 28;
             uint rest = mask & (mask - 1u);
             uint child = (group & BVH_FIRST_MASK) + uint(findLSB(mask));
             if (rest != 0u) {
-                if (stack_len >= BVH_REGISTER_STACK) {
-                    // The clamp only keeps a corrupt buffer from writing out of bounds: the
-                    // build keeps every tree's depth within the stack.
-                    spill[min(stack_len - BVH_REGISTER_STACK, BVH_STACK_SIZE - BVH_REGISTER_STACK - 1u)] = s7;
-                }
-                s7 = s6; s6 = s5; s5 = s4; s4 = s3; s3 = s2; s2 = s1; s1 = s0;
-                s0 = (group & BVH_FIRST_MASK) | (rest << 28);
-                stack_len++;
+                BVH_PUSH((group & BVH_FIRST_MASK) | (rest << 28));
             }
             int at = int(3u * child);
             bvh_node_step(texelFetch(bvh_nodes, at), texelFetch(bvh_nodes, at + 1), texelFetch(bvh_nodes, at + 2),
@@ -268,12 +274,7 @@ bool bvh_occluded(vec3 world_origin, vec3 world_dir, float tmax) {
                 if (stack_len == 0u) {
                     return false;
                 }
-                stack_len--;
-                group = s0;
-                s0 = s1; s1 = s2; s2 = s3; s3 = s4; s4 = s5; s5 = s6; s6 = s7;
-                if (stack_len >= BVH_REGISTER_STACK) {
-                    s7 = spill[stack_len - BVH_REGISTER_STACK];
-                }
+                BVH_POP(group);
                 if (group == BVH_ENTERED) {
                     // Recomputed rather than kept: every value live across the walk's texel
                     // fetches is saved and restored around each of them.
@@ -287,12 +288,7 @@ bool bvh_occluded(vec3 world_origin, vec3 world_dir, float tmax) {
             uint rest = mask & (mask - 1u);
             uint child = (group & BVH_FIRST_MASK) + uint(findLSB(mask));
             if (rest != 0u) {
-                if (stack_len >= BVH_REGISTER_STACK) {
-                    spill[min(stack_len - BVH_REGISTER_STACK, BVH_STACK_SIZE - BVH_REGISTER_STACK - 1u)] = s7;
-                }
-                s7 = s6; s6 = s5; s5 = s4; s4 = s3; s3 = s2; s2 = s1; s1 = s0;
-                s0 = (group & BVH_FIRST_MASK) | (rest << 28);
-                stack_len++;
+                BVH_PUSH((group & BVH_FIRST_MASK) | (rest << 28));
             }
             if (child >= bvh_levels.x) {
                 entered = child;
@@ -305,12 +301,7 @@ bool bvh_occluded(vec3 world_origin, vec3 world_dir, float tmax) {
         // Entering an instance, out of the descent's loop: lavapipe runs a block in a loop on
         // every iteration, taken or not, and the descent iterates once per node.
         if (entered != BVH_NONE) {
-            if (stack_len >= BVH_REGISTER_STACK) {
-                spill[min(stack_len - BVH_REGISTER_STACK, BVH_STACK_SIZE - BVH_REGISTER_STACK - 1u)] = s7;
-            }
-            s7 = s6; s6 = s5; s5 = s4; s4 = s3; s3 = s2; s2 = s1; s1 = s0;
-            s0 = BVH_ENTERED;
-            stack_len++;
+            BVH_PUSH(BVH_ENTERED);
             int rows = int(bvh_levels.y + 4u * (entered - bvh_levels.x));
             vec4 x = uintBitsToFloat(texelFetch(bvh_nodes, rows));
             vec4 y = uintBitsToFloat(texelFetch(bvh_nodes, rows + 1));

@@ -86,9 +86,20 @@ impl BvhBuffers {
     /// Wraps the uploaded buffers (`bvh`'s nodes, `WideBvh::triangle_texels` and `root_bytes`)
     /// in their views, and uploads `bvh`'s alpha masks where it has them.
     pub fn new(ctx: &Arc<GpuContext>, [nodes, triangles, root]: [Buffer; 3], bvh: &ShadowBvh) -> GpuResult<BvhBuffers> {
-        let masks = match bvh.masks() {
+        BvhBuffers::wrap(ctx, [nodes, triangles, root], bvh.masks(), false)
+    }
+
+    /// The buffers in their views, with `masks` uploaded where there are some; `levels`: the
+    /// nodes end in a two-level BVH's top region.
+    fn wrap(
+        ctx: &Arc<GpuContext>,
+        [nodes, triangles, root]: [Buffer; 3],
+        masks: Option<&crate::scene::bvh::mask::BvhMasks>,
+        levels: bool,
+    ) -> GpuResult<BvhBuffers> {
+        let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        let masks = match masks {
             Some(masks) => {
-                let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
                 let [buffer] = upload(ctx, [("bvh alpha masks", bytemuck::cast_slice(&masks.texels), texel)])?;
                 Some(TexelBuffer::new(ctx, buffer, vk::Format::R32G32B32A32_UINT)?)
             }
@@ -99,7 +110,7 @@ impl BvhBuffers {
             triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
             masks,
             root,
-            levels: false,
+            levels,
             pending: Mutex::new(None),
         })
     }
@@ -130,21 +141,7 @@ impl BvhBuffers {
                 ("bvh root", bytemuck::cast_slice(&root), vk::BufferUsageFlags::UNIFORM_BUFFER | dst),
             ],
         )?;
-        let masks = match levels.masks() {
-            Some(masks) => {
-                let [buffer] = upload(ctx, [("bvh alpha masks", bytemuck::cast_slice(&masks.texels), texel)])?;
-                Some(TexelBuffer::new(ctx, buffer, vk::Format::R32G32B32A32_UINT)?)
-            }
-            None => None,
-        };
-        Ok(BvhBuffers {
-            nodes: TexelBuffer::new(ctx, nodes, vk::Format::R32G32B32A32_UINT)?,
-            triangles: TexelBuffer::new(ctx, triangles, vk::Format::R32G32B32A32_UINT)?,
-            masks,
-            root,
-            levels: true,
-            pending: Mutex::new(None),
-        })
+        BvhBuffers::wrap(ctx, [nodes, triangles, root], levels.masks(), true)
     }
 
     /// Has the next frame write `levels`' top region and root (after `TwoLevel::place`).

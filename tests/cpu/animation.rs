@@ -180,6 +180,7 @@ fn bad_keys_are_one_line_naming_the_key() {
             "increase",
         ),
         (KEYED.replace("scale = 2.0 }", "scale = 0.0 }"), "objects[0].keys[1].scale", "non-zero"),
+        (KEYED.replace("scale = 2.0 }", "scale = [-2.0, 1.0, 1.0] }"), "objects[0].keys[1].scale", "sign"),
         (KEYED.replace("shape = \"cube\"\n", "shape = \"cube\"\nscale = 2.0\n"), "objects[0].keys", "not both"),
         (
             KEYED.replace(

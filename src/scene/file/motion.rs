@@ -53,9 +53,18 @@ impl Check<'_> {
         }
         let keys_path = format!("{path}.keys");
         let times = self.key_times(&keys_path, keys.iter().map(|k| &k.time))?;
-        let mut trs = Vec::with_capacity(keys.len());
+        let mut trs: Vec<(DVec3, DQuat, DVec3)> = Vec::with_capacity(keys.len());
         for (k, key) in keys.iter().enumerate() {
-            trs.push(self.key_transform(&format!("{keys_path}[{k}]"), key)?);
+            let at = format!("{keys_path}[{k}]");
+            let key = self.key_transform(&at, key)?;
+            // Between keys of opposite signs the scale would pass through zero, and the object
+            // would turn inside out (a mirror is not a motion).
+            if let Some(first) = trs.first() {
+                if (0..3).any(|a| (key.2[a] < 0.0) != (first.2[a] < 0.0)) {
+                    return Err(self.fail(&format!("{at}.scale"), "changes the sign of an axis from the first key's"));
+                }
+            }
+            trs.push(key);
         }
         let interpolation = match object.interpolation.unwrap_or(KeyInterpolation::Linear) {
             KeyInterpolation::Linear => Interpolation::Linear,

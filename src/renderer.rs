@@ -391,6 +391,7 @@ impl Renderer {
     ) -> GpuResult<CompiledGraph> {
         let (graph, traversal) = self.graph(settings, target, history)?;
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
+        self.gpu_scene.recorded();
         if let Some(scene) = traversal {
             scene.note_recorded(&plan);
         }

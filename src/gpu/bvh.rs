@@ -27,8 +27,9 @@ pub struct BvhBuffers {
     /// Two levels: the nodes end in the top region (`levels.rs`), which moves rewrite.
     pub levels: bool,
     /// The top region's first texel and new texels, and the root's, where placements changed
-    /// since the last frame: the next frame's first pass writes them (`import`).
-    pending: Mutex<Option<Pending>>,
+    /// since the last recorded frame: every frame's first pass writes them (`import`) until one
+    /// is recorded (`recorded`), so a graph built only to be inspected loses nothing.
+    pending: Mutex<Option<Arc<Pending>>>,
 }
 
 /// Which build of a shader that walks the BVH a scene's casters need: with alpha masks
@@ -153,8 +154,14 @@ impl BvhBuffers {
         let (at, texels) = levels.region();
         assert!(((at + texels.len()) * 16) as u64 <= self.nodes.buffer.size, "a top region outgrew its buffer");
         let bytes = (texels.len() * 16 + 64) as u64;
-        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = Some(((at, texels.to_vec()), levels.root_texels()));
+        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) =
+            Some(Arc::new(((at, texels.to_vec()), levels.root_texels())));
         bytes
+    }
+
+    /// A frame that imported these buffers was recorded: the update it wrote is done.
+    pub fn recorded(&self) {
+        self.pending.lock().unwrap_or_else(|e| e.into_inner()).take();
     }
 
     /// Whether the passes that walk this BVH need their masked variant (and bind `masks`).
@@ -205,14 +212,17 @@ impl BvhBuffers {
     pub fn import<'a>(&'a self, g: &mut RenderGraph<'a>, access: Access) -> BvhHandles {
         let mut root = g.import_buffer("bvh root", &self.root, access);
         let mut nodes = g.import_buffer("bvh nodes", &self.nodes.buffer, access);
-        let pending = self.pending.lock().unwrap_or_else(|e| e.into_inner()).take();
-        if let Some(((at, texels), root_texels)) = pending {
+        let pending = self.pending.lock().unwrap_or_else(|e| e.into_inner()).clone();
+        if let Some(pending) = pending {
+            let ((at, texels), root_texels) = &*pending;
+            let (at, root_texels) = (*at, *root_texels);
             let mut pass = g.add_pass("bvh top level");
             pass.detail(format!("{} KiB", (texels.len() * 16 + 64) >> 10));
+            let texels = pending.clone();
             let nodes_dst = pass.write(&mut nodes, Access::TransferWrite);
             let root_dst = pass.write(&mut root, Access::TransferWrite);
             pass.render(move |ctx| {
-                let bytes: &[u8] = bytemuck::cast_slice(&texels);
+                let bytes: &[u8] = bytemuck::cast_slice(&texels.0 .1);
                 for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
                     let offset = (16 * at + k * UPDATE_LIMIT) as u64;
                     // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of 4

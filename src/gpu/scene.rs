@@ -85,7 +85,7 @@ pub struct SceneGpu {
     pub moving: Vec<MovingDraw>,
     /// The moving draws' new instance rows (their `row`s in order), where the scene was posed
     /// since the last frame: the next frame's first pass writes them (`import_vertices`).
-    pending_rows: std::sync::Mutex<Option<Vec<InstanceRows>>>,
+    pending_rows: std::sync::Mutex<Option<Arc<Vec<InstanceRows>>>>,
 }
 
 /// A scene without textures: its distinct materials as the G-buffer's material channel would
@@ -481,19 +481,25 @@ impl SceneGpu {
             self.bounds = (all.min, all.max);
         }
         let bytes = std::mem::size_of_val(rows.as_slice()) as u64;
-        *self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()) = Some(rows);
+        *self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(rows));
         bytes
     }
 
-    /// Imports the vertex buffer into `g`; where the scene was posed since the last frame, a
-    /// first pass writes the moving draws' instance rows (after every read of the old ones that
-    /// earlier frames submitted).
+    /// A frame that imported the scene was recorded: the updates it wrote are done.
+    pub fn recorded(&self) {
+        self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()).take();
+        self.bvh.recorded();
+    }
+
+    /// Imports the vertex buffer into `g`; where the scene was posed since the last recorded
+    /// frame, a first pass writes the moving draws' instance rows (after every read of the old
+    /// ones that earlier frames submitted).
     pub fn import_vertices<'a>(
         &'a self,
         g: &mut crate::graph::RenderGraph<'a>,
     ) -> crate::graph::Handle<crate::graph::BufferKind> {
         let mut vertices = g.import_buffer("vertices", &self.vertices, SCENE_ACCESS);
-        let Some(rows) = self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()).take() else {
+        let Some(rows) = self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()).clone() else {
             return vertices;
         };
         let mut pass = g.add_pass("instance rows");

@@ -172,8 +172,9 @@ impl super::Technique for Hybrid {
         frame: &FrameInputs<'_, 'a>,
         casters: &Casters,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let target = &mut targets.visibility;
         let bvh = casters.bvh.as_ref().expect("shadows::add imports the BVH that `walks` asks for");
         let casters = map::caster_bounds(frame.scene);
         let receivers = map::visible_bounds(frame);

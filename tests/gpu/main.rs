@@ -34,6 +34,7 @@ mod lighting_with_textures;
 mod many_lights;
 mod ray_query;
 mod rect_lights;
+mod rect_shadows;
 mod render_accuracy;
 mod samplers;
 mod shadow_choice;

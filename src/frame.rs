@@ -54,6 +54,8 @@ pub struct FrameParts<'a> {
     pub volumes: Option<&'a crate::shadows::volumes::VolumeScene>,
     /// The driver's acceleration structures, when the frame's rays use them.
     pub ray_query: Option<&'a crate::gpu::accel::RayQueryScene>,
+    /// The rect lights on the device, in scenes that have any.
+    pub rects: Option<&'a crate::lighting::rects::RectsGpu>,
     /// The environment and ambient occlusion this frame uses.
     pub lighting: crate::lighting::Prepared<'a>,
     /// Compose's variant and pipeline (shaded frames; `None` for a debug view).
@@ -85,6 +87,7 @@ pub fn build<'a>(
         shadows: plan,
         volumes,
         ray_query,
+        rects,
         lighting,
         compose,
     } = parts;
@@ -121,6 +124,7 @@ pub fn build<'a>(
         debug_view: settings.debug_view,
         volumes,
         ray_query,
+        rects,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan)?;
     let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer, &handles.bvh);
@@ -248,9 +252,9 @@ fn lighting_stage<'a>(
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let display = settings.output == OutputKind::Display;
     // A technique's own view (checked by the renderer before the graph was built).
-    let (visibility, technique_view) = match visibility {
-        Some(v) => (Some((v.target, v.table)), v.debug),
-        None => (None, None),
+    let (visibility, rect_ratios, technique_view) = match visibility {
+        Some(v) => (Some((v.target, v.table)), v.rect_ratios, v.debug),
+        None => (None, None, None),
     };
     if let Some(image) = technique_view {
         return Ok(Lit { image, debug: true, toned: false, history: Accumulated::No });
@@ -296,7 +300,8 @@ fn lighting_stage<'a>(
         pipeline: (variant, pipeline),
         lights: &handles.lights,
         light_count: s.light_count,
-        visibility: visibility.as_ref().map(|(v, t)| (v, t)),
+        // Rect lights' layers are the rect lights pass's to read.
+        visibility: visibility.as_ref().filter(|_| plan.shadows_lights()).map(|(v, t)| (v, t)),
         eye: camera.eye,
         background: ambient.background,
         background_given: ambient.background_given,
@@ -325,9 +330,15 @@ fn lighting_stage<'a>(
     }
     let mut image = composed.image;
     if let (Some(rects), Some((tables, _, _))) = (lighting.rects, &area) {
-        let frame = settings.frame_index;
-        let casters = crate::gpu::Casters::bvh(&handles.bvh);
-        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, &casters, camera, frame, extent);
+        let shadows = visibility.as_ref().zip(rect_ratios.as_ref()).map(|((_, table), ratios)| {
+            crate::lighting::rects::RectShadows {
+                table,
+                ratios,
+                first_light: s.light_count,
+                first_layer: plan.first_rect_layer(),
+            }
+        });
+        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, shadows, camera, extent);
     }
     let Some(h) = &history else {
         return Ok(Lit { image, debug: false, toned: variant.display, history: Accumulated::No });

@@ -26,17 +26,29 @@ macro_rules! outln {
     ($($arg:tt)*) => { umbra::output::print_stdout(&format!("{}\n", format_args!($($arg)*)))? };
 }
 
-/// Each light's shadows: the scene's (else traced), then the command line's method, `--param`
-/// values, `--hard` and `--spp`.
+/// How the command line counts the scene's lights, for its errors: every light, rect lights
+/// after the others (as `--debug-view visibility:N`, `--shadows N=...` and `--param N:...` number
+/// them).
+fn lights_counted(scene: &Scene) -> String {
+    let (n, rects) = (scene.lights.len() + scene.rect_lights.len(), scene.rect_lights.len());
+    match rects {
+        0 => format!("the scene has {n} light(s), counted from 0"),
+        _ => format!("the scene has {n} light(s), counted from 0 with its {rects} rect light(s) last"),
+    }
+}
+
+/// Each light's shadows (rect lights after the others: `traced` unless the command line says):
+/// the scene's (else traced), then the command line's method, `--param` values, `--hard` and
+/// `--spp`.
 fn light_shadows(scene: &Scene, args: &RenderArgs) -> Result<Vec<ShadowChoice>> {
-    let n = scene.lights.len();
+    let n = scene.lights.len() + scene.rect_lights.len();
     let mut choices: Vec<ShadowChoice> =
         (0..n).map(|i| scene.light_shadows.get(i).copied().unwrap_or_default()).collect();
     let pick = |light: Option<usize>, what: &str| -> Result<std::ops::Range<usize>> {
         match light {
             None => Ok(0..n),
             Some(i) if i < n => Ok(i..i + 1),
-            Some(i) => bail!("{what}: light {i} does not exist; the scene has {n} light(s), counted from 0"),
+            Some(i) => bail!("{what}: light {i} does not exist; {}", lights_counted(scene)),
         }
     };
     for &(light, method, soft) in args.shadows.as_ref().map_or(&[][..], |a| &a.0[..]) {
@@ -158,7 +170,7 @@ fn provenance(
         }
         None => format!("{frames} {counted}; hard shadows, 1 ray per pixel and light"),
     };
-    if let Some(spp) = rect_shadow_spp(scene).filter(|_| settings.debug_view.is_none()) {
+    if let Some(spp) = rect_shadow_spp(settings, scene).filter(|_| settings.debug_view.is_none()) {
         samples.push_str(&format!("; rect lights at least {spp} rays per pixel a frame, {} in all", spp * frames));
     }
     if frames > 1 && !settings.antialias {
@@ -183,11 +195,14 @@ fn provenance(
 }
 
 /// The fewest shadow rays per pixel and frame among the scene's rect lights that cast shadows
-/// (a rect casts none in a scene without casters: its LTC shading alone is exact); `None`
-/// when none does.
-fn rect_shadow_spp(scene: &Scene) -> Option<u32> {
+/// (a rect casts none in a scene without casters, or with its shadows `none`: its LTC shading
+/// alone is exact); `None` when none does. Rect lights are soft lights: their rays converge over
+/// frames as soft shadows' do.
+fn rect_shadow_spp(settings: &RenderSettings, scene: &Scene) -> Option<u32> {
     let has_casters = scene.meshes.iter().any(|m| m.cast_shadows);
-    scene.rect_lights.iter().filter(|r| has_casters && r.spp > 0).map(|r| r.spp).min()
+    let shadowed = |r: usize| settings.shadow_method(scene.lights.len() + r) != ShadowMethod::None;
+    let rects = scene.rect_lights.iter().enumerate();
+    rects.filter(|&(r, rect)| has_casters && rect.spp > 0 && shadowed(r)).map(|(_, rect)| rect.spp).min()
 }
 
 /// Samples per pixel a default render gathers for soft shadows, over accumulated frames.
@@ -203,7 +218,8 @@ fn default_frames(settings: &RenderSettings, scene: &Scene) -> u32 {
     let soft_spp = soft_traced_lights(settings, &scene.lights).min();
     // Ambient occlusion converges over the same frames, and so do rect lights' shadow rays.
     let ao_spp = scene.lighting.occlusion_of_environment().filter(|_| settings.debug_view.is_none()).map(|ao| ao.spp);
-    soft_spp.into_iter().chain(ao_spp).chain(rect_shadow_spp(scene)).min().map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
+    let rect_spp = rect_shadow_spp(settings, scene);
+    soft_spp.into_iter().chain(ao_spp).chain(rect_spp).min().map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
 }
 
 /// The scene file (or the built-in scene), its parse timed at -v.
@@ -353,11 +369,8 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     // The library draws a missing light's view all lit (a scene without lights has nothing to
     // shadow); asked for by name on the command line it is a typo, not a picture.
     if let Some(view @ DebugView::Visibility(light)) = args.debug_view {
-        if light as usize >= lights.len() {
-            bail!(
-                "--debug-view {view}: light {light} does not exist; the scene has {} light(s), counted from 0",
-                lights.len()
-            );
+        if light as usize >= lights.len() + scene.rect_lights.len() {
+            bail!("--debug-view {view}: light {light} does not exist; {}", lights_counted(&scene));
         }
     }
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;

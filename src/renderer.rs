@@ -240,7 +240,8 @@ impl Renderer {
             crate::shadows::check_debug_view(view, &plan, &self.gpu_scene).map_err(GpuError::Unsupported)?;
         }
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
-        visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())?;
+        let lights = crate::shadows::light_total(&self.gpu_scene);
+        visibility::check_limits(&self.ctx, extent, lights, plan.layers.count())?;
         self.note_fallbacks(&plan);
         let ray_query = self.ray_query_scene(settings)?;
         let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
@@ -252,12 +253,13 @@ impl Renderer {
             self.area_tables.as_ref(),
             settings.debug_view,
             self.gpu_scene.bvh.variant(),
+            plan.rect_layers() > 0,
         )?;
         let compose = match settings.debug_view {
             Some(_) => None,
             None => {
                 let variant = crate::passes::compose::Variant {
-                    shadowed: plan.layers.count() > 0,
+                    shadowed: plan.shadows_lights(),
                     environment: lighting.environment.is_some(),
                     occluded: lighting.environment.is_some() && lighting.occlusion.is_some(),
                     emissive: self.gpu_scene.materials.is_some(),
@@ -278,6 +280,7 @@ impl Renderer {
             shadows: plan,
             volumes: volume_scene,
             ray_query,
+            rects: self.rects.as_ref(),
             lighting,
             compose,
         };
@@ -310,8 +313,8 @@ impl Renderer {
     pub fn check_frame_size(&self, settings: &RenderSettings) -> Result<(), String> {
         let plan = self.shadow_plan(settings).map_err(|e| e.to_string())?;
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
-        visibility::check_limits(&self.ctx, extent, self.gpu_scene.light_count as usize, plan.layers.count())
-            .map_err(|e| e.to_string())
+        let lights = crate::shadows::light_total(&self.gpu_scene);
+        visibility::check_limits(&self.ctx, extent, lights, plan.layers.count()).map_err(|e| e.to_string())
     }
 
     /// Which technique serves which light for `settings` (what a frame with them would do),
@@ -340,7 +343,8 @@ impl Renderer {
         Ok(Some(scene))
     }
 
-    /// Tells once per light and method when the method cannot serve the light, and why.
+    /// Tells once per light (numbered as `shadows::Served` says) and method when the method
+    /// cannot serve the light, and why.
     fn note_fallbacks(&self, plan: &crate::shadows::ShadowPlan) {
         for (light, method, why) in &plan.fallbacks {
             if self.fallbacks_noted.lock().is_ok_and(|mut seen| seen.insert((*light, *method))) {

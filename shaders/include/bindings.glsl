@@ -104,6 +104,10 @@
 #define SHADOW_MATERIAL 10
 // shadows/traced/trace*.comp: the BVH's root node as a uniform block (bvh.glsl)
 #define SHADOW_BVH_ROOT 11
+// shadows/traced/rect_trace*.comp (with the SHADOW_ bindings above but SHADOW_LIGHTS): the rect
+// lights, and the rect's visibility unrounded (R32F), which their shading multiplies by
+#define SHADOW_RECTS 12
+#define SHADOW_RECT_RATIO 13
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
@@ -154,8 +158,8 @@
 #define AO_BVH_ROOT 8
 
 // lighting/rect_lights.comp: rect lights' unshadowed LTC shading added to compose's radiance,
-// times their traced visibility (ratio estimator), and their emitters where the camera sees
-// them (RADIANCE_IN read, RADIANCE_OUT written)
+// times their visibility (the traced technique's ratio estimate), and their emitters where the
+// camera sees them (RADIANCE_IN read, RADIANCE_OUT written)
 #define RECT_POSITION 0
 #define RECT_NORMAL 1
 #define RECT_MATERIAL 2
@@ -164,11 +168,10 @@
 #define RECT_BRDF_TABLE 5
 #define RECT_RADIANCE_IN 6
 #define RECT_RADIANCE_OUT 7
-#define RECT_SURFACE 8
-#define RECT_BVH_NODES 9
-#define RECT_BVH_TRIANGLES 10
-#define RECT_BVH_MASKS 11
-#define RECT_BVH_ROOT 12
+// RECT_SHADOWS: the light table (each light's layer) and the rects' unrounded visibility
+// (SHADOW_RECT_RATIO's image)
+#define RECT_LIGHT_LAYERS 8
+#define RECT_VISIBILITY 9
 
 // lighting/envmap_*.comp: an environment map's precompute at load (src/lighting/envmap.rs)
 #define ENVMAP_SOURCE 0

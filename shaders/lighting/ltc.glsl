@@ -10,14 +10,7 @@
 const uint LTC_SIZE = 32u;
 const float LTC_PI = 3.14159265358979;
 
-// One rect light: center.xyz, w: 1 when two-sided; the half edges (u.w: shadow rays per
-// pixel, 0 for none); radiance.
-struct GpuRect {
-    vec4 center_two_sided;
-    vec4 half_edge_u;
-    vec4 half_edge_v;
-    vec4 radiance;
-};
+#include "lighting/rect.glsl"
 
 float ltc_node(uint i, uint k) { return ltc_table[i * 5u + k]; }
 

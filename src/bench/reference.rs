@@ -15,6 +15,10 @@
 //!   each: per pixel, the variance of the 256-sample mean is a quarter of the variance of A - B
 //!   (Var(A - B) = 2 s²/128, Var(mean) = s²/256), so the reference's RMSE is estimated as
 //!   `RMSE(A - B) / 2` over the mask. Hard lights' error is 0.
+//! - **Rect lights** (numbered after the others, as `--debug-view visibility:N` counts them):
+//!   their rays per pixel are the scene file's `spp`, so the reference averages as many frames
+//!   of them as make at least `FRAMES` x `SPP` rays (`rect_frames`), in two halves as above. A
+//!   rect that casts no shadows (`spp = 0`, or nothing to cast them) is exact, as a hard light.
 //! - **Frame**: the shaded, tone-mapped frame (RGBA8 sRGB) with every light so traced,
 //!   accumulated over `FRAMES` frames where the frame has anything sampled (soft lights, ambient
 //!   occlusion, rect lights' shadows: `RenderSettings::accumulates`), for FLIP.
@@ -41,8 +45,8 @@ pub const SPP: u32 = 64;
 pub const FRAMES: u32 = 4;
 /// The first reference frame's `frame_index`; measured frames start at 0.
 pub const SEED: u32 = 0x4000_0000;
-/// Bumped whenever what a reference holds or how it is made changes.
-const FORMAT_VERSION: u32 = 3;
+/// Bumped whenever what a reference holds or how it is made changes (4: rect lights).
+const FORMAT_VERSION: u32 = 4;
 const MAGIC: &[u8; 8] = b"UMBRAREF";
 
 /// One light's reference.
@@ -125,6 +129,9 @@ pub fn cache_key(scene: &Scene, width: u32, height: u32, device: &str) -> Result
     field("camera", format!("{:?}", scene.camera).as_bytes());
     for light in &scene.lights {
         field("light", format!("{light:?}").as_bytes());
+    }
+    for rect in &scene.rect_lights {
+        field("rect light", format!("{rect:?}").as_bytes());
     }
     for mesh in &scene.meshes {
         field("mesh", &[u8::from(mesh.cast_shadows)]);
@@ -322,6 +329,23 @@ pub fn display_bytes(frame: Frame) -> Vec<u8> {
     }
 }
 
+/// Every light the bench scores: the scene's point, spot and directional lights, then its rect
+/// lights (the numbering of `--debug-view visibility:N`).
+pub fn light_total(scene: &Scene) -> usize {
+    scene.lights.len() + scene.rect_lights.len()
+}
+
+/// Light `n`'s kind: `point`, `spot`, `directional` or `rect`.
+pub fn light_kind(scene: &Scene, n: usize) -> &'static str {
+    scene.lights.get(n).map_or("rect", crate::scene::Light::kind)
+}
+
+/// Frames a rect light's reference averages: at least `FRAMES`, and enough for `FRAMES` x `SPP`
+/// rays at its `spp` a frame, in two equal halves.
+pub fn rect_frames(spp: u32) -> u32 {
+    (FRAMES * SPP).div_ceil(spp.max(1)).max(FRAMES).next_multiple_of(2)
+}
+
 /// Light `n`'s visibility view with `choice` for it and every other light's shadows off (they
 /// do not change light `n`'s layer, and cost nothing that way).
 pub fn light_visibility(
@@ -332,7 +356,7 @@ pub fn light_visibility(
     choice: ShadowChoice,
     frame_index: u32,
 ) -> crate::vk::GpuResult<Vec<f32>> {
-    let lights = renderer.scene().lights.len();
+    let lights = light_total(renderer.scene());
     let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); lights];
     shadows[n] = choice;
     let mut s = settings(width, height, OutputKind::SceneLinear, shadows);
@@ -361,29 +385,38 @@ fn masked_rmse(a: &[f32], b: &[f32], mask: &[bool]) -> f64 {
 /// Traces the reference of the renderer's scene at `width` x `height` (see the module's notes).
 pub fn compute(renderer: &mut Renderer, width: u32, height: u32) -> crate::vk::GpuResult<Reference> {
     let lights: Vec<crate::scene::Light> = renderer.scene().lights.clone();
-    let mut depth =
-        settings(width, height, OutputKind::SceneLinear, vec![ShadowChoice::of(ShadowMethod::None); lights.len()]);
+    let total = light_total(renderer.scene());
+    // A rect light's rays per frame: none where it casts no shadows.
+    let casters = renderer.scene().meshes.iter().any(|m| m.cast_shadows);
+    let rect_spp: Vec<u32> = renderer.scene().rect_lights.iter().map(|r| if casters { r.spp } else { 0 }).collect();
+    let mut depth = settings(width, height, OutputKind::SceneLinear, vec![ShadowChoice::of(ShadowMethod::None); total]);
     depth.debug_view = Some(DebugView::Depth);
     let covered: Vec<bool> = red_channel(&renderer.render(&depth)?).iter().map(|&d| d > 0.0).collect();
     let mut out = Vec::new();
-    for (n, light) in lights.iter().enumerate() {
+    for n in 0..total {
         let reach = light_visibility(renderer, width, height, n, ShadowChoice::of(ShadowMethod::None), 0)?;
         let mask: Vec<bool> = covered.iter().zip(&reach).map(|(&c, &r)| c && r >= 0.5).collect();
-        if !light.has_size() {
+        // Soft: (frames, the choice, rays per pixel and frame).
+        let soft = match (lights.get(n), rect_spp.get(n.wrapping_sub(lights.len()))) {
+            (Some(light), _) if light.has_size() => Some((FRAMES, ShadowChoice::soft(SPP), SPP)),
+            (None, Some(&spp)) if spp > 0 => Some((rect_frames(spp), ShadowChoice::default(), spp)),
+            _ => None,
+        };
+        let Some((frame_count, choice, spp)) = soft else {
             let visibility = light_visibility(renderer, width, height, n, ShadowChoice::hard(), 0)?;
             out.push(LightReference { visibility, mask, soft: false, samples: 1, error: 0.0 });
             continue;
-        }
-        let frames: Vec<Vec<f32>> = (0..FRAMES)
-            .map(|k| light_visibility(renderer, width, height, n, ShadowChoice::soft(SPP), SEED + k))
+        };
+        let frames: Vec<Vec<f32>> = (0..frame_count)
+            .map(|k| light_visibility(renderer, width, height, n, choice, SEED + k))
             .collect::<Result<_, _>>()?;
         let mean = |fs: &[Vec<f32>]| -> Vec<f32> {
             (0..fs[0].len()).map(|i| fs.iter().map(|f| f[i]).sum::<f32>() / fs.len() as f32).collect()
         };
-        let half = (FRAMES / 2) as usize;
+        let half = (frame_count / 2) as usize;
         let (a, b) = (mean(&frames[..half]), mean(&frames[half..]));
         let error = masked_rmse(&a, &b, &mask) / 2.0;
-        out.push(LightReference { visibility: mean(&frames), mask, soft: true, samples: SPP * FRAMES, error });
+        out.push(LightReference { visibility: mean(&frames), mask, soft: true, samples: spp * frame_count, error });
     }
     let shadows: Vec<ShadowChoice> =
         lights.iter().map(|l| if l.has_size() { ShadowChoice::soft(SPP) } else { ShadowChoice::hard() }).collect();

@@ -18,9 +18,10 @@ pub struct Row {
     pub point: usize,
     /// The axes the point lies on, `KEY=VALUE` joined by `; `, or `default`.
     pub sweep: String,
-    /// The light, counted from 0 in file order, or `all` for the whole frame.
+    /// The light, counted from 0 as `--debug-view visibility:N` counts them (point, spot and
+    /// directional lights in file order, then rect lights), or `all` for the whole frame.
     pub light: String,
-    /// `point`, `spot`, `directional`, or `all`.
+    /// `point`, `spot`, `directional`, `rect`, or `all`.
     pub light_kind: String,
     /// The method that really made the light's shadows: the one asked for, `traced` where it
     /// cannot serve the light (see `fallback`), `none` where nothing has shadow work; for `all`

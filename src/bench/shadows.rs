@@ -119,13 +119,14 @@ fn pooled_error(parts: &[(&[f32], &[f32], &[bool])], width: usize, height: usize
     visibility_error(&r, &t, width, rows, Some(&m))
 }
 
-/// Which technique serves each light at a point, and why not the one asked for.
+/// Which technique serves each light (rect lights last) at a point, and why not the one asked
+/// for.
 fn served(
     renderer: &Renderer,
     settings: &crate::config::RenderSettings,
 ) -> crate::vk::GpuResult<Vec<(ShadowMethod, Option<String>)>> {
     let plan = renderer.shadow_plan(settings)?;
-    Ok((0..renderer.scene().lights.len())
+    Ok((0..reference::light_total(renderer.scene()))
         .map(|i| {
             let method = ShadowMethod::TECHNIQUES
                 .iter()
@@ -138,9 +139,13 @@ fn served(
         .collect())
 }
 
-/// Map texels a light's shadows touch per frame, from its parameters.
-fn map_texels(served_by: ShadowMethod, choice: &ShadowChoice, light: &Light) -> u64 {
-    crate::shadows::technique(served_by).map_or(0, |t| t.map_texels(choice, light))
+/// Map texels a light's shadows touch per frame, from its parameters (none for a rect light:
+/// only `traced` serves it).
+fn map_texels(served_by: ShadowMethod, choice: &ShadowChoice, light: Option<&Light>) -> u64 {
+    match (crate::shadows::technique(served_by), light) {
+        (Some(t), Some(light)) => t.map_texels(choice, light),
+        _ => 0,
+    }
 }
 
 /// Rays `hybrid` traced for light `n` in one frame: the pixels its `hybrid:N` view marks, times
@@ -203,8 +208,10 @@ fn prepare(options: &Options) -> Result<Vec<SceneJob>> {
         let soft = scene.lights.iter().any(Light::has_size);
         let mut points = Vec::new();
         for m in &options.methods {
-            let base = sweep::base_choices(&scene.light_shadows, scene.lights.len(), m, &options.params)
-                .map_err(anyhow::Error::msg)?;
+            // Rect lights too: a method that cannot serve them falls back to traced, and says so.
+            let lights = reference::light_total(&scene);
+            let base =
+                sweep::base_choices(&scene.light_shadows, lights, m, &options.params).map_err(anyhow::Error::msg)?;
             let axes = match &options.axes {
                 Some(a) => a.clone(),
                 None => sweep::default_axes(m.method, options.quick, soft),
@@ -285,6 +292,8 @@ pub fn run(options: &Options) -> Result<Outcome> {
         bar.inc(1);
 
         let lights = job.scene.lights.clone();
+        // Every light scored, rect lights after the others.
+        let total = reference::light_total(&job.scene);
         let first_row = rows.len();
         for (method, points) in &job.points {
             for (point_index, point) in points.iter().enumerate() {
@@ -319,7 +328,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
                 let plan_bytes = renderer.last_plan().map_or(0, shadow_bytes);
 
                 let mut visibility = Vec::new();
-                for (n, &choice) in point.choices.iter().enumerate().take(lights.len()) {
+                for (n, &choice) in point.choices.iter().enumerate().take(total) {
                     visibility.push(reference::light_visibility(&mut renderer, width, height, n, choice, 0)?);
                 }
                 if crate::passes::accumulate::accumulates(&settings, renderer.scene()) {
@@ -359,23 +368,30 @@ pub fn run(options: &Options) -> Result<Outcome> {
                 };
                 let (w, h) = (width as usize, height as usize);
                 let mut light_rows = Vec::new();
-                for (n, light) in lights.iter().enumerate() {
+                for n in 0..total {
+                    let light = lights.get(n);
                     let r = &reference.lights[n];
                     let e = visibility_error(&r.visibility, &visibility[n], w, h, Some(&r.mask));
                     let choice = point.choices[n];
                     let (by, why) = serving[n].clone();
-                    let rays = match by {
-                        ShadowMethod::Traced if choice.traced.is_soft(light.has_size()) => {
+                    let rays = match (by, light) {
+                        // A rect light's rays: its scene file's spp (`reference` says none
+                        // where it casts no shadows).
+                        (ShadowMethod::Traced, None) if r.soft => {
+                            r.pixels() as u64 * u64::from(job.scene.rect_lights[n - lights.len()].spp)
+                        }
+                        (ShadowMethod::Traced, None) => 0,
+                        (ShadowMethod::Traced, Some(l)) if choice.traced.is_soft(l.has_size()) => {
                             r.pixels() as u64 * u64::from(choice.traced.spp)
                         }
-                        ShadowMethod::Traced => r.pixels() as u64,
-                        ShadowMethod::Hybrid => hybrid_rays(&mut renderer, width, height, n, choice)?,
+                        (ShadowMethod::Traced, _) => r.pixels() as u64,
+                        (ShadowMethod::Hybrid, _) => hybrid_rays(&mut renderer, width, height, n, choice)?,
                         _ => 0,
                     };
                     let texels = map_texels(by, &choice, light);
                     light_rows.push(Row {
                         light: n.to_string(),
-                        light_kind: light.kind().into(),
+                        light_kind: reference::light_kind(&job.scene, n).into(),
                         served_by: by.id().into(),
                         fallback: why.unwrap_or_default(),
                         settings: choice.describe(),
@@ -395,11 +411,11 @@ pub fn run(options: &Options) -> Result<Outcome> {
                         ..common.clone()
                     });
                 }
-                if lights.len() == 1 {
+                if total == 1 {
                     light_rows[0].frame_row = true;
                     light_rows[0].flip = Some(flip);
                 } else {
-                    let parts: Vec<(&[f32], &[f32], &[bool])> = (0..lights.len())
+                    let parts: Vec<(&[f32], &[f32], &[bool])> = (0..total)
                         .map(|n| {
                             let r = &reference.lights[n];
                             (&r.visibility[..], &visibility[n][..], &r.mask[..])
@@ -500,7 +516,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
             "scene": job.label,
             "width": width,
             "height": height,
-            "lights": lights.len(),
+            "lights": total,
             "time_axis": time_axis,
             "timing": timing_label,
             "pareto": front,
@@ -513,7 +529,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
                 "cached": was_cached,
                 "lights": reference.lights.iter().enumerate().map(|(n, l)| json!({
                     "light": n,
-                    "kind": lights[n].kind(),
+                    "kind": reference::light_kind(&job.scene, n),
                     "soft": l.soft,
                     "samples": l.samples,
                     "error": l.error,

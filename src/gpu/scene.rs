@@ -73,6 +73,9 @@ pub struct SceneGpu {
     pub light_count: u32,
     /// The lights in the scene-local frame (what the buffer holds, before packing).
     pub local_lights: Vec<crate::scene::Light>,
+    /// The rect lights in the scene-local frame (`lighting::rects::RectsGpu` holds them on the
+    /// device); not counted by `light_count`.
+    pub local_rects: Vec<crate::scene::RectLight>,
     pub bvh: BvhBuffers,
     pub has_casters: bool,
     /// Bounds of the geometry in the scene-local frame.
@@ -451,6 +454,7 @@ impl SceneGpu {
             lights,
             light_count: scene.lights.len() as u32,
             local_lights: scene.lights.clone(),
+            local_rects: scene.rect_lights.clone(),
             bvh: bvh_buffers,
             has_casters,
             bounds: (lo, hi),

@@ -122,7 +122,8 @@ pub struct Prepared<'a> {
 }
 
 /// What a frame with `view` needs for `lighting` (`environment` on the device), its passes'
-/// pipelines from the cache, in the build `variant` of the BVH walk the scene's casters need.
+/// pipelines from the cache, in the build `variant` of the BVH walk the scene's casters need; the
+/// rect lights' pass reads their visibility when `rects_shadowed` (a rect light has a layer this frame).
 #[allow(clippy::too_many_arguments)]
 pub fn prepare<'a>(
     pipelines: crate::vk::PipelineSource<'a>,
@@ -132,6 +133,7 @@ pub fn prepare<'a>(
     area: Option<&'a AreaTables>,
     view: Option<crate::config::DebugView>,
     variant: crate::gpu::BvhVariant,
+    rects_shadowed: bool,
 ) -> GpuResult<Prepared<'a>> {
     use crate::vk::PipelineKey;
     let mut prepared = Prepared::default();
@@ -151,8 +153,8 @@ pub fn prepare<'a>(
         None => {
             prepared.area = area;
             if let Some(r) = rect_lights {
-                let key = PipelineKey::new("rect lights", variant.bits());
-                prepared.rects = Some((r, pipelines.compute(key, |ctx| rects::pipeline(ctx, variant))?));
+                let key = PipelineKey::new("rect lights", rects_shadowed as u32);
+                prepared.rects = Some((r, pipelines.compute(key, |ctx| rects::pipeline(ctx, rects_shadowed))?));
             }
             if let Some(environment) = environment {
                 let occlusion = lighting.occlusion_of_environment();

@@ -1,15 +1,17 @@
 //! Rect lights on the device (issue 11): their unshadowed LTC shading (shaders/lighting/ltc.glsl,
 //! twin of `shading::shade_rect`) added to compose's radiance by one pass, which also shows each
-//! rect's emitting side to the camera. Its shadows are traced through the shadow BVH and combined
-//! with the analytic result by the ratio estimator (`rect_visibility` in rect_lights.comp). Only
-//! a scene with a rect light has the pass and the rect buffer on the device (and `AreaTables`).
+//! rect's emitting side to the camera. Their shadows are the traced technique's
+//! (`shadows::traced::rects`): each rect light with shadow work has a layer of the visibility
+//! target like every light, and this pass multiplies its shading by the unrounded ratio
+//! estimate written beside it (`shadows::Targets::rect_ratios`). Only a scene with a rect light
+//! has the pass and the rect buffer on the device (and `AreaTables`).
 
 use std::sync::Arc;
 
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
 use crate::scene::RectLight;
 use crate::vk::bindings::*;
@@ -21,7 +23,8 @@ use crate::vk::{spirv, Buffer, ComputePipeline, GpuContext, GpuResult};
 pub struct GpuRect {
     /// xyz: centre in the scene-local frame; w: 1 when two-sided.
     pub center_two_sided: [f32; 4],
-    /// w: shadow rays per pixel (0: none).
+    /// w: the scene file's shadow rays per pixel (0: none, or no casters); the rect trace takes
+    /// its count from its push constants.
     pub half_edge_u: [f32; 4],
     pub half_edge_v: [f32; 4],
     pub radiance: [f32; 4],
@@ -67,22 +70,15 @@ struct Push {
     clip_to_eye: Mat4,
     eye: Vec4,
     dims: UVec4,
+    /// x: rect 0's light number (after the point, spot and sun lights); y: the first rect's
+    /// layer of the visibility target.
+    layers: UVec4,
 }
 
-/// Where rect_lights.comp binds the BVH.
-const BVH_SLOTS: crate::gpu::BvhSlots = crate::gpu::BvhSlots {
-    nodes: RECT_BVH_NODES,
-    triangles: RECT_BVH_TRIANGLES,
-    root: RECT_BVH_ROOT,
-    masks: RECT_BVH_MASKS,
-};
-
-/// Where rect_lights.comp binds the casters: it walks the compute BVH only.
-const CASTER_SLOTS: crate::gpu::CasterSlots = crate::gpu::CasterSlots { bvh: BVH_SLOTS, ray_query: None };
-
-/// `variant`: the build for the scene's casters (alpha masks, two levels).
-pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuResult<ComputePipeline> {
-    let bindings = [
+/// `shadowed`: the variant that reads the rects' visibility (RECT_SHADOWS), for frames where a
+/// rect light has a layer of the visibility target.
+pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
+    let mut bindings = vec![
         sampled(RECT_POSITION),
         sampled(RECT_NORMAL),
         sampled(RECT_MATERIAL),
@@ -91,21 +87,26 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuRe
         storage(RECT_BRDF_TABLE),
         sampled(RECT_RADIANCE_IN),
         storage_image(RECT_RADIANCE_OUT),
-        (RECT_SURFACE, crate::vk::DescriptorKind::SampledImage),
     ];
+    if shadowed {
+        bindings.extend([storage(RECT_LIGHT_LAYERS), sampled(RECT_VISIBILITY)]);
+    }
     let size = std::mem::size_of::<Push>() as u32;
-    let bindings = BVH_SLOTS.with(&bindings, variant);
-    let names = [
-        "rect lights",
-        "rect lights (alpha masks)",
-        "rect lights (two levels)",
-        "rect lights (alpha masks, two levels)",
-    ];
-    let spirv = variant.spirv(spirv::LIGHTING_RECT_LIGHTS_COMP_WALKS);
-    ComputePipeline::new(ctx, variant.name(names), spirv, &bindings, size, TILE)
+    let name = if shadowed { "rect lights (shadowed)" } else { "rect lights" };
+    ComputePipeline::new(ctx, name, spirv::LIGHTING_RECT_LIGHTS_COMP[shadowed as usize], &bindings, size, TILE)
 }
 
-/// `radiance` with the rect lights added (a new image).
+/// The rects' shadows as this pass reads them: the light table, their unrounded visibility
+/// (`shadows::Targets::rect_ratios`), rect 0's light number and the first rect's layer.
+pub struct RectShadows<'h> {
+    pub table: &'h Handle<BufferKind>,
+    pub ratios: &'h Handle<ImageKind>,
+    pub first_light: u32,
+    pub first_layer: u32,
+}
+
+/// `radiance` with the rect lights added (a new image); `pipeline` is `pipeline(ctx,
+/// shadows.is_some())`.
 #[allow(clippy::too_many_arguments)]
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
@@ -113,9 +114,8 @@ pub fn add<'a>(
     tables: &'a super::AreaTables,
     gbuffer: &GBuffer,
     radiance: &Handle<ImageKind>,
-    casters: &crate::gpu::Casters<'_>,
+    shadows: Option<RectShadows<'_>>,
     camera: &crate::gpu::CameraMatrices,
-    frame_index: u32,
     extent: vk::Extent2D,
 ) -> Handle<ImageKind> {
     let scene = crate::gpu::SCENE_ACCESS;
@@ -126,9 +126,7 @@ pub fn add<'a>(
     let mut out = graph.create_image("radiance (rects)", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("rect lights");
     let read = Access::ComputeShaderReadSampledImage;
-    let walk = casters.bind(&mut pass, &CASTER_SLOTS);
     let mut bound = vec![
-        (RECT_SURFACE, Bound::Image(pass.read(&gbuffer.surface, read))),
         (RECT_POSITION, Bound::Image(pass.read(&gbuffer.position, read))),
         (RECT_NORMAL, Bound::Image(pass.read(&gbuffer.normal, read))),
         (RECT_MATERIAL, Bound::Image(pass.read(&gbuffer.material, read))),
@@ -138,11 +136,17 @@ pub fn add<'a>(
         (RECT_RADIANCE_IN, Bound::Image(pass.read(radiance, read))),
         (RECT_RADIANCE_OUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
     ];
-    bound.extend(walk);
+    let mut layers = UVec4::ZERO;
+    if let Some(s) = &shadows {
+        bound.push((RECT_LIGHT_LAYERS, Bound::Buffer(pass.read(s.table, access))));
+        bound.push((RECT_VISIBILITY, Bound::Image(pass.read(s.ratios, read))));
+        layers = UVec4::new(s.first_light, s.first_layer, 0, 0);
+    }
     let push = Push {
         clip_to_eye: camera.view_proj_relative.inverse(),
         eye: camera.eye.extend(0.0),
-        dims: UVec4::new(extent.width, extent.height, rects.count, frame_index),
+        dims: UVec4::new(extent.width, extent.height, rects.count, 0),
+        layers,
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     out

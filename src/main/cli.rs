@@ -209,8 +209,9 @@ pub(crate) struct RenderArgs {
     #[arg(long)]
     pub(crate) timings: bool,
     /// Write a debug view instead of the shaded image: albedo, normal, geometric-normal, depth,
-    /// position, or visibility[:N] (light N's visibility, lights counted from 0; plain
-    /// `visibility` is light 0).
+    /// position, or visibility[:N] (light N's visibility, 1 lit, 0 shadowed; lights counted
+    /// from 0: the point, spot and directional lights in file order, then the rect lights in
+    /// file order; plain `visibility` is light 0).
     #[arg(long, value_parser = clap::builder::ValueParser::new(|s: &str| s.parse::<DebugView>()))]
     pub(crate) debug_view: Option<DebugView>,
     /// Exposure in stops for PNG output.
@@ -218,7 +219,9 @@ pub(crate) struct RenderArgs {
     pub(crate) exposure: f32,
     /// Shadow method for every light (traced, map, cascades, volumes, hybrid, evsm, auto, none; ray-traced is an
     /// alias of traced, traced-soft and ray-traced-soft of soft traced), or per light counting
-    /// from 0: `0=map,2=none`. Default: each light's `shadows` in the scene file, else traced.
+    /// from 0 as --debug-view does (rect lights last): `0=map,2=none`. Rect lights are traced
+    /// only; another method falls back to traced for them. Default: each light's `shadows` in
+    /// the scene file, else traced.
     #[arg(long, value_parser = parse_shadows)]
     pub(crate) shadows: Option<ShadowsArg>,
     /// Shadow parameters, `KEY=VALUE` with the keys of the scene file's technique tables

@@ -29,6 +29,7 @@ use crate::config::{DebugView, RenderSettings, ShadowChoice, ShadowMethod};
 use crate::gpu::accel::RayQueryScene;
 use crate::gpu::{BvhHandles, CameraMatrices, SceneGpu};
 use crate::graph::{BufferKind, Handle, ImageKind, RenderGraph};
+use crate::lighting::rects::RectsGpu;
 use crate::passes::visibility::LayerPlan;
 use crate::passes::GBuffer;
 use crate::scene::Light;
@@ -48,6 +49,12 @@ pub trait Technique: Sync {
     /// Whether it can serve `light` on this device, and with this scene's casters (`volumes`:
     /// their adjacency, made when a light asks for volumes); why not otherwise.
     fn serves(&self, light: &Light, device: &Capabilities, volumes: Option<&VolumeScene>) -> Result<(), String>;
+
+    /// Whether it can serve rect lights (`type = "rect"`); why not otherwise. Only `traced`
+    /// does: a rect has no point or direction for a map or a volume to be cast from.
+    fn serves_rect(&self) -> Result<(), String> {
+        Err(format!("{} does not serve rect lights", self.method().id()))
+    }
 
     /// One light's choice in a few words, the parameters that matter (the viewer's overlay).
     fn describe(&self, choice: &ShadowChoice, light: &Light) -> String;
@@ -86,15 +93,16 @@ pub trait Technique: Sync {
         Walk::Nothing
     }
 
-    /// Adds its passes for the lights it serves this frame, writing their layers of `target`,
-    /// with its pipelines from `frame.pipelines`; its debug view when the frame shows one.
+    /// Adds its passes for the lights it serves this frame, writing their layers of
+    /// `targets.visibility` (and a rect light's of `targets.rect_ratios`), with its pipelines
+    /// from `frame.pipelines`; its debug view when the frame shows one.
     fn add<'a>(
         &self,
         g: &mut RenderGraph<'a>,
         frame: &FrameInputs<'_, 'a>,
         casters: &Casters<'_>,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>>;
 }
 
@@ -161,13 +169,33 @@ pub struct FrameInputs<'h, 'a> {
     pub volumes: Option<&'a VolumeScene>,
     /// The driver's acceleration structures, when the frame's rays use them.
     pub ray_query: Option<&'a RayQueryScene>,
+    /// The rect lights on the device, in scenes that have any.
+    pub rects: Option<&'a RectsGpu>,
 }
 
-/// What the visibility stage hands on: the target and its light table, and a technique's own
-/// debug view when the frame shows one.
+/// What the techniques write.
+pub struct Targets {
+    /// The visibility target: a layer per light with shadow work (`ShadowPlan::layers`).
+    pub visibility: Handle<ImageKind>,
+    /// Rect lights' visibility unrounded (R32F), where any rect light has a layer: layer k for
+    /// the visibility target's layer `first_rect_layer` + k. A rect's shading multiplies by
+    /// this, the ratio estimate itself, rather than by its 8-bit layer (so shaded images are
+    /// what they were when the rect pass cast its own rays); debug views and the bench read the
+    /// layer, as every light's.
+    pub rect_ratios: Option<Handle<ImageKind>>,
+    /// The first rect light's layer of `visibility` (`ShadowPlan::first_rect_layer`).
+    pub first_rect_layer: u32,
+}
+
+/// Format of `Targets::rect_ratios`.
+pub const RECT_RATIO_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
+
+/// What the visibility stage hands on: the target and its light table, rect lights' unrounded
+/// visibility, and a technique's own debug view when the frame shows one.
 pub struct Visibility {
     pub target: Handle<crate::graph::ImageKind>,
     pub table: Handle<BufferKind>,
+    pub rect_ratios: Option<Handle<crate::graph::ImageKind>>,
     pub debug: Option<Handle<crate::graph::ImageKind>>,
 }
 
@@ -194,7 +222,9 @@ pub fn check_debug_view(view: DebugView, plan: &ShadowPlan, scene: &SceneGpu) ->
 }
 
 /// One light a technique serves this frame: which light, its layer of the target, its
-/// parameters.
+/// parameters. Lights are numbered as `--debug-view visibility:N` counts them: the scene's
+/// point, spot and directional lights first (`SceneGpu::local_lights`), then its rect lights
+/// (light `light_count + r` is rect `r`: `rect_index`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Served {
     pub light: u32,
@@ -208,17 +238,47 @@ pub struct Served {
 /// A frame's shadow work: each light's layer, and the lights each technique serves.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ShadowPlan {
+    /// Every light's layer (lights numbered as `Served` says), so rect lights' layers come
+    /// after every other light's.
     pub layers: LayerPlan,
     /// The lights each technique serves (techniques with none are absent).
     pub served: BTreeMap<ShadowMethod, Vec<Served>>,
     /// Lights whose method cannot serve them, given to `traced` instead: (light, method, why).
     pub fallbacks: Vec<(usize, ShadowMethod, String)>,
+    /// The first rect light's number: how many point, spot and directional lights there are.
+    pub first_rect_light: usize,
 }
 
 impl ShadowPlan {
     pub fn served(&self, method: ShadowMethod) -> &[Served] {
         self.served.get(&method).map_or(&[], Vec::as_slice)
     }
+
+    /// Whether a point, spot or directional light has a layer (compose reads the target).
+    pub fn shadows_lights(&self) -> bool {
+        self.layers.layers.iter().take(self.first_rect_light).any(Option::is_some)
+    }
+
+    /// The first rect light's layer: rect lights' layers follow every other light's.
+    pub fn first_rect_layer(&self) -> u32 {
+        self.layers.layers.iter().take(self.first_rect_light).flatten().count() as u32
+    }
+
+    /// How many rect lights have a layer.
+    pub fn rect_layers(&self) -> u32 {
+        self.layers.count() - self.first_rect_layer()
+    }
+}
+
+/// Every light `Served` and `--debug-view visibility:N` count: point, spot and directional
+/// lights, then rect lights.
+pub fn light_total(scene: &SceneGpu) -> usize {
+    scene.light_count as usize + scene.local_rects.len()
+}
+
+/// Which rect light `light` is, if it is one (see `Served`).
+pub fn rect_index(scene: &SceneGpu, light: u32) -> Option<usize> {
+    light.checked_sub(scene.light_count).map(|r| r as usize)
 }
 
 /// Whether `method` can serve `light` on this device and scene; the reason when it cannot.
@@ -231,10 +291,18 @@ pub fn serves(
 ) -> Result<(), String> {
     match technique(method) {
         Some(t) => t.serves(light, caps, volumes),
-        None if method == ShadowMethod::None => Ok(()),
-        None => Err("auto is chosen by a calibration before rendering (umbra render, umbra bench), \
-                     not within a frame"
-            .into()),
+        None => not_a_technique(method),
+    }
+}
+
+/// What `none` and `auto`, which are no techniques, answer to whether they serve a light.
+fn not_a_technique(method: ShadowMethod) -> Result<(), String> {
+    match method {
+        ShadowMethod::None => Ok(()),
+        _ => {
+            Err("auto is chosen by a calibration before rendering (umbra render, umbra bench), not within a frame"
+                .into())
+        }
     }
 }
 
@@ -289,8 +357,10 @@ pub fn reaches_view(light: &Light, seen: &light_space::Bounds) -> bool {
 }
 
 /// Which lights get shadow work this frame, and from which technique: every light whose
-/// shadows are on, where something can cast a shadow; and the light the visibility view
-/// shows, whatever its method (it then shows where the light reaches).
+/// shadows are on, where something can cast a shadow (a rect light casts none with `spp = 0`);
+/// and the light the visibility view shows, whatever its method (it then shows where the light
+/// reaches). Rect lights count after the others (see `Served`) and are served by `traced`
+/// alone: another method falls back to it with the reason `Technique::serves_rect` gives.
 pub fn plan(
     scene: &SceneGpu,
     caps: &Capabilities,
@@ -302,18 +372,25 @@ pub fn plan(
     let camera = CameraMatrices::new(&camera, scene.bounds, settings.width.max(1), settings.height.max(1));
     let seen = map::visible_receivers(scene, &camera);
     // A light that reaches nothing the camera can see needs no shadow work: its contribution
-    // is zero wherever its shadow would fall.
-    let reaches = |i: usize| reaches_view(&scene.local_lights[i], &seen);
+    // is zero wherever its shadow would fall. A rect light is taken to reach everything; with
+    // `spp = 0` it casts no shadows, so it needs no shadow work either.
+    let first_rect_light = scene.light_count as usize;
+    let rect = |i: usize| i.checked_sub(first_rect_light).and_then(|r| scene.local_rects.get(r));
+    let reaches = |i: usize| rect(i).map_or_else(|| reaches_view(&scene.local_lights[i], &seen), |r| r.spp > 0);
     let shadowed = |i: usize| scene.has_casters && settings.shadow_method(i) != ShadowMethod::None && reaches(i);
-    let layers = LayerPlan::new(scene.light_count as usize, |i| shadowed(i) || viewed == Some(i));
-    let mut plan = ShadowPlan { layers: layers.clone(), ..Default::default() };
+    let layers = LayerPlan::new(light_total(scene), |i| shadowed(i) || viewed == Some(i));
+    let mut plan = ShadowPlan { layers: layers.clone(), first_rect_light, ..Default::default() };
     for (i, layer) in layers.layers.iter().enumerate() {
         let Some(layer) = *layer else { continue };
         let choice = settings.shadow(i);
         let served = Served { light: i as u32, layer, choice, unshadowed: !shadowed(i) };
+        let can_serve = |m: ShadowMethod| match rect(i) {
+            Some(_) => technique(m).map_or_else(|| not_a_technique(m), |t| t.serves_rect()),
+            None => serves(m, &scene.local_lights[i], caps, volumes),
+        };
         let method = match choice.method {
             _ if served.unshadowed => ShadowMethod::Traced,
-            m => match serves(m, &scene.local_lights[i], caps, volumes) {
+            m => match can_serve(m) {
                 Ok(()) => m,
                 Err(why) => {
                     plan.fallbacks.push((i, m, why));
@@ -340,7 +417,17 @@ pub fn add<'a>(
         return Ok(None);
     }
     let table = visibility::add_light_table(g, &plan.layers);
-    let mut target = visibility::create_target(g, frame.extent, plan.layers.count());
+    let visibility = visibility::create_target(g, frame.extent, plan.layers.count());
+    let rect_ratios = (plan.rect_layers() > 0).then(|| {
+        let desc = crate::graph::ImageDesc::array(
+            RECT_RATIO_FORMAT,
+            frame.extent.width,
+            frame.extent.height,
+            plan.rect_layers(),
+        );
+        g.create_image("rect visibility (unrounded)", desc)
+    });
+    let mut targets = Targets { visibility, rect_ratios, first_rect_layer: plan.first_rect_layer() };
     // The casters, imported once for whichever techniques walk them.
     let walks = |walk: Walk| {
         plan.served.iter().any(|(&m, s)| !s.is_empty() && technique(m).is_some_and(|t| t.walks(frame) == walk))
@@ -351,8 +438,9 @@ pub fn add<'a>(
     for t in TECHNIQUES {
         let served = plan.served(t.method());
         if !served.is_empty() {
-            debug = debug.or(t.add(g, frame, &casters, served, &mut target)?);
+            debug = debug.or(t.add(g, frame, &casters, served, &mut targets)?);
         }
     }
-    Ok(Some(Visibility { target, table, debug }))
+    let Targets { visibility: target, rect_ratios, .. } = targets;
+    Ok(Some(Visibility { target, table, rect_ratios, debug }))
 }

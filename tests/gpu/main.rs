@@ -35,6 +35,7 @@ mod many_lights;
 mod moving_scenes;
 mod ray_query;
 mod rect_lights;
+mod rect_shadows;
 mod render_accuracy;
 mod samplers;
 mod shadow_choice;

@@ -138,8 +138,9 @@ impl super::Technique for Cascades {
         frame: &FrameInputs<'_, 'a>,
         _: &Casters<'_>,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let target = &mut targets.visibility;
         let casters = map::caster_bounds(frame.scene);
         let mut debug = None;
         for s in served {

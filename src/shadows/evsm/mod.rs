@@ -87,8 +87,9 @@ impl super::Technique for Evsm {
         frame: &FrameInputs<'_, 'a>,
         _: &Casters<'_>,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let target = &mut targets.visibility;
         let casters = map::caster_bounds(frame.scene);
         let receivers = map::visible_bounds(frame);
         for s in served {

@@ -172,8 +172,9 @@ impl super::Technique for Hybrid {
         frame: &FrameInputs<'_, 'a>,
         casters: &Casters<'_>,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let target = &mut targets.visibility;
         let bounds = map::caster_bounds(frame.scene);
         let receivers = map::visible_bounds(frame);
         let mut debug = None;

@@ -382,8 +382,9 @@ impl super::Technique for Map {
         frame: &FrameInputs<'_, 'a>,
         _: &Casters<'_>,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let target = &mut targets.visibility;
         let casters = caster_bounds(frame.scene);
         let receivers = visible_bounds(frame);
         let mut debug = None;

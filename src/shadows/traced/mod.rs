@@ -5,10 +5,12 @@
 //! solid angle it fills per frame (spread evenly: `shading::soft_sample`), weighted as the
 //! light's analytic shading weighs their directions (the ratio estimator, trace_body.glsl). Hard
 //! and soft lights run their own pipeline variant, made only when a frame has such
-//! a light. Writes each served light's visibility layer (1 lit, 0 shadowed).
+//! a light. Writes each served light's visibility layer (1 lit, 0 shadowed); rect lights, which
+//! only this technique serves, have rays and a pass of their own (`rects`).
 
 
 pub mod params;
+pub mod rects;
 
 use std::sync::Arc;
 
@@ -39,6 +41,10 @@ impl super::Technique for Traced {
     }
 
     fn serves(&self, _: &Light, _: &Capabilities, _: Option<&VolumeScene>) -> Result<(), String> {
+        Ok(())
+    }
+
+    fn serves_rect(&self) -> Result<(), String> {
         Ok(())
     }
 
@@ -76,9 +82,17 @@ impl super::Technique for Traced {
         frame: &FrameInputs<'_, 'a>,
         casters: &Casters<'_>,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
-        add(g, frame, casters, served, target)?;
+        // Rect lights (numbered after the others) have their own rays and pass.
+        let (rects, lights): (Vec<Served>, Vec<Served>) =
+            served.iter().partition(|s| super::rect_index(frame.scene, s.light).is_some());
+        if !lights.is_empty() {
+            add(g, frame, casters, &lights, &mut targets.visibility)?;
+        }
+        if !rects.is_empty() {
+            rects::add(g, frame, casters, &rects, targets)?;
+        }
         Ok(None)
     }
 }

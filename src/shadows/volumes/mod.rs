@@ -353,8 +353,9 @@ impl super::Technique for Volumes {
         frame: &FrameInputs<'_, 'a>,
         _: &FrameCasters,
         served: &[Served],
-        target: &mut Handle<ImageKind>,
+        targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
+        let target = &mut targets.visibility;
         match frame.volumes {
             Some(scene) => add(g, frame, scene, served, target),
             None => Ok(None),

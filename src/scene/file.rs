@@ -118,23 +118,9 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         // A glTF file's animated nodes join the rig under the object's placement: its keyed
         // node, or its fixed transform.
         let file_rig = placed.rig.take().map(|(file_rig, instance_nodes)| {
-            let base = rig.nodes.len();
-            log::info!(
-                "{source_name}: {path}: glTF {} animates {} nodes",
-                file_rig.clip,
-                file_rig.moves.iter().filter(|&&m| m).count()
-            );
-            for mut node in file_rig.nodes {
-                node.parent = match node.parent {
-                    Some(p) => Some(base + p),
-                    None => motion.as_ref().map(|m| m.node),
-                };
-                if node.parent.is_none() {
-                    node.offset = placed.transform;
-                }
-                rig.nodes.push(node);
-            }
-            (base, file_rig.moves, instance_nodes)
+            log::info!("{source_name}: {path}: glTF {} animates its nodes", file_rig.clip);
+            let (base, moves) = motion::join(&mut rig, file_rig, motion.as_ref().map(|m| m.node), placed.transform);
+            (base, moves, instance_nodes)
         });
         // Counted before the instances are flattened into world-space copies: a few kilobytes
         // of glTF nodes can instance one mesh into more triangles than memory holds.

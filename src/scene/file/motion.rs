@@ -8,6 +8,29 @@ use super::Check;
 use crate::scene::animation::{Animation, CameraPath, Channel, Interpolation, PathKind, Rig, RigNode};
 use crate::scene::error::{short_number, SceneError};
 
+/// Appends a glTF file's rig to `rig`, its roots under `parent` (an object's keyed node) or, for
+/// an object placed by a fixed transform, offset by `transform`. Returns where its nodes start in
+/// `rig` and which of them move.
+pub(super) fn join(
+    rig: &mut Rig,
+    file_rig: crate::scene::gltf::animation::GltfRig,
+    parent: Option<usize>,
+    transform: glam::DMat4,
+) -> (usize, Vec<bool>) {
+    let base = rig.nodes.len();
+    for mut node in file_rig.nodes {
+        node.parent = match node.parent {
+            Some(p) => Some(base + p),
+            None => parent,
+        };
+        if node.parent.is_none() {
+            node.offset = transform;
+        }
+        rig.nodes.push(node);
+    }
+    (base, file_rig.moves)
+}
+
 impl Check<'_> {
     /// Key times that are finite and increase, each named by its key path.
     fn key_times<'k>(&self, path: &str, times: impl Iterator<Item = &'k f64>) -> Result<Vec<f64>, SceneError> {

@@ -246,7 +246,6 @@ impl BvhBuffers {
             node_view: self.nodes.view(),
             triangle_view: self.triangles.view(),
             masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view())),
-            levels: self.levels,
         }
     }
 }
@@ -260,8 +259,6 @@ pub struct BvhHandles {
     pub triangle_view: vk::BufferView,
     /// The alpha masks, in scenes with masked casters.
     pub masks: Option<(crate::graph::Handle<crate::graph::BufferKind>, vk::BufferView)>,
-    /// Two levels: the walking shaders take their BVH_INSTANCED build.
-    pub levels: bool,
 }
 
 impl BvhHandles {
@@ -283,11 +280,6 @@ impl BvhHandles {
             bound.push((slots.masks, Bound::TexelBuffer(pass.read(buffer, read), *view)));
         }
         bound
-    }
-
-    /// The build of the walking shaders these handles need.
-    pub fn variant(&self) -> BvhVariant {
-        BvhVariant { masked: self.masks.is_some(), instanced: self.levels }
     }
 }
 

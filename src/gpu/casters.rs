@@ -4,7 +4,7 @@
 //! each imported once per frame where some pass walks it.
 
 use super::accel::{RayQueryHandles, RayQuerySlots};
-use super::bvh::{BvhHandles, BvhSlots, BvhVariant};
+use super::bvh::{BvhHandles, BvhSlots};
 use crate::graph::{Bound, PassBuilder};
 
 /// The casters as this frame's graph sees them, each imported once where a pass walks it.
@@ -38,16 +38,5 @@ impl<'h> Casters<'h> {
             (_, _, Some(bvh)) => bvh.bind(pass, &slots.bvh),
             _ => unreachable!("a pass binds casters its frame imported"),
         }
-    }
-
-    /// Whether `bind` binds the driver's structures.
-    pub fn walks_ray_query(&self, slots: &CasterSlots) -> bool {
-        self.ray_query.is_some() && slots.ray_query.is_some()
-    }
-
-    /// The build of the compute walk's shaders these casters need (plain where only the
-    /// driver's structures were imported).
-    pub fn variant(&self) -> BvhVariant {
-        self.bvh.map(BvhHandles::variant).unwrap_or_default()
     }
 }

@@ -24,10 +24,7 @@
 #include "ray_offset.glsl"
 #include "tile.glsl"
 
-layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
-layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
-layout(set = 0, binding = SHADOW_SURFACE) uniform usampler2D gbuffer_surface;
-layout(set = 0, binding = SHADOW_MATERIAL) uniform sampler2D gbuffer_material;
+#include "gbuffer_inputs.glsl"
 layout(set = 0, binding = SHADOW_RECTS, std430) readonly buffer Rects { GpuRect rects[]; };
 // The rect's layer alone of each, bound through a view of that layer.
 layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visibility;

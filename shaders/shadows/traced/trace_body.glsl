@@ -17,11 +17,7 @@
 #include "random.glsl"
 #include "ray_offset.glsl"
 
-layout(set = 0, binding = SHADOW_POSITION) uniform sampler2D gbuffer_position;
-layout(set = 0, binding = SHADOW_NORMAL) uniform sampler2D gbuffer_normal;
-layout(set = 0, binding = SHADOW_SURFACE) uniform usampler2D gbuffer_surface;
-// Read by soft lights only: the BRDF their rays are weighted by.
-layout(set = 0, binding = SHADOW_MATERIAL) uniform sampler2D gbuffer_material;
+#include "gbuffer_inputs.glsl"
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 // The light's layer alone, bound through a view of that layer: other techniques may write the
 // other layers at the same time.

@@ -17,7 +17,7 @@ use crate::passes::overlay::OverlayInputs;
 use crate::passes::{compose, geometry, overlay, present, readback, tonemap, GBuffer};
 use crate::scene::Scene;
 use crate::shadows::{self, ShadowPlan};
-use crate::vk::{Buffer, ComputePipeline, GpuResult, ImageDesc, PipelineSource};
+use crate::vk::{Buffer, GpuResult, ImageDesc, PipelineSource};
 
 /// Radiance of pixels no surface covers, W/(m^2 sr), unless the scene sets `background` or
 /// an environment: a dim, neutral backdrop.
@@ -44,8 +44,6 @@ pub enum Target<'a> {
 pub struct FrameParts<'a> {
     /// Where passes get the pipelines they ask for as they declare themselves.
     pub pipelines: PipelineSource<'a>,
-    /// Tests only: the busy pass's pipeline.
-    pub busy: Option<&'a ComputePipeline>,
     pub scene_gpu: &'a SceneGpu,
     pub scene: &'a Scene,
     pub settings: &'a RenderSettings,
@@ -58,8 +56,8 @@ pub struct FrameParts<'a> {
     pub rects: Option<&'a crate::lighting::rects::RectsGpu>,
     /// The environment and ambient occlusion this frame uses.
     pub lighting: crate::lighting::Prepared<'a>,
-    /// Compose's variant and pipeline (shaded frames; `None` for a debug view).
-    pub compose: Option<(compose::Variant, &'a ComputePipeline)>,
+    /// Compose's variant (shaded frames; `None` for a debug view).
+    pub compose: Option<compose::Variant>,
 }
 
 /// The scene's buffers as this frame's graph sees them.
@@ -80,7 +78,6 @@ pub fn build<'a>(
 ) -> GpuResult<RenderGraph<'a>> {
     let FrameParts {
         pipelines,
-        busy,
         scene_gpu: s,
         scene,
         settings,
@@ -106,8 +103,8 @@ pub fn build<'a>(
     let mut g = RenderGraph::new();
     let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, extent)?;
     // Tests only: a compute pass of known cost right after the rendering pass, kept by its export.
-    if let (Some(iterations), Some(pipeline)) = (settings.busy_iterations, busy) {
-        let result = busy::add(&mut g, pipeline, iterations);
+    if let Some(iterations) = settings.busy_iterations {
+        let result = busy::add(&mut g, pipelines, iterations)?;
         g.export(result, Access::ComputeShaderReadStorageBuffer);
     }
     let inputs = shadows::FrameInputs {
@@ -127,12 +124,12 @@ pub fn build<'a>(
         rects,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan)?;
-    let occlusion = occlusion_stage(&mut g, s, settings, &lighting, &gbuffer, &handles.bvh);
-    if let (Some(view), Some(ao)) = (lighting.view, &occlusion) {
-        let image = crate::lighting::ao::add_view(&mut g, view, ao, extent);
+    let occlusion = occlusion_stage(&mut g, pipelines, s, settings, &lighting, &gbuffer, &handles.bvh)?;
+    if let (true, Some(ao)) = (lighting.view, &occlusion) {
+        let image = crate::lighting::ao::add_view(&mut g, pipelines, ao, extent)?;
         let lit = Lit { image, debug: true, toned: false, history: Accumulated::No };
         let result = post_stage(&mut g, pipelines, settings, lit)?;
-        target_stage(&mut g, settings, result, target);
+        target_stage(&mut g, pipelines, settings, result, target)?;
         return Ok(g);
     }
     let ambient = Ambient {
@@ -146,7 +143,7 @@ pub fn build<'a>(
         &mut g, pipelines, s, settings, &plan, &gbuffer, &handles, visibility, &camera, history, ambient,
     )?;
     let result = post_stage(&mut g, pipelines, settings, lit)?;
-    target_stage(&mut g, settings, result, target);
+    target_stage(&mut g, pipelines, settings, result, target)?;
     Ok(g)
 }
 
@@ -168,20 +165,21 @@ fn gbuffer_stage<'a>(
 /// Traced ambient occlusion, where the frame has the pass (`crate::lighting::ao`).
 fn occlusion_stage<'a>(
     g: &mut RenderGraph<'a>,
+    pipelines: PipelineSource<'a>,
     s: &'a SceneGpu,
     settings: &RenderSettings,
     lighting: &crate::lighting::Prepared<'a>,
     gbuffer: &GBuffer,
     bvh: &BvhHandles,
-) -> Option<Handle<ImageKind>> {
-    let (mut params, pipeline) = lighting.occlusion?;
+) -> GpuResult<Option<Handle<ImageKind>>> {
+    let Some(mut params) = lighting.occlusion else { return Ok(None) };
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     if !s.has_casters {
         // Nothing to hit (and no BVH to walk): radius 0 writes 1 without a ray.
         params.radius = 0.0;
     }
     let casters = crate::gpu::Casters::bvh(bvh);
-    Some(crate::lighting::ao::add(g, pipeline, gbuffer, &casters, params, settings.frame_index, extent))
+    crate::lighting::ao::add(g, pipelines, gbuffer, &casters, params, settings.frame_index, extent).map(Some)
 }
 
 /// What compose adds beside the lights: the background, the environment and its occlusion.
@@ -191,7 +189,7 @@ struct Ambient<'a> {
     background_given: bool,
     lighting: crate::lighting::Prepared<'a>,
     occlusion: Option<Handle<ImageKind>>,
-    compose: Option<(compose::Variant, &'a ComputePipeline)>,
+    compose: Option<compose::Variant>,
 }
 
 /// What the lighting stage hands on: the image, and what happens to the history.
@@ -293,11 +291,11 @@ fn lighting_stage<'a>(
             g.import_owned_image("environment map", &m.source, read),
         )
     });
-    let (variant, pipeline) = ambient.compose.expect("the renderer prepares compose for shaded frames");
+    let variant = ambient.compose.expect("the renderer chooses compose's variant for shaded frames");
     debug_assert_eq!(variant.display, compose_displays(settings, lighting));
     debug_assert_eq!(variant.history, compose_accumulates(lighting, history.is_some()));
     let inputs = compose::ComposeInputs {
-        pipeline: (variant, pipeline),
+        variant,
         lights: &handles.lights,
         light_count: s.light_count,
         // Rect lights' layers are the rect lights pass's to read.
@@ -321,7 +319,7 @@ fn lighting_stage<'a>(
         exposure_ev: variant.display.then_some(settings.exposure_ev),
         history: history.as_ref().filter(|_| variant.history),
     };
-    let composed = compose::add(g, gbuffer, inputs, extent);
+    let composed = compose::add(g, pipelines, gbuffer, inputs, extent)?;
     if variant.history {
         return Ok(match composed.history {
             Some(mean) => Lit { image: composed.image, debug: false, toned: true, history: Accumulated::Beside(mean) },
@@ -338,7 +336,7 @@ fn lighting_stage<'a>(
                 first_layer: plan.first_rect_layer(),
             }
         });
-        image = crate::lighting::rects::add(g, rects, tables, gbuffer, &image, shadows, camera, extent);
+        image = crate::lighting::rects::add(g, pipelines, rects, tables, gbuffer, &image, shadows, camera, extent)?;
     }
     let Some(h) = &history else {
         return Ok(Lit { image, debug: false, toned: variant.display, history: Accumulated::No });
@@ -390,7 +388,13 @@ fn post_stage<'a>(
 
 /// Sends the result where `target` says, and leaves histories in the access the next frame's
 /// import expects.
-fn target_stage<'a>(g: &mut RenderGraph<'a>, settings: &RenderSettings, result: Result, target: Target<'a>) {
+fn target_stage<'a>(
+    g: &mut RenderGraph<'a>,
+    pipelines: PipelineSource<'a>,
+    settings: &RenderSettings,
+    result: Result,
+    target: Target<'a>,
+) -> GpuResult<()> {
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let history_access = accumulate::HISTORY_ACCESS;
     let Result { image, debug, is_history, history_out } = result;
@@ -412,7 +416,7 @@ fn target_stage<'a>(g: &mut RenderGraph<'a>, settings: &RenderSettings, result: 
                     present::blit(g, &canvas, &mut converted);
                     canvas = converted;
                 }
-                overlay::add(g, &inputs, &mut canvas, extent);
+                overlay::add(g, pipelines, &inputs, &mut canvas, extent)?;
             }
             if let Some(buffer) = capture {
                 readback::add(g, &canvas, buffer);
@@ -426,4 +430,5 @@ fn target_stage<'a>(g: &mut RenderGraph<'a>, settings: &RenderSettings, result: 
     if let Some(h) = history_out {
         g.export(h, history_access);
     }
+    Ok(())
 }

@@ -8,7 +8,6 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
-use crate::diagnostics::busy;
 pub use crate::frame::{Target, BACKGROUND};
 use crate::gpu::accel::RayQueryScene;
 pub use crate::gpu::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
@@ -18,7 +17,7 @@ use crate::passes::visibility;
 use crate::scene::bvh::{caster_triangles, ShadowBvh, WideNode};
 use crate::scene::Scene;
 use crate::timing::TimingCalibration;
-use crate::vk::{Buffer, ComputePipeline, GpuContext, GpuError, GpuResult};
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult};
 
 /// A read-back frame.
 pub enum Frame {
@@ -244,16 +243,12 @@ impl Renderer {
         visibility::check_limits(&self.ctx, extent, lights, plan.layers.count())?;
         self.note_fallbacks(&plan);
         let ray_query = self.ray_query_scene(settings)?;
-        let busy = settings.busy_iterations.map(|_| self.busy_pipeline()).transpose()?;
         let lighting = crate::lighting::prepare(
-            self.pipeline_source(),
             &self.scene.lighting,
             self.environment.as_ref(),
             self.rects.as_ref(),
             self.area_tables.as_ref(),
             settings.debug_view,
-            self.gpu_scene.bvh.variant(),
-            plan.rect_layers() > 0,
         )?;
         let compose = match settings.debug_view {
             Some(_) => None,
@@ -268,12 +263,11 @@ impl Renderer {
                     display: crate::frame::compose_displays(settings, &lighting),
                     history: crate::frame::compose_accumulates(&lighting, history.is_some()),
                 };
-                Some((variant, crate::passes::compose_pipeline(self.pipeline_source(), variant)?))
+                Some(variant)
             }
         };
         let parts = crate::frame::FrameParts {
             pipelines: self.pipeline_source(),
-            busy,
             scene_gpu: &self.gpu_scene,
             scene: &self.scene,
             settings,
@@ -285,11 +279,6 @@ impl Renderer {
             compose,
         };
         Ok((crate::frame::build(parts, target, history)?, ray_query))
-    }
-
-    /// The busy pass's pipeline, made the first time a frame or the calibration needs it.
-    fn busy_pipeline(&self) -> GpuResult<&ComputePipeline> {
-        self.pipeline_source().compute(crate::vk::PipelineKey::new("busy", 0), busy::pipeline)
     }
 
     /// Where this renderer's passes get their pipelines.
@@ -407,7 +396,7 @@ impl Renderer {
     /// before it is known they are timed the plain way.
     pub fn calibrate_timings(&self) -> GpuResult<&TimingCalibration> {
         crate::vk::get_or_make(&self.timing, || {
-            let found = crate::diagnostics::calibration::calibrate(&self.ctx, self.busy_pipeline()?)?;
+            let found = crate::diagnostics::calibration::calibrate(self.pipeline_source())?;
             log::info!("{}", crate::diagnostics::calibration::summary(&found));
             Ok(found)
         })

@@ -16,7 +16,7 @@
 //                  0 on flat-shaded surfaces
 //             w    the unit geometric (face) normal, front-facing like the shading normal,
 //                  octahedral, 8 bits per axis (254 steps: axes exact, all within 1 degree)
-//   emission: RGBA16F  (scenes with material textures or emission only; gpu_textures.rs)
+//   emission: RGBA16F  (scenes with material textures or emission only; src/gpu/textures.rs)
 //             rgb  emitted radiance, W/(m^2 sr); a  ambient occlusion (1: none), for the
 //                  environment and ambient lighting that read it
 // Position is stored rather than rebuilt from depth so that scenes far from the origin keep

@@ -4,7 +4,7 @@
 // hemisphere of its shading normal, each looking for a hit within `radius` through the shadow
 // BVH (bvh_occluded). Writes the share that travel the radius freely: 1 open, 0 enclosed;
 // 1 where nothing is drawn or the radius is 0. Twin of src/lighting/ao.rs (`ao_direction`).
-#include "bindings.glsl"
+#include "lighting/lighting_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 #define BVH_SET 0

@@ -1,7 +1,7 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 // The `ao` debug view: ambient occlusion in grey (already in [0, 1], raw and display alike).
-#include "bindings.glsl"
+#include "lighting/lighting_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = AO_OUTPUT) uniform sampler2D occlusion;

@@ -3,7 +3,7 @@
 // The split-sum BRDF table on the GPU (src/lighting/envmap.rs): twin of split_sum::integrate,
 // in f32, with the same nodes (n.v = (i / (N - 1))^2, roughness = j / (N - 1)) and the same
 // Hammersley points over GGX's visible normals. One invocation per entry.
-#include "bindings.glsl"
+#include "lighting/lighting_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = ENVMAP_BRDF_TABLE, std430) writeonly buffer BrdfTable { vec2 brdf_table[]; };

@@ -5,7 +5,7 @@
 // `samples` importance-sampled half vectors (Hammersley), each read from the map's mip whose
 // texels cover the sample's share of the lobe's solid angle (filtered importance sampling,
 // Krivanek & Colbert 2008), weighted by n.l. Layer 0 is the map itself at this size.
-#include "bindings.glsl"
+#include "lighting/lighting_bindings.glsl"
 #include "lighting/envmap.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 

@@ -3,7 +3,7 @@
 // An environment map's projection onto the nine order-2 SH functions, one map row per
 // invocation: sum over the row's texels of radiance * Y_i(direction) * solid angle
 // (src/lighting/envmap.rs; envmap_sh_sum.comp adds the rows up).
-#include "bindings.glsl"
+#include "lighting/lighting_bindings.glsl"
 #include "lighting/envmap.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 

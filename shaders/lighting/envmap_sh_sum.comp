@@ -3,7 +3,7 @@
 // Adds up envmap_sh_rows.comp's rows into the map's nine SH coefficients and convolves them
 // with the clamped cosine (Ramamoorthi & Hanrahan 2001: A0 = pi, A1 = 2pi/3, A2 = pi/4), so
 // that envmap.glsl's envmap_irradiance is a dot product. One invocation per coefficient.
-#include "bindings.glsl"
+#include "lighting/lighting_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = ENVMAP_SH_ROWS, std430) readonly buffer Rows { vec4 rows[]; };

@@ -7,7 +7,7 @@
 // scenes with a rect light have this pass. The visibility is the traced technique's
 // (shadows/traced/rect_body.glsl): with RECT_SHADOWS, where a rect has a layer of the
 // visibility target this frame, its unrounded ratio estimate; 1 (unshadowed) elsewhere.
-#include "bindings.glsl"
+#include "lighting/lighting_bindings.glsl"
 #include "brdf.glsl"
 #include "lights.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;

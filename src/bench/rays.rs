@@ -19,7 +19,7 @@ use glam::{Vec3, Vec3A};
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 
-use crate::diagnostics::ray_batch::{self, GpuRay, Target, TimedBatch};
+use crate::diagnostics::ray_batch::{GpuRay, Target, TimedBatch};
 use crate::gpu::accel::RayQueryScene;
 use crate::gpu::BvhBuffers;
 use crate::scene::bvh::levels::{Placement, TwoLevel};
@@ -164,21 +164,18 @@ pub fn run(options: &Options) -> Result<Outcome> {
     // Both device tracers trace these rays, one after the other.
     let batch = std::cell::RefCell::new(TimedBatch::new(&ctx, &gpu_rays)?);
     let buffers = BvhBuffers::upload(&ctx, &bvh)?;
-    let pipeline = ray_batch::pipeline(&ctx, buffers.variant())?;
     // The same casters as a moving scene's static group: one bottom tree placed once at the
     // identity, walked through the top level (what two levels cost a ray where nothing moves).
     let identity = [Placement { bottom: 0, to_world: glam::Affine3A::IDENTITY }];
     let mut levels = TwoLevel::build(vec![tris.clone()], None, &identity);
     let level_buffers = BvhBuffers::upload_levels(&ctx, &levels)?;
-    let level_pipeline = ray_batch::pipeline(&ctx, level_buffers.variant())?;
     // (After the upload: the device keeps the identity placement.)
     let top_ms = top_level_build_ms(&mut levels);
     // The ray query as the renderer builds it (the casters in the BVH's leaf order), and with
     // `file_order` also over the casters in the scene's own order. (Masked casters were refused
     // above: no masks.)
-    let rq_pipeline = if ctx.capabilities.ray_query { Some(ray_batch::ray_query_pipeline(&ctx, false)?) } else { None };
     let mut ray_queries: Vec<(&'static str, RayQueryScene)> = Vec::new();
-    if let Some(rq_pipeline) = &rq_pipeline {
+    if ctx.capabilities.ray_query {
         let leaf_order: &[u32] = &bvh.wide().order;
         let mut orders = vec![("ray query (device)", Some(leaf_order))];
         if options.file_order {
@@ -187,7 +184,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
         for (label, order) in orders {
             let scene = RayQueryScene::with_masks(&ctx, &tris, order, None)?;
             // The first trace builds the structures: not timed.
-            batch.borrow_mut().trace(rq_pipeline, &Target::RayQuery(&scene)).context("tracing on the device")?;
+            batch.borrow_mut().trace(&Target::RayQuery(&scene)).context("tracing on the device")?;
             ray_queries.push((label, scene));
         }
     }
@@ -215,18 +212,12 @@ pub fn run(options: &Options) -> Result<Outcome> {
     // which drifts over minutes, weighs on all of them alike.
     // In this order: the compute traversal, the ray query where there is one, the CPU tracers.
     let mut tracers: Vec<Tracer<'_>> = vec![
-        Tracer::new("compute BVH (device)", Box::new(|| batch_trace(&batch, &pipeline, &Target::Compute(&buffers)))),
-        Tracer::new(
-            "compute, 2 levels",
-            Box::new(|| batch_trace(&batch, &level_pipeline, &Target::Compute(&level_buffers))),
-        ),
+        Tracer::new("compute BVH (device)", Box::new(|| batch_trace(&batch, &Target::Compute(&buffers)))),
+        Tracer::new("compute, 2 levels", Box::new(|| batch_trace(&batch, &Target::Compute(&level_buffers)))),
     ];
-    if let Some(rq_pipeline) = &rq_pipeline {
-        for (label, scene) in &ray_queries {
-            let batch = &batch;
-            tracers
-                .push(Tracer::new(label, Box::new(move || batch_trace(batch, rq_pipeline, &Target::RayQuery(scene)))));
-        }
+    for (label, scene) in &ray_queries {
+        let batch = &batch;
+        tracers.push(Tracer::new(label, Box::new(move || batch_trace(batch, &Target::RayQuery(scene)))));
     }
     let first_cpu = tracers.len();
     tracers.push(obvhs_tracer("obvhs BVH2 (CPU)", &binary, &obvhs_tris, &rays, options.threads));
@@ -341,12 +332,8 @@ impl<'a> Tracer<'a> {
     }
 }
 
-fn batch_trace(
-    batch: &std::cell::RefCell<TimedBatch>,
-    pipeline: &crate::vk::ComputePipeline,
-    target: &Target<'_>,
-) -> Result<(Vec<bool>, f64)> {
-    batch.borrow_mut().trace(pipeline, target).context("tracing on the device")
+fn batch_trace(batch: &std::cell::RefCell<TimedBatch>, target: &Target<'_>) -> Result<(Vec<bool>, f64)> {
+    batch.borrow_mut().trace(target).context("tracing on the device")
 }
 
 /// Milliseconds of CPU time this process has used (all its threads: lavapipe's included).

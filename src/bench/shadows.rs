@@ -235,331 +235,46 @@ pub fn run(options: &Options) -> Result<Outcome> {
         bail!("-o {}: not a directory (the results go into a directory, made if missing)", dir.display());
     }
     let jobs = prepare(options)?;
-    let mut outputs = vec![dir.join("results.csv"), dir.join("results.json")];
-    for j in &jobs {
-        outputs.push(dir.join(format!("{}.svg", j.stem)));
-        outputs.push(dir.join(format!("{}.png", j.stem)));
-    }
-    if !options.force {
-        if let Some(existing) = outputs.iter().find(|p| p.exists()) {
-            bail!("{} exists: choose another -o DIR, or pass --force to replace the results", existing.display());
-        }
-    }
+    let outputs = output_files(options, &jobs)?;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
 
     let ctx = GpuContext::new(&GpuOptions { validate: options.validate, device_name: options.device.clone() })?;
-    let device = ctx.device_name();
-    let driver = ctx.driver.clone();
-    let frames = options.frames.unwrap_or(if options.quick { QUICK_FRAMES } else { FRAMES }).max(1);
-    let warmup = if options.quick { QUICK_WARMUP } else { WARMUP };
-
-    let total: usize = jobs.iter().map(|j| 1 + j.points.iter().map(|p| p.1.len()).sum::<usize>()).sum();
-    let bar = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
-    bar.set_style(
-        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} ETA {eta} {msg}")
-            .expect("a valid template")
-            .progress_chars("=> "),
-    );
-    let say = |text: String| bar.suspend(|| crate::output::print_stdout(&format!("{text}\n")));
+    let run = Run {
+        device: ctx.device_name(),
+        driver: ctx.driver.clone(),
+        frames: options.frames.unwrap_or(if options.quick { QUICK_FRAMES } else { FRAMES }).max(1),
+        warmup: if options.quick { QUICK_WARMUP } else { WARMUP },
+        bar: progress_bar(jobs.iter().map(|j| 1 + j.points.iter().map(|p| p.1.len()).sum::<usize>()).sum()),
+    };
 
     let mut rows: Vec<Row> = Vec::new();
     // Every chart and result file, written together at the end.
     let mut results: Vec<(PathBuf, Vec<u8>)> = Vec::new();
     let mut scene_json = Vec::new();
     // Each scene's renderer calibrates its own timing: its mode and time axis are the scene's.
-    let mut timing_labels: Vec<String> = Vec::new();
-    let mut time_axes: Vec<&str> = Vec::new();
+    let (mut timing_labels, mut time_axes) = (Vec::new(), Vec::new());
     for job in &jobs {
-        let (width, height) = job.size;
-        bar.set_message(format!("{}: reference", job.label));
-        let mut renderer = Renderer::new(ctx.clone(), job.scene.clone())
-            .with_context(|| format!("{}: preparing the scene", job.label))?;
-        let calibration: TimingCalibration = renderer.calibrate_timings()?.clone();
-        let timing_label = calibration.describe();
-        let time_axis = if calibration.mode.is_none() { "host_ms" } else { "shadow_gpu_ms" };
-
-        // The reference: cached, or traced now and cached.
-        let reference::Cached { reference, key, file: ref_file, cached: was_cached, seconds } =
-            reference::load_or_compute(&mut renderer, width, height, &format!("{device} / {driver}"))?;
-        let place = ref_file.as_ref().map(|f| f.display().to_string());
-        say(match (was_cached, place) {
-            (true, place) => format!("{}: reference cached ({})", job.label, place.unwrap_or_default()),
-            (false, Some(place)) => format!("{}: reference traced in {seconds:.1} s (cached in {place})", job.label),
-            (false, None) => {
-                format!("{}: reference traced in {seconds:.1} s (not cached: no cache directory)", job.label)
-            }
-        })?;
-        bar.inc(1);
-
-        let lights = job.scene.lights.clone();
-        // Every light scored, rect lights after the others.
-        let total = reference::light_total(&job.scene);
-        let first_row = rows.len();
-        for (method, points) in &job.points {
-            for (point_index, point) in points.iter().enumerate() {
-                bar.set_message(format!("{} · {} · {}", job.label, method.id, point.label()));
-                let mut settings = reference::settings(width, height, OutputKind::Display, point.choices.clone());
-                settings.timestamps = calibration.mode.is_some();
-                let serving = served(&renderer, &settings)?;
-
-                for _ in 0..warmup {
-                    renderer.render(&settings)?;
-                }
-                let (mut shadow_ms, mut frame_ms, mut host_ms) = (Vec::new(), Vec::new(), Vec::new());
-                let mut shadow_passes: Vec<&'static str> = Vec::new();
-                let mut display = Vec::new();
-                for _ in 0..frames {
-                    let start = Instant::now();
-                    let frame = renderer.render(&settings)?;
-                    host_ms.push(start.elapsed().as_secs_f64() * 1e3);
-                    display = reference::display_bytes(frame);
-                    if let Some(t) = renderer.last_gpu_timings()? {
-                        let mut sum = 0.0;
-                        for &(name, ms) in t.passes.iter().filter(|p| is_shadow_pass(p.0)) {
-                            sum += ms;
-                            if !shadow_passes.contains(&name) {
-                                shadow_passes.push(name);
-                            }
-                        }
-                        shadow_ms.push(sum);
-                        frame_ms.push(t.frame_ms);
-                    }
-                }
-                let plan_bytes = renderer.last_plan().map_or(0, shadow_bytes);
-
-                let mut visibility = Vec::new();
-                for (n, &choice) in point.choices.iter().enumerate().take(total) {
-                    visibility.push(reference::light_visibility(&mut renderer, width, height, n, choice, 0)?);
-                }
-                if crate::passes::accumulate::accumulates(&settings, renderer.scene()) {
-                    // The timed frames accumulated (soft shadows, ambient occlusion, rect
-                    // lights' shadows); the views since broke the run, so this frame stands
-                    // alone, whatever `--frames`.
-                    let mut single = settings.clone();
-                    single.timestamps = false;
-                    display = reference::display_bytes(renderer.render(&single)?);
-                }
-                let flip = flip_mean(&reference.display, &display, width, height);
-
-                let shadow = Spread::of(&shadow_ms);
-                let frame = Spread::of(&frame_ms);
-                let host = Spread::of(&host_ms).expect("at least one frame");
-                let common = Row {
-                    scene: job.label.clone(),
-                    method: method.id.clone(),
-                    point: point_index,
-                    sweep: point.label(),
-                    width,
-                    height,
-                    frames,
-                    shadow_gpu_ms: shadow.map(|s| s.median),
-                    shadow_gpu_iqr_ms: shadow.map(|s| s.iqr()),
-                    frame_gpu_ms: frame.map(|s| s.median),
-                    frame_gpu_iqr_ms: frame.map(|s| s.iqr()),
-                    host_ms: host.median,
-                    host_iqr_ms: host.iqr(),
-                    shadow_passes: shadow_passes.join("+"),
-                    shadow_bytes: plan_bytes,
-                    device: device.clone(),
-                    driver: driver.clone(),
-                    umbra_version: env!("CARGO_PKG_VERSION").into(),
-                    timing: timing_label.clone(),
-                    ..Default::default()
-                };
-                let (w, h) = (width as usize, height as usize);
-                let mut light_rows = Vec::new();
-                for n in 0..total {
-                    let light = lights.get(n);
-                    let r = &reference.lights[n];
-                    let e = visibility_error(&r.visibility, &visibility[n], w, h, Some(&r.mask));
-                    let choice = point.choices[n];
-                    let (by, why) = serving[n].clone();
-                    let rays = match (by, light) {
-                        // A rect light's rays: its scene file's spp (`reference` says none
-                        // where it casts no shadows).
-                        (ShadowMethod::Traced, None) if r.soft => {
-                            r.pixels() as u64 * u64::from(job.scene.rect_lights[n - lights.len()].spp)
-                        }
-                        (ShadowMethod::Traced, None) => 0,
-                        (ShadowMethod::Traced, Some(l)) if choice.traced.is_soft(l.has_size()) => {
-                            r.pixels() as u64 * u64::from(choice.traced.spp)
-                        }
-                        (ShadowMethod::Traced, _) => r.pixels() as u64,
-                        (ShadowMethod::Hybrid, _) => hybrid_rays(&mut renderer, width, height, n, choice)?,
-                        _ => 0,
-                    };
-                    let texels = map_texels(by, &choice, light);
-                    light_rows.push(Row {
-                        light: n.to_string(),
-                        light_kind: reference::light_kind(&job.scene, n).into(),
-                        served_by: by.id().into(),
-                        fallback: why.unwrap_or_default(),
-                        settings: choice.describe(),
-                        vis_rmse: e.rmse,
-                        light_leak: e.light_leak,
-                        false_shadow: e.false_shadow,
-                        light_leak_away: e.light_leak_away,
-                        false_shadow_away: e.false_shadow_away,
-                        pixels: e.pixels,
-                        pixels_away: e.pixels_away,
-                        reference_error: r.error,
-                        reference_shadowed: r.shadowed_share(),
-                        scored_error: scored_error(e.rmse, r.error),
-                        rays,
-                        map_texels: texels,
-                        map_bytes: texels * 4,
-                        ..common.clone()
-                    });
-                }
-                if total == 1 {
-                    light_rows[0].frame_row = true;
-                    light_rows[0].flip = Some(flip);
-                } else {
-                    let parts: Vec<(&[f32], &[f32], &[bool])> = (0..total)
-                        .map(|n| {
-                            let r = &reference.lights[n];
-                            (&r.visibility[..], &visibility[n][..], &r.mask[..])
-                        })
-                        .collect();
-                    let e = pooled_error(&parts, w, h);
-                    let weighted: f64 = reference.lights.iter().map(|l| l.error * l.error * l.pixels() as f64).sum();
-                    let pixels: usize = reference.lights.iter().map(LightReference::pixels).sum();
-                    let ref_error = if pixels == 0 { 0.0 } else { (weighted / pixels as f64).sqrt() };
-                    let shadowed: usize = reference.lights.iter().map(LightReference::shadowed).sum();
-                    let mut served_set: Vec<&str> = light_rows.iter().map(|r| r.served_by.as_str()).collect();
-                    served_set.sort_unstable();
-                    served_set.dedup();
-                    let all = Row {
-                        light: "all".into(),
-                        light_kind: "all".into(),
-                        served_by: served_set.join("+"),
-                        fallback: light_rows
-                            .iter()
-                            .filter(|r| !r.fallback.is_empty())
-                            .map(|r| format!("light {}: {}", r.light, r.fallback))
-                            .collect::<Vec<_>>()
-                            .join("; "),
-                        settings: light_rows.iter().map(|r| r.settings.as_str()).collect::<Vec<_>>().join(" | "),
-                        vis_rmse: e.rmse,
-                        light_leak: e.light_leak,
-                        false_shadow: e.false_shadow,
-                        light_leak_away: e.light_leak_away,
-                        false_shadow_away: e.false_shadow_away,
-                        pixels: e.pixels,
-                        pixels_away: e.pixels_away,
-                        reference_error: ref_error,
-                        reference_shadowed: if pixels == 0 { 0.0 } else { shadowed as f64 / pixels as f64 },
-                        scored_error: scored_error(e.rmse, ref_error),
-                        flip: Some(flip),
-                        rays: light_rows.iter().map(|r| r.rays).sum(),
-                        map_texels: light_rows.iter().map(|r| r.map_texels).sum(),
-                        map_bytes: light_rows.iter().map(|r| r.map_bytes).sum(),
-                        frame_row: true,
-                        ..common.clone()
-                    };
-                    light_rows.push(all);
-                }
-                rows.extend(light_rows);
-                bar.inc(1);
-            }
-        }
-
-        // The front, the chart.
-        let front = report::scene_pareto(&rows, &job.label);
-        for &i in &front {
-            rows[i].pareto = true;
-        }
-        let auto = report::scene_auto(&rows, &job.label, options.max_error);
-        if let Some(i) = auto {
-            rows[i].auto_choice = true;
-        }
-        let scene_rows: Vec<usize> = (first_row..rows.len()).filter(|&i| rows[i].frame_row).collect();
-        let mut series = Vec::new();
-        for (colour, (method, points)) in job.points.iter().enumerate() {
-            let at = |p: usize| scene_rows.iter().copied().find(|&i| rows[i].method == method.id && rows[i].point == p);
-            let mut axes: Vec<String> = Vec::new();
-            for p in points {
-                for (a, _) in &p.on_axes {
-                    if !axes.contains(a) {
-                        axes.push(a.clone());
-                    }
-                }
-            }
-            if axes.is_empty() {
-                let pts = (0..points.len()).filter_map(at).map(|i| (rows[i].time_ms(), rows[i].scored_error)).collect();
-                series.push(Series { label: method.id.clone(), colour, points: pts });
-            }
-            for axis in axes {
-                // The points on this axis, in the axis's value order.
-                let pts = (0..points.len())
-                    .filter(|&p| points[p].on_axes.iter().any(|(a, _)| *a == axis))
-                    .filter_map(at)
-                    .map(|i| (rows[i].time_ms(), rows[i].scored_error))
-                    .collect();
-                series.push(Series { label: format!("{} ({axis})", method.id), colour, points: pts });
-            }
-        }
-        let chart = Chart {
-            title: format!("{}, {width}x{height}, {device}", job.stem),
-            x_label: if time_axis == "host_ms" {
-                "host time per frame, ms (log)".into()
-            } else {
-                "shadow GPU time per frame, ms (log)".into()
-            },
-            y_label: "visibility RMSE".into(),
-            series,
-            front: front.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect(),
-            auto: auto.map(|i| (rows[i].time_ms(), rows[i].scored_error)),
-        };
-        results.extend(chart.files(dir, &job.stem).map_err(anyhow::Error::msg)?);
-        scene_json.push(json!({
-            "scene": job.label,
-            "width": width,
-            "height": height,
-            "lights": total,
-            "time_axis": time_axis,
-            "timing": timing_label,
-            "pareto": front,
-            "auto": { "max_error": options.max_error, "row": auto },
-            "chart_svg": format!("{}.svg", job.stem),
-            "chart_png": format!("{}.png", job.stem),
-            "reference": {
-                "key": key,
-                "file": ref_file.map(|f| f.display().to_string()),
-                "cached": was_cached,
-                "lights": reference.lights.iter().enumerate().map(|(n, l)| json!({
-                    "light": n,
-                    "kind": reference::light_kind(&job.scene, n),
-                    "soft": l.soft,
-                    "samples": l.samples,
-                    "error": l.error,
-                    "shadowed_share": l.shadowed_share(),
-                    "pixels": l.pixels(),
-                })).collect::<Vec<_>>(),
-            },
-        }));
-        timing_labels.push(timing_label);
-        time_axes.push(time_axis);
-        drop(renderer);
+        let scene = run_scene(&ctx, &run, options, job, &mut rows)?;
+        results.extend(scene.chart.files(dir, &job.stem).map_err(anyhow::Error::msg)?);
+        scene_json.push(scene.json);
+        timing_labels.push(scene.timing_label);
+        time_axes.push(scene.time_axis.to_owned());
     }
-    bar.finish_and_clear();
+    run.bar.finish_and_clear();
     // The run's: the scenes' own where they agree, else "per scene" (each scene says its own).
     let common = |values: Vec<String>| match values.windows(2).all(|w| w[0] == w[1]) {
         true => values.into_iter().next().unwrap_or_default(),
         false => "per scene".to_owned(),
     };
-    let timing_label = common(timing_labels);
-    let time_axis = common(time_axes.iter().map(|a| a.to_string()).collect());
-
     let doc = json!({
         "umbra_version": env!("CARGO_PKG_VERSION"),
-        "device": device,
-        "driver": driver,
-        "timing": timing_label,
-        "time_axis": time_axis,
+        "device": run.device,
+        "driver": run.driver,
+        "timing": common(timing_labels),
+        "time_axis": common(time_axes),
         "error_axis": "scored_error",
-        "frames": frames,
-        "warmup_frames": warmup,
+        "frames": run.frames,
+        "warmup_frames": run.warmup,
         "quick": options.quick,
         "methods": options.methods.iter().map(|m| m.id.clone()).collect::<Vec<_>>(),
         "reference": {
@@ -578,4 +293,412 @@ pub fn run(options: &Options) -> Result<Outcome> {
     crate::output::write_files_atomic(&results).context("writing the results")?;
     let summary = report::summary(&rows);
     Ok(Outcome { rows, summary, files: outputs, validation_messages: ctx.validation_messages() })
+}
+
+/// What every scene of a run shares: the device, the frame counts and the progress bar.
+struct Run {
+    device: String,
+    driver: String,
+    frames: u32,
+    warmup: u32,
+    bar: ProgressBar,
+}
+
+impl Run {
+    /// Prints `text` above the progress bar.
+    fn say(&self, text: String) -> Result<()> {
+        Ok(self.bar.suspend(|| crate::output::print_stdout(&format!("{text}\n")))?)
+    }
+}
+
+/// The files the run writes, refused where one exists unless `--force`.
+fn output_files(options: &Options, jobs: &[SceneJob]) -> Result<Vec<PathBuf>> {
+    let dir = &options.out_dir;
+    let mut outputs = vec![dir.join("results.csv"), dir.join("results.json")];
+    for j in jobs {
+        outputs.push(dir.join(format!("{}.svg", j.stem)));
+        outputs.push(dir.join(format!("{}.png", j.stem)));
+    }
+    if !options.force {
+        if let Some(existing) = outputs.iter().find(|p| p.exists()) {
+            bail!("{} exists: choose another -o DIR, or pass --force to replace the results", existing.display());
+        }
+    }
+    Ok(outputs)
+}
+
+/// A bar of `total` steps (a reference or a point each) on stderr.
+fn progress_bar(total: usize) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(Some(total as u64), ProgressDrawTarget::stderr());
+    bar.set_style(
+        ProgressStyle::with_template("{elapsed_precise} [{bar:30}] {pos}/{len} ETA {eta} {msg}")
+            .expect("a valid template")
+            .progress_chars("=> "),
+    );
+    bar
+}
+
+/// One scene's results beside its rows: its chart, its part of results.json, its timing.
+struct SceneResult {
+    chart: Chart,
+    json: serde_json::Value,
+    timing_label: String,
+    time_axis: &'static str,
+}
+
+/// The scene's reference, then every method's points, scored and timed into `rows`; then its
+/// front, `auto`'s pick and its chart.
+fn run_scene(
+    ctx: &std::sync::Arc<GpuContext>,
+    run: &Run,
+    options: &Options,
+    job: &SceneJob,
+    rows: &mut Vec<Row>,
+) -> Result<SceneResult> {
+    let (width, height) = job.size;
+    run.bar.set_message(format!("{}: reference", job.label));
+    let mut renderer =
+        Renderer::new(ctx.clone(), job.scene.clone()).with_context(|| format!("{}: preparing the scene", job.label))?;
+    let calibration: TimingCalibration = renderer.calibrate_timings()?.clone();
+    let timing_label = calibration.describe();
+    let time_axis = if calibration.mode.is_none() { "host_ms" } else { "shadow_gpu_ms" };
+
+    // The reference: cached, or traced now and cached.
+    let identity = format!("{} / {}", run.device, run.driver);
+    let cached = reference::load_or_compute(&mut renderer, width, height, &identity)?;
+    let place = cached.file.as_ref().map(|f| f.display().to_string());
+    run.say(match (cached.cached, place) {
+        (true, place) => format!("{}: reference cached ({})", job.label, place.unwrap_or_default()),
+        (false, Some(place)) => {
+            format!("{}: reference traced in {:.1} s (cached in {place})", job.label, cached.seconds)
+        }
+        (false, None) => {
+            format!("{}: reference traced in {:.1} s (not cached: no cache directory)", job.label, cached.seconds)
+        }
+    })?;
+    run.bar.inc(1);
+
+    let first_row = rows.len();
+    for (method, points) in &job.points {
+        for (point_index, point) in points.iter().enumerate() {
+            run.bar.set_message(format!("{} · {} · {}", job.label, method.id, point.label()));
+            let measured = measure(&mut renderer, run, point, calibration.mode.is_some(), job.size)?;
+            let common = Row {
+                scene: job.label.clone(),
+                method: method.id.clone(),
+                point: point_index,
+                sweep: point.label(),
+                timing: timing_label.clone(),
+                ..measured.row(run, job.size)
+            };
+            rows.extend(score(&mut renderer, job, &cached.reference, point, &measured, common)?);
+            run.bar.inc(1);
+        }
+    }
+
+    // The front, the chart.
+    let front = report::scene_pareto(rows, &job.label);
+    for &i in &front {
+        rows[i].pareto = true;
+    }
+    let auto = report::scene_auto(rows, &job.label, options.max_error);
+    if let Some(i) = auto {
+        rows[i].auto_choice = true;
+    }
+    let chart = scene_chart(rows, first_row, job, &run.device, time_axis, &front, auto);
+    let reference = &cached.reference;
+    let json = json!({
+        "scene": job.label,
+        "width": width,
+        "height": height,
+        "lights": reference::light_total(&job.scene),
+        "time_axis": time_axis,
+        "timing": timing_label,
+        "pareto": front,
+        "auto": { "max_error": options.max_error, "row": auto },
+        "chart_svg": format!("{}.svg", job.stem),
+        "chart_png": format!("{}.png", job.stem),
+        "reference": {
+            "key": cached.key,
+            "file": cached.file.as_ref().map(|f| f.display().to_string()),
+            "cached": cached.cached,
+            "lights": reference.lights.iter().enumerate().map(|(n, l)| json!({
+                "light": n,
+                "kind": reference::light_kind(&job.scene, n),
+                "soft": l.soft,
+                "samples": l.samples,
+                "error": l.error,
+                "shadowed_share": l.shadowed_share(),
+                "pixels": l.pixels(),
+            })).collect::<Vec<_>>(),
+        },
+    });
+    Ok(SceneResult { chart, json, timing_label, time_axis })
+}
+
+/// What one point's timed frames measured.
+struct Measured {
+    settings: crate::config::RenderSettings,
+    shadow_ms: Vec<f64>,
+    frame_ms: Vec<f64>,
+    host_ms: Vec<f64>,
+    shadow_passes: Vec<&'static str>,
+    plan_bytes: u64,
+    /// The last shaded frame's display bytes, one frame's worth of samples.
+    display: Vec<u8>,
+}
+
+impl Measured {
+    /// The row's timing and device columns.
+    fn row(&self, run: &Run, (width, height): (u32, u32)) -> Row {
+        let shadow = Spread::of(&self.shadow_ms);
+        let frame = Spread::of(&self.frame_ms);
+        let host = Spread::of(&self.host_ms).expect("at least one frame");
+        Row {
+            width,
+            height,
+            frames: run.frames,
+            shadow_gpu_ms: shadow.map(|s| s.median),
+            shadow_gpu_iqr_ms: shadow.map(|s| s.iqr()),
+            frame_gpu_ms: frame.map(|s| s.median),
+            frame_gpu_iqr_ms: frame.map(|s| s.iqr()),
+            host_ms: host.median,
+            host_iqr_ms: host.iqr(),
+            shadow_passes: self.shadow_passes.join("+"),
+            shadow_bytes: self.plan_bytes,
+            device: run.device.clone(),
+            driver: run.driver.clone(),
+            umbra_version: env!("CARGO_PKG_VERSION").into(),
+            ..Default::default()
+        }
+    }
+}
+
+/// `point`'s warm-up and timed frames (GPU times where `timestamps`).
+fn measure(
+    renderer: &mut Renderer,
+    run: &Run,
+    point: &Point,
+    timestamps: bool,
+    (width, height): (u32, u32),
+) -> Result<Measured> {
+    let mut settings = reference::settings(width, height, OutputKind::Display, point.choices.clone());
+    settings.timestamps = timestamps;
+    for _ in 0..run.warmup {
+        renderer.render(&settings)?;
+    }
+    let mut m = Measured {
+        settings,
+        shadow_ms: Vec::new(),
+        frame_ms: Vec::new(),
+        host_ms: Vec::new(),
+        shadow_passes: Vec::new(),
+        plan_bytes: 0,
+        display: Vec::new(),
+    };
+    for _ in 0..run.frames {
+        let start = Instant::now();
+        let frame = renderer.render(&m.settings)?;
+        m.host_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        m.display = reference::display_bytes(frame);
+        if let Some(t) = renderer.last_gpu_timings()? {
+            let mut sum = 0.0;
+            for &(name, ms) in t.passes.iter().filter(|p| is_shadow_pass(p.0)) {
+                sum += ms;
+                if !m.shadow_passes.contains(&name) {
+                    m.shadow_passes.push(name);
+                }
+            }
+            m.shadow_ms.push(sum);
+            m.frame_ms.push(t.frame_ms);
+        }
+    }
+    m.plan_bytes = renderer.last_plan().map_or(0, shadow_bytes);
+    Ok(m)
+}
+
+/// `point`'s rows: each light's visibility and the frame scored against `reference`, one row per
+/// light and, with more than one, a pooled row for the frame; `common` holds the columns they
+/// share.
+fn score(
+    renderer: &mut Renderer,
+    job: &SceneJob,
+    reference: &reference::Reference,
+    point: &Point,
+    measured: &Measured,
+    common: Row,
+) -> Result<Vec<Row>> {
+    let (width, height) = job.size;
+    let (w, h) = (width as usize, height as usize);
+    // Every light scored, rect lights after the others.
+    let total = reference::light_total(&job.scene);
+    let serving = served(renderer, &measured.settings)?;
+    let mut visibility = Vec::new();
+    for (n, &choice) in point.choices.iter().enumerate().take(total) {
+        visibility.push(reference::light_visibility(renderer, width, height, n, choice, 0)?);
+    }
+    let mut display = measured.display.clone();
+    if crate::passes::accumulate::accumulates(&measured.settings, renderer.scene()) {
+        // The timed frames accumulated (soft shadows, ambient occlusion, rect lights' shadows);
+        // the views since broke the run, so this frame stands alone, whatever `--frames`.
+        let mut single = measured.settings.clone();
+        single.timestamps = false;
+        display = reference::display_bytes(renderer.render(&single)?);
+    }
+    let flip = flip_mean(&reference.display, &display, width, height);
+    let lights = &job.scene.lights;
+    let mut light_rows = Vec::new();
+    for n in 0..total {
+        let light = lights.get(n);
+        let r = &reference.lights[n];
+        let e = visibility_error(&r.visibility, &visibility[n], w, h, Some(&r.mask));
+        let choice = point.choices[n];
+        let (by, why) = serving[n].clone();
+        let rays = match (by, light) {
+            // A rect light's rays: its scene file's spp (`reference` says none where it casts
+            // no shadows).
+            (ShadowMethod::Traced, None) if r.soft => {
+                r.pixels() as u64 * u64::from(job.scene.rect_lights[n - lights.len()].spp)
+            }
+            (ShadowMethod::Traced, None) => 0,
+            (ShadowMethod::Traced, Some(l)) if choice.traced.is_soft(l.has_size()) => {
+                r.pixels() as u64 * u64::from(choice.traced.spp)
+            }
+            (ShadowMethod::Traced, _) => r.pixels() as u64,
+            (ShadowMethod::Hybrid, _) => hybrid_rays(renderer, width, height, n, choice)?,
+            _ => 0,
+        };
+        let texels = map_texels(by, &choice, light);
+        light_rows.push(Row {
+            light: n.to_string(),
+            light_kind: reference::light_kind(&job.scene, n).into(),
+            served_by: by.id().into(),
+            fallback: why.unwrap_or_default(),
+            settings: choice.describe(),
+            vis_rmse: e.rmse,
+            light_leak: e.light_leak,
+            false_shadow: e.false_shadow,
+            light_leak_away: e.light_leak_away,
+            false_shadow_away: e.false_shadow_away,
+            pixels: e.pixels,
+            pixels_away: e.pixels_away,
+            reference_error: r.error,
+            reference_shadowed: r.shadowed_share(),
+            scored_error: scored_error(e.rmse, r.error),
+            rays,
+            map_texels: texels,
+            map_bytes: texels * 4,
+            ..common.clone()
+        });
+    }
+    if total == 1 {
+        light_rows[0].frame_row = true;
+        light_rows[0].flip = Some(flip);
+    } else {
+        let all = pooled_row(reference, &visibility, &light_rows, (w, h), flip, common);
+        light_rows.push(all);
+    }
+    Ok(light_rows)
+}
+
+/// The frame's row where several lights are scored: their visibility pooled over every light's
+/// mask, the other columns summed or listed from `light_rows`.
+fn pooled_row(
+    reference: &reference::Reference,
+    visibility: &[Vec<f32>],
+    light_rows: &[Row],
+    (w, h): (usize, usize),
+    flip: f64,
+    common: Row,
+) -> Row {
+    let parts: Vec<(&[f32], &[f32], &[bool])> =
+        reference.lights.iter().zip(visibility).map(|(r, v)| (&r.visibility[..], &v[..], &r.mask[..])).collect();
+    let e = pooled_error(&parts, w, h);
+    let weighted: f64 = reference.lights.iter().map(|l| l.error * l.error * l.pixels() as f64).sum();
+    let pixels: usize = reference.lights.iter().map(LightReference::pixels).sum();
+    let ref_error = if pixels == 0 { 0.0 } else { (weighted / pixels as f64).sqrt() };
+    let shadowed: usize = reference.lights.iter().map(LightReference::shadowed).sum();
+    let mut served_set: Vec<&str> = light_rows.iter().map(|r| r.served_by.as_str()).collect();
+    served_set.sort_unstable();
+    served_set.dedup();
+    Row {
+        light: "all".into(),
+        light_kind: "all".into(),
+        served_by: served_set.join("+"),
+        fallback: light_rows
+            .iter()
+            .filter(|r| !r.fallback.is_empty())
+            .map(|r| format!("light {}: {}", r.light, r.fallback))
+            .collect::<Vec<_>>()
+            .join("; "),
+        settings: light_rows.iter().map(|r| r.settings.as_str()).collect::<Vec<_>>().join(" | "),
+        vis_rmse: e.rmse,
+        light_leak: e.light_leak,
+        false_shadow: e.false_shadow,
+        light_leak_away: e.light_leak_away,
+        false_shadow_away: e.false_shadow_away,
+        pixels: e.pixels,
+        pixels_away: e.pixels_away,
+        reference_error: ref_error,
+        reference_shadowed: if pixels == 0 { 0.0 } else { shadowed as f64 / pixels as f64 },
+        scored_error: scored_error(e.rmse, ref_error),
+        flip: Some(flip),
+        rays: light_rows.iter().map(|r| r.rays).sum(),
+        map_texels: light_rows.iter().map(|r| r.map_texels).sum(),
+        map_bytes: light_rows.iter().map(|r| r.map_bytes).sum(),
+        frame_row: true,
+        ..common
+    }
+}
+
+/// The scene's chart: each method's points (a series per sweep axis) over time against error,
+/// the front and `auto`'s pick.
+fn scene_chart(
+    rows: &[Row],
+    first_row: usize,
+    job: &SceneJob,
+    device: &str,
+    time_axis: &str,
+    front: &[usize],
+    auto: Option<usize>,
+) -> Chart {
+    let (width, height) = job.size;
+    let scene_rows: Vec<usize> = (first_row..rows.len()).filter(|&i| rows[i].frame_row).collect();
+    let mut series = Vec::new();
+    for (colour, (method, points)) in job.points.iter().enumerate() {
+        let at = |p: usize| scene_rows.iter().copied().find(|&i| rows[i].method == method.id && rows[i].point == p);
+        let mut axes: Vec<String> = Vec::new();
+        for p in points {
+            for (a, _) in &p.on_axes {
+                if !axes.contains(a) {
+                    axes.push(a.clone());
+                }
+            }
+        }
+        if axes.is_empty() {
+            let pts = (0..points.len()).filter_map(at).map(|i| (rows[i].time_ms(), rows[i].scored_error)).collect();
+            series.push(Series { label: method.id.clone(), colour, points: pts });
+        }
+        for axis in axes {
+            // The points on this axis, in the axis's value order.
+            let pts = (0..points.len())
+                .filter(|&p| points[p].on_axes.iter().any(|(a, _)| *a == axis))
+                .filter_map(at)
+                .map(|i| (rows[i].time_ms(), rows[i].scored_error))
+                .collect();
+            series.push(Series { label: format!("{} ({axis})", method.id), colour, points: pts });
+        }
+    }
+    Chart {
+        title: format!("{}, {width}x{height}, {device}", job.stem),
+        x_label: if time_axis == "host_ms" {
+            "host time per frame, ms (log)".into()
+        } else {
+            "shadow GPU time per frame, ms (log)".into()
+        },
+        y_label: "visibility RMSE".into(),
+        series,
+        front: front.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect(),
+        auto: auto.map(|i| (rows[i].time_ms(), rows[i].scored_error)),
+    }
 }

@@ -10,10 +10,10 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{storage, DISPLAY_FORMAT};
+use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::DISPLAY_FORMAT;
 use crate::vk::bindings::BUSY_OUTPUT;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 /// The one workgroup's size: eight invocations, one SIMD vector on lavapipe, a fraction of a
 /// wave on a GPU.
@@ -33,29 +33,27 @@ struct Push {
     coefficients: Vec4,
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "busy",
-        spirv::BUSY_COMP,
-        &[storage(BUSY_OUTPUT)],
-        std::mem::size_of::<Push>() as u32,
-        GROUP,
-    )
+fn pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(ctx, "busy", spirv::BUSY_COMP, layout, std::mem::size_of::<Push>() as u32, GROUP)
 }
 
 /// Declares the pass "busy": `iterations` x `FMAS_PER_ITERATION` dependent FMAs in each
 /// invocation of one workgroup.
 /// Returns its small result buffer, which the caller exports so culling keeps the pass.
-pub fn add<'a>(graph: &mut RenderGraph<'a>, pipeline: &'a ComputePipeline, iterations: u32) -> Handle<BufferKind> {
+pub fn add<'a>(
+    graph: &mut RenderGraph<'a>,
+    pipelines: PipelineSource<'a>,
+    iterations: u32,
+) -> GpuResult<Handle<BufferKind>> {
     let invocations = GROUP[0] * GROUP[1];
     let mut result = graph.create_buffer("busy result", u64::from(invocations) * 4);
     let mut pass = graph.add_pass("busy");
     let bound = [(BUSY_OUTPUT, Bound::Buffer(pass.write(&mut result, Access::ComputeShaderWrite)))];
+    let pipeline = pipelines.compute(PipelineKey::new("busy", 0), &layout_of(&bound), pipeline)?;
     // x converges towards 1 (the fixed point of x*a + b) and stays finite for any count.
     let push = Push { iterations: UVec4::new(iterations, 0, 0, 0), coefficients: Vec4::new(0.5, 0.999, 0.001, 0.0) };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), GROUP[0], GROUP[1]));
-    result
+    Ok(result)
 }
 
 /// Declares the pass "clear": dynamic rendering that clears a small transient colour image and

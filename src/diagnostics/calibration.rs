@@ -14,7 +14,7 @@ use std::time::{Duration, Instant};
 use super::busy;
 use crate::graph::{Access, CompiledGraph, RenderGraph, TimingMode, TransientCache};
 use crate::timing::{median, TimingCalibration};
-use crate::vk::{ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{GpuContext, GpuResult, PipelineSource};
 
 /// The busy submission is made at least this long by the host clock...
 const TARGET: Duration = Duration::from_millis(20);
@@ -54,10 +54,12 @@ fn agrees(stamped_ms: f64, host_ms: f64) -> bool {
     host_ms > 0.0 && stamped_ms >= host_ms / AGREEMENT && stamped_ms <= host_ms * AGREEMENT
 }
 
-/// Times the busy pass (its pipeline is `busy`) with the host clock and with each way of
+/// Times the busy pass (its pipeline from `pipelines`) with the host clock and with each way of
 /// writing timestamps, and picks the first way that agrees with the host. Takes a few hundred
 /// milliseconds; do it once per device and keep the result.
-pub fn calibrate(ctx: &Arc<GpuContext>, busy: &ComputePipeline) -> GpuResult<TimingCalibration> {
+pub fn calibrate(pipelines: PipelineSource<'_>) -> GpuResult<TimingCalibration> {
+    let ctx = pipelines.ctx;
+    let busy = pipelines;
     if ctx.timestamp_period_ns.is_none() {
         return Ok(TimingCalibration::unavailable(
             "timings unavailable on this device: its queue has no timestamp support".into(),
@@ -111,13 +113,13 @@ pub fn calibrate(ctx: &Arc<GpuContext>, busy: &ComputePipeline) -> GpuResult<Tim
 fn submit(
     ctx: &Arc<GpuContext>,
     cache: &mut TransientCache,
-    pipeline: &ComputePipeline,
+    pipelines: PipelineSource<'_>,
     iterations: u32,
     timing: Option<TimingMode>,
 ) -> GpuResult<(Duration, Option<f64>)> {
     let mut g = RenderGraph::new();
     let cleared = busy::add_clear(&mut g);
-    let result = busy::add(&mut g, pipeline, iterations);
+    let result = busy::add(&mut g, pipelines, iterations)?;
     g.export(cleared, Access::ComputeShaderReadSampledImage);
     g.export(result, Access::ComputeShaderReadStorageBuffer);
     let plan = CompiledGraph::compile(&g);

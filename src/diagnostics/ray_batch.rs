@@ -8,13 +8,15 @@ use glam::{UVec4, Vec3, Vec4};
 use gpu_allocator::MemoryLocation;
 
 use crate::gpu::accel::RayQuerySlots;
-use crate::gpu::{BvhBuffers, BvhHandles, BvhSlots, BvhVariant, CasterSlots, Casters};
-use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
-use crate::passes::storage;
+use crate::gpu::{BvhBuffers, BvhHandles, BvhSlots, CasterSlots, Casters, WalkBuild};
+use crate::graph::{layout_of, Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph, TransientCache};
 use crate::scene::bvh::levels::{Placement, TwoLevel};
 use crate::scene::bvh::ShadowBvh;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuError, GpuResult, TexelBuffer};
+use crate::vk::{
+    spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuError, GpuResult, PipelineCache, PipelineKey,
+    PipelineSource, TexelBuffer,
+};
 
 const GROUP: [u32; 2] = [64, 1];
 
@@ -43,46 +45,55 @@ impl GpuRay {
     }
 }
 
-/// `variant`: the build for the BVH's casters (alpha masks, two levels).
-pub fn pipeline(ctx: &Arc<GpuContext>, variant: BvhVariant) -> GpuResult<ComputePipeline> {
-    let bindings = [(RAYS_INPUT, DescriptorKind::UniformTexelBuffer), storage(RAYS_OUTPUT)];
-    let bindings = BVH_SLOTS.with(&bindings, variant);
-    let names = ["bvh rays", "bvh rays (alpha masks)", "bvh rays (two levels)", "bvh rays (alpha masks, two levels)"];
-    ComputePipeline::new(ctx, variant.name(names), variant.spirv(spirv::BVH_RAYS_COMP_WALKS), &bindings, 16, GROUP)
+/// The query pass's pipeline for what it walks, with the pass's set layout.
+fn pipeline(ctx: &Arc<GpuContext>, walk: WalkBuild, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    let (name, spirv) = match walk {
+        WalkBuild::Compute(variant) => {
+            let names =
+                ["bvh rays", "bvh rays (alpha masks)", "bvh rays (two levels)", "bvh rays (alpha masks, two levels)"];
+            (variant.name(names), variant.spirv(spirv::BVH_RAYS_COMP_WALKS))
+        }
+        WalkBuild::RayQuery { masked: false } => ("bvh rays (ray query)", spirv::BVH_RAYS_RQ_COMP),
+        WalkBuild::RayQuery { masked: true } => ("bvh rays (ray query, alpha masks)", spirv::BVH_RAYS_RQ_COMP_MASKED),
+    };
+    ComputePipeline::new(ctx, name, spirv, layout, 16, GROUP)
 }
 
 /// Declares the query pass: reads `rays` (through `rays_view`, `RAY_TEXEL_FORMAT` texels) and
 /// the BVH; returns the hit flags (u32 each).
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a ComputePipeline,
+    pipelines: PipelineSource<'a>,
     rays: (&Handle<BufferKind>, vk::BufferView),
     bvh: &BvhHandles,
     count: u32,
-) -> Handle<BufferKind> {
+) -> GpuResult<Handle<BufferKind>> {
     let mut hits = graph.create_buffer("hits", u64::from(count.max(1)) * 4);
-    add_into(graph, pipeline, rays, &Casters::bvh(bvh), &mut hits, count);
-    hits
+    add_into(graph, pipelines, rays, &Casters::bvh(bvh), &mut hits, count)?;
+    Ok(hits)
 }
 
-/// `add`, writing the flags into `hits` (at least `count` u32s), through `casters` (the matching
-/// pipeline is `pipeline`'s for the compute BVH, `ray_query_pipeline`'s for the driver's).
+/// `add`, writing the flags into `hits` (at least `count` u32s), through `casters`.
 fn add_into<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a ComputePipeline,
+    pipelines: PipelineSource<'a>,
     (rays, rays_view): (&Handle<BufferKind>, vk::BufferView),
     casters: &Casters<'_>,
     hits: &mut Handle<BufferKind>,
     count: u32,
-) {
+) -> GpuResult<()> {
     let mut pass = graph.add_pass("bvh rays");
     let mut bound = vec![
         (RAYS_INPUT, Bound::TexelBuffer(pass.read(rays, Access::ComputeShaderReadUniformTexelBuffer), rays_view)),
         (RAYS_OUTPUT, Bound::Buffer(pass.write(hits, Access::ComputeShaderWrite))),
     ];
     bound.extend(casters.bind(&mut pass, &CASTER_SLOTS));
+    let walk = casters.walk(&CASTER_SLOTS);
+    let key = PipelineKey::new("bvh rays", walk.bits());
+    let pipeline = pipelines.compute(key, &layout_of(&bound), |ctx, layout| pipeline(ctx, walk, layout))?;
     let push = UVec4::new(count, 0, 0, 0);
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), count, 1));
+    Ok(())
 }
 
 /// Traces `rays` through `bvh` on the GPU and returns whether each is occluded.
@@ -109,7 +120,7 @@ pub fn trace_levels(
 
 /// Traces `rays` through `bvh`'s buffers on the GPU.
 fn trace_buffers(ctx: &Arc<GpuContext>, bvh: &BvhBuffers, rays: &[GpuRay]) -> GpuResult<Vec<bool>> {
-    let pipeline = pipeline(ctx, bvh.variant())?;
+    let pipelines = PipelineCache::default();
     let ray_buf = upload_rays(ctx, rays)?;
     let count = rays.len() as u32;
     let out = Buffer::new(
@@ -123,7 +134,8 @@ fn trace_buffers(ctx: &Arc<GpuContext>, bvh: &BvhBuffers, rays: &[GpuRay]) -> Gp
     let mut g = RenderGraph::new();
     let r = g.import_buffer("rays", &ray_buf.buffer, crate::gpu::SCENE_ACCESS);
     let walk = bvh.import(&mut g, crate::gpu::SCENE_ACCESS);
-    let hits = add(&mut g, &pipeline, (&r, ray_buf.view()), &walk, count);
+    let source = PipelineSource { ctx, cache: &pipelines };
+    let hits = add(&mut g, source, (&r, ray_buf.view()), &walk, count)?;
     crate::passes::readback::add_buffer(&mut g, &hits, &out);
     let plan = CompiledGraph::compile(&g);
     ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
@@ -139,15 +151,6 @@ pub enum Target<'s> {
     RayQuery(&'s crate::gpu::accel::RayQueryScene),
 }
 
-/// The ray-query twin of `pipeline`; only on devices with ray query. `masked`: the variant for
-/// a `RayQueryScene` with alpha-masked casters.
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
-    let bindings = [(RAYS_INPUT, DescriptorKind::UniformTexelBuffer), storage(RAYS_OUTPUT)];
-    let bindings = CASTER_SLOTS.ray_query.as_ref().expect("bvh_rays_rq.comp binds the TLAS").with(&bindings, masked);
-    let spirv = if masked { spirv::BVH_RAYS_RQ_COMP_MASKED } else { spirv::BVH_RAYS_RQ_COMP };
-    ComputePipeline::new(ctx, "bvh rays (ray query)", spirv, &bindings, 16, GROUP)
-}
-
 /// Rays on the device, traced again and again for timing.
 pub struct TimedBatch {
     ctx: Arc<GpuContext>,
@@ -155,6 +158,7 @@ pub struct TimedBatch {
     hits: Buffer,
     count: u32,
     cache: TransientCache,
+    pipelines: PipelineCache,
 }
 
 impl TimedBatch {
@@ -168,14 +172,20 @@ impl TimedBatch {
             vk::BufferUsageFlags::STORAGE_BUFFER,
             MemoryLocation::GpuToCpu,
         )?;
-        Ok(TimedBatch { ctx: ctx.clone(), rays: rays_buf, hits, count, cache: TransientCache::new(ctx)? })
+        Ok(TimedBatch {
+            ctx: ctx.clone(),
+            rays: rays_buf,
+            hits,
+            count,
+            cache: TransientCache::new(ctx)?,
+            pipelines: PipelineCache::default(),
+        })
     }
 
-    /// Traces every ray once through `target` with `pipeline` (`pipeline` or
-    /// `ray_query_pipeline`, to match). Returns whether each is occluded and the pass's time
-    /// in milliseconds: GPU timestamps where the device writes them, else the host clock
+    /// Traces every ray once through `target`. Returns whether each is occluded and the pass's
+    /// time in milliseconds: GPU timestamps where the device writes them, else the host clock
     /// around the submission.
-    pub fn trace(&mut self, pipeline: &ComputePipeline, target: &Target<'_>) -> GpuResult<(Vec<bool>, f64)> {
+    pub fn trace(&mut self, target: &Target<'_>) -> GpuResult<(Vec<bool>, f64)> {
         let mut g = RenderGraph::new();
         let rays = g.import_buffer("rays", &self.rays.buffer, crate::gpu::SCENE_ACCESS);
         let mut hits = g.import_buffer("hits", &self.hits, Access::Nothing);
@@ -190,7 +200,8 @@ impl TimedBatch {
                 Casters::bvh(&walk)
             }
         };
-        add_into(&mut g, pipeline, (&rays, self.rays.view()), &casters, &mut hits, self.count);
+        let pipelines = PipelineSource { ctx: &self.ctx, cache: &self.pipelines };
+        add_into(&mut g, pipelines, (&rays, self.rays.view()), &casters, &mut hits, self.count)?;
         g.export(hits, Access::HostRead);
         let plan = CompiledGraph::compile(&g);
         let timing = self.ctx.timestamp_period_ns.map(|_| crate::graph::TimingMode::Flushed);

@@ -11,7 +11,7 @@ use glam::Vec3;
 use gpu_allocator::MemoryLocation;
 
 use crate::graph::{Access, Bound, BufferKind, CompiledGraph, Handle, RenderGraph};
-use crate::vk::{Buffer, DescriptorKind, GpuContext, GpuError, GpuResult, VkContext};
+use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, VkContext};
 
 /// The pass names, so the renderer can tell from a plan whether the build ran.
 pub const BUILD_BOTTOM: &str = "build BLAS";
@@ -103,18 +103,6 @@ pub struct RayQuerySlots {
     pub tlas: u32,
     /// Bound in the masked variant only.
     pub masks: u32,
-}
-
-impl RayQuerySlots {
-    /// `bindings` with the top level's added (and the alpha masks' where `masked`).
-    pub fn with(&self, bindings: &[(u32, DescriptorKind)], masked: bool) -> Vec<(u32, DescriptorKind)> {
-        let mut all = bindings.to_vec();
-        all.push((self.tlas, DescriptorKind::AccelerationStructure));
-        if masked {
-            all.push((self.masks, DescriptorKind::UniformTexelBuffer));
-        }
-        all
-    }
 }
 
 impl RayQueryScene {

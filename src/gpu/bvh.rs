@@ -246,6 +246,7 @@ impl BvhBuffers {
             node_view: self.nodes.view(),
             triangle_view: self.triangles.view(),
             masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view())),
+            variant: self.variant(),
         }
     }
 }
@@ -259,6 +260,8 @@ pub struct BvhHandles {
     pub triangle_view: vk::BufferView,
     /// The alpha masks, in scenes with masked casters.
     pub masks: Option<(crate::graph::Handle<crate::graph::BufferKind>, vk::BufferView)>,
+    /// The shader build that walks it (alpha masks, two levels).
+    pub variant: BvhVariant,
 }
 
 impl BvhHandles {
@@ -290,23 +293,4 @@ pub struct BvhSlots {
     pub root: u32,
     /// Bound in the masked variant only.
     pub masks: u32,
-}
-
-impl BvhSlots {
-    /// `bindings` with the BVH's added (its alpha masks' where `variant` has them).
-    pub fn with(
-        &self,
-        bindings: &[(u32, crate::vk::DescriptorKind)],
-        variant: BvhVariant,
-    ) -> Vec<(u32, crate::vk::DescriptorKind)> {
-        use crate::vk::DescriptorKind;
-        let mut all = bindings.to_vec();
-        all.push((self.nodes, DescriptorKind::UniformTexelBuffer));
-        all.push((self.triangles, DescriptorKind::UniformTexelBuffer));
-        all.push((self.root, DescriptorKind::UniformBuffer));
-        if variant.masked {
-            all.push((self.masks, DescriptorKind::UniformTexelBuffer));
-        }
-        all
-    }
 }

@@ -13,6 +13,25 @@ pub struct Casters<'h> {
     pub ray_query: Option<&'h RayQueryHandles>,
 }
 
+/// What a pass walks, and so which build of its shader it runs.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WalkBuild {
+    /// The compute BVH, in this build.
+    Compute(super::BvhVariant),
+    /// The driver's acceleration structures; `masked`: with alpha-masked casters.
+    RayQuery { masked: bool },
+}
+
+impl WalkBuild {
+    /// Bits for a pipeline key: the compute builds' 0..=3, ray query's 4 and 5.
+    pub fn bits(self) -> u32 {
+        match self {
+            WalkBuild::Compute(v) => v.bits(),
+            WalkBuild::RayQuery { masked } => 4 | masked as u32,
+        }
+    }
+}
+
 /// Where a shader binds the casters: the compute walk's slots and the ray-query build's.
 pub struct CasterSlots {
     pub bvh: BvhSlots,
@@ -28,6 +47,21 @@ impl<'h> Casters<'h> {
     /// The driver's structures alone.
     pub fn ray_query(handles: &'h RayQueryHandles) -> Casters<'h> {
         Casters { bvh: None, ray_query: Some(handles) }
+    }
+
+    /// What a pass with `slots` walks: the driver's structures where the frame has them and the
+    /// shader can bind them, else the compute BVH.
+    pub fn walk(&self, slots: &CasterSlots) -> WalkBuild {
+        match (&self.ray_query, &slots.ray_query, &self.bvh) {
+            (Some(rq), Some(_), _) => WalkBuild::RayQuery { masked: rq.masks.is_some() },
+            (_, _, Some(bvh)) => WalkBuild::Compute(bvh.variant),
+            _ => unreachable!("a pass walks casters its frame imported"),
+        }
+    }
+
+    /// The compute BVH's shader build (passes that walk only it).
+    pub fn variant(&self) -> super::BvhVariant {
+        self.bvh.expect("the frame imported the compute BVH").variant
     }
 
     /// Declares `pass`'s reads of what it walks, the driver's structures where the frame has

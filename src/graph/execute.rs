@@ -10,13 +10,18 @@ use ash::vk;
 
 use super::compile::{Barrier, SlotKey};
 use super::{Access, BufferKind, CompiledGraph, External, ImageKind, Ref, RenderGraph, ResourceDesc, Storage};
-use crate::vk::{Buffer, GpuContext, GpuResult, Image, PipelineLayout, VkContext};
+use crate::vk::{Buffer, DescriptorKind, GpuContext, GpuResult, Image, PipelineLayout, VkContext};
 
 /// A resource bound to a descriptor; its descriptor type and image layout follow from the access
-/// the pass declared.
+/// the pass declared (`Bound::kind`), so a pass's list of `(binding, Bound)` is also its
+/// pipeline's set layout (`layout_of`): one list per pass.
 #[derive(Clone, Copy, Debug)]
 pub enum Bound {
+    /// A sampled image read with the nearest sampler (`texelFetch`), or a storage image.
     Image(Ref<ImageKind>),
+    /// A sampled image read with the linear, mipmapped sampler that wraps in u and clamps in v
+    /// (environment maps, read with `textureLod`).
+    Filtered(Ref<ImageKind>),
     Buffer(Ref<BufferKind>),
     /// An acceleration structure: the graph orders accesses on its backing buffer (the `Ref`),
     /// the descriptor names the structure itself.
@@ -24,6 +29,39 @@ pub enum Bound {
     /// A texel buffer: the graph orders accesses on the buffer (the `Ref`), the descriptor
     /// names its view (made once with the buffer; see `crate::vk::TexelView`).
     TexelBuffer(Ref<BufferKind>, vk::BufferView),
+}
+
+impl Bound {
+    /// The descriptor this binding takes, from the access the pass declared.
+    pub fn kind(&self) -> DescriptorKind {
+        match *self {
+            Bound::Image(r) => match r.access {
+                Access::ComputeShaderWrite | Access::ComputeShaderReadStorageImage => DescriptorKind::StorageImage,
+                _ => DescriptorKind::SampledImage,
+            },
+            Bound::Filtered(_) => DescriptorKind::FilteredImage,
+            Bound::Buffer(r) => match r.access {
+                Access::ComputeShaderReadUniformBuffer | Access::VertexShaderReadUniformBuffer => {
+                    DescriptorKind::UniformBuffer
+                }
+                _ => DescriptorKind::StorageBuffer,
+            },
+            Bound::AccelerationStructure(..) => DescriptorKind::AccelerationStructure,
+            Bound::TexelBuffer(..) => DescriptorKind::UniformTexelBuffer,
+        }
+    }
+}
+
+/// The set layout a pass's bindings call for: each binding's descriptor kind, by binding number.
+/// Passes ask for their pipeline with it (`PipelineSource::compute`), so the layout is never
+/// written beside the list.
+pub fn layout_of(bound: &[(u32, Bound)]) -> Vec<(u32, DescriptorKind)> {
+    let mut layout: Vec<(u32, DescriptorKind)> = bound.iter().map(|(binding, b)| (*binding, b.kind())).collect();
+    layout.sort_by_key(|b| b.0);
+    for pair in layout.windows(2) {
+        assert_ne!(pair[0].0, pair[1].0, "binding {} is bound twice", pair[0].0);
+    }
+    layout
 }
 
 /// How passes are bracketed with timestamps (see `crate::timing` for how one is chosen).
@@ -544,7 +582,7 @@ impl PassContext<'_> {
         let mut texel_views: Vec<vk::BufferView> = Vec::with_capacity(bound.len());
         for &(_, b) in bound {
             match b {
-                Bound::Image(r) => image_infos.push(
+                Bound::Image(r) | Bound::Filtered(r) => image_infos.push(
                     vk::DescriptorImageInfo::default()
                         .image_view(self.descriptor_view(r))
                         .image_layout(r.access.info().layout),
@@ -566,11 +604,15 @@ impl PassContext<'_> {
         let (mut ii, mut bi, mut ti) = (0, 0, 0);
         let mut writes = Vec::with_capacity(bound.len());
         for &(binding, b) in bound {
-            let kind =
-                layout.kind_of(binding).unwrap_or_else(|| panic!("binding {binding} is not in the pipeline layout"));
+            let kind = b.kind();
+            assert_eq!(
+                layout.kind_of(binding),
+                Some(kind),
+                "binding {binding}: the pipeline's layout and the pass disagree"
+            );
             let w = vk::WriteDescriptorSet::default().dst_set(set).dst_binding(binding).descriptor_type(kind.vk());
             writes.push(match b {
-                Bound::Image(_) => {
+                Bound::Image(_) | Bound::Filtered(_) => {
                     ii += 1;
                     w.image_info(std::slice::from_ref(&image_infos[ii - 1]))
                 }

@@ -16,7 +16,7 @@ use ash::vk;
 pub use access::{Access, AccessInfo, Applies};
 pub use compile::{Barrier, CompiledGraph, CompiledPass, ResourcePlan, Storage};
 pub use compile::{ResourceDescKey, SlotKey};
-pub use execute::{Bound, GpuTimings, PassContext, TimingMode, TransientCache};
+pub use execute::{layout_of, Bound, GpuTimings, PassContext, TimingMode, TransientCache};
 pub use layers::Layers;
 
 pub use crate::vk::ImageDesc;

@@ -8,11 +8,11 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec2, Vec3, Vec4};
 
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use crate::graph::{layout_of, Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{GBuffer, RADIANCE_FORMAT, TILE};
 use crate::scene::AmbientOcclusion;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 /// One value per pixel; f32 so that k / spp is exact.
 pub const AO_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
@@ -35,9 +35,11 @@ const BVH_SLOTS: crate::gpu::BvhSlots =
 const CASTER_SLOTS: crate::gpu::CasterSlots = crate::gpu::CasterSlots { bvh: BVH_SLOTS, ray_query: None };
 
 /// `variant`: the build for the scene's casters (alpha masks, two levels).
-pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuResult<ComputePipeline> {
-    let bindings = [sampled(AO_POSITION), sampled(AO_NORMAL), sampled(AO_SURFACE), storage_image(AO_OUTPUT)];
-    let bindings = BVH_SLOTS.with(&bindings, variant);
+fn pipeline(
+    ctx: &Arc<GpuContext>,
+    variant: crate::gpu::BvhVariant,
+    layout: &[(u32, DescriptorKind)],
+) -> GpuResult<ComputePipeline> {
     let names = [
         "ambient occlusion",
         "ambient occlusion (alpha masks)",
@@ -45,25 +47,24 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: crate::gpu::BvhVariant) -> GpuRe
         "ambient occlusion (alpha masks, two levels)",
     ];
     let spirv = variant.spirv(spirv::LIGHTING_AO_COMP_WALKS);
-    ComputePipeline::new(ctx, variant.name(names), spirv, &bindings, 32, TILE)
+    ComputePipeline::new(ctx, variant.name(names), spirv, layout, 32, TILE)
 }
 
-pub fn view_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    let bindings = [sampled(AO_OUTPUT), storage_image(AO_VIEW_OUTPUT)];
-    ComputePipeline::new(ctx, "debug ao", spirv::LIGHTING_AO_VIEW_COMP, &bindings, 16, TILE)
+fn view_pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(ctx, "debug ao", spirv::LIGHTING_AO_VIEW_COMP, layout, 16, TILE)
 }
 
 /// The AO image of this frame (`frame_index` seeds the rays).
 #[allow(clippy::too_many_arguments)]
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a ComputePipeline,
+    pipelines: PipelineSource<'a>,
     gbuffer: &GBuffer,
     casters: &crate::gpu::Casters<'_>,
     params: AmbientOcclusion,
     frame_index: u32,
     extent: vk::Extent2D,
-) -> Handle<ImageKind> {
+) -> GpuResult<Handle<ImageKind>> {
     let mut image = graph.create_image("ambient occlusion", ImageDesc::new(AO_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("ambient occlusion");
     let read = Access::ComputeShaderReadSampledImage;
@@ -75,30 +76,35 @@ pub fn add<'a>(
         (AO_OUTPUT, Bound::Image(pass.write(&mut image, Access::ComputeShaderWrite))),
     ];
     bound.extend(walk);
+    let variant = casters.variant();
+    let key = PipelineKey::new("ambient occlusion", variant.bits());
+    let pipeline = pipelines.compute(key, &layout_of(&bound), |ctx, layout| pipeline(ctx, variant, layout))?;
     let push = Push {
         dims: UVec4::new(extent.width, extent.height, params.spp, frame_index),
         params: Vec4::new(params.radius, 0.0, 0.0, 0.0),
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    image
+    Ok(image)
 }
 
 /// The `ao` debug view of `occlusion`.
 pub fn add_view<'a>(
     graph: &mut RenderGraph<'a>,
-    pipeline: &'a ComputePipeline,
+    pipelines: PipelineSource<'a>,
     occlusion: &Handle<ImageKind>,
     extent: vk::Extent2D,
-) -> Handle<ImageKind> {
+) -> GpuResult<Handle<ImageKind>> {
     let mut view = graph.create_image("ao view", ImageDesc::new(RADIANCE_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("debug ao");
     let bound = [
         (AO_OUTPUT, Bound::Image(pass.read(occlusion, Access::ComputeShaderReadSampledImage))),
         (AO_VIEW_OUTPUT, Bound::Image(pass.write(&mut view, Access::ComputeShaderWrite))),
     ];
+    let key = PipelineKey::new("ambient occlusion view", 0);
+    let pipeline = pipelines.compute(key, &layout_of(&bound), view_pipeline)?;
     let push = UVec4::new(extent.width, extent.height, 0, 0);
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    view
+    Ok(view)
 }
 
 /// CPU twin of ao.comp's ray `k` at `pixel` in frame `frame`: the unit direction about `n`.

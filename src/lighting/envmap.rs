@@ -22,11 +22,14 @@ use ash::vk;
 use glam::{UVec4, Vec2, Vec3};
 use gpu_allocator::MemoryLocation;
 
-use crate::graph::{Access, Bound, CompiledGraph, RenderGraph, TransientCache};
-use crate::passes::{storage, storage_image, TILE};
+use crate::graph::{layout_of, Access, Bound, CompiledGraph, RenderGraph, TransientCache};
+use crate::passes::TILE;
 use crate::scene::EnvironmentMap;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuResult, Image, ImageDesc};
+use crate::vk::{
+    spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuResult, Image, ImageDesc, PipelineCache,
+    PipelineKey, PipelineSource,
+};
 
 /// Roughness levels of the prefiltered map: 0, 0.2, ..., 1 (compose reads linearly between them).
 pub const PREFILTER_LAYERS: u32 = 6;
@@ -91,7 +94,14 @@ impl EnvironmentMapGpu {
         let n = crate::lighting::split_sum::TABLE_SIZE as u64;
         let brdf_table = Buffer::new(ctx, "split-sum table (GPU)", n * n * 8, usage, MemoryLocation::GpuOnly)?;
 
-        let pipelines = BakePipelines::new(ctx)?;
+        // The bake's pipelines, made for it and dropped after it.
+        let made = PipelineCache::default();
+        let pipelines = PipelineSource { ctx, cache: &made };
+        let bake = |name: &'static str, spirv: &'static [u8], push: u32| {
+            move |ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]| {
+                ComputePipeline::new(ctx, name, spirv, layout, push, TILE)
+            }
+        };
         let mut g = RenderGraph::new();
         let staged = g.import_buffer("environment map staging", &staging, Access::HostWrite);
         let mut source_h = g.import_owned_image("environment map", &source, Access::Nothing);
@@ -114,17 +124,19 @@ impl EnvironmentMapGpu {
         let mut pass = g.add_pass("split-sum table");
         let bound = [(ENVMAP_BRDF_TABLE, Bound::Buffer(pass.write(&mut table_h, Access::ComputeShaderWrite)))];
         let push = UVec4::new(n as u32, BRDF_SAMPLES, 0, 0);
-        let p = &pipelines.brdf;
+        let make = bake("split-sum table", spirv::LIGHTING_ENVMAP_BRDF_COMP, 16);
+        let p = pipelines.compute(PipelineKey::new("split-sum table", 0), &layout_of(&bound), make)?;
         pass.render(move |ctx| ctx.dispatch(p, &bound, bytemuck::bytes_of(&push), n as u32, n as u32));
 
         let read = Access::ComputeShaderReadSampledImage;
         let dims = UVec4::new(map.width, map.height, 0, 0);
         let mut pass = g.add_pass("environment SH rows");
         let bound = [
-            (ENVMAP_SOURCE, Bound::Image(pass.read(&source_h, read))),
+            (ENVMAP_SOURCE, Bound::Filtered(pass.read(&source_h, read))),
             (ENVMAP_SH_ROWS, Bound::Buffer(pass.write(&mut rows_h, Access::ComputeShaderWrite))),
         ];
-        let p = &pipelines.sh_rows;
+        let make = bake("environment SH rows", spirv::LIGHTING_ENVMAP_SH_ROWS_COMP, 16);
+        let p = pipelines.compute(PipelineKey::new("environment SH rows", 0), &layout_of(&bound), make)?;
         pass.render(move |ctx| ctx.dispatch(p, &bound, bytemuck::bytes_of(&dims), dims.y, 1));
 
         let mut pass = g.add_pass("environment SH");
@@ -132,16 +144,18 @@ impl EnvironmentMapGpu {
             (ENVMAP_SH_ROWS, Bound::Buffer(pass.read(&rows_h, Access::ComputeShaderReadStorageBuffer))),
             (ENVMAP_SH, Bound::Buffer(pass.write(&mut sh_h, Access::ComputeShaderWrite))),
         ];
-        let p = &pipelines.sh_sum;
+        let make = bake("environment SH", spirv::LIGHTING_ENVMAP_SH_SUM_COMP, 16);
+        let p = pipelines.compute(PipelineKey::new("environment SH", 0), &layout_of(&bound), make)?;
         pass.render(move |ctx| ctx.dispatch(p, &bound, bytemuck::bytes_of(&dims), 9, 1));
 
         let mut pass = g.add_pass("prefilter environment");
         let bound = [
-            (ENVMAP_SOURCE, Bound::Image(pass.read(&source_h, read))),
+            (ENVMAP_SOURCE, Bound::Filtered(pass.read(&source_h, read))),
             (ENVMAP_PREFILTERED, Bound::Image(pass.write(&mut prefiltered_h, Access::ComputeShaderWrite))),
         ];
         let push = [UVec4::new(width, height, PREFILTER_LAYERS, PREFILTER_SAMPLES), dims];
-        let p = &pipelines.prefilter;
+        let make = bake("prefilter environment", spirv::LIGHTING_ENVMAP_PREFILTER_COMP, 32);
+        let p = pipelines.compute(PipelineKey::new("prefilter environment", 0), &layout_of(&bound), make)?;
         pass.render(move |ctx| ctx.dispatch(p, &bound, bytemuck::cast_slice(&push), width, height * PREFILTER_LAYERS));
 
         g.export(source_h, read);
@@ -230,54 +244,6 @@ pub fn upload_scale(map: &EnvironmentMap) -> f32 {
         scale *= 0.5;
     }
     scale
-}
-
-/// The precompute's pipelines, made for one bake.
-struct BakePipelines {
-    brdf: ComputePipeline,
-    sh_rows: ComputePipeline,
-    sh_sum: ComputePipeline,
-    prefilter: ComputePipeline,
-}
-
-impl BakePipelines {
-    fn new(ctx: &Arc<GpuContext>) -> GpuResult<BakePipelines> {
-        let filtered = (ENVMAP_SOURCE, DescriptorKind::FilteredImage);
-        Ok(BakePipelines {
-            brdf: ComputePipeline::new(
-                ctx,
-                "split-sum table",
-                spirv::LIGHTING_ENVMAP_BRDF_COMP,
-                &[storage(ENVMAP_BRDF_TABLE)],
-                16,
-                TILE,
-            )?,
-            sh_rows: ComputePipeline::new(
-                ctx,
-                "environment SH rows",
-                spirv::LIGHTING_ENVMAP_SH_ROWS_COMP,
-                &[filtered, storage(ENVMAP_SH_ROWS)],
-                16,
-                TILE,
-            )?,
-            sh_sum: ComputePipeline::new(
-                ctx,
-                "environment SH",
-                spirv::LIGHTING_ENVMAP_SH_SUM_COMP,
-                &[storage(ENVMAP_SH_ROWS), storage(ENVMAP_SH)],
-                16,
-                TILE,
-            )?,
-            prefilter: ComputePipeline::new(
-                ctx,
-                "prefilter environment",
-                spirv::LIGHTING_ENVMAP_PREFILTER_COMP,
-                &[filtered, storage_image(ENVMAP_PREFILTERED)],
-                32,
-                TILE,
-            )?,
-        })
-    }
 }
 
 /// The nine real SH basis functions of order 2 at unit `d` (twin of `sh9_basis` in

@@ -15,7 +15,7 @@ use ash::vk;
 use glam::{Vec2, Vec3};
 
 use crate::scene::SceneLighting;
-use crate::vk::{Buffer, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{Buffer, GpuContext, GpuResult};
 
 /// CPU twin of `environment_radiance` in shaders/lighting/environment.glsl: radiance toward `v`
 /// from a surface (unit normal `n`) under `radiance` arriving from every direction.
@@ -106,39 +106,32 @@ impl AreaTables {
     }
 }
 
-/// What a frame's lighting needs of this module, made before its graph is built (frame.rs).
+/// What a frame's lighting takes of this module, decided before its graph is built (frame.rs);
+/// each pass asks for its pipeline as it declares itself.
 #[derive(Default)]
 pub struct Prepared<'a> {
     /// The environment, which compose adds.
     pub environment: Option<&'a EnvironmentGpu>,
-    /// The AO pass and its parameters.
-    pub occlusion: Option<(crate::scene::AmbientOcclusion, &'a ComputePipeline)>,
-    /// The `ao` view's pipeline, when the frame shows it.
-    pub view: Option<&'a ComputePipeline>,
-    /// The rect lights and their pass, in shaded frames of scenes that have any.
-    pub rects: Option<(&'a rects::RectsGpu, &'a ComputePipeline)>,
+    /// The AO pass's parameters, where the frame has the pass.
+    pub occlusion: Option<crate::scene::AmbientOcclusion>,
+    /// The frame shows the `ao` view.
+    pub view: bool,
+    /// The rect lights, in shaded frames of scenes that have any.
+    pub rects: Option<&'a rects::RectsGpu>,
     /// The LTC and split-sum tables, in shaded frames of scenes with rect or sized lights.
     pub area: Option<&'a AreaTables>,
 }
 
-/// What a frame with `view` needs for `lighting` (`environment` on the device), its passes'
-/// pipelines from the cache, in the build `variant` of the BVH walk the scene's casters need; the
-/// rect lights' pass reads their visibility when `rects_shadowed` (a rect light has a layer this frame).
-#[allow(clippy::too_many_arguments)]
+/// What a frame with `view` takes of `lighting` (`environment`, the rect lights and the area
+/// tables on the device).
 pub fn prepare<'a>(
-    pipelines: crate::vk::PipelineSource<'a>,
     lighting: &SceneLighting,
     environment: Option<&'a EnvironmentGpu>,
     rect_lights: Option<&'a rects::RectsGpu>,
     area: Option<&'a AreaTables>,
     view: Option<crate::config::DebugView>,
-    variant: crate::gpu::BvhVariant,
-    rects_shadowed: bool,
 ) -> GpuResult<Prepared<'a>> {
-    use crate::vk::PipelineKey;
     let mut prepared = Prepared::default();
-    let ao_pipeline =
-        || pipelines.compute(PipelineKey::new("ambient occlusion", variant.bits()), |ctx| ao::pipeline(ctx, variant));
     match view {
         Some(crate::config::DebugView::AmbientOcclusion) => {
             let params = lighting.ambient_occlusion.ok_or_else(|| {
@@ -146,22 +139,16 @@ pub fn prepare<'a>(
                     "--debug-view ao: the scene has no [ambient_occlusion] table".to_owned(),
                 )
             })?;
-            prepared.occlusion = Some((params, ao_pipeline()?));
-            prepared.view = Some(pipelines.compute(PipelineKey::new("ambient occlusion view", 0), ao::view_pipeline)?);
+            prepared.occlusion = Some(params);
+            prepared.view = true;
         }
         Some(_) => {}
         None => {
             prepared.area = area;
-            if let Some(r) = rect_lights {
-                let key = PipelineKey::new("rect lights", rects_shadowed as u32);
-                prepared.rects = Some((r, pipelines.compute(key, |ctx| rects::pipeline(ctx, rects_shadowed))?));
-            }
+            prepared.rects = rect_lights;
             if let Some(environment) = environment {
-                let occlusion = lighting.occlusion_of_environment();
                 prepared.environment = Some(environment);
-                if let Some(params) = occlusion {
-                    prepared.occlusion = Some((params, ao_pipeline()?));
-                }
+                prepared.occlusion = lighting.occlusion_of_environment();
             }
         }
     }

@@ -11,11 +11,11 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, GBuffer, RADIANCE_FORMAT, TILE};
+use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{GBuffer, RADIANCE_FORMAT, TILE};
 use crate::scene::RectLight;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Buffer, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 /// One rect as rect_lights.comp reads it (`GpuRect` in ltc.glsl).
 #[repr(C)]
@@ -77,23 +77,10 @@ struct Push {
 
 /// `shadowed`: the variant that reads the rects' visibility (RECT_SHADOWS), for frames where a
 /// rect light has a layer of the visibility target.
-pub fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool) -> GpuResult<ComputePipeline> {
-    let mut bindings = vec![
-        sampled(RECT_POSITION),
-        sampled(RECT_NORMAL),
-        sampled(RECT_MATERIAL),
-        storage(RECT_LIGHTS),
-        storage(RECT_LTC_TABLE),
-        storage(RECT_BRDF_TABLE),
-        sampled(RECT_RADIANCE_IN),
-        storage_image(RECT_RADIANCE_OUT),
-    ];
-    if shadowed {
-        bindings.extend([storage(RECT_LIGHT_LAYERS), sampled(RECT_VISIBILITY)]);
-    }
+fn pipeline(ctx: &Arc<GpuContext>, shadowed: bool, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
     let size = std::mem::size_of::<Push>() as u32;
     let name = if shadowed { "rect lights (shadowed)" } else { "rect lights" };
-    ComputePipeline::new(ctx, name, spirv::LIGHTING_RECT_LIGHTS_COMP[shadowed as usize], &bindings, size, TILE)
+    ComputePipeline::new(ctx, name, spirv::LIGHTING_RECT_LIGHTS_COMP[shadowed as usize], layout, size, TILE)
 }
 
 /// The rects' shadows as this pass reads them: the light table, their unrounded visibility
@@ -105,19 +92,19 @@ pub struct RectShadows<'h> {
     pub first_layer: u32,
 }
 
-/// `radiance` with the rect lights added (a new image); `pipeline` is `pipeline(ctx,
-/// shadows.is_some())`.
+/// `radiance` with the rect lights added (a new image).
 #[allow(clippy::too_many_arguments)]
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
-    (rects, pipeline): (&'a RectsGpu, &'a ComputePipeline),
+    pipelines: PipelineSource<'a>,
+    rects: &'a RectsGpu,
     tables: &'a super::AreaTables,
     gbuffer: &GBuffer,
     radiance: &Handle<ImageKind>,
     shadows: Option<RectShadows<'_>>,
     camera: &crate::gpu::CameraMatrices,
     extent: vk::Extent2D,
-) -> Handle<ImageKind> {
+) -> GpuResult<Handle<ImageKind>> {
     let scene = crate::gpu::SCENE_ACCESS;
     let lights = graph.import_buffer("rect lights", &rects.rects, scene);
     let ltc = graph.import_buffer("LTC table", &tables.ltc, scene);
@@ -142,6 +129,9 @@ pub fn add<'a>(
         bound.push((RECT_VISIBILITY, Bound::Image(pass.read(s.ratios, read))));
         layers = UVec4::new(s.first_light, s.first_layer, 0, 0);
     }
+    let shadowed = shadows.is_some();
+    let key = PipelineKey::new("rect lights", shadowed as u32);
+    let pipeline = pipelines.compute(key, &layout_of(&bound), |ctx, layout| pipeline(ctx, shadowed, layout))?;
     let push = Push {
         clip_to_eye: camera.view_proj_relative.inverse(),
         eye: camera.eye.extend(0.0),
@@ -149,5 +139,5 @@ pub fn add<'a>(
         layers,
     };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    out
+    Ok(out)
 }

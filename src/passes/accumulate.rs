@@ -11,10 +11,10 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{sampled, storage_image, DISPLAY_FORMAT, ROWS};
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use super::{DISPLAY_FORMAT, ROWS};
+use crate::graph::{layout_of, Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image, PipelineKey, PipelineSource};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, Image, PipelineKey, PipelineSource};
 
 /// Whether successive frames of `scene` with `settings` fold into a running mean: stochastic
 /// shadows, ambient occlusion of the environment, rect-light shadows, or anti-aliasing. What the
@@ -38,16 +38,10 @@ struct Push {
 }
 
 /// The running mean's pass: `display` also writes the mean's display values.
-fn pipeline(ctx: &Arc<GpuContext>, display: bool) -> GpuResult<ComputePipeline> {
-    let bindings = [sampled(ACCUM_CURRENT), storage_image(ACCUM_HISTORY)];
+fn pipeline(ctx: &Arc<GpuContext>, display: bool, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    let name = if display { "accumulate (tone-mapped)" } else { "accumulate" };
     let push = std::mem::size_of::<Push>() as u32;
-    let with_display = [bindings[0], bindings[1], storage_image(ACCUM_DISPLAY)];
-    match display {
-        false => ComputePipeline::new(ctx, "accumulate", spirv::ACCUMULATE_COMP[0], &bindings, push, ROWS),
-        true => {
-            ComputePipeline::new(ctx, "accumulate (tone-mapped)", spirv::ACCUMULATE_COMP[1], &with_display, push, ROWS)
-        }
-    }
+    ComputePipeline::new(ctx, name, spirv::ACCUMULATE_COMP[display as usize], layout, push, ROWS)
 }
 
 /// A history image and how many frames it holds (0: start afresh).
@@ -98,7 +92,6 @@ pub fn add<'a>(
     extent: vk::Extent2D,
 ) -> GpuResult<(Handle<ImageKind>, Option<Handle<ImageKind>>)> {
     let shown = exposure_ev.is_some();
-    let pipeline = pipelines.compute(PipelineKey::new("accumulate", shown as u32), |ctx| pipeline(ctx, shown))?;
     // A fresh image has no layout yet; a used one may still be read by the frame before.
     let mut mean = history.import(graph);
     let display_desc = ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height);
@@ -114,6 +107,8 @@ pub fn add<'a>(
     if let Some(display) = &mut display {
         bound.push((ACCUM_DISPLAY, Bound::Image(pass.write(display, Access::ComputeShaderWrite))));
     }
+    let key = PipelineKey::new("accumulate", shown as u32);
+    let pipeline = pipelines.compute(key, &layout_of(&bound), |ctx, layout| pipeline(ctx, shown, layout))?;
     let push = Push {
         dims: UVec4::new(extent.width, extent.height, history.frames, 0),
         exposure: Vec4::new(exposure_ev.unwrap_or(0.0), 0.0, 0.0, 0.0),

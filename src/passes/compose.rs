@@ -13,10 +13,10 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use super::{sampled, storage, storage_image, GBuffer, DISPLAY_FORMAT, RADIANCE_FORMAT, ROWS};
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use super::{GBuffer, DISPLAY_FORMAT, RADIANCE_FORMAT, ROWS};
+use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 use super::accumulate::History;
 
@@ -121,37 +121,8 @@ impl Variant {
 /// Number of compose variants (`Variant::index` is below it).
 pub const VARIANTS: usize = spirv::COMPOSE_COMP.len();
 
-/// One compose variant: its bindings follow from the same flags that pick its shader.
-pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePipeline> {
-    let mut bindings =
-        vec![sampled(COMPOSE_POSITION), sampled(COMPOSE_NORMAL), sampled(COMPOSE_MATERIAL), storage(COMPOSE_LIGHTS)];
-    if variant.display || !variant.history {
-        bindings.push(storage_image(COMPOSE_RADIANCE));
-    }
-    if variant.history {
-        bindings.push(storage_image(COMPOSE_HISTORY));
-    }
-    if variant.shadowed {
-        bindings.push(sampled(COMPOSE_VISIBILITY));
-        bindings.push(storage(COMPOSE_LIGHT_LAYERS));
-    }
-    if variant.environment || variant.area_lights {
-        bindings.push(storage(COMPOSE_BRDF_TABLE));
-    }
-    if variant.environment && variant.occluded {
-        bindings.push(sampled(COMPOSE_AMBIENT_OCCLUSION));
-    }
-    if variant.emissive {
-        bindings.push(sampled(COMPOSE_EMISSION));
-    }
-    if variant.area_lights {
-        bindings.push(storage(COMPOSE_LTC_TABLE));
-    }
-    if variant.environment && variant.environment_map {
-        bindings.push(storage(COMPOSE_ENV_SH));
-        bindings.push((COMPOSE_ENV_PREFILTERED, crate::vk::DescriptorKind::FilteredImage));
-        bindings.push((COMPOSE_ENV_MAP, crate::vk::DescriptorKind::FilteredImage));
-    }
+/// One compose variant, with the set layout of the pass that asks for it.
+fn pipeline(ctx: &Arc<GpuContext>, variant: Variant, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
     // A variant no frame asks for was not compiled (`Variant::can_occur`).
     assert!(variant.can_occur(), "{} cannot occur: ambient occlusion or a map without an environment", variant.name());
     let spv = spirv::COMPOSE_COMP[variant.index()];
@@ -159,7 +130,7 @@ pub fn pipeline(ctx: &Arc<GpuContext>, variant: Variant) -> GpuResult<ComputePip
     static NAMES: std::sync::OnceLock<Vec<String>> = std::sync::OnceLock::new();
     let names = NAMES.get_or_init(|| (0..VARIANTS).map(|i| Variant::from_index(i).name()).collect());
     let name: &'static str = &names[variant.index()];
-    ComputePipeline::new(ctx, name, spv, &bindings, std::mem::size_of::<Push>() as u32, ROWS)
+    ComputePipeline::new(ctx, name, spv, layout, std::mem::size_of::<Push>() as u32, ROWS)
 }
 
 /// The environment's part of compose's inputs.
@@ -183,9 +154,8 @@ pub struct MapInputs<'h> {
 }
 
 pub struct ComposeInputs<'h, 'a> {
-    /// The variant this frame runs and its pipeline (`Pipelines::compose`); the inputs below
-    /// must be those its flags name.
-    pub pipeline: (Variant, &'a ComputePipeline),
+    /// The variant this frame runs; the inputs below must be those its flags name.
+    pub variant: Variant,
     pub lights: &'h Handle<BufferKind>,
     pub light_count: u32,
     /// The visibility target and the light table (each light's layer), where any light has
@@ -208,11 +178,12 @@ pub struct ComposeInputs<'h, 'a> {
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
+    pipelines: PipelineSource<'a>,
     gbuffer: &GBuffer,
     inputs: ComposeInputs<'_, 'a>,
     extent: vk::Extent2D,
-) -> Composed {
-    let (variant, pipeline) = inputs.pipeline;
+) -> GpuResult<Composed> {
+    let variant = inputs.variant;
     let occlusion = inputs.environment.as_ref().and_then(|e| e.occlusion);
     let map = inputs.environment.as_ref().and_then(|e| e.map.as_ref());
     assert_eq!(
@@ -277,8 +248,8 @@ pub fn add<'a>(
     let (mut layers, mut clip_to_eye) = (0, Mat4::IDENTITY);
     if let Some(map) = map {
         bound.push((COMPOSE_ENV_SH, Bound::Buffer(pass.read(map.sh, buffer))));
-        bound.push((COMPOSE_ENV_PREFILTERED, Bound::Image(pass.read(map.prefiltered, sampled))));
-        bound.push((COMPOSE_ENV_MAP, Bound::Image(pass.read(map.source, sampled))));
+        bound.push((COMPOSE_ENV_PREFILTERED, Bound::Filtered(pass.read(map.prefiltered, sampled))));
+        bound.push((COMPOSE_ENV_MAP, Bound::Filtered(pass.read(map.source, sampled))));
         layers = map.layers;
         clip_to_eye = map.clip_to_eye;
     }
@@ -290,11 +261,13 @@ pub fn add<'a>(
         environment: environment.extend(f32::from_bits(frames)),
         clip_to_eye,
     };
+    let key = PipelineKey::new("compose", variant.index() as u32);
+    let pipeline = pipelines.compute(key, &layout_of(&bound), |ctx, layout| pipeline(ctx, variant, layout))?;
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
-    match output {
+    Ok(match output {
         Some(image) => Composed { image, history: mean },
         None => Composed { image: mean.expect("a variant without an output image writes the history"), history: None },
-    }
+    })
 }
 
 /// What compose wrote: the frame's image (radiance, display values, or with a history and no

@@ -6,10 +6,10 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{sampled, storage_image, GBuffer, RADIANCE_FORMAT, ROWS};
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use super::{GBuffer, RADIANCE_FORMAT, ROWS};
+use crate::graph::{layout_of, Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, PipelineKey, PipelineSource};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 pub use crate::config::DebugView;
 
@@ -30,23 +30,14 @@ enum Kind {
     GeometricNormal = 2,
 }
 
-fn pipeline(ctx: &Arc<GpuContext>, kind: Kind) -> GpuResult<ComputePipeline> {
+fn pipeline(ctx: &Arc<GpuContext>, kind: Kind, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
     let push = std::mem::size_of::<Push>() as u32;
-    let common = [sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)];
-    // debug_view_body.glsl's views also read the material channel (the albedo view).
-    let mut channel = common.to_vec();
-    channel.push(sampled(DISPLAY_MATERIAL));
-    let mut with_vis = channel.clone();
-    with_vis.push(sampled(DISPLAY_VISIBILITY));
-    match kind {
-        Kind::Channel => ComputePipeline::new(ctx, "debug view", spirv::DEBUG_VIEW_COMP, &channel, push, ROWS),
-        Kind::Visibility => {
-            ComputePipeline::new(ctx, "debug visibility", spirv::DEBUG_VISIBILITY_COMP, &with_vis, push, ROWS)
-        }
-        Kind::GeometricNormal => {
-            ComputePipeline::new(ctx, "debug geometric normal", spirv::DEBUG_GEOMETRIC_NORMAL_COMP, &common, push, ROWS)
-        }
-    }
+    let (name, spirv) = match kind {
+        Kind::Channel => ("debug view", spirv::DEBUG_VIEW_COMP),
+        Kind::Visibility => ("debug visibility", spirv::DEBUG_VISIBILITY_COMP),
+        Kind::GeometricNormal => ("debug geometric normal", spirv::DEBUG_GEOMETRIC_NORMAL_COMP),
+    };
+    ComputePipeline::new(ctx, name, spirv, layout, push, ROWS)
 }
 
 pub struct DebugInputs<'h> {
@@ -112,11 +103,13 @@ pub fn add<'a>(
         None if inputs.view == DebugView::GeometricNormal => Kind::GeometricNormal,
         None => Kind::Channel,
     };
-    let pipeline = pipelines.compute(PipelineKey::new("debug view", kind as u32), |ctx| pipeline(ctx, kind))?;
     if inputs.view != DebugView::GeometricNormal {
+        // debug_view_body.glsl's views also read the material channel (the albedo view).
         let material = pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage);
         bound.push((DISPLAY_MATERIAL, Bound::Image(material)));
     }
+    let key = PipelineKey::new("debug view", kind as u32);
+    let pipeline = pipelines.compute(key, &layout_of(&bound), |ctx, layout| pipeline(ctx, kind, layout))?;
     let push = Push {
         eye: inputs.eye.extend(1.0 / inputs.far.max(1e-6)),
         origin: inputs.origin.extend(0.0),

@@ -21,10 +21,10 @@ use crate::gpu::{
     CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SECOND_UV_ATTRIBUTES,
     SECOND_UV_STRIDE, SURFACE_ATTRIBUTES, TABLE_ACCESS,
 };
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, RenderGraph};
+use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, PassContext, Ref, RenderGraph};
 use crate::vk::{
-    bindings, spirv, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc, PipelineKey,
-    PipelineSource,
+    bindings, spirv, DescriptorKind, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc,
+    PipelineKey, PipelineSource,
 };
 
 const INSTANCE_STRIDE: u32 = std::mem::size_of::<InstanceRows>() as u32;
@@ -67,22 +67,42 @@ struct ScenePipelines<'a> {
     two_sided: Option<&'a GraphicsPipeline>,
 }
 
+impl ScenePipelines<'_> {
+    /// The pipeline `draw` takes.
+    fn of(&self, draw: &crate::gpu::Draw, textured: bool) -> &GraphicsPipeline {
+        match (textured, draw.double_sided) {
+            (true, false) => self.textured.expect("made for textured scenes"),
+            (true, true) => self.textured_two_sided.expect("made for double-sided draws"),
+            (false, false) => self.untextured.expect("made for scenes without textures"),
+            (false, true) => self.two_sided.expect("made for double-sided draws"),
+        }
+    }
+}
+
 /// The cache key of a geometry variant.
 fn key(textured: bool, two_sided: bool) -> PipelineKey {
     PipelineKey::new("geometry", textured as u32 | (two_sided as u32) << 1)
 }
 
-fn scene_pipelines<'a>(pipelines: PipelineSource<'a>, scene: &SceneGpu) -> GpuResult<ScenePipelines<'a>> {
+/// The variants `scene`'s draws take, made with `layout` (the pass's bindings).
+fn scene_pipelines<'a>(
+    pipelines: PipelineSource<'a>,
+    scene: &SceneGpu,
+    layout: &[(u32, DescriptorKind)],
+) -> GpuResult<ScenePipelines<'a>> {
     let two_sided = scene.draws.iter().any(|d| d.double_sided);
-    let layout = scene.materials.as_ref().map(|m| m.set_layout());
-    let untextured = |sided: bool| pipelines.graphics(key(false, sided), |ctx| untextured_pipeline(ctx, sided));
-    let textured =
-        |layout, sided: bool| pipelines.graphics(key(true, sided), |ctx| textured_pipeline(ctx, layout, sided));
+    let set_1 = scene.materials.as_ref().map(|m| m.set_layout());
+    let untextured = |sided: bool| {
+        pipelines.graphics(key(false, sided), layout, |ctx, layout| untextured_pipeline(ctx, layout, sided))
+    };
+    let textured = |set_1, sided: bool| {
+        pipelines.graphics(key(true, sided), layout, |ctx, layout| textured_pipeline(ctx, layout, set_1, sided))
+    };
     Ok(ScenePipelines {
-        untextured: layout.is_none().then(|| untextured(false)).transpose()?,
-        textured: layout.map(|l| textured(l, false)).transpose()?,
-        textured_two_sided: layout.filter(|_| two_sided).map(|l| textured(l, true)).transpose()?,
-        two_sided: (two_sided && layout.is_none()).then(|| untextured(true)).transpose()?,
+        untextured: set_1.is_none().then(|| untextured(false)).transpose()?,
+        textured: set_1.map(|l| textured(l, false)).transpose()?,
+        textured_two_sided: set_1.filter(|_| two_sided).map(|l| textured(l, true)).transpose()?,
+        two_sided: (two_sided && set_1.is_none()).then(|| untextured(true)).transpose()?,
     })
 }
 
@@ -91,7 +111,7 @@ fn desc<'a>(
     name: &'static str,
     vertex: &'a [u8],
     fragment: &'a [u8],
-    bindings: &'a [(u32, crate::vk::DescriptorKind)],
+    bindings: &'a [(u32, DescriptorKind)],
     color_formats: &'a [vk::Format],
     two_sided: bool,
 ) -> GraphicsPipelineDesc<'a> {
@@ -119,22 +139,21 @@ const FORMATS: [vk::Format; 3] = [POSITION_FORMAT, NORMAL_FORMAT, SURFACE_FORMAT
 const TEXTURED_FORMATS: [vk::Format; 5] =
     [POSITION_FORMAT, NORMAL_FORMAT, SURFACE_FORMAT, MATERIAL_FORMAT, EMISSION_FORMAT];
 
-const TRIANGLE_BUFFERS: [(u32, crate::vk::DescriptorKind); 2] = [
-    (bindings::GEOMETRY_VERTICES, crate::vk::DescriptorKind::UniformTexelBuffer),
-    (bindings::GEOMETRY_INDICES, crate::vk::DescriptorKind::UniformTexelBuffer),
-];
-
 /// The untextured geometry pipeline; `two_sided`: without back-face culling (made only for
 /// scenes with double-sided meshes).
-fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<GraphicsPipeline> {
+fn untextured_pipeline(
+    ctx: &Arc<GpuContext>,
+    layout: &[(u32, DescriptorKind)],
+    two_sided: bool,
+) -> GpuResult<GraphicsPipeline> {
     let extras = GraphicsExtras { instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)), ..Default::default() };
-    let vertex = spirv::GEOMETRY_VERT;
-    let desc = match (ctx.capabilities.geometry_shader, two_sided) {
-        (true, false) => desc("geometry", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS, &FORMATS, false),
-        (true, true) => desc("geometry (two-sided)", vertex, spirv::GEOMETRY_FRAG, &TRIANGLE_BUFFERS, &FORMATS, true),
-        (false, false) => desc("geometry (plain)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[], &FORMATS, false),
-        (false, true) => desc("geometry (plain, two-sided)", vertex, spirv::GEOMETRY_PLAIN_FRAG, &[], &FORMATS, true),
+    let (name, fragment) = match (ctx.capabilities.geometry_shader, two_sided) {
+        (true, false) => ("geometry", spirv::GEOMETRY_FRAG),
+        (true, true) => ("geometry (two-sided)", spirv::GEOMETRY_FRAG),
+        (false, false) => ("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG),
+        (false, true) => ("geometry (plain, two-sided)", spirv::GEOMETRY_PLAIN_FRAG),
     };
+    let desc = desc(name, spirv::GEOMETRY_VERT, fragment, layout, &FORMATS, two_sided);
     GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
 
@@ -144,6 +163,7 @@ fn untextured_pipeline(ctx: &Arc<GpuContext>, two_sided: bool) -> GpuResult<Grap
 /// `two_sided`: without back-face culling, for double-sided meshes.
 fn textured_pipeline(
     ctx: &Arc<GpuContext>,
+    layout: &[(u32, DescriptorKind)],
     material_set: vk::DescriptorSetLayout,
     two_sided: bool,
 ) -> GpuResult<GraphicsPipeline> {
@@ -155,16 +175,34 @@ fn textured_pipeline(
         ..Default::default()
     };
     let vertex = spirv::GEOMETRY_TEXTURED_VERT;
-    let (name, fragment, bindings): (_, _, &[_]) = match (ctx.capabilities.geometry_shader, two_sided) {
-        (true, false) => ("geometry (textured)", spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS),
-        (true, true) => ("geometry (textured, two-sided)", spirv::GEOMETRY_TEXTURED_FRAG, &TRIANGLE_BUFFERS),
-        (false, false) => ("geometry (textured, plain)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[]),
-        (false, true) => ("geometry (textured, plain, two-sided)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &[]),
+    let (name, fragment) = match (ctx.capabilities.geometry_shader, two_sided) {
+        (true, false) => ("geometry (textured)", spirv::GEOMETRY_TEXTURED_FRAG),
+        (true, true) => ("geometry (textured, two-sided)", spirv::GEOMETRY_TEXTURED_FRAG),
+        (false, false) => ("geometry (textured, plain)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG),
+        (false, true) => ("geometry (textured, plain, two-sided)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG),
     };
-    let desc = desc(name, vertex, fragment, bindings, &TEXTURED_FORMATS, two_sided);
+    let desc = desc(name, vertex, fragment, layout, &TEXTURED_FORMATS, two_sided);
     GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
 
+/// The G-buffer's images for `scene` at `extent` (untextured scenes read the scene's material
+/// table in place of a material image).
+fn gbuffer_images(graph: &mut RenderGraph<'_>, scene: &SceneGpu, extent: vk::Extent2D) -> GBuffer {
+    let image = |format| ImageDesc::new(format, extent.width, extent.height);
+    GBuffer {
+        depth: graph.create_image("depth", image(DEPTH_FORMAT)),
+        position: graph.create_image("gbuffer position", image(POSITION_FORMAT)),
+        normal: graph.create_image("gbuffer normal", image(NORMAL_FORMAT)),
+        material: match &scene.material_table {
+            Some(table) => graph.import_owned_image("material table", &table.image, TABLE_ACCESS),
+            None => graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
+        },
+        surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
+        emission: scene.materials.as_ref().map(|_| graph.create_image("gbuffer emission", image(EMISSION_FORMAT))),
+    }
+}
+
+/// The G-buffer of `scene` seen by `camera`: one pass drawing every draw.
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipelines: PipelineSource<'a>,
@@ -175,41 +213,17 @@ pub fn add<'a>(
     extent: vk::Extent2D,
 ) -> GpuResult<GBuffer> {
     let reads_triangles = pipelines.ctx.capabilities.geometry_shader;
-    let pipelines = scene_pipelines(pipelines, scene)?;
-    let image = |format| ImageDesc::new(format, extent.width, extent.height);
-    let mut gbuffer = GBuffer {
-        depth: graph.create_image("depth", image(DEPTH_FORMAT)),
-        position: graph.create_image("gbuffer position", image(POSITION_FORMAT)),
-        normal: graph.create_image("gbuffer normal", image(NORMAL_FORMAT)),
-        material: match &scene.material_table {
-            Some(table) => graph.import_owned_image("material table", &table.image, TABLE_ACCESS),
-            None => graph.create_image("gbuffer material", image(MATERIAL_FORMAT)),
-        },
-        surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
-        emission: scene.materials.as_ref().map(|_| graph.create_image("gbuffer emission", image(EMISSION_FORMAT))),
-    };
+    let mut gbuffer = gbuffer_images(graph, scene, extent);
     let mut pass = graph.add_pass("geometry");
     let vb = pass.read(vertices, Access::VertexBuffer);
     let ib = pass.read(indices, Access::IndexBuffer);
-    let bound = match reads_triangles && !scene.draws.is_empty() {
-        true => vec![
-            (
-                bindings::GEOMETRY_VERTICES,
-                Bound::TexelBuffer(
-                    pass.read(vertices, Access::FragmentShaderReadUniformTexelBuffer),
-                    scene.vertex_view.view,
-                ),
-            ),
-            (
-                bindings::GEOMETRY_INDICES,
-                Bound::TexelBuffer(
-                    pass.read(indices, Access::FragmentShaderReadUniformTexelBuffer),
-                    scene.index_view.view,
-                ),
-            ),
-        ],
-        false => Vec::new(),
-    };
+    let mut bound = Vec::new();
+    if reads_triangles {
+        let read = Access::FragmentShaderReadUniformTexelBuffer;
+        let vertices = Bound::TexelBuffer(pass.read(vertices, read), scene.vertex_view.view);
+        let indices = Bound::TexelBuffer(pass.read(indices, read), scene.index_view.view);
+        bound = vec![(bindings::GEOMETRY_VERTICES, vertices), (bindings::GEOMETRY_INDICES, indices)];
+    }
     let depth = pass.write(&mut gbuffer.depth, Access::DepthAttachmentWrite);
     let mut colors = vec![
         pass.write(&mut gbuffer.position, Access::ColorAttachmentWrite),
@@ -224,6 +238,11 @@ pub fn add<'a>(
     if let Some(emission) = &mut gbuffer.emission {
         colors.push(pass.write(emission, Access::ColorAttachmentWrite));
     }
+    // A scene with nothing to draw clears the G-buffer and makes no pipeline.
+    let used = match scene.draws.is_empty() {
+        true => None,
+        false => Some(scene_pipelines(pipelines, scene, &layout_of(&bound))?),
+    };
     pass.render(move |ctx| {
         let attachment = |view, clear| {
             vk::RenderingAttachmentInfo::default()
@@ -243,85 +262,93 @@ pub fn add<'a>(
             .store_op(vk::AttachmentStoreOp::STORE)
             .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
         ctx.begin_rendering(extent, &color_attachments, Some(&depth_attachment), None);
-        let d = ctx.device;
-        // SAFETY: recording state; every object is resolved for this frame and outlives it.
-        unsafe {
-            if !scene.draws.is_empty() {
-                let vb = ctx.buffer(vb);
-                match scene.surface_offset {
-                    Some(surface) => {
-                        // Without a second set, binding 3 reads the surface data (no map selects it).
-                        let second = scene.second_uv_offset.unwrap_or(surface);
-                        let offsets = [0, scene.instance_offset, surface, second];
-                        d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb; 4], &offsets)
-                    }
-                    None => d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]),
-                }
-                d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
-            }
-        }
-        // The pipeline bound (textured or not, two-sided or not), switched as the draws need.
-        let mut current: Option<(bool, bool)> = None;
-        for draw in &scene.draws {
-            // In a textured scene every draw is textured (its rendering has the emission
-            // attachment); a mesh without textures reads the white set.
-            let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));
-            let used = match (textured, draw.double_sided) {
-                (Some(_), false) => pipelines.textured.expect("made for textured scenes"),
-                (Some(_), true) => pipelines.textured_two_sided.expect("made for double-sided draws"),
-                (None, false) => pipelines.untextured.expect("made for scenes without textures"),
-                (None, true) => pipelines.two_sided.expect("made for double-sided draws"),
-            };
-            if current != Some((textured.is_some(), draw.double_sided)) {
-                current = Some((textured.is_some(), draw.double_sided));
-                if !bound.is_empty() {
-                    ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &used.layout, &bound)?;
-                }
-                // SAFETY: recording state, inside the rendering begun above.
-                unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline) };
-            }
-            let m = draw.material;
-            let mut push = Push {
-                view_proj: camera.view_proj_relative,
-                eye: camera.eye.extend(0.0),
-                base_color_roughness: m.base_color.extend(m.roughness),
-                metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
-                // z: GEOMETRY_DRAW_FLAT for a flat-shaded draw, beside a textured draw's maps.
-                // w: the material's texel in the scene's material table (an untextured draw).
-                draw: UVec4::new(
-                    draw.first_index,
-                    draw.vertex_offset as u32,
-                    if draw.flat { bindings::GEOMETRY_DRAW_FLAT } else { 0 },
-                    draw.table_texel,
-                ),
-            };
-            // SAFETY: recording state; the set is the scene's, alive as long as it is.
-            unsafe {
-                if let Some((materials, maps)) = textured {
-                    push.metallic.y = maps.normal_scale;
-                    push.draw.z |= maps.present;
-                    push.draw.w = maps.channels;
-                    d.cmd_bind_descriptor_sets(
-                        ctx.cmd,
-                        vk::PipelineBindPoint::GRAPHICS,
-                        used.layout.layout,
-                        1,
-                        &[materials.sets[maps.set]],
-                        &[],
-                    );
-                }
-                d.cmd_push_constants(
-                    ctx.cmd,
-                    used.layout.layout,
-                    vk::ShaderStageFlags::ALL_GRAPHICS,
-                    0,
-                    bytemuck::bytes_of(&push),
-                );
-                d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, draw.instance);
-            }
+        if let Some(used) = &used {
+            draw_scene(ctx, scene, used, &bound, (vb, ib), &camera)?;
         }
         ctx.end_rendering();
         Ok(())
     });
     Ok(gbuffer)
+}
+
+/// Records every draw of `scene` inside the rendering begun by the pass.
+fn draw_scene(
+    ctx: &mut PassContext<'_>,
+    scene: &SceneGpu,
+    pipelines: &ScenePipelines<'_>,
+    bound: &[(u32, Bound)],
+    (vb, ib): (Ref<BufferKind>, Ref<BufferKind>),
+    camera: &CameraMatrices,
+) -> GpuResult<()> {
+    let d = ctx.device;
+    // SAFETY: recording state; every object is resolved for this frame and outlives it.
+    unsafe {
+        let vb = ctx.buffer(vb);
+        match scene.surface_offset {
+            Some(surface) => {
+                // Without a second set, binding 3 reads the surface data (no map selects it).
+                let second = scene.second_uv_offset.unwrap_or(surface);
+                let offsets = [0, scene.instance_offset, surface, second];
+                d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb; 4], &offsets)
+            }
+            None => d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]),
+        }
+        d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
+    }
+    // The pipeline bound (textured or not, two-sided or not), switched as the draws need.
+    let mut current: Option<(bool, bool)> = None;
+    for draw in &scene.draws {
+        // In a textured scene every draw is textured (its rendering has the emission
+        // attachment); a mesh without textures reads the white set.
+        let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));
+        let used = pipelines.of(draw, textured.is_some());
+        if current != Some((textured.is_some(), draw.double_sided)) {
+            current = Some((textured.is_some(), draw.double_sided));
+            if !bound.is_empty() {
+                ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &used.layout, bound)?;
+            }
+            // SAFETY: recording state, inside the rendering begun by the pass.
+            unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline) };
+        }
+        let m = draw.material;
+        let mut push = Push {
+            view_proj: camera.view_proj_relative,
+            eye: camera.eye.extend(0.0),
+            base_color_roughness: m.base_color.extend(m.roughness),
+            metallic: Vec4::new(m.metallic, 0.0, 0.0, 0.0),
+            // z: GEOMETRY_DRAW_FLAT for a flat-shaded draw, beside a textured draw's maps.
+            // w: the material's texel in the scene's material table (an untextured draw).
+            draw: UVec4::new(
+                draw.first_index,
+                draw.vertex_offset as u32,
+                if draw.flat { bindings::GEOMETRY_DRAW_FLAT } else { 0 },
+                draw.table_texel,
+            ),
+        };
+        // SAFETY: recording state; the set is the scene's, alive as long as it is.
+        unsafe {
+            if let Some((materials, maps)) = textured {
+                push.metallic.y = maps.normal_scale;
+                push.draw.z |= maps.present;
+                push.draw.w = maps.channels;
+                d.cmd_bind_descriptor_sets(
+                    ctx.cmd,
+                    vk::PipelineBindPoint::GRAPHICS,
+                    used.layout.layout,
+                    1,
+                    &[materials.sets[maps.set]],
+                    &[],
+                );
+            }
+            d.cmd_push_constants(
+                ctx.cmd,
+                used.layout.layout,
+                vk::ShaderStageFlags::ALL_GRAPHICS,
+                0,
+                bytemuck::bytes_of(&push),
+            );
+            d.cmd_draw_indexed(ctx.cmd, draw.index_count, 1, draw.first_index, draw.vertex_offset, draw.instance);
+        }
+    }
+    Ok(())
 }

@@ -14,7 +14,6 @@ pub mod visibility;
 use ash::vk;
 
 use crate::graph::{Handle, ImageKind};
-use crate::vk::{ComputePipeline, DescriptorKind, GpuResult};
 
 /// Workgroup size of the full-screen compute passes that cast rays (shadow trace, ambient
 /// occlusion, rect lights, the hybrid's classification; specialisation constants 0 and 1): on a
@@ -56,25 +55,4 @@ pub struct GBuffer {
     /// Emitted radiance and ambient occlusion (gbuffer.glsl), in scenes with material textures
     /// or emission only.
     pub emission: Option<Handle<ImageKind>>,
-}
-
-/// The compose variant's pipeline, from the cache.
-pub fn compose_pipeline<'a>(
-    pipelines: crate::vk::PipelineSource<'a>,
-    variant: compose::Variant,
-) -> GpuResult<&'a ComputePipeline> {
-    let key = crate::vk::PipelineKey::new("compose", variant.index() as u32);
-    pipelines.compute(key, |ctx| compose::pipeline(ctx, variant))
-}
-
-pub(crate) fn storage(binding: u32) -> (u32, DescriptorKind) {
-    (binding, DescriptorKind::StorageBuffer)
-}
-
-pub(crate) fn sampled(binding: u32) -> (u32, DescriptorKind) {
-    (binding, DescriptorKind::SampledImage)
-}
-
-pub(crate) fn storage_image(binding: u32) -> (u32, DescriptorKind) {
-    (binding, DescriptorKind::StorageImage)
 }

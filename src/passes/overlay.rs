@@ -6,10 +6,10 @@ use std::sync::Arc;
 use ash::vk;
 use glam::UVec4;
 
-use super::{storage, storage_image, ROWS};
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageKind, RenderGraph};
+use super::ROWS;
+use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Buffer, ComputePipeline, GpuContext, GpuResult};
+use crate::vk::{spirv, Buffer, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 /// Glyph rows of the printable ASCII range, 8 bytes per character, for the shader.
 pub fn glyph_words() -> Vec<u32> {
@@ -19,15 +19,8 @@ pub fn glyph_words() -> Vec<u32> {
         .collect()
 }
 
-pub fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "overlay",
-        spirv::OVERLAY_COMP,
-        &[storage_image(OVERLAY_CANVAS), storage(OVERLAY_GLYPHS), storage(OVERLAY_TEXT)],
-        32,
-        ROWS,
-    )
+fn pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(ctx, "overlay", spirv::OVERLAY_COMP, layout, 32, ROWS)
 }
 
 /// Text laid out in a fixed grid of `columns` x `rows` characters.
@@ -56,10 +49,9 @@ impl OverlayText {
     }
 }
 
-/// The overlay's inputs: its pipeline, the glyph buffer and this frame's text buffer (both
-/// host-written and imported).
+/// The overlay's inputs: the glyph buffer and this frame's text buffer (both host-written and
+/// imported).
 pub struct OverlayInputs<'a> {
-    pub pipeline: &'a ComputePipeline,
     pub glyphs: &'a Buffer,
     pub text: &'a Buffer,
     pub columns: u32,
@@ -69,10 +61,11 @@ pub struct OverlayInputs<'a> {
 
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
+    pipelines: PipelineSource<'a>,
     inputs: &OverlayInputs<'a>,
     canvas: &mut Handle<ImageKind>,
     extent: vk::Extent2D,
-) {
+) -> GpuResult<()> {
     let glyphs: Handle<BufferKind> = graph.import_buffer("glyphs", inputs.glyphs, Access::HostWrite);
     let text = graph.import_buffer("overlay text", inputs.text, Access::HostWrite);
     let mut pass = graph.add_pass("overlay");
@@ -86,10 +79,11 @@ pub fn add<'a>(
     let push =
         [UVec4::new(inputs.columns, inputs.rows, inputs.scale, margin), UVec4::new(extent.width, extent.height, 0, 0)];
     let (w, h) = (inputs.columns * 8 * inputs.scale + 2 * margin, inputs.rows * 8 * inputs.scale + 2 * margin);
-    let pipeline = inputs.pipeline;
+    let pipeline = pipelines.compute(PipelineKey::new("overlay", 0), &layout_of(&bound), pipeline)?;
     pass.render(move |ctx| {
         ctx.dispatch(pipeline, &bound, bytemuck::cast_slice(&push), w.min(extent.width), h.min(extent.height))
     });
+    Ok(())
 }
 
 #[cfg(test)]

@@ -6,10 +6,10 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec4};
 
-use super::{sampled, storage_image, DISPLAY_FORMAT, ROWS};
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use super::{DISPLAY_FORMAT, ROWS};
+use crate::graph::{layout_of, Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, PipelineKey, PipelineSource};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey, PipelineSource};
 
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -18,15 +18,8 @@ struct Push {
     dims: UVec4,
 }
 
-fn pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "tonemap",
-        spirv::TONEMAP_COMP,
-        &[sampled(DISPLAY_INPUT), storage_image(DISPLAY_OUTPUT)],
-        std::mem::size_of::<Push>() as u32,
-        ROWS,
-    )
+fn pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(ctx, "tonemap", spirv::TONEMAP_COMP, layout, std::mem::size_of::<Push>() as u32, ROWS)
 }
 
 pub fn add<'a>(
@@ -36,13 +29,13 @@ pub fn add<'a>(
     exposure_ev: f32,
     extent: vk::Extent2D,
 ) -> GpuResult<Handle<ImageKind>> {
-    let pipeline = pipelines.compute(PipelineKey::new("tonemap", 0), pipeline)?;
     let mut display = graph.create_image("display", ImageDesc::new(DISPLAY_FORMAT, extent.width, extent.height));
     let mut pass = graph.add_pass("tonemap");
     let bound = [
         (DISPLAY_INPUT, Bound::Image(pass.read(radiance, Access::ComputeShaderReadSampledImage))),
         (DISPLAY_OUTPUT, Bound::Image(pass.write(&mut display, Access::ComputeShaderWrite))),
     ];
+    let pipeline = pipelines.compute(PipelineKey::new("tonemap", 0), &layout_of(&bound), pipeline)?;
     let push =
         Push { exposure: Vec4::new(exposure_ev, 0.0, 0.0, 0.0), dims: UVec4::new(extent.width, extent.height, 0, 0) };
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));

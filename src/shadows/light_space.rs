@@ -79,7 +79,7 @@ pub fn cube_face_view_proj(position: Vec3, face: usize, near: f32, far: f32) -> 
 /// D32_SFLOAT with reversed depth resolves about R * 2^-24 at the light's end (33 um over
 /// 554 m): light 0's visibility with pancaking differed in 1 of 307,200 pixels on the default
 /// scene at 640x480 (cascades) and in none on the field, grazing-sun and 100 km scenes, and no
-/// metric of tests/shadow_map*.rs or tests/gpu/stress_scenes.rs moved. Clamping in the depth
+/// metric of tests/gpu/shadow_map*.rs or tests/gpu/stress_scenes.rs moved. Clamping in the depth
 /// pipeline every map shares also broke perspective maps (a spot inside a cube lit 7244 floor
 /// pixels where every other method lights 7743), so it would need a pipeline of its own, for
 /// no gain.

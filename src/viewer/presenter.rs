@@ -11,7 +11,7 @@ use crate::graph::TransientCache;
 use crate::passes::accumulate::Accumulator;
 use crate::passes::overlay::{self, OverlayInputs, OverlayText};
 use crate::renderer::{Frame, RenderSettings, Renderer, Target};
-use crate::vk::{Acquired, Buffer, ComputePipeline, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
+use crate::vk::{Acquired, Buffer, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
 
 const FRAMES_IN_FLIGHT: usize = 2;
 /// Characters the overlay's text buffer holds (the overlay's largest grid).
@@ -32,7 +32,6 @@ pub struct Presenter {
     next: usize,
     swapchain: Option<Swapchain>,
     glyphs: Buffer,
-    overlay_pipeline: ComputePipeline,
     surface: WindowSurface,
     size: (u32, u32),
     vsync: bool,
@@ -91,7 +90,6 @@ impl Presenter {
             next: 0,
             swapchain: None,
             glyphs,
-            overlay_pipeline: overlay::pipeline(&ctx)?,
             surface,
             size: (width, height),
             vsync,
@@ -203,7 +201,6 @@ impl Presenter {
             slot.text.mapped_mut()[..n * 4].copy_from_slice(bytemuck::cast_slice(&text.chars[..n]));
             let rows = (n as u32 / text.columns).max(1);
             OverlayInputs {
-                pipeline: &self.overlay_pipeline,
                 glyphs: &self.glyphs,
                 text: &slot.text,
                 columns: text.columns,

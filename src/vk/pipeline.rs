@@ -45,6 +45,7 @@ pub struct PipelineLayout {
     pub set_layout: vk::DescriptorSetLayout,
     pub layout: vk::PipelineLayout,
     pub sampler: vk::Sampler,
+    /// Set 0's bindings, by binding number.
     pub bindings: Vec<(u32, DescriptorKind)>,
     ctx: Arc<GpuContext>,
 }
@@ -97,7 +98,9 @@ impl PipelineLayout {
                 info = info.push_constant_ranges(&ranges);
             }
             let layout = device.create_pipeline_layout(&info, None).vk("vkCreatePipelineLayout")?;
-            Ok(PipelineLayout { set_layout, layout, sampler, bindings: bindings.to_vec(), ctx: ctx.clone() })
+            let mut bindings = bindings.to_vec();
+            bindings.sort_by_key(|b| b.0);
+            Ok(PipelineLayout { set_layout, layout, sampler, bindings, ctx: ctx.clone() })
         }
     }
 

@@ -12,7 +12,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
-use super::{ComputePipeline, GpuContext, GpuResult, GraphicsPipeline};
+use super::{ComputePipeline, DescriptorKind, GpuContext, GpuResult, GraphicsPipeline};
 
 /// Where a pass gets its pipelines while it declares itself: the device, to make one, and the
 /// renderer's cache, to keep it.
@@ -23,23 +23,54 @@ pub struct PipelineSource<'a> {
 }
 
 impl<'a> PipelineSource<'a> {
-    /// The compute pipeline `key` names, made by `make` the first time.
+    /// The compute pipeline `key` names, made by `make` the first time with `layout`: the set
+    /// layout of the pass that asks (`crate::graph::layout_of` of its bindings). A pass that
+    /// binds otherwise than the pipeline was made for is a bug, caught here.
     pub fn compute(
         self,
         key: PipelineKey,
-        make: impl FnOnce(&Arc<GpuContext>) -> GpuResult<ComputePipeline>,
+        layout: &[(u32, DescriptorKind)],
+        make: impl FnOnce(&Arc<GpuContext>, &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline>,
     ) -> GpuResult<&'a ComputePipeline> {
-        self.cache.compute(key, || make(self.ctx))
+        let p = self.cache.compute(key, || make(self.ctx, layout))?;
+        same_layout(key, &p.layout.bindings, layout);
+        Ok(p)
     }
 
-    /// The graphics pipeline `key` names, made by `make` the first time.
+    /// The compute pipeline of a shader with one build: `name`'s, from `spirv`, with `layout`,
+    /// `push_bytes` of push constants and workgroups of `local_size`.
+    pub fn single(
+        self,
+        name: &'static str,
+        spirv: &'static [u8],
+        layout: &[(u32, DescriptorKind)],
+        push_bytes: u32,
+        local_size: [u32; 2],
+    ) -> GpuResult<&'a ComputePipeline> {
+        self.compute(PipelineKey::new(name, 0), layout, |ctx, layout| {
+            ComputePipeline::new(ctx, name, spirv, layout, push_bytes, local_size)
+        })
+    }
+
+    /// The graphics pipeline `key` names, made by `make` the first time with `layout`, as
+    /// `compute`.
     pub fn graphics(
         self,
         key: PipelineKey,
-        make: impl FnOnce(&Arc<GpuContext>) -> GpuResult<GraphicsPipeline>,
+        layout: &[(u32, DescriptorKind)],
+        make: impl FnOnce(&Arc<GpuContext>, &[(u32, DescriptorKind)]) -> GpuResult<GraphicsPipeline>,
     ) -> GpuResult<&'a GraphicsPipeline> {
-        self.cache.graphics(key, || make(self.ctx))
+        let p = self.cache.graphics(key, || make(self.ctx, layout))?;
+        same_layout(key, &p.layout.bindings, layout);
+        Ok(p)
     }
+}
+
+fn same_layout(key: PipelineKey, made: &[(u32, DescriptorKind)], asked: &[(u32, DescriptorKind)]) {
+    assert!(
+        made.len() == asked.len() && made.iter().zip(asked).all(|(a, b)| a == b),
+        "pipeline {key:?} was made with bindings {made:?}, a pass binds {asked:?}"
+    );
 }
 
 /// Which pipeline: its name (the shader and its layout) and its variant.

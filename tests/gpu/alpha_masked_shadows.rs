@@ -411,8 +411,7 @@ fn ray_query_reads_the_masks_too() {
         })
         .collect();
     let mut batch = TimedBatch::new(&ctx, &rays).unwrap();
-    let pipeline = ray_batch::ray_query_pipeline(&ctx, true).unwrap();
-    let (rq_hits, _) = batch.trace(&pipeline, &Target::RayQuery(&rq)).unwrap();
+    let (rq_hits, _) = batch.trace(&Target::RayQuery(&rq)).unwrap();
     let (mut differ, mut passed) = (0, 0);
     for (ray, &hit) in rays.iter().zip(&rq_hits) {
         let (o, d, t) = (ray.origin.truncate(), ray.dir.truncate(), ray.origin.w);

@@ -120,8 +120,10 @@ fn the_rect_layer_is_the_same_through_ray_query() {
     assert!(penumbra > 100, "{penumbra}");
     assert!(differing <= bound && shaded_differing <= bound, "{differing} {shaded_differing}");
     // Both backends' rect traces were made, each for its own frames.
-    for name in ["shadow trace (rect)", "shadow trace (rect, ray query)"] {
-        assert!(renderer.pipeline_cache().contains(PipelineKey::new(name, 0)), "{name}");
+    // (Bits: the compute walk's build, 0 here; 4 for the ray query's, `gpu::WalkBuild::bits`.)
+    for bits in [0, 4] {
+        let key = PipelineKey::new("shadow trace (rect)", bits);
+        assert!(renderer.pipeline_cache().contains(key), "{key:?}");
     }
     common::assert_clean(&ctx);
 }

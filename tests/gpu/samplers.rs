@@ -7,10 +7,14 @@ use umbra::vk::SamplerDesc;
 
 #[test]
 fn pipeline_layouts_share_one_sampler_per_description() {
+    use umbra::vk::bindings::*;
+    use umbra::vk::{spirv, ComputePipeline, DescriptorKind::*};
     let ctx = common::gpu();
-    let trace = umbra::shadows::traced::pipeline(&ctx, Default::default(), false).unwrap();
-    let again = umbra::shadows::traced::pipeline(&ctx, Default::default(), false).unwrap();
-    let resolve = umbra::shadows::map::resolve_pipeline(&ctx).unwrap();
+    let tonemap = [(DISPLAY_INPUT, SampledImage), (DISPLAY_OUTPUT, StorageImage)];
+    let trace = ComputePipeline::new(&ctx, "tonemap", spirv::TONEMAP_COMP, &tonemap, 32, [8, 8]).unwrap();
+    let again = ComputePipeline::new(&ctx, "tonemap", spirv::TONEMAP_COMP, &tonemap, 32, [8, 8]).unwrap();
+    let ao_view = [(AO_OUTPUT, SampledImage), (AO_VIEW_OUTPUT, StorageImage)];
+    let resolve = ComputePipeline::new(&ctx, "ao view", spirv::LIGHTING_AO_VIEW_COMP, &ao_view, 16, [8, 8]).unwrap();
     drop(resolve);
     assert_eq!(trace.layout.sampler, again.layout.sampler, "two layouts, one sampler");
     assert_eq!(ctx.samplers.len(), 1, "three layouts with sampled images made one sampler");

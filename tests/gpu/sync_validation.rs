@@ -14,7 +14,30 @@ use umbra::vk::Buffer;
 fn run(declare_the_read: bool) -> Vec<String> {
     let ctx = common::gpu();
     let bvh = ShadowBvh::from_triangles(&[[Vec3::ZERO, Vec3::X, Vec3::Y]]);
-    let pipeline = ray_batch::pipeline(&ctx, Default::default()).unwrap();
+    // The query pass's pipeline, made here so the faulty pass below can bind it by hand with
+    // the layout the graph would derive from the pass's bindings.
+    let layout = {
+        use umbra::vk::bindings::*;
+        use umbra::vk::DescriptorKind::*;
+        [
+            (RAYS_INPUT, UniformTexelBuffer),
+            (RAYS_OUTPUT, StorageBuffer),
+            (RAYS_BVH_NODES, UniformTexelBuffer),
+            (RAYS_BVH_TRIANGLES, UniformTexelBuffer),
+            (RAYS_BVH_ROOT, UniformBuffer),
+        ]
+    };
+    let pipelines = umbra::vk::PipelineCache::default();
+    let source = umbra::vk::PipelineSource { ctx: &ctx, cache: &pipelines };
+    let pipeline = umbra::vk::ComputePipeline::new(
+        &ctx,
+        "bvh rays (by hand)",
+        umbra::vk::spirv::BVH_RAYS_COMP_WALKS[0],
+        &layout,
+        16,
+        [64, 1],
+    )
+    .unwrap();
     let usage = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER | vk::BufferUsageFlags::TRANSFER_DST;
     let rays = Buffer::new(&ctx, "rays", 64 * 32, usage, MemoryLocation::GpuOnly).unwrap();
     let rays_view = umbra::vk::TexelView::new(&ctx, &rays, ray_batch::RAY_TEXEL_FORMAT).unwrap();
@@ -48,7 +71,7 @@ fn run(declare_the_read: bool) -> Vec<String> {
     });
     // Pass 2: the query reads the rays. The faulty variant binds them without declaring the read.
     let hits = if declare_the_read {
-        ray_batch::add(&mut g, &pipeline, (&ray_handle, rays_view.view), &walk, 64)
+        ray_batch::add(&mut g, source, (&ray_handle, rays_view.view), &walk, 64).unwrap()
     } else {
         let undeclared = rays_view.view;
         let mut hits = g.create_buffer("hits", 256);

@@ -17,9 +17,10 @@ fn served(light: u32) -> Served {
 }
 
 /// The trace over the compute BVH, hard and soft, in the cache's keys: the key's bits are the
-/// BVH walk's build (`BvhVariant::bits`, two bits), then soft.
+/// walk's build (`gpu::WalkBuild::bits`, three bits: the compute builds 0..=3, ray query 4, 5),
+/// then soft.
 const HARD: PipelineKey = PipelineKey::new("shadow trace", 0);
-const SOFT: PipelineKey = PipelineKey::new("shadow trace", 1 << 2);
+const SOFT: PipelineKey = PipelineKey::new("shadow trace", 1 << 3);
 
 #[test]
 fn hard_and_soft_lights_take_their_own_variant_made_only_when_needed() {

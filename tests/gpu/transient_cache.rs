@@ -36,12 +36,13 @@ fn a_frame_that_binds_more_sets_than_a_pool_holds_takes_more_pools_and_keeps_the
     // driver refuses a pool's 65th set (64 shadowed lights at 1080p did); lavapipe does not, so
     // the pools move on by count, on every driver alike.
     let ctx = common::gpu();
-    let pipeline = umbra::diagnostics::busy::pipeline(&ctx).unwrap();
+    let pipelines = umbra::vk::PipelineCache::default();
+    let source = umbra::vk::PipelineSource { ctx: &ctx, cache: &pipelines };
     let mut cache = TransientCache::new(&ctx).unwrap();
     for _ in 0..2 {
         let mut g = RenderGraph::new();
         for _ in 0..200 {
-            let out = umbra::diagnostics::busy::add(&mut g, &pipeline, 1);
+            let out = umbra::diagnostics::busy::add(&mut g, source, 1).unwrap();
             g.export(out, umbra::graph::Access::ComputeShaderReadStorageBuffer);
         }
         let plan = CompiledGraph::compile(&g);
@@ -50,5 +51,6 @@ fn a_frame_that_binds_more_sets_than_a_pool_holds_takes_more_pools_and_keeps_the
         assert_eq!(cache.descriptor_pool_count(), 4, "200 sets of 64 a pool");
     }
     drop(cache);
+    drop(pipelines);
     common::assert_clean(&ctx);
 }

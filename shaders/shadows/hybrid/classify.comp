@@ -16,7 +16,7 @@
 // for soft shadows of a light with a size any of its cap above the horizon (light_faces), else
 // its centre. Past the centre's horizon the map, seen from the centre, holds the receiver's own
 // surface in front of the point: such pixels are listed.
-#include "bindings.glsl"
+#include "shadows/hybrid/hybrid_bindings.glsl"
 #include "gbuffer.glsl"
 #include "lights.glsl"
 #define MAP_LAYERS_BINDING HYBRID_LAYERS

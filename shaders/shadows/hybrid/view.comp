@@ -4,7 +4,7 @@
 // grey (what the map decided, and what the rays found where it did not); then the listed pixels,
 // the ones rays were traced for, turn red-orange: (1, v, 0). Counting those is how the bench
 // and the tests measure the share of rays hybrid traces.
-#include "bindings.glsl"
+#include "shadows/hybrid/hybrid_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = HYBRID_VISIBILITY) uniform sampler2D visibility;

@@ -4,7 +4,7 @@
 // over the frame, as closeness to the light (white near, black at the far end and where nothing
 // was drawn). `cascades`: each surface pixel tinted by the cascade that shades it, darkened where
 // the light's visibility is 0.
-#include "bindings.glsl"
+#include "shadows/map/map_bindings.glsl"
 #define MAP_LAYERS_BINDING MAP_DEBUG_LAYERS
 #include "map_layers.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;

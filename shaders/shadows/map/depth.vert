@@ -3,7 +3,7 @@
 // Shadow map: casters' depth as seen from a light (reversed depth, like the camera), into one
 // layer per rendering pass (a spot or a sun: one; a point light's cube: six; cascades: one
 // each). Depth only: no fragment stage.
-#include "bindings.glsl"
+#include "shadows/map/map_bindings.glsl"
 #define MAP_LAYERS_BINDING MAP_DEPTH_LAYERS
 #include "map_layers.glsl"
 #include "instance.glsl"

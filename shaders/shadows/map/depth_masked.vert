@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 // Shadow map depth of alpha-masked casters (depth.vert, plus the texture coordinates the mask
 // is read at; depth_masked.frag discards where it is cut out).
-#include "bindings.glsl"
+#include "shadows/map/map_bindings.glsl"
 #define MAP_LAYERS_BINDING MAP_DEPTH_LAYERS
 #include "map_layers.glsl"
 #include "instance.glsl"

@@ -11,7 +11,7 @@
 // when it also lies above the point's tangent plane (Horizon); the hardware depth bias was
 // applied when the map was drawn. Where the light reaches at all is traced's soft test (light_faces: for a light
 // with a size, any of its cap above the horizon, which compose shades) and the cone.
-#include "bindings.glsl"
+#include "shadows/map/map_bindings.glsl"
 #include "gbuffer.glsl"
 #include "lights.glsl"
 #define MAP_LAYERS_BINDING MAP_LAYERS

@@ -1,7 +1,7 @@
 // `shadow_occluded` over the driver's own acceleration structure (VK_KHR_ray_query), for the
 // ray-query entry points (trace_rq.comp, rect_trace_rq.comp): the same rays, origins and
 // offsets as the compute BVH's, so the two backends can check each other.
-// Contract: before including, enable GL_EXT_ray_query, include bindings.glsl and, where
+// Contract: before including, enable GL_EXT_ray_query, include traced_bindings.glsl and, where
 // BVH_MASKED is defined, bvh_mask.glsl (in the stage file itself: build.rs makes the masked
 // variant of a stage file that includes it).
 #ifndef UMBRA_SHADOW_RAY_QUERY_GLSL

@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require
 // Rect lights' shadow rays over the CPU-built BVH, traversed in this shader (any device).
-#include "bindings.glsl"
+#include "shadows/traced/traced_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 #define BVH_SET 0

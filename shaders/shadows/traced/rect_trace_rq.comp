@@ -4,7 +4,7 @@
 #extension GL_KHR_shader_subgroup_basic : require
 // Rect lights' shadow rays over the driver's own acceleration structure (VK_KHR_ray_query):
 // the same rays as rect_trace.comp's.
-#include "bindings.glsl"
+#include "shadows/traced/traced_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 #ifdef BVH_MASKED

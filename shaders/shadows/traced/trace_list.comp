@@ -2,7 +2,7 @@
 #extension GL_GOOGLE_include_directive : require
 // Shadow trace over the CPU-built BVH for the pixels of a list only (`hybrid` traces where its
 // shadow map is unsure): the same rays as trace.comp, one invocation per listed pixel.
-#include "bindings.glsl"
+#include "shadows/traced/traced_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 #define BVH_SET 0

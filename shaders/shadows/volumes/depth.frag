@@ -3,7 +3,7 @@
 // The G-buffer's depth, copied texel for texel into the depth aspect of the volumes'
 // depth-stencil image (the pipeline tests ALWAYS and writes): the volumes are then tested
 // against exactly the depth the G-buffer's positions came from.
-#include "bindings.glsl"
+#include "shadows/volumes/volumes_bindings.glsl"
 
 layout(set = 0, binding = VOLUMES_DEPTH) uniform sampler2D gbuffer_depth;
 

@@ -4,7 +4,7 @@
 // Lit where the count is 0 and the light reaches the surface; the same facing and cone tests
 // as the traced pass decide where it reaches (0 where the surface faces away or lies outside a
 // spot's cone, 1 for background, which nothing shadows).
-#include "bindings.glsl"
+#include "shadows/volumes/volumes_bindings.glsl"
 #include "lights.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 

@@ -3,7 +3,7 @@
 // The `stencil:N` debug view: light N's shadow-volume count per pixel. 0 (lit) is black; 1, 2,
 // 3 and more are red, yellow, green, cyan; a count that wrapped below zero (a z-pass error with
 // the camera inside a volume, say) is magenta.
-#include "bindings.glsl"
+#include "shadows/volumes/volumes_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = VOLUMES_STENCIL) uniform usampler2D stencil_count;

@@ -25,12 +25,12 @@ use super::map::{self, LightMap, Mode};
 use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served};
 use crate::config::{CascadeParams, MapParams, ShadowChoice, ShadowMethod};
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::graph::{layout_of, Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::maths::Bounds;
-use crate::passes::{sampled, storage, storage_image, ROWS};
+use crate::passes::ROWS;
 use crate::scene::Light;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Capabilities, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey};
+use crate::vk::{spirv, Capabilities, GpuResult};
 
 /// The moments' format: four 32-bit floats (the positive warp's square reaches exp(2 c+)).
 const MOMENTS_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
@@ -182,7 +182,9 @@ fn add_light<'a>(
         (EVSM_MOMENTS_OUTPUT, Bound::Image(pass.write(&mut rows, Access::ComputeShaderWrite))),
         (EVSM_MOMENTS_LAYERS, Bound::Buffer(pass.read(&table, Access::ComputeShaderReadUniformBuffer))),
     ];
-    let pipeline = moments_pipeline(frame)?;
+    let size = std::mem::size_of::<FilterPush>() as u32;
+    let layout = layout_of(&bound);
+    let pipeline = frame.pipelines.single("evsm moments", spirv::SHADOWS_EVSM_MOMENTS_COMP, &layout, size, ROWS)?;
     pass.render(move |ctx| {
         for layer in 0..layers {
             let push = FilterPush { dims: UVec4::new(res, layer, e.blur, 0), exponents };
@@ -197,7 +199,7 @@ fn add_light<'a>(
         (EVSM_BLUR_SOURCE, Bound::Image(pass.read(&rows, Access::ComputeShaderReadStorageImage))),
         (EVSM_BLUR_OUTPUT, Bound::Image(pass.write(&mut filtered, Access::ComputeShaderWrite))),
     ];
-    let pipeline = blur_pipeline(frame)?;
+    let pipeline = frame.pipelines.single("evsm blur", spirv::SHADOWS_EVSM_BLUR_COMP, &layout_of(&bound), size, ROWS)?;
     pass.render(move |ctx| {
         for layer in 0..layers {
             let push = FilterPush { dims: UVec4::new(res, layer, e.blur, 0), exponents };
@@ -226,63 +228,12 @@ fn add_light<'a>(
         eye: frame.camera.eye.extend(0.0),
         forward: frame.camera.forward.extend(0.0),
     };
-    let pipeline = resolve_pipeline(frame)?;
+    // The resolve: each pixel's visibility from the light's filtered moments.
+    let size = std::mem::size_of::<ResolvePush>() as u32;
+    let layout = layout_of(&bound);
+    let pipeline = frame.pipelines.single("evsm resolve", spirv::SHADOWS_EVSM_RESOLVE_COMP, &layout, size, ROWS)?;
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     Ok(())
-}
-
-fn moments_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("evsm moments", 0), |ctx| {
-        ComputePipeline::new(
-            ctx,
-            "evsm moments",
-            spirv::SHADOWS_EVSM_MOMENTS_COMP,
-            &[
-                sampled(EVSM_MOMENTS_DEPTH),
-                storage_image(EVSM_MOMENTS_OUTPUT),
-                (EVSM_MOMENTS_LAYERS, DescriptorKind::UniformBuffer),
-            ],
-            std::mem::size_of::<FilterPush>() as u32,
-            ROWS,
-        )
-    })
-}
-
-fn blur_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("evsm blur", 0), |ctx| {
-        ComputePipeline::new(
-            ctx,
-            "evsm blur",
-            spirv::SHADOWS_EVSM_BLUR_COMP,
-            &[storage_image(EVSM_BLUR_SOURCE), storage_image(EVSM_BLUR_OUTPUT)],
-            std::mem::size_of::<FilterPush>() as u32,
-            ROWS,
-        )
-    })
-}
-
-/// The resolve: each pixel's visibility from the light's filtered moments.
-fn make_resolve(ctx: &std::sync::Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "evsm resolve",
-        spirv::SHADOWS_EVSM_RESOLVE_COMP,
-        &[
-            sampled(EVSM_POSITION),
-            sampled(EVSM_NORMAL),
-            storage(EVSM_LIGHTS),
-            sampled(EVSM_MOMENTS),
-            storage_image(EVSM_VISIBILITY),
-            (EVSM_LAYERS, DescriptorKind::UniformBuffer),
-            sampled(EVSM_SURFACE),
-        ],
-        std::mem::size_of::<ResolvePush>() as u32,
-        ROWS,
-    )
-}
-
-fn resolve_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("evsm resolve", 0), make_resolve)
 }
 
 /// The exponential warps of a depth `t` in [0, 1] (twin of `evsm_warp` in evsm.glsl).

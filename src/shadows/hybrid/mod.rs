@@ -12,6 +12,8 @@
 
 pub mod params;
 
+use std::sync::Arc;
+
 use glam::{UVec4, Vec4};
 
 pub use self::params::HybridParams;
@@ -21,11 +23,11 @@ use super::volumes::VolumeScene;
 use super::{traced, Casters, FrameInputs, Served, ViewAnswer, Walk};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
 use crate::gpu::SceneGpu;
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, TILE};
+use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::TILE;
 use crate::scene::Light;
 use crate::vk::bindings::*;
-use crate::vk::{spirv, Capabilities, ComputePipeline, GpuResult, PipelineKey};
+use crate::vk::{spirv, Capabilities, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey};
 
 /// Listed pixels per workgroup of the list-driven passes (`LIST_GROUP` in classify.comp).
 pub const LIST_GROUP: u32 = 64;
@@ -38,42 +40,15 @@ struct ClassifyPush {
     params: Vec4,
 }
 
-/// The classification of each pixel by the light's coarse map, from the cache.
-fn classify_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("hybrid classify", 0), |ctx| {
-        ComputePipeline::new(
-            ctx,
-            "hybrid classify",
-            spirv::SHADOWS_HYBRID_CLASSIFY_COMP,
-            &[
-                sampled(HYBRID_POSITION),
-                sampled(HYBRID_NORMAL),
-                storage(HYBRID_LIGHTS),
-                sampled(HYBRID_DEPTH),
-                storage_image(HYBRID_VISIBILITY),
-                (HYBRID_LAYERS, crate::vk::DescriptorKind::UniformBuffer),
-                sampled(HYBRID_SURFACE),
-                storage(HYBRID_LIST),
-                storage(HYBRID_ARGS),
-            ],
-            std::mem::size_of::<ClassifyPush>() as u32,
-            TILE,
-        )
-    })
+/// The classification of each pixel by the light's coarse map.
+fn classify_pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    let push = std::mem::size_of::<ClassifyPush>() as u32;
+    ComputePipeline::new(ctx, "hybrid classify", spirv::SHADOWS_HYBRID_CLASSIFY_COMP, layout, push, TILE)
 }
 
-/// The `hybrid:N` debug view, from the cache.
-fn view_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("hybrid view", 0), |ctx| {
-        ComputePipeline::new(
-            ctx,
-            "hybrid view",
-            spirv::SHADOWS_HYBRID_VIEW_COMP,
-            &[sampled(HYBRID_VISIBILITY), storage(HYBRID_LIST), storage_image(HYBRID_VIEW_OUTPUT)],
-            16,
-            TILE,
-        )
-    })
+/// The `hybrid:N` debug view.
+fn view_pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    ComputePipeline::new(ctx, "hybrid view", spirv::SHADOWS_HYBRID_VIEW_COMP, layout, 16, TILE)
 }
 
 /// Whether `hybrid` can serve `light`: every kind (spot and sun: one map; point: a cube) that
@@ -249,7 +224,8 @@ fn classify<'a>(
         map: UVec4::new(map.is_some() as u32, drawn.mode as u32, h.radius, sized as u32),
         params: Vec4::new(h.margin, h.max_radius as f32, 0.0, 0.0),
     };
-    let classify = classify_pipeline(frame)?;
+    let key = PipelineKey::new("hybrid classify", 0);
+    let classify = frame.pipelines.compute(key, &layout_of(&bound), classify_pipeline)?;
     pass.render(move |ctx| ctx.dispatch(classify, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     Ok((list, args))
 }
@@ -286,7 +262,7 @@ fn trace<'a>(
     let light = &frame.scene.local_lights[served.light as usize];
     let rays = traced::rays(served, light);
     let push = traced::push_constants(extent, frame.frame_index, frame.camera.eye, served, rays);
-    let pipeline = traced::list_trace_pipeline(frame, LIST_GROUP, rays)?;
+    let pipeline = traced::list_trace_pipeline(frame, LIST_GROUP, rays, &layout_of(&bound))?;
     pass.render(move |ctx| ctx.dispatch_indirect(pipeline, &bound, bytemuck::bytes_of(&push), dispatch));
     Ok(())
 }
@@ -301,7 +277,6 @@ fn add_view<'a>(
     target: &Handle<ImageKind>,
 ) -> GpuResult<Handle<ImageKind>> {
     let extent = frame.extent;
-    let view = view_pipeline(frame)?;
     let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
     let mut out = graph.create_image("debug view", desc);
     for listed in [false, true] {
@@ -319,6 +294,7 @@ fn add_view<'a>(
             (HYBRID_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
         ];
         let push = UVec4::new(extent.width, extent.height, served.layer, listed as u32);
+        let view = frame.pipelines.compute(PipelineKey::new("hybrid view", 0), &layout_of(&bound), view_pipeline)?;
         if listed {
             let dispatch = pass.read(args, Access::IndirectCommandRead);
             pass.render(move |ctx| ctx.dispatch_indirect(view, &bound, bytemuck::bytes_of(&push), dispatch));

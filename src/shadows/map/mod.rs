@@ -22,8 +22,8 @@ use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served, ViewAnswer};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
 use crate::gpu::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
-use crate::graph::{Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, DEPTH_FORMAT, ROWS};
+use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::{DEPTH_FORMAT, ROWS};
 use crate::scene::Light;
 use crate::vk::bindings::*;
 use crate::vk::{
@@ -132,41 +132,15 @@ struct ResolvePush {
 }
 
 /// The resolve: each pixel's visibility from the light's map (PCF or PCSS), into its layer.
-pub fn resolve_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "shadow map resolve",
-        spirv::SHADOWS_MAP_RESOLVE_COMP,
-        &[
-            sampled(MAP_POSITION),
-            sampled(MAP_NORMAL),
-            storage(MAP_LIGHTS),
-            sampled(MAP_DEPTH),
-            storage_image(MAP_VISIBILITY),
-            (MAP_LAYERS, DescriptorKind::UniformBuffer),
-            sampled(MAP_SURFACE),
-        ],
-        std::mem::size_of::<ResolvePush>() as u32,
-        ROWS,
-    )
+fn resolve_pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    let push = std::mem::size_of::<ResolvePush>() as u32;
+    ComputePipeline::new(ctx, "shadow map resolve", spirv::SHADOWS_MAP_RESOLVE_COMP, layout, push, ROWS)
 }
 
 /// The `shadow-map` and `cascades` debug views.
-fn debug_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
-    ComputePipeline::new(
-        ctx,
-        "shadow map view",
-        spirv::SHADOWS_MAP_DEBUG_COMP,
-        &[
-            sampled(MAP_DEBUG_DEPTH),
-            storage_image(MAP_DEBUG_OUTPUT),
-            sampled(MAP_DEBUG_POSITION),
-            sampled(MAP_DEBUG_VISIBILITY),
-            (MAP_DEBUG_LAYERS, DescriptorKind::UniformBuffer),
-        ],
-        std::mem::size_of::<DebugPush>() as u32,
-        ROWS,
-    )
+fn debug_pipeline(ctx: &Arc<GpuContext>, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    let push = std::mem::size_of::<DebugPush>() as u32;
+    ComputePipeline::new(ctx, "shadow map view", spirv::SHADOWS_MAP_DEBUG_COMP, layout, push, ROWS)
 }
 
 /// The depth pipeline, drawing any one layer (`LayerPush` says which), from the cache.
@@ -178,9 +152,12 @@ fn debug_pipeline(ctx: &Arc<GpuContext>) -> GpuResult<ComputePipeline> {
 /// pass would draw each caster once; but llvmpipe (measured on Mesa 25.0.7) sends every
 /// primitive it has to clip to view 0, so a floor larger than a cube face lands in the wrong
 /// face; and one pass per layer culls draws per layer.)
-fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipeline> {
-    frame.pipelines.graphics(PipelineKey::new("shadow map", 0), |ctx| {
-        let desc = depth_desc("shadow map", spirv::SHADOWS_MAP_DEPTH_VERT, None);
+fn depth_pipeline<'a>(
+    frame: &FrameInputs<'_, 'a>,
+    layout: &[(u32, DescriptorKind)],
+) -> GpuResult<&'a GraphicsPipeline> {
+    frame.pipelines.graphics(PipelineKey::new("shadow map", 0), layout, |ctx, layout| {
+        let desc = depth_desc("shadow map", spirv::SHADOWS_MAP_DEPTH_VERT, None, layout);
         let instance = Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..]));
         GraphicsPipeline::with_extras(ctx, &desc, &GraphicsExtras { instance, ..Default::default() })
     })
@@ -189,13 +166,17 @@ fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipe
 /// The depth pipeline for alpha-masked casters (texture coordinates, the material's set 1),
 /// with the scene's material set layout (one scene per renderer, so one per cache), from the
 /// cache.
-fn masked_depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a GraphicsPipeline> {
+fn masked_depth_pipeline<'a>(
+    frame: &FrameInputs<'_, 'a>,
+    layout: &[(u32, DescriptorKind)],
+) -> GpuResult<&'a GraphicsPipeline> {
     let materials = frame.scene.materials.as_ref().expect("alpha-masked casters have material sets");
-    frame.pipelines.graphics(PipelineKey::new("shadow map (alpha-masked)", 0), |ctx| {
+    frame.pipelines.graphics(PipelineKey::new("shadow map (alpha-masked)", 0), layout, |ctx, layout| {
         let desc = depth_desc(
             "shadow map (alpha-masked)",
             spirv::SHADOWS_MAP_DEPTH_MASKED_VERT,
             Some(spirv::SHADOWS_MAP_DEPTH_MASKED_FRAG),
+            layout,
         );
         let extras = GraphicsExtras {
             instance: Some((std::mem::size_of::<InstanceRows>() as u32, &INSTANCE_ATTRIBUTES[..])),
@@ -209,12 +190,13 @@ fn masked_depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a Graph
 
 /// A shadow map's depth pipeline: positions only, depth with a dynamic bias, both faces (thin
 /// and open casters shadow from either side, as traced rays see them), the layers' matrices at
-/// `MAP_DEPTH_LAYERS`; `fragment` for the alpha-masked variant.
-fn depth_desc(
+/// `MAP_DEPTH_LAYERS` (in `layout`); `fragment` for the alpha-masked variant.
+fn depth_desc<'a>(
     name: &'static str,
     vertex: &'static [u8],
     fragment: Option<&'static [u8]>,
-) -> GraphicsPipelineDesc<'static> {
+    layout: &'a [(u32, DescriptorKind)],
+) -> GraphicsPipelineDesc<'a> {
     GraphicsPipelineDesc {
         name,
         vertex,
@@ -223,7 +205,7 @@ fn depth_desc(
         attributes: &[(0, vk::Format::R32G32B32_SFLOAT, 0)],
         color_formats: &[],
         depth_format: Some(DEPTH_FORMAT),
-        bindings: &[(MAP_DEPTH_LAYERS, DescriptorKind::UniformBuffer)],
+        bindings: layout,
         push_bytes: std::mem::size_of::<LayerPush>() as u32,
         cull_back_faces: false,
         dynamic_depth_bias: true,
@@ -448,12 +430,6 @@ pub fn add_depth<'a>(
 ) -> GpuResult<(Handle<ImageKind>, Handle<BufferKind>)> {
     assert!((1..=MAX_LAYERS).contains(&map.layers.len()), "1..={MAX_LAYERS} layers");
     let scene = frame.scene;
-    let pipeline = depth_pipeline(frame)?;
-    // Alpha-masked casters draw with the masked pipeline, made for scenes that have them.
-    let masked_pipeline = match scene.materials.as_ref().is_some_and(|m| m.masked) {
-        true => Some(masked_depth_pipeline(frame)?),
-        false => None,
-    };
     let res = map.params.resolution;
     let count = map.layers.len();
     let table = add_layer_table(graph, map);
@@ -472,6 +448,13 @@ pub fn add_depth<'a>(
     let vb = pass.read(frame.vertices, Access::VertexBuffer);
     let ib = pass.read(frame.indices, Access::IndexBuffer);
     let layers_read = pass.read(&table, Access::VertexShaderReadUniformBuffer);
+    let bound = [(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))];
+    let pipeline = depth_pipeline(frame, &layout_of(&bound))?;
+    // Alpha-masked casters draw with the masked pipeline, made for scenes that have them.
+    let masked_pipeline = match scene.materials.as_ref().is_some_and(|m| m.masked) {
+        true => Some(masked_depth_pipeline(frame, &layout_of(&bound))?),
+        false => None,
+    };
     let depth: Vec<_> =
         (0..count as u32).map(|k| pass.write_layer(&mut depth_image, k, Access::DepthAttachmentWrite)).collect();
     let params = map.params;
@@ -485,11 +468,7 @@ pub fn add_depth<'a>(
                 .store_op(vk::AttachmentStoreOp::STORE)
                 .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
             ctx.begin_rendering(vk::Extent2D { width: res, height: res }, &[], Some(&attachment), None);
-            ctx.bind_set(
-                vk::PipelineBindPoint::GRAPHICS,
-                &pipeline.layout,
-                &[(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))],
-            )?;
+            ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &pipeline.layout, &bound)?;
             let d = ctx.device;
             // SAFETY: recording state; every object is resolved for this frame and outlives it.
             unsafe {
@@ -520,11 +499,7 @@ pub fn add_depth<'a>(
                         true => masked_pipeline.expect("made for scenes with alpha-masked casters"),
                         false => pipeline,
                     };
-                    ctx.bind_set(
-                        vk::PipelineBindPoint::GRAPHICS,
-                        &used.layout,
-                        &[(MAP_DEPTH_LAYERS, Bound::Buffer(layers_read))],
-                    )?;
+                    ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &used.layout, &bound)?;
                     // SAFETY: recording state, inside the rendering begun above.
                     unsafe {
                         d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, used.pipeline);
@@ -593,7 +568,8 @@ pub fn add_light<'a>(
         eye: frame.camera.eye.extend(0.0),
         forward: forward.extend(0.0),
     };
-    let resolve = frame.pipelines.compute(PipelineKey::new("shadow map resolve", 0), resolve_pipeline)?;
+    let key = PipelineKey::new("shadow map resolve", 0);
+    let resolve = frame.pipelines.compute(key, &layout_of(&bound), resolve_pipeline)?;
     pass.render(move |ctx| ctx.dispatch(resolve, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     add_debug_view(graph, frame, map, &depth_image, &table, visibility)
 }
@@ -632,7 +608,8 @@ fn add_debug_view<'a>(
         eye: frame.camera.eye.extend(0.0),
         forward: frame.camera.forward.extend(0.0),
     };
-    let pipeline = frame.pipelines.compute(PipelineKey::new("shadow map view", 0), debug_pipeline)?;
+    let key = PipelineKey::new("shadow map view", 0);
+    let pipeline = frame.pipelines.compute(key, &layout_of(&bound), debug_pipeline)?;
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     Ok(Some(out))
 }

@@ -17,13 +17,13 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 
-use crate::gpu::accel::RayQuerySlots;
 use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served, Walk};
 use crate::config::{ShadowChoice, ShadowMethod};
-use crate::gpu::{BvhSlots, BvhVariant, CasterSlots};
-use crate::graph::{Access, Bound, Handle, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, TILE};
+use crate::gpu::accel::RayQuerySlots;
+use crate::gpu::{BvhSlots, BvhVariant, CasterSlots, WalkBuild};
+use crate::graph::{layout_of, Access, Bound, Handle, ImageKind, RenderGraph};
+use crate::passes::TILE;
 use crate::scene::Light;
 use crate::vk::bindings::*;
 use crate::vk::{spirv, Capabilities, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey};
@@ -97,50 +97,36 @@ impl super::Technique for Traced {
     }
 }
 
-/// The trace pipeline `rays` take, over the compute BVH or, where the frame has them, the
-/// driver's structures (alpha-masked variants where the casters have masks), from the cache.
-fn trace_pipeline<'a>(frame: &FrameInputs<'_, 'a>, rays: Rays) -> GpuResult<&'a ComputePipeline> {
+/// The trace pipeline `rays` take over what `walk` says (the compute BVH in its build, or the
+/// driver's structures), with `layout` (the pass's bindings), from the cache.
+fn trace_pipeline<'a>(
+    frame: &FrameInputs<'_, 'a>,
+    walk: WalkBuild,
+    rays: Rays,
+    layout: &[(u32, DescriptorKind)],
+) -> GpuResult<&'a ComputePipeline> {
     let soft = is_soft(rays);
-    match frame.ray_query {
-        Some(rq) => {
-            let masked = rq.masked();
-            let key = PipelineKey::new("shadow trace (ray query)", variant_bits(masked, soft));
-            frame.pipelines.compute(key, |ctx| ray_query_pipeline(ctx, masked, soft))
-        }
-        None => {
-            let variant = frame.scene.bvh.variant();
-            let key = PipelineKey::new("shadow trace", variant.bits() | (soft as u32) << 2);
-            frame.pipelines.compute(key, |ctx| pipeline(ctx, variant, soft))
-        }
-    }
+    let key = PipelineKey::new("shadow trace", walk.bits() | (soft as u32) << 3);
+    frame.pipelines.compute(key, layout, |ctx, layout| pipeline(ctx, walk, soft, layout))
 }
 
-/// The list trace `hybrid` runs over the pixels its map is unsure of (`list_pipeline`), from
-/// the cache.
+/// The list trace `hybrid` runs over the pixels its map is unsure of (`list_pipeline`), with
+/// `layout` (the pass's bindings), from the cache.
 pub fn list_trace_pipeline<'a>(
     frame: &FrameInputs<'_, 'a>,
     list_group: u32,
     rays: Rays,
+    layout: &[(u32, DescriptorKind)],
 ) -> GpuResult<&'a ComputePipeline> {
     let (variant, soft) = (frame.scene.bvh.variant(), is_soft(rays));
     let key = PipelineKey::new("shadow trace (list)", variant.bits() | (soft as u32) << 2 | list_group << 3);
-    frame.pipelines.compute(key, |ctx| list_pipeline(ctx, list_group, variant, soft))
-}
-
-/// A trace variant's bits in its cache key.
-fn variant_bits(masked: bool, soft: bool) -> u32 {
-    masked as u32 | (soft as u32) << 1
+    frame.pipelines.compute(key, layout, |ctx, layout| list_pipeline(ctx, list_group, variant, soft, layout))
 }
 
 /// Whether `rays` take the soft variant (TRACE_SOFT); hard rays and none (the facing test) take
 /// the hard one.
 pub fn is_soft(rays: Rays) -> bool {
     matches!(rays, Rays::Soft(_))
-}
-
-/// A variant's name among `names`: plain, alpha masks, soft, soft with alpha masks.
-fn variant_name(names: [&'static str; 4], masked: bool, soft: bool) -> &'static str {
-    names[masked as usize + 2 * soft as usize]
 }
 
 /// Where trace.comp and trace_list.comp bind the BVH.
@@ -151,54 +137,69 @@ pub const BVH_SLOTS: BvhSlots = BvhSlots {
     masks: SHADOW_BVH_MASKS,
 };
 
-/// Where the trace shaders bind the casters: the compute walk's slots, or the driver's.
-pub const CASTER_SLOTS: CasterSlots = CasterSlots { bvh: BVH_SLOTS, ray_query: Some(RAY_QUERY_SLOTS) };
+/// Where the trace shaders bind the casters: the compute walk's slots, or the driver's
+/// (trace_rq.comp).
+pub const CASTER_SLOTS: CasterSlots = CasterSlots {
+    bvh: BVH_SLOTS,
+    ray_query: Some(RayQuerySlots { tlas: SHADOW_TLAS, masks: SHADOW_BVH_MASKS }),
+};
 
 /// Where trace_list.comp binds them: it walks the compute BVH only.
 pub const LIST_CASTER_SLOTS: CasterSlots = CasterSlots { bvh: BVH_SLOTS, ray_query: None };
 
-/// The compute-BVH trace's bindings (trace.comp and trace_list.comp) but the BVH's.
-const BVH_BINDINGS: [(u32, DescriptorKind); 6] = [
-    (SHADOW_POSITION, DescriptorKind::SampledImage),
-    (SHADOW_NORMAL, DescriptorKind::SampledImage),
-    (SHADOW_SURFACE, DescriptorKind::SampledImage),
-    (SHADOW_MATERIAL, DescriptorKind::SampledImage),
-    (SHADOW_LIGHTS, DescriptorKind::StorageBuffer),
-    (SHADOW_VISIBILITY, DescriptorKind::StorageImage),
-];
-
-/// Where trace_rq.comp binds the structures.
-const RAY_QUERY_SLOTS: RayQuerySlots = RayQuerySlots { tlas: SHADOW_TLAS, masks: SHADOW_BVH_MASKS };
-
-/// The trace over the compute BVH; `variant`: the build for the scene's casters (bvh.glsl's
-/// BVH_MASKED for alpha-masked casters, BVH_INSTANCED for two levels); `soft`: soft lights'
-/// variant.
-pub fn pipeline(ctx: &Arc<GpuContext>, variant: BvhVariant, soft: bool) -> GpuResult<ComputePipeline> {
-    let names = if soft {
-        [
-            "shadow trace (soft)",
-            "shadow trace (soft, alpha masks)",
-            "shadow trace (soft, two levels)",
-            "shadow trace (soft, alpha masks, two levels)",
-        ]
-    } else {
-        ["shadow trace", "shadow trace (alpha masks)", "shadow trace (two levels)", "shadow trace (alpha masks, two levels)"]
+/// The trace over what `walk` says: the compute BVH in its build (bvh.glsl's BVH_MASKED for
+/// alpha-masked casters, BVH_INSTANCED for two levels), or the driver's top-level structure
+/// (only on devices with ray query; the masked build tests alpha-masked casters' candidates
+/// against their masks); `soft`: soft lights' variant.
+fn pipeline(
+    ctx: &Arc<GpuContext>,
+    walk: WalkBuild,
+    soft: bool,
+    layout: &[(u32, DescriptorKind)],
+) -> GpuResult<ComputePipeline> {
+    let (name, spirv) = match walk {
+        WalkBuild::Compute(variant) => {
+            let names = if soft {
+                [
+                    "shadow trace (soft)",
+                    "shadow trace (soft, alpha masks)",
+                    "shadow trace (soft, two levels)",
+                    "shadow trace (soft, alpha masks, two levels)",
+                ]
+            } else {
+                [
+                    "shadow trace",
+                    "shadow trace (alpha masks)",
+                    "shadow trace (two levels)",
+                    "shadow trace (alpha masks, two levels)",
+                ]
+            };
+            (variant.name(names), variant.spirv(spirv::SHADOWS_TRACED_TRACE_COMP_WALKS))
+        }
+        WalkBuild::RayQuery { masked } => {
+            let names = [
+                "shadow trace (ray query)",
+                "shadow trace (ray query, alpha masks)",
+                "shadow trace (ray query, soft)",
+                "shadow trace (ray query, soft, alpha masks)",
+            ];
+            let spirv =
+                if masked { spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_RQ_COMP };
+            (names[masked as usize + 2 * soft as usize], spirv)
+        }
     };
-    let spirv = variant.spirv(spirv::SHADOWS_TRACED_TRACE_COMP_WALKS);
-    let bindings = BVH_SLOTS.with(&BVH_BINDINGS, variant);
-    ComputePipeline::specialized(ctx, variant.name(names), spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
+    ComputePipeline::specialized(ctx, name, spirv, layout, PUSH_SIZE, TILE, &[soft as u32])
 }
 
 /// The same rays over the compute BVH for the pixels of a list only (`hybrid`), one
 /// invocation per listed pixel, `list_group` to a workgroup (an indirect dispatch).
-pub fn list_pipeline(
+fn list_pipeline(
     ctx: &Arc<GpuContext>,
     list_group: u32,
     variant: BvhVariant,
     soft: bool,
+    layout: &[(u32, DescriptorKind)],
 ) -> GpuResult<ComputePipeline> {
-    let mut bindings = BVH_SLOTS.with(&BVH_BINDINGS, variant);
-    bindings.push((SHADOW_LIST, DescriptorKind::StorageBuffer));
     let names = if soft {
         [
             "shadow trace (list, soft)",
@@ -215,30 +216,7 @@ pub fn list_pipeline(
         ]
     };
     let spirv = variant.spirv(spirv::SHADOWS_TRACED_TRACE_LIST_COMP_WALKS);
-    ComputePipeline::specialized(ctx, variant.name(names), spirv, &bindings, PUSH_SIZE, [list_group, 1], &[soft as u32])
-}
-
-/// The same pass over a top-level acceleration structure; only on devices with ray query.
-/// `masked`: the variant that tests alpha-masked casters' candidates against their masks.
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool, soft: bool) -> GpuResult<ComputePipeline> {
-    let bindings = [
-        sampled(SHADOW_POSITION),
-        sampled(SHADOW_NORMAL),
-        sampled(SHADOW_SURFACE),
-        sampled(SHADOW_MATERIAL),
-        storage(SHADOW_LIGHTS),
-        storage_image(SHADOW_VISIBILITY),
-    ];
-    let names = [
-        "shadow trace (ray query)",
-        "shadow trace (ray query, alpha masks)",
-        "shadow trace (ray query, soft)",
-        "shadow trace (ray query, soft, alpha masks)",
-    ];
-    let spirv = if masked { spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_RQ_COMP };
-    let name = variant_name(names, masked, soft);
-    let bindings = RAY_QUERY_SLOTS.with(&bindings, masked);
-    ComputePipeline::specialized(ctx, name, spirv, &bindings, PUSH_SIZE, TILE, &[soft as u32])
+    ComputePipeline::specialized(ctx, variant.name(names), spirv, layout, PUSH_SIZE, [list_group, 1], &[soft as u32])
 }
 
 /// The rays a light gets in one frame.
@@ -284,17 +262,20 @@ fn add<'a>(
         (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
     ];
     bound.extend(casters.bind(&mut pass, &CASTER_SLOTS));
+    let walk = casters.walk(&CASTER_SLOTS);
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.
     let mut work: Vec<(&ComputePipeline, Push, Bound, [u32; 2])> = Vec::new();
     for s in served {
         let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
         let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
+        let layout = layout_of(&[bound.as_slice(), &[(SHADOW_VISIBILITY, layer)]].concat());
+        let pipeline = trace_pipeline(frame, walk, rays, &layout)?;
         let push = push_constants(extent, frame.frame_index, frame.camera.eye, s, rays);
         for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
             let mut push = push;
             push.frame.w = x | y << 16;
-            work.push((trace_pipeline(frame, rays)?, push, layer, [w, h]));
+            work.push((pipeline, push, layer, [w, h]));
         }
     }
     pass.render(move |ctx| {

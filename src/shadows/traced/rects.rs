@@ -11,13 +11,13 @@ use std::sync::Arc;
 
 use glam::{UVec4, Vec4};
 
-use super::{variant_bits, Casters, FrameInputs, Served, BVH_SLOTS, CASTER_SLOTS, RAY_QUERY_SLOTS};
-use crate::gpu::BvhVariant;
-use crate::graph::{Access, Bound, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, TILE};
+use super::{Casters, FrameInputs, Served, CASTER_SLOTS};
+use crate::gpu::WalkBuild;
+use crate::graph::{layout_of, Access, Bound, RenderGraph};
+use crate::passes::TILE;
 use crate::shadows::{rect_index, Targets};
 use crate::vk::bindings::*;
-use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, PipelineKey};
+use crate::vk::{spirv, ComputePipeline, DescriptorKind, GpuContext, GpuResult, PipelineKey};
 
 /// rect_body.glsl's push constants.
 #[repr(C)]
@@ -33,57 +33,26 @@ struct Push {
 
 const PUSH_SIZE: u32 = std::mem::size_of::<Push>() as u32;
 
-/// The rect trace's bindings but the casters'.
-fn bindings() -> Vec<(u32, crate::vk::DescriptorKind)> {
-    vec![
-        sampled(SHADOW_POSITION),
-        sampled(SHADOW_NORMAL),
-        (SHADOW_SURFACE, crate::vk::DescriptorKind::SampledImage),
-        sampled(SHADOW_MATERIAL),
-        storage(SHADOW_RECTS),
-        storage_image(SHADOW_VISIBILITY),
-        storage_image(SHADOW_RECT_RATIO),
-    ]
-}
-
-/// The rect trace over the compute BVH; `variant`: the build for the scene's casters (alpha
-/// masks, two levels).
-pub fn pipeline(ctx: &Arc<GpuContext>, variant: BvhVariant) -> GpuResult<ComputePipeline> {
-    let spirv = variant.spirv(spirv::SHADOWS_TRACED_RECT_TRACE_COMP_WALKS);
-    let names = [
-        "shadow trace (rect)",
-        "shadow trace (rect, alpha masks)",
-        "shadow trace (rect, two levels)",
-        "shadow trace (rect, alpha masks, two levels)",
-    ];
-    ComputePipeline::new(ctx, variant.name(names), spirv, &BVH_SLOTS.with(&bindings(), variant), PUSH_SIZE, TILE)
-}
-
-/// The same rays through the driver's acceleration structures (devices with ray query only).
-pub fn ray_query_pipeline(ctx: &Arc<GpuContext>, masked: bool) -> GpuResult<ComputePipeline> {
-    let spirv = if masked {
-        spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP_MASKED
-    } else {
-        spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP
+/// The rect trace over what `walk` says: the compute BVH in its build for the scene's casters
+/// (alpha masks, two levels), or the driver's acceleration structures (devices with ray query
+/// only).
+fn pipeline(ctx: &Arc<GpuContext>, walk: WalkBuild, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
+    let (name, spirv) = match walk {
+        WalkBuild::Compute(variant) => {
+            let names = [
+                "shadow trace (rect)",
+                "shadow trace (rect, alpha masks)",
+                "shadow trace (rect, two levels)",
+                "shadow trace (rect, alpha masks, two levels)",
+            ];
+            (variant.name(names), variant.spirv(spirv::SHADOWS_TRACED_RECT_TRACE_COMP_WALKS))
+        }
+        WalkBuild::RayQuery { masked: false } => ("shadow trace (rect, ray query)", spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP),
+        WalkBuild::RayQuery { masked: true } => {
+            ("shadow trace (rect, ray query, alpha masks)", spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP_MASKED)
+        }
     };
-    let name = if masked { "shadow trace (rect, ray query, alpha masks)" } else { "shadow trace (rect, ray query)" };
-    ComputePipeline::new(ctx, name, spirv, &RAY_QUERY_SLOTS.with(&bindings(), masked), PUSH_SIZE, TILE)
-}
-
-/// The rect trace the frame's rays take, from the cache.
-fn trace_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    match frame.ray_query {
-        Some(rq) => {
-            let masked = rq.masked();
-            let key = PipelineKey::new("shadow trace (rect, ray query)", variant_bits(masked, false));
-            frame.pipelines.compute(key, |ctx| ray_query_pipeline(ctx, masked))
-        }
-        None => {
-            let variant = frame.scene.bvh.variant();
-            let key = PipelineKey::new("shadow trace (rect)", variant.bits());
-            frame.pipelines.compute(key, |ctx| pipeline(ctx, variant))
-        }
-    }
+    ComputePipeline::new(ctx, name, spirv, layout, PUSH_SIZE, TILE)
 }
 
 /// Rays per pixel of rect `served`: its scene file's `spp`, none where its shadows are off
@@ -122,14 +91,15 @@ pub fn add<'a>(
         (SHADOW_RECTS, Bound::Buffer(pass.read(&rect_buffer, Access::ComputeShaderReadStorageBuffer))),
     ];
     bound.extend(casters.bind(&mut pass, &CASTER_SLOTS));
-    let pipeline = trace_pipeline(frame)?;
     // One dispatch per rect and tile, each binding the rect's own layers.
     let mut work: Vec<(Push, Bound, Bound, [u32; 2])> = Vec::new();
+    let mut layout = Vec::new();
     for s in served {
         let rect = rect_index(frame.scene, s.light).expect("a rect light") as u32;
         let spp = rays(s, frame);
         let layer = Bound::Image(pass.write_layer(&mut targets.visibility, s.layer, Access::ComputeShaderWrite));
         let ratio = Bound::Image(pass.write_layer(ratios, s.layer - first_rect_layer, Access::ComputeShaderWrite));
+        layout = layout_of(&[bound.as_slice(), &[(SHADOW_VISIBILITY, layer), (SHADOW_RECT_RATIO, ratio)]].concat());
         for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, spp) {
             let push = Push {
                 dims: UVec4::new(extent.width, extent.height, rect, spp),
@@ -139,6 +109,9 @@ pub fn add<'a>(
             work.push((push, layer, ratio, [w, h]));
         }
     }
+    let walk = casters.walk(&CASTER_SLOTS);
+    let key = PipelineKey::new("shadow trace (rect)", walk.bits());
+    let pipeline = frame.pipelines.compute(key, &layout, |ctx, layout| pipeline(ctx, walk, layout))?;
     pass.render(move |ctx| {
         let mut bound = bound;
         for (push, layer, ratio, [w, h]) in &work {

@@ -39,12 +39,12 @@ pub use self::params::VolumeParams;
 use super::{Casters as FrameCasters, FrameInputs, Served, ViewAnswer};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
 use crate::gpu::{upload, SceneGpu, SCENE_ACCESS};
-use crate::graph::{Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
-use crate::passes::{sampled, storage, storage_image, ROWS};
+use crate::graph::{layout_of, Access, Bound, Handle, ImageDesc, ImageKind, RenderGraph};
+use crate::passes::ROWS;
 use crate::scene::{Light, Scene};
 use crate::vk::bindings::*;
 use crate::vk::{
-    spirv, Buffer, Capabilities, ComputePipeline, DepthState, GpuContext, GpuError, GpuResult, GraphicsExtras,
+    spirv, Buffer, Capabilities, DepthState, DescriptorKind, GpuContext, GpuError, GpuResult, GraphicsExtras,
     GraphicsPipeline, GraphicsPipelineDesc, PipelineKey, StencilState,
 };
 
@@ -176,8 +176,13 @@ struct ExtrudePush {
 }
 
 /// The copy of the G-buffer's depth into the depth-stencil image, from the cache.
-fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>, format: vk::Format) -> GpuResult<&'a GraphicsPipeline> {
-    frame.pipelines.graphics(PipelineKey::new("shadow volumes depth", format.as_raw() as u32), |ctx| {
+fn depth_pipeline<'a>(
+    frame: &FrameInputs<'_, 'a>,
+    format: vk::Format,
+    layout: &[(u32, DescriptorKind)],
+) -> GpuResult<&'a GraphicsPipeline> {
+    let key = PipelineKey::new("shadow volumes depth", format.as_raw() as u32);
+    frame.pipelines.graphics(key, layout, |ctx, layout| {
         GraphicsPipeline::with_extras(
             ctx,
             &GraphicsPipelineDesc {
@@ -188,7 +193,7 @@ fn depth_pipeline<'a>(frame: &FrameInputs<'_, 'a>, format: vk::Format) -> GpuRes
                 attributes: &[],
                 color_formats: &[],
                 depth_format: Some(format),
-                bindings: &[sampled(VOLUMES_DEPTH)],
+                bindings: layout,
                 push_bytes: 0,
                 cull_back_faces: false,
                 dynamic_depth_bias: false,
@@ -224,7 +229,7 @@ fn extrude_pipeline<'a>(
         true => ("shadow volumes z-fail", StencilState { front: face(keep, decr), back: face(keep, incr) }),
         false => ("shadow volumes z-pass", StencilState { front: face(incr, keep), back: face(decr, keep) }),
     };
-    frame.pipelines.graphics(PipelineKey::new(name, format.as_raw() as u32), |ctx| {
+    frame.pipelines.graphics(PipelineKey::new(name, format.as_raw() as u32), &[], |ctx, _| {
         GraphicsPipeline::with_extras(
             ctx,
             &GraphicsPipelineDesc {
@@ -249,40 +254,6 @@ fn extrude_pipeline<'a>(
                 stencil: Some(stencil),
                 ..Default::default()
             },
-        )
-    })
-}
-
-/// The resolve: each pixel's visibility from its stencil count, from the cache.
-fn resolve_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("shadow volumes resolve", 0), |ctx| {
-        ComputePipeline::new(
-            ctx,
-            "shadow volumes resolve",
-            spirv::SHADOWS_VOLUMES_RESOLVE_COMP,
-            &[
-                sampled(VOLUMES_POSITION),
-                sampled(VOLUMES_NORMAL),
-                storage(VOLUMES_LIGHTS),
-                sampled(VOLUMES_STENCIL),
-                storage_image(VOLUMES_VISIBILITY),
-            ],
-            std::mem::size_of::<UVec4>() as u32,
-            ROWS,
-        )
-    })
-}
-
-/// The `stencil:N` debug view, from the cache.
-fn stencil_view_pipeline<'a>(frame: &FrameInputs<'_, 'a>) -> GpuResult<&'a ComputePipeline> {
-    frame.pipelines.compute(PipelineKey::new("shadow volumes stencil view", 0), |ctx| {
-        ComputePipeline::new(
-            ctx,
-            "shadow volumes stencil view",
-            spirv::SHADOWS_VOLUMES_STENCIL_VIEW_COMP,
-            &[sampled(VOLUMES_STENCIL), storage_image(VOLUMES_VIEW_OUTPUT)],
-            std::mem::size_of::<UVec4>() as u32,
-            ROWS,
         )
     })
 }
@@ -384,7 +355,8 @@ fn add<'a>(
     let mut pass = graph.add_pass("shadow volumes depth");
     let source = pass.read(&frame.gbuffer.depth, Access::FragmentShaderReadSampledImage);
     let dst = pass.write(&mut depth_stencil, Access::DepthStencilAttachmentWrite);
-    let pipeline = depth_pipeline(frame, format)?;
+    let bound = [(VOLUMES_DEPTH, Bound::Image(source))];
+    let pipeline = depth_pipeline(frame, format, &layout_of(&bound))?;
     pass.render(move |ctx| {
         let attachment = vk::RenderingAttachmentInfo::default()
             .image_view(ctx.image(dst).1)
@@ -395,7 +367,7 @@ fn add<'a>(
         let d = ctx.device;
         // SAFETY: recording state; every object is resolved for this frame and outlives it.
         unsafe { d.cmd_bind_pipeline(ctx.cmd, vk::PipelineBindPoint::GRAPHICS, pipeline.pipeline) };
-        ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &pipeline.layout, &[(VOLUMES_DEPTH, Bound::Image(source))])?;
+        ctx.bind_set(vk::PipelineBindPoint::GRAPHICS, &pipeline.layout, &bound)?;
         // SAFETY: as above; the pipeline makes its three vertices from gl_VertexIndex.
         unsafe { d.cmd_draw(ctx.cmd, 3, 1, 0, 0) };
         ctx.end_rendering();
@@ -472,7 +444,9 @@ fn add<'a>(
             (VOLUMES_VISIBILITY, Bound::Image(pass.write_layer(target, served.layer, Access::ComputeShaderWrite))),
         ];
         let push = UVec4::new(extent.width, extent.height, served.light, served.layer);
-        let pipeline = resolve_pipeline(frame)?;
+        // The resolve: each pixel's visibility from its stencil count.
+        let (name, spirv) = ("shadow volumes resolve", spirv::SHADOWS_VOLUMES_RESOLVE_COMP);
+        let pipeline = frame.pipelines.single(name, spirv, &layout_of(&bound), 16, ROWS)?;
         pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
         if frame.debug_view == Some(crate::config::DebugView::Stencil(served.light)) {
             let desc = ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
@@ -482,7 +456,8 @@ fn add<'a>(
                 (VOLUMES_STENCIL, Bound::Image(pass.read(&depth_stencil, Access::ComputeShaderReadStencil))),
                 (VOLUMES_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
             ];
-            let pipeline = stencil_view_pipeline(frame)?;
+            let (name, spirv) = ("shadow volumes stencil view", spirv::SHADOWS_VOLUMES_STENCIL_VIEW_COMP);
+            let pipeline = frame.pipelines.single(name, spirv, &layout_of(&bound), 16, ROWS)?;
             pass.render(move |ctx| {
                 ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height)
             });

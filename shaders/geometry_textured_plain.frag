@@ -1,5 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
+// variants: WITH_MOTION
 // Geometry pass for textured draws without the triangle under each fragment (devices without
 // geometryShader): material textures and normal maps (geometry_body.glsl).
 #include "bindings.glsl"

@@ -169,13 +169,16 @@ pub enum DebugView {
     Hybrid(u32),
     /// Traced ambient occlusion (`[ambient_occlusion]`): 1 open, 0 enclosed.
     AmbientOcclusion,
+    /// Each pixel's screen-space motion since the previous frame (gbuffer.glsl's motion
+    /// channel): raw pixels (x, y, 0) in EXR; 0.5 + motion / 32 in red and green for display.
+    Motion,
 }
 
 impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
     pub const NAMES: &'static str =
         "albedo, normal, geometric-normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], \
-         hybrid[:N], ao";
+         hybrid[:N], ao, motion";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
@@ -214,6 +217,7 @@ impl std::str::FromStr for DebugView {
             "stencil" => Ok(DebugView::Stencil(light(arg)?)),
             "hybrid" => Ok(DebugView::Hybrid(light(arg)?)),
             "ao" => plain(DebugView::AmbientOcclusion),
+            "motion" => plain(DebugView::Motion),
             "shadow-map" => {
                 let (n, c) = match arg.map(|a| a.split_once(':')) {
                     Some(Some((n, c))) => (Some(n), Some(c)),
@@ -243,6 +247,7 @@ impl std::fmt::Display for DebugView {
             DebugView::Stencil(n) => write!(f, "stencil:{n}"),
             DebugView::Hybrid(n) => write!(f, "hybrid:{n}"),
             DebugView::AmbientOcclusion => f.write_str("ao"),
+            DebugView::Motion => f.write_str("motion"),
         }
     }
 }
@@ -273,8 +278,9 @@ pub struct RenderSettings {
     /// Tests only: adds the pass "busy" (`diagnostics/busy.rs`, this many loop iterations) after
     /// the geometry pass, a GPU cost of known size for checking timings.
     pub busy_iterations: Option<u32>,
-    /// The instant of a moving scene to render, in seconds of its animation (`None`: its first
-    /// frame). A static scene renders the same whatever it is. Part of the settings so that a
+    /// The instant of a moving scene to render, in seconds of its animation (`None`: the
+    /// instant the renderer is posed at, its animation's start at first). A static scene
+    /// renders the same whatever it is. Part of the settings so that a
     /// frame at another instant starts its accumulation afresh.
     pub time: Option<f64>,
 }

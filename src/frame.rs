@@ -58,6 +58,9 @@ pub struct FrameParts<'a> {
     pub lighting: crate::lighting::Prepared<'a>,
     /// Compose's variant (shaded frames; `None` for a debug view).
     pub compose: Option<compose::Variant>,
+    /// The camera the previous frame was drawn with (world frame; `None`: this one's), which
+    /// the motion channel measures from.
+    pub previous_camera: Option<crate::scene::Camera>,
 }
 
 /// The scene's buffers as this frame's graph sees them.
@@ -87,21 +90,24 @@ pub fn build<'a>(
         rects,
         lighting,
         compose,
+        previous_camera,
     } = parts;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
-    let camera = CameraMatrices::new(
-        &s.to_local(&settings.camera.unwrap_or(scene.camera)),
-        s.bounds,
-        extent.width,
-        extent.height,
-    );
+    let seen_by =
+        |camera: &crate::scene::Camera| CameraMatrices::new(&s.to_local(camera), s.bounds, extent.width, extent.height);
+    let this_camera = settings.camera.unwrap_or(scene.camera);
+    let camera = seen_by(&this_camera);
+    // The motion channel, for the frames that show it: this frame's camera without jitter, and
+    // the previous frame's.
+    let motion = (settings.debug_view == Some(crate::config::DebugView::Motion))
+        .then(|| camera.motion_block(&seen_by(&previous_camera.unwrap_or(this_camera)), extent.width, extent.height));
     // Anti-aliasing: an accumulated frame after the first samples elsewhere in its pixel.
     let camera = match history.as_ref().filter(|h| settings.antialias && h.frames > 0) {
         Some(h) => camera.jittered(accumulate::jitter(h.frames), extent.width, extent.height),
         None => camera,
     };
     let mut g = RenderGraph::new();
-    let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, extent)?;
+    let (handles, gbuffer) = gbuffer_stage(&mut g, pipelines, s, &camera, motion, extent)?;
     // Tests only: a compute pass of known cost right after the rendering pass, kept by its export.
     if let Some(iterations) = settings.busy_iterations {
         let result = busy::add(&mut g, pipelines, iterations)?;
@@ -152,13 +158,14 @@ fn gbuffer_stage<'a>(
     pipelines: PipelineSource<'a>,
     s: &'a SceneGpu,
     camera: &CameraMatrices,
+    motion: Option<crate::gpu::MotionBlock>,
     extent: vk::Extent2D,
 ) -> GpuResult<(SceneHandles, GBuffer)> {
     let vertices = s.import_vertices(g);
     let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
     let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
     let bvh = s.bvh.import(g, SCENE_ACCESS);
-    let gbuffer = geometry::add(g, pipelines, s, &vertices, &indices, *camera, extent)?;
+    let gbuffer = geometry::add(g, pipelines, s, &vertices, &indices, *camera, motion, extent)?;
     Ok((SceneHandles { vertices, indices, lights, bvh }, gbuffer))
 }
 

@@ -211,22 +211,31 @@ const CONVERGED_SPP: u32 = 64;
 /// One frame, or with soft shadows enough accumulated frames for `CONVERGED_SPP` samples per
 /// pixel of the light with the fewest samples per frame.
 fn default_frames(settings: &RenderSettings, scene: &Scene) -> u32 {
+    frame_spp(settings, scene).map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
+}
+
+/// The fewest samples per pixel a frame gathers of what converges over frames (soft shadows,
+/// ambient occlusion, rect lights' shadow rays); `None` where nothing does.
+fn frame_spp(settings: &RenderSettings, scene: &Scene) -> Option<u32> {
     // Debug views never accumulate: more frames would only draw the same one again.
     if settings.debug_view.is_some() {
-        return 1;
+        return None;
     }
     let soft_spp = soft_traced_lights(settings, &scene.lights).min();
     // Ambient occlusion converges over the same frames, and so do rect lights' shadow rays.
-    let ao_spp = scene.lighting.occlusion_of_environment().filter(|_| settings.debug_view.is_none()).map(|ao| ao.spp);
+    let ao_spp = scene.lighting.occlusion_of_environment().map(|ao| ao.spp);
     let rect_spp = rect_shadow_spp(settings, scene);
-    soft_spp.into_iter().chain(ao_spp).chain(rect_spp).min().map_or(1, |spp| CONVERGED_SPP.div_ceil(spp))
+    soft_spp.into_iter().chain(ao_spp).chain(rect_spp).min()
 }
 
-/// The scene file (or the built-in scene), its parse timed at -v.
-fn load_scene(path: Option<&Path>) -> Result<Scene> {
+/// The image size of a render given no `--size` and a scene without `[image]` (a model, say).
+const DEFAULT_SIZE: (u32, u32) = (1280, 720);
+
+/// The scene file or model (or the built-in scene), its parse timed at -v.
+fn load_scene(path: Option<&Path>, model: cli::ModelArgs) -> Result<Scene> {
     let start = Instant::now();
     let scene = match path {
-        Some(path) => Scene::load(path)?,
+        Some(path) => umbra::scene::model::open(path, &model.options())?,
         None => Scene::default_scene(),
     };
     let name = path.map_or_else(|| "built-in scene".to_owned(), |p| p.display().to_string());
@@ -260,6 +269,7 @@ fn main() -> ExitCode {
         Command::Devices => devices(),
         Command::Bench(BenchCommand::Shadows(args)) => bench_shadows(args),
         Command::Bench(BenchCommand::Rays(args)) => bench_rays(args),
+        Command::Bench(BenchCommand::Merge(args)) => bench_merge(args),
     };
     match result {
         Ok(code) => code,
@@ -340,11 +350,11 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         &output,
         &WriteOptions { force: args.force, inputs: args.scene.iter().cloned().collect(), provenance: Vec::new() },
     )?;
-    let scene = load_scene(args.scene.as_deref())?;
+    let scene = load_scene(args.scene.as_deref(), args.model)?;
     // The output must not be a file the scene was read from, nor read-only without --force.
     let mut write_options = WriteOptions { force: args.force, inputs: scene.sources.clone(), provenance: Vec::new() };
     check_output(&output, &write_options)?;
-    let (width, height) = args.size.or(scene.image_size).unwrap_or((320, 240));
+    let (width, height) = args.size.or(scene.image_size).unwrap_or(DEFAULT_SIZE);
     let images = sequence_images(&args, &scene, &output, &write_options)?;
     let mut settings = RenderSettings {
         width,
@@ -395,7 +405,13 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
     // Before the first frame, so its host time holds no calibration.
     let calibration = if args.timings { Some(renderer.calibrate_timings()?.clone()) } else { None };
     let mut timings = TimingLog::default();
-    let progress = images.as_ref().map(|list| sequence::progress(list.len(), frames));
+    // A bar for a sequence, or for one image of several frames (samples per pixel beside).
+    let progress = match &images {
+        Some(list) => Some(sequence::progress(list.len(), frames)),
+        None if frames > 1 => Some(sequence::progress(1, frames)),
+        None => None,
+    };
+    let spp = frame_spp(&settings, renderer.scene());
     for (k, (time, path)) in images.clone().unwrap_or_else(|| vec![(args.time, output.clone())]).into_iter().enumerate()
     {
         settings.time = time;
@@ -414,6 +430,9 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
             }
             if let Some(bar) = &progress {
                 bar.inc(1);
+                if let (Some(spp), None) = (spp, &images) {
+                    bar.set_message(format!(", {} samples per pixel", spp * (i + 1)));
+                }
             }
         }
         let frame = frame.expect("at least one frame");
@@ -426,6 +445,9 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
         } else {
             log::info!("wrote {} (t = {:.4} s)", path.display(), time.unwrap_or_default());
         }
+    }
+    if let (None, Some(bar)) = (&images, &progress) {
+        bar.finish_and_clear();
     }
     if let (Some(list), Some(bar)) = (&images, progress) {
         bar.finish_and_clear();
@@ -449,7 +471,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
 }
 
 fn view(args: ViewArgs) -> Result<ExitCode> {
-    let scene = load_scene(args.scene.as_deref())?;
+    let scene = load_scene(args.scene.as_deref(), args.model)?;
     let script = match &args.script {
         Some(path) => {
             // Guarded as scene files are: /dev/zero would be read without end, a FIFO wait forever.
@@ -556,8 +578,11 @@ fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
             Ok((k.trim().to_string(), v.trim().to_string()))
         })
         .collect::<Result<Vec<_>>>()?;
+    let shard = sequence::resolve_shard(args.shard, args.shards.map(|n| n as usize), |k| std::env::var(k).ok())?;
     let options = shadows::Options {
         scenes: args.scenes,
+        model: args.model.options(),
+        shard: Some((shard.index, shard.count)),
         methods,
         axes,
         params,
@@ -584,6 +609,19 @@ fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
             return Ok(ExitCode::FAILURE);
         }
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_merge(args: cli::BenchMergeArgs) -> Result<ExitCode> {
+    let (rows, files) = umbra::bench::merge::merge(&args.dirs, &args.output, args.force)?;
+    umbra::output::print_stdout(&umbra::bench::report::summary(&rows))?;
+    outln!(
+        "merged {} result sets: {} rows, {} files in {}",
+        args.dirs.len(),
+        rows.len(),
+        files.len(),
+        args.output.display()
+    );
     Ok(ExitCode::SUCCESS)
 }
 

@@ -60,7 +60,12 @@ pub struct Renderer {
     timing: std::sync::OnceLock<TimingCalibration>,
     /// A moving scene's casters on the CPU and the instant they are posed at; `None` when
     /// nothing moves.
-    motion: Option<Motion>,
+    motion: Option<std::sync::Mutex<Motion>>,
+    /// What keeping the scene's motion up to date cost the frame being made (`frame_update`).
+    update: std::sync::Mutex<MotionUpdate>,
+    /// The camera the last recorded frame was drawn with (world frame): where the next frame's
+    /// motion channel measures camera motion from.
+    previous_camera: std::sync::Mutex<Option<crate::scene::Camera>>,
     pub gpu_scene: SceneGpu,
     scene: Scene,
     /// `scene` in the local frame the GPU sees, less what f32 cannot hold there
@@ -148,7 +153,9 @@ impl Renderer {
             )?,
             fallbacks_noted: Default::default(),
             timing: std::sync::OnceLock::new(),
-            motion,
+            motion: motion.map(std::sync::Mutex::new),
+            update: Default::default(),
+            previous_camera: std::sync::Mutex::new(None),
             gpu_scene,
             scene,
             local,
@@ -177,30 +184,79 @@ impl Renderer {
             gpu_scene.moving.len(),
             gpu_scene.bvh.bytes() >> 10
         );
-        Renderer::assemble(ctx, scene, local, gpu_scene, None, Some(Motion { levels, groups, posed_at: None }))
+        let motion = Motion { levels, groups, posed_at: None, unplaced: None };
+        Renderer::assemble(ctx, scene, local, gpu_scene, None, Some(motion))
     }
 
-    /// Poses a moving scene at `time` seconds of its animation: the top level of its casters
-    /// rebuilt (on the CPU), its moving draws' instance rows and bounds and its camera, written
-    /// by the next frame's first passes. Returns what the update took: CPU milliseconds and the
-    /// bytes the next frame moves to the device. Nothing to do for a static scene, or at the
-    /// instant already posed.
+    /// Poses a moving scene at `time` seconds of its animation: its moving draws' instance rows
+    /// and bounds and its camera, written by the next frame's first passes, and where each
+    /// group of casters goes: the top level over them is rebuilt (on the CPU) by the first
+    /// frame whose passes walk the casters, so frames that trace no ray (raster shadows
+    /// alone) never pay for it. Returns what posing took: CPU milliseconds and the bytes the
+    /// next frame moves to the device. Nothing to do for a static scene, or at the instant
+    /// already posed.
     pub fn set_time(&mut self, time: f64) -> MotionUpdate {
-        let Some(motion) = &mut self.motion else { return MotionUpdate::default() };
+        let update = self.pose(time);
+        *self.update.lock().unwrap_or_else(|e| e.into_inner()) = update;
+        update
+    }
+
+    /// `set_time`'s work.
+    fn pose(&mut self, time: f64) -> MotionUpdate {
+        let Some(motion) = self.motion.as_mut().map(|m| m.get_mut().unwrap_or_else(|e| e.into_inner())) else {
+            return MotionUpdate::default();
+        };
         if motion.posed_at == Some(time) {
             return MotionUpdate::default();
         }
         let start = std::time::Instant::now();
         let deltas = self.local.mesh_motion(time);
-        let placements = motion.placements(&deltas);
-        motion.levels.place(&placements);
-        let mut bytes = self.gpu_scene.bvh.place(&motion.levels);
-        bytes += self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
+        motion.unplaced = Some(motion.placements(&deltas));
+        let bytes = self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
         let camera = self.scene.camera_at(time);
         self.gpu_scene.camera = self.gpu_scene.to_local(&camera);
         self.scene.camera = camera;
+        let first = motion.posed_at.is_none();
         motion.posed_at = Some(time);
-        MotionUpdate { cpu_ms: start.elapsed().as_secs_f64() * 1e3, bytes }
+        if first {
+            // No frame drew the scene before: the first frame's motion is over the interval
+            // before it, as a sequence at FIRST_FRAME_FPS would have drawn it.
+            let before = time - 1.0 / FIRST_FRAME_FPS;
+            let deltas = self.local.mesh_motion(before);
+            self.gpu_scene.pose_previous(|mesh| deltas.get(mesh).copied().flatten());
+            if self.scene.animation.as_ref().is_some_and(|a| a.camera.is_some()) {
+                *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) = Some(self.scene.camera_at(before));
+            }
+        }
+        MotionUpdate { cpu_ms: start.elapsed().as_secs_f64() * 1e3, bytes, ..Default::default() }
+    }
+
+    /// Rebuilds the top level over the casters where the scene was posed since it was last
+    /// built (a frame about to walk them), adding the cost to the frame's update.
+    fn place_casters(&self) {
+        let Some(motion) = &self.motion else { return };
+        let mut motion = motion.lock().unwrap_or_else(|e| e.into_inner());
+        let Some(placements) = motion.unplaced.take() else { return };
+        let start = std::time::Instant::now();
+        motion.levels.place(&placements);
+        let bytes = self.gpu_scene.bvh.place(&motion.levels);
+        let ms = start.elapsed().as_secs_f64() * 1e3;
+        let mut update = self.update.lock().unwrap_or_else(|e| e.into_inner());
+        update.cpu_ms += ms;
+        update.bytes += bytes;
+        update.casters_ms += ms;
+        update.casters_bytes += bytes;
+    }
+
+    /// What keeping the scene's motion up to date cost the last frame: its `set_time` (instance
+    /// rows, bounds) and, where the frame walked the casters, the top level's rebuild.
+    pub fn frame_update(&self) -> MotionUpdate {
+        *self.update.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// The instant a moving scene is posed at (`None`: static, or not posed yet).
+    pub fn posed_at(&self) -> Option<f64> {
+        self.motion.as_ref().and_then(|m| m.lock().unwrap_or_else(|e| e.into_inner()).posed_at)
     }
 
     /// Whether anything in the scene moves.
@@ -250,6 +306,10 @@ impl Renderer {
             self.area_tables.as_ref(),
             settings.debug_view,
         )?;
+        // A moving scene's casters are placed for the frames that walk them.
+        if crate::shadows::traces_rays(&plan) || lighting.occlusion.is_some() {
+            self.place_casters();
+        }
         let compose = match settings.debug_view {
             Some(_) => None,
             None => {
@@ -277,6 +337,7 @@ impl Renderer {
             rects: self.rects.as_ref(),
             lighting,
             compose,
+            previous_camera: *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()),
         };
         Ok((crate::frame::build(parts, target, history)?, ray_query))
     }
@@ -385,6 +446,8 @@ impl Renderer {
         let (graph, traversal) = self.graph(settings, target, history)?;
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         self.gpu_scene.recorded();
+        *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) =
+            Some(settings.camera.unwrap_or(self.scene.camera));
         if let Some(scene) = traversal {
             scene.note_recorded(&plan);
         }
@@ -404,8 +467,9 @@ impl Renderer {
     /// Renders one frame and reads it back. Successive calls with the same settings and
     /// stochastic (soft) shadows return the running mean of all their frames.
     pub fn render(&mut self, settings: &RenderSettings) -> GpuResult<Frame> {
+        // Without a time: where the scene was posed last (its animation's start at first).
         if let Some(start) = self.scene.animation_span().map(|(start, _)| start) {
-            self.set_time(settings.time.unwrap_or(start));
+            self.set_time(settings.time.or(self.posed_at()).unwrap_or(start));
         }
         let bytes8 = settings.output == OutputKind::Display && settings.debug_view.is_none();
         let texel = if bytes8 { 4 } else { 16 };
@@ -498,13 +562,22 @@ fn execute(
     Ok(plan)
 }
 
-/// What posing a moving scene took (`Renderer::set_time`).
+/// The frame rate a moving scene's first frame's motion channel assumes: it measures the
+/// motion since the instant 1 / FIRST_FRAME_FPS seconds before (later frames measure it since
+/// the frame before them).
+pub const FIRST_FRAME_FPS: f64 = 30.0;
+
+/// What keeping a moving scene up to date took (`Renderer::set_time`, `Renderer::frame_update`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct MotionUpdate {
-    /// CPU time: the placements, the top level's build, the instance rows.
+    /// CPU time: the instance rows and bounds, the placements, and where the frame walked the
+    /// casters, the top level's build.
     pub cpu_ms: f64,
-    /// Bytes the next frame writes to the device (top region, root, instance rows).
+    /// Bytes the frame writes to the device (instance rows; top region and root).
     pub bytes: u64,
+    /// Of those, the top level's: its build (ms) and its upload (bytes).
+    pub casters_ms: f64,
+    pub casters_bytes: u64,
 }
 
 /// A moving scene's casters on the CPU: two levels, and which group each mesh's triangles went to.
@@ -514,6 +587,8 @@ struct Motion {
     /// `None` for a mesh that casts no shadow.
     groups: Vec<Option<usize>>,
     posed_at: Option<f64>,
+    /// Where each bottom tree goes, posed but not yet built into the top level.
+    unplaced: Option<Vec<crate::scene::bvh::levels::Placement>>,
 }
 
 impl Motion {

@@ -60,6 +60,8 @@
 // geometry.frag: the scene's vertices and indices, for the triangle under each fragment
 #define GEOMETRY_VERTICES 0
 #define GEOMETRY_INDICES 1
+// geometry_motion.glsl (WITH_MOTION): the cameras of this frame and the previous one
+#define GEOMETRY_MOTION 2
 // The geometry pass's push constant draw.z: a flat-shaded draw (gpu::Draw::flat), whose
 // fragments read no triangle (geometry_body.glsl). Bit 31: textured draws keep the low bits.
 #define GEOMETRY_DRAW_FLAT 2147483648u

@@ -21,6 +21,7 @@ layout(set = 0, binding = DISPLAY_VISIBILITY) uniform sampler2D visibility;
 #define VIEW_DEPTH 2
 #define VIEW_POSITION 3
 #define VIEW_VISIBILITY 4
+#define VIEW_MOTION 6
 
 layout(push_constant) uniform Push {
     vec4 eye;       // xyz eye (scene-local), w: 1/far distance used to display depth
@@ -52,6 +53,9 @@ void main() {
     }
     case VIEW_POSITION:
         v = display ? fract(texel.xyz + pc.origin.xyz) : texel.xyz + pc.origin.xyz;
+        break;
+    case VIEW_MOTION: // input is the motion channel: pixels (GBUFFER_NO_MOTION: none)
+        v = display ? vec3(clamp(0.5 + texel.xy / 32.0, 0.0, 1.0), 0.5) : vec3(texel.xy, 0.0);
         break;
     default: // VIEW_VISIBILITY; input is the position channel, to tell background apart.
 #ifdef WITH_VISIBILITY

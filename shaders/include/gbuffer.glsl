@@ -19,6 +19,13 @@
 //   emission: RGBA16F  (scenes with material textures or emission only; src/gpu/textures.rs)
 //             rgb  emitted radiance, W/(m^2 sr); a  ambient occlusion (1: none), for the
 //                  environment and ambient lighting that read it
+//   motion:   RG16F    (frames that ask for it only: the `motion` view; after every other
+//                  attachment) where the surface at the pixel was in the previous frame's
+//                  image, as the pixel's position now minus its position then, in pixels
+//                  (+x right, +y down), camera and object motion both, the anti-aliasing
+//                  jitter left out; GBUFFER_NO_MOTION where the point was behind the previous
+//                  camera. Reproject with `pixel - motion`. CPU twin: src/gpu/camera.rs
+//                  (`CameraMatrices::motion`).
 // Position is stored rather than rebuilt from depth so that scenes far from the origin keep
 // every bit the rasteriser gives them. CPU twin of the surface channel: src/shading/surface.rs
 // (`Surfaces`).
@@ -32,6 +39,14 @@
 #define GBUFFER_TABLE_WIDTH 1024
 
 const float GBUFFER_OWN_MATERIAL = 1.0;
+// The motion of a point that had no place in the previous image (f16's largest value).
+const float GBUFFER_NO_MOTION = 65504.0;
+
+// A pixel's motion (see above) from its normalised device coordinates now and in the previous
+// frame, in an image of `extent` pixels.
+vec2 gbuffer_motion(vec2 ndc, vec2 previous_ndc, vec2 extent) {
+    return (ndc - previous_ndc) * 0.5 * extent;
+}
 const float GBUFFER_TABLE_FIRST = 2.0;
 
 // The texel of the material channel (or the table bound in its place) that holds the material

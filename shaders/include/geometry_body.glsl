@@ -6,6 +6,8 @@
 // that feature, takes the geometric normal from the position's screen derivatives and stores no
 // terminator offset. The textured variants (geometry_textured*.frag) define TEXTURED: the
 // material's textures multiply its constants, and a normal map bends the shading normal.
+// WITH_MOTION: each pixel's screen-space motion since the previous frame (gbuffer.glsl's motion
+// channel), from the clip positions the vertex stage gives for both frames.
 #include "gbuffer.glsl"
 #include "geometry_push.glsl"
 #include "ray_offset.glsl"
@@ -20,6 +22,18 @@ layout(location = 5) flat in vec4 in_normal_rows[3];
 layout(location = GBUFFER_POSITION_LOCATION) out vec4 out_position;
 layout(location = GBUFFER_NORMAL_LOCATION) out vec4 out_normal;
 layout(location = GBUFFER_SURFACE_LOCATION) out uvec4 out_surface;
+
+#ifdef WITH_MOTION
+// Both clip positions with x and y in half pixels (geometry_vertex.glsl).
+layout(location = 11) in vec4 in_clip;
+layout(location = 12) in vec4 in_previous_clip;
+// After every other attachment: the material and emission ones in textured scenes only.
+#ifdef TEXTURED
+layout(location = GBUFFER_EMISSION_LOCATION + 1) out vec2 out_motion;
+#else
+layout(location = GBUFFER_MATERIAL_LOCATION) out vec2 out_motion;
+#endif
+#endif
 
 #ifdef TEXTURED
 layout(location = GBUFFER_MATERIAL_LOCATION) out vec4 out_material;
@@ -174,4 +188,8 @@ void main() {
 #endif
     out_normal = vec4(n, metallic);
     out_surface = gbuffer_surface_encode(offset, geometric);
+#ifdef WITH_MOTION
+    out_motion = in_previous_clip.w > 0.0 ? in_clip.xy / in_clip.w - in_previous_clip.xy / in_previous_clip.w
+                                          : vec2(GBUFFER_NO_MOTION);
+#endif
 }

@@ -3,7 +3,10 @@
 // a scene far from the origin does not lose precision in the view transform. The instance's
 // rows go on to the fragment stage, which reads the triangle's corners in their own space
 // (geometry_body.glsl). Textured draws also pass on their texture coordinates and tangents
-// (vertex binding 2, gpu_scene::SurfaceVertex), and the second set (binding 3).
+// (vertex binding 2, gpu::SurfaceVertex), and the second set (binding 3). WITH_MOTION: the
+// vertex's clip position now and in the previous frame (its instance's previous rows at vertex
+// binding 4, the previous camera in GEOMETRY_MOTION), both without the anti-aliasing jitter,
+// for the fragment stage's screen-space motion.
 #include "geometry_push.glsl"
 #include "instance.glsl"
 
@@ -14,6 +17,16 @@ layout(location = 0) out vec3 out_position;
 layout(location = 1) out vec3 out_normal;
 layout(location = 2) flat out vec4 out_model[3];
 layout(location = 5) flat out vec4 out_normal_rows[3];
+
+#ifdef WITH_MOTION
+#include "geometry_motion.glsl"
+// The instance's model rows in the previous frame (vertex binding 4, read per instance).
+layout(location = 11) in vec4 previous_model_0;
+layout(location = 12) in vec4 previous_model_1;
+layout(location = 13) in vec4 previous_model_2;
+layout(location = 11) out vec4 out_clip;
+layout(location = 12) out vec4 out_previous_clip;
+#endif
 
 #ifdef TEXTURED
 layout(location = 8) in vec2 in_uv;
@@ -41,4 +54,13 @@ void main() {
                        in_tangent.w);
 #endif
     gl_Position = pc.view_proj * vec4(p - pc.eye.xyz, 1.0);
+#ifdef WITH_MOTION
+    vec4 h = vec4(in_position, 1.0);
+    vec3 before = vec3(dot(previous_model_0, h), dot(previous_model_1, h), dot(previous_model_2, h));
+    // x and y in half pixels, so that the fragment stage's difference of the two divided by w
+    // is gbuffer_motion's (the scale commutes with the interpolation and the division).
+    vec4 half_pixels = vec4(0.5 * motion.extent.xy, 1.0, 1.0);
+    out_clip = half_pixels * (motion.view_proj * vec4(p - pc.eye.xyz, 1.0));
+    out_previous_clip = half_pixels * (motion.previous_view_proj * vec4(before - motion.previous_eye.xyz, 1.0));
+#endif
 }

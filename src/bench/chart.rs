@@ -19,6 +19,9 @@ pub struct Series {
     pub colour: usize,
     /// (time ms, error), in sweep order.
     pub points: Vec<(f64, f64)>,
+    /// What each point stands for along the series' axis (`512` on `map.resolution`), drawn
+    /// beside it; empty for a series of one setting.
+    pub point_labels: Vec<String>,
 }
 
 /// What one chart shows.
@@ -32,9 +35,29 @@ pub struct Chart {
     pub front: Vec<(f64, f64)>,
     /// The point `auto` picks under the run's error bound, ringed.
     pub auto: Option<(f64, f64)>,
+    /// The reference's own error (pooled over the scene's lights): errors below it cannot be
+    /// told apart, drawn as a band along the time axis; 0 (hard lights) draws none.
+    pub reference_error: f64,
 }
 
+/// The plot's size; the legend goes to its right, as wide as its longest entry.
 const SIZE: (u32, u32) = (900, 600);
+/// Legend text, in pixels: the PNG's glyphs are 8 pixels a character at this size (the SVG's
+/// sans-serif is narrower), so the legend's width follows from its entries' lengths.
+const LEGEND_FONT: u32 = 14;
+const LEGEND_CHAR: u32 = 8;
+
+/// What the legend shows for an entry.
+enum Key {
+    Line(RGBColor),
+    Front,
+    Auto,
+    Band,
+}
+
+/// `auto`'s ring and the reference's band.
+const RING: RGBColor = RGBColor(220, 0, 120);
+const BAND: RGBColor = RGBColor(160, 160, 160);
 
 fn colour(i: usize) -> RGBColor {
     const PALETTE: [RGBColor; 8] = [
@@ -50,10 +73,11 @@ fn colour(i: usize) -> RGBColor {
     PALETTE[i % PALETTE.len()]
 }
 
-/// A time tick: whole milliseconds from 10 up, else three significant digits or so.
+/// A time tick: whole milliseconds where whole or from 10 up, else three significant digits or
+/// so.
 fn tick(v: f64) -> String {
     match v {
-        v if v >= 10.0 => format!("{v:.0}"),
+        v if v >= 10.0 || (v >= 1.0 && v.fract() == 0.0) => format!("{v:.0}"),
         v if v >= 1.0 => format!("{v:.1}"),
         v if v >= 0.1 => format!("{v:.2}"),
         v => format!("{v:.3}"),
@@ -62,7 +86,51 @@ fn tick(v: f64) -> String {
 
 type DrawResult<DB> = Result<(), DrawingAreaErrorKind<<DB as DrawingBackend>::ErrorType>>;
 
+/// Ticks for a log axis over `lo..hi`: 1, 2 and 5 times the powers of ten inside it; where that
+/// leaves fewer than five, 3 too; where still fewer, every whole multiple: an axis that spans
+/// less than a decade still reads, and a wide one is not crowded.
+pub fn log_ticks(lo: f64, hi: f64) -> Vec<f64> {
+    if !(lo > 0.0 && hi > lo && hi.is_finite()) {
+        return Vec::new();
+    }
+    let decades = lo.log10().floor() as i32..=hi.log10().ceil() as i32;
+    let with = |steps: &[f64]| -> Vec<f64> {
+        decades
+            .clone()
+            .flat_map(|d| steps.iter().map(move |s| s * 10f64.powi(d)))
+            .filter(|&t| t >= lo && t <= hi)
+            .collect()
+    };
+    for steps in [&[1.0, 2.0, 5.0][..], &[1.0, 2.0, 3.0, 5.0]] {
+        let ticks = with(steps);
+        if ticks.len() >= 5 {
+            return ticks;
+        }
+    }
+    with(&[1.0, 2.0, 3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0])
+}
+
 impl Chart {
+    /// The legend's entries, in order.
+    fn legend(&self) -> Vec<(String, Key)> {
+        let mut entries: Vec<(String, Key)> =
+            self.series.iter().map(|s| (s.label.clone(), Key::Line(colour(s.colour)))).collect();
+        entries.push(("Pareto front".into(), Key::Front));
+        if self.auto.is_some() {
+            entries.push(("auto's pick".into(), Key::Auto));
+        }
+        if self.reference_error > 0.0 {
+            entries.push(("reference's own error".into(), Key::Band));
+        }
+        entries
+    }
+
+    /// The whole image's size: the plot and the legend beside it.
+    pub fn size(&self) -> (u32, u32) {
+        let longest = self.legend().iter().map(|(l, _)| l.chars().count() as u32).max().unwrap_or(0);
+        (SIZE.0 + 56 + LEGEND_CHAR * longest, SIZE.1)
+    }
+
     /// The x range (log scale): every positive time with some margin. Points at 0 ms (a method
     /// with no shadow work) are drawn at its left end.
     fn x_range(&self) -> (f64, f64) {
@@ -76,17 +144,19 @@ impl Chart {
 
     fn draw<DB: DrawingBackend>(&self, root: DrawingArea<DB, Shift>) -> DrawResult<DB> {
         root.fill(&WHITE)?;
+        let (plot, legend) = root.split_horizontally(SIZE.0);
         let (x0, x1) = self.x_range();
         let y_max =
             self.series.iter().flat_map(|s| s.points.iter().map(|p| p.1)).filter(|e| e.is_finite()).fold(0.0, f64::max);
         let y1 = if y_max > 0.0 { y_max * 1.1 } else { 0.01 };
+        let y1 = y1.max(self.reference_error * 1.5);
         let clamp = |(t, e): (f64, f64)| (t.max(x0), e);
-        let mut chart = ChartBuilder::on(&root)
+        let mut chart = ChartBuilder::on(&plot)
             .caption(&self.title, ("sans-serif", 20))
             .margin(16)
             .x_label_area_size(44)
             .y_label_area_size(72)
-            .build_cartesian_2d((x0..x1).log_scale(), 0.0..y1)?;
+            .build_cartesian_2d((x0..x1).log_scale().with_key_points(log_ticks(x0, x1)), 0.0..y1)?;
         chart
             .configure_mesh()
             .x_desc(&self.x_label)
@@ -95,35 +165,43 @@ impl Chart {
             .y_label_formatter(&|v| format!("{v:.3}"))
             .label_style(("sans-serif", 14))
             .draw()?;
+        if self.reference_error > 0.0 {
+            let band = [(x0, 0.0), (x1, self.reference_error)];
+            chart.draw_series(std::iter::once(Rectangle::new(band, BAND.mix(0.35).filled())))?;
+        }
         for s in &self.series {
             let c = colour(s.colour);
             let points: Vec<(f64, f64)> = s.points.iter().copied().map(clamp).collect();
-            chart
-                .draw_series(LineSeries::new(points.clone(), c.stroke_width(2)))?
-                .label(&s.label)
-                .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+            chart.draw_series(LineSeries::new(points.clone(), c.stroke_width(2)))?;
             chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, c.filled())))?;
+            // Each point's value along the axis, just above and right of it.
+            let labelled = points.iter().zip(&s.point_labels);
+            chart.draw_series(labelled.map(|(&p, text)| {
+                EmptyElement::at(p) + Text::new(text.clone(), (6, -16), ("sans-serif", 12).into_font().color(&c))
+            }))?;
         }
         let front: Vec<(f64, f64)> = self.front.iter().copied().map(clamp).collect();
-        chart
-            .draw_series(LineSeries::new(front.clone(), BLACK.stroke_width(1)))?
-            .label("Pareto front")
-            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], BLACK.stroke_width(1)));
+        chart.draw_series(LineSeries::new(front.clone(), BLACK.stroke_width(1)))?;
         chart.draw_series(front.iter().map(|&p| Circle::new(p, 8, BLACK.stroke_width(2))))?;
         if let Some(p) = self.auto.map(clamp) {
-            let ring = RGBColor(220, 0, 120);
-            chart
-                .draw_series(std::iter::once(Circle::new(p, 13, ring.stroke_width(3))))?
-                .label("auto's pick")
-                .legend(move |(x, y)| Circle::new((x + 10, y), 6, ring.stroke_width(2)));
+            chart.draw_series(std::iter::once(Circle::new(p, 13, RING.stroke_width(3))))?;
         }
-        chart
-            .configure_series_labels()
-            .position(SeriesLabelPosition::UpperRight)
-            .label_font(("sans-serif", 14))
-            .background_style(WHITE.mix(0.85))
-            .border_style(BLACK)
-            .draw()?;
+        // The legend beside the plot: every entry whole, however long.
+        let font = ("sans-serif", LEGEND_FONT).into_font();
+        for (k, (label, key)) in self.legend().iter().enumerate() {
+            let y = 48 + 22 * k as i32;
+            match key {
+                Key::Line(c) => legend.draw(&PathElement::new(vec![(8, y), (32, y)], c.stroke_width(2)))?,
+                Key::Front => legend.draw(&PathElement::new(vec![(8, y), (32, y)], BLACK.stroke_width(1)))?,
+                Key::Auto => legend.draw(&Circle::new((20, y), 6, RING.stroke_width(2)))?,
+                Key::Band => legend.draw(&Rectangle::new([(8, y - 6), (32, y + 6)], BAND.mix(0.35).filled()))?,
+            }
+            let style = font.clone().color(&BLACK).pos(plotters::style::text_anchor::Pos::new(
+                plotters::style::text_anchor::HPos::Left,
+                plotters::style::text_anchor::VPos::Center,
+            ));
+            legend.draw(&Text::new(label.clone(), (40, y), style))?;
+        }
         root.present()?;
         Ok(())
     }
@@ -132,7 +210,7 @@ impl Chart {
     pub fn svg(&self) -> Result<String, String> {
         let mut text = String::new();
         {
-            let root = SVGBackend::with_string(&mut text, SIZE).into_drawing_area();
+            let root = SVGBackend::with_string(&mut text, self.size()).into_drawing_area();
             self.draw(root).map_err(|e| format!("drawing the SVG chart: {e}"))?;
         }
         Ok(text)
@@ -140,10 +218,10 @@ impl Chart {
 
     /// The chart as PNG bytes.
     pub fn png(&self) -> Result<Vec<u8>, String> {
-        let (w, h) = SIZE;
+        let (w, h) = self.size();
         let mut rgb = vec![0u8; (w * h * 3) as usize];
         {
-            let backend = GlyphBitmap(BitMapBackend::with_buffer(&mut rgb, SIZE));
+            let backend = GlyphBitmap(BitMapBackend::with_buffer(&mut rgb, (w, h)));
             self.draw(backend.into_drawing_area()).map_err(|e| format!("drawing the PNG chart: {e}"))?;
         }
         let mut png = Vec::new();
@@ -320,5 +398,60 @@ mod glyphs {
             }
             Ok(())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn log_axes_get_enough_ticks() {
+        assert_eq!(log_ticks(0.5, 120.0), [0.5, 1.0, 2.0, 5.0, 10.0, 20.0, 50.0, 100.0]);
+        // About a decade and a half: 3 joins 1, 2 and 5.
+        assert_eq!(log_ticks(2.4, 64.0), [3.0, 5.0, 10.0, 20.0, 30.0, 50.0]);
+        // Less than a decade: every whole multiple.
+        assert_eq!(log_ticks(2.5, 9.5), [3.0, 4.0, 5.0, 6.0, 7.0, 8.0, 9.0]);
+        assert!(log_ticks(0.0, 1.0).is_empty() && log_ticks(2.0, 1.0).is_empty());
+    }
+
+    /// The legend is beside the plot and as wide as its longest entry: no entry is cut, and
+    /// each point carries its value; the reference's band shows where it has an error.
+    #[test]
+    fn legends_are_whole_and_points_are_labelled() {
+        let long = "hybrid (hybrid.resolution+hybrid.margin+hybrid.radius)".to_owned();
+        let chart = Chart {
+            title: "t".into(),
+            x_label: "x".into(),
+            y_label: "y".into(),
+            series: vec![Series {
+                label: long.clone(),
+                colour: 4,
+                points: vec![(3.0, 0.02), (6.0, 0.01)],
+                point_labels: vec!["256".into(), "1024".into()],
+            }],
+            front: vec![(3.0, 0.02)],
+            auto: Some((6.0, 0.01)),
+            reference_error: 0.004,
+        };
+        let (w, h) = chart.size();
+        assert_eq!(h, SIZE.1);
+        assert!(w >= SIZE.0 + 40 + LEGEND_CHAR * long.chars().count() as u32, "{w}");
+        let svg = chart.svg().unwrap();
+        for text in [long.as_str(), "256", "1024", "Pareto front", "auto&apos;s pick", "reference&apos;s own error"] {
+            assert!(svg.contains(text) || svg.contains(&text.replace("&apos;", "'")), "{text} in the SVG");
+        }
+        // The PNG draws the whole label: ink reaches past where the plot ends by the label's
+        // width less a character or two.
+        let png = image::load_from_memory(&chart.png().unwrap()).unwrap().to_rgb8();
+        assert_eq!(png.dimensions(), (w, h));
+        let rightmost = (0..h)
+            .flat_map(|y| (0..w).map(move |x| (x, y)))
+            .filter(|&(x, y)| x >= SIZE.0 && png.get_pixel(x, y).0.iter().all(|&c| c < 64))
+            .map(|(x, _)| x)
+            .max()
+            .unwrap();
+        assert!(rightmost >= SIZE.0 + 40 + LEGEND_CHAR * (long.chars().count() as u32 - 2), "{rightmost}");
+        assert!(rightmost < w, "inside the image");
     }
 }

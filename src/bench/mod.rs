@@ -11,7 +11,9 @@
 
 pub mod auto;
 pub mod chart;
+pub mod merge;
 pub mod metrics;
+pub mod motion;
 pub mod rays;
 pub mod reference;
 pub mod report;

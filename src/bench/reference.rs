@@ -292,7 +292,13 @@ pub struct Cached {
 /// traced now and cached.
 pub fn load_or_compute(renderer: &mut Renderer, width: u32, height: u32, device: &str) -> anyhow::Result<Cached> {
     use anyhow::Context as _;
-    let key = cache_key(renderer.scene(), width, height, device).map_err(anyhow::Error::msg)?;
+    // A moving scene's reference is of the instant it is posed at: keyed by the scene posed
+    // there (every mesh and the camera where the animation puts them).
+    let key = match renderer.posed_at() {
+        Some(time) => cache_key(&renderer.scene().posed(time), width, height, device),
+        None => cache_key(renderer.scene(), width, height, device),
+    }
+    .map_err(anyhow::Error::msg)?;
     let dir = cache_dir();
     if let Some(reference) = dir.as_deref().and_then(|d| Reference::load(d, &key)) {
         let file = dir.map(|d| d.join(format!("{key}.ref")));

@@ -3,12 +3,13 @@
 
 use std::fmt::Write as _;
 
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 
 /// One row of results. Figures that do not exist (GPU times on a device that cannot time
 /// passes, FLIP on a per-light row of a multi-light frame) are `None`: empty in CSV, `null` in
 /// JSON.
-#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
 pub struct Row {
     /// The scene file as given, or `default`.
     pub scene: String,
@@ -80,6 +81,12 @@ pub struct Row {
     /// visibility target, which every method shares, left out), from the compiled frame plan
     /// (slots shared by resources of equal description count once). Per frame.
     pub shadow_bytes: u64,
+    /// In a moving scene (`bench::motion`), what keeping the scene up to date cost per timed
+    /// frame, median: CPU ms (the moving draws' instance rows, and for methods that trace rays
+    /// the top level over the casters rebuilt) and the bytes the frame wrote to the device for
+    /// it. `None` and 0 in a static scene. Part of `time_ms`.
+    pub update_cpu_ms: Option<f64>,
+    pub update_bytes: u64,
     /// Whether this row is the frame's row (what charts and the Pareto front use).
     pub frame_row: bool,
     /// Whether the frame row is on its scene's Pareto front of (time, scored_error).
@@ -130,6 +137,8 @@ pub const CSV_COLUMNS: &[&str] = &[
     "map_texels",
     "map_bytes",
     "shadow_bytes",
+    "update_cpu_ms",
+    "update_bytes",
     "frame_row",
     "pareto",
     "auto_choice",
@@ -191,6 +200,8 @@ impl Row {
             self.map_texels.to_string(),
             self.map_bytes.to_string(),
             self.shadow_bytes.to_string(),
+            opt(self.update_cpu_ms),
+            self.update_bytes.to_string(),
             self.frame_row.to_string(),
             self.pareto.to_string(),
             self.auto_choice.to_string(),
@@ -202,9 +213,13 @@ impl Row {
     }
 
     /// The time the Pareto front and the charts use: shadow GPU time, or the host's time per
-    /// frame where the device cannot time passes.
+    /// frame where the device cannot time passes; in a moving scene, plus the CPU time of the
+    /// scene's update (`update_cpu_ms`; the host time holds it already).
     pub fn time_ms(&self) -> f64 {
-        self.shadow_gpu_ms.unwrap_or(self.host_ms)
+        match self.shadow_gpu_ms {
+            Some(gpu) => gpu + self.update_cpu_ms.unwrap_or(0.0),
+            None => self.host_ms,
+        }
     }
 }
 
@@ -288,14 +303,21 @@ pub fn summary(rows: &[Row]) -> String {
             first.width, first.height, first.frames, first.device, first.driver, first.timing
         );
         let sweep_w = frame.iter().map(|r| r.sweep.len()).max().unwrap_or(5).clamp(5, 40);
+        // A moving scene's rows add what keeping it up to date cost each frame.
+        let moving = frame.iter().any(|r| r.update_cpu_ms.is_some());
+        let update = |r: &Row| match moving {
+            true => format!(" {:>10}", ms(r.update_cpu_ms)),
+            false => String::new(),
+        };
         let served_w = frame.iter().map(|r| r.served_by.len()).max().unwrap_or(6).max(9);
         let _ = writeln!(
             out,
-            "   {:<11} {:<sweep_w$} {:<served_w$} {:>10} {:>10} {:>10} {:>9} {:>9} {:>7} {:>7} {:>7} {:>11} {:>11} {:>10}",
+            "   {:<11} {:<sweep_w$} {:<served_w$} {:>10}{} {:>10} {:>10} {:>9} {:>9} {:>7} {:>7} {:>7} {:>11} {:>11} {:>10}",
             "method",
             "point",
             "served by",
             "shadow ms",
+            if moving { format!(" {:>10}", "update ms") } else { String::new() },
             "frame ms",
             "host ms",
             "RMSE",
@@ -319,11 +341,12 @@ pub fn summary(rows: &[Row]) -> String {
             }
             let _ = writeln!(
                 out,
-                "{mark} {:<11} {:<sweep_w$} {:<served_w$} {:>10} {:>10} {:>10.3} {:>8.4}{within} {:>9.4} {:>6.2}% {:>6.2}% {:>7} {:>11} {:>11} {:>10}",
+                "{mark} {:<11} {:<sweep_w$} {:<served_w$} {:>10}{} {:>10} {:>10.3} {:>8.4}{within} {:>9.4} {:>6.2}% {:>6.2}% {:>7} {:>11} {:>11} {:>10}",
                 r.method,
                 sweep,
                 r.served_by,
                 ms(r.shadow_gpu_ms),
+                update(r),
                 ms(r.frame_gpu_ms),
                 r.host_ms,
                 r.vis_rmse,
@@ -340,6 +363,10 @@ pub fn summary(rows: &[Row]) -> String {
     let time = match rows.iter().all(|r| r.shadow_gpu_ms.is_some()) {
         true => "shadow GPU time",
         false => "time (shadow GPU time, or host time where the device could not time passes)",
+    };
+    let time = match rows.iter().any(|r| r.update_cpu_ms.is_some()) {
+        true => format!("{time} (plus, in a moving scene, the update's CPU time)"),
+        false => time.to_owned(),
     };
     let _ = write!(
         out,

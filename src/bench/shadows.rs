@@ -16,8 +16,9 @@ use anyhow::{bail, Context as _, Result};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
-use super::chart::{Chart, Series};
+use super::chart::Chart;
 use super::metrics::{flip_mean, scored_error, visibility_error, VisibilityError};
+use super::motion;
 use super::reference::{self, LightReference};
 use super::report::{self, Row};
 use super::sweep::{self, Axis, MethodSpec, Point};
@@ -31,8 +32,13 @@ use crate::vk::{GpuContext, GpuOptions};
 /// What to run (`umbra bench shadows` arguments).
 #[derive(Clone, Debug, Default)]
 pub struct Options {
-    /// Scene files; none: the built-in default scene.
+    /// Scene files or models (`scene::model`); none: the built-in default scene.
     pub scenes: Vec<PathBuf>,
+    /// How a model opens.
+    pub model: crate::scene::model::ModelOptions,
+    /// Measure only part K of N of the grid of scenes, methods and points: (K, N), from 1
+    /// (`keep_shard`); `bench::merge` joins the parts' results.
+    pub shard: Option<(usize, usize)>,
     pub methods: Vec<MethodSpec>,
     /// `--sweep` axes; `None`: each method's default sweep (`sweep::default_axes`).
     pub axes: Option<Vec<Axis>>,
@@ -73,7 +79,7 @@ const QUICK_WARMUP: u32 = 1;
 /// which is a warm-up frame.
 pub fn is_shadow_pass(name: &str) -> bool {
     use crate::gpu::accel::{BUILD_BOTTOM, BUILD_TOP};
-    name.starts_with("shadow") || name == BUILD_BOTTOM || name == BUILD_TOP
+    name.starts_with("shadow") || name == BUILD_BOTTOM || name == BUILD_TOP || name == crate::gpu::TOP_LEVEL_PASS
 }
 
 /// Bytes of the transient images and buffers the plan's shadow passes bring in (first used by
@@ -169,8 +175,12 @@ struct SceneJob {
     stem: String,
     scene: Scene,
     size: (u32, u32),
-    /// Per method: its points.
-    points: Vec<(MethodSpec, Vec<Point>)>,
+    /// Per method: its points this process measures, each with its index in the method's sweep
+    /// (all of them, or this shard's).
+    points: Vec<(MethodSpec, Vec<(usize, Point)>)>,
+    /// A moving scene's instants, each scored against its own reference (`motion::instants`);
+    /// empty for a static scene.
+    instants: Vec<f64>,
 }
 
 fn scene_stem(path: Option<&Path>, taken: &[String]) -> String {
@@ -195,7 +205,7 @@ fn prepare(options: &Options) -> Result<Vec<SceneJob>> {
     let mut jobs: Vec<SceneJob> = Vec::new();
     for path in paths {
         let scene = match path {
-            Some(p) => Scene::load(p)?,
+            Some(p) => crate::scene::model::open(p, &options.model)?,
             None => Scene::default_scene(),
         };
         let taken: Vec<String> = jobs.iter().map(|j| j.stem.clone()).collect();
@@ -216,12 +226,30 @@ fn prepare(options: &Options) -> Result<Vec<SceneJob>> {
                 Some(a) => a.clone(),
                 None => sweep::default_axes(m.method, options.quick, soft),
             };
-            points.push((m.clone(), sweep::points(m.method, &base, &axes).map_err(anyhow::Error::msg)?));
+            let swept = sweep::points(m.method, &base, &axes).map_err(anyhow::Error::msg)?;
+            points.push((m.clone(), swept.into_iter().enumerate().collect()));
         }
         let label = path.map_or("default".into(), |p| p.display().to_string());
-        jobs.push(SceneJob { label, stem, scene, size, points });
+        let instants = motion::instants(&scene, if options.quick { motion::QUICK_INSTANTS } else { motion::INSTANTS });
+        jobs.push(SceneJob { label, stem, scene, size, points, instants });
     }
     Ok(jobs)
+}
+
+/// Keeps of `jobs` what shard `index` of `count` measures: the grid's points (scene by scene,
+/// method by method, in sweep order) dealt round-robin, point `g` to shard `g mod count + 1`;
+/// a scene none of whose points are the shard's is dropped (no reference traced for it).
+fn keep_shard(jobs: &mut Vec<SceneJob>, (index, count): (usize, usize)) {
+    let mut g = 0;
+    for job in jobs.iter_mut() {
+        for (_, points) in &mut job.points {
+            points.retain(|_| {
+                g += 1;
+                (g - 1) % count == index - 1
+            });
+        }
+    }
+    jobs.retain(|j| j.points.iter().any(|(_, p)| !p.is_empty()));
 }
 
 /// Runs the bench (see the module's notes); refuses to overwrite result files unless `force`.
@@ -234,7 +262,10 @@ pub fn run(options: &Options) -> Result<Outcome> {
     if dir.exists() && !dir.is_dir() {
         bail!("-o {}: not a directory (the results go into a directory, made if missing)", dir.display());
     }
-    let jobs = prepare(options)?;
+    let mut jobs = prepare(options)?;
+    let all_scenes: Vec<String> = jobs.iter().map(|j| j.label.clone()).collect();
+    let shard = options.shard.unwrap_or((1, 1));
+    keep_shard(&mut jobs, shard);
     let outputs = output_files(options, &jobs)?;
     std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
 
@@ -244,7 +275,9 @@ pub fn run(options: &Options) -> Result<Outcome> {
         driver: ctx.driver.clone(),
         frames: options.frames.unwrap_or(if options.quick { QUICK_FRAMES } else { FRAMES }).max(1),
         warmup: if options.quick { QUICK_WARMUP } else { WARMUP },
-        bar: progress_bar(jobs.iter().map(|j| 1 + j.points.iter().map(|p| p.1.len()).sum::<usize>()).sum()),
+        bar: progress_bar(
+            jobs.iter().map(|j| j.instants.len().max(1) + j.points.iter().map(|p| p.1.len()).sum::<usize>()).sum(),
+        ),
     };
 
     let mut rows: Vec<Row> = Vec::new();
@@ -277,6 +310,9 @@ pub fn run(options: &Options) -> Result<Outcome> {
         "warmup_frames": run.warmup,
         "quick": options.quick,
         "methods": options.methods.iter().map(|m| m.id.clone()).collect::<Vec<_>>(),
+        "all_scenes": all_scenes,
+        "max_error": options.max_error,
+        "shard": { "index": shard.0, "count": shard.1 },
         "reference": {
             "soft_spp_per_frame": reference::SPP,
             "soft_frames": reference::FRAMES,
@@ -363,26 +399,36 @@ fn run_scene(
     let timing_label = calibration.describe();
     let time_axis = if calibration.mode.is_none() { "host_ms" } else { "shadow_gpu_ms" };
 
-    // The reference: cached, or traced now and cached.
+    // The references (one per instant of a moving scene): cached, or traced now and cached.
     let identity = format!("{} / {}", run.device, run.driver);
-    let cached = reference::load_or_compute(&mut renderer, width, height, &identity)?;
-    let place = cached.file.as_ref().map(|f| f.display().to_string());
-    run.say(match (cached.cached, place) {
-        (true, place) => format!("{}: reference cached ({})", job.label, place.unwrap_or_default()),
-        (false, Some(place)) => {
-            format!("{}: reference traced in {:.1} s (cached in {place})", job.label, cached.seconds)
-        }
-        (false, None) => {
-            format!("{}: reference traced in {:.1} s (not cached: no cache directory)", job.label, cached.seconds)
-        }
-    })?;
-    run.bar.inc(1);
+    let mut references = Vec::new();
+    for instant in job.instants.iter().map(Some).chain(job.instants.is_empty().then_some(None)) {
+        let at = match instant {
+            Some(&t) => {
+                renderer.set_time(t);
+                format!(" at {t:.3} s")
+            }
+            None => String::new(),
+        };
+        let cached = reference::load_or_compute(&mut renderer, width, height, &identity)?;
+        let place = cached.file.as_ref().map(|f| f.display().to_string());
+        let (label, seconds) = (&job.label, cached.seconds);
+        run.say(match (cached.cached, place) {
+            (true, place) => format!("{label}: reference{at} cached ({})", place.unwrap_or_default()),
+            (false, Some(place)) => format!("{label}: reference{at} traced in {seconds:.1} s (cached in {place})"),
+            (false, None) => {
+                format!("{label}: reference{at} traced in {seconds:.1} s (not cached: no cache directory)")
+            }
+        })?;
+        run.bar.inc(1);
+        references.push(cached);
+    }
 
-    let first_row = rows.len();
     for (method, points) in &job.points {
-        for (point_index, point) in points.iter().enumerate() {
+        for &(point_index, ref point) in points {
             run.bar.set_message(format!("{} · {} · {}", job.label, method.id, point.label()));
-            let measured = measure(&mut renderer, run, point, calibration.mode.is_some(), job.size)?;
+            let start = job.instants.first().copied();
+            let measured = measure(&mut renderer, run, point, calibration.mode.is_some(), job.size, start)?;
             let common = Row {
                 scene: job.label.clone(),
                 method: method.id.clone(),
@@ -391,10 +437,18 @@ fn run_scene(
                 timing: timing_label.clone(),
                 ..measured.row(run, job.size)
             };
-            rows.extend(score(&mut renderer, job, &cached.reference, point, &measured, common)?);
+            // Scored at each instant (posed there, the frame rendered anew), then pooled.
+            let mut instants = Vec::new();
+            for (i, cached) in references.iter().enumerate() {
+                let fresh = job.instants.get(i).map(|&t| renderer.set_time(t)).is_some();
+                let common = common.clone();
+                instants.push(score(&mut renderer, job, &cached.reference, point, &measured, fresh, common)?);
+            }
+            rows.extend(motion::pool(instants));
             run.bar.inc(1);
         }
     }
+    let cached = &references[0];
 
     // The front, the chart.
     let front = report::scene_pareto(rows, &job.label);
@@ -405,7 +459,18 @@ fn run_scene(
     if let Some(i) = auto {
         rows[i].auto_choice = true;
     }
-    let chart = scene_chart(rows, first_row, job, &run.device, time_axis, &front, auto);
+    let title = format!("{}, {width}x{height}, {}", job.stem, run.device);
+    let x_label = match (time_axis == "host_ms", job.instants.is_empty()) {
+        (true, _) => "host time per frame, ms (log)",
+        (false, true) => "shadow GPU time per frame, ms (log)",
+        (false, false) => "shadow GPU time + scene update (CPU) per frame, ms (log)",
+    };
+    let chart = super::merge::scene_chart(rows, &job.label, title.clone(), x_label.to_owned(), options.max_error);
+    let references_json: Vec<serde_json::Value> = references
+        .iter()
+        .zip(job.instants.iter().map(Some).chain(std::iter::repeat(None)))
+        .map(|(c, t)| json!({ "time": t, "key": c.key, "cached": c.cached }))
+        .collect();
     let reference = &cached.reference;
     let json = json!({
         "scene": job.label,
@@ -418,6 +483,10 @@ fn run_scene(
         "auto": { "max_error": options.max_error, "row": auto },
         "chart_svg": format!("{}.svg", job.stem),
         "chart_png": format!("{}.png", job.stem),
+        "chart_title": title,
+        "chart_x_label": x_label,
+        "instants": job.instants,
+        "references": references_json,
         "reference": {
             "key": cached.key,
             "file": cached.file.as_ref().map(|f| f.display().to_string()),
@@ -446,6 +515,9 @@ struct Measured {
     plan_bytes: u64,
     /// The last shaded frame's display bytes, one frame's worth of samples.
     display: Vec<u8>,
+    /// In a moving scene, each timed frame's update: CPU ms and bytes (`Renderer::frame_update`).
+    update_ms: Vec<f64>,
+    update_bytes: Vec<u64>,
 }
 
 impl Measured {
@@ -466,6 +538,12 @@ impl Measured {
             host_iqr_ms: host.iqr(),
             shadow_passes: self.shadow_passes.join("+"),
             shadow_bytes: self.plan_bytes,
+            update_cpu_ms: Spread::of(&self.update_ms).map(|s| s.median),
+            update_bytes: {
+                let mut b = self.update_bytes.clone();
+                b.sort_unstable();
+                b.get(b.len() / 2).copied().unwrap_or(0)
+            },
             device: run.device.clone(),
             driver: run.driver.clone(),
             umbra_version: env!("CARGO_PKG_VERSION").into(),
@@ -474,17 +552,25 @@ impl Measured {
     }
 }
 
-/// `point`'s warm-up and timed frames (GPU times where `timestamps`).
+/// `point`'s warm-up and timed frames (GPU times where `timestamps`); in a moving scene, a run
+/// of consecutive frames from `start` (`motion::frame_time`), each posing the scene anew.
 fn measure(
     renderer: &mut Renderer,
     run: &Run,
     point: &Point,
     timestamps: bool,
     (width, height): (u32, u32),
+    start: Option<f64>,
 ) -> Result<Measured> {
     let mut settings = reference::settings(width, height, OutputKind::Display, point.choices.clone());
     settings.timestamps = timestamps;
+    let mut frame = 0;
+    let mut next = |settings: &mut crate::config::RenderSettings| {
+        settings.time = start.map(|s| motion::frame_time(s, frame));
+        frame += 1;
+    };
     for _ in 0..run.warmup {
+        next(&mut settings);
         renderer.render(&settings)?;
     }
     let mut m = Measured {
@@ -495,12 +581,20 @@ fn measure(
         shadow_passes: Vec::new(),
         plan_bytes: 0,
         display: Vec::new(),
+        update_ms: Vec::new(),
+        update_bytes: Vec::new(),
     };
     for _ in 0..run.frames {
-        let start = Instant::now();
+        next(&mut m.settings);
+        let begin = Instant::now();
         let frame = renderer.render(&m.settings)?;
-        m.host_ms.push(start.elapsed().as_secs_f64() * 1e3);
+        m.host_ms.push(begin.elapsed().as_secs_f64() * 1e3);
         m.display = reference::display_bytes(frame);
+        if start.is_some() {
+            let update = renderer.frame_update();
+            m.update_ms.push(update.cpu_ms);
+            m.update_bytes.push(update.bytes);
+        }
         if let Some(t) = renderer.last_gpu_timings()? {
             let mut sum = 0.0;
             for &(name, ms) in t.passes.iter().filter(|p| is_shadow_pass(p.0)) {
@@ -519,13 +613,16 @@ fn measure(
 
 /// `point`'s rows: each light's visibility and the frame scored against `reference`, one row per
 /// light and, with more than one, a pooled row for the frame; `common` holds the columns they
-/// share.
+/// share. `fresh`: the frame is scored at another instant than the timed frames', so it is
+/// rendered anew.
+#[allow(clippy::too_many_arguments)]
 fn score(
     renderer: &mut Renderer,
     job: &SceneJob,
     reference: &reference::Reference,
     point: &Point,
     measured: &Measured,
+    fresh: bool,
     common: Row,
 ) -> Result<Vec<Row>> {
     let (width, height) = job.size;
@@ -538,11 +635,13 @@ fn score(
         visibility.push(reference::light_visibility(renderer, width, height, n, choice, 0)?);
     }
     let mut display = measured.display.clone();
-    if crate::passes::accumulate::accumulates(&measured.settings, renderer.scene()) {
+    if fresh || crate::passes::accumulate::accumulates(&measured.settings, renderer.scene()) {
         // The timed frames accumulated (soft shadows, ambient occlusion, rect lights' shadows);
         // the views since broke the run, so this frame stands alone, whatever `--frames`.
         let mut single = measured.settings.clone();
         single.timestamps = false;
+        // At the instant the scene is posed at now (the one scored).
+        single.time = None;
         display = reference::display_bytes(renderer.render(&single)?);
     }
     let flip = flip_mean(&reference.display, &display, width, height);
@@ -575,20 +674,13 @@ fn score(
             served_by: by.id().into(),
             fallback: why.unwrap_or_default(),
             settings: choice.describe(),
-            vis_rmse: e.rmse,
-            light_leak: e.light_leak,
-            false_shadow: e.false_shadow,
-            light_leak_away: e.light_leak_away,
-            false_shadow_away: e.false_shadow_away,
-            pixels: e.pixels,
-            pixels_away: e.pixels_away,
             reference_error: r.error,
             reference_shadowed: r.shadowed_share(),
             scored_error: scored_error(e.rmse, r.error),
             rays,
             map_texels: texels,
             map_bytes: texels * 4,
-            ..common.clone()
+            ..with_error(&e, common.clone())
         });
     }
     if total == 1 {
@@ -632,13 +724,6 @@ fn pooled_row(
             .collect::<Vec<_>>()
             .join("; "),
         settings: light_rows.iter().map(|r| r.settings.as_str()).collect::<Vec<_>>().join(" | "),
-        vis_rmse: e.rmse,
-        light_leak: e.light_leak,
-        false_shadow: e.false_shadow,
-        light_leak_away: e.light_leak_away,
-        false_shadow_away: e.false_shadow_away,
-        pixels: e.pixels,
-        pixels_away: e.pixels_away,
         reference_error: ref_error,
         reference_shadowed: if pixels == 0 { 0.0 } else { shadowed as f64 / pixels as f64 },
         scored_error: scored_error(e.rmse, ref_error),
@@ -647,58 +732,20 @@ fn pooled_row(
         map_texels: light_rows.iter().map(|r| r.map_texels).sum(),
         map_bytes: light_rows.iter().map(|r| r.map_bytes).sum(),
         frame_row: true,
-        ..common
+        ..with_error(&e, common)
     }
 }
 
-/// The scene's chart: each method's points (a series per sweep axis) over time against error,
-/// the front and `auto`'s pick.
-fn scene_chart(
-    rows: &[Row],
-    first_row: usize,
-    job: &SceneJob,
-    device: &str,
-    time_axis: &str,
-    front: &[usize],
-    auto: Option<usize>,
-) -> Chart {
-    let (width, height) = job.size;
-    let scene_rows: Vec<usize> = (first_row..rows.len()).filter(|&i| rows[i].frame_row).collect();
-    let mut series = Vec::new();
-    for (colour, (method, points)) in job.points.iter().enumerate() {
-        let at = |p: usize| scene_rows.iter().copied().find(|&i| rows[i].method == method.id && rows[i].point == p);
-        let mut axes: Vec<String> = Vec::new();
-        for p in points {
-            for (a, _) in &p.on_axes {
-                if !axes.contains(a) {
-                    axes.push(a.clone());
-                }
-            }
-        }
-        if axes.is_empty() {
-            let pts = (0..points.len()).filter_map(at).map(|i| (rows[i].time_ms(), rows[i].scored_error)).collect();
-            series.push(Series { label: method.id.clone(), colour, points: pts });
-        }
-        for axis in axes {
-            // The points on this axis, in the axis's value order.
-            let pts = (0..points.len())
-                .filter(|&p| points[p].on_axes.iter().any(|(a, _)| *a == axis))
-                .filter_map(at)
-                .map(|i| (rows[i].time_ms(), rows[i].scored_error))
-                .collect();
-            series.push(Series { label: format!("{} ({axis})", method.id), colour, points: pts });
-        }
-    }
-    Chart {
-        title: format!("{}, {width}x{height}, {device}", job.stem),
-        x_label: if time_axis == "host_ms" {
-            "host time per frame, ms (log)".into()
-        } else {
-            "shadow GPU time per frame, ms (log)".into()
-        },
-        y_label: "visibility RMSE".into(),
-        series,
-        front: front.iter().map(|&i| (rows[i].time_ms(), rows[i].scored_error)).collect(),
-        auto: auto.map(|i| (rows[i].time_ms(), rows[i].scored_error)),
+/// `row` with the visibility error `e`'s columns.
+fn with_error(e: &VisibilityError, row: Row) -> Row {
+    Row {
+        vis_rmse: e.rmse,
+        light_leak: e.light_leak,
+        false_shadow: e.false_shadow,
+        light_leak_away: e.light_leak_away,
+        false_shadow_away: e.false_shadow_away,
+        pixels: e.pixels,
+        pixels_away: e.pixels_away,
+        ..row
     }
 }

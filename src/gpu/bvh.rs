@@ -32,6 +32,10 @@ pub struct BvhBuffers {
     pending: Mutex<Option<Arc<Pending>>>,
 }
 
+/// The pass that writes a moving scene's rebuilt top level (the shadow work of keeping the
+/// casters up to date, which the bench counts as the frame's shadow time).
+pub const TOP_LEVEL_PASS: &str = "bvh top level";
+
 /// Which build of a shader that walks the BVH a scene's casters need: with alpha masks
 /// (BVH_MASKED) and over two levels (BVH_INSTANCED).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -216,7 +220,7 @@ impl BvhBuffers {
         if let Some(pending) = pending {
             let ((at, texels), root_texels) = &*pending;
             let (at, root_texels) = (*at, *root_texels);
-            let mut pass = g.add_pass("bvh top level");
+            let mut pass = g.add_pass(TOP_LEVEL_PASS);
             pass.detail(format!("{} KiB", (texels.len() * 16 + 64) >> 10));
             let texels = pending.clone();
             let nodes_dst = pass.write(&mut nodes, Access::TransferWrite);

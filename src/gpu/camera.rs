@@ -77,3 +77,47 @@ impl CameraMatrices {
         }
     }
 }
+
+/// The geometry pass's motion block (geometry_motion.glsl, std140): this frame's camera without
+/// the anti-aliasing jitter, the previous frame's, and the image size.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+pub struct MotionBlock {
+    pub view_proj: Mat4,
+    pub previous_view_proj: Mat4,
+    pub previous_eye: glam::Vec4,
+    pub extent: glam::Vec4,
+}
+
+impl CameraMatrices {
+    /// The motion block of a frame seen by `self` (unjittered) after one seen by `previous`,
+    /// `width` x `height` pixels.
+    pub fn motion_block(&self, previous: &CameraMatrices, width: u32, height: u32) -> MotionBlock {
+        MotionBlock {
+            view_proj: self.view_proj_relative,
+            previous_view_proj: previous.view_proj_relative,
+            previous_eye: previous.eye.extend(0.0),
+            extent: glam::Vec4::new(width as f32, height as f32, 0.0, 0.0),
+        }
+    }
+
+    /// CPU twin of the G-buffer's motion channel (gbuffer.glsl): the screen-space motion, in
+    /// pixels, of a point at `now` (scene-local) seen by `self` that was at `before` in a frame
+    /// seen by `previous`, `width` x `height` pixels; `None` where it was behind that camera.
+    pub fn motion(
+        &self,
+        previous: &CameraMatrices,
+        now: Vec3,
+        before: Vec3,
+        width: u32,
+        height: u32,
+    ) -> Option<glam::Vec2> {
+        let clip = self.view_proj_relative * (now - self.eye).extend(1.0);
+        let was = previous.view_proj_relative * (before - previous.eye).extend(1.0);
+        if was.w <= 0.0 {
+            return None;
+        }
+        let half = glam::Vec2::new(width as f32, height as f32) * 0.5;
+        Some(clip.truncate().truncate() / clip.w * half - was.truncate().truncate() / was.w * half)
+    }
+}

@@ -53,6 +53,10 @@ pub struct SceneGpu {
     pub vertices: Buffer,
     pub vertex_count: u32,
     pub instance_offset: u64,
+    /// In a moving scene, where the instance rows as the previous frame drew them start (a copy
+    /// of the rows after them, for motion vectors); in a static scene they are the rows at
+    /// `instance_offset`.
+    pub previous_offset: Option<u64>,
     /// Where the `SurfaceVertex`es start in `vertices` (after the instances), in a scene with
     /// textures; they are bound at vertex binding 2 by textured draws.
     pub surface_offset: Option<u64>,
@@ -86,9 +90,19 @@ pub struct SceneGpu {
     pub camera: Camera,
     /// The draws whose meshes move, in draw order (empty in a static scene).
     pub moving: Vec<MovingDraw>,
-    /// The moving draws' new instance rows (their `row`s in order), where the scene was posed
-    /// since the last frame: the next frame's first pass writes them (`import_vertices`).
-    pending_rows: std::sync::Mutex<Option<Arc<Vec<InstanceRows>>>>,
+    /// The moving draws' instance rows, posed and drawn, and what the next frame writes.
+    rows: std::sync::Mutex<MovingRows>,
+}
+
+/// The moving draws' instance rows (their `row`s in order).
+struct MovingRows {
+    /// As posed last.
+    posed: Vec<InstanceRows>,
+    /// As the last recorded frame drew them: the next frame's previous rows.
+    drawn: Vec<InstanceRows>,
+    /// What the next frame's first pass writes (`import_vertices`): the rows now and the
+    /// previous frame's, where they changed since the last recorded frame.
+    pending: Option<Arc<(Vec<InstanceRows>, Vec<InstanceRows>)>>,
 }
 
 /// A scene without textures: its distinct materials as the G-buffer's material channel would
@@ -212,6 +226,7 @@ struct Packing {
 struct VertexBytes {
     bytes: Vec<u8>,
     instance_offset: u64,
+    previous_offset: Option<u64>,
     surface_offset: Option<u64>,
     second_uv_offset: Option<u64>,
 }
@@ -349,12 +364,18 @@ impl Packing {
         self.indices.extend_from_slice(&mesh.indices);
     }
 
-    /// The vertex buffer: vertices, instance rows, then the surface vertices and the second
-    /// texture-coordinate set where the scene has them.
+    /// The vertex buffer: vertices, instance rows (twice in a moving scene: now and as the
+    /// previous frame drew them), then the surface vertices and the second texture-coordinate
+    /// set where the scene has them.
     fn vertex_bytes(&mut self) -> VertexBytes {
         let mut bytes: Vec<u8> = bytemuck::cast_slice(&self.vertices).to_vec();
         let instance_offset = bytes.len() as u64;
         bytes.extend_from_slice(bytemuck::cast_slice(&self.instances));
+        let previous_offset = (!self.moving.is_empty()).then(|| {
+            let at = bytes.len() as u64;
+            bytes.extend_from_slice(bytemuck::cast_slice(&self.instances));
+            at
+        });
         let count = self.vertices.len();
         let surface_offset = self.textured.then(|| {
             self.surface_vertices.resize(count, SurfaceVertex::default());
@@ -368,7 +389,7 @@ impl Packing {
             bytes.extend_from_slice(bytemuck::cast_slice(&self.second_uvs));
             at
         });
-        VertexBytes { bytes, instance_offset, surface_offset, second_uv_offset }
+        VertexBytes { bytes, instance_offset, previous_offset, surface_offset, second_uv_offset }
     }
 }
 
@@ -423,6 +444,7 @@ impl SceneGpu {
             false => Some(MaterialTable::upload(ctx, &packing.table_texels.texels)?),
         };
         check_texel_limits(ctx, vertex.bytes.len(), &packing.indices)?;
+        let rest: Vec<InstanceRows> = packing.moving.iter().map(|m| packing.instances[m.row as usize]).collect();
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         // A moving scene's frames rewrite the instance rows.
         let rows =
@@ -445,6 +467,7 @@ impl SceneGpu {
             vertices,
             vertex_count,
             instance_offset: vertex.instance_offset,
+            previous_offset: vertex.previous_offset,
             surface_offset: vertex.surface_offset,
             second_uv_offset: vertex.second_uv_offset,
             materials,
@@ -460,8 +483,8 @@ impl SceneGpu {
             bounds: (lo, hi),
             origin,
             camera: scene.camera,
+            rows: std::sync::Mutex::new(MovingRows { posed: rest.clone(), drawn: rest, pending: None }),
             moving: packing.moving,
-            pending_rows: std::sync::Mutex::new(None),
         })
     }
 
@@ -473,51 +496,82 @@ impl SceneGpu {
         if self.moving.is_empty() {
             return 0;
         }
-        let mut rows = Vec::with_capacity(self.moving.len());
+        let rows = self.moving_rows(&delta);
         for m in &self.moving {
             let d = delta(m.mesh).unwrap_or(glam::DMat4::IDENTITY);
-            rows.push(InstanceRows::of(&(d * m.base)));
-            let moved = m.rest_bounds.transformed(&d.as_mat4());
-            self.draws[m.draw].bounds = moved;
+            self.draws[m.draw].bounds = m.rest_bounds.transformed(&d.as_mat4());
         }
         let all = self.draws.iter().fold(Bounds::EMPTY, |b, d| b.union(&d.bounds));
         if !all.is_empty() {
             self.bounds = (all.min, all.max);
         }
-        let bytes = std::mem::size_of_val(rows.as_slice()) as u64;
-        *self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(rows));
+        let bytes = 2 * std::mem::size_of_val(rows.as_slice()) as u64;
+        let mut state = self.rows.lock().unwrap_or_else(|e| e.into_inner());
+        state.pending = Some(Arc::new((rows.clone(), state.drawn.clone())));
+        state.posed = rows;
         bytes
     }
 
-    /// A frame that imported the scene was recorded: the updates it wrote are done.
+    /// Sets where the moving draws were in the previous frame, as `pose`'s `delta` says (for a
+    /// first frame, which has no previous one drawn): the next frame's motion vectors start there.
+    pub fn pose_previous(&mut self, delta: impl Fn(usize) -> Option<glam::DMat4>) {
+        if self.moving.is_empty() {
+            return;
+        }
+        let rows = self.moving_rows(&delta);
+        let mut state = self.rows.lock().unwrap_or_else(|e| e.into_inner());
+        state.pending = Some(Arc::new((state.posed.clone(), rows.clone())));
+        state.drawn = rows;
+    }
+
+    /// The moving draws' rows, each mesh moved by `delta`.
+    fn moving_rows(&self, delta: &impl Fn(usize) -> Option<glam::DMat4>) -> Vec<InstanceRows> {
+        let at = |m: &MovingDraw| InstanceRows::of(&(delta(m.mesh).unwrap_or(glam::DMat4::IDENTITY) * m.base));
+        self.moving.iter().map(at).collect()
+    }
+
+    /// A frame that imported the scene was recorded: the updates it wrote are done, and the
+    /// rows it drew are the next frame's previous rows (written by the next frame where they
+    /// differ from what the device holds).
     pub fn recorded(&self) {
-        self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()).take();
+        let mut state = self.rows.lock().unwrap_or_else(|e| e.into_inner());
+        state.pending = None;
+        if state.drawn != state.posed {
+            state.drawn = state.posed.clone();
+            state.pending = Some(Arc::new((state.posed.clone(), state.posed.clone())));
+        }
+        drop(state);
         self.bvh.recorded();
     }
 
     /// Imports the vertex buffer into `g`; where the scene was posed since the last recorded
-    /// frame, a first pass writes the moving draws' instance rows (after every read of the old
-    /// ones that earlier frames submitted).
+    /// frame, a first pass writes the moving draws' instance rows, now and as the previous frame
+    /// drew them (after every read of the old ones that earlier frames submitted).
     pub fn import_vertices<'a>(
         &'a self,
         g: &mut crate::graph::RenderGraph<'a>,
     ) -> crate::graph::Handle<crate::graph::BufferKind> {
         let mut vertices = g.import_buffer("vertices", &self.vertices, SCENE_ACCESS);
-        let Some(rows) = self.pending_rows.lock().unwrap_or_else(|e| e.into_inner()).clone() else {
+        let Some(rows) = self.rows.lock().unwrap_or_else(|e| e.into_inner()).pending.clone() else {
             return vertices;
         };
+        let previous = self.previous_offset.expect("a moving scene keeps the previous frame's rows");
         let mut pass = g.add_pass("instance rows");
-        pass.detail(format!("{} moving draws", rows.len()));
+        pass.detail(format!("{} moving draws", rows.0.len()));
         let dst = pass.write(&mut vertices, Access::TransferWrite);
-        let at: Vec<u64> = self
+        let size = std::mem::size_of::<InstanceRows>() as u64;
+        let at: Vec<(u64, u64)> = self
             .moving
             .iter()
-            .map(|m| self.instance_offset + u64::from(m.row) * std::mem::size_of::<InstanceRows>() as u64)
+            .map(|m| (self.instance_offset + u64::from(m.row) * size, previous + u64::from(m.row) * size))
             .collect();
         pass.render(move |ctx| {
-            for (row, offset) in rows.iter().zip(&at) {
+            for ((now, before), (now_at, before_at)) in rows.0.iter().zip(&rows.1).zip(&at) {
                 // SAFETY: recording state; each row is 96 bytes inside the buffer.
-                unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), *offset, bytemuck::bytes_of(row)) };
+                unsafe {
+                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), *now_at, bytemuck::bytes_of(now));
+                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), *before_at, bytemuck::bytes_of(before));
+                }
             }
             Ok(())
         });

@@ -16,7 +16,7 @@ pub struct Vertex {
 /// identity, which every mesh drawn once uses: its vertices are already in the local frame, and
 /// multiplying by exact ones and zeros leaves them bit for bit as they are.
 #[repr(C)]
-#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+#[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct InstanceRows {
     pub model: [[f32; 4]; 3],
     pub normal: [[f32; 4]; 3],
@@ -46,6 +46,14 @@ pub const INSTANCE_ATTRIBUTES: [(u32, vk::Format, u32); 6] = [
     (5, vk::Format::R32G32B32A32_SFLOAT, 48),
     (6, vk::Format::R32G32B32A32_SFLOAT, 64),
     (7, vk::Format::R32G32B32A32_SFLOAT, 80),
+];
+
+/// The motion variant's inputs at vertex binding 4, read per instance: the model rows of the
+/// instance's `InstanceRows` as the previous frame drew them (geometry_vertex.glsl).
+pub const PREVIOUS_MODEL_ATTRIBUTES: [(u32, vk::Format, u32); 3] = [
+    (11, vk::Format::R32G32B32A32_SFLOAT, 0),
+    (12, vk::Format::R32G32B32A32_SFLOAT, 16),
+    (13, vk::Format::R32G32B32A32_SFLOAT, 32),
 ];
 
 /// Per-vertex data of textured meshes (vertex binding 2, parallel to the `Vertex`es: zeros for

@@ -54,6 +54,22 @@ pub(crate) enum BenchCommand {
     /// Trace the camera's shadow (or area, or AO) rays with the compute BVH, the device's ray
     /// query and obvhs on the CPU; check they agree and print rays per second side by side.
     Rays(BenchRaysArgs),
+    /// Join the results of `bench shadows --shard K/N` runs (every shard's DIR) into one set in
+    /// OUT, as one run would have written it: results.csv, results.json, a chart per scene.
+    Merge(BenchMergeArgs),
+}
+
+#[derive(clap::Args)]
+pub(crate) struct BenchMergeArgs {
+    /// The shards' result directories.
+    #[arg(required = true)]
+    pub(crate) dirs: Vec<PathBuf>,
+    /// Directory for the merged results (made if missing).
+    #[arg(short, long, value_name = "DIR")]
+    pub(crate) output: PathBuf,
+    /// Replace result files already in DIR.
+    #[arg(long)]
+    pub(crate) force: bool,
 }
 
 #[derive(clap::Args)]
@@ -86,10 +102,32 @@ pub(crate) struct BenchRaysArgs {
     pub(crate) file_order: bool,
 }
 
+/// How a model file opens when given in place of a scene file.
+#[derive(clap::Args, Clone, Copy, Debug)]
+pub(crate) struct ModelArgs {
+    /// For a glTF model given in place of a scene file: view from its camera N (counted from
+    /// 0) instead of one fitted to its bounds.
+    #[arg(long, value_name = "N")]
+    pub(crate) camera: Option<u32>,
+    /// For a model given in place of a scene file that brings no lights: add the studio sun
+    /// and environment but no ground under it.
+    #[arg(long)]
+    pub(crate) no_ground: bool,
+}
+
+impl ModelArgs {
+    pub(crate) fn options(self) -> umbra::scene::model::ModelOptions {
+        umbra::scene::model::ModelOptions { camera: self.camera, ground: !self.no_ground }
+    }
+}
+
 #[derive(clap::Args)]
 pub(crate) struct BenchShadowsArgs {
-    /// Scene files (TOML); the built-in default scene if none.
+    /// Scene files (TOML), or models (.glb, .gltf, .obj) opened as they are; the built-in
+    /// default scene if none.
     pub(crate) scenes: Vec<PathBuf>,
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
     /// Methods to measure, comma-separated: traced, traced-soft, map, cascades, volumes, hybrid,
     /// evsm, none. Default: every technique (all but traced-soft and none).
     #[arg(long)]
@@ -123,6 +161,15 @@ pub(crate) struct BenchShadowsArgs {
     /// Replace result files already in DIR.
     #[arg(long)]
     pub(crate) force: bool,
+    /// Measure only part K of N of the grid of scenes, methods and points (points dealt
+    /// round-robin: the grid's point g is part g mod N + 1); `umbra bench merge` joins the
+    /// parts. Without it, a Slurm job array's task or a Kubernetes Indexed Job's
+    /// JOB_COMPLETION_INDEX (with --shards) says which part.
+    #[arg(long, value_parser = sequence::parse_shard, value_name = "K/N")]
+    pub(crate) shard: Option<sequence::Shard>,
+    /// The number of parts when JOB_COMPLETION_INDEX gives this process's.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..=1_000_000))]
+    pub(crate) shards: Option<u64>,
     /// Use this Vulkan device: an index from `umbra devices`, or part of its name.
     #[arg(long)]
     pub(crate) device: Option<String>,
@@ -133,8 +180,12 @@ pub(crate) struct BenchShadowsArgs {
 
 #[derive(clap::Args)]
 pub(crate) struct ViewArgs {
-    /// Scene file (TOML); the built-in default scene if omitted.
+    /// Scene file (TOML), or a model (.glb, .gltf, .obj) opened as it is (a camera fitted to
+    /// it, a studio sun and a ground where it brings none); the built-in default scene if
+    /// omitted.
     pub(crate) scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
     /// Initial window size as WIDTHxHEIGHT (default: the scene's [image], else 960x540).
     #[arg(long, value_parser = parse_size)]
     pub(crate) size: Option<(u32, u32)>,
@@ -180,14 +231,18 @@ pub(crate) fn parse_fixed_dt(text: &str) -> Result<f32, String> {
 
 #[derive(clap::Args)]
 pub(crate) struct RenderArgs {
-    /// Scene file (TOML); the built-in default scene if omitted.
+    /// Scene file (TOML), or a model (.glb, .gltf, .obj) opened as it is (a camera fitted to
+    /// it, a studio sun and a ground where it brings none); the built-in default scene if
+    /// omitted.
     pub(crate) scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub(crate) model: ModelArgs,
     /// Output file: .png (tone-mapped sRGB) or .exr (linear radiance, W/(m^2 sr), float32, ZIP,
     /// with how it was made in its header). Default: SCENE.png (the scene file's name), or
     /// out.png for the built-in scene, in the current directory.
     #[arg(short, long)]
     pub(crate) output: Option<PathBuf>,
-    /// Image size as WIDTHxHEIGHT; overrides the scene's [image].
+    /// Image size as WIDTHxHEIGHT; overrides the scene's [image] (default: that, else 1280x720).
     #[arg(long, value_parser = parse_size)]
     pub(crate) size: Option<(u32, u32)>,
     /// Khronos validation with synchronization validation; exits non-zero on any message.
@@ -209,9 +264,10 @@ pub(crate) struct RenderArgs {
     #[arg(long)]
     pub(crate) timings: bool,
     /// Write a debug view instead of the shaded image: albedo, normal, geometric-normal, depth,
-    /// position, or visibility[:N] (light N's visibility, 1 lit, 0 shadowed; lights counted
-    /// from 0: the point, spot and directional lights in file order, then the rect lights in
-    /// file order; plain `visibility` is light 0).
+    /// position, motion (each pixel's motion since the previous frame, in pixels), or
+    /// visibility[:N] (light N's visibility, 1 lit, 0 shadowed; lights counted from 0: the
+    /// point, spot and directional lights in file order, then the rect lights in file order;
+    /// plain `visibility` is light 0); more in docs/cli.md.
     #[arg(long, value_parser = clap::builder::ValueParser::new(|s: &str| s.parse::<DebugView>()))]
     pub(crate) debug_view: Option<DebugView>,
     /// Exposure in stops for PNG output.

@@ -128,15 +128,16 @@ pub(crate) fn numbered(pattern: &Path, number: usize) -> Result<PathBuf> {
     Ok(pattern.with_file_name(file))
 }
 
-/// A progress bar over a sequence's `images` of `frames` frames each, on stderr when it is a
-/// terminal and the log shows warnings or more (hidden otherwise, and under -q).
+/// A progress bar over `images` (a sequence's, or one) of `frames` frames each, on stderr when it
+/// is a terminal and the log shows warnings or more (hidden otherwise, and under -q); its
+/// message follows the frame count (one image's samples per pixel).
 pub(crate) fn progress(images: usize, frames: u32) -> indicatif::ProgressBar {
     let total = images as u64 * u64::from(frames);
     if !std::io::IsTerminal::is_terminal(&std::io::stderr()) || !log::log_enabled!(log::Level::Warn) {
         return indicatif::ProgressBar::hidden();
     }
     let bar = indicatif::ProgressBar::new(total);
-    let style = indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames, {elapsed} ({eta} left)")
+    let style = indicatif::ProgressStyle::with_template("{bar:40} {pos}/{len} frames{msg}, {elapsed} ({eta} left)")
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar());
     bar.set_style(style);
     bar

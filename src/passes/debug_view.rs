@@ -62,6 +62,8 @@ fn shader_view(view: DebugView) -> u32 {
         DebugView::Depth => 2,
         DebugView::Position => 3,
         DebugView::Visibility(_) => 4,
+        // Its input is the G-buffer's motion channel.
+        DebugView::Motion => 6,
         // Its own shader (debug_geometric_normal.comp), which reads no view number.
         DebugView::GeometricNormal => 5,
         // Written by the technique itself (`shadows::add`), never by this pass.
@@ -86,6 +88,7 @@ pub fn add<'a>(
     let source = match inputs.view {
         DebugView::Normal => &gbuffer.normal,
         DebugView::GeometricNormal => &gbuffer.surface,
+        DebugView::Motion => gbuffer.motion.as_ref().expect("a frame with the motion view draws the motion channel"),
         _ => &gbuffer.position,
     };
     let mut pass = graph.add_pass("debug view");

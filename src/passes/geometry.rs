@@ -16,10 +16,13 @@ use std::sync::Arc;
 use ash::vk;
 use glam::{Mat4, UVec4, Vec4};
 
-use super::{GBuffer, DEPTH_FORMAT, EMISSION_FORMAT, MATERIAL_FORMAT, NORMAL_FORMAT, POSITION_FORMAT, SURFACE_FORMAT};
+use super::{
+    GBuffer, DEPTH_FORMAT, EMISSION_FORMAT, MATERIAL_FORMAT, MOTION_FORMAT, NORMAL_FORMAT, POSITION_FORMAT,
+    SURFACE_FORMAT,
+};
 use crate::gpu::{
-    CameraMatrices, InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SECOND_UV_ATTRIBUTES,
-    SECOND_UV_STRIDE, SURFACE_ATTRIBUTES, TABLE_ACCESS,
+    CameraMatrices, InstanceRows, MotionBlock, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES,
+    PREVIOUS_MODEL_ATTRIBUTES, SECOND_UV_ATTRIBUTES, SECOND_UV_STRIDE, SURFACE_ATTRIBUTES, TABLE_ACCESS,
 };
 use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, PassContext, Ref, RenderGraph};
 use crate::vk::{
@@ -80,23 +83,27 @@ impl ScenePipelines<'_> {
 }
 
 /// The cache key of a geometry variant.
-fn key(textured: bool, two_sided: bool) -> PipelineKey {
-    PipelineKey::new("geometry", textured as u32 | (two_sided as u32) << 1)
+fn key(textured: bool, two_sided: bool, motion: bool) -> PipelineKey {
+    PipelineKey::new("geometry", textured as u32 | (two_sided as u32) << 1 | (motion as u32) << 2)
 }
 
-/// The variants `scene`'s draws take, made with `layout` (the pass's bindings).
+/// The variants `scene`'s draws take, made with `layout` (the pass's bindings); `motion`: the
+/// variants that also write the motion channel.
 fn scene_pipelines<'a>(
     pipelines: PipelineSource<'a>,
     scene: &SceneGpu,
     layout: &[(u32, DescriptorKind)],
+    motion: bool,
 ) -> GpuResult<ScenePipelines<'a>> {
     let two_sided = scene.draws.iter().any(|d| d.double_sided);
     let set_1 = scene.materials.as_ref().map(|m| m.set_layout());
     let untextured = |sided: bool| {
-        pipelines.graphics(key(false, sided), layout, |ctx, layout| untextured_pipeline(ctx, layout, sided))
+        let key = key(false, sided, motion);
+        pipelines.graphics(key, layout, |ctx, layout| untextured_pipeline(ctx, layout, sided, motion))
     };
     let textured = |set_1, sided: bool| {
-        pipelines.graphics(key(true, sided), layout, |ctx, layout| textured_pipeline(ctx, layout, set_1, sided))
+        let key = key(true, sided, motion);
+        pipelines.graphics(key, layout, |ctx, layout| textured_pipeline(ctx, layout, set_1, sided, motion))
     };
     Ok(ScenePipelines {
         untextured: set_1.is_none().then(|| untextured(false)).transpose()?,
@@ -145,16 +152,28 @@ fn untextured_pipeline(
     ctx: &Arc<GpuContext>,
     layout: &[(u32, DescriptorKind)],
     two_sided: bool,
+    motion: bool,
 ) -> GpuResult<GraphicsPipeline> {
-    let extras = GraphicsExtras { instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)), ..Default::default() };
+    let extras = GraphicsExtras {
+        instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
+        instance_4: motion.then_some((INSTANCE_STRIDE, &PREVIOUS_MODEL_ATTRIBUTES[..])),
+        ..Default::default()
+    };
     let (name, fragment) = match (ctx.capabilities.geometry_shader, two_sided) {
         (true, false) => ("geometry", spirv::GEOMETRY_FRAG),
         (true, true) => ("geometry (two-sided)", spirv::GEOMETRY_FRAG),
         (false, false) => ("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG),
         (false, true) => ("geometry (plain, two-sided)", spirv::GEOMETRY_PLAIN_FRAG),
     };
-    let desc = desc(name, spirv::GEOMETRY_VERT, fragment, layout, &FORMATS, two_sided);
+    let m = motion as usize;
+    let formats = with_motion(&FORMATS, motion);
+    let desc = desc(name, spirv::GEOMETRY_VERT[m], fragment[m], layout, &formats, two_sided);
     GraphicsPipeline::with_extras(ctx, &desc, &extras)
+}
+
+/// `formats` with the motion channel's after them where the variant writes it.
+fn with_motion(formats: &[vk::Format], motion: bool) -> Vec<vk::Format> {
+    formats.iter().copied().chain(motion.then_some(MOTION_FORMAT)).collect()
 }
 
 /// The geometry pipeline for textured draws: texture coordinates and tangents at vertex binding
@@ -166,11 +185,13 @@ fn textured_pipeline(
     layout: &[(u32, DescriptorKind)],
     material_set: vk::DescriptorSetLayout,
     two_sided: bool,
+    motion: bool,
 ) -> GpuResult<GraphicsPipeline> {
     let extras = GraphicsExtras {
         instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
         per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES)),
         per_vertex_3: Some((SECOND_UV_STRIDE, &SECOND_UV_ATTRIBUTES)),
+        instance_4: motion.then_some((INSTANCE_STRIDE, &PREVIOUS_MODEL_ATTRIBUTES[..])),
         set_1: Some(material_set),
         ..Default::default()
     };
@@ -181,13 +202,15 @@ fn textured_pipeline(
         (false, false) => ("geometry (textured, plain)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG),
         (false, true) => ("geometry (textured, plain, two-sided)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG),
     };
-    let desc = desc(name, vertex, fragment, layout, &TEXTURED_FORMATS, two_sided);
+    let m = motion as usize;
+    let formats = with_motion(&TEXTURED_FORMATS, motion);
+    let desc = desc(name, vertex[m], fragment[m], layout, &formats, two_sided);
     GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }
 
 /// The G-buffer's images for `scene` at `extent` (untextured scenes read the scene's material
 /// table in place of a material image).
-fn gbuffer_images(graph: &mut RenderGraph<'_>, scene: &SceneGpu, extent: vk::Extent2D) -> GBuffer {
+fn gbuffer_images(graph: &mut RenderGraph<'_>, scene: &SceneGpu, extent: vk::Extent2D, motion: bool) -> GBuffer {
     let image = |format| ImageDesc::new(format, extent.width, extent.height);
     GBuffer {
         depth: graph.create_image("depth", image(DEPTH_FORMAT)),
@@ -199,10 +222,26 @@ fn gbuffer_images(graph: &mut RenderGraph<'_>, scene: &SceneGpu, extent: vk::Ext
         },
         surface: graph.create_image("gbuffer surface", image(SURFACE_FORMAT)),
         emission: scene.materials.as_ref().map(|_| graph.create_image("gbuffer emission", image(EMISSION_FORMAT))),
+        motion: motion.then(|| graph.create_image("gbuffer motion", image(MOTION_FORMAT))),
     }
 }
 
-/// The G-buffer of `scene` seen by `camera`: one pass drawing every draw.
+/// The motion block as a buffer of the frame, written by a pass of its own.
+fn motion_buffer(graph: &mut RenderGraph<'_>, block: MotionBlock) -> Handle<BufferKind> {
+    let mut buffer = graph.create_buffer("geometry motion", std::mem::size_of::<MotionBlock>() as u64);
+    let mut pass = graph.add_pass("geometry motion");
+    let dst = pass.write(&mut buffer, Access::TransferWrite);
+    pass.render(move |ctx| {
+        // SAFETY: recording state; the block is 160 bytes, a multiple of 4.
+        unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), 0, bytemuck::bytes_of(&block)) };
+        Ok(())
+    });
+    buffer
+}
+
+/// The G-buffer of `scene` seen by `camera`: one pass drawing every draw; with `motion` (the
+/// cameras of this frame and the previous one), the motion channel too.
+#[allow(clippy::too_many_arguments)]
 pub fn add<'a>(
     graph: &mut RenderGraph<'a>,
     pipelines: PipelineSource<'a>,
@@ -210,10 +249,12 @@ pub fn add<'a>(
     vertices: &Handle<BufferKind>,
     indices: &Handle<BufferKind>,
     camera: CameraMatrices,
+    motion: Option<MotionBlock>,
     extent: vk::Extent2D,
 ) -> GpuResult<GBuffer> {
     let reads_triangles = pipelines.ctx.capabilities.geometry_shader;
-    let mut gbuffer = gbuffer_images(graph, scene, extent);
+    let mut gbuffer = gbuffer_images(graph, scene, extent, motion.is_some());
+    let block = motion.map(|m| motion_buffer(graph, m));
     let mut pass = graph.add_pass("geometry");
     let vb = pass.read(vertices, Access::VertexBuffer);
     let ib = pass.read(indices, Access::IndexBuffer);
@@ -223,6 +264,10 @@ pub fn add<'a>(
         let vertices = Bound::TexelBuffer(pass.read(vertices, read), scene.vertex_view.view);
         let indices = Bound::TexelBuffer(pass.read(indices, read), scene.index_view.view);
         bound = vec![(bindings::GEOMETRY_VERTICES, vertices), (bindings::GEOMETRY_INDICES, indices)];
+    }
+    if let Some(block) = &block {
+        let read = pass.read(block, Access::VertexShaderReadUniformBuffer);
+        bound.push((bindings::GEOMETRY_MOTION, Bound::Buffer(read)));
     }
     let depth = pass.write(&mut gbuffer.depth, Access::DepthAttachmentWrite);
     let mut colors = vec![
@@ -238,11 +283,15 @@ pub fn add<'a>(
     if let Some(emission) = &mut gbuffer.emission {
         colors.push(pass.write(emission, Access::ColorAttachmentWrite));
     }
+    if let Some(motion) = &mut gbuffer.motion {
+        colors.push(pass.write(motion, Access::ColorAttachmentWrite));
+    }
     // A scene with nothing to draw clears the G-buffer and makes no pipeline.
     let used = match scene.draws.is_empty() {
         true => None,
-        false => Some(scene_pipelines(pipelines, scene, &layout_of(&bound))?),
+        false => Some(scene_pipelines(pipelines, scene, &layout_of(&bound), motion.is_some())?),
     };
+    let motion = motion.is_some();
     pass.render(move |ctx| {
         let attachment = |view, clear| {
             vk::RenderingAttachmentInfo::default()
@@ -263,7 +312,7 @@ pub fn add<'a>(
             .clear_value(vk::ClearValue { depth_stencil: vk::ClearDepthStencilValue { depth: 0.0, stencil: 0 } });
         ctx.begin_rendering(extent, &color_attachments, Some(&depth_attachment), None);
         if let Some(used) = &used {
-            draw_scene(ctx, scene, used, &bound, (vb, ib), &camera)?;
+            draw_scene(ctx, scene, used, &bound, (vb, ib), &camera, motion)?;
         }
         ctx.end_rendering();
         Ok(())
@@ -279,6 +328,7 @@ fn draw_scene(
     bound: &[(u32, Bound)],
     (vb, ib): (Ref<BufferKind>, Ref<BufferKind>),
     camera: &CameraMatrices,
+    motion: bool,
 ) -> GpuResult<()> {
     let d = ctx.device;
     // SAFETY: recording state; every object is resolved for this frame and outlives it.
@@ -292,6 +342,11 @@ fn draw_scene(
                 d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb; 4], &offsets)
             }
             None => d.cmd_bind_vertex_buffers(ctx.cmd, 0, &[vb, vb], &[0, scene.instance_offset]),
+        }
+        if motion {
+            // The rows as the previous frame drew them: a static scene's are the rows now.
+            let previous = scene.previous_offset.unwrap_or(scene.instance_offset);
+            d.cmd_bind_vertex_buffers(ctx.cmd, 4, &[vb], &[previous]);
         }
         d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
     }

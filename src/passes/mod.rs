@@ -38,6 +38,9 @@ pub const EMISSION_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 pub const DEPTH_FORMAT: vk::Format = vk::Format::D32_SFLOAT;
 pub const RADIANCE_FORMAT: vk::Format = vk::Format::R32G32B32A32_SFLOAT;
 pub const DISPLAY_FORMAT: vk::Format = vk::Format::R8G8B8A8_UNORM;
+/// Screen-space motion in pixels (gbuffer.glsl): f16 keeps a thousandth of a pixel below one
+/// pixel and half a pixel at a thousand.
+pub const MOTION_FORMAT: vk::Format = vk::Format::R16G16_SFLOAT;
 
 /// The geometry pass's outputs (layout in shaders/include/gbuffer.glsl).
 pub struct GBuffer {
@@ -55,4 +58,7 @@ pub struct GBuffer {
     /// Emitted radiance and ambient occlusion (gbuffer.glsl), in scenes with material textures
     /// or emission only.
     pub emission: Option<Handle<ImageKind>>,
+    /// Each pixel's screen-space motion since the previous frame (gbuffer.glsl), in frames that
+    /// ask for it only.
+    pub motion: Option<Handle<ImageKind>>,
 }

@@ -26,6 +26,12 @@ pub enum SceneError {
     /// A mesh file was read but is not a usable file of its kind (`format`: OBJ, glTF).
     #[error("{file}: {key_path}: \"{mesh}\" is not a valid {format} file: {reason}")]
     MeshParse { file: String, key_path: String, mesh: String, format: &'static str, reason: String },
+    /// A model opened without a scene file that cannot be shown as it is.
+    #[error("{}: {reason}", path.display())]
+    Model { path: PathBuf, reason: String },
+    /// A model opened without a scene file that could not be read.
+    #[error("{}: cannot read model: {}", path.display(), IoReason(error))]
+    ModelRead { path: PathBuf, error: io::Error },
 }
 
 /// `key_path: ` when there is one, nothing otherwise.

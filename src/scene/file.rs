@@ -11,6 +11,7 @@ use super::mesh::{self, ObjectMesh};
 use super::values::Xyz;
 use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, RectLight, Scene};
 
+mod camera;
 mod desc;
 mod motion;
 use desc::{
@@ -52,6 +53,17 @@ fn short_numbers(values: &[f64]) -> String {
 /// Parses and checks a scene. `source_name` names the file in errors; mesh paths are relative to
 /// `base_dir`.
 pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Scene, SceneError> {
+    parse_with(text, source_name, base_dir, false).map(|(scene, _)| scene)
+}
+
+/// `parse` for a model opened without a scene file (`super::model`): a scene with no camera
+/// parses (its camera a placeholder the caller replaces), and objects without lights are not
+/// warned about (the caller adds them). Returns whether the scene has a camera.
+pub(super) fn parse_model(text: &str, source_name: &str, base_dir: &Path) -> Result<(Scene, bool), SceneError> {
+    parse_with(text, source_name, base_dir, true)
+}
+
+fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Result<(Scene, bool), SceneError> {
     let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::from_toml(source_name, text, &e))?;
     let check = Check { file: source_name, textures: Default::default() };
 
@@ -60,7 +72,13 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         Some(scene) => Some(check.whole_scene(scene, base_dir)?),
         None => None,
     };
-    let camera = check.camera_choice(file.camera.as_ref(), whole.as_ref().map(|(s, g)| (s.as_str(), g)))?;
+    let placed = whole.as_ref().is_some_and(|(_, g)| g.cameras.iter().any(Option::is_some));
+    let has_camera = file.camera.is_some() || placed;
+    let camera = match model && !has_camera {
+        // A placeholder: the model's opener fits a camera to its bounds.
+        true => Camera { eye: DVec3::Z, target: DVec3::ZERO, up: Vec3::Y, vfov_deg: 40.0 },
+        false => check.camera_choice(file.camera.as_ref(), whole.as_ref().map(|(s, g)| (s.as_str(), g)))?,
+    };
     let camera_path = match &file.camera {
         Some(CameraChoice::Table(desc)) => check.camera_path(desc, camera.up.as_dvec3())?,
         _ => None,
@@ -186,7 +204,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         stats.short_faces += placed.short_faces;
     }
     sources.extend(check.textures.borrow().files().iter().cloned());
-    if !meshes.is_empty() && lights.is_empty() && rect_lights.is_empty() && file.environment.is_none() {
+    if !model && !meshes.is_empty() && lights.is_empty() && rect_lights.is_empty() && file.environment.is_none() {
         // Nothing else lights a surface: say why the picture is black before the user looks
         // for a bug.
         log::warn!(
@@ -210,7 +228,7 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
     if let (Some(name), Some(_)) = (file.environment.as_ref().and_then(|e| e.map_name()), &lighting.environment_map) {
         sources.push(base_dir.join(name));
     }
-    Ok(Scene {
+    let scene = Scene {
         image_size,
         camera,
         lights,
@@ -222,7 +240,8 @@ pub(super) fn parse(text: &str, source_name: &str, base_dir: &Path) -> Result<Sc
         light_shadows,
         lighting,
         animation: check.animation(rig, camera_path, file.animation.as_ref())?.map(std::sync::Arc::new),
-    })
+    };
+    Ok((scene, has_camera))
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.
@@ -563,38 +582,6 @@ impl Check<'_> {
             return Err(self.fail("scene", format!("{scene:?} is not a glTF file (.gltf, .glb)")));
         }
         Ok((scene.to_owned(), self.gltf_file("scene", scene, base_dir)?))
-    }
-
-    /// `[camera]` wins; `camera = N` picks camera N of the glTF `scene`; without either, that
-    /// scene's first camera.
-    fn camera_choice(
-        &self,
-        choice: Option<&CameraChoice>,
-        whole: Option<(&str, &gltf::LoadedGltf)>,
-    ) -> Result<Camera, SceneError> {
-        let cameras = whole.map(|(name, g)| (shorten(name, MAX_MESSAGE_CHARS), &g.cameras));
-        match (choice, cameras) {
-            (Some(CameraChoice::Table(camera)), _) => self.camera(camera),
-            (Some(CameraChoice::Index(n)), Some((name, cameras))) => {
-                let found = usize::try_from(*n).ok().and_then(|n| cameras.get(n)).copied().flatten();
-                found.ok_or_else(|| {
-                    let placed = cameras.iter().filter(|c| c.is_some()).count();
-                    let message = format!(
-                        "{name:?} has no perspective camera {n} placed by a node (it has {} cameras, {placed} usable)",
-                        cameras.len()
-                    );
-                    self.fail("camera", message)
-                })
-            }
-            (Some(CameraChoice::Index(_)), None) => {
-                Err(self
-                    .fail("camera", "a camera index picks a camera of `scene`; without `scene` give a [camera] table"))
-            }
-            (None, Some((name, cameras))) => cameras.iter().flatten().next().copied().ok_or_else(|| {
-                self.fail("camera", format!("missing [camera] table, and {name:?} places no perspective camera"))
-            }),
-            (None, None) => Err(self.fail("camera", "missing [camera] table; every scene needs one")),
-        }
     }
 
     fn mesh_file(&self, path: &str, mesh: &str, base_dir: &Path) -> Result<obj::LoadedObj, SceneError> {

@@ -21,7 +21,8 @@ use materials::{data_uri, material, material_name, MaterialMaps};
 
 /// Extensions whose data umbra reads. A file that requires any other is refused by name;
 /// one that only uses another is loaded without it, with a notice.
-const SUPPORTED_EXTENSIONS: &[&str] = &["KHR_lights_punctual", "KHR_texture_transform"];
+const SUPPORTED_EXTENSIONS: &[&str] =
+    &["KHR_lights_punctual", "KHR_texture_transform", "KHR_materials_emissive_strength"];
 
 /// Lumens per watt used to turn glTF's photometric light units (candela for point and spot
 /// lights, lux for directional ones) into umbra's radiometric ones (W/sr, W/m^2): 683 lm/W, the

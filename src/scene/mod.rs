@@ -13,6 +13,7 @@ mod input;
 pub mod light;
 mod local;
 mod mesh;
+pub mod model;
 mod obj;
 mod shapes;
 mod tangents;

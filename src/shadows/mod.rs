@@ -93,6 +93,12 @@ pub trait Technique: Sync {
         Walk::Nothing
     }
 
+    /// Whether it traces rays through the casters at all (`walks` says which structure): a
+    /// moving scene's frame rebuilds the top level over its casters only where one does.
+    fn traces_rays(&self) -> bool {
+        false
+    }
+
     /// Adds its passes for the lights it serves this frame, writing their layers of
     /// `targets.visibility` (and a rect light's of `targets.rect_ratios`), with its pipelines
     /// from `frame.pipelines`; its debug view when the frame shows one.
@@ -403,6 +409,11 @@ pub fn plan(
         plan.served.entry(method).or_default().push(served);
     }
     plan
+}
+
+/// Whether some technique of `plan` traces rays through the casters (`Technique::traces_rays`).
+pub fn traces_rays(plan: &ShadowPlan) -> bool {
+    plan.served.iter().any(|(&m, s)| !s.is_empty() && technique(m).is_some_and(|t| t.traces_rays()))
 }
 
 /// The visibility stage: the light table and the target, then each technique's passes for

@@ -9,13 +9,14 @@ use crate::scene::{Camera, Light};
 
 /// The views V cycles through; the light-specific ones show the selected light, and are
 /// skipped where its technique has nothing to show.
-const VIEWS: [Option<DebugView>; 11] = [
+const VIEWS: [Option<DebugView>; 12] = [
     None,
     Some(DebugView::Albedo),
     Some(DebugView::Normal),
     Some(DebugView::GeometricNormal),
     Some(DebugView::Depth),
     Some(DebugView::Position),
+    Some(DebugView::Motion),
     Some(DebugView::Visibility(0)),
     Some(DebugView::ShadowMap { light: 0, layer: 0 }),
     Some(DebugView::Cascades(0)),
@@ -250,6 +251,8 @@ mod tests {
         assert!(view_line(&s).starts_with("view geometric-normal "), "{}", view_line(&s));
         s.on_key(Key::V);
         s.on_key(Key::V);
+        s.on_key(Key::V);
+        assert!(view_line(&s).starts_with("view motion "), "{}", view_line(&s));
         s.on_key(Key::V);
         assert!(view_line(&s).starts_with("view visibility:0 "), "{}", view_line(&s));
     }

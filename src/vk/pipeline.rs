@@ -287,6 +287,8 @@ pub struct GraphicsExtras<'a> {
     pub per_vertex_2: Option<VertexBinding<'a>>,
     /// A fourth vertex binding (3), read per vertex like binding 0: stride and attributes.
     pub per_vertex_3: Option<VertexBinding<'a>>,
+    /// A fifth vertex binding (4), read per instance like binding 1: stride and attributes.
+    pub instance_4: Option<VertexBinding<'a>>,
     /// Descriptor set 1's layout (owned by the caller, who keeps it alive while the pipeline
     /// lives): material textures.
     pub set_1: Option<vk::DescriptorSetLayout>,
@@ -366,21 +368,13 @@ impl GraphicsPipeline {
             }
         };
         let mut attrs: Vec<_> = desc.attributes.iter().map(attribute(0)).collect();
-        if let Some((stride, per_instance)) = extras.instance {
-            vb.push(vk::VertexInputBindingDescription {
-                binding: 1,
-                stride,
-                input_rate: vk::VertexInputRate::INSTANCE,
-            });
-            attrs.extend(per_instance.iter().map(attribute(1)));
-        }
-        if let Some((stride, per_vertex)) = extras.per_vertex_2 {
-            vb.push(vk::VertexInputBindingDescription { binding: 2, stride, input_rate: vk::VertexInputRate::VERTEX });
-            attrs.extend(per_vertex.iter().map(attribute(2)));
-        }
-        if let Some((stride, per_vertex)) = extras.per_vertex_3 {
-            vb.push(vk::VertexInputBindingDescription { binding: 3, stride, input_rate: vk::VertexInputRate::VERTEX });
-            attrs.extend(per_vertex.iter().map(attribute(3)));
+        let (instance, vertex) = (vk::VertexInputRate::INSTANCE, vk::VertexInputRate::VERTEX);
+        let more = [(1, extras.instance, instance), (2, extras.per_vertex_2, vertex), (3, extras.per_vertex_3, vertex)];
+        for (binding, given, input_rate) in more.into_iter().chain([(4, extras.instance_4, instance)]) {
+            if let Some((stride, attributes)) = given {
+                vb.push(vk::VertexInputBindingDescription { binding, stride, input_rate });
+                attrs.extend(attributes.iter().map(attribute(binding)));
+            }
         }
         let bindings: &[_] = if attrs.is_empty() { &[] } else { &vb };
         let vertex_input = vk::PipelineVertexInputStateCreateInfo::default()

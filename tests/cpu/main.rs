@@ -19,6 +19,7 @@ mod graph_plan;
 mod imports;
 mod ltc;
 mod mesh_formats;
+mod models;
 mod parser_mutation;
 mod scene_files;
 mod shading_cpu;

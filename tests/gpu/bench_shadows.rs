@@ -646,3 +646,104 @@ fn missing_textures_and_libraries_are_warnings_for_auto_and_the_bench_too() {
     assert!(out.join("results.csv").exists());
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A moving scene is scored at its instants, each against a reference of its own, and timed
+/// over consecutive frames that each pay the scene's update: every row has the update columns,
+/// traced's shadow passes include the rebuilt top level and map's do not (a frame that traces
+/// no ray never builds it), and the chart's time is the shadow GPU time plus the update.
+#[test]
+fn a_moving_scene_is_scored_at_its_instants_and_charged_its_update() {
+    let dir = temp_dir("moving");
+    let cache = dir.join("cache");
+    let scene = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/anim/spinning.toml");
+    let out = dir.join("out");
+    let args = ["--quick", "--methods", "traced,map", "--sweep", "map.resolution=512", "--size", "96x72", "-o"];
+    let stdout = ok(&bench(&cache, &[&args[..], &[out.to_str().unwrap(), scene.to_str().unwrap()]].concat()));
+    assert!(stdout.contains("update ms"), "the summary has the update column:\n{stdout}");
+    let (json, _) = results(&out);
+    let scene_json = &json["scenes"][0];
+    let instants: Vec<f64> = scene_json["instants"].as_array().unwrap().iter().map(|t| t.as_f64().unwrap()).collect();
+    assert_eq!(instants, [1.0, 3.0], "two instants over the 4 s animation, each in the middle of its half");
+    let keys: Vec<&str> = scene_json["references"].as_array().unwrap().iter().map(|r| s(r, "key")).collect();
+    assert!(keys.len() == 2 && keys[0] != keys[1], "a reference per instant: {keys:?}");
+    for method in ["traced", "map"] {
+        for row in rows_of(&json, "spinning.toml", method) {
+            let update = f(row, "update_cpu_ms");
+            assert!(update > 0.0 && row["update_bytes"].as_u64().unwrap() > 0, "{method}: {row}");
+            let passes = s(row, "shadow_passes");
+            assert_eq!(passes.contains("bvh top level"), method == "traced", "{method}: {passes}");
+        }
+    }
+    // Traced is exact at every instant: the pooled error is the references' own (0, hard).
+    for row in rows_of(&json, "spinning.toml", "traced") {
+        assert_eq!(f(row, "vis_rmse"), 0.0, "{row}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Three shards of one grid (two scenes, three methods, a sweep), run as separate processes
+/// (`--shard`, a Slurm array task, a Kubernetes Job index), merged by `umbra bench merge`, give
+/// the rows one run gives: the same rows in the same order with the same scores (times differ
+/// from run to run), a chart per scene, and a merge of the wrong parts is refused.
+#[test]
+fn shards_merge_into_the_rows_of_one_run() {
+    let dir = temp_dir("shards");
+    let cache = dir.join("cache");
+    let (box_path, sphere_path) = (dir.join("box.toml"), dir.join("sphere.toml"));
+    std::fs::write(&box_path, BOX).unwrap();
+    std::fs::write(&sphere_path, SPHERE).unwrap();
+    let (b, sp) = (box_path.to_str().unwrap(), sphere_path.to_str().unwrap());
+    let run = |out: &Path, extra: &[&str], env: &[(&str, &str)]| {
+        let args = [b, sp, "--methods", "traced,map,none", "--sweep", "map.resolution=256,512", "--size", "48x36"];
+        let mut cmd = common::umbra();
+        cmd.env("XDG_CACHE_HOME", &cache).args(["bench", "shadows"]).args(args).args(extra);
+        cmd.arg("-o").arg(out);
+        for (k, v) in env {
+            cmd.env(k, v);
+        }
+        ok(&cmd.output().unwrap())
+    };
+    let whole = dir.join("whole");
+    run(&whole, &[], &[]);
+    let parts = [dir.join("part1"), dir.join("part2"), dir.join("part3")];
+    run(&parts[0], &["--shard", "1/3"], &[]);
+    run(
+        &parts[1],
+        &[],
+        &[("SLURM_ARRAY_TASK_ID", "2"), ("SLURM_ARRAY_TASK_MIN", "1"), ("SLURM_ARRAY_TASK_COUNT", "3")],
+    );
+    run(&parts[2], &["--shards", "3"], &[("JOB_COMPLETION_INDEX", "2")]);
+    // The parts are disjoint and together the whole grid.
+    let counts: Vec<usize> = parts.iter().map(|p| results(p).0["rows"].as_array().unwrap().len()).collect();
+    let (whole_json, _) = results(&whole);
+    let whole_rows = whole_json["rows"].as_array().unwrap();
+    assert_eq!(counts.iter().sum::<usize>(), whole_rows.len(), "{counts:?}");
+    assert!(counts.iter().all(|&c| c > 0), "every shard measured something: {counts:?}");
+    let merged = dir.join("merged");
+    let mut cmd = common::umbra();
+    cmd.args(["bench", "merge"]).args(&parts).arg("-o").arg(&merged);
+    let stdout = ok(&cmd.output().unwrap());
+    assert!(stdout.contains("merged 3 result sets"), "{stdout}");
+    let (json, csv) = results(&merged);
+    let rows = json["rows"].as_array().unwrap();
+    assert_eq!(rows.len(), whole_rows.len());
+    let scores = ["scene", "method", "point", "sweep", "light", "served_by", "settings", "vis_rmse", "light_leak"];
+    let more = ["false_shadow", "scored_error", "rays", "map_texels", "map_bytes", "pixels", "frame_row"];
+    for (m, w) in rows.iter().zip(whole_rows) {
+        for key in scores.iter().chain(&more) {
+            assert_eq!(m[key], w[key], "{key}: merged {m}, one run {w}");
+        }
+    }
+    assert_eq!(csv.len(), rows.len() + 1, "the CSV has a line per row");
+    assert!(rows.iter().any(|r| r["pareto"] == true), "fronts found again");
+    for stem in ["box", "sphere"] {
+        assert!(merged.join(format!("{stem}.svg")).exists() && merged.join(format!("{stem}.png")).exists());
+    }
+    // Two of three parts, or one twice, is not the grid: refused in one line.
+    let mut cmd = common::umbra();
+    cmd.args(["bench", "merge"]).arg(&parts[0]).arg(&parts[0]).arg(&parts[1]).arg("-o").arg(dir.join("bad"));
+    let out = cmd.output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success() && err.contains("every shard once"), "{err}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -218,8 +218,13 @@ fn devices_and_fifos_are_refused_promptly() {
     let scene = scene_with_mesh(dir.path(), "pipe.obj");
     let mesh = run_within(PROMPTLY, &["render", scene.to_str().unwrap(), "-o", o], &[]);
     assert_clear_error(&mesh, &["scene.toml: objects[0].mesh: cannot read \"pipe.obj\": not a regular file (a FIFO)"]);
-    let as_scene = run_within(PROMPTLY, &["render", fifo.to_str().unwrap(), "-o", o], &[]);
-    assert_clear_error(&as_scene, &["pipe.obj: cannot read scene file: not a regular file (a FIFO)"]);
+    // Given in place of a scene file, it is a model to open, refused as promptly.
+    let as_model = run_within(PROMPTLY, &["render", fifo.to_str().unwrap(), "-o", o], &[]);
+    assert_clear_error(&as_model, &["pipe.obj: cannot read model: not a regular file (a FIFO)"]);
+    let scene_fifo = dir.path().join("pipe.toml");
+    assert!(std::process::Command::new("mkfifo").arg(&scene_fifo).status().expect("mkfifo").success());
+    let as_scene = run_within(PROMPTLY, &["render", scene_fifo.to_str().unwrap(), "-o", o], &[]);
+    assert_clear_error(&as_scene, &["pipe.toml: cannot read scene file: not a regular file (a FIFO)"]);
     assert!(!out.exists());
     // A viewer script is guarded the same: /dev/zero was read into memory without end, a FIFO
     // with no writer waited for ever. Both are refused before any window opens.
@@ -768,4 +773,49 @@ fn rect_only_scenes_converge_by_default() {
         assert!(samples.starts_with(expected), "casters {casts}: {samples}");
         assert_eq!(samples.contains("rect lights at least 4 rays per pixel a frame, 64 in all"), casts, "{samples}");
     }
+}
+
+/// A glTF model given in place of a scene file renders as it is: a fitted camera, the studio
+/// sun and a ground that catches its shadow (dark pixels beside lit ground), under validation,
+/// and the log says what was added.
+#[test]
+fn a_model_renders_without_a_scene_file() {
+    let dir = out_dir("model");
+    // A 4 cm sphere-ish octahedron 3 cm above nothing: the ground goes under its lowest point.
+    let mut g = crate::gltf_builder::Gltf::default();
+    let p = [
+        [0.0, 0.02, 0.0],
+        [0.02, 0.04, 0.0],
+        [0.0, 0.04, 0.02],
+        [-0.02, 0.04, 0.0],
+        [0.0, 0.04, -0.02],
+        [0.0, 0.06, 0.0],
+    ];
+    let idx = [0u32, 2, 1, 0, 3, 2, 0, 4, 3, 0, 1, 4, 5, 1, 2, 5, 2, 3, 5, 3, 4, 5, 4, 1];
+    let (positions, indices) = (g.vec3(&p), g.indices(&idx, crate::gltf_builder::U16));
+    let mesh = g.mesh(vec![serde_json::json!({ "attributes": { "POSITION": positions }, "indices": indices })]);
+    g.node(serde_json::json!({ "mesh": mesh }), true);
+    let model = dir.join("gem.glb");
+    g.write_glb(&model);
+    let render = |name: &str, extra: &[&str]| {
+        let out = dir.join(name);
+        let args = [
+            &["render", model.to_str().unwrap(), "-o", out.to_str().unwrap(), "--validate", "--size", "160x120"][..],
+            extra,
+        ]
+        .concat();
+        let o = umbra().env("RUST_LOG", "info").args(args).output().unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        assert!(stdout(&o).contains("validation: 0 messages"), "{}", stdout(&o));
+        let img = image::open(&out).expect("a readable PNG").to_rgb8();
+        let lum: Vec<u32> = img.pixels().map(|p| p.0.iter().map(|&c| c as u32).sum()).collect();
+        (stderr(&o), lum)
+    };
+    let (log, shadowed) = render("gem.png", &[]);
+    assert!(log.contains("gem.glb: added a camera fitted") && log.contains("a ground"), "{log}");
+    let (_, unshadowed) = render("gem-unshadowed.png", &["--shadows", "none"]);
+    // The ground catches the model's shadow: pixels darker with shadows than without.
+    let darker = shadowed.iter().zip(&unshadowed).filter(|(s, u)| **s + 60 < **u).count();
+    let lit = shadowed.iter().filter(|&&l| l > 300).count();
+    assert!(lit > 2000 && darker > 50, "lit ground and a shadow: {lit} lit, {darker} in shadow");
 }

@@ -32,6 +32,7 @@ mod large_scene;
 mod light_sampling_gpu;
 mod lighting_with_textures;
 mod many_lights;
+mod motion_vectors;
 mod moving_scenes;
 mod ray_query;
 mod rect_lights;

@@ -194,3 +194,42 @@ fn bad_animation_input_is_one_line_naming_the_key() {
         assert!(err.contains(key) && err.contains(says) && !err.contains('\n'), "{key}: {err}");
     }
 }
+
+/// The moving stress scenes (assets/scenes/stress/moving/) render with every method at two
+/// instants without NaN or a validation message, and a frame rebuilds the top level over the
+/// casters only where its shadows trace rays: `traced` pays for it, `map` never does.
+#[test]
+fn moving_stress_scenes_render_with_every_method_and_only_ray_tracing_rebuilds_the_top_level() {
+    let ctx = common::gpu();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/stress/moving");
+    for name in ["windmill.toml", "one-mover.toml"] {
+        let scene = Scene::load(&dir.join(name)).expect("a moving stress scene");
+        let lights = scene.lights.len();
+        let mut r = Renderer::new(ctx.clone(), scene).expect("renderer");
+        assert!(r.is_moving(), "{name}");
+        for (k, method) in ShadowMethod::ALL.into_iter().enumerate() {
+            for time in [0.1 + 0.01 * k as f64, 0.3 + 0.01 * k as f64] {
+                let choice = ShadowChoice { method, ..ShadowChoice::hard() };
+                let mut s = RenderSettings::new(96, 72, OutputKind::SceneLinear).all_lights(lights, choice);
+                s.time = Some(time);
+                let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
+                assert!(pixels.iter().all(|c| c.is_finite() && *c >= 0.0), "{name} {method} at {time}");
+                let update = r.frame_update();
+                assert!(update.bytes > 0, "{name} {method}: every frame writes the moving draws' rows");
+                // Rays where a pass traces them (traced, hybrid's list trace, a fallback to traced).
+                let plan = r.plan(&s).expect("plan");
+                let traces =
+                    plan.passes.iter().any(|p| !p.culled && p.name.starts_with("shadow") && p.name.contains("trace"));
+                assert_eq!(
+                    update.casters_bytes > 0,
+                    traces,
+                    "{name} {method}: the top level is rebuilt iff rays walk it"
+                );
+                if method == ShadowMethod::Traced || method == ShadowMethod::Map {
+                    assert_eq!(traces, method == ShadowMethod::Traced, "{name} {method}");
+                }
+            }
+        }
+    }
+    common::assert_clean(&ctx);
+}

@@ -60,7 +60,13 @@ fn every_technique_with_every_view_is_clean() {
         };
         let lights = scene.lights.len() as u32;
         let mut r = Renderer::new(ctx.clone(), scene).expect("renderer");
-        let mut views = vec![None, Some(DebugView::Albedo), Some(DebugView::GeometricNormal), Some(DebugView::Depth)];
+        let mut views = vec![
+            None,
+            Some(DebugView::Albedo),
+            Some(DebugView::GeometricNormal),
+            Some(DebugView::Depth),
+            Some(DebugView::Motion),
+        ];
         for l in 0..lights {
             views.extend([
                 Some(DebugView::Visibility(l)),

@@ -25,7 +25,7 @@ fn parse_in(dir: &Path, text: &str) -> Scene {
     Scene::parse(text, "t.toml", dir).unwrap_or_else(|e| panic!("{e}"))
 }
 
-fn png(w: u32, h: u32, texel: [u8; 4]) -> Vec<u8> {
+pub(crate) fn png(w: u32, h: u32, texel: [u8; 4]) -> Vec<u8> {
     let image = image::RgbaImage::from_pixel(w, h, image::Rgba(texel));
     let mut bytes = std::io::Cursor::new(Vec::new());
     image.write_to(&mut bytes, image::ImageFormat::Png).unwrap();
@@ -34,7 +34,7 @@ fn png(w: u32, h: u32, texel: [u8; 4]) -> Vec<u8> {
 
 /// A 2 m quad (facing +Y, u along +X, v along +Z) with a material of `factors` and the textures
 /// `maps` names: ("baseColorTexture" | "normalTexture" | "metallicRoughnessTexture", PNG bytes).
-fn textured_quad(material: serde_json::Value, maps: &[(&str, Vec<u8>)]) -> Gltf {
+pub(crate) fn textured_quad(material: serde_json::Value, maps: &[(&str, Vec<u8>)]) -> Gltf {
     let mut g = Gltf::default();
     let (p, n, uv, idx) = quad_xz();
     let p: Vec<[f32; 3]> = p.iter().map(|v| [v[0] * 2.0, v[1], v[2] * 2.0]).collect();

@@ -113,7 +113,17 @@ impl MaterialMaps<'_> {
             &mut sets,
             &mut uv_transforms.emission,
         )?;
-        let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO);
+        // KHR_materials_emissive_strength scales the factor past 1 (Blender writes it for any
+        // emission stronger than 1).
+        let strength = match material.emissive_strength() {
+            Some(s) if s.is_finite() && s >= 0.0 => s,
+            Some(s) => {
+                log::warn!("{label}: KHR_materials_emissive_strength {s} is not a finite number >= 0; 1 is used");
+                1.0
+            }
+            None => 1.0,
+        };
+        let emission = glam::Vec3::from(material.emissive_factor()).max(glam::Vec3::ZERO) * strength;
         let [.., alpha] = pbr.base_color_factor();
         let alpha_mask = match material.alpha_mode() {
             gltf::material::AlphaMode::Opaque => None,

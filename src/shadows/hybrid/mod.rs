@@ -137,6 +137,10 @@ impl super::Technique for Hybrid {
         matches!(view, DebugView::Hybrid(_))
     }
 
+    fn traces_rays(&self) -> bool {
+        true
+    }
+
     fn walks(&self, _: &FrameInputs) -> Walk {
         Walk::Bvh
     }

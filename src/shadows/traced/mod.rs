@@ -68,6 +68,10 @@ impl super::Technique for Traced {
         vec![vec![]]
     }
 
+    fn traces_rays(&self) -> bool {
+        true
+    }
+
     fn walks(&self, frame: &FrameInputs) -> Walk {
         if frame.ray_query.is_some() {
             Walk::RayQuery

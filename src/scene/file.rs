@@ -65,7 +65,8 @@ pub(super) fn parse_model(text: &str, source_name: &str, base_dir: &Path) -> Res
 
 fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Result<(Scene, bool), SceneError> {
     let file: SceneFile = toml::from_str(text).map_err(|e| SceneError::from_toml(source_name, text, &e))?;
-    let check = Check { file: source_name, textures: Default::default() };
+    let clip = file.animation.as_ref().and_then(|a| a.clip.clone());
+    let check = Check { file: source_name, clip, textures: Default::default() };
 
     let image_size = file.image.map(|image| check.image(&image)).transpose()?;
     let whole = match &file.scene {
@@ -293,6 +294,8 @@ impl MaterialOverride {
 /// Validation helpers that know the file name for their errors.
 struct Check<'a> {
     file: &'a str,
+    /// `[animation] clip`: the animation every glTF file of the scene plays.
+    clip: Option<super::gltf::ClipChoice>,
     /// Every texture the scene's materials name, read once.
     textures: std::cell::RefCell<super::texture::TextureCache>,
 }
@@ -564,7 +567,8 @@ impl Check<'_> {
         let file = base_dir.join(name);
         let mesh = shorten(name, MAX_MESSAGE_CHARS);
         let (file_name, key_path) = (self.file.to_owned(), key_path.to_owned());
-        let mut loaded = gltf::load(&file, &mut self.textures.borrow_mut()).map_err(|error| match error {
+        let clip = self.clip.as_ref();
+        let mut loaded = gltf::load(&file, &mut self.textures.borrow_mut(), clip).map_err(|error| match error {
             gltf::GltfError::Read(error) => SceneError::MeshRead { file: file_name, key_path, mesh, error },
             gltf::GltfError::Parse(reason) => {
                 let reason = shorten(&reason, MAX_MESSAGE_CHARS);

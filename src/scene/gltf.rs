@@ -59,7 +59,14 @@ pub(super) struct LoadedGltf {
     pub rig: Option<animation::GltfRig>,
 }
 
-pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGltf, GltfError> {
+pub use animation::ClipChoice;
+
+/// Reads a glTF file; `clip` picks the animation that moves its nodes (the first by default).
+pub(super) fn load(
+    path: &Path,
+    textures: &mut TextureCache,
+    clip: Option<&ClipChoice>,
+) -> Result<LoadedGltf, GltfError> {
     let bytes = input::read(path).map_err(GltfError::Read)?;
     let parse = |e: gltf::Error| GltfError::Parse(one_line(&e.to_string()));
     let binary = bytes.starts_with(b"glTF");
@@ -208,7 +215,7 @@ pub(super) fn load(path: &Path, textures: &mut TextureCache) -> Result<LoadedGlt
     if ignored_ranges > 0 {
         log::warn!("{name}: {ignored_ranges} lights give a `range`, which umbra has no equivalent for; ignored");
     }
-    loaded.rig = animation::read(&name, &document, &buffers, &visited_nodes, None).map_err(GltfError::Parse)?;
+    loaded.rig = animation::read(&name, &document, &buffers, &visited_nodes, clip).map_err(GltfError::Parse)?;
     // Keep only the primitives some node draws, renumbered.
     let mut renumber = vec![usize::MAX; primitives.len()];
     for instance in &mut loaded.instances {

@@ -277,3 +277,53 @@ fn a_gltf_rotation_that_is_not_a_quaternion_is_named() {
     );
     assert!(!err.contains('\n'), "{err}");
 }
+
+/// `[animation] clip` picks which of a glTF file's animations plays, by name or number; one it
+/// does not have is a one-line error naming the file and listing its clips.
+#[test]
+fn the_scene_file_chooses_the_gltf_clip() {
+    use serde_json::json;
+    let dir = tempfile::tempdir().unwrap();
+    // One quad on one node, and two clips: "lift" raises it 3 m over 2 s, "slide" moves it
+    // 3 m along x over 3 s.
+    let mut g = crate::gltf_builder::Gltf::default();
+    let (positions, normals, _, indices) = crate::gltf_builder::quad_xz();
+    let (p, n, i) = (g.vec3(&positions), g.vec3(&normals), g.indices(&indices, crate::gltf_builder::U32));
+    let mesh = g.mesh(vec![json!({ "attributes": { "POSITION": p, "NORMAL": n }, "indices": i })]);
+    g.node(json!({ "mesh": mesh }), true);
+    for (name, end, axis) in [("lift", 2.0f32, 1usize), ("slide", 3.0, 0)] {
+        let times = g.times(&[0.0, end]);
+        let mut to = [0.0f32; 3];
+        to[axis] = 3.0;
+        let out = g.outputs(&[0.0, 0.0, 0.0, to[0], to[1], to[2]], "VEC3");
+        g.animations.push(json!({
+            "name": name,
+            "samplers": [{ "input": times, "output": out, "interpolation": "LINEAR" }],
+            "channels": [{ "sampler": 0, "target": { "node": 0, "path": "translation" } }]
+        }));
+    }
+    g.write_glb(&dir.path().join("two.glb"));
+    let camera = "[camera]\neye = [0.0, 3.0, 8.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 45.0\n";
+    let scene_with = |clip: &str| {
+        let text = format!("{camera}[animation]\n{clip}\n[[objects]]\nmesh = \"two.glb\"\n");
+        Scene::parse(&text, "two.toml", dir.path())
+    };
+    let centre = |scene: &Scene, t: f64| {
+        let posed = scene.posed(t);
+        posed.meshes[0].positions.iter().sum::<DVec3>() / posed.meshes[0].positions.len() as f64
+    };
+    // Default: the first clip, "lift" (up 3 m over 2 s).
+    let first = scene_with("").unwrap();
+    assert_eq!(first.animation_span(), Some((0.0, 2.0)));
+    assert!((centre(&first, 1.0) - DVec3::new(0.0, 1.5, 0.0)).length() < 1e-9);
+    for choice in ["clip = \"slide\"", "clip = 1"] {
+        let slide = scene_with(choice).unwrap_or_else(|e| panic!("{choice}: {e}"));
+        assert_eq!(slide.animation_span(), Some((0.0, 3.0)), "{choice}");
+        assert!((centre(&slide, 1.0) - DVec3::new(1.0, 0.0, 0.0)).length() < 1e-9, "{choice}");
+    }
+    for (choice, says) in [("clip = \"walk\"", "no animation named \"walk\""), ("clip = 4", "no animation 4")] {
+        let err = scene_with(choice).expect_err(choice).to_string();
+        assert!(err.contains("two.glb") && err.contains(says) && err.contains("\"lift\", \"slide\""), "{err}");
+        assert!(!err.contains('\n'), "{err}");
+    }
+}

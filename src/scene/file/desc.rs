@@ -32,6 +32,9 @@ pub(super) struct SceneFile {
 #[derive(Deserialize)]
 #[serde(deny_unknown_fields)]
 pub(super) struct AnimationDesc {
+    /// Which clip of the scene's glTF files plays: its name, or its number from 0 (default:
+    /// each file's first).
+    pub(super) clip: Option<crate::scene::gltf::ClipChoice>,
     pub(super) speed: Option<f64>,
     #[serde(rename = "loop")]
     pub(super) looping: Option<bool>,

@@ -18,6 +18,14 @@ pub(in crate::scene) struct GltfRig {
     pub moves: Vec<bool>,
 }
 
+/// `[animation] clip`: which of a glTF file's animations plays, by number (from 0) or name.
+#[derive(Clone, Debug, PartialEq, serde::Deserialize)]
+#[serde(untagged)]
+pub enum ClipChoice {
+    Index(u32),
+    Name(String),
+}
+
 /// What the scene's walk found for one node: its glTF index, its parent's rig index, and its rest
 /// transform.
 pub(super) struct Visited {
@@ -26,21 +34,38 @@ pub(super) struct Visited {
     pub rest: (DVec3, DQuat, DVec3),
 }
 
-/// The rig of `visited` animated by clip `clip` of `document` (the first where `None`), or
-/// `None` when the file has no animation. Errors name the clip and channel.
+/// The rig of `visited` animated by the clip `clip` names in `document` (the first where
+/// `None`), or `None` when the file has no animation. Errors name the clip and channel.
 pub(super) fn read(
     name: &str,
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
     visited: &[Visited],
-    clip: Option<usize>,
+    clip: Option<&ClipChoice>,
 ) -> Result<Option<GltfRig>, String> {
+    let names = || {
+        let all: Vec<String> = document
+            .animations()
+            .map(|a| a.name().map_or_else(|| format!("#{}", a.index()), |n| format!("{n:?}")))
+            .collect();
+        if all.is_empty() {
+            "none".to_owned()
+        } else {
+            all.join(", ")
+        }
+    };
     let Some(animation) = (match clip {
-        Some(k) => Some(
+        Some(ClipChoice::Index(k)) => Some(
             document
                 .animations()
-                .nth(k)
-                .ok_or_else(|| format!("has no animation {k} (it has {})", document.animations().len()))?,
+                .nth(*k as usize)
+                .ok_or_else(|| format!("has no animation {k} (its animations: {})", names()))?,
+        ),
+        Some(ClipChoice::Name(wanted)) => Some(
+            document
+                .animations()
+                .find(|a| a.name() == Some(wanted.as_str()))
+                .ok_or_else(|| format!("has no animation named {wanted:?} (its animations: {})", names()))?,
         ),
         None => document.animations().next(),
     }) else {

@@ -150,6 +150,10 @@ pub fn merge(dirs: &[PathBuf], out: &Path, force: bool) -> Result<(Vec<Row>, Vec
             rows[i].auto_choice = true;
         }
         let mut entry = entry.clone();
+        // Error pictures need the visibility images, which results do not keep: not merged.
+        if let Some(e) = entry.as_object_mut() {
+            e.remove("errors_png");
+        }
         entry["pareto"] = json!(front);
         entry["auto"] = json!({ "max_error": max_error, "row": auto });
         let stem = entry["chart_svg"].as_str().unwrap_or("chart.svg").trim_end_matches(".svg").to_owned();

@@ -11,6 +11,7 @@
 
 pub mod auto;
 pub mod chart;
+pub mod errors;
 pub mod merge;
 pub mod metrics;
 pub mod motion;

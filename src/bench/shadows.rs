@@ -289,6 +289,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
     for job in &jobs {
         let scene = run_scene(&ctx, &run, options, job, &mut rows)?;
         results.extend(scene.chart.files(dir, &job.stem).map_err(anyhow::Error::msg)?);
+        results.push((dir.join(format!("{}-errors.png", job.stem)), scene.errors_png));
         scene_json.push(scene.json);
         timing_labels.push(scene.timing_label);
         time_axes.push(scene.time_axis.to_owned());
@@ -354,6 +355,7 @@ fn output_files(options: &Options, jobs: &[SceneJob]) -> Result<Vec<PathBuf>> {
     for j in jobs {
         outputs.push(dir.join(format!("{}.svg", j.stem)));
         outputs.push(dir.join(format!("{}.png", j.stem)));
+        outputs.push(dir.join(format!("{}-errors.png", j.stem)));
     }
     if !options.force {
         if let Some(existing) = outputs.iter().find(|p| p.exists()) {
@@ -377,6 +379,8 @@ fn progress_bar(total: usize) -> ProgressBar {
 /// One scene's results beside its rows: its chart, its part of results.json, its timing.
 struct SceneResult {
     chart: Chart,
+    /// `STEM-errors.png`: where each method is wrong (`bench::errors`).
+    errors_png: Vec<u8>,
     json: serde_json::Value,
     timing_label: String,
     time_axis: &'static str,
@@ -424,6 +428,8 @@ fn run_scene(
         references.push(cached);
     }
 
+    // Each frame row's error image (by row index), for the error picture.
+    let mut errors = std::collections::HashMap::new();
     for (method, points) in &job.points {
         for &(point_index, ref point) in points {
             run.bar.set_message(format!("{} · {} · {}", job.label, method.id, point.label()));
@@ -442,13 +448,25 @@ fn run_scene(
             for (i, cached) in references.iter().enumerate() {
                 let fresh = job.instants.get(i).map(|&t| renderer.set_time(t)).is_some();
                 let common = common.clone();
-                instants.push(score(&mut renderer, job, &cached.reference, point, &measured, fresh, common)?);
+                let (scored, visibility) =
+                    score(&mut renderer, job, &cached.reference, point, &measured, fresh, common)?;
+                // The error picture shows the first instant.
+                if i == 0 {
+                    let frame_row = rows.len() + scored.iter().position(|r| r.frame_row).unwrap_or(0);
+                    errors.insert(frame_row, super::errors::error_image(&cached.reference, &visibility));
+                }
+                instants.push(scored);
             }
             rows.extend(motion::pool(instants));
             run.bar.inc(1);
         }
     }
     let cached = &references[0];
+    let error_picture = |rows: &[Row]| {
+        let methods = super::errors::cheapest_and_best(rows, &job.label);
+        let (rgb, w, h) = super::errors::picture(&cached.reference, rows, &methods, &errors);
+        super::errors::png(&rgb, w, h)
+    };
 
     // The front, the chart.
     let front = report::scene_pareto(rows, &job.label);
@@ -483,6 +501,7 @@ fn run_scene(
         "auto": { "max_error": options.max_error, "row": auto },
         "chart_svg": format!("{}.svg", job.stem),
         "chart_png": format!("{}.png", job.stem),
+        "errors_png": format!("{}-errors.png", job.stem),
         "chart_title": title,
         "chart_x_label": x_label,
         "instants": job.instants,
@@ -502,7 +521,8 @@ fn run_scene(
             })).collect::<Vec<_>>(),
         },
     });
-    Ok(SceneResult { chart, json, timing_label, time_axis })
+    let errors_png = error_picture(rows).map_err(anyhow::Error::msg)?;
+    Ok(SceneResult { chart, errors_png, json, timing_label, time_axis })
 }
 
 /// What one point's timed frames measured.
@@ -624,7 +644,7 @@ fn score(
     measured: &Measured,
     fresh: bool,
     common: Row,
-) -> Result<Vec<Row>> {
+) -> Result<(Vec<Row>, Vec<Vec<f32>>)> {
     let (width, height) = job.size;
     let (w, h) = (width as usize, height as usize);
     // Every light scored, rect lights after the others.
@@ -690,7 +710,7 @@ fn score(
         let all = pooled_row(reference, &visibility, &light_rows, (w, h), flip, common);
         light_rows.push(all);
     }
-    Ok(light_rows)
+    Ok((light_rows, visibility))
 }
 
 /// The frame's row where several lights are scored: their visibility pooled over every light's

@@ -705,6 +705,31 @@ fn shards_merge_into_the_rows_of_one_run() {
     };
     let whole = dir.join("whole");
     run(&whole, &[], &[]);
+    // The error picture beside each chart: a row per method (traced, map, none) of the
+    // reference, the cheapest point and the best; traced exact (no red or blue), `none` leaking
+    // every pixel the reference shadows (red, the light's hard: at full strength).
+    let picture = image::open(whole.join("box-errors.png")).expect("box-errors.png").to_rgb8();
+    assert_eq!(picture.dimensions(), (3 * 48, 3 * (36 + 12)));
+    let tile_pixels = |row: u32, col: u32, red: bool| {
+        let (x0, y0) = (col * 48, row * 48 + 12);
+        (y0..y0 + 36)
+            .flat_map(|y| (x0..x0 + 48).map(move |x| (x, y)))
+            .filter(|&(x, y)| {
+                let [r, g, b] = picture.get_pixel(x, y).0;
+                if red {
+                    r > 200 && g < 60 && b < 60
+                } else {
+                    b > 200 && r < 60 && g < 120
+                }
+            })
+            .count()
+    };
+    assert_eq!(tile_pixels(0, 1, true) + tile_pixels(0, 1, false) + tile_pixels(0, 2, true), 0, "traced is exact");
+    let (whole_json, _) = results(&whole);
+    let none = rows_of(&whole_json, "box.toml", "none")[0];
+    let shadowed = (f(none, "reference_shadowed") * f(none, "pixels")).round() as usize;
+    let red = tile_pixels(2, 1, true);
+    assert!(shadowed > 5 && red == shadowed, "none leaks the {shadowed} shadowed pixels: {red} red");
     let parts = [dir.join("part1"), dir.join("part2"), dir.join("part3")];
     run(&parts[0], &["--shard", "1/3"], &[]);
     run(
@@ -715,7 +740,6 @@ fn shards_merge_into_the_rows_of_one_run() {
     run(&parts[2], &["--shards", "3"], &[("JOB_COMPLETION_INDEX", "2")]);
     // The parts are disjoint and together the whole grid.
     let counts: Vec<usize> = parts.iter().map(|p| results(p).0["rows"].as_array().unwrap().len()).collect();
-    let (whole_json, _) = results(&whole);
     let whole_rows = whole_json["rows"].as_array().unwrap();
     assert_eq!(counts.iter().sum::<usize>(), whole_rows.len(), "{counts:?}");
     assert!(counts.iter().all(|&c| c > 0), "every shard measured something: {counts:?}");

@@ -306,8 +306,11 @@ impl Renderer {
             self.area_tables.as_ref(),
             settings.debug_view,
         )?;
-        // A moving scene's casters are placed for the frames that walk them.
-        if crate::shadows::traces_rays(&plan) || lighting.occlusion.is_some() {
+        // A moving scene's casters are placed for the frames that walk them: whose shadows are
+        // traced and read (a shaded frame, a light's view; a channel view culls every shadow
+        // pass), or that trace ambient occlusion.
+        let shadows_read = settings.debug_view.is_none_or(|view| view.light().is_some());
+        if (shadows_read && crate::shadows::traces_rays(&plan)) || lighting.occlusion.is_some() {
             self.place_casters();
         }
         let compose = match settings.debug_view {

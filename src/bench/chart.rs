@@ -224,11 +224,7 @@ impl Chart {
             let backend = GlyphBitmap(BitMapBackend::with_buffer(&mut rgb, (w, h)));
             self.draw(backend.into_drawing_area()).map_err(|e| format!("drawing the PNG chart: {e}"))?;
         }
-        let mut png = Vec::new();
-        image::codecs::png::PngEncoder::new(&mut png)
-            .write_image(&rgb, w, h, image::ExtendedColorType::Rgb8)
-            .map_err(|e| format!("encoding the PNG chart: {e}"))?;
-        Ok(png)
+        encode_png(&rgb, w, h)
     }
 
     /// `stem.svg` and `stem.png` in `dir` with their bytes, for `output::write_files_atomic`.
@@ -246,6 +242,15 @@ impl Chart {
 }
 
 use image::ImageEncoder as _;
+
+/// RGB8 pixels, `width` x `height`, as PNG bytes (the charts' and the error pictures').
+pub fn encode_png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>, String> {
+    let mut png = Vec::new();
+    image::codecs::png::PngEncoder::new(&mut png)
+        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
+        .map_err(|e| format!("encoding a PNG picture: {e}"))?;
+    Ok(png)
+}
 
 /// Writes `bytes` to a temporary file beside `path`, then renames it to `path`.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), String> {

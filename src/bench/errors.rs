@@ -58,6 +58,7 @@ pub fn picture(
     let (width, height) = (3 * w, methods.len() as u32 * (h + CAPTION));
     let mut rgb = vec![255u8; (width * height * 3) as usize];
     let base = reference_image(reference);
+    let mut captions = Vec::new();
     let grey = |v: Option<f32>| v.map_or([0, 0, 0], |v| [(40.0 + 180.0 * v.clamp(0.0, 1.0)) as u8; 3]);
     for (row, (method, cheapest, best)) in methods.iter().enumerate() {
         let top = row as u32 * (h + CAPTION);
@@ -68,7 +69,8 @@ pub fn picture(
         ];
         for (col, (caption, at)) in tiles.iter().enumerate() {
             let left = col as u32 * w;
-            text(&mut rgb, width, (left + 2, top + 2), caption, w - 4);
+            let fits: String = caption.chars().take(((w - 4) / 8) as usize).collect();
+            captions.push((fits, (left as i32 + 2, top as i32 + 2)));
             let error = at.and_then(|i| errors.get(&i));
             for y in 0..h {
                 for x in 0..w {
@@ -88,37 +90,20 @@ pub fn picture(
             }
         }
     }
+    // The captions in the charts' 8x8 glyphs (chart::GlyphBitmap), over the tiles' strips.
+    {
+        use plotters::prelude::*;
+        let area = super::chart::GlyphBitmap(BitMapBackend::with_buffer(&mut rgb, (width, height))).into_drawing_area();
+        for (caption, at) in captions {
+            let _ = area.draw(&Text::new(caption, at, ("sans-serif", 12).into_font().color(&BLACK)));
+        }
+        let _ = area.present();
+    }
     (rgb, width, height)
 }
 
 fn mix(a: [u8; 3], b: [u8; 3], t: f32) -> [u8; 3] {
     [0, 1, 2].map(|k| (f32::from(a[k]) * (1.0 - t) + f32::from(b[k]) * t).round() as u8)
-}
-
-/// `caption` in 8x8 glyphs (font8x8, the viewer's overlay font) at `at`, cut at `max_width`.
-fn text(rgb: &mut [u8], width: u32, at: (u32, u32), caption: &str, max_width: u32) {
-    for (k, c) in caption.chars().take((max_width / 8) as usize).enumerate() {
-        let i = if c.is_ascii() && !c.is_ascii_control() { c as usize } else { '?' as usize };
-        for (row, bits) in font8x8::legacy::BASIC_LEGACY[i].iter().enumerate() {
-            for col in 0..8u32 {
-                if bits & (1 << col) != 0 {
-                    let (x, y) = (at.0 + k as u32 * 8 + col, at.1 + row as u32);
-                    let p = ((y * width + x) * 3) as usize;
-                    rgb[p..p + 3].copy_from_slice(&[0, 0, 0]);
-                }
-            }
-        }
-    }
-}
-
-/// `picture` as PNG bytes.
-pub fn png(rgb: &[u8], width: u32, height: u32) -> Result<Vec<u8>, String> {
-    use image::ImageEncoder as _;
-    let mut png = Vec::new();
-    image::codecs::png::PngEncoder::new(&mut png)
-        .write_image(rgb, width, height, image::ExtendedColorType::Rgb8)
-        .map_err(|e| format!("encoding the error picture: {e}"))?;
-    Ok(png)
 }
 
 /// Per method of `scene`'s frame rows (in their order): its cheapest row and its best (the

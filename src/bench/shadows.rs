@@ -465,7 +465,7 @@ fn run_scene(
     let error_picture = |rows: &[Row]| {
         let methods = super::errors::cheapest_and_best(rows, &job.label);
         let (rgb, w, h) = super::errors::picture(&cached.reference, rows, &methods, &errors);
-        super::errors::png(&rgb, w, h)
+        super::chart::encode_png(&rgb, w, h)
     };
 
     // The front, the chart.

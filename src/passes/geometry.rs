@@ -99,11 +99,11 @@ fn scene_pipelines<'a>(
     let set_1 = scene.materials.as_ref().map(|m| m.set_layout());
     let untextured = |sided: bool| {
         let key = key(false, sided, motion);
-        pipelines.graphics(key, layout, |ctx, layout| untextured_pipeline(ctx, layout, sided, motion))
+        pipelines.graphics(key, layout, |ctx, layout| pipeline(ctx, layout, None, sided, motion))
     };
     let textured = |set_1, sided: bool| {
         let key = key(true, sided, motion);
-        pipelines.graphics(key, layout, |ctx, layout| textured_pipeline(ctx, layout, set_1, sided, motion))
+        pipelines.graphics(key, layout, |ctx, layout| pipeline(ctx, layout, Some(set_1), sided, motion))
     };
     Ok(ScenePipelines {
         untextured: set_1.is_none().then(|| untextured(false)).transpose()?,
@@ -146,64 +146,48 @@ const FORMATS: [vk::Format; 3] = [POSITION_FORMAT, NORMAL_FORMAT, SURFACE_FORMAT
 const TEXTURED_FORMATS: [vk::Format; 5] =
     [POSITION_FORMAT, NORMAL_FORMAT, SURFACE_FORMAT, MATERIAL_FORMAT, EMISSION_FORMAT];
 
-/// The untextured geometry pipeline; `two_sided`: without back-face culling (made only for
-/// scenes with double-sided meshes).
-fn untextured_pipeline(
+/// A geometry pipeline. `material_set`: the textured variant, for a scene with textures (made
+/// with its material set layout, descriptor set 1, see gpu/textures.rs): texture coordinates
+/// and tangents at vertex binding 2, the second texture-coordinate set at binding 3.
+/// `two_sided`: without back-face culling (for double-sided meshes). `motion`: also the motion
+/// channel, from the previous frame's instance rows at vertex binding 4.
+fn pipeline(
     ctx: &Arc<GpuContext>,
     layout: &[(u32, DescriptorKind)],
+    material_set: Option<vk::DescriptorSetLayout>,
     two_sided: bool,
     motion: bool,
 ) -> GpuResult<GraphicsPipeline> {
+    let textured = material_set.is_some();
     let extras = GraphicsExtras {
         instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
+        per_vertex_2: textured.then_some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES[..])),
+        per_vertex_3: textured.then_some((SECOND_UV_STRIDE, &SECOND_UV_ATTRIBUTES[..])),
         instance_4: motion.then_some((INSTANCE_STRIDE, &PREVIOUS_MODEL_ATTRIBUTES[..])),
+        set_1: material_set,
         ..Default::default()
     };
-    let (name, fragment) = match (ctx.capabilities.geometry_shader, two_sided) {
-        (true, false) => ("geometry", spirv::GEOMETRY_FRAG),
-        (true, true) => ("geometry (two-sided)", spirv::GEOMETRY_FRAG),
-        (false, false) => ("geometry (plain)", spirv::GEOMETRY_PLAIN_FRAG),
-        (false, true) => ("geometry (plain, two-sided)", spirv::GEOMETRY_PLAIN_FRAG),
+    let triangles = ctx.capabilities.geometry_shader;
+    let (vertex, fragment, formats) = match (textured, triangles) {
+        (false, true) => (spirv::GEOMETRY_VERT, spirv::GEOMETRY_FRAG, &FORMATS[..]),
+        (false, false) => (spirv::GEOMETRY_VERT, spirv::GEOMETRY_PLAIN_FRAG, &FORMATS[..]),
+        (true, true) => (spirv::GEOMETRY_TEXTURED_VERT, spirv::GEOMETRY_TEXTURED_FRAG, &TEXTURED_FORMATS[..]),
+        (true, false) => (spirv::GEOMETRY_TEXTURED_VERT, spirv::GEOMETRY_TEXTURED_PLAIN_FRAG, &TEXTURED_FORMATS[..]),
     };
+    // "geometry", "geometry (textured, plain, two-sided)", ...: 'static names, one per variant.
+    const NAMES: [&str; 8] = [
+        "geometry",
+        "geometry (two-sided)",
+        "geometry (plain)",
+        "geometry (plain, two-sided)",
+        "geometry (textured)",
+        "geometry (textured, two-sided)",
+        "geometry (textured, plain)",
+        "geometry (textured, plain, two-sided)",
+    ];
+    let name = NAMES[two_sided as usize | (!triangles as usize) << 1 | (textured as usize) << 2];
     let m = motion as usize;
-    let formats = with_motion(&FORMATS, motion);
-    let desc = desc(name, spirv::GEOMETRY_VERT[m], fragment[m], layout, &formats, two_sided);
-    GraphicsPipeline::with_extras(ctx, &desc, &extras)
-}
-
-/// `formats` with the motion channel's after them where the variant writes it.
-fn with_motion(formats: &[vk::Format], motion: bool) -> Vec<vk::Format> {
-    formats.iter().copied().chain(motion.then_some(MOTION_FORMAT)).collect()
-}
-
-/// The geometry pipeline for textured draws: texture coordinates and tangents at vertex binding
-/// 2, the second texture-coordinate set at binding 3, the material's textures in descriptor set 1 (`material_set`, see gpu/textures.rs). Made
-/// per scene, only for a scene with textures.
-/// `two_sided`: without back-face culling, for double-sided meshes.
-fn textured_pipeline(
-    ctx: &Arc<GpuContext>,
-    layout: &[(u32, DescriptorKind)],
-    material_set: vk::DescriptorSetLayout,
-    two_sided: bool,
-    motion: bool,
-) -> GpuResult<GraphicsPipeline> {
-    let extras = GraphicsExtras {
-        instance: Some((INSTANCE_STRIDE, &INSTANCE_ATTRIBUTES)),
-        per_vertex_2: Some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES)),
-        per_vertex_3: Some((SECOND_UV_STRIDE, &SECOND_UV_ATTRIBUTES)),
-        instance_4: motion.then_some((INSTANCE_STRIDE, &PREVIOUS_MODEL_ATTRIBUTES[..])),
-        set_1: Some(material_set),
-        ..Default::default()
-    };
-    let vertex = spirv::GEOMETRY_TEXTURED_VERT;
-    let (name, fragment) = match (ctx.capabilities.geometry_shader, two_sided) {
-        (true, false) => ("geometry (textured)", spirv::GEOMETRY_TEXTURED_FRAG),
-        (true, true) => ("geometry (textured, two-sided)", spirv::GEOMETRY_TEXTURED_FRAG),
-        (false, false) => ("geometry (textured, plain)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG),
-        (false, true) => ("geometry (textured, plain, two-sided)", spirv::GEOMETRY_TEXTURED_PLAIN_FRAG),
-    };
-    let m = motion as usize;
-    let formats = with_motion(&TEXTURED_FORMATS, motion);
+    let formats: Vec<vk::Format> = formats.iter().copied().chain(motion.then_some(MOTION_FORMAT)).collect();
     let desc = desc(name, vertex[m], fragment[m], layout, &formats, two_sided);
     GraphicsPipeline::with_extras(ctx, &desc, &extras)
 }

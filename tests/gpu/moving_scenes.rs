@@ -230,6 +230,17 @@ fn moving_stress_scenes_render_with_every_method_and_only_ray_tracing_rebuilds_t
                 }
             }
         }
+        // A channel view reads no shadow, traced or not: posed anew, it leaves the top level
+        // alone, and the next frame that traces builds it.
+        let traced = ShadowChoice { method: ShadowMethod::Traced, ..ShadowChoice::hard() };
+        let mut s = RenderSettings::new(96, 72, OutputKind::SceneLinear).all_lights(lights, traced);
+        s.time = Some(0.45);
+        s.debug_view = Some(umbra::config::DebugView::Motion);
+        r.render(&s).expect("render");
+        assert_eq!(r.frame_update().casters_bytes, 0, "{name}: a motion view rebuilds no top level");
+        s.debug_view = None;
+        r.render(&s).expect("render");
+        assert!(r.frame_update().casters_bytes > 0, "{name}: the traced frame after it does");
     }
     common::assert_clean(&ctx);
 }

@@ -163,7 +163,7 @@ fn gbuffer_stage<'a>(
 ) -> GpuResult<(SceneHandles, GBuffer)> {
     let vertices = s.import_vertices(g);
     let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
-    let lights = g.import_buffer("lights", &s.lights, SCENE_ACCESS);
+    let lights = s.import_lights(g);
     let bvh = s.bvh.import(g, SCENE_ACCESS);
     let gbuffer = geometry::add(g, pipelines, s, &vertices, &indices, *camera, motion, extent)?;
     Ok((SceneHandles { vertices, indices, lights, bvh }, gbuffer))

@@ -179,12 +179,13 @@ impl Renderer {
         let moving: Vec<bool> = local.meshes.iter().map(|m| m.motion.is_some()).collect();
         let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::Two(&levels), &moving, origin)?;
         log::info!(
-            "upload: {} KiB of scene buffers, {} moving draws; shadow BVH on the device {} KiB",
+            "upload: {} KiB of scene buffers, {} moving and {} deforming draws; shadow BVH on the device {} KiB",
             gpu_scene.bytes() >> 10,
             gpu_scene.moving.len(),
+            gpu_scene.deforming.len(),
             gpu_scene.bvh.bytes() >> 10
         );
-        let motion = Motion { levels, groups, posed_at: None, unplaced: None };
+        let motion = Motion { levels, groups, posed_at: None, unplaced: None, undeformed: None };
         Renderer::assemble(ctx, scene, local, gpu_scene, None, Some(motion))
     }
 
@@ -212,7 +213,30 @@ impl Renderer {
         let start = std::time::Instant::now();
         let deltas = self.local.mesh_motion(time);
         motion.unplaced = Some(motion.placements(&deltas));
-        let bytes = self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
+        let mut bytes = self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
+        let deform_start = std::time::Instant::now();
+        let deformed = self.local.deformed(time);
+        if !deformed.is_empty() {
+            bytes += self.gpu_scene.deform(&deformed);
+            let triangles = |(k, posed): &(usize, crate::scene::deform::Posed)| {
+                let group = motion.groups[*k]?;
+                let at = |v: u32| {
+                    let p = posed.positions[v as usize].as_vec3();
+                    if p.is_finite() {
+                        p
+                    } else {
+                        glam::Vec3::ZERO
+                    }
+                };
+                let indices = &self.local.meshes[*k].indices;
+                Some((group, indices.chunks_exact(3).map(|t| [at(t[0]), at(t[1]), at(t[2])]).collect()))
+            };
+            motion.undeformed = Some(deformed.iter().filter_map(triangles).collect());
+        }
+        let deform_ms = deform_start.elapsed().as_secs_f64() * 1e3;
+        if self.local.animation.as_ref().is_some_and(|a| !a.lights.is_empty()) {
+            bytes += self.gpu_scene.move_lights(self.local.lights_at(time));
+        }
         let camera = self.scene.camera_at(time);
         self.gpu_scene.camera = self.gpu_scene.to_local(&camera);
         self.scene.camera = camera;
@@ -224,11 +248,12 @@ impl Renderer {
             let before = time - 1.0 / FIRST_FRAME_FPS;
             let deltas = self.local.mesh_motion(before);
             self.gpu_scene.pose_previous(|mesh| deltas.get(mesh).copied().flatten());
+            self.gpu_scene.deform_previous(&self.local.deformed(before));
             if self.scene.animation.as_ref().is_some_and(|a| a.camera.is_some()) {
                 *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) = Some(self.scene.camera_at(before));
             }
         }
-        MotionUpdate { cpu_ms: start.elapsed().as_secs_f64() * 1e3, bytes, ..Default::default() }
+        MotionUpdate { cpu_ms: start.elapsed().as_secs_f64() * 1e3, bytes, deform_ms, ..Default::default() }
     }
 
     /// Rebuilds the top level over the casters where the scene was posed since it was last
@@ -238,10 +263,18 @@ impl Renderer {
         let mut motion = motion.lock().unwrap_or_else(|e| e.into_inner());
         let Some(placements) = motion.unplaced.take() else { return };
         let start = std::time::Instant::now();
+        let mut deformed = Vec::new();
+        for (group, triangles) in motion.undeformed.take().unwrap_or_default() {
+            deformed.push(motion.levels.deform(group, &triangles));
+        }
         motion.levels.place(&placements);
-        let bytes = self.gpu_scene.bvh.place(&motion.levels);
+        let (refits, rebuilds) =
+            deformed.iter().fold((0, 0), |(r, b), d| if d.rebuilt { (r, b + 1) } else { (r + 1, b) });
+        let sah_ratio = deformed.iter().map(|d| d.refit_ratio).fold(0.0f32, f32::max);
+        let bytes = self.gpu_scene.bvh.place(&motion.levels, deformed);
         let ms = start.elapsed().as_secs_f64() * 1e3;
         let mut update = self.update.lock().unwrap_or_else(|e| e.into_inner());
+        (update.refits, update.rebuilds, update.sah_ratio) = (refits, rebuilds, sah_ratio);
         update.cpu_ms += ms;
         update.bytes += bytes;
         update.casters_ms += ms;
@@ -578,9 +611,17 @@ pub struct MotionUpdate {
     pub cpu_ms: f64,
     /// Bytes the frame writes to the device (instance rows; top region and root).
     pub bytes: u64,
-    /// Of those, the top level's: its build (ms) and its upload (bytes).
+    /// Of those, the top level's: its build (ms) and its upload (bytes), with the refit or
+    /// rebuild of deformed meshes' bottom trees.
     pub casters_ms: f64,
     pub casters_bytes: u64,
+    /// Of `cpu_ms`, posing the deforming meshes (skins, morph targets) on the CPU.
+    pub deform_ms: f64,
+    /// Deformed meshes' bottom trees refit, and rebuilt (their refit SAH cost past
+    /// `levels::REBUILD_RATIO`), for this frame; the largest SAH ratio against the trees' builds.
+    pub refits: u32,
+    pub rebuilds: u32,
+    pub sah_ratio: f32,
 }
 
 /// A moving scene's casters on the CPU: two levels, and which group each mesh's triangles went to.
@@ -592,12 +633,16 @@ struct Motion {
     posed_at: Option<f64>,
     /// Where each bottom tree goes, posed but not yet built into the top level.
     unplaced: Option<Vec<crate::scene::bvh::levels::Placement>>,
+    /// Deformed meshes' triangles (local frame, the group's order) per bottom tree, posed but not
+    /// yet refit into it.
+    undeformed: Option<Vec<(usize, Vec<[glam::Vec3; 3]>)>>,
 }
 
 impl Motion {
     /// The casters of `local` in two levels: the static ones in bottom tree 0, each group of
     /// meshes that move together (the same animated node and rest pose) in a tree of its own,
-    /// in their rest pose; all placed at rest.
+    /// in their rest pose, each deforming mesh in a tree of its own (refit as it deforms); all
+    /// placed at rest.
     fn build_levels(local: &Scene) -> (crate::scene::bvh::levels::TwoLevel, Vec<Option<usize>>) {
         use crate::scene::bvh::levels::{Placement, TwoLevel};
         let mut keys: Vec<Option<(usize, [u64; 16])>> = vec![None];
@@ -611,7 +656,11 @@ impl Motion {
                 groups.push(None);
                 continue;
             }
-            let key = mesh.motion.as_ref().map(|m| (m.node, m.rest.to_cols_array().map(f64::to_bits)));
+            // A deforming mesh's key is its own (no node is numbered that high).
+            let key = match &mesh.deform {
+                Some(_) => Some((usize::MAX - groups.len(), [0; 16])),
+                None => mesh.motion.as_ref().map(|m| (m.node, m.rest.to_cols_array().map(f64::to_bits))),
+            };
             let group = match keys.iter().position(|k| *k == key) {
                 Some(g) => g,
                 None => {
@@ -634,7 +683,8 @@ impl Motion {
         });
         let placements: Vec<Placement> =
             (0..triangles.len()).map(|bottom| Placement { bottom, to_world: glam::Affine3A::IDENTITY }).collect();
-        (TwoLevel::build(triangles, masks.as_ref(), &placements), groups)
+        let deforming: Vec<bool> = keys.iter().map(|k| k.is_some_and(|(node, _)| node > usize::MAX / 2)).collect();
+        (TwoLevel::build(triangles, masks.as_ref(), &placements, &deforming), groups)
     }
 
     /// Each bottom tree's placement for the per-mesh `deltas` (local frame; `None`: at rest).

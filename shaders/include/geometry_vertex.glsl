@@ -5,8 +5,9 @@
 // (geometry_body.glsl). Textured draws also pass on their texture coordinates and tangents
 // (vertex binding 2, gpu::SurfaceVertex), and the second set (binding 3). WITH_MOTION: the
 // vertex's clip position now and in the previous frame (its instance's previous rows at vertex
-// binding 4, the previous camera in GEOMETRY_MOTION), both without the anti-aliasing jitter,
-// for the fragment stage's screen-space motion.
+// binding 4, its own previous position at binding 5 (a deforming mesh's; any other vertex's is
+// its position now), the previous camera in GEOMETRY_MOTION), both without the anti-aliasing
+// jitter, for the fragment stage's screen-space motion.
 #include "geometry_push.glsl"
 #include "instance.glsl"
 
@@ -24,6 +25,7 @@ layout(location = 5) flat out vec4 out_normal_rows[3];
 layout(location = 11) in vec4 previous_model_0;
 layout(location = 12) in vec4 previous_model_1;
 layout(location = 13) in vec4 previous_model_2;
+layout(location = 14) in vec3 previous_position;
 layout(location = 11) out vec4 out_clip;
 layout(location = 12) out vec4 out_previous_clip;
 #endif
@@ -55,7 +57,7 @@ void main() {
 #endif
     gl_Position = pc.view_proj * vec4(p - pc.eye.xyz, 1.0);
 #ifdef WITH_MOTION
-    vec4 h = vec4(in_position, 1.0);
+    vec4 h = vec4(previous_position, 1.0);
     vec3 before = vec3(dot(previous_model_0, h), dot(previous_model_1, h), dot(previous_model_2, h));
     // x and y in half pixels, so that the fragment stage's difference of the two divided by w
     // is gbuffer_motion's (the scale commutes with the interpolation and the division).

@@ -167,7 +167,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
     // The same casters as a moving scene's static group: one bottom tree placed once at the
     // identity, walked through the top level (what two levels cost a ray where nothing moves).
     let identity = [Placement { bottom: 0, to_world: glam::Affine3A::IDENTITY }];
-    let mut levels = TwoLevel::build(vec![tris.clone()], None, &identity);
+    let mut levels = TwoLevel::build(vec![tris.clone()], None, &identity, &[]);
     let level_buffers = BvhBuffers::upload_levels(&ctx, &levels)?;
     // (After the upload: the device keeps the identity placement.)
     let top_ms = top_level_build_ms(&mut levels);

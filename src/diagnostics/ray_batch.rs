@@ -113,7 +113,7 @@ pub fn trace_levels(
     let buffers = BvhBuffers::upload_levels(ctx, levels)?;
     if let Some(placements) = move_to {
         levels.place(placements);
-        buffers.place(levels);
+        buffers.place(levels, Vec::new());
     }
     trace_buffers(ctx, &buffers, rays)
 }

@@ -7,7 +7,7 @@ use std::sync::{Arc, Mutex};
 use ash::vk;
 
 use crate::graph::{Access, RenderGraph};
-use crate::scene::bvh::levels::TwoLevel;
+use crate::scene::bvh::levels::{Deformed, TexelRange, TwoLevel};
 use crate::scene::bvh::{ShadowBvh, WideNode};
 use crate::vk::{Buffer, GpuContext, GpuError, GpuResult, TexelBuffer};
 
@@ -61,8 +61,47 @@ impl BvhVariant {
     }
 }
 
-/// A new top level waiting for the next frame: (texel of the node buffer, texels), root texels.
-type Pending = ((usize, Vec<[u32; 4]>), [[u32; 4]; 4]);
+/// A new top level waiting for the next frame, and the bottom trees that deformed since the last
+/// recorded frame: runs of texels of the node, triangle and mask buffers (in the order they
+/// were made: a later run over the same texels wins).
+struct Pending {
+    region: TexelRange,
+    root: [[u32; 4]; 4],
+    nodes: Vec<TexelRange>,
+    triangles: Vec<TexelRange>,
+    masks: Vec<TexelRange>,
+}
+
+impl Pending {
+    fn bytes(&self) -> u64 {
+        let runs = [&self.nodes, &self.triangles, &self.masks];
+        let texels: usize =
+            runs.iter().flat_map(|r| r.iter()).map(|(_, t)| t.len()).sum::<usize>() + self.region.1.len();
+        (texels * 16 + 64) as u64
+    }
+}
+
+/// `runs` (in the order they were made) as disjoint runs in texel order holding the same texels,
+/// a later run's where two overlap.
+fn coalesce(runs: &[TexelRange]) -> Vec<TexelRange> {
+    let mut spans: Vec<(usize, usize)> =
+        runs.iter().filter(|(_, t)| !t.is_empty()).map(|(at, t)| (*at, at + t.len())).collect();
+    spans.sort_unstable();
+    let mut merged: Vec<(usize, usize)> = Vec::new();
+    for (from, to) in spans {
+        match merged.last_mut() {
+            Some(last) if from <= last.1 => last.1 = last.1.max(to),
+            _ => merged.push((from, to)),
+        }
+    }
+    let mut out: Vec<TexelRange> = merged.iter().map(|&(from, to)| (from, vec![[0u32; 4]; to - from])).collect();
+    for (at, texels) in runs.iter().filter(|(_, t)| !t.is_empty()) {
+        let k = merged.partition_point(|&(from, _)| from <= *at) - 1;
+        let offset = at - out[k].0;
+        out[k].1[offset..offset + texels.len()].copy_from_slice(texels);
+    }
+    out
+}
 
 /// Bytes one `cmd_update_buffer` may write.
 const UPDATE_LIMIT: usize = 65_536;
@@ -105,7 +144,9 @@ impl BvhBuffers {
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         let masks = match masks {
             Some(masks) => {
-                let [buffer] = upload(ctx, [("bvh alpha masks", bytemuck::cast_slice(&masks.texels), texel)])?;
+                // Two levels: a deformed tree's rebuild rewrites its masks.
+                let dst = if levels { vk::BufferUsageFlags::TRANSFER_DST } else { vk::BufferUsageFlags::empty() };
+                let [buffer] = upload(ctx, [("bvh alpha masks", bytemuck::cast_slice(&masks.texels), texel | dst)])?;
                 Some(TexelBuffer::new(ctx, buffer, vk::Format::R32G32B32A32_UINT)?)
             }
             None => None,
@@ -142,24 +183,48 @@ impl BvhBuffers {
             ctx,
             [
                 ("bvh nodes", bytemuck::cast_slice(&nodes), texel | dst),
-                ("bvh triangles", bytemuck::cast_slice(&triangles), texel),
+                ("bvh triangles", bytemuck::cast_slice(&triangles), texel | dst),
                 ("bvh root", bytemuck::cast_slice(&root), vk::BufferUsageFlags::UNIFORM_BUFFER | dst),
             ],
         )?;
         BvhBuffers::wrap(ctx, [nodes, triangles, root], levels.masks(), true)
     }
 
-    /// Has the next frame write `levels`' top region and root (after `TwoLevel::place`).
-    /// Returns the bytes the frame will move.
-    pub fn place(&self, levels: &TwoLevel) -> u64 {
+    /// Has the next frame write `levels`' top region and root (after `TwoLevel::place`), and
+    /// the bottom trees `deformed` since (`TwoLevel::deform`): with what earlier calls left for
+    /// it, if no frame was recorded since. Returns the bytes this call adds.
+    pub fn place(&self, levels: &TwoLevel, deformed: Vec<Deformed>) -> u64 {
         if !self.levels {
             return 0;
         }
         let (at, texels) = levels.region();
         assert!(((at + texels.len()) * 16) as u64 <= self.nodes.buffer.size, "a top region outgrew its buffer");
-        let bytes = (texels.len() * 16 + 64) as u64;
-        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) =
-            Some(Arc::new(((at, texels.to_vec()), levels.root_texels())));
+        let mut pending = self.pending.lock().unwrap_or_else(|e| e.into_inner());
+        let mut next = Pending {
+            region: (at, texels.to_vec()),
+            root: levels.root_texels(),
+            nodes: Vec::new(),
+            triangles: Vec::new(),
+            masks: Vec::new(),
+        };
+        let before = pending.as_ref().map_or(0, |p| p.bytes() - (p.region.1.len() * 16 + 64) as u64);
+        if let Some(earlier) = pending.take() {
+            next.nodes.extend(earlier.nodes.iter().cloned());
+            next.triangles.extend(earlier.triangles.iter().cloned());
+            next.masks.extend(earlier.masks.iter().cloned());
+        }
+        for d in deformed {
+            next.nodes.push(d.nodes);
+            next.triangles.push(d.triangles);
+            next.masks.extend(d.masks);
+        }
+        // Runs can overlap (neighbouring trees share a triangle texel; a tree deformed twice
+        // before a frame recorded): two writes of one texel in a pass would race.
+        next.nodes = coalesce(&next.nodes);
+        next.triangles = coalesce(&next.triangles);
+        next.masks = coalesce(&next.masks);
+        let bytes = next.bytes() - before;
+        *pending = Some(Arc::new(next));
         bytes
     }
 
@@ -216,40 +281,64 @@ impl BvhBuffers {
     pub fn import<'a>(&'a self, g: &mut RenderGraph<'a>, access: Access) -> BvhHandles {
         let mut root = g.import_buffer("bvh root", &self.root, access);
         let mut nodes = g.import_buffer("bvh nodes", &self.nodes.buffer, access);
+        let mut triangles = g.import_buffer("bvh triangles", &self.triangles.buffer, access);
+        let mut masks = self.masks.as_ref().map(|m| g.import_buffer("bvh alpha masks", &m.buffer, access));
         let pending = self.pending.lock().unwrap_or_else(|e| e.into_inner()).clone();
         if let Some(pending) = pending {
-            let ((at, texels), root_texels) = &*pending;
-            let (at, root_texels) = (*at, *root_texels);
             let mut pass = g.add_pass(TOP_LEVEL_PASS);
-            pass.detail(format!("{} KiB", (texels.len() * 16 + 64) >> 10));
-            let texels = pending.clone();
+            pass.detail(format!("{} KiB", pending.bytes() >> 10));
             let nodes_dst = pass.write(&mut nodes, Access::TransferWrite);
             let root_dst = pass.write(&mut root, Access::TransferWrite);
+            let triangles_dst =
+                (!pending.triangles.is_empty()).then(|| pass.write(&mut triangles, Access::TransferWrite));
+            let masks_dst = match (&mut masks, pending.masks.is_empty()) {
+                (Some(m), false) => Some(pass.write(m, Access::TransferWrite)),
+                _ => None,
+            };
             pass.render(move |ctx| {
-                let bytes: &[u8] = bytemuck::cast_slice(&texels.0 .1);
-                for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
-                    let offset = (16 * at + k * UPDATE_LIMIT) as u64;
-                    // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of 4
-                    // bytes, inside the buffer (`place` checked).
-                    unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(nodes_dst), offset, chunk) };
+                let write = |dst, runs: &[TexelRange]| {
+                    for (at, texels) in runs {
+                        let bytes: &[u8] = bytemuck::cast_slice(texels);
+                        for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
+                            let offset = (16 * at + k * UPDATE_LIMIT) as u64;
+                            // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of
+                            // 4 bytes, inside its buffer (`place` checked the region; a deformed
+                            // tree's runs lie where the tree was uploaded).
+                            unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), offset, chunk) };
+                        }
+                    }
+                };
+                write(nodes_dst, &pending.nodes);
+                write(nodes_dst, std::slice::from_ref(&pending.region));
+                if let Some(dst) = triangles_dst {
+                    write(dst, &pending.triangles);
+                }
+                if let Some(dst) = masks_dst {
+                    write(dst, &pending.masks);
                 }
                 // SAFETY: as above; the root holds four texels.
                 unsafe {
-                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(root_dst), 0, bytemuck::cast_slice(&root_texels))
+                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(root_dst), 0, bytemuck::cast_slice(&pending.root))
                 };
                 Ok(())
             });
-            // Exported, so the write survives a frame whose passes read neither.
+            // Exported, so the writes survive a frame whose passes read none of them.
             g.export_version(&nodes, access);
             g.export_version(&root, access);
+            if triangles_dst.is_some() {
+                g.export_version(&triangles, access);
+            }
+            if let (Some(m), Some(_)) = (&masks, masks_dst) {
+                g.export_version(m, access);
+            }
         }
         BvhHandles {
             nodes,
-            triangles: g.import_buffer("bvh triangles", &self.triangles.buffer, access),
+            triangles,
             root,
             node_view: self.nodes.view(),
             triangle_view: self.triangles.view(),
-            masks: self.masks.as_ref().map(|m| (g.import_buffer("bvh alpha masks", &m.buffer, access), m.view())),
+            masks: masks.zip(self.masks.as_ref().map(|m| m.view())),
             variant: self.variant(),
         }
     }
@@ -297,4 +386,24 @@ pub struct BvhSlots {
     pub root: u32,
     /// Bound in the masked variant only.
     pub masks: u32,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn overlapping_runs_coalesce_into_disjoint_ones_where_the_later_wins() {
+        let t = |v: u32| [v; 4];
+        let runs = vec![
+            (10, vec![t(1), t(1), t(1)]),
+            (12, vec![t(2), t(2)]),
+            (20, vec![t(3)]),
+            (9, vec![t(4)]),
+            (21, vec![t(5)]),
+        ];
+        let out = coalesce(&runs);
+        assert_eq!(out, vec![(9, vec![t(4), t(1), t(1), t(2), t(2)]), (20, vec![t(3), t(5)])]);
+        assert!(coalesce(&[]).is_empty());
+    }
 }

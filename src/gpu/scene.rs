@@ -92,6 +92,42 @@ pub struct SceneGpu {
     pub moving: Vec<MovingDraw>,
     /// The moving draws' instance rows, posed and drawn, and what the next frame writes.
     rows: std::sync::Mutex<MovingRows>,
+    /// The draws whose meshes deform (skins, morph targets), in draw order: their vertices are
+    /// rewritten whenever the scene is posed.
+    pub deforming: Vec<DeformingDraw>,
+    /// The deformed vertices the next frame's first pass writes: (byte offset in `vertices`,
+    /// bytes), until a frame that wrote them is recorded.
+    deformed: std::sync::Mutex<DeformedVertices>,
+    /// In a scene with deforming draws, where a copy of the vertices as the previous frame drew
+    /// them starts (the motion channel's previous positions, vertex binding 5); `None` otherwise,
+    /// and the motion variant reads the vertices themselves there.
+    pub previous_vertex_offset: Option<u64>,
+    /// The lights as the next frame's first pass writes them, where animated nodes moved some
+    /// since the last recorded frame.
+    moved_lights: std::sync::Mutex<Option<Arc<Vec<u8>>>>,
+}
+
+/// The deforming draws' vertices (bytes, in `SceneGpu::deforming` order) as posed last and as
+/// the last recorded frame drew them, and what the next frame writes: (byte offset in
+/// `vertices`, bytes), now and in the previous frame's copy.
+#[derive(Default)]
+struct DeformedVertices {
+    posed: Vec<Arc<Vec<u8>>>,
+    drawn: Vec<Arc<Vec<u8>>>,
+    pending: Option<Arc<Vec<VertexWrite>>>,
+}
+
+/// Bytes to write into the vertex buffer at a byte offset.
+type VertexWrite = (u64, Arc<Vec<u8>>);
+
+/// A draw whose mesh deforms: its vertices in the shared buffer, rewritten as it is posed.
+#[derive(Clone, Debug)]
+pub struct DeformingDraw {
+    /// Its index in `SceneGpu::draws` and in `Scene::meshes`.
+    pub draw: usize,
+    pub mesh: usize,
+    pub first_vertex: u32,
+    pub vertex_count: u32,
 }
 
 /// The moving draws' instance rows (their `row`s in order).
@@ -185,6 +221,13 @@ pub enum BvhSource<'b> {
     Two(&'b crate::scene::bvh::levels::TwoLevel),
 }
 
+/// The pass that writes deformed meshes' vertices (part of keeping the scene up to date, which
+/// every method needs: the G-buffer and the maps draw them).
+pub const DEFORM_PASS: &str = "deformed vertices";
+
+/// Bytes one `cmd_update_buffer` may write (a multiple of a vertex's 24 bytes and of 4).
+const UPDATE_LIMIT: usize = 65_520;
+
 /// A draw whose mesh moves: its instance row is rewritten whenever the scene is posed.
 #[derive(Clone, Debug)]
 pub struct MovingDraw {
@@ -218,6 +261,7 @@ struct Packing {
     materials: Vec<Arc<crate::scene::MaterialTextures>>,
     table_texels: TableTexels,
     moving: Vec<MovingDraw>,
+    deforming: Vec<DeformingDraw>,
     lo: Vec3,
     hi: Vec3,
 }
@@ -229,6 +273,7 @@ struct VertexBytes {
     previous_offset: Option<u64>,
     surface_offset: Option<u64>,
     second_uv_offset: Option<u64>,
+    previous_vertex_offset: Option<u64>,
 }
 
 impl Packing {
@@ -279,6 +324,14 @@ impl Packing {
                 at
             }
         };
+        if mesh.deform.is_some() && mesh.instance.is_none() {
+            self.deforming.push(DeformingDraw {
+                draw: self.draws.len(),
+                mesh: index,
+                first_vertex: vertex_offset as u32,
+                vertex_count: mesh.positions.len() as u32,
+            });
+        }
         if moving {
             let base = mesh.instance.as_ref().map_or(glam::DMat4::IDENTITY, |i| i.to_world);
             self.moving.push(MovingDraw {
@@ -389,7 +442,19 @@ impl Packing {
             bytes.extend_from_slice(bytemuck::cast_slice(&self.second_uvs));
             at
         });
-        VertexBytes { bytes, instance_offset, previous_offset, surface_offset, second_uv_offset }
+        let previous_vertex_offset = (!self.deforming.is_empty()).then(|| {
+            let at = bytes.len() as u64;
+            bytes.extend_from_slice(bytemuck::cast_slice(&self.vertices));
+            at
+        });
+        VertexBytes {
+            bytes,
+            instance_offset,
+            previous_offset,
+            surface_offset,
+            second_uv_offset,
+            previous_vertex_offset,
+        }
     }
 }
 
@@ -445,16 +510,27 @@ impl SceneGpu {
         };
         check_texel_limits(ctx, vertex.bytes.len(), &packing.indices)?;
         let rest: Vec<InstanceRows> = packing.moving.iter().map(|m| packing.instances[m.row as usize]).collect();
+        let rest_vertices: Vec<Arc<Vec<u8>>> = packing
+            .deforming
+            .iter()
+            .map(|d| {
+                let at = d.first_vertex as usize..(d.first_vertex + d.vertex_count) as usize;
+                Arc::new(bytemuck::cast_slice(&packing.vertices[at]).to_vec())
+            })
+            .collect();
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         // A moving scene's frames rewrite the instance rows.
-        let rows =
-            if packing.moving.is_empty() { vk::BufferUsageFlags::empty() } else { vk::BufferUsageFlags::TRANSFER_DST };
+        let rows = match packing.moving.is_empty() && packing.deforming.is_empty() {
+            true => vk::BufferUsageFlags::empty(),
+            false => vk::BufferUsageFlags::TRANSFER_DST,
+        };
         let [vertices, indices, lights] = upload(
             ctx,
             [
                 ("vertices", &vertex.bytes, vk::BufferUsageFlags::VERTEX_BUFFER | texel | rows),
                 ("indices", bytemuck::cast_slice(&packing.indices), vk::BufferUsageFlags::INDEX_BUFFER | texel),
-                ("lights", bytemuck::cast_slice(&lights), storage),
+                // Lights on animated nodes are rewritten as they move.
+                ("lights", bytemuck::cast_slice(&lights), storage | vk::BufferUsageFlags::TRANSFER_DST),
             ],
         )?;
         let (bvh_buffers, has_casters) = match bvh {
@@ -468,6 +544,7 @@ impl SceneGpu {
             vertex_count,
             instance_offset: vertex.instance_offset,
             previous_offset: vertex.previous_offset,
+            previous_vertex_offset: vertex.previous_vertex_offset,
             surface_offset: vertex.surface_offset,
             second_uv_offset: vertex.second_uv_offset,
             materials,
@@ -485,7 +562,124 @@ impl SceneGpu {
             camera: scene.camera,
             rows: std::sync::Mutex::new(MovingRows { posed: rest.clone(), drawn: rest, pending: None }),
             moving: packing.moving,
+            deforming: packing.deforming,
+            deformed: std::sync::Mutex::new(DeformedVertices {
+                posed: rest_vertices.clone(),
+                drawn: rest_vertices,
+                pending: None,
+            }),
+            moved_lights: std::sync::Mutex::new(None),
         })
+    }
+
+    /// Moves the lights to `lights` (the same lights, in the local frame, as animated nodes
+    /// carry them now): the shadow techniques read them at once, the next frame's first pass
+    /// writes the device's copy. Returns the bytes that frame will move.
+    pub fn move_lights(&mut self, lights: Vec<crate::scene::Light>) -> u64 {
+        assert_eq!(lights.len(), self.local_lights.len(), "moving lights keeps them");
+        let bytes: Vec<u8> = bytemuck::cast_slice(&gpu_lights(&lights)).to_vec();
+        let size = bytes.len() as u64;
+        self.local_lights = lights;
+        *self.moved_lights.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(bytes));
+        size
+    }
+
+    /// Imports the lights into `g`, written first where they moved since the last recorded
+    /// frame.
+    pub fn import_lights<'a>(
+        &'a self,
+        g: &mut crate::graph::RenderGraph<'a>,
+    ) -> crate::graph::Handle<crate::graph::BufferKind> {
+        let mut lights = g.import_buffer("lights", &self.lights, SCENE_ACCESS);
+        let Some(bytes) = self.moved_lights.lock().unwrap_or_else(|e| e.into_inner()).clone() else {
+            return lights;
+        };
+        let mut pass = g.add_pass("moved lights");
+        let dst = pass.write(&mut lights, Access::TransferWrite);
+        pass.render(move |ctx| {
+            for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
+                // SAFETY: recording state; at most 64 KiB a call, whole lights, inside the buffer.
+                unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), (k * UPDATE_LIMIT) as u64, chunk) };
+            }
+            Ok(())
+        });
+        g.export_version(&lights, SCENE_ACCESS);
+        lights
+    }
+
+    /// Poses the deforming draws: `posed` gives meshes' new vertices (`Scene::deformed`, in the
+    /// local frame); their bounds and the scene's follow at once, their vertices are written by
+    /// the next frame's first pass (and, for its motion channel, those the last recorded frame
+    /// drew). Returns the bytes that frame will move.
+    pub fn deform(&mut self, posed: &[(usize, crate::scene::deform::Posed)]) -> u64 {
+        let Some(now) = self.deformed_bytes(posed, true) else { return 0 };
+        let all = self.draws.iter().fold(Bounds::EMPTY, |b, d| b.union(&d.bounds));
+        if !all.is_empty() {
+            self.bounds = (all.min, all.max);
+        }
+        let mut state = self.deformed.lock().unwrap_or_else(|e| e.into_inner());
+        state.posed = now;
+        let writes = self.deformed_writes(&state.posed, &state.drawn);
+        let bytes = writes.iter().map(|(_, w)| w.len() as u64).sum();
+        state.pending = Some(Arc::new(writes));
+        bytes
+    }
+
+    /// Sets the deforming draws' vertices as the previous frame drew them to `posed` (for a
+    /// first frame, which has no previous one drawn): the next frame's motion starts there.
+    pub fn deform_previous(&mut self, posed: &[(usize, crate::scene::deform::Posed)]) {
+        let Some(before) = self.deformed_bytes(posed, false) else { return };
+        let mut state = self.deformed.lock().unwrap_or_else(|e| e.into_inner());
+        state.drawn = before;
+        let writes = self.deformed_writes(&state.posed, &state.drawn);
+        state.pending = Some(Arc::new(writes));
+    }
+
+    /// The deforming draws' vertex bytes for `posed` (a draw it leaves out keeps the vertices
+    /// posed last), and with `bounds` their draws' bounds set; `None` when it poses none.
+    fn deformed_bytes(
+        &mut self,
+        posed: &[(usize, crate::scene::deform::Posed)],
+        bounds: bool,
+    ) -> Option<Vec<Arc<Vec<u8>>>> {
+        let mut out = self.deformed.lock().unwrap_or_else(|e| e.into_inner()).posed.clone();
+        let mut any = false;
+        for (k, d) in self.deforming.iter().enumerate() {
+            let Some((_, p)) = posed.iter().find(|(mesh, _)| *mesh == d.mesh) else { continue };
+            let mut box_ = Bounds::EMPTY;
+            let vertices: Vec<Vertex> = p
+                .positions
+                .iter()
+                .zip(&p.normals)
+                .map(|(position, normal)| {
+                    let position = position.as_vec3();
+                    if position.is_finite() {
+                        box_.include(position);
+                    }
+                    Vertex { position: position.to_array(), normal: normal.to_array() }
+                })
+                .collect();
+            debug_assert_eq!(vertices.len(), d.vertex_count as usize, "a pose keeps the mesh's vertices");
+            out[k] = Arc::new(bytemuck::cast_slice(&vertices).to_vec());
+            if bounds {
+                self.draws[d.draw].bounds = box_;
+            }
+            any = true;
+        }
+        any.then_some(out)
+    }
+
+    /// The writes that put `now` in the deforming draws' vertices and `before` in the previous
+    /// frame's copy.
+    fn deformed_writes(&self, now: &[Arc<Vec<u8>>], before: &[Arc<Vec<u8>>]) -> Vec<VertexWrite> {
+        let previous = self.previous_vertex_offset.expect("a scene with deforming draws keeps their previous vertices");
+        let mut writes = Vec::with_capacity(2 * now.len());
+        for (k, d) in self.deforming.iter().enumerate() {
+            let offset = u64::from(d.first_vertex) * std::mem::size_of::<Vertex>() as u64;
+            writes.push((offset, now[k].clone()));
+            writes.push((previous + offset, before[k].clone()));
+        }
+        writes
     }
 
     /// Poses the moving draws: `delta(mesh)` is the local-frame transform from mesh `mesh`'s
@@ -541,6 +735,17 @@ impl SceneGpu {
             state.pending = Some(Arc::new((state.posed.clone(), state.posed.clone())));
         }
         drop(state);
+        let mut deformed = self.deformed.lock().unwrap_or_else(|e| e.into_inner());
+        deformed.pending = None;
+        if !deformed.drawn.iter().zip(&deformed.posed).all(|(a, b)| Arc::ptr_eq(a, b)) {
+            // The next frame, posed anew or not, measures its motion from what this one drew.
+            deformed.drawn = deformed.posed.clone();
+            let writes = self.deformed_writes(&deformed.posed, &deformed.drawn);
+            let previous = self.previous_vertex_offset.unwrap_or(0);
+            deformed.pending = Some(Arc::new(writes.into_iter().filter(|(at, _)| *at >= previous).collect()));
+        }
+        drop(deformed);
+        self.moved_lights.lock().unwrap_or_else(|e| e.into_inner()).take();
         self.bvh.recorded();
     }
 
@@ -552,6 +757,30 @@ impl SceneGpu {
         g: &mut crate::graph::RenderGraph<'a>,
     ) -> crate::graph::Handle<crate::graph::BufferKind> {
         let mut vertices = g.import_buffer("vertices", &self.vertices, SCENE_ACCESS);
+        let deformed = self.deformed.lock().unwrap_or_else(|e| e.into_inner()).pending.clone();
+        if let Some(writes) = deformed {
+            let mut pass = g.add_pass(DEFORM_PASS);
+            pass.detail(format!("{} KiB", writes.iter().map(|(_, w)| w.len()).sum::<usize>() >> 10));
+            let dst = pass.write(&mut vertices, Access::TransferWrite);
+            pass.render(move |ctx| {
+                for (at, bytes) in writes.iter() {
+                    for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
+                        // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of 4
+                        // bytes (whole vertices), inside the buffer (the draw's own vertices).
+                        unsafe {
+                            ctx.device.cmd_update_buffer(
+                                ctx.cmd,
+                                ctx.buffer(dst),
+                                at + (k * UPDATE_LIMIT) as u64,
+                                chunk,
+                            )
+                        };
+                    }
+                }
+                Ok(())
+            });
+            g.export_version(&vertices, SCENE_ACCESS);
+        }
         let Some(rows) = self.rows.lock().unwrap_or_else(|e| e.into_inner()).pending.clone() else {
             return vertices;
         };

@@ -56,6 +56,11 @@ pub const PREVIOUS_MODEL_ATTRIBUTES: [(u32, vk::Format, u32); 3] = [
     (13, vk::Format::R32G32B32A32_SFLOAT, 32),
 ];
 
+/// The motion variant's input at vertex binding 5, read per vertex: the vertex's position as the
+/// previous frame drew it (a deforming mesh's; every other vertex's is where it is), from a
+/// `Vertex`-strided copy (geometry_vertex.glsl).
+pub const PREVIOUS_POSITION_ATTRIBUTES: [(u32, vk::Format, u32); 1] = [(14, vk::Format::R32G32B32_SFLOAT, 0)];
+
 /// Per-vertex data of textured meshes (vertex binding 2, parallel to the `Vertex`es: zeros for
 /// meshes without textures): texture coordinates (locations 8) and the tangent with the
 /// bitangent's sign in w (9; zeros without a normal map).

@@ -22,7 +22,8 @@ use super::{
 };
 use crate::gpu::{
     CameraMatrices, InstanceRows, MotionBlock, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES,
-    PREVIOUS_MODEL_ATTRIBUTES, SECOND_UV_ATTRIBUTES, SECOND_UV_STRIDE, SURFACE_ATTRIBUTES, TABLE_ACCESS,
+    PREVIOUS_MODEL_ATTRIBUTES, PREVIOUS_POSITION_ATTRIBUTES, SECOND_UV_ATTRIBUTES, SECOND_UV_STRIDE,
+    SURFACE_ATTRIBUTES, TABLE_ACCESS,
 };
 use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, PassContext, Ref, RenderGraph};
 use crate::vk::{
@@ -150,7 +151,8 @@ const TEXTURED_FORMATS: [vk::Format; 5] =
 /// with its material set layout, descriptor set 1, see gpu/textures.rs): texture coordinates
 /// and tangents at vertex binding 2, the second texture-coordinate set at binding 3.
 /// `two_sided`: without back-face culling (for double-sided meshes). `motion`: also the motion
-/// channel, from the previous frame's instance rows at vertex binding 4.
+/// channel, from the previous frame's instance rows at vertex binding 4 and vertex positions at
+/// binding 5.
 fn pipeline(
     ctx: &Arc<GpuContext>,
     layout: &[(u32, DescriptorKind)],
@@ -164,6 +166,7 @@ fn pipeline(
         per_vertex_2: textured.then_some((std::mem::size_of::<SurfaceVertex>() as u32, &SURFACE_ATTRIBUTES[..])),
         per_vertex_3: textured.then_some((SECOND_UV_STRIDE, &SECOND_UV_ATTRIBUTES[..])),
         instance_4: motion.then_some((INSTANCE_STRIDE, &PREVIOUS_MODEL_ATTRIBUTES[..])),
+        per_vertex_5: motion.then_some((std::mem::size_of::<Vertex>() as u32, &PREVIOUS_POSITION_ATTRIBUTES[..])),
         set_1: material_set,
         ..Default::default()
     };
@@ -330,7 +333,10 @@ fn draw_scene(
         if motion {
             // The rows as the previous frame drew them: a static scene's are the rows now.
             let previous = scene.previous_offset.unwrap_or(scene.instance_offset);
-            d.cmd_bind_vertex_buffers(ctx.cmd, 4, &[vb], &[previous]);
+            // The vertices as the previous frame drew them: a scene without deforming meshes'
+            // are the vertices now.
+            let previous_vertices = scene.previous_vertex_offset.unwrap_or(0);
+            d.cmd_bind_vertex_buffers(ctx.cmd, 4, &[vb, vb], &[previous, previous_vertices]);
         }
         d.cmd_bind_index_buffer(ctx.cmd, ctx.buffer(ib), 0, vk::IndexType::UINT32);
     }

@@ -42,6 +42,18 @@ impl Keyed for DVec3 {
     }
 }
 
+impl Keyed for f64 {
+    fn lerp(a: Self, b: Self, s: f64) -> Self {
+        a + (b - a) * s
+    }
+    fn combine(terms: [(Self, f64); 4]) -> Self {
+        terms.iter().map(|(v, w)| v * w).sum()
+    }
+    fn is_finite(&self) -> bool {
+        f64::is_finite(*self)
+    }
+}
+
 impl Keyed for DQuat {
     /// Slerp along the shorter arc (the glTF specification's rule for rotations).
     fn lerp(a: Self, b: Self, s: f64) -> Self {
@@ -195,6 +207,9 @@ impl RigNode {
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Rig {
     pub nodes: Vec<RigNode>,
+    /// The key spans of channels that animate something other than a node (morph-target
+    /// weights, which their meshes hold): the clip lasts over them too.
+    pub other_spans: Vec<(f64, f64)>,
 }
 
 impl Rig {
@@ -283,6 +298,12 @@ pub struct Animation {
     pub looping: bool,
     /// Added to every world position (the scene moved into another frame, `Scene::translated`).
     pub shift: DVec3,
+    /// Lights that animated nodes carry: (index in `Scene::lights`, rig node). A light's position
+    /// is its node's origin, its direction the node's -Z, as glTF places them.
+    pub lights: Vec<(usize, usize)>,
+    /// The rig node that carries the scene's camera (a glTF camera on an animated node), where
+    /// no camera path moves it: the camera looks down the node's -Z with its +Y up.
+    pub camera_node: Option<usize>,
 }
 
 impl Animation {
@@ -292,9 +313,20 @@ impl Animation {
             .nodes
             .iter()
             .filter_map(RigNode::span)
+            .chain(rig.other_spans.iter().copied())
             .chain(camera.as_ref().map(|c| (c.times[0], c.times[c.times.len() - 1])));
         let (start, end) = spans.reduce(|a, b| (a.0.min(b.0), a.1.max(b.1))).unwrap_or((0.0, 0.0));
-        Animation { rig, camera, start, end, speed: 1.0, looping: false, shift: DVec3::ZERO }
+        Animation {
+            rig,
+            camera,
+            start,
+            end,
+            speed: 1.0,
+            looping: false,
+            shift: DVec3::ZERO,
+            lights: Vec::new(),
+            camera_node: None,
+        }
     }
 
     /// The clip time at scene time `t`: `start + t * speed`, wrapped into the clip when looping,

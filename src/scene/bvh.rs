@@ -16,6 +16,7 @@ pub mod levels;
 pub mod mask;
 mod ploc;
 mod ray_offset;
+pub mod refit;
 mod reinsertion;
 pub mod wide;
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};

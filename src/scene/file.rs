@@ -9,15 +9,13 @@ use glam::{DMat4, DVec3, Vec3};
 use super::error::{short_number, shorten, SceneError, MAX_MESSAGE_CHARS};
 use super::mesh::{self, ObjectMesh};
 use super::values::Xyz;
-use super::{gltf, obj, shapes, Camera, Light, LoadStats, Material, RectLight, Scene};
+use super::{gltf, obj, shapes, Camera, LoadStats, Material, Scene};
 
 mod camera;
 mod desc;
+mod lights;
 mod motion;
-use desc::{
-    CameraChoice, CameraDesc, FaceOrder, ImageDesc, LightDesc, LightKind, MaterialDesc, ObjectDesc, SceneFile,
-    ShapeKind,
-};
+use desc::{CameraChoice, CameraDesc, FaceOrder, ImageDesc, LightKind, MaterialDesc, ObjectDesc, SceneFile, ShapeKind};
 
 /// The most triangles a scene may hold once its instances are placed: 2^24 (the 10.5M-triangle
 /// `assets/scenes/bench/large-10m.toml` takes about 4 GB to load). Every instance is a copy in
@@ -80,6 +78,13 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
         true => Camera { eye: DVec3::Z, target: DVec3::ZERO, up: Vec3::Y, vfov_deg: 40.0 },
         false => check.camera_choice(file.camera.as_ref(), whole.as_ref().map(|(s, g)| (s.as_str(), g)))?,
     };
+    // The glTF scene's lights and chosen camera, by the nodes that carry them (they follow them
+    // where the file animates those nodes).
+    let carried = whole.as_ref().map(|(_, g)| {
+        let camera = camera::whole_camera_index(file.camera.as_ref(), &g.cameras);
+        (g.light_nodes.clone(), camera.and_then(|k| g.camera_nodes.get(k).copied().flatten()))
+    });
+    let mut whole_rig = None;
     let camera_path = match &file.camera {
         Some(CameraChoice::Table(desc)) => check.camera_path(desc, camera.up.as_dvec3())?,
         _ => None,
@@ -139,6 +144,9 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
         let file_rig = placed.rig.take().map(|(file_rig, instance_nodes)| {
             log::info!("{source_name}: {path}: glTF {} animates its nodes", file_rig.clip);
             let (base, moves) = motion::join(&mut rig, file_rig, motion.as_ref().map(|m| m.node), placed.transform);
+            if object.is_none() {
+                whole_rig = Some((base, moves.clone()));
+            }
             (base, moves, instance_nodes)
         });
         // Counted before the instances are flattened into world-space copies: a few kilobytes
@@ -165,6 +173,21 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
             let local = &placed.meshes[*k];
             let material = placed.material.apply(local.material.unwrap_or_default());
             let to_world = placed.transform * *instance;
+            let deforming = placed.deforms.get(i).and_then(Option::as_ref).zip(file_rig.as_ref());
+            if let Some((deform, (base, _, _))) = deforming {
+                let m = motion::place_deforming(
+                    &path,
+                    local,
+                    &to_world,
+                    deform,
+                    *base,
+                    material,
+                    cast_shadows,
+                    &mut dropped,
+                );
+                meshes.extend(m);
+                continue;
+            }
             let mut placed_mesh = mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped);
             if let (Some(m), Some(geometry)) = (&mut placed_mesh, &shared[*k]) {
                 // A mirroring instance would need the other winding: it stays a copy.
@@ -229,7 +252,7 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
     if let (Some(name), Some(_)) = (file.environment.as_ref().and_then(|e| e.map_name()), &lighting.environment_map) {
         sources.push(base_dir.join(name));
     }
-    let scene = Scene {
+    let mut scene = Scene {
         image_size,
         camera,
         lights,
@@ -240,8 +263,17 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
         sources,
         light_shadows,
         lighting,
-        animation: check.animation(rig, camera_path, file.animation.as_ref())?.map(std::sync::Arc::new),
+        animation: None,
     };
+    let has_path = camera_path.is_some();
+    let mut animation = check.animation(rig, camera_path, file.animation.as_ref())?;
+    if let (Some(animation), Some((base, moves)), Some((light_nodes, camera_node))) =
+        (&mut animation, whole_rig, carried)
+    {
+        motion::carry(animation, shadowed.len(), base, &moves, &light_nodes, camera_node.filter(|_| !has_path));
+    }
+    scene.animation = animation.map(std::sync::Arc::new);
+    scene.settle_deformed();
     Ok((scene, has_camera))
 }
 
@@ -261,6 +293,8 @@ struct PlacedObject {
     material: MaterialOverride,
     /// A glTF file's animated nodes, and each instance's node among them.
     rig: Option<(gltf::animation::GltfRig, Vec<usize>)>,
+    /// Per instance: how it deforms, where it does (a glTF skin or morph targets that move).
+    deforms: Vec<Option<crate::scene::deform::Deform>>,
 }
 
 impl PlacedObject {
@@ -349,156 +383,6 @@ impl Check<'_> {
         Ok(Camera { eye, target, up, vfov_deg: vfov as f32 })
     }
 
-    /// The light's shadow method and parameters (`shadows`, `soft` and the technique tables).
-    fn shadows(&self, path: &str, light: &LightDesc) -> Result<crate::config::ShadowChoice, SceneError> {
-        use crate::config::ShadowMethod;
-        let (method, soft) = match &light.shadows {
-            Some(id) => ShadowMethod::parse(id).map_err(|e| self.fail(&format!("{path}.shadows"), e))?,
-            None => (ShadowMethod::default(), None),
-        };
-        if let (Some(implied), Some(given)) = (soft, light.soft) {
-            if implied != given {
-                let message =
-                    format!("{:?} asks for soft shadows but `soft = false`", light.shadows.as_deref().unwrap_or(""));
-                return Err(self.fail(&format!("{path}.soft"), message));
-            }
-        }
-        let mut choice = light.choice(method);
-        if light.traced.is_some_and(|t| t.soft.is_some()) {
-            return Err(self.fail(&format!("{path}.traced.soft"), "write `soft` on the light itself"));
-        }
-        choice.traced.soft = light.soft.or(soft);
-        choice.check_tables().map_err(|(table, e)| self.fail(&format!("{path}.{table}"), e))?;
-        Ok(choice)
-    }
-
-    /// Refuses a key the light's type does not take and a missing one it needs.
-    fn light_keys(&self, path: &str, light: &LightDesc) -> Result<(), SceneError> {
-        let (name, needs, optional): (&str, &[&str], &[&str]) = match light.kind {
-            LightKind::Point => ("point", &["position", "intensity"], &["radius"]),
-            LightKind::Directional => ("directional", &["direction", "irradiance"], &["angular_diameter_deg"]),
-            LightKind::Spot => ("spot", &["position", "direction", "intensity", "inner_deg", "outer_deg"], &["radius"]),
-            LightKind::Rect => ("rect", &["center", "half_edge_u", "half_edge_v", "radiance"], &["two_sided", "spp"]),
-        };
-        let given = [
-            ("position", light.position.is_some()),
-            ("direction", light.direction.is_some()),
-            ("intensity", light.intensity.is_some()),
-            ("irradiance", light.irradiance.is_some()),
-            ("inner_deg", light.inner_deg.is_some()),
-            ("outer_deg", light.outer_deg.is_some()),
-            ("radius", light.radius.is_some()),
-            ("angular_diameter_deg", light.angular_diameter_deg.is_some()),
-            ("center", light.center.is_some()),
-            ("half_edge_u", light.half_edge_u.is_some()),
-            ("half_edge_v", light.half_edge_v.is_some()),
-            ("radiance", light.radiance.is_some()),
-            ("two_sided", light.two_sided.is_some()),
-            ("spp", light.spp.is_some()),
-        ];
-        for (key, present) in given {
-            if present && !needs.contains(&key) && !optional.contains(&key) {
-                let expected = needs.join("`, `");
-                let optional = optional.join("`, `");
-                let message = format!("not used by a {name} light (it takes `{expected}`, optionally `{optional}`)");
-                return Err(self.fail(&format!("{path}.{key}"), message));
-            }
-            if !present && needs.contains(&key) {
-                return Err(self.fail(path, format!("a {name} light needs `{key}`")));
-            }
-        }
-        Ok(())
-    }
-
-    /// A rect light: keys, finite values, perpendicular edges and a nonzero area (in f32).
-    /// Its shadows are not a per-light technique choice, so the shadow keys are refused.
-    fn rect(&self, path: &str, light: &LightDesc) -> Result<RectLight, SceneError> {
-        self.light_keys(path, light)?;
-        let mut shadow_keys = vec![("shadows", light.shadows.is_some()), ("soft", light.soft.is_some())];
-        shadow_keys.extend(light.tables_given());
-        if let Some((key, _)) = shadow_keys.iter().find(|(_, present)| *present) {
-            let message = "a rect light takes no shadow settings (its shadows are always traced)";
-            return Err(self.fail(&format!("{path}.{key}"), message));
-        }
-        let field = |v: &Option<Xyz>| v.as_ref().map_or([0.0; 3], |v| v.0);
-        let center = self.point(&format!("{path}.center"), field(&light.center))?;
-        let u = self.point(&format!("{path}.half_edge_u"), field(&light.half_edge_u))?.as_vec3();
-        let v = self.point(&format!("{path}.half_edge_v"), field(&light.half_edge_v))?.as_vec3();
-        let radiance = self.power(&format!("{path}.radiance"), field(&light.radiance))?;
-        let cross = u.cross(v);
-        if !(cross.is_finite() && cross.length() > 0.0) {
-            let message = "the rect has zero area (half_edge_u x half_edge_v is zero or not finite)";
-            return Err(self.fail(path, message));
-        }
-        if u.dot(v).abs() > 1e-3 * u.length() * v.length() {
-            return Err(self.fail(path, "half_edge_u and half_edge_v must be perpendicular"));
-        }
-        let spp = light.spp.unwrap_or(RectLight::DEFAULT_SPP);
-        if spp > RectLight::MAX_SPP {
-            return Err(self.fail(&format!("{path}.spp"), format!("{spp} is outside [0, {}]", RectLight::MAX_SPP)));
-        }
-        let two_sided = light.two_sided.unwrap_or(false);
-        let rect = RectLight { center, half_edge_u: u, half_edge_v: v, radiance, two_sided, spp };
-        Ok(rect)
-    }
-
-    fn light(&self, path: &str, light: &LightDesc) -> Result<Light, SceneError> {
-        self.light_keys(path, light)?;
-        // Presence is checked above; these defaults are never used.
-        let field = |v: &Option<Xyz>| v.as_ref().map_or([0.0; 3], |v| v.0);
-        let position = || self.point(&format!("{path}.position"), field(&light.position));
-        let direction = || self.direction(&format!("{path}.direction"), field(&light.direction));
-        let power = |key: &str, v| self.power(&format!("{path}.{key}"), field(v));
-        // Absent sizes are 0: a point or a single direction, hard shadows as before.
-        let radius = || {
-            let v = light.radius.unwrap_or(0.0);
-            if !(v >= 0.0 && (v as f32).is_finite()) {
-                let message = format!("{} must be finite and >= 0", short_number(v));
-                return Err(self.fail(&format!("{path}.radius"), message));
-            }
-            Ok(v as f32)
-        };
-        Ok(match light.kind {
-            LightKind::Point => Light::Point {
-                position: position()?,
-                intensity: power("intensity", &light.intensity)?,
-                radius: radius()?,
-            },
-            LightKind::Directional => {
-                // Below 90 degrees the cone is narrower than a hemisphere and tan(half-angle),
-                // what the GPU stores, stays finite.
-                let diameter = light.angular_diameter_deg.unwrap_or(0.0);
-                if !(0.0..90.0).contains(&diameter) {
-                    let key_path = format!("{path}.angular_diameter_deg");
-                    return Err(self.fail(&key_path, format!("{} is outside [0, 90)", short_number(diameter))));
-                }
-                Light::Directional {
-                    direction: direction()?.as_vec3(),
-                    irradiance: power("irradiance", &light.irradiance)?,
-                    angular_diameter_deg: diameter as f32,
-                }
-            }
-            LightKind::Spot => {
-                let inner = light.inner_deg.unwrap_or_default();
-                let outer = light.outer_deg.unwrap_or_default();
-                if !(0.0 <= inner && inner < outer && outer <= 90.0) {
-                    let (inner, outer) = (short_number(inner), short_number(outer));
-                    let message = format!("need 0 <= inner_deg < outer_deg <= 90, got {inner} and {outer}");
-                    return Err(self.fail(path, message));
-                }
-                Light::Spot {
-                    position: position()?,
-                    direction: direction()?.as_vec3(),
-                    intensity: power("intensity", &light.intensity)?,
-                    inner_deg: inner as f32,
-                    outer_deg: outer as f32,
-                    radius: radius()?,
-                }
-            }
-            LightKind::Rect => unreachable!("rect lights are checked by Check::rect"),
-        })
-    }
-
     fn object(&self, path: &str, object: &ObjectDesc, base_dir: &Path) -> Result<PlacedObject, SceneError> {
         let (source, loaded) = match (&object.mesh, object.shape) {
             (Some(_), Some(_)) | (None, None) => {
@@ -542,6 +426,7 @@ impl Check<'_> {
             transform: self.transform(path, object)?,
             material: self.material(&format!("{path}.material"), object.material.as_ref())?,
             rig: None,
+            deforms: Vec::new(),
         };
         placed.shuffle_faces(object.face_order);
         Ok(placed)
@@ -558,6 +443,7 @@ impl Check<'_> {
             transform: DMat4::IDENTITY,
             material: MaterialOverride { base_color: None, roughness: None, metallic: None },
             rig: loaded.rig.map(|rig| (rig, loaded.instances.iter().map(|i| i.node).collect())),
+            deforms: loaded.instances.into_iter().map(|i| i.deform).collect(),
         }
     }
 

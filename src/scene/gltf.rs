@@ -16,7 +16,10 @@ use super::texture::TextureCache;
 use super::{tangents, Camera, Light};
 
 pub(super) mod animation;
+mod checks;
 mod materials;
+mod skin;
+use checks::{check_accessor, check_attribute_counts, check_attribute_types};
 use materials::{data_uri, material, material_name, MaterialMaps};
 
 /// Extensions whose data umbra reads. A file that requires any other is refused by name;
@@ -41,6 +44,9 @@ pub(super) struct GltfInstance {
     pub transform: DMat4,
     /// The drawing node's place in `LoadedGltf::visited` (its rig node where the file animates).
     pub node: usize,
+    /// How it deforms, where something that deforms it moves (its rig nodes are places in the
+    /// scene's walk, as `node`); a still deformation is baked into its primitive at load.
+    pub deform: Option<crate::scene::deform::Deform>,
 }
 
 /// A glTF file as loaded, in the file's own space (the scene places it).
@@ -53,6 +59,10 @@ pub(super) struct LoadedGltf {
     /// `None` for a camera no node places (or an orthographic one).
     pub cameras: Vec<Option<Camera>>,
     pub lights: Vec<Light>,
+    /// The node that places each camera (its place in the scene's walk, the rig's numbering),
+    /// and each light's: where the file animates them, they follow.
+    pub camera_nodes: Vec<Option<usize>>,
+    pub light_nodes: Vec<usize>,
     /// Buffers read from files beside it.
     pub files: Vec<PathBuf>,
     /// The nodes and the first clip as a rig, where the file animates some node of its scene.
@@ -110,6 +120,7 @@ pub(super) fn load(
 
     // Primitives by (mesh, primitive) index, so instances share them.
     let mut primitives = Vec::new();
+    let mut rests = Vec::new();
     let mut first_primitive = Vec::new();
     let mut skipped_modes = 0;
     let mut maps =
@@ -119,9 +130,19 @@ pub(super) fn load(
         for primitive in mesh.primitives() {
             let object_mesh =
                 read_primitive(&name, &mesh, &primitive, &buffers, &mut maps).map_err(GltfError::Parse)?;
+            let rest = match &object_mesh {
+                Some(m) => {
+                    let (normals, tangents) = (m.normals.as_deref(), m.surface.tangents.as_deref());
+                    skin::read_rest(&primitive, &buffers, &m.positions, normals, tangents).map_err(|e| {
+                        GltfError::Parse(format!("mesh {} primitive {}: {e}", mesh.index(), primitive.index()))
+                    })?
+                }
+                None => None,
+            };
             if object_mesh.is_none() {
                 skipped_modes += 1;
             }
+            rests.push(rest.map(std::sync::Arc::new));
             primitives.push(object_mesh);
         }
     }
@@ -133,6 +154,8 @@ pub(super) fn load(
         primitives: Vec::new(),
         instances: Vec::new(),
         cameras: vec![None; document.cameras().len()],
+        camera_nodes: vec![None; document.cameras().len()],
+        light_nodes: Vec::new(),
         lights: Vec::new(),
         files,
         rig: None,
@@ -179,7 +202,12 @@ pub(super) fn load(
             let first = first_primitive[mesh.index()];
             for k in 0..mesh.primitives().len() {
                 if primitives[first + k].is_some() {
-                    loaded.instances.push(GltfInstance { primitive: first + k, transform: world, node: visit });
+                    loaded.instances.push(GltfInstance {
+                        primitive: first + k,
+                        transform: world,
+                        node: visit,
+                        deform: None,
+                    });
                 }
             }
         }
@@ -188,7 +216,10 @@ pub(super) fn load(
                 let slot = &mut loaded.cameras[camera.index()];
                 if slot.is_none() {
                     match camera_at(&world, p.yfov()) {
-                        Ok(placed) => *slot = Some(placed),
+                        Ok(placed) => {
+                            *slot = Some(placed);
+                            loaded.camera_nodes[camera.index()] = Some(visit);
+                        }
                         Err(why) => log::warn!(
                             "{name}: camera {} on node {}: {why}; it is left out",
                             camera.index(),
@@ -203,7 +234,10 @@ pub(super) fn load(
                 ignored_ranges += 1;
             }
             match light_at(&world, &light) {
-                Ok(placed) => loaded.lights.push(placed),
+                Ok(placed) => {
+                    loaded.lights.push(placed);
+                    loaded.light_nodes.push(visit);
+                }
                 Err(why) => {
                     log::warn!("{name}: light {} on node {}: {why}; it is left out", light.index(), node.index())
                 }
@@ -216,6 +250,16 @@ pub(super) fn load(
         log::warn!("{name}: {ignored_ranges} lights give a `range`, which umbra has no equivalent for; ignored");
     }
     loaded.rig = animation::read(&name, &document, &buffers, &visited_nodes, clip).map_err(GltfError::Parse)?;
+    let link = skin::link(
+        &document,
+        &buffers,
+        &visited_nodes,
+        &mut loaded.instances,
+        &mut primitives,
+        &rests,
+        loaded.rig.as_ref(),
+    );
+    link.map_err(GltfError::Parse)?;
     // Keep only the primitives some node draws, renumbered.
     let mut renumber = vec![usize::MAX; primitives.len()];
     for instance in &mut loaded.instances {
@@ -307,173 +351,6 @@ fn file_name(path: &Path) -> String {
 /// serde_json's and the crate's messages can span lines.
 fn one_line(text: &str) -> String {
     text.split_whitespace().collect::<Vec<_>>().join(" ")
-}
-
-/// Refuses an accessor whose elements (or sparse indices and values) do not all lie inside
-/// their buffer view, a view outside its buffer, or a byteStride shorter than an element: the
-/// crate's reader would give up silently there, overflow on a count of 0, or panic.
-fn check_accessor(accessor: &gltf::Accessor, buffers: &[gltf::buffer::Data]) -> Result<(), String> {
-    let index = accessor.index();
-    let element = accessor.size();
-    let count = accessor.count();
-    if count == 0 {
-        return Err(format!("accessor {index} has no elements"));
-    }
-    // Without a view the elements are zeros (then replaced by sparse values, if any).
-    if let Some(view) = accessor.view() {
-        check_elements(&format!("accessor {index}"), &view, accessor.offset(), count, element, buffers)?;
-    }
-    if let Some(sparse) = accessor.sparse() {
-        let n = sparse.count();
-        if n == 0 || n > count {
-            return Err(format!("accessor {index} replaces {n} sparse elements, not 1 to its {count}"));
-        }
-        let (indices, values) = (sparse.indices(), sparse.values());
-        let size = indices.index_type().size();
-        check_elements(
-            &format!("accessor {index}'s sparse indices"),
-            &indices.view(),
-            indices.offset(),
-            n,
-            size,
-            buffers,
-        )?;
-        check_elements(
-            &format!("accessor {index}'s sparse values"),
-            &values.view(),
-            values.offset(),
-            n,
-            element,
-            buffers,
-        )?;
-        // The crate's reader skips an index past the accessor's end without a word.
-        let view = indices.view();
-        let bytes = &buffers[view.buffer().index()][view.offset()..view.offset() + view.length()];
-        let stride = view.stride().unwrap_or(size);
-        for k in 0..n {
-            let at = indices.offset() + k * stride;
-            let sparse_index = match indices.index_type() {
-                gltf::accessor::sparse::IndexType::U8 => u64::from(bytes[at]),
-                gltf::accessor::sparse::IndexType::U16 => u64::from(u16::from_le_bytes([bytes[at], bytes[at + 1]])),
-                gltf::accessor::sparse::IndexType::U32 => {
-                    u64::from(u32::from_le_bytes([bytes[at], bytes[at + 1], bytes[at + 2], bytes[at + 3]]))
-                }
-            };
-            if sparse_index >= count as u64 {
-                return Err(format!(
-                    "accessor {index}'s sparse index {sparse_index} (entry {k}) is out of range: the accessor has {count} elements"
-                ));
-            }
-        }
-    }
-    Ok(())
-}
-
-/// Refuses `count` elements of `element` bytes from `offset` in `view` (`what` names them)
-/// that do not all lie inside it, a view outside its buffer, or a stride shorter than an element.
-fn check_elements(
-    what: &str,
-    view: &gltf::buffer::View,
-    offset: usize,
-    count: usize,
-    element: usize,
-    buffers: &[gltf::buffer::Data],
-) -> Result<(), String> {
-    let stride = view.stride().unwrap_or(element);
-    if stride < element {
-        return Err(format!(
-            "{what} has elements of {element} bytes, but buffer view {} strides {stride} bytes",
-            view.index()
-        ));
-    }
-    let end = (count - 1).checked_mul(stride).and_then(|e| e.checked_add(element)).and_then(|e| e.checked_add(offset));
-    if end.is_none_or(|end| end > view.length()) {
-        return Err(format!(
-            "{what} reads {count} elements of {element} bytes past the end of buffer view {} ({} bytes)",
-            view.index(),
-            view.length()
-        ));
-    }
-    let buffer = view.buffer().index();
-    let have = buffers.get(buffer).map_or(0, |b| b.len());
-    if view.offset().checked_add(view.length()).is_none_or(|end| end > have) {
-        return Err(format!("buffer view {} reaches past the end of buffer {buffer} ({have} bytes)", view.index()));
-    }
-    Ok(())
-}
-
-/// Refuses a primitive attribute umbra reads, or its indices, whose accessor has a type glTF
-/// does not allow there: the crate's reader panics on some (float indices, u32 texture
-/// coordinates) and reads others as what they are not (u8 positions as floats).
-fn check_attribute_types(primitive: &gltf::Primitive) -> Result<(), String> {
-    use gltf::accessor::{DataType, Dimensions};
-    use gltf::mesh::Semantic;
-    let describe = |accessor: &gltf::Accessor| {
-        let dimensions = match accessor.dimensions() {
-            Dimensions::Scalar => "SCALAR",
-            Dimensions::Vec2 => "VEC2",
-            Dimensions::Vec3 => "VEC3",
-            Dimensions::Vec4 => "VEC4",
-            Dimensions::Mat2 => "MAT2",
-            Dimensions::Mat3 => "MAT3",
-            Dimensions::Mat4 => "MAT4",
-        };
-        let normalized = if accessor.normalized() { "normalized " } else { "" };
-        format!("{dimensions} of {normalized}{}", format!("{:?}", accessor.data_type()).to_lowercase())
-    };
-    let attributes =
-        primitive.attributes().map(|(semantic, accessor)| (semantic.to_string(), Some(semantic), accessor));
-    let indices = primitive.indices().map(|accessor| ("indices".to_owned(), None, accessor));
-    for (name, semantic, accessor) in attributes.chain(indices) {
-        let (dimensions, data_type) = (accessor.dimensions(), accessor.data_type());
-        let (ok, expected) = match semantic {
-            Some(Semantic::Positions | Semantic::Normals) => {
-                (dimensions == Dimensions::Vec3 && data_type == DataType::F32, "VEC3 of f32")
-            }
-            Some(Semantic::Tangents) => (dimensions == Dimensions::Vec4 && data_type == DataType::F32, "VEC4 of f32"),
-            Some(Semantic::TexCoords(_)) => {
-                let unorm = accessor.normalized() && matches!(data_type, DataType::U8 | DataType::U16);
-                (
-                    dimensions == Dimensions::Vec2 && (data_type == DataType::F32 || unorm),
-                    "VEC2 of f32, or of normalized u8 or u16",
-                )
-            }
-            Some(_) => (true, ""), // not read
-            None => {
-                let unsigned = matches!(data_type, DataType::U8 | DataType::U16 | DataType::U32);
-                (dimensions == Dimensions::Scalar && unsigned, "SCALAR of u8, u16 or u32")
-            }
-        };
-        if !ok {
-            let index = accessor.index();
-            return Err(format!(
-                "{name} accessor {index} is {}; glTF allows only {expected} there",
-                describe(&accessor)
-            ));
-        }
-    }
-    Ok(())
-}
-
-/// Refuses a primitive attribute umbra reads whose count is not its POSITION's: glTF requires
-/// one element per vertex in each, and a short one was dropped without a word (a TEXCOORD_0
-/// of 1 element took the primitive's textures with it).
-fn check_attribute_counts(primitive: &gltf::Primitive) -> Result<(), String> {
-    use gltf::mesh::Semantic;
-    let Some(positions) = primitive.get(&Semantic::Positions) else { return Ok(()) };
-    let vertices = positions.count();
-    for (semantic, accessor) in primitive.attributes() {
-        let read = matches!(semantic, Semantic::Normals | Semantic::Tangents | Semantic::TexCoords(_));
-        if read && accessor.count() != vertices {
-            return Err(format!(
-                "{} accessor {} has {} elements, not one per vertex ({vertices} POSITION elements)",
-                semantic.to_string(),
-                accessor.index(),
-                accessor.count()
-            ));
-        }
-    }
-    Ok(())
 }
 
 /// A triangle primitive as an object mesh (strips and fans made lists), or `None` for points

@@ -106,6 +106,19 @@ pub(super) fn place(
     cast_shadows: bool,
     stats: &mut LoadStats,
 ) -> Option<Mesh> {
+    place_tracked(object, mesh, object_to_world, material, cast_shadows, stats).map(|(mesh, _)| mesh)
+}
+
+/// `place`, with each placed vertex's source vertex in `mesh` (what a deforming mesh's
+/// per-vertex data is picked by).
+pub(super) fn place_tracked(
+    object: &str,
+    mesh: &ObjectMesh,
+    object_to_world: &DMat4,
+    material: Material,
+    cast_shadows: bool,
+    stats: &mut LoadStats,
+) -> Option<(Mesh, Vec<usize>)> {
     let world: Vec<DVec3> = mesh.positions.iter().map(|&p| object_to_world.transform_point3(p)).collect();
     let normal_matrix = DMat3::from_mat4(*object_to_world).inverse().transpose();
     let world_normals: Option<Vec<Option<DVec3>>> = mesh
@@ -165,8 +178,9 @@ pub(super) fn place(
         return None;
     }
     let surface = place_surface(&mesh.surface, &out.sources, object_to_world, mirrored);
-    Some(Mesh {
+    let placed = Mesh {
         motion: None,
+        deform: None,
         name: mesh.name.clone(),
         object: object.to_owned(),
         positions: out.positions,
@@ -177,7 +191,8 @@ pub(super) fn place(
         instance: None,
         surface,
         double_sided: mesh.double_sided,
-    })
+    };
+    Some((placed, out.sources))
 }
 
 /// The placed mesh's texture coordinates and world-space tangents, where it has textures and

@@ -4,6 +4,7 @@
 pub mod animation;
 pub mod bvh;
 pub mod camera;
+pub mod deform;
 mod environment;
 pub mod envmap;
 mod error;
@@ -82,6 +83,9 @@ pub struct Mesh {
     /// Set when the mesh moves: the rig node it follows (`Scene::animation`); its positions are
     /// its rest pose.
     pub motion: Option<animation::MeshMotion>,
+    /// Set when the mesh deforms (a skin, morph targets): its positions, normals and tangents
+    /// are its pose at scene time 0, and `Scene::posed` poses it anew.
+    pub deform: Option<deform::Deform>,
 }
 
 /// Per vertex (parallel to `Mesh::positions`): texture coordinates, and with a normal map the
@@ -252,28 +256,103 @@ impl Scene {
         self.meshes.iter().map(|m| m.motion.as_ref().map(|mm| world[mm.node] * mm.rest.inverse())).collect()
     }
 
-    /// The camera at scene time `t`: its path's, or the scene's own.
-    pub fn camera_at(&self, t: f64) -> Camera {
-        match self.animation.as_ref().and_then(|a| a.camera.as_ref().map(|path| (a, path))) {
-            Some((animation, path)) => {
-                let (eye, target) = path.sample(animation.clip_time(t));
-                let shift = animation.shift;
-                Camera { eye: eye + shift, target: target + shift, ..self.camera }
+    /// Each deforming mesh (index in `meshes`) posed at scene time `t`: positions in the frame
+    /// the scene is in (its shift applied), normals, tangents. Empty in a scene nothing deforms.
+    pub fn deformed(&self, t: f64) -> Vec<(usize, deform::Posed)> {
+        let Some(animation) = &self.animation else { return Vec::new() };
+        if self.meshes.iter().all(|m| m.deform.is_none()) {
+            return Vec::new();
+        }
+        let world = animation.world(t);
+        let clip = animation.clip_time(t);
+        self.meshes
+            .iter()
+            .enumerate()
+            .filter_map(|(k, m)| m.deform.as_ref().map(|d| (k, d.pose(&world, clip, &m.indices))))
+            .collect()
+    }
+
+    /// Poses every deforming mesh at scene time 0: what its positions, normals and tangents
+    /// hold (loading placed them at rest).
+    pub(crate) fn settle_deformed(&mut self) {
+        for (k, posed) in self.deformed(0.0) {
+            let mesh = &mut self.meshes[k];
+            mesh.positions = posed.positions;
+            mesh.normals = posed.normals;
+            if let Some(surface) = mesh.surface.as_mut().filter(|_| !posed.tangents.is_empty()) {
+                surface.tangents = posed.tangents;
             }
-            None => self.camera,
         }
     }
 
+    /// The camera at scene time `t`: its path's, its animated node's, or the scene's own.
+    pub fn camera_at(&self, t: f64) -> Camera {
+        let Some(animation) = &self.animation else { return self.camera };
+        if let Some(path) = &animation.camera {
+            let (eye, target) = path.sample(animation.clip_time(t));
+            let shift = animation.shift;
+            return Camera { eye: eye + shift, target: target + shift, ..self.camera };
+        }
+        let Some(node) = animation.camera_node else { return self.camera };
+        let world = animation.world(t)[node];
+        let eye = world.transform_point3(DVec3::ZERO);
+        let forward = world.transform_vector3(DVec3::NEG_Z).try_normalize();
+        let up = world.transform_vector3(DVec3::Y).try_normalize();
+        match (forward, up) {
+            (Some(forward), Some(up)) if eye.is_finite() => {
+                let distance = (self.camera.target - self.camera.eye).length().max(1e-3);
+                Camera { eye, target: eye + forward * distance, up: up.as_vec3(), ..self.camera }
+            }
+            // A node scaled to nothing points nowhere: the camera stays where it was.
+            _ => self.camera,
+        }
+    }
+
+    /// The lights at scene time `t`: those animated nodes carry moved with them (position at the
+    /// node's origin, direction along its -Z), the rest as they are.
+    pub fn lights_at(&self, t: f64) -> Vec<Light> {
+        let mut lights = self.lights.clone();
+        let Some(animation) = self.animation.as_ref().filter(|a| !a.lights.is_empty()) else { return lights };
+        let world = animation.world(t);
+        for &(k, node) in &animation.lights {
+            let m = world[node];
+            let position = m.transform_point3(DVec3::ZERO);
+            let direction = m.transform_vector3(DVec3::NEG_Z).try_normalize().map(|d| d.as_vec3());
+            match (&mut lights[k], direction) {
+                (Light::Point { position: p, .. }, _) if position.is_finite() => *p = position,
+                (Light::Spot { position: p, direction: d, .. }, Some(dir)) if position.is_finite() => {
+                    (*p, *d) = (position, dir);
+                }
+                (Light::Directional { direction: d, .. }, Some(dir)) => *d = dir,
+                _ => {}
+            }
+        }
+        lights
+    }
+
     /// The scene at time `t` as a static scene: moving meshes' positions, normals and tangents
-    /// moved in f64 (normals by the inverse-transpose), the camera at `t`. A static scene's is
-    /// itself.
+    /// moved in f64 (normals by the inverse-transpose), deforming meshes posed
+    /// (`Deform::pose`), the camera at `t`. A static scene's is itself.
     pub fn posed(&self, t: f64) -> Scene {
         if self.animation.is_none() {
             return self.clone();
         }
         let motion = self.mesh_motion(t);
+        let deformed = self.deformed(t);
         let mut scene = self.clone();
         scene.camera = self.camera_at(t);
+        scene.lights = self.lights_at(t);
+        for (k, posed) in deformed {
+            let mesh = &mut scene.meshes[k];
+            mesh.positions = posed.positions;
+            mesh.normals = posed.normals;
+            if let Some(surface) = &mut mesh.surface {
+                if !posed.tangents.is_empty() {
+                    surface.tangents = posed.tangents;
+                }
+            }
+            mesh.deform = None;
+        }
         for (mesh, delta) in scene.meshes.iter_mut().zip(motion) {
             let Some(d) = delta else { continue };
             for p in &mut mesh.positions {

@@ -145,6 +145,7 @@ fn ground(lo: DVec3, hi: DVec3, size: f64) -> Mesh {
         surface: None,
         double_sided: false,
         motion: None,
+        deform: None,
     }
 }
 

@@ -289,6 +289,8 @@ pub struct GraphicsExtras<'a> {
     pub per_vertex_3: Option<VertexBinding<'a>>,
     /// A fifth vertex binding (4), read per instance like binding 1: stride and attributes.
     pub instance_4: Option<VertexBinding<'a>>,
+    /// A sixth vertex binding (5), read per vertex like binding 0: stride and attributes.
+    pub per_vertex_5: Option<VertexBinding<'a>>,
     /// Descriptor set 1's layout (owned by the caller, who keeps it alive while the pipeline
     /// lives): material textures.
     pub set_1: Option<vk::DescriptorSetLayout>,
@@ -370,7 +372,8 @@ impl GraphicsPipeline {
         let mut attrs: Vec<_> = desc.attributes.iter().map(attribute(0)).collect();
         let (instance, vertex) = (vk::VertexInputRate::INSTANCE, vk::VertexInputRate::VERTEX);
         let more = [(1, extras.instance, instance), (2, extras.per_vertex_2, vertex), (3, extras.per_vertex_3, vertex)];
-        for (binding, given, input_rate) in more.into_iter().chain([(4, extras.instance_4, instance)]) {
+        let last = [(4, extras.instance_4, instance), (5, extras.per_vertex_5, vertex)];
+        for (binding, given, input_rate) in more.into_iter().chain(last) {
             if let Some((stride, attributes)) = given {
                 vb.push(vk::VertexInputBindingDescription { binding, stride, input_rate });
                 attrs.extend(attributes.iter().map(attribute(binding)));

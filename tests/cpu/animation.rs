@@ -78,7 +78,7 @@ fn looping_and_speed_map_scene_time_onto_the_clip() {
         rotation: None,
         scale: None,
     };
-    let mut a = Animation::new(Rig { nodes: vec![node] }, None);
+    let mut a = Animation::new(Rig { nodes: vec![node], ..Rig::default() }, None);
     assert_eq!((a.start, a.end), (1.0, 3.0));
     assert_eq!(a.span(), (0.0, 2.0));
     assert_eq!(a.clip_time(0.5), 1.5);

@@ -166,6 +166,7 @@ fn scene_build_takes_only_shadow_casters() {
     let mesh = |name: &str, y: f64, cast_shadows| Mesh {
         name: name.into(),
         motion: None,
+        deform: None,
         object: name.into(),
         positions: vec![DVec3::new(-1.0, y, -1.0), DVec3::new(1.0, y, -1.0), DVec3::new(0.0, y, 1.0)],
         normals: vec![Vec3::Y; 3],

@@ -23,3 +23,5 @@ mod models;
 mod parser_mutation;
 mod scene_files;
 mod shading_cpu;
+mod skinning;
+mod stress_assets;

@@ -1,6 +1,8 @@
 //! Small glTF 2.0 files written by the tests themselves: a JSON document and one binary buffer,
 //! saved as .glb or as .gltf beside a .bin. Just enough of the format for the loader's tests
-//! (accessors, meshes, nodes, materials, cameras, KHR_lights_punctual).
+//! (accessors, meshes, nodes, materials, cameras, KHR_lights_punctual), and the deforming meshes of
+//! `tests/cpu/stress_assets.rs`: skins (JOINTS_n, WEIGHTS_n, inverse bind matrices), morph targets
+//! with a mesh's default `weights`, and animation channels (`Animation`).
 
 #![allow(dead_code)]
 
@@ -20,6 +22,7 @@ pub struct Gltf {
     pub lights: Vec<Value>,
     pub images: Vec<Value>,
     pub animations: Vec<Value>,
+    pub skins: Vec<Value>,
     /// The default scene's root nodes.
     pub roots: Vec<usize>,
     pub extensions_used: Vec<String>,
@@ -107,6 +110,74 @@ impl Gltf {
         self.accessor(json!({ "bufferView": view, "componentType": F32, "count": data.len() / width, "type": kind }))
     }
 
+    /// A VEC4 joints accessor (JOINTS_n) of component type `kind`, U8 or U16.
+    pub fn joints(&mut self, data: &[[u16; 4]], kind: u32) -> usize {
+        assert!(kind == U8 || kind == U16, "JOINTS_n are unsigned bytes or shorts");
+        let bytes: Vec<u8> = match kind {
+            U8 => data.iter().flatten().map(|&j| u8::try_from(j).expect("a joint index over 255 in U8")).collect(),
+            _ => data.iter().flatten().flat_map(|j| j.to_le_bytes()).collect(),
+        };
+        let view = self.view(&bytes, Some(34962));
+        self.accessor(json!({ "bufferView": view, "componentType": kind, "count": data.len(), "type": "VEC4" }))
+    }
+
+    /// A VEC4 float weights accessor (WEIGHTS_n); each vertex's weights over all its sets sum to 1.
+    pub fn weights(&mut self, data: &[[f32; 4]]) -> usize {
+        self.vec4(data)
+    }
+
+    /// A MAT4 float accessor (column-major, as glTF stores matrices), for inverse bind matrices.
+    pub fn mat4s(&mut self, data: &[[f32; 16]]) -> usize {
+        let bytes: Vec<u8> = data.iter().flatten().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(&bytes, None);
+        self.accessor(json!({ "bufferView": view, "componentType": F32, "count": data.len(), "type": "MAT4" }))
+    }
+
+    /// A skin over the `joints` nodes, with its MAT4 `inverse_bind_matrices` accessor (one per
+    /// joint; identities when `None`) and its `skeleton` root; returns its index.
+    pub fn skin(&mut self, joints: &[usize], inverse_bind_matrices: Option<usize>, skeleton: Option<usize>) -> usize {
+        let mut skin = json!({ "joints": joints });
+        if let Some(m) = inverse_bind_matrices {
+            skin["inverseBindMatrices"] = json!(m);
+        }
+        if let Some(s) = skeleton {
+            skin["skeleton"] = json!(s);
+        }
+        self.skins.push(skin);
+        self.skins.len() - 1
+    }
+
+    /// One morph target of a primitive: POSITION deltas (with the min/max glTF requires), and
+    /// NORMAL deltas when given. Goes in a primitive's `targets` array.
+    pub fn morph_target(&mut self, positions: &[[f32; 3]], normals: Option<&[[f32; 3]]>) -> Value {
+        let mut target = json!({ "POSITION": self.vec3(positions) });
+        if let Some(n) = normals {
+            assert_eq!(n.len(), positions.len(), "a target's attributes have one count");
+            target["NORMAL"] = json!(self.vec3(n));
+        }
+        target
+    }
+
+    /// A mesh whose primitives share morph targets, with the default `weights` (one per target).
+    pub fn mesh_with_weights(&mut self, primitives: Vec<Value>, weights: &[f32]) -> usize {
+        self.meshes.push(json!({ "primitives": primitives, "weights": weights }));
+        self.meshes.len() - 1
+    }
+
+    /// A SCALAR float accessor without min/max: a `weights` channel's output (key-major, one
+    /// value per morph target per key).
+    pub fn scalars(&mut self, data: &[f32]) -> usize {
+        let bytes: Vec<u8> = data.iter().flat_map(|v| v.to_le_bytes()).collect();
+        let view = self.view(&bytes, None);
+        self.accessor(json!({ "bufferView": view, "componentType": F32, "count": data.len(), "type": "SCALAR" }))
+    }
+
+    /// Adds `animation`; returns its index.
+    pub fn animation(&mut self, animation: &Animation) -> usize {
+        self.animations.push(animation.json());
+        self.animations.len() - 1
+    }
+
     pub fn material(&mut self, material: Value) -> usize {
         self.materials.push(material);
         self.materials.len() - 1
@@ -165,6 +236,9 @@ impl Gltf {
         if !self.animations.is_empty() {
             doc["animations"] = json!(self.animations);
         }
+        if !self.skins.is_empty() {
+            doc["skins"] = json!(self.skins);
+        }
         if !used.is_empty() {
             doc["extensionsUsed"] = json!(used);
         }
@@ -208,6 +282,33 @@ impl Gltf {
         std::fs::write(dir.join(&bin), &self.bin).unwrap();
         let text = serde_json::to_string_pretty(&self.document(Some(&bin))).unwrap();
         std::fs::write(dir.join(format!("{name}.gltf")), text).unwrap();
+    }
+}
+
+/// An animation being built: a sampler and a channel per call of `channel`.
+pub struct Animation {
+    pub name: String,
+    samplers: Vec<Value>,
+    channels: Vec<Value>,
+}
+
+impl Animation {
+    pub fn new(name: &str) -> Self {
+        Animation { name: name.to_owned(), samplers: Vec::new(), channels: Vec::new() }
+    }
+
+    /// Moves `node`'s `path` ("translation", "rotation", "scale" or "weights") through the keys
+    /// at the `input` accessor's times with the `output` accessor's values, interpolated by
+    /// `interpolation` ("STEP", "LINEAR" or "CUBICSPLINE").
+    pub fn channel(&mut self, node: usize, path: &str, input: usize, output: usize, interpolation: &str) {
+        assert!(["translation", "rotation", "scale", "weights"].contains(&path), "no channel path {path}");
+        assert!(["STEP", "LINEAR", "CUBICSPLINE"].contains(&interpolation), "no interpolation {interpolation}");
+        self.channels.push(json!({ "sampler": self.samplers.len(), "target": { "node": node, "path": path } }));
+        self.samplers.push(json!({ "input": input, "interpolation": interpolation, "output": output }));
+    }
+
+    pub fn json(&self) -> Value {
+        json!({ "name": self.name, "samplers": self.samplers, "channels": self.channels })
     }
 }
 

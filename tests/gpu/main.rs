@@ -19,6 +19,7 @@ mod bench_shadows;
 mod bvh_gpu;
 mod cli;
 mod data_uris;
+mod deforming;
 mod depth;
 mod devices;
 mod double_sided;

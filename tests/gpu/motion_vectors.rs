@@ -25,7 +25,7 @@ fn sliding_box() -> umbra::scene::Scene {
     common::parse_scene_in(&dir, &text).expect("the sliding box parses")
 }
 
-fn floats(r: &mut Renderer, view: DebugView, time: Option<f64>, camera: Option<Camera>) -> Vec<Vec4> {
+pub(crate) fn floats(r: &mut Renderer, view: DebugView, time: Option<f64>, camera: Option<Camera>) -> Vec<Vec4> {
     let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear);
     s.debug_view = Some(view);
     s.time = time;
@@ -35,14 +35,14 @@ fn floats(r: &mut Renderer, view: DebugView, time: Option<f64>, camera: Option<C
 }
 
 /// The camera matrices `r`'s frames see `camera` (world frame) with.
-fn matrices(r: &Renderer, camera: &Camera) -> CameraMatrices {
+pub(crate) fn matrices(r: &Renderer, camera: &Camera) -> CameraMatrices {
     CameraMatrices::new(&r.gpu_scene.to_local(camera), r.gpu_scene.bounds, W, H)
 }
 
 /// Compares the motion channel `gpu` with the twin on every drawn pixel of `position` (world
 /// positions): `before(p)` is where the point at local `p` was in the previous frame. Returns
 /// how many pixels moved by more than a tenth of a pixel.
-fn check(
+pub(crate) fn check(
     r: &Renderer,
     gpu: &[Vec4],
     position: &[Vec4],

@@ -202,7 +202,7 @@ fn bad_animation_input_is_one_line_naming_the_key() {
 fn moving_stress_scenes_render_with_every_method_and_only_ray_tracing_rebuilds_the_top_level() {
     let ctx = common::gpu();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/stress/moving");
-    for name in ["windmill.toml", "one-mover.toml"] {
+    for name in ["windmill.toml", "one-mover.toml", "crowd.toml", "flag.toml"] {
         let scene = Scene::load(&dir.join(name)).expect("a moving stress scene");
         let lights = scene.lights.len();
         let mut r = Renderer::new(ctx.clone(), scene).expect("renderer");

@@ -212,6 +212,7 @@ fn fins() -> Mesh {
     Mesh {
         name: "fins".into(),
         motion: None,
+        deform: None,
         object: "objects[9]".into(),
         normals: vec![Vec3::Z; positions.len()],
         positions: positions.iter().map(|p| p.as_dvec3()).collect(),

@@ -95,7 +95,7 @@ fn two_levels_answer_as_one_tree_over_the_posed_triangles_on_cpu_and_gpu() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(0x2_1e7e1);
     let first = placements(&mut rng);
     let second = placements(&mut rng);
-    let mut levels = TwoLevel::build(groups(), None, &first);
+    let mut levels = TwoLevel::build(groups(), None, &first, &[]);
     assert_eq!(levels.instance_count(), 5, "the empty group is left out");
     let rays_a = rays(&mut rng, 40_000);
     let posed = ShadowBvh::from_triangles(&levels.posed_triangles());
@@ -136,7 +136,7 @@ fn a_static_scene_in_one_identity_instance_answers_exactly_as_one_tree() {
     let mut rng = rand::rngs::StdRng::seed_from_u64(0x1d);
     let tris: Vec<[Vec3; 3]> = groups().into_iter().flatten().collect();
     let one = ShadowBvh::from_triangles(&tris);
-    let levels = TwoLevel::build(vec![tris], None, &[Placement { bottom: 0, to_world: Affine3A::IDENTITY }]);
+    let levels = TwoLevel::build(vec![tris], None, &[Placement { bottom: 0, to_world: Affine3A::IDENTITY }], &[]);
     let rays = rays(&mut rng, 20_000);
     let differ = rays.iter().filter(|&&(o, d, t)| levels.occluded(o, d, t) != one.occluded_gpu_layout(o, d, t)).count();
     assert_eq!(differ, 0);

@@ -2,7 +2,9 @@
 //! casters that move together (the static casters are one group), each in the 4-wide layout of
 //! `wide.rs` and built once in its own space, and a top-level tree of the same node layout over
 //! the groups' placements (instances), rebuilt whenever a placement changes. Rigid motion so
-//! costs a top-level build over a few boxes, never a rebuild of the triangles' trees.
+//! costs a top-level build over a few boxes, never a rebuild of the triangles' trees. A group
+//! whose triangles themselves move (a skinned or morphed mesh) has its tree refit, or rebuilt
+//! where the refit has grown too costly for rays, in place (`TwoLevel::deform`, `refit.rs`).
 //!
 //! `occluded` is the line-for-line twin of bvh.glsl's `BVH_INSTANCED` walk: one loop and one
 //! stack for both levels, as the single-level walk. The top tree's lowest nodes have as children
@@ -20,7 +22,9 @@
 //!   from node `top_start` (its root first), the proxies from node `proxy_start` (instance k's
 //!   at `proxy_start + k`), and from texel `record_start` four texels per instance: the rows of
 //!   its world-to-object matrix (f32 bits, `x, y, z, translation`), then a padding texel. The
-//!   region is rewritten whenever the instances move; its room is fixed at upload.
+//!   region is rewritten whenever the instances move; its room is fixed at upload. A bottom tree
+//!   that deforms (`TwoLevel::deform`) is followed by room for the most nodes a rebuild of it
+//!   can need (`refit::node_room`), unused nodes zero, so a rebuild moves nothing after it.
 //! - `triangles`: every bottom tree's triangles one after another.
 //! - the root uniform (`BvhRoot`): the top tree's root node, then a texel of `proxy_start` and
 //!   `record_start`.
@@ -29,7 +33,8 @@ use glam::{Affine3A, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::{node::Bvh2Node, Bvh2};
 
-use super::mask::{BvhMasks, MaskSource};
+use super::mask::{BvhMasks, MaskSource, UNMASKED};
+use super::refit::{node_room, Refit};
 use super::wide::{encode, node_step, safe_dir, WideBvh, WideNode, CHILD_INNER, FIRST_MASK, STACK_SIZE};
 use super::ShadowBvh;
 
@@ -49,6 +54,38 @@ const TOP_LEAF_SIZE: usize = 4;
 /// the walk never pushes otherwise).
 const ENTERED: u32 = 0;
 
+/// `TwoLevel::deform` rebuilds a bottom tree whose refit SAH cost (`refit::sah_cost`) has grown
+/// past this many times its cost when last built: a start, to be tuned on real animation. On a
+/// sphere of 1M triangles swelling and twisting (`refit_timings` in refit.rs) the refit crosses
+/// 1.5 where a fresh build would cost about 1.1 (the refit tree's rays then cost some 35 % more
+/// than a fresh tree's), while a rebuild takes about 20 refits' time (430 ms on two threads
+/// against 23 ms on one, on a 2-vCPU VM).
+pub const REBUILD_RATIO: f32 = 1.5;
+
+/// A run of RGBA32UI texels to write into a buffer: the first texel's index and the texels.
+pub type TexelRange = (usize, Vec<[u32; 4]>);
+
+/// What `TwoLevel::deform` did to a bottom tree, and what to upload for it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Deformed {
+    /// Whether the tree was rebuilt (its refit cost past `REBUILD_RATIO`) rather than refit.
+    pub rebuilt: bool,
+    /// The refit tree's SAH cost over the cost at the tree's last build: what the rule read.
+    pub refit_ratio: f32,
+    /// The same ratio for the tree now in place: `refit_ratio` after a refit, 1 after a rebuild
+    /// (which is the new cost the next deformations are measured against).
+    pub sah_ratio: f32,
+    /// The node buffer's texels that changed: the tree's nodes (after a rebuild, as many as the
+    /// larger of the old and the new tree, the rest of its room zero).
+    pub nodes: TexelRange,
+    /// The triangle buffer's texels that hold the tree's triangles, whole: the first and last
+    /// can hold a neighbour's floats too, taken as they are now.
+    pub triangles: TexelRange,
+    /// The masks' texels that changed (after a rebuild of a tree with masked triangles: the
+    /// words of its triangles, and its records), none otherwise.
+    pub masks: Vec<TexelRange>,
+}
+
 /// The bottom trees, concatenated as uploaded, and the top tree over their placements.
 pub struct TwoLevel {
     bottoms: Vec<ShadowBvh>,
@@ -58,6 +95,16 @@ pub struct TwoLevel {
     nodes: Vec<WideNode>,
     triangles: Vec<[Vec3; 3]>,
     masks: Option<BvhMasks>,
+    /// Per bottom tree: its nodes' room in `nodes` (from its root), its first triangle in
+    /// `triangles`, its own-space bounds (kept current by `deform`: the top level's boxes), and
+    /// whether it may deform, with its SAH cost at its last build.
+    rooms: Vec<u32>,
+    triangle_starts: Vec<u32>,
+    bounds: Vec<Aabb>,
+    deforming: Vec<bool>,
+    built_cost: Vec<f32>,
+    /// `deform`'s scratch, kept so a frame's refit allocates nothing.
+    refit: Refit,
     /// Nodes of the bottom trees: where the top region starts.
     top_start: u32,
     /// The most instances the top region has room for (`with_room`).
@@ -72,14 +119,28 @@ impl TwoLevel {
     /// Builds a bottom tree over each group of `groups` (triangles in the group's own space;
     /// each triangle's index in the concatenation of all groups is its index in `masks`, where
     /// the casters have alpha masks), then the top tree over `placements`, with room in the top
-    /// region for as many placements as `placements` has.
-    pub fn build(groups: Vec<Vec<[Vec3; 3]>>, masks: Option<&MaskSource>, placements: &[Placement]) -> TwoLevel {
+    /// region for as many placements as `placements` has. The groups flagged in `deforming`
+    /// (missing flags are false: `&[]` where nothing deforms) may be deformed (`deform`): their
+    /// trees get room to be rebuilt in. A deforming group's placement is expected to be the
+    /// identity (its triangles are given posed), though any works.
+    pub fn build(
+        groups: Vec<Vec<[Vec3; 3]>>,
+        masks: Option<&MaskSource>,
+        placements: &[Placement],
+        deforming: &[bool],
+    ) -> TwoLevel {
         let bottoms: Vec<ShadowBvh> = groups.into_iter().map(ShadowBvh::from_triangle_vec).collect();
         let mut levels = TwoLevel {
             roots: Vec::with_capacity(bottoms.len()),
             nodes: Vec::new(),
             triangles: Vec::new(),
             masks: None,
+            rooms: Vec::with_capacity(bottoms.len()),
+            triangle_starts: Vec::with_capacity(bottoms.len()),
+            bounds: Vec::with_capacity(bottoms.len()),
+            deforming: (0..bottoms.len()).map(|k| deforming.get(k).copied().unwrap_or(false)).collect(),
+            built_cost: Vec::with_capacity(bottoms.len()),
+            refit: Refit::new(),
             top_start: 0,
             room: placements.len(),
             placements: Vec::new(),
@@ -90,11 +151,19 @@ impl TwoLevel {
         // Every leaf's input triangle, over the groups' concatenated inputs.
         let mut order = Vec::new();
         let mut input_base = 0u32;
-        for bottom in &bottoms {
+        for (k, bottom) in bottoms.iter().enumerate() {
             let wide = bottom.wide();
             let (node_base, triangle_base) = (levels.nodes.len() as u32, levels.triangles.len() as u32);
+            let deforms = levels.deforming[k] && !bottom.is_empty();
+            let room =
+                if deforms { node_room(bottom.triangle_count()).max(wide.nodes.len()) } else { wide.nodes.len() };
             levels.roots.push(node_base);
+            levels.rooms.push(room as u32);
+            levels.triangle_starts.push(triangle_base);
+            levels.bounds.push(if bottom.is_empty() { Aabb::empty() } else { bottom.binary().nodes[0].aabb });
+            levels.built_cost.push(if deforms { wide.sah_cost() } else { f32::NAN });
             levels.nodes.extend(wide.nodes.iter().map(|&node| shifted(node, node_base, triangle_base)));
+            levels.nodes.resize((node_base as usize) + room, WideNode::default());
             levels.triangles.extend_from_slice(&wide.triangles);
             if bottom.is_empty() {
                 order.push(u32::MAX); // the empty tree's dummy triangle belongs to no input
@@ -125,7 +194,7 @@ impl TwoLevel {
             );
             drawn.truncate(self.room);
         }
-        let boxes: Vec<Aabb> = drawn.iter().map(|p| world_box(&self.bottoms[p.bottom], &p.to_world)).collect();
+        let boxes: Vec<Aabb> = drawn.iter().map(|p| world_box(&self.bounds[p.bottom], &p.to_world)).collect();
         let mut top = TopBuild {
             boxes: &boxes,
             nodes: vec![WideNode::default()], // a root without children hits nothing
@@ -168,6 +237,81 @@ impl TwoLevel {
         self.room = self.room.max(instances);
         let placements = self.placements.clone();
         self.place(&placements);
+    }
+
+    /// Moves bottom tree `bottom`'s triangles to `input` (its group's triangles, posed, in the
+    /// group's own input order: the same triangles as at the build, moved, with finite vertices
+    /// as `caster_triangles` keeps them) and makes the tree
+    /// follow: a refit (`WideBvh::refit`), or a rebuild where the refit tree's SAH cost has grown
+    /// past `REBUILD_RATIO` times its cost at the tree's last build. The bottom must have been
+    /// built deforming (`build`); its triangles keep their place in the triangle buffer and a
+    /// rebuild fits in its room, so nothing after it moves. A rebuild reorders the tree's leaves:
+    /// its masks' entries are reordered with them.
+    ///
+    /// The top level is not touched: call `place` next (with the frame's placements), which
+    /// boxes each instance by its bottom's current bounds and copies its new root into the
+    /// proxies, then upload the returned ranges and the top `region`. The bottom's `binary()`
+    /// (obvhs's tree, the reference traversal) stays that of its last build.
+    pub fn deform(&mut self, bottom: usize, input: &[[Vec3; 3]]) -> Deformed {
+        assert!(self.deforming[bottom], "bottom tree {bottom} was not built deforming");
+        let tree = &mut self.bottoms[bottom];
+        assert_eq!(input.len(), tree.triangle_count(), "bottom tree {bottom} deformed to another triangle count");
+        let (node_base, triangle_base) = (self.roots[bottom] as usize, self.triangle_starts[bottom] as usize);
+        let old_nodes = tree.wide.nodes.len();
+        if tree.is_empty() {
+            let (nodes, triangles) = ((3 * node_base, Vec::new()), (9 * triangle_base / 4, Vec::new()));
+            return Deformed { rebuilt: false, refit_ratio: 1.0, sah_ratio: 1.0, nodes, triangles, masks: Vec::new() };
+        }
+        let refit_ratio = tree.wide.refit(input, &mut self.refit) / self.built_cost[bottom];
+        let mut rebuilt = None;
+        if refit_ratio > REBUILD_RATIO {
+            let fresh = ShadowBvh::from_triangles(input);
+            // `node_room` bounds every build; a tree past it would overwrite its neighbour.
+            assert!(fresh.wide.nodes.len() <= self.rooms[bottom] as usize, "a rebuild outgrew its room");
+            rebuilt = Some(std::mem::replace(tree, fresh));
+        }
+        let tree = &mut self.bottoms[bottom];
+        let mut masks = Vec::new();
+        let sah_ratio = match &rebuilt {
+            Some(old) => {
+                self.built_cost[bottom] = tree.wide.sah_cost();
+                self.bounds[bottom] = tree.reference.nodes[0].aabb;
+                if let Some(m) = &mut self.masks {
+                    masks = reorder_masks(m, triangle_base, &old.wide.order, &tree.wide.order);
+                }
+                1.0
+            }
+            None => {
+                tree.triangles.copy_from_slice(input);
+                let (lo, hi) = self.refit.bounds().expect("a refit tree holds triangles");
+                self.bounds[bottom] = Aabb { min: lo.into(), max: hi.into() };
+                refit_ratio
+            }
+        };
+        // The concatenation takes the tree, its indices shifted; a smaller rebuild leaves zeros.
+        let wide = &tree.wide;
+        let (base, first) = (node_base as u32, triangle_base as u32);
+        for (to, &node) in self.nodes[node_base..].iter_mut().zip(&wide.nodes) {
+            *to = shifted(node, base, first);
+        }
+        let written = old_nodes.max(wide.nodes.len());
+        self.nodes[node_base + wide.nodes.len()..node_base + written].fill(WideNode::default());
+        self.triangles[triangle_base..][..wide.triangles.len()].copy_from_slice(&wide.triangles);
+        let nodes = bytemuck::cast_slice::<WideNode, [u32; 4]>(&self.nodes[node_base..node_base + written]).to_vec();
+        let triangles = self.triangle_range(triangle_base, input.len());
+        Deformed { rebuilt: rebuilt.is_some(), refit_ratio, sah_ratio, nodes: (3 * node_base, nodes), triangles, masks }
+    }
+
+    /// The texels of the triangle buffer (`triangle_texels`) that hold triangles `first` to
+    /// `first + count`: a triangle's nine floats start at word 9i, so the first and last texel
+    /// can hold neighbours' floats, and past the last triangle the buffer's padding (zeros).
+    fn triangle_range(&self, first: usize, count: usize) -> TexelRange {
+        let words: &[u32] = bytemuck::cast_slice(&self.triangles);
+        let (from, to) = (9 * first / 4, (9 * (first + count)).div_ceil(4));
+        let mut texels = vec![[0u32; 4]; to - from];
+        let end = words.len().min(4 * to);
+        bytemuck::cast_slice_mut::<[u32; 4], u32>(&mut texels)[..end - 4 * from].copy_from_slice(&words[4 * from..end]);
+        (from, texels)
     }
 
     /// Node of the first proxy: after room for the top tree's most nodes (a 4-wide tree over
@@ -304,7 +448,7 @@ impl TwoLevel {
         self.placements.len()
     }
 
-    /// The bottom trees, in group order.
+    /// The bottom trees, in group order (a deformed one's `binary()` is of its last build).
     pub fn bottoms(&self) -> &[ShadowBvh] {
         &self.bottoms
     }
@@ -382,6 +526,38 @@ fn open(bvh: &Bvh2, index: usize) -> ([usize; 4], usize) {
     (children, count)
 }
 
+/// Reorders one bottom tree's entries in `masks` (its triangles from `first` in the triangle
+/// buffer) from leaf order `old` to leaf order `new` (both of the tree's own input indices), as
+/// `BvhMasks::new` over the new order would write them: the tree's masked triangles' records
+/// are one run (records follow leaf order), which the same records fill again in the new order.
+/// Returns the texel ranges written: the tree's words (whole texels) and its records.
+fn reorder_masks(masks: &mut BvhMasks, first: usize, old: &[u32], new: &[u32]) -> Vec<TexelRange> {
+    let word = |texels: &[[u32; 4]], i: usize| texels[i / 4][i % 4];
+    let old_words: Vec<u32> = (0..old.len()).map(|s| word(&masks.texels, first + s)).collect();
+    let Some(&record_start) = old_words.iter().filter(|&&w| w != UNMASKED).min() else {
+        return Vec::new(); // nothing of this tree is masked: every word stays UNMASKED
+    };
+    let mut slot_of = vec![0u32; old.len()];
+    for (s, &k) in old.iter().enumerate() {
+        slot_of[k as usize] = s as u32;
+    }
+    let mut records = Vec::new();
+    for (s, &k) in new.iter().enumerate() {
+        let w = old_words[slot_of[k as usize] as usize];
+        let moved = if w == UNMASKED {
+            UNMASKED
+        } else {
+            records.extend_from_slice(&masks.texels[w as usize..w as usize + 2]);
+            record_start + records.len() as u32 - 2
+        };
+        masks.texels[(first + s) / 4][(first + s) % 4] = moved;
+    }
+    let record_start = record_start as usize;
+    masks.texels[record_start..record_start + records.len()].copy_from_slice(&records);
+    let (from, to) = (first / 4, (first + new.len()).div_ceil(4));
+    vec![(from, masks.texels[from..to].to_vec()), (record_start, records)]
+}
+
 /// `node` of a bottom tree whose nodes now start at `node_base` and triangles at
 /// `triangle_base`: its first child and first triangle moved by those (the codes above them stay).
 fn shifted(mut node: WideNode, node_base: u32, triangle_base: u32) -> WideNode {
@@ -403,9 +579,9 @@ fn to_object(record: &[[u32; 4]], origin: Vec3, dir: Vec3) -> (Vec3, Vec3) {
     (o, d)
 }
 
-/// The world box of `bottom`'s triangles placed by `to_world`: its own box's eight corners moved.
-fn world_box(bottom: &ShadowBvh, to_world: &Affine3A) -> Aabb {
-    let own = bottom.binary().nodes[0].aabb;
+/// The world box of a bottom tree's triangles placed by `to_world`: its own box `own`'s eight
+/// corners moved.
+fn world_box(own: &Aabb, to_world: &Affine3A) -> Aabb {
     let mut out = Aabb::empty();
     for k in 0..8 {
         let pick = |axis: usize| if k >> axis & 1 == 0 { own.min[axis] } else { own.max[axis] };

@@ -36,3 +36,12 @@ impl Check<'_> {
         }
     }
 }
+
+/// Which of the glTF `scene`'s cameras `camera_choice` took, if it took one.
+pub(super) fn whole_camera_index(choice: Option<&CameraChoice>, cameras: &[Option<Camera>]) -> Option<usize> {
+    match choice {
+        Some(CameraChoice::Table(_)) => None,
+        Some(CameraChoice::Index(n)) => usize::try_from(*n).ok(),
+        None => cameras.iter().position(Option::is_some),
+    }
+}

@@ -18,6 +18,7 @@ pub(super) fn join(
     transform: glam::DMat4,
 ) -> (usize, Vec<bool>) {
     let base = rig.nodes.len();
+    rig.other_spans.extend(file_rig.weights.iter().flatten().map(Channel::span));
     for mut node in file_rig.nodes {
         node.parent = match node.parent {
             Some(p) => Some(base + p),
@@ -195,4 +196,71 @@ impl Check<'_> {
         }
         Ok(Some(animation))
     }
+}
+
+/// A deforming glTF instance placed: its triangles and vertices as `mesh::place` keeps them (in
+/// the primitive's own space for a skin, whose pose is in the world already; at `to_world`
+/// otherwise), its deformation's data picked per kept vertex, its rig nodes moved to where the
+/// file's rig joined the scene's (from `base`). Its positions stay the rest pose until the scene
+/// settles them (`Scene::settle_deformed`).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn place_deforming(
+    path: &str,
+    local: &crate::scene::mesh::ObjectMesh,
+    to_world: &glam::DMat4,
+    deform: &crate::scene::deform::Deform,
+    base: usize,
+    material: crate::scene::Material,
+    cast_shadows: bool,
+    stats: &mut crate::scene::LoadStats,
+) -> Option<crate::scene::Mesh> {
+    use crate::scene::deform::{Deform, DeformRest, MorphTarget};
+    let structure = if deform.skinned() { glam::DMat4::IDENTITY } else { *to_world };
+    let (mut mesh, sources) =
+        crate::scene::mesh::place_tracked(path, local, &structure, material, cast_shadows, stats)?;
+    fn pick<T: Copy>(values: &[T], sources: &[usize]) -> Vec<T> {
+        match values.is_empty() {
+            true => Vec::new(),
+            false => sources.iter().map(|&s| values[s]).collect(),
+        }
+    }
+    let rest = &deform.rest;
+    let keeps_tangents = mesh.surface.as_ref().is_some_and(|s| !s.tangents.is_empty());
+    let picked = DeformRest {
+        positions: pick(&rest.positions, &sources),
+        normals: if local.normals.is_some() { pick(&rest.normals, &sources) } else { Vec::new() },
+        tangents: if keeps_tangents { pick(&rest.tangents, &sources) } else { Vec::new() },
+        joints: [pick(&rest.joints[0], &sources), pick(&rest.joints[1], &sources)],
+        weights: [pick(&rest.weights[0], &sources), pick(&rest.weights[1], &sources)],
+        targets: rest
+            .targets
+            .iter()
+            .map(|t| MorphTarget { positions: pick(&t.positions, &sources), normals: pick(&t.normals, &sources) })
+            .collect(),
+    };
+    mesh.deform = Some(Deform {
+        rest: std::sync::Arc::new(picked),
+        joints: deform.joints.iter().map(|(j, m)| (base + j, *m)).collect(),
+        node: base + deform.node,
+        weights: deform.weights.clone(),
+    });
+    Some(mesh)
+}
+
+/// Has the glTF scene's lights (the scene's from `first_light` on) and its camera follow the
+/// nodes that carry them, where those move (`moves`, by the file's rig from `base`).
+pub(super) fn carry(
+    animation: &mut Animation,
+    first_light: usize,
+    base: usize,
+    moves: &[bool],
+    light_nodes: &[usize],
+    camera_node: Option<usize>,
+) {
+    for (k, &node) in light_nodes.iter().enumerate() {
+        if moves.get(node).copied().unwrap_or(false) {
+            animation.lights.push((first_light + k, base + node));
+        }
+    }
+    animation.camera_node = camera_node.filter(|&n| moves.get(n).copied().unwrap_or(false)).map(|n| base + n);
 }

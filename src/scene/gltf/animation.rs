@@ -1,7 +1,7 @@
 //! A glTF file's animation: the nodes of its default scene as a rig (parents first, each with its
 //! rest translation, rotation and scale) and the chosen clip's translation, rotation and scale
-//! channels on them. Channels on nodes outside the scene and morph-target weights are left out,
-//! each kind once with a notice.
+//! channels on them, and its morph-target weight channels split into one per target (read by
+//! `skin::link`). Channels on nodes outside the scene are left out with a notice.
 
 use glam::{DQuat, DVec3};
 
@@ -16,6 +16,8 @@ pub(in crate::scene) struct GltfRig {
     pub clip: String,
     /// Per rig node: whether it moves (a channel on it or on an ancestor).
     pub moves: Vec<bool>,
+    /// Per rig node: its morph targets' weight channels, one per target (empty: none).
+    pub weights: Vec<Vec<Channel<f64>>>,
 }
 
 /// `[animation] clip`: which of a glTF file's animations plays, by number (from 0) or name.
@@ -88,7 +90,8 @@ pub(super) fn read(
             }
         })
         .collect();
-    let (mut outside, mut morphs) = (0, 0);
+    let mut outside = 0;
+    let mut weights: Vec<Vec<Channel<f64>>> = vec![Vec::new(); nodes.len()];
     for channel in animation.channels() {
         let item = format!("{name}: {clip}, channel {} (node {})", channel.index(), channel.target().node().index());
         let Some(k) = rig_of[channel.target().node().index()] else {
@@ -126,24 +129,53 @@ pub(super) fn read(
                 }
                 nodes[k].rotation = Some(Channel::new(times, quaternions, interpolation, &item)?);
             }
-            gltf::animation::util::ReadOutputs::MorphTargetWeights(_) => morphs += 1,
+            gltf::animation::util::ReadOutputs::MorphTargetWeights(values) => {
+                let node = channel.target().node();
+                let targets = node.mesh().and_then(|m| m.primitives().next()).map_or(0, |p| p.morph_targets().len());
+                if targets == 0 {
+                    return Err(format!("{item}: animates morph weights of a node whose mesh has no morph targets"));
+                }
+                let values: Vec<f64> = values.into_f32().map(f64::from).collect();
+                weights[k] = split_weights(&times, &values, targets, interpolation, &item)?;
+            }
         }
     }
     if outside > 0 {
         log::warn!("{name}: {clip}: {outside} channels animate nodes outside the scene; they are left out");
-    }
-    if morphs > 0 {
-        log::warn!(
-            "{name}: {clip}: {morphs} channels animate morph-target weights, which umbra does not yet; left out"
-        );
     }
     let mut moves = vec![false; nodes.len()];
     for k in 0..nodes.len() {
         let own = nodes[k].translation.is_some() || nodes[k].rotation.is_some() || nodes[k].scale.is_some();
         moves[k] = own || nodes[k].parent.is_some_and(|p| moves[p]);
     }
-    if !moves.iter().any(|&m| m) {
+    if !moves.iter().any(|&m| m) && weights.iter().all(Vec::is_empty) {
         return Ok(None);
     }
-    Ok(Some(GltfRig { nodes, clip, moves }))
+    Ok(Some(GltfRig { nodes, clip, moves, weights }))
+}
+
+/// A weights channel's outputs (per key, one value per target; for CUBICSPLINE the key's
+/// in-tangents, values and out-tangents, each a run of `targets`) as one channel per target.
+fn split_weights(
+    times: &[f64],
+    values: &[f64],
+    targets: usize,
+    interpolation: Interpolation,
+    item: &str,
+) -> Result<Vec<Channel<f64>>, String> {
+    let per_key = if interpolation == Interpolation::CubicSpline { 3 } else { 1 };
+    if values.len() != times.len() * per_key * targets {
+        return Err(format!(
+            "{item}: {} keys of {targets} morph weights need {} outputs, not {}",
+            times.len(),
+            times.len() * per_key * targets,
+            values.len()
+        ));
+    }
+    (0..targets)
+        .map(|t| {
+            let own: Vec<f64> = values.chunks_exact(targets).map(|run| run[t]).collect();
+            Channel::new(times.to_vec(), own, interpolation, &format!("{item}, target {t}"))
+        })
+        .collect()
 }

@@ -64,5 +64,14 @@ void main() {
     vec4 half_pixels = vec4(0.5 * motion.extent.xy, 1.0, 1.0);
     out_clip = half_pixels * (motion.view_proj * vec4(p - pc.eye.xyz, 1.0));
     out_previous_clip = half_pixels * (motion.previous_view_proj * vec4(before - motion.previous_eye.xyz, 1.0));
+    // Nothing moved (vertex, instance, camera): the same clip position, exactly. The two
+    // expressions above can round apart where a compiler fuses them differently (a still frame
+    // read a few thousandths of a pixel on NVIDIA's).
+    bool vertex_still = previous_position == in_position && previous_model_0 == instance_model_0 &&
+                        previous_model_1 == instance_model_1 && previous_model_2 == instance_model_2;
+    bool camera_still = motion.previous_view_proj == motion.view_proj && motion.previous_eye.xyz == pc.eye.xyz;
+    if (vertex_still && camera_still) {
+        out_previous_clip = out_clip;
+    }
 #endif
 }

@@ -21,6 +21,7 @@ mod ltc;
 mod mesh_formats;
 mod models;
 mod parser_mutation;
+mod refit_traversal;
 mod scene_files;
 mod shading_cpu;
 mod skinning;

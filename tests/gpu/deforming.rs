@@ -8,14 +8,12 @@ use crate::common;
 use std::path::Path;
 
 use serde_json::json;
-use umbra::config::{DebugView, ShadowChoice, ShadowMethod};
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
+use umbra::config::{DebugView, ShadowMethod};
+use umbra::renderer::Renderer;
 use umbra::scene::Scene;
 
 use crate::gltf_builder::{Animation, Gltf, U16, U32};
-
-const W: u32 = 160;
-const H: u32 = 120;
+use crate::moving_scenes::{differing, visibility};
 
 /// A panel 1 m wide and 2 m tall (x in [-0.5, 0.5], z = 0, eight rows of quads), skinned to two
 /// joints: node 0 at the origin, node 1 (its child) at y = 1, which bends forward (about x) from
@@ -84,19 +82,6 @@ const SCENE: &str = "[camera]\neye = [3.0, 4.0, 5.0]\ntarget = [0.0, 0.5, 0.0]\n
     [[lights]]\ntype = \"point\"\nposition = [-0.5, 2.5, -1.5]\nintensity = [6.0, 6.0, 6.0]\n\
     [[objects]]\nshape = \"plane\"\nsize = 8.0\n\
     [[objects]]\nmesh = \"panel.glb\"\n";
-
-fn visibility(r: &mut Renderer, light: u32, method: ShadowMethod, time: Option<f64>) -> Vec<f32> {
-    let choice = ShadowChoice { method, ..ShadowChoice::hard() };
-    let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(2, choice);
-    s.debug_view = Some(DebugView::Visibility(light));
-    s.time = time;
-    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
-    pixels.chunks_exact(4).map(|p| p[0]).collect()
-}
-
-fn differing(a: &[f32], b: &[f32]) -> f64 {
-    a.iter().zip(b).filter(|(x, y)| (*x - *y).abs() > 0.1).count() as f64 / a.len() as f64
-}
 
 #[test]
 fn a_deformed_frame_shadows_as_the_same_pose_baked_into_a_static_scene() {

@@ -22,7 +22,7 @@ fn spinning() -> Scene {
 }
 
 /// Light `light`'s visibility with `method` for both lights, at `time` where given.
-fn visibility(r: &mut Renderer, light: u32, method: ShadowMethod, time: Option<f64>) -> Vec<f32> {
+pub(crate) fn visibility(r: &mut Renderer, light: u32, method: ShadowMethod, time: Option<f64>) -> Vec<f32> {
     let choice = ShadowChoice { method, ..ShadowChoice::hard() };
     let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(2, choice);
     s.debug_view = Some(DebugView::Visibility(light));
@@ -32,7 +32,7 @@ fn visibility(r: &mut Renderer, light: u32, method: ShadowMethod, time: Option<f
 }
 
 /// The share of pixels whose visibility differs by more than 0.1.
-fn differing(a: &[f32], b: &[f32]) -> f64 {
+pub(crate) fn differing(a: &[f32], b: &[f32]) -> f64 {
     a.iter().zip(b).filter(|(x, y)| (*x - *y).abs() > 0.1).count() as f64 / a.len() as f64
 }
 

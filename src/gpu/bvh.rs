@@ -81,9 +81,47 @@ impl Pending {
     }
 }
 
-/// `runs` (in the order they were made) as disjoint runs in texel order holding the same texels,
-/// a later run's where two overlap.
-fn coalesce(runs: &[TexelRange]) -> Vec<TexelRange> {
+/// `runs` (in the order they were made) as disjoint runs holding the same texels, a later run's
+/// where two overlap. Without a copy where it can: runs that do not overlap are kept as they
+/// are, and where a run's end is all that later runs overlap (neighbouring trees deformed in
+/// order share a texel), it is cut short. Otherwise the runs are merged into new ones.
+fn coalesce(mut runs: Vec<TexelRange>) -> Vec<TexelRange> {
+    runs.retain(|(_, t)| !t.is_empty());
+    // Each run cut where the earliest later run that overlaps it starts, if that leaves every
+    // later overlap past the cut.
+    let span = |r: &TexelRange| (r.0, r.0 + r.1.len());
+    let mut cuts: Vec<usize> = runs.iter().map(|r| span(r).1).collect();
+    let mut in_place = true;
+    for (i, earlier) in runs.iter().enumerate() {
+        let (from, to) = span(earlier);
+        for later in &runs[i + 1..] {
+            let (a, b) = span(later);
+            if a < to && from < b {
+                // A later run overlapping this one's start (or inside it) cannot be cut away.
+                if a <= from || b < to {
+                    in_place = false;
+                }
+                cuts[i] = cuts[i].min(a);
+            }
+        }
+    }
+    if in_place {
+        for (run, cut) in runs.iter_mut().zip(cuts) {
+            run.1.truncate(cut - run.0);
+        }
+        runs.retain(|(_, t)| !t.is_empty());
+        // Still disjoint only if no earlier run overlaps another earlier one's kept part.
+        let mut spans: Vec<(usize, usize)> = runs.iter().map(span).collect();
+        spans.sort_unstable();
+        if spans.windows(2).all(|w| w[0].1 <= w[1].0) {
+            return runs;
+        }
+    }
+    merge(&runs)
+}
+
+/// `runs` merged into new disjoint runs in texel order, a later run's texels where two overlap.
+fn merge(runs: &[TexelRange]) -> Vec<TexelRange> {
     let mut spans: Vec<(usize, usize)> =
         runs.iter().filter(|(_, t)| !t.is_empty()).map(|(at, t)| (*at, at + t.len())).collect();
     spans.sort_unstable();
@@ -209,9 +247,17 @@ impl BvhBuffers {
         };
         let before = pending.as_ref().map_or(0, |p| p.bytes() - (p.region.1.len() * 16 + 64) as u64);
         if let Some(earlier) = pending.take() {
-            next.nodes.extend(earlier.nodes.iter().cloned());
-            next.triangles.extend(earlier.triangles.iter().cloned());
-            next.masks.extend(earlier.masks.iter().cloned());
+            // Its own unless a graph built since still holds it.
+            let earlier = Arc::try_unwrap(earlier).unwrap_or_else(|shared| Pending {
+                region: shared.region.clone(),
+                root: shared.root,
+                nodes: shared.nodes.clone(),
+                triangles: shared.triangles.clone(),
+                masks: shared.masks.clone(),
+            });
+            next.nodes = earlier.nodes;
+            next.triangles = earlier.triangles;
+            next.masks = earlier.masks;
         }
         for d in deformed {
             next.nodes.push(d.nodes);
@@ -220,9 +266,9 @@ impl BvhBuffers {
         }
         // Runs can overlap (neighbouring trees share a triangle texel; a tree deformed twice
         // before a frame recorded): two writes of one texel in a pass would race.
-        next.nodes = coalesce(&next.nodes);
-        next.triangles = coalesce(&next.triangles);
-        next.masks = coalesce(&next.masks);
+        next.nodes = coalesce(std::mem::take(&mut next.nodes));
+        next.triangles = coalesce(std::mem::take(&mut next.triangles));
+        next.masks = coalesce(std::mem::take(&mut next.masks));
         let bytes = next.bytes() - before;
         *pending = Some(Arc::new(next));
         bytes
@@ -393,7 +439,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn overlapping_runs_coalesce_into_disjoint_ones_where_the_later_wins() {
+    fn overlapping_runs_write_what_they_would_in_order_where_the_later_wins() {
         let t = |v: u32| [v; 4];
         let runs = vec![
             (10, vec![t(1), t(1), t(1)]),
@@ -402,8 +448,43 @@ mod tests {
             (9, vec![t(4)]),
             (21, vec![t(5)]),
         ];
-        let out = coalesce(&runs);
+        // Run 0's end is under run 1: cut short; the rest only touch.
+        let out = coalesce(runs.clone());
+        assert_eq!(out[0], (10, vec![t(1), t(1)]));
+        assert_eq!(applied(&out), applied(&runs));
+        // Merged where a later run covers an earlier one's start.
+        let out = merge(&runs);
         assert_eq!(out, vec![(9, vec![t(4), t(1), t(1), t(2), t(2)]), (20, vec![t(3), t(5)])]);
-        assert!(coalesce(&[]).is_empty());
+        assert!(coalesce(Vec::new()).is_empty());
+    }
+
+    /// What the writes leave in a buffer, applied in order.
+    fn applied(runs: &[TexelRange]) -> Vec<[u32; 4]> {
+        let mut buffer = vec![[0u32; 4]; 64];
+        for (at, texels) in runs {
+            buffer[*at..at + texels.len()].copy_from_slice(texels);
+        }
+        buffer
+    }
+
+    #[test]
+    fn neighbours_deformed_in_order_are_cut_short_not_copied_and_any_order_writes_the_same() {
+        let t = |v: u32| [v; 4];
+        // Three trees deformed in order, each sharing its last texel with the next one's first,
+        // and a disjoint run: the first two are cut by a texel, nothing is merged.
+        let runs = vec![(0, vec![t(1); 5]), (4, vec![t(2); 5]), (8, vec![t(3); 5]), (30, vec![t(4); 2])];
+        let out = coalesce(runs.clone());
+        assert_eq!(out.iter().map(|(at, r)| (*at, r.len())).collect::<Vec<_>>(), [(0, 4), (4, 4), (8, 5), (30, 2)]);
+        assert_eq!(applied(&out), applied(&runs));
+        // Reversed order (a later run overlapping an earlier one's start): merged, same texels.
+        let reversed: Vec<TexelRange> = runs.iter().rev().cloned().collect();
+        let out = coalesce(reversed.clone());
+        assert_eq!(applied(&out), applied(&reversed));
+        let mut spans: Vec<(usize, usize)> = out.iter().map(|(a, r)| (*a, a + r.len())).collect();
+        spans.sort_unstable();
+        assert!(spans.windows(2).all(|w| w[0].1 <= w[1].0), "{spans:?}");
+        // A run written twice (posed twice before a frame): the second wins.
+        let twice = vec![(2, vec![t(1); 3]), (2, vec![t(2); 3])];
+        assert_eq!(applied(&coalesce(twice.clone())), applied(&twice));
     }
 }

@@ -141,9 +141,6 @@ fn merge(runs: &[TexelRange]) -> Vec<TexelRange> {
     out
 }
 
-/// Bytes one `cmd_update_buffer` may write.
-const UPDATE_LIMIT: usize = 65_536;
-
 impl BvhBuffers {
     /// Whether `bvh` fits `ctx`'s texel buffers: an error naming the limit where it does not.
     pub fn check(ctx: &GpuContext, bvh: &ShadowBvh) -> GpuResult<()> {
@@ -342,16 +339,11 @@ impl BvhBuffers {
                 _ => None,
             };
             pass.render(move |ctx| {
+                // Inside each buffer: `place` checked the region; a deformed tree's runs lie where
+                // the tree was uploaded.
                 let write = |dst, runs: &[TexelRange]| {
                     for (at, texels) in runs {
-                        let bytes: &[u8] = bytemuck::cast_slice(texels);
-                        for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
-                            let offset = (16 * at + k * UPDATE_LIMIT) as u64;
-                            // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of
-                            // 4 bytes, inside its buffer (`place` checked the region; a deformed
-                            // tree's runs lie where the tree was uploaded).
-                            unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), offset, chunk) };
-                        }
+                        ctx.update_buffer(dst, 16 * *at as u64, bytemuck::cast_slice(texels));
                     }
                 };
                 write(nodes_dst, &pending.nodes);
@@ -362,10 +354,7 @@ impl BvhBuffers {
                 if let Some(dst) = masks_dst {
                     write(dst, &pending.masks);
                 }
-                // SAFETY: as above; the root holds four texels.
-                unsafe {
-                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(root_dst), 0, bytemuck::cast_slice(&pending.root))
-                };
+                ctx.update_buffer(root_dst, 0, bytemuck::cast_slice(&pending.root));
                 Ok(())
             });
             // Exported, so the writes survive a frame whose passes read none of them.

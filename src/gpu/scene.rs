@@ -91,13 +91,13 @@ pub struct SceneGpu {
     /// The draws whose meshes move, in draw order (empty in a static scene).
     pub moving: Vec<MovingDraw>,
     /// The moving draws' instance rows, posed and drawn, and what the next frame writes.
-    rows: std::sync::Mutex<MovingRows>,
+    rows: std::sync::Mutex<Tracked>,
     /// The draws whose meshes deform (skins, morph targets), in draw order: their vertices are
     /// rewritten whenever the scene is posed.
     pub deforming: Vec<DeformingDraw>,
     /// The deformed vertices the next frame's first pass writes: (byte offset in `vertices`,
     /// bytes), until a frame that wrote them is recorded.
-    deformed: std::sync::Mutex<DeformedVertices>,
+    deformed: std::sync::Mutex<Tracked>,
     /// In a scene with deforming draws, where a copy of the vertices as the previous frame drew
     /// them starts (the motion channel's previous positions, vertex binding 5); `None` otherwise,
     /// and the motion variant reads the vertices themselves there.
@@ -107,18 +107,91 @@ pub struct SceneGpu {
     moved_lights: std::sync::Mutex<Option<Arc<Vec<u8>>>>,
 }
 
-/// The deforming draws' vertices (bytes, in `SceneGpu::deforming` order) as posed last and as
-/// the last recorded frame drew them, and what the next frame writes: (byte offset in
-/// `vertices`, bytes), now and in the previous frame's copy.
-#[derive(Default)]
-struct DeformedVertices {
+/// Parts of the vertex buffer a moving scene rewrites, per item (a moving draw's instance row,
+/// a deforming draw's vertices): where the item is, and where its copy as the previous frame
+/// drew it is (the motion channel's); its bytes as posed last and as the last recorded frame
+/// drew them; and the writes the next frame's first pass makes (`import_vertices`), until a
+/// frame that made them is recorded.
+struct Tracked {
+    /// Per item: (byte offset now, byte offset of the previous frame's copy).
+    at: Vec<(u64, u64)>,
     posed: Vec<Arc<Vec<u8>>>,
     drawn: Vec<Arc<Vec<u8>>>,
-    pending: Option<Arc<Vec<VertexWrite>>>,
+    pending: Option<Arc<Vec<BufferWrite>>>,
 }
 
 /// Bytes to write into the vertex buffer at a byte offset.
-type VertexWrite = (u64, Arc<Vec<u8>>);
+type BufferWrite = (u64, Arc<Vec<u8>>);
+
+impl Tracked {
+    /// Items at `at`, at rest (`rest`: their bytes as uploaded).
+    fn new(at: Vec<(u64, u64)>, rest: Vec<Arc<Vec<u8>>>) -> Tracked {
+        Tracked { at, posed: rest.clone(), drawn: rest, pending: None }
+    }
+
+    /// The items posed anew: the next frame writes them, and the previous copies as drawn.
+    /// Returns the bytes it will write.
+    fn pose(&mut self, now: Vec<Arc<Vec<u8>>>) -> u64 {
+        self.posed = now;
+        self.pend(true)
+    }
+
+    /// Where the items were in the previous frame (for a first frame, which has no previous one
+    /// drawn): the next frame's motion starts there.
+    fn pose_previous(&mut self, before: Vec<Arc<Vec<u8>>>) {
+        self.drawn = before;
+        self.pend(true);
+    }
+
+    /// A frame that imported the buffer was recorded: its writes are done, and what it drew is
+    /// the next frame's previous copy (written by the next frame where it changed).
+    fn recorded(&mut self) {
+        self.pending = None;
+        if !self.drawn.iter().zip(&self.posed).all(|(a, b)| Arc::ptr_eq(a, b)) {
+            self.drawn = self.posed.clone();
+            self.pend(false);
+        }
+    }
+
+    /// Sets the pending writes: the previous copies as drawn, and with `now` the items as posed.
+    fn pend(&mut self, now: bool) -> u64 {
+        let mut writes = Vec::with_capacity(2 * self.at.len());
+        for ((now_at, before_at), (posed, drawn)) in self.at.iter().zip(self.posed.iter().zip(&self.drawn)) {
+            if now {
+                writes.push((*now_at, posed.clone()));
+            }
+            writes.push((*before_at, drawn.clone()));
+        }
+        let bytes = writes.iter().map(|(_, w)| w.len() as u64).sum();
+        self.pending = Some(Arc::new(writes));
+        bytes
+    }
+
+    /// A first pass named `name` making the pending writes into `vertices`, if there are any.
+    fn write_pass<'a>(
+        &self,
+        g: &mut crate::graph::RenderGraph<'a>,
+        vertices: &mut crate::graph::Handle<crate::graph::BufferKind>,
+        name: &'static str,
+    ) {
+        let Some(writes) = self.pending.clone() else { return };
+        let mut pass = g.add_pass(name);
+        pass.detail(format!(
+            "{} items, {} KiB",
+            self.at.len(),
+            writes.iter().map(|(_, w)| w.len()).sum::<usize>() >> 10
+        ));
+        let dst = pass.write(vertices, Access::TransferWrite);
+        pass.render(move |ctx| {
+            for (at, bytes) in writes.iter() {
+                ctx.update_buffer(dst, *at, bytes);
+            }
+            Ok(())
+        });
+        // Exported, so the writes survive a frame that draws nothing.
+        g.export_version(vertices, SCENE_ACCESS);
+    }
+}
 
 /// A draw whose mesh deforms: its vertices in the shared buffer, rewritten as it is posed.
 #[derive(Clone, Debug)]
@@ -128,17 +201,6 @@ pub struct DeformingDraw {
     pub mesh: usize,
     pub first_vertex: u32,
     pub vertex_count: u32,
-}
-
-/// The moving draws' instance rows (their `row`s in order).
-struct MovingRows {
-    /// As posed last.
-    posed: Vec<InstanceRows>,
-    /// As the last recorded frame drew them: the next frame's previous rows.
-    drawn: Vec<InstanceRows>,
-    /// What the next frame's first pass writes (`import_vertices`): the rows now and the
-    /// previous frame's, where they changed since the last recorded frame.
-    pending: Option<Arc<(Vec<InstanceRows>, Vec<InstanceRows>)>>,
 }
 
 /// A scene without textures: its distinct materials as the G-buffer's material channel would
@@ -220,13 +282,6 @@ pub enum BvhSource<'b> {
     One(&'b ShadowBvh),
     Two(&'b crate::scene::bvh::levels::TwoLevel),
 }
-
-/// The pass that writes deformed meshes' vertices (part of keeping the scene up to date, which
-/// every method needs: the G-buffer and the maps draw them).
-pub const DEFORM_PASS: &str = "deformed vertices";
-
-/// Bytes one `cmd_update_buffer` may write (a multiple of a vertex's 24 bytes and of 4).
-const UPDATE_LIMIT: usize = 65_520;
 
 /// A draw whose mesh moves: its instance row is rewritten whenever the scene is posed.
 #[derive(Clone, Debug)]
@@ -509,15 +564,44 @@ impl SceneGpu {
             false => Some(MaterialTable::upload(ctx, &packing.table_texels.texels)?),
         };
         check_texel_limits(ctx, vertex.bytes.len(), &packing.indices)?;
-        let rest: Vec<InstanceRows> = packing.moving.iter().map(|m| packing.instances[m.row as usize]).collect();
-        let rest_vertices: Vec<Arc<Vec<u8>>> = packing
-            .deforming
-            .iter()
-            .map(|d| {
-                let at = d.first_vertex as usize..(d.first_vertex + d.vertex_count) as usize;
-                Arc::new(bytemuck::cast_slice(&packing.vertices[at]).to_vec())
-            })
-            .collect();
+        // The moving draws' rows and the deforming draws' vertices, where they are now and as the
+        // previous frame drew them, at rest.
+        let row_size = std::mem::size_of::<InstanceRows>() as u64;
+        let moving_rows = Tracked::new(
+            packing
+                .moving
+                .iter()
+                .map(|m| {
+                    let previous = vertex.previous_offset.unwrap_or(vertex.instance_offset);
+                    let at = u64::from(m.row) * row_size;
+                    (vertex.instance_offset + at, previous + at)
+                })
+                .collect(),
+            packing
+                .moving
+                .iter()
+                .map(|m| Arc::new(bytemuck::bytes_of(&packing.instances[m.row as usize]).to_vec()))
+                .collect(),
+        );
+        let vertex_size = std::mem::size_of::<Vertex>() as u64;
+        let deformed = Tracked::new(
+            packing
+                .deforming
+                .iter()
+                .map(|d| {
+                    let at = u64::from(d.first_vertex) * vertex_size;
+                    (at, vertex.previous_vertex_offset.unwrap_or(0) + at)
+                })
+                .collect(),
+            packing
+                .deforming
+                .iter()
+                .map(|d| {
+                    let at = d.first_vertex as usize..(d.first_vertex + d.vertex_count) as usize;
+                    Arc::new(bytemuck::cast_slice(&packing.vertices[at]).to_vec())
+                })
+                .collect(),
+        );
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
         // A moving scene's frames rewrite the instance rows.
         let rows = match packing.moving.is_empty() && packing.deforming.is_empty() {
@@ -560,14 +644,10 @@ impl SceneGpu {
             bounds: (lo, hi),
             origin,
             camera: scene.camera,
-            rows: std::sync::Mutex::new(MovingRows { posed: rest.clone(), drawn: rest, pending: None }),
+            rows: std::sync::Mutex::new(moving_rows),
             moving: packing.moving,
             deforming: packing.deforming,
-            deformed: std::sync::Mutex::new(DeformedVertices {
-                posed: rest_vertices.clone(),
-                drawn: rest_vertices,
-                pending: None,
-            }),
+            deformed: std::sync::Mutex::new(deformed),
             moved_lights: std::sync::Mutex::new(None),
         })
     }
@@ -597,10 +677,7 @@ impl SceneGpu {
         let mut pass = g.add_pass("moved lights");
         let dst = pass.write(&mut lights, Access::TransferWrite);
         pass.render(move |ctx| {
-            for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
-                // SAFETY: recording state; at most 64 KiB a call, whole lights, inside the buffer.
-                unsafe { ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), (k * UPDATE_LIMIT) as u64, chunk) };
-            }
+            ctx.update_buffer(dst, 0, &bytes);
             Ok(())
         });
         g.export_version(&lights, SCENE_ACCESS);
@@ -613,26 +690,23 @@ impl SceneGpu {
     /// drew). Returns the bytes that frame will move.
     pub fn deform(&mut self, posed: &[(usize, crate::scene::deform::Posed)]) -> u64 {
         let Some(now) = self.deformed_bytes(posed, true) else { return 0 };
+        self.bound_draws();
+        self.deformed.lock().unwrap_or_else(|e| e.into_inner()).pose(now)
+    }
+
+    /// The scene's bounds, after its draws' moved.
+    fn bound_draws(&mut self) {
         let all = self.draws.iter().fold(Bounds::EMPTY, |b, d| b.union(&d.bounds));
         if !all.is_empty() {
             self.bounds = (all.min, all.max);
         }
-        let mut state = self.deformed.lock().unwrap_or_else(|e| e.into_inner());
-        state.posed = now;
-        let writes = self.deformed_writes(&state.posed, &state.drawn);
-        let bytes = writes.iter().map(|(_, w)| w.len() as u64).sum();
-        state.pending = Some(Arc::new(writes));
-        bytes
     }
 
     /// Sets the deforming draws' vertices as the previous frame drew them to `posed` (for a
     /// first frame, which has no previous one drawn): the next frame's motion starts there.
     pub fn deform_previous(&mut self, posed: &[(usize, crate::scene::deform::Posed)]) {
         let Some(before) = self.deformed_bytes(posed, false) else { return };
-        let mut state = self.deformed.lock().unwrap_or_else(|e| e.into_inner());
-        state.drawn = before;
-        let writes = self.deformed_writes(&state.posed, &state.drawn);
-        state.pending = Some(Arc::new(writes));
+        self.deformed.lock().unwrap_or_else(|e| e.into_inner()).pose_previous(before);
     }
 
     /// The deforming draws' vertex bytes for `posed` (a draw it leaves out keeps the vertices
@@ -669,19 +743,6 @@ impl SceneGpu {
         any.then_some(out)
     }
 
-    /// The writes that put `now` in the deforming draws' vertices and `before` in the previous
-    /// frame's copy.
-    fn deformed_writes(&self, now: &[Arc<Vec<u8>>], before: &[Arc<Vec<u8>>]) -> Vec<VertexWrite> {
-        let previous = self.previous_vertex_offset.expect("a scene with deforming draws keeps their previous vertices");
-        let mut writes = Vec::with_capacity(2 * now.len());
-        for (k, d) in self.deforming.iter().enumerate() {
-            let offset = u64::from(d.first_vertex) * std::mem::size_of::<Vertex>() as u64;
-            writes.push((offset, now[k].clone()));
-            writes.push((previous + offset, before[k].clone()));
-        }
-        writes
-    }
-
     /// Poses the moving draws: `delta(mesh)` is the local-frame transform from mesh `mesh`'s
     /// rest pose to its pose now (`None`: at rest). Their bounds and the scene's follow at once;
     /// their instance rows are written by the next frame's first pass. Returns the bytes that
@@ -695,15 +756,8 @@ impl SceneGpu {
             let d = delta(m.mesh).unwrap_or(glam::DMat4::IDENTITY);
             self.draws[m.draw].bounds = m.rest_bounds.transformed(&d.as_mat4());
         }
-        let all = self.draws.iter().fold(Bounds::EMPTY, |b, d| b.union(&d.bounds));
-        if !all.is_empty() {
-            self.bounds = (all.min, all.max);
-        }
-        let bytes = 2 * std::mem::size_of_val(rows.as_slice()) as u64;
-        let mut state = self.rows.lock().unwrap_or_else(|e| e.into_inner());
-        state.pending = Some(Arc::new((rows.clone(), state.drawn.clone())));
-        state.posed = rows;
-        bytes
+        self.bound_draws();
+        self.rows.lock().unwrap_or_else(|e| e.into_inner()).pose(rows)
     }
 
     /// Sets where the moving draws were in the previous frame, as `pose`'s `delta` says (for a
@@ -713,99 +767,39 @@ impl SceneGpu {
             return;
         }
         let rows = self.moving_rows(&delta);
-        let mut state = self.rows.lock().unwrap_or_else(|e| e.into_inner());
-        state.pending = Some(Arc::new((state.posed.clone(), rows.clone())));
-        state.drawn = rows;
+        self.rows.lock().unwrap_or_else(|e| e.into_inner()).pose_previous(rows);
     }
 
-    /// The moving draws' rows, each mesh moved by `delta`.
-    fn moving_rows(&self, delta: &impl Fn(usize) -> Option<glam::DMat4>) -> Vec<InstanceRows> {
-        let at = |m: &MovingDraw| InstanceRows::of(&(delta(m.mesh).unwrap_or(glam::DMat4::IDENTITY) * m.base));
+    /// The moving draws' rows' bytes, each mesh moved by `delta`.
+    fn moving_rows(&self, delta: &impl Fn(usize) -> Option<glam::DMat4>) -> Vec<Arc<Vec<u8>>> {
+        let at = |m: &MovingDraw| {
+            let rows = InstanceRows::of(&(delta(m.mesh).unwrap_or(glam::DMat4::IDENTITY) * m.base));
+            Arc::new(bytemuck::bytes_of(&rows).to_vec())
+        };
         self.moving.iter().map(at).collect()
     }
 
     /// A frame that imported the scene was recorded: the updates it wrote are done, and the
-    /// rows it drew are the next frame's previous rows (written by the next frame where they
-    /// differ from what the device holds).
+    /// rows and vertices it drew are the next frame's previous ones (written by the next frame
+    /// where they differ from what the device holds).
     pub fn recorded(&self) {
-        let mut state = self.rows.lock().unwrap_or_else(|e| e.into_inner());
-        state.pending = None;
-        if state.drawn != state.posed {
-            state.drawn = state.posed.clone();
-            state.pending = Some(Arc::new((state.posed.clone(), state.posed.clone())));
-        }
-        drop(state);
-        let mut deformed = self.deformed.lock().unwrap_or_else(|e| e.into_inner());
-        deformed.pending = None;
-        if !deformed.drawn.iter().zip(&deformed.posed).all(|(a, b)| Arc::ptr_eq(a, b)) {
-            // The next frame, posed anew or not, measures its motion from what this one drew.
-            deformed.drawn = deformed.posed.clone();
-            let writes = self.deformed_writes(&deformed.posed, &deformed.drawn);
-            let previous = self.previous_vertex_offset.unwrap_or(0);
-            deformed.pending = Some(Arc::new(writes.into_iter().filter(|(at, _)| *at >= previous).collect()));
-        }
-        drop(deformed);
+        self.rows.lock().unwrap_or_else(|e| e.into_inner()).recorded();
+        self.deformed.lock().unwrap_or_else(|e| e.into_inner()).recorded();
         self.moved_lights.lock().unwrap_or_else(|e| e.into_inner()).take();
         self.bvh.recorded();
     }
 
     /// Imports the vertex buffer into `g`; where the scene was posed since the last recorded
-    /// frame, a first pass writes the moving draws' instance rows, now and as the previous frame
-    /// drew them (after every read of the old ones that earlier frames submitted).
+    /// frame, first passes write the deforming draws' vertices and the moving draws' instance
+    /// rows, now and as the previous frame drew them (after every read of the old ones that
+    /// earlier frames submitted).
     pub fn import_vertices<'a>(
         &'a self,
         g: &mut crate::graph::RenderGraph<'a>,
     ) -> crate::graph::Handle<crate::graph::BufferKind> {
         let mut vertices = g.import_buffer("vertices", &self.vertices, SCENE_ACCESS);
-        let deformed = self.deformed.lock().unwrap_or_else(|e| e.into_inner()).pending.clone();
-        if let Some(writes) = deformed {
-            let mut pass = g.add_pass(DEFORM_PASS);
-            pass.detail(format!("{} KiB", writes.iter().map(|(_, w)| w.len()).sum::<usize>() >> 10));
-            let dst = pass.write(&mut vertices, Access::TransferWrite);
-            pass.render(move |ctx| {
-                for (at, bytes) in writes.iter() {
-                    for (k, chunk) in bytes.chunks(UPDATE_LIMIT).enumerate() {
-                        // SAFETY: recording state; each chunk is at most 64 KiB, a multiple of 4
-                        // bytes (whole vertices), inside the buffer (the draw's own vertices).
-                        unsafe {
-                            ctx.device.cmd_update_buffer(
-                                ctx.cmd,
-                                ctx.buffer(dst),
-                                at + (k * UPDATE_LIMIT) as u64,
-                                chunk,
-                            )
-                        };
-                    }
-                }
-                Ok(())
-            });
-            g.export_version(&vertices, SCENE_ACCESS);
-        }
-        let Some(rows) = self.rows.lock().unwrap_or_else(|e| e.into_inner()).pending.clone() else {
-            return vertices;
-        };
-        let previous = self.previous_offset.expect("a moving scene keeps the previous frame's rows");
-        let mut pass = g.add_pass("instance rows");
-        pass.detail(format!("{} moving draws", rows.0.len()));
-        let dst = pass.write(&mut vertices, Access::TransferWrite);
-        let size = std::mem::size_of::<InstanceRows>() as u64;
-        let at: Vec<(u64, u64)> = self
-            .moving
-            .iter()
-            .map(|m| (self.instance_offset + u64::from(m.row) * size, previous + u64::from(m.row) * size))
-            .collect();
-        pass.render(move |ctx| {
-            for ((now, before), (now_at, before_at)) in rows.0.iter().zip(&rows.1).zip(&at) {
-                // SAFETY: recording state; each row is 96 bytes inside the buffer.
-                unsafe {
-                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), *now_at, bytemuck::bytes_of(now));
-                    ctx.device.cmd_update_buffer(ctx.cmd, ctx.buffer(dst), *before_at, bytemuck::bytes_of(before));
-                }
-            }
-            Ok(())
-        });
-        // Exported, so the write survives a frame that draws nothing.
-        g.export_version(&vertices, SCENE_ACCESS);
+        self.deformed.lock().unwrap_or_else(|e| e.into_inner()).write_pass(g, &mut vertices, "deformed vertices");
+        self.rows.lock().unwrap_or_else(|e| e.into_inner()).write_pass(g, &mut vertices, "instance rows");
         vertices
     }
 

@@ -637,6 +637,20 @@ impl PassContext<'_> {
         Ok(())
     }
 
+    /// Writes `bytes` into `r` (declared `Access::TransferWrite`) from byte `offset`, with
+    /// vkCmdUpdateBuffer in pieces of at most 64 KiB (the most one call may write). `offset` and
+    /// the length are multiples of 4 and lie inside the buffer (validation says where not).
+    pub fn update_buffer(&self, r: Ref<BufferKind>, offset: u64, bytes: &[u8]) {
+        const LIMIT: usize = 65_536;
+        debug_assert_eq!(r.access, Access::TransferWrite, "an update is a transfer write");
+        debug_assert!(offset % 4 == 0 && bytes.len() % 4 == 0, "updates are of whole words");
+        for (k, chunk) in bytes.chunks(LIMIT).enumerate() {
+            // SAFETY: recording state; each piece is at most 64 KiB of whole words, inside the
+            // buffer (the caller's promise).
+            unsafe { self.device.cmd_update_buffer(self.cmd, self.buffer(r), offset + (k * LIMIT) as u64, chunk) };
+        }
+    }
+
     /// Binds `pipeline` with `bound`, pushes `push`, and dispatches over `width` x `height`.
     pub fn dispatch(
         &mut self,

@@ -197,6 +197,7 @@ pub(super) fn load(
                 glam::DQuat::from_array(r.map(f64::from)).normalize(),
                 DVec3::from(s.map(f64::from)),
             ),
+            world,
         });
         if let Some(mesh) = node.mesh() {
             let first = first_primitive[mesh.index()];

@@ -127,6 +127,15 @@ impl Mesh {
     pub fn triangle_count(&self) -> usize {
         self.indices.len() / 3
     }
+
+    /// Holds `posed` (its deformation's pose): positions, normals, and tangents where it has them.
+    fn take_pose(&mut self, posed: deform::Posed) {
+        self.positions = posed.positions;
+        self.normals = posed.normals;
+        if let Some(surface) = self.surface.as_mut().filter(|_| !posed.tangents.is_empty()) {
+            surface.tangents = posed.tangents;
+        }
+    }
 }
 
 /// What loading had to drop, so the CLI can report it.
@@ -276,12 +285,7 @@ impl Scene {
     /// hold (loading placed them at rest).
     pub(crate) fn settle_deformed(&mut self) {
         for (k, posed) in self.deformed(0.0) {
-            let mesh = &mut self.meshes[k];
-            mesh.positions = posed.positions;
-            mesh.normals = posed.normals;
-            if let Some(surface) = mesh.surface.as_mut().filter(|_| !posed.tangents.is_empty()) {
-                surface.tangents = posed.tangents;
-            }
+            self.meshes[k].take_pose(posed);
         }
     }
 
@@ -343,15 +347,8 @@ impl Scene {
         scene.camera = self.camera_at(t);
         scene.lights = self.lights_at(t);
         for (k, posed) in deformed {
-            let mesh = &mut scene.meshes[k];
-            mesh.positions = posed.positions;
-            mesh.normals = posed.normals;
-            if let Some(surface) = &mut mesh.surface {
-                if !posed.tangents.is_empty() {
-                    surface.tangents = posed.tangents;
-                }
-            }
-            mesh.deform = None;
+            scene.meshes[k].take_pose(posed);
+            scene.meshes[k].deform = None;
         }
         for (mesh, delta) in scene.meshes.iter_mut().zip(motion) {
             let Some(d) = delta else { continue };

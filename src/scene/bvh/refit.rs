@@ -20,10 +20,10 @@ use glam::{UVec4, Vec3, Vec3A, Vec4};
 
 use super::wide::{WideBvh, WideNode, CHILD_INNER, FIRST_MASK};
 
-/// The cost of a wide node step against one triangle test in `sah_cost`: wide.rs's
-/// `TRAVERSAL_COST` (private to it), with which the builder chose its leaves, so that a tree the
-/// builder just made is at the cost the builder minimised.
-pub const NODE_STEP_COST: f32 = 3.0;
+/// The cost of a wide node step against one triangle test in `sah_cost`: the builder's own
+/// (`wide::TRAVERSAL_COST`, with which it chose its leaves), so that a tree the builder just made
+/// is at the cost the builder minimised.
+pub const NODE_STEP_COST: f32 = super::wide::TRAVERSAL_COST;
 
 /// The most nodes a wide tree `WideBvh::from_bvh2` builds over `triangles` triangles can have:
 /// what a bottom tree that may be rebuilt needs room for (`levels::TwoLevel::build`).

@@ -126,7 +126,7 @@ struct Child(usize);
 /// Intersection cost of a triangle against the cost of a wide node step, for the leaf choice:
 /// a subtree becomes one leaf where testing all its triangles is expected to cost no more than
 /// walking it (the surface-area heuristic, with obvhs's collapse weight).
-const TRAVERSAL_COST: f32 = 3.0;
+pub(super) const TRAVERSAL_COST: f32 = 3.0;
 
 /// Binary trees with at least this many nodes are collapsed on several threads
 /// (below it, starting threads costs more than it saves).

@@ -34,6 +34,8 @@ pub(super) struct Visited {
     pub node: usize,
     pub parent: Option<usize>,
     pub rest: (DVec3, DQuat, DVec3),
+    /// Its transform in the file at rest (node to file).
+    pub world: glam::DMat4,
 }
 
 /// The rig of `visited` animated by the clip `clip` names in `document` (the first where

@@ -133,12 +133,7 @@ pub(super) fn link(
     for (k, v) in visited.iter().enumerate() {
         visit_of[v.node] = Some(k);
     }
-    // Each visited node's transform in the file at rest, parents first.
-    let mut world: Vec<DMat4> = Vec::with_capacity(visited.len());
-    for v in visited {
-        let local = DMat4::from_scale_rotation_translation(v.rest.2, v.rest.1, v.rest.0);
-        world.push(v.parent.map_or(local, |p| world[p] * local));
-    }
+    let world: Vec<DMat4> = visited.iter().map(|v| v.world).collect();
     let nodes: Vec<gltf::Node> = document.nodes().collect();
     for instance in instances.iter_mut() {
         let Some(rest) = rests.get(instance.primitive).cloned().flatten() else { continue };

@@ -167,6 +167,9 @@ pub enum DebugView {
     /// Light N's `hybrid` shadows: visibility in grey, the pixels rays were traced for in
     /// red-orange.
     Hybrid(u32),
+    /// What light N's shadow denoiser (`traced.denoise`) starts from: its rays' visibility
+    /// unrounded (red) and the mean distance to the blockers they hit (green, 0 where none did).
+    Denoise(u32),
     /// Traced ambient occlusion (`[ambient_occlusion]`): 1 open, 0 enclosed.
     AmbientOcclusion,
     /// Each pixel's screen-space motion since the previous frame (gbuffer.glsl's motion
@@ -178,14 +181,16 @@ impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
     pub const NAMES: &'static str =
         "albedo, normal, geometric-normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], \
-         hybrid[:N], ao, motion";
+         hybrid[:N], denoise[:N], ao, motion";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
         match self {
-            DebugView::Visibility(n) | DebugView::Cascades(n) | DebugView::Stencil(n) | DebugView::Hybrid(n) => {
-                Some(n as usize)
-            }
+            DebugView::Visibility(n)
+            | DebugView::Cascades(n)
+            | DebugView::Stencil(n)
+            | DebugView::Hybrid(n)
+            | DebugView::Denoise(n) => Some(n as usize),
             DebugView::ShadowMap { light, .. } => Some(light as usize),
             _ => None,
         }
@@ -216,6 +221,7 @@ impl std::str::FromStr for DebugView {
             "cascades" => Ok(DebugView::Cascades(light(arg)?)),
             "stencil" => Ok(DebugView::Stencil(light(arg)?)),
             "hybrid" => Ok(DebugView::Hybrid(light(arg)?)),
+            "denoise" => Ok(DebugView::Denoise(light(arg)?)),
             "ao" => plain(DebugView::AmbientOcclusion),
             "motion" => plain(DebugView::Motion),
             "shadow-map" => {
@@ -246,6 +252,7 @@ impl std::fmt::Display for DebugView {
             DebugView::Cascades(n) => write!(f, "cascades:{n}"),
             DebugView::Stencil(n) => write!(f, "stencil:{n}"),
             DebugView::Hybrid(n) => write!(f, "hybrid:{n}"),
+            DebugView::Denoise(n) => write!(f, "denoise:{n}"),
             DebugView::AmbientOcclusion => f.write_str("ao"),
             DebugView::Motion => f.write_str("motion"),
         }
@@ -411,6 +418,7 @@ mod tests {
             DebugView::ShadowMap { light: 1, layer: 2 },
             DebugView::Cascades(0),
             DebugView::Hybrid(2),
+            DebugView::Denoise(1),
         ] {
             assert_eq!(v.to_string().parse(), Ok(v));
         }

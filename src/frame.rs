@@ -61,6 +61,8 @@ pub struct FrameParts<'a> {
     /// The camera the previous frame was drawn with (world frame; `None`: this one's), which
     /// the motion channel measures from.
     pub previous_camera: Option<crate::scene::Camera>,
+    /// The shadow denoiser's history, where a denoised light keeps one.
+    pub denoise: Option<shadows::traced::denoise::DenoiseFrame>,
 }
 
 /// The scene's buffers as this frame's graph sees them.
@@ -91,6 +93,7 @@ pub fn build<'a>(
         lighting,
         compose,
         previous_camera,
+        denoise,
     } = parts;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let seen_by =
@@ -99,8 +102,11 @@ pub fn build<'a>(
     let camera = seen_by(&this_camera);
     // The motion channel, for the frames that show it: this frame's camera without jitter, and
     // the previous frame's.
-    let motion = (settings.debug_view == Some(crate::config::DebugView::Motion))
-        .then(|| camera.motion_block(&seen_by(&previous_camera.unwrap_or(this_camera)), extent.width, extent.height));
+    // The denoiser's history reprojects by it too.
+    let previous = seen_by(&previous_camera.unwrap_or(this_camera));
+    let motion = (settings.debug_view == Some(crate::config::DebugView::Motion) || denoise.is_some())
+        .then(|| camera.motion_block(&previous, extent.width, extent.height));
+    let denoise = denoise.map(|d| d.seen_before_from(previous.eye));
     // Anti-aliasing: an accumulated frame after the first samples elsewhere in its pixel.
     let camera = match history.as_ref().filter(|h| settings.antialias && h.frames > 0) {
         Some(h) => camera.jittered(accumulate::jitter(h.frames), extent.width, extent.height),
@@ -128,6 +134,7 @@ pub fn build<'a>(
         volumes,
         ray_query,
         rects,
+        denoise,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan)?;
     let occlusion = occlusion_stage(&mut g, pipelines, s, settings, &lighting, &gbuffer, &handles.bvh)?;

@@ -66,6 +66,8 @@ pub struct Renderer {
     /// The camera the last recorded frame was drawn with (world frame): where the next frame's
     /// motion channel measures camera motion from.
     previous_camera: std::sync::Mutex<Option<crate::scene::Camera>>,
+    /// The shadow denoiser's history between frames (`traced.denoise`).
+    denoise: std::sync::Mutex<crate::shadows::traced::denoise::DenoiseHistory>,
     pub gpu_scene: SceneGpu,
     scene: Scene,
     /// `scene` in the local frame the GPU sees, less what f32 cannot hold there
@@ -156,6 +158,7 @@ impl Renderer {
             motion: motion.map(std::sync::Mutex::new),
             update: Default::default(),
             previous_camera: std::sync::Mutex::new(None),
+            denoise: std::sync::Mutex::new(Default::default()),
             gpu_scene,
             scene,
             local,
@@ -346,6 +349,7 @@ impl Renderer {
         if (shadows_read && crate::shadows::traces_rays(&plan)) || lighting.occlusion.is_some() {
             self.place_casters();
         }
+        let plan_denoised = self.denoised_lights(&plan);
         let compose = match settings.debug_view {
             Some(_) => None,
             None => {
@@ -374,8 +378,45 @@ impl Renderer {
             lighting,
             compose,
             previous_camera: *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()),
+            denoise: self.prepare_denoise(settings, &plan_denoised)?,
         };
         Ok((crate::frame::build(parts, target, history)?, ray_query))
+    }
+
+    /// The lights `traced` denoises in a frame of `plan`, in the order it serves them, with
+    /// their parameters and what they are on the device (a change restarts their history).
+    fn denoised_lights(
+        &self,
+        plan: &crate::shadows::ShadowPlan,
+    ) -> Vec<(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)> {
+        use crate::shadows::traced::denoise;
+        let lights = crate::shading::gpu_lights(&self.gpu_scene.local_lights);
+        plan.served(ShadowMethod::Traced)
+            .iter()
+            .filter(|s| crate::shadows::rect_index(&self.gpu_scene, s.light).is_none())
+            .filter(|s| denoise::denoises(&self.gpu_scene, s))
+            .map(|s| {
+                let bytes = lights.get(s.light as usize).map(|l| bytemuck::bytes_of(l).to_vec()).unwrap_or_default();
+                (s.light, s.choice.traced, bytes)
+            })
+            .collect()
+    }
+
+    /// The denoiser's history for a frame of `settings` whose denoised lights are `lights`.
+    fn prepare_denoise(
+        &self,
+        settings: &RenderSettings,
+        lights: &[(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)],
+    ) -> GpuResult<Option<crate::shadows::traced::denoise::DenoiseFrame>> {
+        let extent = vk::Extent2D { width: settings.width, height: settings.height };
+        let mut history = self.denoise.lock().unwrap_or_else(|e| e.into_inner());
+        history.prepare(&self.ctx, extent, lights.to_vec(), self.motion.is_some(), glam::Vec3::ZERO)
+    }
+
+    /// Forgets the shadow denoiser's history: the next frame's denoised lights start afresh
+    /// (the bench scores each frame on its own rays).
+    pub fn restart_denoise(&self) {
+        self.denoise.lock().unwrap_or_else(|e| e.into_inner()).restart();
     }
 
     /// Where this renderer's passes get their pipelines.
@@ -482,6 +523,7 @@ impl Renderer {
         let (graph, traversal) = self.graph(settings, target, history)?;
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         self.gpu_scene.recorded();
+        self.denoise.lock().unwrap_or_else(|e| e.into_inner()).advance();
         *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) =
             Some(settings.camera.unwrap_or(self.scene.camera));
         if let Some(scene) = traversal {

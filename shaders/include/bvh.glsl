@@ -93,6 +93,12 @@ void bvh_slab(float base, float scale, uint q_lo, uint q_hi, float o, float inv,
 
 // Möller–Trumbore without back-face culling: shadows are cast by both faces. A NaN (from a
 // denormal determinant) falls through every comparison to a miss.
+#ifdef BVH_HIT_T
+// The t of the hit bvh_triangle_occludes found last (the includer defines BVH_HIT_T to read
+// it: the denoised trace's blocker distances). Two levels: the instance's rows are affine, so t
+// is the world ray's.
+float bvh_hit_t = 0.0;
+#endif
 bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
     // Its nine floats lie in the three texels from word 9i on (src/scene/bvh/wide.rs), selected
     // by where in the first texel they start: a vector indexed by a variable goes to scratch
@@ -127,10 +133,14 @@ bool bvh_triangle_occludes(uint i, vec3 origin, vec3 dir, float tmax) {
     }
     float t = dot(e2, q) * inv_det;
 #ifdef BVH_MASKED
-    return t > 0.0 && t < tmax && !bvh_mask_passes(i, u, v);
+    bool hit = t > 0.0 && t < tmax && !bvh_mask_passes(i, u, v);
 #else
-    return t > 0.0 && t < tmax;
+    bool hit = t > 0.0 && t < tmax;
 #endif
+#ifdef BVH_HIT_T
+    if (hit) bvh_hit_t = t;
+#endif
+    return hit;
 }
 
 // What a ray segment touching the node whose texels are `head`, `qxy` and `t2` goes on to: the

@@ -71,6 +71,7 @@ fn shader_view(view: DebugView) -> u32 {
         | DebugView::Cascades(_)
         | DebugView::Stencil(_)
         | DebugView::Hybrid(_)
+        | DebugView::Denoise(_)
         | DebugView::AmbientOcclusion => {
             unreachable!("a technique's own view")
         }

@@ -177,6 +177,9 @@ pub struct FrameInputs<'h, 'a> {
     pub ray_query: Option<&'a RayQueryScene>,
     /// The rect lights on the device, in scenes that have any.
     pub rects: Option<&'a RectsGpu>,
+    /// The shadow denoiser's history, where a denoised light keeps one
+    /// (`traced::denoise::DenoiseHistory::prepare`).
+    pub denoise: Option<traced::denoise::DenoiseFrame>,
 }
 
 /// What the techniques write.

@@ -12,6 +12,10 @@ layout(set = 0, binding = SHADOW_TLAS) uniform accelerationStructureEXT shadow_t
 // itself; a candidate that reaches this loop is an alpha-masked caster (the bottom level's
 // second, non-opaque geometry, whose primitives the masks list in order), confirmed unless its
 // alpha at the hit is below the cutoff, as the compute traversal decides.
+#ifdef RAY_QUERY_HIT_T
+// The t of the hit shadow_occluded found last (the denoised trace's blocker distances).
+float ray_query_hit_t = 0.0;
+#endif
 bool shadow_occluded(vec3 origin, vec3 dir, float tmax) {
     rayQueryEXT query;
     rayQueryInitializeEXT(query, shadow_tlas, gl_RayFlagsTerminateOnFirstHitEXT, 0xFFu, origin, 0.0, dir, tmax);
@@ -26,7 +30,11 @@ bool shadow_occluded(vec3 origin, vec3 dir, float tmax) {
             rayQueryConfirmIntersectionEXT(query);
         }
     }
-    return rayQueryGetIntersectionTypeEXT(query, true) != gl_RayQueryCommittedIntersectionNoneEXT;
+    bool hit = rayQueryGetIntersectionTypeEXT(query, true) != gl_RayQueryCommittedIntersectionNoneEXT;
+#ifdef RAY_QUERY_HIT_T
+    if (hit) ray_query_hit_t = rayQueryGetIntersectionTEXT(query, true);
+#endif
+    return hit;
 }
 
 #endif

@@ -7,7 +7,10 @@
 // analytic unshadowed shading, so it weighs each ray as that shading weighs its direction.
 //
 // Contract: before including, define `bool shadow_occluded(vec3 origin, vec3 dir, float tmax)`,
-// true when a caster lies on origin + t dir for t in (0, tmax).
+// true when a caster lies on origin + t dir for t in (0, tmax). TRACE_BLOCKERS (the denoised
+// variant, trace_blockers*.comp): also define `shadow_hit_t`, the t of the hit shadow_occluded
+// last found; the pass then writes the visibility unrounded with the mean distance to the
+// blockers its rays hit (0: none) into an RG16F layer, which the denoiser reads (denoise.glsl).
 #ifndef UMBRA_SHADOW_TRACE_BODY_GLSL
 #define UMBRA_SHADOW_TRACE_BODY_GLSL
 
@@ -21,7 +24,11 @@
 layout(set = 0, binding = SHADOW_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
 // The light's layer alone, bound through a view of that layer: other techniques may write the
 // other layers at the same time.
+#ifdef TRACE_BLOCKERS
+layout(set = 0, binding = SHADOW_VISIBILITY, rg16f) uniform writeonly image2D visibility;
+#else
 layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visibility;
+#endif
 
 // One light per dispatch: its layer of the visibility target.
 layout(push_constant) uniform Push {
@@ -70,8 +77,10 @@ float shadow_sample_weight(vec3 n, vec3 v, vec4 material, float metallic, vec3 d
 
 // The light's visibility at pixel `px`: the share of its rays that reach the light, a soft
 // light's in a penumbra each weighted by shadow_sample_weight; exactly 1 where all arrive, 0
-// where none do.
-float trace_pixel(uvec2 px) {
+// where none do. `blocker`: the mean distance along the rays that hit to what they hit (0 where
+// none did, -1 where no ray was counted; TRACE_BLOCKERS only, else 0).
+float trace_pixel(uvec2 px, out float blocker) {
+    blocker = 0.0;
     uint pixel = px.y * pc.dims.x + px.x;
     uint light = pc.dims.z;
     vec4 position = texelFetch(gbuffer_position, ivec2(px), 0);
@@ -121,7 +130,18 @@ float trace_pixel(uvec2 px) {
                     reached++;
                     if (TRACE_SOFT) open_rays[k >> 5u] |= 1u << (k & 31u);
                 }
+#ifdef TRACE_BLOCKERS
+                else {
+                    blocker += shadow_hit_t;
+                }
+#endif
             }
+#ifdef TRACE_BLOCKERS
+            // No ray above the horizon (a light straddling it, few rays): the pixel says nothing
+            // about its visibility, which the denoiser then takes from its neighbours.
+            if (counted > reached) blocker /= float(counted - reached);
+            if (counted == 0u) blocker = -1.0;
+#endif
             v = counted > 0u ? float(reached) / float(counted) : 0.0;
             // A penumbra (a hard light's one ray has none): the same rays again, weighed by
             // shadow_sample_weight (the ratio estimator). Where every counted ray arrives, or none
@@ -158,7 +178,8 @@ void main() {
     if (i >= list.count) return;
     uint p = list.pixels[i];
     uvec2 px = uvec2(p % pc.dims.x, p / pc.dims.x);
-    imageStore(visibility, ivec2(px), vec4(trace_pixel(px)));
+    float blocker;
+    imageStore(visibility, ivec2(px), vec4(trace_pixel(px, blocker)));
 }
 #else
 // The includer enables GL_KHR_shader_subgroup_basic (tile.glsl).
@@ -168,7 +189,9 @@ void main() {
     // One tile of the image per dispatch (long passes are cut so none runs for seconds).
     uvec2 px = tile_pixel() + uvec2(pc.frame.w & 0xFFFFu, pc.frame.w >> 16);
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
-    imageStore(visibility, ivec2(px), vec4(trace_pixel(px)));
+    float blocker;
+    float v = trace_pixel(px, blocker);
+    imageStore(visibility, ivec2(px), vec4(v, blocker, 0.0, 0.0));
 }
 #endif
 

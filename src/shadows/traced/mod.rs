@@ -9,6 +9,7 @@
 //! only this technique serves, have rays and a pass of their own (`rects`).
 
 
+pub mod denoise;
 pub mod params;
 pub mod rects;
 
@@ -18,8 +19,9 @@ use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 
 use super::volumes::VolumeScene;
-use super::{Casters, FrameInputs, Served, Walk};
-use crate::config::{ShadowChoice, ShadowMethod};
+use super::{Casters, FrameInputs, Served, ViewAnswer, Walk};
+use crate::gpu::SceneGpu;
+use crate::config::{DebugView, ShadowChoice, ShadowMethod};
 use crate::gpu::accel::RayQuerySlots;
 use crate::gpu::{BvhSlots, BvhVariant, CasterSlots, WalkBuild};
 use crate::graph::{layout_of, Access, Bound, Handle, ImageKind, RenderGraph};
@@ -68,6 +70,22 @@ impl super::Technique for Traced {
         vec![vec![]]
     }
 
+    fn debug_view(&self, view: DebugView, served: &[Served], scene: &SceneGpu) -> ViewAnswer {
+        match view {
+            DebugView::Denoise(light) => match served.iter().find(|s| s.light == light) {
+                Some(s) if denoise::denoises(scene, s) => ViewAnswer::Shown,
+                _ => ViewAnswer::NotServed(format!(
+                    "light {light}'s shadows are not denoised this frame (traced, soft, with traced.denoise)"
+                )),
+            },
+            _ => ViewAnswer::NotMine,
+        }
+    }
+
+    fn offers_view(&self, view: DebugView, _: bool) -> bool {
+        matches!(view, DebugView::Denoise(_))
+    }
+
     fn traces_rays(&self) -> bool {
         true
     }
@@ -91,13 +109,25 @@ impl super::Technique for Traced {
         // Rect lights (numbered after the others) have their own rays and pass.
         let (rects, lights): (Vec<Served>, Vec<Served>) =
             served.iter().partition(|s| super::rect_index(frame.scene, s.light).is_some());
+        // Denoised soft lights have rays and passes of their own (`denoise`).
+        let (denoised, lights): (Vec<Served>, Vec<Served>) =
+            lights.iter().partition(|s| denoise::denoises(frame.scene, s));
         if !lights.is_empty() {
             add(g, frame, casters, &lights, &mut targets.visibility)?;
+        }
+        let mut debug = None;
+        if !denoised.is_empty() {
+            let source = denoise::add(g, frame, casters, &denoised, &mut targets.visibility)?;
+            if let Some(crate::config::DebugView::Denoise(light)) = frame.debug_view {
+                if let Some(k) = denoised.iter().position(|s| s.light == light) {
+                    debug = Some(denoise::debug_view(g, frame, &source, k as u32)?);
+                }
+            }
         }
         if !rects.is_empty() {
             rects::add(g, frame, casters, &rects, targets)?;
         }
-        Ok(None)
+        Ok(debug)
     }
 }
 

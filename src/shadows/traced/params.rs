@@ -17,11 +17,19 @@ pub struct TracedParams {
     /// samples) is cut into tiles, so that no dispatch runs long enough to trip a desktop
     /// driver's watchdog (about 2 s). The image does not change.
     pub tile_rays: u32,
+    /// Soft shadows: filter each frame's visibility before compose (`denoise`): a spatial
+    /// filter as wide as the penumbra the rays' blockers say, guided by depth and normals, over
+    /// a history reprojected from the frames before (`history`).
+    pub denoise: bool,
+    /// With `denoise`: the most frames the history keeps while the view or the scene moves
+    /// (while everything stands still it keeps every frame, and the filter narrows as it
+    /// grows, so a still view converges to the undenoised mean). 0: spatial filter only.
+    pub history: u32,
 }
 
 impl Default for TracedParams {
     fn default() -> Self {
-        TracedParams { soft: None, spp: 8, tile_rays: DEFAULT_TILE_RAYS }
+        TracedParams { soft: None, spp: 8, tile_rays: DEFAULT_TILE_RAYS, denoise: false, history: DEFAULT_HISTORY }
     }
 }
 
@@ -30,6 +38,12 @@ impl Default for TracedParams {
 pub const DEFAULT_TILE_RAYS: u32 = 1 << 22;
 /// The smallest tile budget: one 8x8 workgroup of 256-sample pixels.
 pub const MIN_TILE_RAYS: u32 = 64 * MAX_SPP;
+
+/// Frames a moving view's denoising history keeps: about a quarter of a second at 60 Hz, the
+/// span over which temporal filters such as SVGF and SIGMA accumulate.
+pub const DEFAULT_HISTORY: u32 = 16;
+/// Most frames `history` may keep (the history counts frames in half floats).
+pub const MAX_HISTORY: u32 = 256;
 
 /// Most soft-shadow rays per pixel and frame (the visibility target resolves 1/255 steps).
 /// trace_body.glsl keeps a bit per ray for this many (`TRACE_MAX_SPP`): change both.
@@ -56,6 +70,11 @@ impl TracedParams {
         tiles
     }
 
+    /// Whether a light with (or without) a size gets its soft shadows denoised.
+    pub fn denoises(&self, light_has_size: bool) -> bool {
+        self.denoise && self.is_soft(light_has_size)
+    }
+
     /// Whether a light with (or without) a size gets soft shadows.
     pub fn is_soft(&self, light_has_size: bool) -> bool {
         self.soft.unwrap_or(light_has_size)
@@ -64,6 +83,9 @@ impl TracedParams {
     pub fn check(&self) -> Result<(), String> {
         if !(1..=MAX_SPP).contains(&self.spp) {
             return Err(format!("traced.spp is {}: it takes 1 to {MAX_SPP} rays per pixel and frame", self.spp));
+        }
+        if self.history > MAX_HISTORY {
+            return Err(format!("traced.history is {}: it keeps 0 to {MAX_HISTORY} frames", self.history));
         }
         if self.tile_rays < MIN_TILE_RAYS {
             return Err(format!("traced.tile_rays is {}: it takes at least {MIN_TILE_RAYS}", self.tile_rays));

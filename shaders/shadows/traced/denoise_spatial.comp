@@ -1,0 +1,79 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+#extension GL_KHR_shader_subgroup_basic : require
+// Shadow denoiser, spatial pass: one light's layer of the visibility target from the trace's
+// unrounded visibility and blocker distances, or from the history the temporal pass made of
+// them (denoise.glsl says how). Twin: shading::denoise::filter.
+#include "shadows/traced/traced_bindings.glsl"
+#include "lights.glsl"
+#include "shadows/traced/denoise.glsl"
+layout(local_size_x_id = 0, local_size_y_id = 1) in;
+#include "tile.glsl"
+
+// x: visibility, y: mean blocker distance (0: no ray hit one), z: frames (0 or 1: one)
+layout(set = 0, binding = DENOISE_SOURCE) uniform sampler2DArray source;
+layout(set = 0, binding = DENOISE_POSITION) uniform sampler2D gbuffer_position;
+layout(set = 0, binding = DENOISE_NORMAL) uniform sampler2D gbuffer_normal;
+layout(set = 0, binding = DENOISE_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
+// The light's layer alone, bound through a view of that layer.
+layout(set = 0, binding = DENOISE_VISIBILITY, r8) uniform writeonly image2D visibility;
+
+layout(push_constant) uniform Push {
+    uvec4 dims;  // x: width, y: height, z: the source's layer, w: the light
+    uvec4 frame; // x: frame index (the taps' rotation), y: rays per pixel and frame
+    vec4 eye;    // xyz: the camera; w: a pixel's width per unit of distance (2 tan(fov_y / 2) / height)
+} pc;
+
+bool inside(ivec2 q) {
+    return q.x >= 0 && q.y >= 0 && q.x < int(pc.dims.x) && q.y < int(pc.dims.y);
+}
+
+float denoise_pixel(ivec2 px) {
+    int layer = int(pc.dims.z);
+    vec4 centre = texelFetch(source, ivec3(px, layer), 0);
+    vec4 p = texelFetch(gbuffer_position, px, 0);
+    if (p.w <= 0.0) return centre.x;
+    vec3 n = normalize(texelFetch(gbuffer_normal, px, 0).xyz);
+    float footprint = pc.eye.w * length(p.xyz - pc.eye.xyz);
+    uint rotation = pc.frame.x & 3u;
+    // The blockers around: the mean distance of those on the pixel's surface.
+    float blockers = max(centre.y, 0.0);
+    float found = centre.y > 0.0 ? 1.0 : 0.0;
+    for (uint i = 0u; i < DENOISE_TAP_COUNT; i++) {
+        ivec2 q = denoise_tap(px, rotation, i, DENOISE_SEARCH);
+        if (!inside(q)) continue;
+        float b = texelFetch(source, ivec3(q, layer), 0).y;
+        if (!(b > 0.0)) continue;
+        vec4 pq = texelFetch(gbuffer_position, q, 0);
+        vec3 nq = normalize(texelFetch(gbuffer_normal, q, 0).xyz);
+        if (denoise_tap_weight(p.xyz, n, footprint, pq, nq) > 0.0) {
+            blockers += b;
+            found += 1.0;
+        }
+    }
+    float radius = found > 0.0 ? denoise_radius(lights[pc.dims.w], p.xyz, blockers / found, footprint, max(centre.z, 1.0) * float(pc.frame.y)) : 0.0;
+    // A pixel none of whose rays counted takes its neighbours' visibility.
+    bool known = centre.y >= 0.0;
+    if (!known) radius = max(radius, DENOISE_UNKNOWN_RADIUS);
+    if (radius < DENOISE_MIN_RADIUS) return centre.x;
+    float sum = known ? centre.x : 0.0;
+    float weight = known ? 1.0 : 0.0;
+    for (uint i = 0u; i < DENOISE_TAP_COUNT; i++) {
+        ivec2 q = denoise_tap(px, rotation, i, radius);
+        if (!inside(q)) continue;
+        vec4 s = texelFetch(source, ivec3(q, layer), 0);
+        if (!(s.y >= 0.0)) continue;
+        vec4 pq = texelFetch(gbuffer_position, q, 0);
+        vec3 nq = normalize(texelFetch(gbuffer_normal, q, 0).xyz);
+        float w = denoise_tap_weight(p.xyz, n, footprint, pq, nq);
+        sum += w * s.x;
+        weight += w;
+    }
+    return weight > 0.0 ? sum / weight : centre.x;
+}
+
+void main() {
+    uvec2 px = tile_pixel();
+    if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
+    imageStore(visibility, ivec2(px), vec4(denoise_pixel(ivec2(px))));
+}

@@ -1,0 +1,20 @@
+#version 460
+#extension GL_GOOGLE_include_directive : require
+// The denoise:N debug view: light N's rays as the denoiser starts from them, unrounded: (visibility,
+// mean blocker distance (0: no ray hit one), 0, 1).
+#include "shadows/traced/traced_bindings.glsl"
+layout(local_size_x_id = 0, local_size_y_id = 1) in;
+
+layout(set = 0, binding = DENOISE_SOURCE) uniform sampler2DArray source;
+layout(set = 0, binding = DENOISE_VIEW_OUTPUT, rgba32f) uniform writeonly image2D view;
+
+layout(push_constant) uniform Push {
+    uvec4 dims; // x: width, y: height, z: the light's layer of the source
+} pc;
+
+void main() {
+    uvec2 px = gl_GlobalInvocationID.xy;
+    if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
+    vec2 s = texelFetch(source, ivec3(px, int(pc.dims.z)), 0).xy;
+    imageStore(view, ivec2(px), vec4(s, 0.0, 1.0));
+}

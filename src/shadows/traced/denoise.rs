@@ -1,0 +1,446 @@
+//! `traced.denoise`: a shadow denoiser for soft traced visibility, a stage of `traced` run on
+//! each denoised light's rays before compose. The trace writes the light's visibility unrounded
+//! with the mean distance to the blockers its rays hit (trace_blockers*.comp); a temporal pass
+//! folds that into the light's history, reprojected by the motion channel and restarted where
+//! the surface was not seen before (denoise_temporal.comp); a spatial pass averages it over a
+//! disc as wide as half the penumbra the blockers imply, guided by depth and normals, narrowing
+//! as the history grows (denoise_spatial.comp, denoise.glsl), into the light's layer of the
+//! visibility target. CPU twins: `crate::shading::denoise`.
+//!
+//! The history outlives the frame (`DenoiseHistory`, owned by the renderer): two images of a
+//! layer per denoised light, read and written in turn, and two of each pixel's distance from the
+//! camera, which the next frame's disocclusion test compares against.
+
+use ash::vk;
+use glam::{UVec4, Vec3, Vec4};
+
+use super::{push_constants, Rays};
+use crate::gpu::WalkBuild;
+use crate::graph::{layout_of, Access, Bound, Handle, ImageKind, RenderGraph};
+use crate::passes::TILE;
+use crate::shadows::{Casters, FrameInputs, Served};
+use crate::vk::bindings::*;
+use crate::vk::{spirv, ComputePipeline, GpuContext, GpuResult, Image, ImageDesc, PipelineKey};
+
+/// The trace's unrounded visibility and blocker distance, a layer per denoised light.
+pub const SOURCE_FORMAT: vk::Format = vk::Format::R16G16_SFLOAT;
+/// The history: visibility, blocker distance, frames.
+pub const HISTORY_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
+/// Each pixel's distance from the camera (0: background), for the next frame.
+pub const DEPTH_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
+
+/// How the history images are left between frames.
+const HISTORY_ACCESS: Access = Access::ComputeShaderReadSampledImage;
+
+/// An image the history owns, as a frame's graph imports it.
+#[derive(Clone, Copy, Debug)]
+pub struct RawImage {
+    desc: ImageDesc,
+    raw: vk::Image,
+    view: vk::ImageView,
+    usage: vk::ImageUsageFlags,
+}
+
+impl RawImage {
+    fn of(image: &Image) -> RawImage {
+        RawImage { desc: image.desc, raw: image.raw, view: image.view, usage: image.usage }
+    }
+
+    fn import(&self, g: &mut RenderGraph<'_>, name: &'static str, fresh: bool) -> Handle<ImageKind> {
+        let last = if fresh { Access::Nothing } else { HISTORY_ACCESS };
+        g.import_image(name, self.desc, (self.raw, self.view, self.usage), last)
+    }
+}
+
+/// What one frame's temporal pass reads and writes: last frame's history and distances, and
+/// this frame's; which lights' histories hold their previous frame.
+#[derive(Clone, Debug)]
+pub struct DenoiseFrame {
+    history: RawImage,
+    history_out: RawImage,
+    depth: RawImage,
+    depth_out: RawImage,
+    /// Never used by a frame yet (no layout, nothing to wait for).
+    fresh: [bool; 2],
+    /// Per denoised light (in `served` order), whether its history holds its previous frame.
+    valid: Vec<bool>,
+    /// Something in the scene moves (shadows may move where pixels stand still).
+    moving: bool,
+    /// The previous frame's camera (scene-local).
+    pub previous_eye: Vec3,
+    /// Frames recorded since the history started, which offset the denoised rays' seeds: a
+    /// moving view's frames (which the accumulator does not count) each draw fresh rays.
+    pub frames: u32,
+}
+
+impl DenoiseFrame {
+    /// The frame whose previous frame's camera was at `eye` (scene-local).
+    pub fn seen_before_from(self, eye: Vec3) -> DenoiseFrame {
+        DenoiseFrame { previous_eye: eye, ..self }
+    }
+}
+
+/// The lights that get the temporal pass this frame, with what restarts their history when it
+/// changes: the light itself (moved, turned) and its parameters.
+#[derive(Clone, Debug, PartialEq)]
+struct Key {
+    extent: (u32, u32),
+    lights: Vec<(u32, crate::shadows::traced::params::TracedParams)>,
+}
+
+/// The denoiser's history between frames; see the module's doc.
+#[derive(Default)]
+pub struct DenoiseHistory {
+    images: Option<[[Image; 2]; 2]>,
+    /// Whether each pair's image has been used by a recorded frame.
+    used: [bool; 2],
+    /// Which of each pair this frame writes.
+    next: usize,
+    key: Option<Key>,
+    /// Each light's bytes on the device at the last recorded frame (in `key` order).
+    lights: Vec<Vec<u8>>,
+    /// What `prepare` made, committed by `advance` once the frame is recorded.
+    pending: Option<(Key, Vec<Vec<u8>>)>,
+    /// Frames recorded since the history started.
+    frames: u32,
+}
+
+/// Whether `traced` denoises `served`'s shadows (soft, shadowed, not a rect light).
+pub fn denoises(scene: &crate::gpu::SceneGpu, served: &Served) -> bool {
+    let light = scene.local_lights.get(served.light as usize);
+    !served.unshadowed && light.is_some_and(|l| served.choice.traced.denoises(l.has_size()))
+}
+
+impl DenoiseHistory {
+    /// The images and flags for a frame of `extent` whose denoised lights are `lights` (light
+    /// number, parameters, what it is on the device), in the order `traced` serves them; `None`
+    /// when none keeps a history. Images are made (and the history restarted) when the size or
+    /// the lights change; a light that moved or changed restarts its own.
+    pub fn prepare(
+        &mut self,
+        ctx: &std::sync::Arc<GpuContext>,
+        extent: vk::Extent2D,
+        lights: Vec<(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)>,
+        moving: bool,
+        previous_eye: Vec3,
+    ) -> GpuResult<Option<DenoiseFrame>> {
+        if lights.iter().all(|l| l.1.history == 0) {
+            self.pending = None;
+            return Ok(None);
+        }
+        let key = Key { extent: (extent.width, extent.height), lights: lights.iter().map(|l| (l.0, l.1)).collect() };
+        let layers = lights.len() as u32;
+        let fits = self.images.as_ref().is_some_and(|[h, _]| {
+            h[0].desc.width == extent.width && h[0].desc.height == extent.height && h[0].desc.layers == layers
+        });
+        if !fits {
+            if self.images.is_some() {
+                // SAFETY: the device is idle before the images that frames in flight may still
+                // use are destroyed (a resize, a change of lights: rare).
+                unsafe { ctx.device.device_wait_idle() }
+                    .map_err(|result| crate::vk::GpuError::Vk { call: "vkDeviceWaitIdle", result })?;
+            }
+            let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED;
+            let history = ImageDesc::array(HISTORY_FORMAT, extent.width, extent.height, layers);
+            let depth = ImageDesc::new(DEPTH_FORMAT, extent.width, extent.height);
+            let make = |name, desc| Image::new(ctx, name, desc, usage);
+            self.images = Some([
+                [make("denoise history", history)?, make("denoise history", history)?],
+                [make("denoise distances", depth)?, make("denoise distances", depth)?],
+            ]);
+            self.used = [false; 2];
+            self.key = None;
+        }
+        let same = self.key.as_ref() == Some(&key);
+        if !same {
+            self.frames = 0;
+        }
+        let valid = (0..lights.len()).map(|i| same && self.lights.get(i) == Some(&lights[i].2)).collect();
+        let [history, depth] = self.images.as_ref().expect("made above");
+        let (read, write) = (1 - self.next, self.next);
+        self.pending = Some((key, lights.into_iter().map(|l| l.2).collect()));
+        Ok(Some(DenoiseFrame {
+            history: RawImage::of(&history[read]),
+            history_out: RawImage::of(&history[write]),
+            depth: RawImage::of(&depth[read]),
+            depth_out: RawImage::of(&depth[write]),
+            fresh: [!self.used[read], !self.used[write]],
+            valid,
+            moving,
+            previous_eye,
+            frames: self.frames,
+        }))
+    }
+
+    /// The frame prepared last was recorded: its history is the next frame's.
+    pub fn advance(&mut self) {
+        if let Some((key, lights)) = self.pending.take() {
+            self.used[self.next] = true;
+            self.next = 1 - self.next;
+            self.frames = self.frames.wrapping_add(1);
+            self.key = Some(key);
+            self.lights = lights;
+        }
+    }
+
+    /// Forgets the history (the next frame starts afresh); the images stay.
+    pub fn restart(&mut self) {
+        self.key = None;
+        self.pending = None;
+    }
+}
+
+/// The spatial pass's push constants (denoise_spatial.comp's `Push`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct SpatialPush {
+    dims: UVec4,
+    frame: UVec4,
+    eye: Vec4,
+}
+
+/// The temporal pass's push constants (denoise_temporal.comp's `Push`).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
+struct TemporalPush {
+    dims: UVec4,
+    eye: Vec4,
+    previous_eye: Vec4,
+}
+
+const HISTORY_VALID: u32 = 1;
+const WRITE_DEPTH: u32 = 2;
+const CLAMP: u32 = 4;
+
+/// A pixel's width per unit of distance from the camera.
+fn pixel_angle(frame: &FrameInputs) -> f32 {
+    2.0 * (frame.camera.fov_y * 0.5).tan() / frame.extent.height as f32
+}
+
+/// The denoised lights `served`: their rays into a layer each of the unrounded target, then
+/// (with a history) the temporal pass, then the spatial pass into their visibility layers.
+/// Returns the unrounded target (the `denoise` debug view reads it).
+pub fn add<'a>(
+    g: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    casters: &Casters<'_>,
+    served: &[Served],
+    visibility: &mut Handle<ImageKind>,
+) -> GpuResult<Handle<ImageKind>> {
+    let extent = frame.extent;
+    let desc = crate::graph::ImageDesc::array(SOURCE_FORMAT, extent.width, extent.height, served.len() as u32);
+    let mut source = g.create_image("shadow trace (unrounded)", desc);
+    let seed = frame.frame_index.wrapping_add(frame.denoise.as_ref().map_or(0, |d| d.frames));
+    trace(g, frame, casters, served, seed, &mut source)?;
+    let history = match (&frame.denoise, frame.gbuffer.motion.as_ref()) {
+        (Some(state), Some(motion)) => Some(temporal(g, frame, state, motion, served, &source)?),
+        _ => None,
+    };
+    spatial(g, frame, served, seed, history.as_ref().unwrap_or(&source), visibility)?;
+    Ok(source)
+}
+
+/// The rays of `served` (soft, denoised lights), layer k for light k.
+fn trace<'a>(
+    g: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    casters: &Casters<'_>,
+    served: &[Served],
+    seed: u32,
+    source: &mut Handle<ImageKind>,
+) -> GpuResult<()> {
+    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
+    let mut pass = g.add_pass("shadow trace (denoised)");
+    let lights: Vec<String> = served.iter().map(|s| s.light.to_string()).collect();
+    pass.detail(format!("light {}", lights.join(", ")));
+    let mut bound = vec![
+        (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
+        (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
+        (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, Access::ComputeShaderReadSampledImage))),
+        (SHADOW_MATERIAL, Bound::Image(pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage))),
+        (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
+    ];
+    bound.extend(casters.bind(&mut pass, &super::CASTER_SLOTS));
+    let walk = casters.walk(&super::CASTER_SLOTS);
+    let mut work: Vec<(&ComputePipeline, super::Push, Bound, [u32; 2])> = Vec::new();
+    for (k, s) in served.iter().enumerate() {
+        let rays = super::rays(s, &frame.scene.local_lights[s.light as usize]);
+        let layer = Bound::Image(pass.write_layer(source, k as u32, Access::ComputeShaderWrite));
+        let layout = layout_of(&[bound.as_slice(), &[(SHADOW_VISIBILITY, layer)]].concat());
+        let pipeline = blockers_pipeline(frame, walk, rays, &layout)?;
+        let push = push_constants(extent, seed, frame.camera.eye, s, rays);
+        for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
+            let mut push = push;
+            push.frame.w = x | y << 16;
+            work.push((pipeline, push, layer, [w, h]));
+        }
+    }
+    pass.render(move |ctx| {
+        let mut bound = bound;
+        for (pipeline, push, target, [w, h]) in &work {
+            bound.push((SHADOW_VISIBILITY, *target));
+            ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(push), *w, *h)?;
+            bound.pop();
+        }
+        Ok(())
+    });
+    Ok(())
+}
+
+/// The trace that also writes blocker distances (trace_blockers*.comp), from the cache.
+fn blockers_pipeline<'a>(
+    frame: &FrameInputs<'_, 'a>,
+    walk: WalkBuild,
+    rays: Rays,
+    layout: &[(u32, crate::vk::DescriptorKind)],
+) -> GpuResult<&'a ComputePipeline> {
+    let soft = super::is_soft(rays);
+    let key = PipelineKey::new("shadow trace (denoised)", walk.bits() | (soft as u32) << 3);
+    frame.pipelines.compute(key, layout, |ctx, layout| {
+        let (name, spirv) = match walk {
+            WalkBuild::Compute(variant) => {
+                let names = [
+                    "shadow trace (denoised)",
+                    "shadow trace (denoised, alpha masks)",
+                    "shadow trace (denoised, two levels)",
+                    "shadow trace (denoised, alpha masks, two levels)",
+                ];
+                (variant.name(names), variant.spirv(spirv::SHADOWS_TRACED_TRACE_BLOCKERS_COMP_WALKS))
+            }
+            WalkBuild::RayQuery { masked } => {
+                let spirv = if masked {
+                    spirv::SHADOWS_TRACED_TRACE_RQ_BLOCKERS_COMP_MASKED
+                } else {
+                    spirv::SHADOWS_TRACED_TRACE_RQ_BLOCKERS_COMP
+                };
+                (if masked { "shadow trace (denoised, ray query, alpha masks)" } else { "shadow trace (denoised, ray query)" }, spirv)
+            }
+        };
+        ComputePipeline::specialized(ctx, name, spirv, layout, std::mem::size_of::<super::Push>() as u32, TILE, &[soft as u32])
+    })
+}
+
+/// Folds each light's rays into its history; returns this frame's history.
+fn temporal<'a>(
+    g: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    state: &DenoiseFrame,
+    motion: &Handle<ImageKind>,
+    served: &[Served],
+    source: &Handle<ImageKind>,
+) -> GpuResult<Handle<ImageKind>> {
+    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
+    let history = state.history.import(g, "denoise history (previous)", state.fresh[0]);
+    let mut history_out = state.history_out.import(g, "denoise history", state.fresh[1]);
+    let depth = state.depth.import(g, "denoise distances (previous)", state.fresh[0]);
+    let mut depth_out = state.depth_out.import(g, "denoise distances", state.fresh[1]);
+    let mut pass = g.add_pass("shadow denoise (history)");
+    let bound = vec![
+        (DENOISE_SOURCE, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_MOTION, Bound::Image(pass.read(motion, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_HISTORY, Bound::Image(pass.read(&history, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_HISTORY_OUT, Bound::Image(pass.write(&mut history_out, Access::ComputeShaderWrite))),
+        (DENOISE_DEPTH, Bound::Image(pass.read(&depth, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_DEPTH_OUT, Bound::Image(pass.write(&mut depth_out, Access::ComputeShaderWrite))),
+    ];
+    let key = PipelineKey::new("shadow denoise (history)", 0);
+    let pipeline = frame.pipelines.compute(key, &layout_of(&bound), |ctx, layout| {
+        let push = std::mem::size_of::<TemporalPush>() as u32;
+        ComputePipeline::new(ctx, "shadow denoise (history)", spirv::SHADOWS_TRACED_DENOISE_TEMPORAL_COMP, layout, push, TILE)
+    })?;
+    let angle = pixel_angle(frame);
+    let mut pushes = Vec::new();
+    for (k, s) in served.iter().enumerate() {
+        let cap = s.choice.traced.history;
+        let valid = state.valid.get(k).copied().unwrap_or(false) && cap > 0;
+        let flags = (valid as u32) * HISTORY_VALID | ((k == 0) as u32) * WRITE_DEPTH | (state.moving as u32) * CLAMP;
+        pushes.push(TemporalPush {
+            dims: UVec4::new(extent.width, extent.height, k as u32, flags),
+            eye: frame.camera.eye.extend(angle),
+            previous_eye: state.previous_eye.extend(cap.max(1) as f32),
+        });
+    }
+    pass.render(move |ctx| {
+        for push in &pushes {
+            ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(push), extent.width, extent.height)?;
+        }
+        Ok(())
+    });
+    g.export_version(&depth_out, HISTORY_ACCESS);
+    g.export_version(&history_out, HISTORY_ACCESS);
+    Ok(history_out)
+}
+
+/// Each light's layer of `visibility` from its layer of `source` (the rays, or the history).
+fn spatial<'a>(
+    g: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    served: &[Served],
+    seed: u32,
+    source: &Handle<ImageKind>,
+    visibility: &mut Handle<ImageKind>,
+) -> GpuResult<()> {
+    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
+    let mut pass = g.add_pass("shadow denoise");
+    let bound = vec![
+        (DENOISE_SOURCE, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
+    ];
+    let angle = pixel_angle(frame);
+    let mut work = Vec::new();
+    let mut layout = None;
+    for (k, s) in served.iter().enumerate() {
+        let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
+        layout.get_or_insert_with(|| layout_of(&[bound.as_slice(), &[(DENOISE_VISIBILITY, layer)]].concat()));
+        let push = SpatialPush {
+            dims: UVec4::new(extent.width, extent.height, k as u32, s.light),
+            frame: UVec4::new(seed, s.choice.traced.spp.clamp(1, super::params::MAX_SPP), 0, 0),
+            eye: frame.camera.eye.extend(angle),
+        };
+        work.push((push, layer));
+    }
+    let layout = layout.expect("a denoised light");
+    let key = PipelineKey::new("shadow denoise", 0);
+    let pipeline = frame.pipelines.compute(key, &layout, |ctx, layout| {
+        let push = std::mem::size_of::<SpatialPush>() as u32;
+        ComputePipeline::new(ctx, "shadow denoise", spirv::SHADOWS_TRACED_DENOISE_SPATIAL_COMP, layout, push, TILE)
+    })?;
+    pass.render(move |ctx| {
+        let mut bound = bound;
+        for (push, target) in &work {
+            bound.push((DENOISE_VISIBILITY, *target));
+            ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(push), extent.width, extent.height)?;
+            bound.pop();
+        }
+        Ok(())
+    });
+    Ok(())
+}
+
+/// The `denoise:N` view: layer `k` of the unrounded rays, as (visibility, blocker distance, 0, 1).
+pub fn debug_view<'a>(
+    g: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    source: &Handle<ImageKind>,
+    k: u32,
+) -> GpuResult<Handle<ImageKind>> {
+    let extent = frame.extent;
+    let desc = crate::graph::ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
+    let mut out = g.create_image("debug view", desc);
+    let mut pass = g.add_pass("denoise view");
+    let bound = [
+        (DENOISE_SOURCE, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
+        (DENOISE_VIEW_OUTPUT, Bound::Image(pass.write(&mut out, Access::ComputeShaderWrite))),
+    ];
+    let key = PipelineKey::new("denoise view", 0);
+    let pipeline = frame.pipelines.compute(key, &layout_of(&bound), |ctx, layout| {
+        ComputePipeline::new(ctx, "denoise view", spirv::SHADOWS_TRACED_DENOISE_VIEW_COMP, layout, 16, TILE)
+    })?;
+    let push = UVec4::new(extent.width, extent.height, k, 0);
+    pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
+    Ok(out)
+}

@@ -349,7 +349,13 @@ impl Renderer {
         if (shadows_read && crate::shadows::traces_rays(&plan)) || lighting.occlusion.is_some() {
             self.place_casters();
         }
-        let plan_denoised = self.denoised_lights(&plan);
+        // The denoiser's history goes on only in frames whose denoised passes run: frames that
+        // read their shadows, and in a light's view, that light's.
+        let mut plan_denoised = self.denoised_lights(&plan);
+        let view_light = settings.debug_view.and_then(|v| v.light());
+        if !shadows_read || view_light.is_some_and(|l| plan_denoised.iter().all(|d| d.0 as usize != l)) {
+            plan_denoised.clear();
+        }
         let compose = match settings.debug_view {
             Some(_) => None,
             None => {

@@ -652,6 +652,8 @@ fn score(
     let serving = served(renderer, &measured.settings)?;
     let mut visibility = Vec::new();
     for (n, &choice) in point.choices.iter().enumerate().take(total) {
+        // Each frame scored on its own rays: a denoised light's history starts afresh.
+        renderer.restart_denoise();
         visibility.push(reference::light_visibility(renderer, width, height, n, choice, 0)?);
     }
     let mut display = measured.display.clone();
@@ -662,6 +664,7 @@ fn score(
         single.timestamps = false;
         // At the instant the scene is posed at now (the one scored).
         single.time = None;
+        renderer.restart_denoise();
         display = reference::display_bytes(renderer.render(&single)?);
     }
     let flip = flip_mean(&reference.display, &display, width, height);

@@ -20,6 +20,7 @@ mod bvh_gpu;
 mod cli;
 mod data_uris;
 mod deforming;
+mod denoise;
 mod depth;
 mod devices;
 mod double_sided;

@@ -7,8 +7,8 @@
 // history grows, so that a still view converges to the rays' own mean. Taps on another surface
 // (off the pixel's tangent plane by more than two pixels' width there, or turned away by more
 // than about 25 degrees) weigh nothing, so the filter does not cross depth or crease edges; where
-// no tap found a blocker the pixel is left as traced, and where every tap agrees (all lit, all
-// shadowed) the weighted mean is that value exactly.
+// no ray around found a blocker the pixel is left as traced, and where every tap agrees (all lit,
+// all shadowed) the weighted mean is that value exactly.
 #ifndef UMBRA_DENOISE_GLSL
 #define UMBRA_DENOISE_GLSL
 
@@ -21,8 +21,10 @@ const vec2 DENOISE_TAPS[64] = vec2[](
     vec2(-0.172155, 0.040159), vec2(0.172883, -0.252708), vec2(0.055801, 0.391326), vec2(-0.361452, -0.296820), vec2(0.529554, -0.028678), vec2(-0.410272, 0.418840), vec2(0.021308, -0.637021), vec2(0.445341, 0.520020), vec2(-0.723542, -0.087959), vec2(0.626842, -0.448129), vec2(-0.167692, 0.792546), vec2(-0.430866, -0.730140), vec2(0.845432, 0.257867), vec2(-0.828871, 0.395882), vec2(0.356274, -0.882791), vec2(0.344923, 0.921834)
 );
 const uint DENOISE_TAP_COUNT = 16u;
-// How far (pixels) the taps look for blockers around a pixel whose own rays hit none.
-const float DENOISE_SEARCH = 8.0;
+// How far (pixels) the first DENOISE_SEARCH_TAPS taps look for blockers (the spiral's first 8
+// points reach 0.73 of its radius).
+const float DENOISE_SEARCH = 10.0;
+const uint DENOISE_SEARCH_TAPS = 8u;
 // The filter's radius as a share of the penumbra's width.
 const float DENOISE_WIDTH_SHARE = 0.5;
 // The widest the filter gets (pixels).

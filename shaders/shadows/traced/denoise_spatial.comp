@@ -36,20 +36,16 @@ float denoise_pixel(ivec2 px) {
     vec3 n = normalize(texelFetch(gbuffer_normal, px, 0).xyz);
     float footprint = pc.eye.w * length(p.xyz - pc.eye.xyz);
     uint rotation = pc.frame.x & 3u;
-    // The blockers around: the mean distance of those on the pixel's surface.
+    // The blockers around: the mean distance the rays of the pixel and of the search's taps
+    // found (taps on other surfaces too: only the pixel's own surface is filtered, and each
+    // tap's geometry would cost two fetches more, lanes taking the branch or not).
     float blockers = max(centre.y, 0.0);
     float found = centre.y > 0.0 ? 1.0 : 0.0;
-    for (uint i = 0u; i < DENOISE_TAP_COUNT; i++) {
-        ivec2 q = denoise_tap(px, rotation, i, DENOISE_SEARCH);
-        if (!inside(q)) continue;
+    for (uint i = 0u; i < DENOISE_SEARCH_TAPS; i++) {
+        ivec2 q = clamp(denoise_tap(px, rotation, i, DENOISE_SEARCH), ivec2(0), ivec2(pc.dims.xy) - 1);
         float b = texelFetch(source, ivec3(q, layer), 0).y;
-        if (!(b > 0.0)) continue;
-        vec4 pq = texelFetch(gbuffer_position, q, 0);
-        vec3 nq = normalize(texelFetch(gbuffer_normal, q, 0).xyz);
-        if (denoise_tap_weight(p.xyz, n, footprint, pq, nq) > 0.0) {
-            blockers += b;
-            found += 1.0;
-        }
+        blockers += max(b, 0.0);
+        found += b > 0.0 ? 1.0 : 0.0;
     }
     float radius = found > 0.0 ? denoise_radius(lights[pc.dims.w], p.xyz, blockers / found, footprint, max(centre.z, 1.0) * float(pc.frame.y)) : 0.0;
     // A pixel none of whose rays counted takes its neighbours' visibility.

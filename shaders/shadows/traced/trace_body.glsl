@@ -33,7 +33,7 @@ layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visib
 // One light per dispatch: its layer of the visibility target.
 layout(push_constant) uniform Push {
     uvec4 dims;  // x: width, y: height, z: the light, w: rays per pixel (0: none, facing only)
-    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: unused (TRACE_SOFT says); w: the tile's origin, x | y << 16
+    uvec4 frame; // x: frame index, seeding the samples; y: the light's layer (unused: the bound view is that layer); z: TRACE_BLOCKERS: frames since the denoiser's history started; w: the tile's origin, x | y << 16
     vec4 eye;    // xyz: the camera (soft lights' view vector)
 } pc;
 
@@ -56,6 +56,14 @@ const uvec2 SOFT_R2 = uvec2(3242174889u, 2447445414u);
 // first spp points shifted by a random offset mod 1 (Cranley-Patterson); new jitter and offsets
 // each frame. Twin of shading::soft_sample, which says more.
 vec2 soft_sample(uint pixel, uint light, uint spp, uint k) {
+#ifdef TRACE_BLOCKERS
+    // Denoised: successive frames of a history go on along one R2 sequence per pixel (frame.z:
+    // frames since the history started), so a still pixel's mean over frames is as evenly
+    // spread as one frame's spp rays would be.
+    uvec2 start = uvec2(random2(uvec3(pixel, pc.frame.x, light)) * 16777216.0) << 8u;
+    uvec2 point = start + (pc.frame.z * spp + k) * SOFT_R2;
+    return vec2(hash_to_unit(point.x), hash_to_unit(point.y));
+#endif
     uint grid = uint(sqrt(float(spp)) + 0.5);
     if (grid * grid == spp) {
         vec2 s = random2(uvec3(pixel, pc.frame.x, light * spp + k));

@@ -68,8 +68,9 @@ pub struct DenoiseFrame {
     moving: bool,
     /// The previous frame's camera (scene-local).
     pub previous_eye: Vec3,
-    /// Frames recorded since the history started, which offset the denoised rays' seeds: a
-    /// moving view's frames (which the accumulator does not count) each draw fresh rays.
+    /// Frames recorded since the history started: the denoised rays go on along their sequence
+    /// of points over the light by this many frames (a moving view's frames, which the
+    /// accumulator does not count, each draw fresh rays).
     pub frames: u32,
 }
 
@@ -217,36 +218,44 @@ fn pixel_angle(frame: &FrameInputs) -> f32 {
     2.0 * (frame.camera.fov_y * 0.5).tan() / frame.extent.height as f32
 }
 
+/// What the `denoise:N` view reads.
+pub struct View {
+    image: Handle<ImageKind>,
+    from_history: bool,
+}
+
 /// The denoised lights `served`: their rays into a layer each of the unrounded target, then
 /// (with a history) the temporal pass, then the spatial pass into their visibility layers.
-/// Returns the unrounded target (the `denoise` debug view reads it).
+/// Returns what the `denoise:N` view shows: the history where there is one, else the rays.
 pub fn add<'a>(
     g: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     casters: &Casters<'_>,
     served: &[Served],
     visibility: &mut Handle<ImageKind>,
-) -> GpuResult<Handle<ImageKind>> {
+) -> GpuResult<View> {
     let extent = frame.extent;
     let desc = crate::graph::ImageDesc::array(SOURCE_FORMAT, extent.width, extent.height, served.len() as u32);
     let mut source = g.create_image("shadow trace (unrounded)", desc);
-    let seed = frame.frame_index.wrapping_add(frame.denoise.as_ref().map_or(0, |d| d.frames));
-    trace(g, frame, casters, served, seed, &mut source)?;
+    let frames = frame.denoise.as_ref().map_or(0, |d| d.frames);
+    trace(g, frame, casters, served, frames, &mut source)?;
+    let seed = frame.frame_index.wrapping_add(frames);
     let history = match (&frame.denoise, frame.gbuffer.motion.as_ref()) {
         (Some(state), Some(motion)) => Some(temporal(g, frame, state, motion, served, &source)?),
         _ => None,
     };
     spatial(g, frame, served, seed, history.as_ref().unwrap_or(&source), visibility)?;
-    Ok(source)
+    Ok(View { from_history: history.is_some(), image: history.unwrap_or(source) })
 }
 
-/// The rays of `served` (soft, denoised lights), layer k for light k.
+/// The rays of `served` (soft, denoised lights), layer k for light k, `frames` into the history
+/// (successive frames go on along one sequence of points over each light).
 fn trace<'a>(
     g: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
     casters: &Casters<'_>,
     served: &[Served],
-    seed: u32,
+    frames: u32,
     source: &mut Handle<ImageKind>,
 ) -> GpuResult<()> {
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
@@ -268,7 +277,8 @@ fn trace<'a>(
         let layer = Bound::Image(pass.write_layer(source, k as u32, Access::ComputeShaderWrite));
         let layout = layout_of(&[bound.as_slice(), &[(SHADOW_VISIBILITY, layer)]].concat());
         let pipeline = blockers_pipeline(frame, walk, rays, &layout)?;
-        let push = push_constants(extent, seed, frame.camera.eye, s, rays);
+        let mut push = push_constants(extent, frame.frame_index, frame.camera.eye, s, rays);
+        push.frame.z = frames;
         for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
             let mut push = push;
             push.frame.w = x | y << 16;
@@ -421,13 +431,15 @@ fn spatial<'a>(
     Ok(())
 }
 
-/// The `denoise:N` view: layer `k` of the unrounded rays, as (visibility, blocker distance, 0, 1).
+/// The `denoise:N` view: layer `k` of the history (or the rays, without one), as (visibility,
+/// blocker distance, frames, 1).
 pub fn debug_view<'a>(
     g: &mut RenderGraph<'a>,
     frame: &FrameInputs<'_, 'a>,
-    source: &Handle<ImageKind>,
+    source: &View,
     k: u32,
 ) -> GpuResult<Handle<ImageKind>> {
+    let (source, from_history) = (&source.image, source.from_history);
     let extent = frame.extent;
     let desc = crate::graph::ImageDesc::new(crate::passes::RADIANCE_FORMAT, extent.width, extent.height);
     let mut out = g.create_image("debug view", desc);
@@ -440,7 +452,7 @@ pub fn debug_view<'a>(
     let pipeline = frame.pipelines.compute(key, &layout_of(&bound), |ctx, layout| {
         ComputePipeline::new(ctx, "denoise view", spirv::SHADOWS_TRACED_DENOISE_VIEW_COMP, layout, 16, TILE)
     })?;
-    let push = UVec4::new(extent.width, extent.height, k, 0);
+    let push = UVec4::new(extent.width, extent.height, k, from_history as u32);
     pass.render(move |ctx| ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(&push), extent.width, extent.height));
     Ok(out)
 }

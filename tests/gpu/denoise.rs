@@ -1,0 +1,301 @@
+//! The shadow denoiser (`traced.denoise`) on lavapipe: the GPU filter against its CPU twin on the
+//! same inputs (the `denoise:N` view and the G-buffer's views); outside penumbrae and at contact
+//! shadows the denoised visibility is the rays' exactly; a still view's history converges to
+//! the converged visibility, below what 8 undenoised rays in one frame reach once it holds as many; a history is restarted where a
+//! moving object uncovers the floor. Validation and synchronization validation on.
+
+use crate::common;
+
+use std::path::Path;
+
+use glam::{Vec3, Vec4};
+use umbra::config::DebugView;
+use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
+use umbra::scene::Scene;
+use umbra::shading::denoise::{filter, SpatialInputs};
+use umbra::shading::gpu_lights;
+
+const W: u32 = 160;
+const H: u32 = 120;
+
+/// A cube hovering over a floor (broad penumbrae) and a plate lying on it (contact shadows only)
+/// under a large point light and a sun of 6 degrees.
+const SCENE: &str = r#"
+[camera]
+eye = [0.0, 3.0, 4.0]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 45.0
+[[lights]]
+type = "point"
+position = [0.5, 3.0, 0.5]
+intensity = [30.0, 30.0, 30.0]
+radius = 0.5
+[[lights]]
+type = "directional"
+direction = [0.4, -1.0, 0.2]
+irradiance = [2.0, 2.0, 2.0]
+angular_diameter_deg = 6.0
+[[objects]]
+shape = "plane"
+size = 8.0
+material = { base_color = [0.75, 0.5, 0.25], roughness = 0.5 }
+[[objects]]
+shape = "cube"
+size = 0.8
+translate = [0.0, 0.7, 0.0]
+rotate_deg = [0.0, 30.0, 0.0]
+material = { base_color = [0.75, 0.5, 0.25], roughness = 0.5 }
+[[objects]]
+shape = "cube"
+size = 1.0
+scale = [1.0, 0.02, 0.6]
+translate = [-1.5, 0.01, 1.2]
+material = { base_color = [0.75, 0.5, 0.25], roughness = 0.5 }
+"#;
+
+fn scene() -> Scene {
+    Scene::parse(SCENE, "denoise.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"))
+}
+
+fn pixels(frame: Frame) -> Vec<Vec4> {
+    let Frame::Rgba32F { pixels, .. } = frame else { panic!("float frame") };
+    pixels.chunks_exact(4).map(Vec4::from_slice).collect()
+}
+
+/// Soft traced shadows at `spp` rays, denoised or not, keeping `history` frames.
+fn settings(spp: u32, denoise: bool, history: u32, view: DebugView) -> RenderSettings {
+    let mut choice = ShadowChoice::soft(spp);
+    choice.traced.denoise = denoise;
+    choice.traced.history = history;
+    let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear);
+    s.shadows = vec![choice; 2];
+    s.debug_view = Some(view);
+    s
+}
+
+fn view(r: &mut Renderer, s: &RenderSettings) -> Vec<Vec4> {
+    pixels(r.render(s).expect("render"))
+}
+
+fn xs(v: &[Vec4]) -> Vec<f32> {
+    v.iter().map(|p| p.x).collect()
+}
+
+/// RMSE of `a` against `reference` over the pixels the reference has in penumbra.
+fn penumbra_rmse(a: &[f32], reference: &[f32]) -> (f64, usize) {
+    let (mut sum, mut n) = (0.0f64, 0usize);
+    for (x, r) in a.iter().zip(reference) {
+        if *r > 0.02 && *r < 0.98 {
+            sum += f64::from(x - r).powi(2);
+            n += 1;
+        }
+    }
+    ((sum / n.max(1) as f64).sqrt(), n)
+}
+
+#[test]
+fn the_gpu_filter_equals_its_cpu_twin_on_the_same_inputs() {
+    let ctx = common::gpu();
+    let scene = scene();
+    let mut r = Renderer::new(ctx.clone(), scene.clone()).unwrap();
+    let position = view(&mut r, &settings(1, true, 0, DebugView::Position));
+    let normal: Vec<Vec3> =
+        view(&mut r, &settings(1, true, 0, DebugView::Normal)).iter().map(|n| n.truncate()).collect();
+    let lights = gpu_lights(&scene.lights);
+    let fov = scene.camera.vfov_deg.to_radians();
+    for light in 0..2u32 {
+        // Without a history each frame's rays are the same (frame 0's seed): the view shows
+        // the input the visibility view's frame filtered.
+        let source = view(&mut r, &settings(1, true, 0, DebugView::Denoise(light)));
+        let denoised = xs(&view(&mut r, &settings(1, true, 0, DebugView::Visibility(light))));
+        let inputs = SpatialInputs {
+            width: W,
+            height: H,
+            source: &source,
+            position: &position,
+            normal: &normal,
+            eye: scene.camera.eye.as_vec3(),
+            pixel_angle: 2.0 * (fov * 0.5).tan() / H as f32,
+            seed: 0,
+            rays: 1,
+        };
+        let (mut wrong, mut filtered) = (Vec::new(), 0);
+        for y in 0..H {
+            for x in 0..W {
+                let i = (y * W + x) as usize;
+                let expected = filter(&inputs, &lights[light as usize], x, y);
+                filtered += ((expected - source[i].x).abs() > 0.01) as usize;
+                // 8-bit UNORM: half a step, plus the two sides' float rounding.
+                if (denoised[i] - expected).abs() > 0.5 / 255.0 + 1e-3 {
+                    wrong.push((x, y, denoised[i], expected));
+                }
+            }
+        }
+        eprintln!("light {light}: {filtered} pixels changed by the filter, {} differ from the twin", wrong.len());
+        let least = [300, 100][light as usize];
+        assert!(filtered > least, "light {light}: the filter must act on this scene's penumbrae, changed {filtered}");
+        // A tap whose position rounds the other way (the GPU may fuse a multiply-add) moves a
+        // pixel's mean: rare.
+        let first = &wrong[..wrong.len().min(5)];
+        assert!(wrong.len() * 500 < (W * H) as usize, "light {light}: {} pixels differ, first {first:?}", wrong.len());
+    }
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn outside_penumbrae_and_at_contact_shadows_the_denoised_visibility_is_the_rays_exactly() {
+    let ctx = common::gpu();
+    let mut r = Renderer::new(ctx.clone(), scene()).unwrap();
+    for light in 0..2u32 {
+        let reference = xs(&view(&mut r, &settings(256, false, 0, DebugView::Visibility(light))));
+        let denoised = xs(&view(&mut r, &settings(1, true, 0, DebugView::Visibility(light))));
+        let noisy = xs(&view(&mut r, &settings(1, false, 0, DebugView::Visibility(light))));
+        // Pixels whose reference is one value over the filter's widest reach (the blocker
+        // search and the widest disc, plus a pixel of rounding): the rays there all agree, and
+        // so must the filter, exactly (no leak, no false shadow).
+        let reach = 17i32;
+        let at = |x: i32, y: i32| {
+            reference[(y.clamp(0, H as i32 - 1) as u32 * W + x.clamp(0, W as i32 - 1) as u32) as usize]
+        };
+        let (mut checked, mut wrong) = (0, Vec::new());
+        for y in 0..H as i32 {
+            for x in 0..W as i32 {
+                let v = at(x, y);
+                if v != 0.0 && v != 1.0 {
+                    continue;
+                }
+                let uniform = (-reach..=reach).all(|dy| (-reach..=reach).all(|dx| at(x + dx, y + dy) == v));
+                if !uniform {
+                    continue;
+                }
+                checked += 1;
+                let i = (y as u32 * W + x as u32) as usize;
+                if denoised[i] != v {
+                    wrong.push((x, y, denoised[i], v));
+                }
+            }
+        }
+        assert!(checked > 3000, "light {light}: {checked} pixels far from penumbrae");
+        assert!(
+            wrong.is_empty(),
+            "light {light}: {} pixels changed, first {:?}",
+            wrong.len(),
+            &wrong[..wrong.len().min(5)]
+        );
+        // The plate's contact shadow (the floor beside it, x in [-2.0, -1.0]): its penumbra is
+        // far below a pixel, so the filter leaves every pixel there as the rays found it.
+        let position = view(&mut r, &settings(1, true, 0, DebugView::Position));
+        let mut contact = 0;
+        for (i, p) in position.iter().enumerate() {
+            let near_plate =
+                p.w > 0.0 && (-2.1..=-0.9).contains(&p.x) && (0.8..=1.6).contains(&p.z) && p.y.abs() < 0.05;
+            if near_plate {
+                contact += 1;
+                assert_eq!(denoised[i], noisy[i], "light {light}: pixel {i} by the plate changed");
+            }
+        }
+        assert!(contact > 200, "light {light}: {contact} pixels by the plate");
+    }
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
+#[test]
+fn a_still_views_history_converges_below_eight_undenoised_rays() {
+    let ctx = common::gpu();
+    let mut r = Renderer::new(ctx.clone(), scene()).unwrap();
+    for light in 0..2u32 {
+        let reference = xs(&view(&mut r, &settings(256, false, 0, DebugView::Visibility(light))));
+        let (eight, n) =
+            penumbra_rmse(&xs(&view(&mut r, &settings(8, false, 0, DebugView::Visibility(light)))), &reference);
+        let s = settings(1, true, 16, DebugView::Visibility(light));
+        r.restart_denoise();
+        let errors: Vec<f64> = (0..12).map(|_| penumbra_rmse(&xs(&view(&mut r, &s)), &reference).0).collect();
+        let frames = view(&mut r, &settings(1, true, 16, DebugView::Denoise(light)));
+        let drawn = view(&mut r, &settings(1, true, 16, DebugView::Depth));
+        eprintln!("light {light}: {n} penumbra pixels; 8 rays {eight:.4}; 1 ray denoised over frames {errors:.4?}");
+        // The history counts every still frame (13 now, the view's own frame included) but
+        // where no ray counted in some frame (a light straddling a face's horizon).
+        let counts: Vec<f32> = frames.iter().zip(&drawn).filter(|(_, d)| d.x > 0.0).map(|(f, _)| f.z).collect();
+        let whole = counts.iter().filter(|&&f| f == 13.0).count();
+        assert!(whole * 10 > counts.len() * 9, "light {light}: {whole} of {} pixels kept every frame", counts.len());
+        // One ray a frame for 8 frames, denoised, against 8 rays in one frame: the same rays.
+        assert!(errors[7] < eight, "light {light}: after 8 frames {:.4} against 8 rays' {eight:.4}", errors[7]);
+        assert!(errors[11] < errors[0] * 0.6, "light {light}: the history converges: {errors:?}");
+    }
+    drop(r);
+    common::assert_clean(&ctx);
+}
+
+/// A box sliding off a patch of floor, under a sun: at 0.5 s it jumps 2 m along x.
+const SLIDING: &str = r#"
+[camera]
+eye = [0.0, 4.0, 3.0]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 50.0
+[animation]
+loop = false
+[[lights]]
+type = "directional"
+direction = [0.3, -1.0, 0.2]
+irradiance = [2.0, 2.0, 2.0]
+angular_diameter_deg = 6.0
+[[objects]]
+shape = "plane"
+size = 8.0
+material = { base_color = [0.6, 0.6, 0.6], roughness = 0.6 }
+[[objects]]
+shape = "cube"
+size = 1.0
+material = { base_color = [0.7, 0.3, 0.2], roughness = 0.6 }
+keys = [
+    { time = 0.0, translate = [-1.0, 0.5, 0.0] },
+    { time = 0.5, translate = [-1.0, 0.5, 0.0] },
+    { time = 0.55, translate = [1.0, 0.5, 0.0] },
+    { time = 2.0, translate = [1.0, 0.5, 0.0] },
+]
+"#;
+
+#[test]
+fn a_history_restarts_where_a_moving_box_uncovers_the_floor() {
+    let ctx = common::gpu();
+    let scene = Scene::parse(SLIDING, "sliding.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    let mut r = Renderer::new(ctx.clone(), scene).unwrap();
+    assert!(r.is_moving());
+    let at = |r: &mut Renderer, time: f64, view_of: DebugView| {
+        let mut s = settings(1, true, 16, view_of);
+        s.shadows.truncate(1);
+        s.time = Some(time);
+        view(r, &s)
+    };
+    // Still frames before the jump: the history grows everywhere. (Views that read no
+    // shadows leave the history alone.)
+    for k in 0..6 {
+        at(&mut r, 0.4 * f64::from(k) / 6.0, DebugView::Denoise(0));
+    }
+    let history = at(&mut r, 0.45, DebugView::Denoise(0));
+    let before = at(&mut r, 0.45, DebugView::Position);
+    let after_position = at(&mut r, 0.6, DebugView::Position);
+    let after = at(&mut r, 0.6, DebugView::Denoise(0));
+    let (mut uncovered, mut floor_kept) = (0, 0);
+    for i in 0..(W * H) as usize {
+        let (was, is) = (before[i], after_position[i]);
+        if was.w <= 0.0 || is.w <= 0.0 || (was.y - 0.55).abs() < 1e-6 {
+            continue;
+        }
+        if was.y > 0.9 && is.y.abs() < 0.01 {
+            // The box's top then (y = 1; the view draws the background at y = 0.55), the
+            // floor now: its history is not the box's.
+            uncovered += 1;
+            assert!(after[i].z <= 1.0, "pixel {i}: uncovered floor kept {} frames of the box's history", after[i].z);
+        } else if was.y.abs() < 0.01 && is.y.abs() < 0.01 && history[i].z >= 7.0 {
+            // Floor then and now, far from the box: its history goes on.
+            floor_kept += (after[i].z > history[i].z) as usize;
+        }
+    }
+    assert!(uncovered > 300, "{uncovered} uncovered pixels");
+    assert!(floor_kept > 3000, "{floor_kept} floor pixels kept their history");
+    drop(r);
+    common::assert_clean(&ctx);
+}

@@ -189,7 +189,8 @@ pub fn filter(inputs: &SpatialInputs, light: &GpuLight, x: u32, y: u32) -> f32 {
             continue;
         }
         let s = inputs.source[at(q)];
-        if !(s.y >= 0.0) {
+        // A tap none of whose rays counted (y = -1, or NaN): not a value.
+        if s.y.is_nan() || s.y < 0.0 {
             continue;
         }
         let w = tap_weight(p.xyz(), n, footprint, inputs.position[at(q)], inputs.normal[at(q)].normalize());

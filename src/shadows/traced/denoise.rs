@@ -14,7 +14,7 @@
 use ash::vk;
 use glam::{UVec4, Vec3, Vec4};
 
-use super::{push_constants, Rays};
+use super::Rays;
 use crate::gpu::WalkBuild;
 use crate::graph::{layout_of, Access, Bound, Handle, ImageKind, RenderGraph};
 use crate::passes::TILE;
@@ -238,7 +238,7 @@ pub fn add<'a>(
     let desc = crate::graph::ImageDesc::array(SOURCE_FORMAT, extent.width, extent.height, served.len() as u32);
     let mut source = g.create_image("shadow trace (unrounded)", desc);
     let frames = frame.denoise.as_ref().map_or(0, |d| d.frames);
-    trace(g, frame, casters, served, frames, &mut source)?;
+    super::trace(g, frame, casters, served, &mut source, super::Traces::Denoised { frames })?;
     let seed = frame.frame_index.wrapping_add(frames);
     let history = match (&frame.denoise, frame.gbuffer.motion.as_ref()) {
         (Some(state), Some(motion)) => Some(temporal(g, frame, state, motion, served, &source)?),
@@ -248,57 +248,8 @@ pub fn add<'a>(
     Ok(View { from_history: history.is_some(), image: history.unwrap_or(source) })
 }
 
-/// The rays of `served` (soft, denoised lights), layer k for light k, `frames` into the history
-/// (successive frames go on along one sequence of points over each light).
-fn trace<'a>(
-    g: &mut RenderGraph<'a>,
-    frame: &FrameInputs<'_, 'a>,
-    casters: &Casters<'_>,
-    served: &[Served],
-    frames: u32,
-    source: &mut Handle<ImageKind>,
-) -> GpuResult<()> {
-    let (gbuffer, extent) = (frame.gbuffer, frame.extent);
-    let mut pass = g.add_pass("shadow trace (denoised)");
-    let lights: Vec<String> = served.iter().map(|s| s.light.to_string()).collect();
-    pass.detail(format!("light {}", lights.join(", ")));
-    let mut bound = vec![
-        (SHADOW_POSITION, Bound::Image(pass.read(&gbuffer.position, Access::ComputeShaderReadSampledImage))),
-        (SHADOW_NORMAL, Bound::Image(pass.read(&gbuffer.normal, Access::ComputeShaderReadSampledImage))),
-        (SHADOW_SURFACE, Bound::Image(pass.read(&gbuffer.surface, Access::ComputeShaderReadSampledImage))),
-        (SHADOW_MATERIAL, Bound::Image(pass.read(&gbuffer.material, Access::ComputeShaderReadSampledImage))),
-        (SHADOW_LIGHTS, Bound::Buffer(pass.read(frame.lights, Access::ComputeShaderReadStorageBuffer))),
-    ];
-    bound.extend(casters.bind(&mut pass, &super::CASTER_SLOTS));
-    let walk = casters.walk(&super::CASTER_SLOTS);
-    let mut work: Vec<(&ComputePipeline, super::Push, Bound, [u32; 2])> = Vec::new();
-    for (k, s) in served.iter().enumerate() {
-        let rays = super::rays(s, &frame.scene.local_lights[s.light as usize]);
-        let layer = Bound::Image(pass.write_layer(source, k as u32, Access::ComputeShaderWrite));
-        let layout = layout_of(&[bound.as_slice(), &[(SHADOW_VISIBILITY, layer)]].concat());
-        let pipeline = blockers_pipeline(frame, walk, rays, &layout)?;
-        let mut push = push_constants(extent, frame.frame_index, frame.camera.eye, s, rays);
-        push.frame.z = frames;
-        for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
-            let mut push = push;
-            push.frame.w = x | y << 16;
-            work.push((pipeline, push, layer, [w, h]));
-        }
-    }
-    pass.render(move |ctx| {
-        let mut bound = bound;
-        for (pipeline, push, target, [w, h]) in &work {
-            bound.push((SHADOW_VISIBILITY, *target));
-            ctx.dispatch(pipeline, &bound, bytemuck::bytes_of(push), *w, *h)?;
-            bound.pop();
-        }
-        Ok(())
-    });
-    Ok(())
-}
-
 /// The trace that also writes blocker distances (trace_blockers*.comp), from the cache.
-fn blockers_pipeline<'a>(
+pub(crate) fn blockers_pipeline<'a>(
     frame: &FrameInputs<'_, 'a>,
     walk: WalkBuild,
     rays: Rays,
@@ -365,7 +316,8 @@ fn temporal<'a>(
     for (k, s) in served.iter().enumerate() {
         let cap = s.choice.traced.history;
         let valid = state.valid.get(k).copied().unwrap_or(false) && cap > 0;
-        let flags = (valid as u32) * HISTORY_VALID | ((k == 0) as u32) * WRITE_DEPTH | (state.moving as u32) * CLAMP;
+        let flag = |on: bool, bit: u32| if on { bit } else { 0 };
+        let flags = flag(valid, HISTORY_VALID) | flag(k == 0, WRITE_DEPTH) | flag(state.moving, CLAMP);
         pushes.push(TemporalPush {
             dims: UVec4::new(extent.width, extent.height, k as u32, flags),
             eye: frame.camera.eye.extend(angle),

@@ -284,8 +284,31 @@ fn add<'a>(
     served: &[Served],
     visibility: &mut Handle<ImageKind>,
 ) -> GpuResult<()> {
+    trace(graph, frame, casters, served, visibility, Traces::Visibility)
+}
+
+/// What a trace pass writes.
+#[derive(Clone, Copy)]
+pub(crate) enum Traces {
+    /// Each light's layer of the visibility target.
+    Visibility,
+    /// Layer k of the denoiser's unrounded target for light k of `served`, with the blockers'
+    /// distances, `frames` into the history (`denoise`).
+    Denoised { frames: u32 },
+}
+
+/// The trace pass over `served` into `target` (see `Traces`).
+pub(crate) fn trace<'a>(
+    graph: &mut RenderGraph<'a>,
+    frame: &FrameInputs<'_, 'a>,
+    casters: &Casters<'_>,
+    served: &[Served],
+    target: &mut Handle<ImageKind>,
+    traces: Traces,
+) -> GpuResult<()> {
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
-    let mut pass = graph.add_pass("shadow trace");
+    let denoised = matches!(traces, Traces::Denoised { .. });
+    let mut pass = graph.add_pass(if denoised { "shadow trace (denoised)" } else { "shadow trace" });
     let lights: Vec<String> = served.iter().map(|s| s.light.to_string()).collect();
     pass.detail(format!("light {}", lights.join(", ")));
     let mut bound = vec![
@@ -300,12 +323,19 @@ fn add<'a>(
     // Each light's dispatch binds its own layer, so other techniques' layers are not touched.
     // One dispatch per light and tile: each light's rays fit in `traced.tile_rays` a dispatch.
     let mut work: Vec<(&ComputePipeline, Push, Bound, [u32; 2])> = Vec::new();
-    for s in served {
+    for (k, s) in served.iter().enumerate() {
         let rays = rays(s, &frame.scene.local_lights[s.light as usize]);
-        let layer = Bound::Image(pass.write_layer(visibility, s.layer, Access::ComputeShaderWrite));
+        let at = if denoised { k as u32 } else { s.layer };
+        let layer = Bound::Image(pass.write_layer(target, at, Access::ComputeShaderWrite));
         let layout = layout_of(&[bound.as_slice(), &[(SHADOW_VISIBILITY, layer)]].concat());
-        let pipeline = trace_pipeline(frame, walk, rays, &layout)?;
-        let push = push_constants(extent, frame.frame_index, frame.camera.eye, s, rays);
+        let mut push = push_constants(extent, frame.frame_index, frame.camera.eye, s, rays);
+        let pipeline = match traces {
+            Traces::Visibility => trace_pipeline(frame, walk, rays, &layout)?,
+            Traces::Denoised { frames } => {
+                push.frame.z = frames;
+                denoise::blockers_pipeline(frame, walk, rays, &layout)?
+            }
+        };
         for [x, y, w, h] in s.choice.traced.tiles(extent.width, extent.height, push.dims.w) {
             let mut push = push;
             push.frame.w = x | y << 16;

@@ -106,7 +106,6 @@ pub fn build<'a>(
     let previous = seen_by(&previous_camera.unwrap_or(this_camera));
     let motion = (settings.debug_view == Some(crate::config::DebugView::Motion) || denoise.is_some())
         .then(|| camera.motion_block(&previous, extent.width, extent.height));
-    let denoise = denoise.map(|d| d.seen_before_from(previous.eye));
     // Anti-aliasing: an accumulated frame after the first samples elsewhere in its pixel.
     let camera = match history.as_ref().filter(|h| settings.antialias && h.frames > 0) {
         Some(h) => camera.jittered(accumulate::jitter(h.frames), extent.width, extent.height),
@@ -135,6 +134,7 @@ pub fn build<'a>(
         ray_query,
         rects,
         denoise,
+        previous_eye: previous.eye,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan)?;
     let occlusion = occlusion_stage(&mut g, pipelines, s, settings, &lighting, &gbuffer, &handles.bvh)?;

@@ -384,7 +384,7 @@ impl Renderer {
             lighting,
             compose,
             previous_camera: *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()),
-            denoise: self.prepare_denoise(settings, &plan_denoised)?,
+            denoise: self.prepare_denoise(settings, plan_denoised)?,
         };
         Ok((crate::frame::build(parts, target, history)?, ray_query))
     }
@@ -395,15 +395,13 @@ impl Renderer {
         &self,
         plan: &crate::shadows::ShadowPlan,
     ) -> Vec<(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)> {
-        use crate::shadows::traced::denoise;
-        let lights = crate::shading::gpu_lights(&self.gpu_scene.local_lights);
-        plan.served(ShadowMethod::Traced)
-            .iter()
-            .filter(|s| crate::shadows::rect_index(&self.gpu_scene, s.light).is_none())
-            .filter(|s| denoise::denoises(&self.gpu_scene, s))
+        let served = crate::shadows::traced::denoise::denoised(&self.gpu_scene, plan.served(ShadowMethod::Traced));
+        served
+            .into_iter()
             .map(|s| {
-                let bytes = lights.get(s.light as usize).map(|l| bytemuck::bytes_of(l).to_vec()).unwrap_or_default();
-                (s.light, s.choice.traced, bytes)
+                let light = &self.gpu_scene.local_lights[s.light as usize];
+                let bytes = crate::shading::gpu_lights(std::slice::from_ref(light));
+                (s.light, s.choice.traced, bytemuck::cast_slice(&bytes).to_vec())
             })
             .collect()
     }
@@ -412,11 +410,11 @@ impl Renderer {
     fn prepare_denoise(
         &self,
         settings: &RenderSettings,
-        lights: &[(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)],
+        lights: Vec<(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)>,
     ) -> GpuResult<Option<crate::shadows::traced::denoise::DenoiseFrame>> {
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
         let mut history = self.denoise.lock().unwrap_or_else(|e| e.into_inner());
-        history.prepare(&self.ctx, extent, lights.to_vec(), self.motion.is_some(), glam::Vec3::ZERO)
+        history.prepare(&self.ctx, extent, lights, self.motion.is_some())
     }
 
     /// Forgets the shadow denoiser's history: the next frame's denoised lights start afresh

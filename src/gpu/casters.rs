@@ -30,6 +30,21 @@ impl WalkBuild {
             WalkBuild::RayQuery { masked } => 4 | masked as u32,
         }
     }
+
+    /// The name and SPIR-V of a stage for this walk: of the compute walk's four builds
+    /// (`names`, `walks`: plain, alpha masks, two levels, both), or of the ray-query stage
+    /// (`ray_query`: unmasked, masked).
+    pub fn stage(
+        self,
+        names: [&'static str; 4],
+        walks: [&'static [u8]; 4],
+        ray_query: [(&'static str, &'static [u8]); 2],
+    ) -> (&'static str, &'static [u8]) {
+        match self {
+            WalkBuild::Compute(variant) => (variant.name(names), variant.spirv(walks)),
+            WalkBuild::RayQuery { masked } => ray_query[masked as usize],
+        }
+    }
 }
 
 /// Where a shader binds the casters: the compute walk's slots and the ray-query build's.

@@ -180,6 +180,9 @@ pub struct FrameInputs<'h, 'a> {
     /// The shadow denoiser's history, where a denoised light keeps one
     /// (`traced::denoise::DenoiseHistory::prepare`).
     pub denoise: Option<traced::denoise::DenoiseFrame>,
+    /// The previous frame's camera (scene-local; this frame's where there was none), which
+    /// the motion channel measures from.
+    pub previous_eye: glam::Vec3,
 }
 
 /// What the techniques write.

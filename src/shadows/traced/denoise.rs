@@ -11,8 +11,10 @@
 //! layer per denoised light, read and written in turn, and two of each pixel's distance from the
 //! camera, which the next frame's disocclusion test compares against.
 
+use std::sync::Arc;
+
 use ash::vk;
-use glam::{UVec4, Vec3, Vec4};
+use glam::{UVec4, Vec4};
 
 use super::Rays;
 use crate::gpu::WalkBuild;
@@ -29,56 +31,33 @@ pub const HISTORY_FORMAT: vk::Format = vk::Format::R16G16B16A16_SFLOAT;
 /// Each pixel's distance from the camera (0: background), for the next frame.
 pub const DEPTH_FORMAT: vk::Format = vk::Format::R32_SFLOAT;
 
-/// How the history images are left between frames.
+/// How the history images are left between frames (sampled, as the accumulator's: the passes
+/// sit above the shadows on the data path, so the constant is not shared).
 const HISTORY_ACCESS: Access = Access::ComputeShaderReadSampledImage;
 
-/// An image the history owns, as a frame's graph imports it.
-#[derive(Clone, Copy, Debug)]
-pub struct RawImage {
-    desc: ImageDesc,
-    raw: vk::Image,
-    view: vk::ImageView,
-    usage: vk::ImageUsageFlags,
-}
-
-impl RawImage {
-    fn of(image: &Image) -> RawImage {
-        RawImage { desc: image.desc, raw: image.raw, view: image.view, usage: image.usage }
-    }
-
-    fn import(&self, g: &mut RenderGraph<'_>, name: &'static str, fresh: bool) -> Handle<ImageKind> {
-        let last = if fresh { Access::Nothing } else { HISTORY_ACCESS };
-        g.import_image(name, self.desc, (self.raw, self.view, self.usage), last)
-    }
+/// `image` in `g`, in the access the previous frame left it in (none yet when `fresh`).
+fn import(g: &mut RenderGraph<'_>, name: &'static str, image: &Image, fresh: bool) -> Handle<ImageKind> {
+    g.import_owned_image(name, image, if fresh { Access::Nothing } else { HISTORY_ACCESS })
 }
 
 /// What one frame's temporal pass reads and writes: last frame's history and distances, and
 /// this frame's; which lights' histories hold their previous frame.
-#[derive(Clone, Debug)]
+#[derive(Clone)]
 pub struct DenoiseFrame {
-    history: RawImage,
-    history_out: RawImage,
-    depth: RawImage,
-    depth_out: RawImage,
+    history: Arc<Image>,
+    history_out: Arc<Image>,
+    depth: Arc<Image>,
+    depth_out: Arc<Image>,
     /// Never used by a frame yet (no layout, nothing to wait for).
     fresh: [bool; 2],
     /// Per denoised light (in `served` order), whether its history holds its previous frame.
     valid: Vec<bool>,
     /// Something in the scene moves (shadows may move where pixels stand still).
     moving: bool,
-    /// The previous frame's camera (scene-local).
-    pub previous_eye: Vec3,
     /// Frames recorded since the history started: the denoised rays go on along their sequence
     /// of points over the light by this many frames (a moving view's frames, which the
     /// accumulator does not count, each draw fresh rays).
     pub frames: u32,
-}
-
-impl DenoiseFrame {
-    /// The frame whose previous frame's camera was at `eye` (scene-local).
-    pub fn seen_before_from(self, eye: Vec3) -> DenoiseFrame {
-        DenoiseFrame { previous_eye: eye, ..self }
-    }
 }
 
 /// The lights that get the temporal pass this frame, with what restarts their history when it
@@ -92,7 +71,8 @@ struct Key {
 /// The denoiser's history between frames; see the module's doc.
 #[derive(Default)]
 pub struct DenoiseHistory {
-    images: Option<[[Image; 2]; 2]>,
+    /// Two history arrays and two distance images, read and written in turn.
+    images: Option<[[Arc<Image>; 2]; 2]>,
     /// Whether each pair's image has been used by a recorded frame.
     used: [bool; 2],
     /// Which of each pair this frame writes.
@@ -112,6 +92,12 @@ pub fn denoises(scene: &crate::gpu::SceneGpu, served: &Served) -> bool {
     !served.unshadowed && light.is_some_and(|l| served.choice.traced.denoises(l.has_size()))
 }
 
+/// The lights of `served` (`traced`'s) that it denoises, in order: light k has layer k of the
+/// denoiser's images.
+pub fn denoised<'s>(scene: &crate::gpu::SceneGpu, served: &'s [Served]) -> Vec<&'s Served> {
+    served.iter().filter(|s| crate::shadows::rect_index(scene, s.light).is_none() && denoises(scene, s)).collect()
+}
+
 impl DenoiseHistory {
     /// The images and flags for a frame of `extent` whose denoised lights are `lights` (light
     /// number, parameters, what it is on the device), in the order `traced` serves them; `None`
@@ -119,11 +105,10 @@ impl DenoiseHistory {
     /// the lights change; a light that moved or changed restarts its own.
     pub fn prepare(
         &mut self,
-        ctx: &std::sync::Arc<GpuContext>,
+        ctx: &Arc<GpuContext>,
         extent: vk::Extent2D,
         lights: Vec<(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)>,
         moving: bool,
-        previous_eye: Vec3,
     ) -> GpuResult<Option<DenoiseFrame>> {
         if lights.iter().all(|l| l.1.history == 0) {
             self.pending = None;
@@ -144,7 +129,7 @@ impl DenoiseHistory {
             let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED;
             let history = ImageDesc::array(HISTORY_FORMAT, extent.width, extent.height, layers);
             let depth = ImageDesc::new(DEPTH_FORMAT, extent.width, extent.height);
-            let make = |name, desc| Image::new(ctx, name, desc, usage);
+            let make = |name, desc| Image::new(ctx, name, desc, usage).map(Arc::new);
             self.images = Some([
                 [make("denoise history", history)?, make("denoise history", history)?],
                 [make("denoise distances", depth)?, make("denoise distances", depth)?],
@@ -161,14 +146,13 @@ impl DenoiseHistory {
         let (read, write) = (1 - self.next, self.next);
         self.pending = Some((key, lights.into_iter().map(|l| l.2).collect()));
         Ok(Some(DenoiseFrame {
-            history: RawImage::of(&history[read]),
-            history_out: RawImage::of(&history[write]),
-            depth: RawImage::of(&depth[read]),
-            depth_out: RawImage::of(&depth[write]),
+            history: history[read].clone(),
+            history_out: history[write].clone(),
+            depth: depth[read].clone(),
+            depth_out: depth[write].clone(),
             fresh: [!self.used[read], !self.used[write]],
             valid,
             moving,
-            previous_eye,
             frames: self.frames,
         }))
     }
@@ -258,25 +242,19 @@ pub(crate) fn blockers_pipeline<'a>(
     let soft = super::is_soft(rays);
     let key = PipelineKey::new("shadow trace (denoised)", walk.bits() | (soft as u32) << 3);
     frame.pipelines.compute(key, layout, |ctx, layout| {
-        let (name, spirv) = match walk {
-            WalkBuild::Compute(variant) => {
-                let names = [
-                    "shadow trace (denoised)",
-                    "shadow trace (denoised, alpha masks)",
-                    "shadow trace (denoised, two levels)",
-                    "shadow trace (denoised, alpha masks, two levels)",
-                ];
-                (variant.name(names), variant.spirv(spirv::SHADOWS_TRACED_TRACE_BLOCKERS_COMP_WALKS))
-            }
-            WalkBuild::RayQuery { masked } => {
-                let spirv = if masked {
-                    spirv::SHADOWS_TRACED_TRACE_RQ_BLOCKERS_COMP_MASKED
-                } else {
-                    spirv::SHADOWS_TRACED_TRACE_RQ_BLOCKERS_COMP
-                };
-                (if masked { "shadow trace (denoised, ray query, alpha masks)" } else { "shadow trace (denoised, ray query)" }, spirv)
-            }
-        };
+        let (name, spirv) = walk.stage(
+            [
+                "shadow trace (denoised)",
+                "shadow trace (denoised, alpha masks)",
+                "shadow trace (denoised, two levels)",
+                "shadow trace (denoised, alpha masks, two levels)",
+            ],
+            spirv::SHADOWS_TRACED_TRACE_BLOCKERS_COMP_WALKS,
+            [
+                ("shadow trace (denoised, ray query)", spirv::SHADOWS_TRACED_TRACE_RQ_BLOCKERS_COMP),
+                ("shadow trace (denoised, ray query, alpha masks)", spirv::SHADOWS_TRACED_TRACE_RQ_BLOCKERS_COMP_MASKED),
+            ],
+        );
         ComputePipeline::specialized(ctx, name, spirv, layout, std::mem::size_of::<super::Push>() as u32, TILE, &[soft as u32])
     })
 }
@@ -291,10 +269,10 @@ fn temporal<'a>(
     source: &Handle<ImageKind>,
 ) -> GpuResult<Handle<ImageKind>> {
     let (gbuffer, extent) = (frame.gbuffer, frame.extent);
-    let history = state.history.import(g, "denoise history (previous)", state.fresh[0]);
-    let mut history_out = state.history_out.import(g, "denoise history", state.fresh[1]);
-    let depth = state.depth.import(g, "denoise distances (previous)", state.fresh[0]);
-    let mut depth_out = state.depth_out.import(g, "denoise distances", state.fresh[1]);
+    let history = import(g, "denoise history (previous)", &state.history, state.fresh[0]);
+    let mut history_out = import(g, "denoise history", &state.history_out, state.fresh[1]);
+    let depth = import(g, "denoise distances (previous)", &state.depth, state.fresh[0]);
+    let mut depth_out = import(g, "denoise distances", &state.depth_out, state.fresh[1]);
     let mut pass = g.add_pass("shadow denoise (history)");
     let bound = vec![
         (DENOISE_SOURCE, Bound::Image(pass.read(source, Access::ComputeShaderReadSampledImage))),
@@ -321,7 +299,7 @@ fn temporal<'a>(
         pushes.push(TemporalPush {
             dims: UVec4::new(extent.width, extent.height, k as u32, flags),
             eye: frame.camera.eye.extend(angle),
-            previous_eye: state.previous_eye.extend(cap.max(1) as f32),
+            previous_eye: frame.previous_eye.extend(cap.max(1) as f32),
         });
     }
     pass.render(move |ctx| {

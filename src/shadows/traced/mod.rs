@@ -110,8 +110,8 @@ impl super::Technique for Traced {
         let (rects, lights): (Vec<Served>, Vec<Served>) =
             served.iter().partition(|s| super::rect_index(frame.scene, s.light).is_some());
         // Denoised soft lights have rays and passes of their own (`denoise`).
-        let (denoised, lights): (Vec<Served>, Vec<Served>) =
-            lights.iter().partition(|s| denoise::denoises(frame.scene, s));
+        let denoised: Vec<Served> = denoise::denoised(frame.scene, served).into_iter().copied().collect();
+        let lights: Vec<Served> = lights.into_iter().filter(|s| !denoised.contains(s)).collect();
         if !lights.is_empty() {
             add(g, frame, casters, &lights, &mut targets.visibility)?;
         }
@@ -191,37 +191,33 @@ fn pipeline(
     soft: bool,
     layout: &[(u32, DescriptorKind)],
 ) -> GpuResult<ComputePipeline> {
-    let (name, spirv) = match walk {
-        WalkBuild::Compute(variant) => {
-            let names = if soft {
-                [
-                    "shadow trace (soft)",
-                    "shadow trace (soft, alpha masks)",
-                    "shadow trace (soft, two levels)",
-                    "shadow trace (soft, alpha masks, two levels)",
-                ]
-            } else {
-                [
-                    "shadow trace",
-                    "shadow trace (alpha masks)",
-                    "shadow trace (two levels)",
-                    "shadow trace (alpha masks, two levels)",
-                ]
-            };
-            (variant.name(names), variant.spirv(spirv::SHADOWS_TRACED_TRACE_COMP_WALKS))
-        }
-        WalkBuild::RayQuery { masked } => {
-            let names = [
-                "shadow trace (ray query)",
-                "shadow trace (ray query, alpha masks)",
-                "shadow trace (ray query, soft)",
-                "shadow trace (ray query, soft, alpha masks)",
-            ];
-            let spirv =
-                if masked { spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED } else { spirv::SHADOWS_TRACED_TRACE_RQ_COMP };
-            (names[masked as usize + 2 * soft as usize], spirv)
-        }
+    let names = if soft {
+        [
+            "shadow trace (soft)",
+            "shadow trace (soft, alpha masks)",
+            "shadow trace (soft, two levels)",
+            "shadow trace (soft, alpha masks, two levels)",
+        ]
+    } else {
+        [
+            "shadow trace",
+            "shadow trace (alpha masks)",
+            "shadow trace (two levels)",
+            "shadow trace (alpha masks, two levels)",
+        ]
     };
+    let ray_query = [
+        ["shadow trace (ray query)", "shadow trace (ray query, soft)"][soft as usize],
+        ["shadow trace (ray query, alpha masks)", "shadow trace (ray query, soft, alpha masks)"][soft as usize],
+    ];
+    let (name, spirv) = walk.stage(
+        names,
+        spirv::SHADOWS_TRACED_TRACE_COMP_WALKS,
+        [
+            (ray_query[0], spirv::SHADOWS_TRACED_TRACE_RQ_COMP),
+            (ray_query[1], spirv::SHADOWS_TRACED_TRACE_RQ_COMP_MASKED),
+        ],
+    );
     ComputePipeline::specialized(ctx, name, spirv, layout, PUSH_SIZE, TILE, &[soft as u32])
 }
 

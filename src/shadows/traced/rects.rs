@@ -37,21 +37,19 @@ const PUSH_SIZE: u32 = std::mem::size_of::<Push>() as u32;
 /// (alpha masks, two levels), or the driver's acceleration structures (devices with ray query
 /// only).
 fn pipeline(ctx: &Arc<GpuContext>, walk: WalkBuild, layout: &[(u32, DescriptorKind)]) -> GpuResult<ComputePipeline> {
-    let (name, spirv) = match walk {
-        WalkBuild::Compute(variant) => {
-            let names = [
-                "shadow trace (rect)",
-                "shadow trace (rect, alpha masks)",
-                "shadow trace (rect, two levels)",
-                "shadow trace (rect, alpha masks, two levels)",
-            ];
-            (variant.name(names), variant.spirv(spirv::SHADOWS_TRACED_RECT_TRACE_COMP_WALKS))
-        }
-        WalkBuild::RayQuery { masked: false } => ("shadow trace (rect, ray query)", spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP),
-        WalkBuild::RayQuery { masked: true } => {
-            ("shadow trace (rect, ray query, alpha masks)", spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP_MASKED)
-        }
-    };
+    let (name, spirv) = walk.stage(
+        [
+            "shadow trace (rect)",
+            "shadow trace (rect, alpha masks)",
+            "shadow trace (rect, two levels)",
+            "shadow trace (rect, alpha masks, two levels)",
+        ],
+        spirv::SHADOWS_TRACED_RECT_TRACE_COMP_WALKS,
+        [
+            ("shadow trace (rect, ray query)", spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP),
+            ("shadow trace (rect, ray query, alpha masks)", spirv::SHADOWS_TRACED_RECT_TRACE_RQ_COMP_MASKED),
+        ],
+    );
     ComputePipeline::new(ctx, name, spirv, layout, PUSH_SIZE, TILE)
 }
 

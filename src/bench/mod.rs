@@ -5,6 +5,7 @@
 //! - `sweep`: methods and the points of their sweeps;
 //! - `reference`: the traced reference per light and frame, and its cache;
 //! - `shadows`: the run itself (`umbra bench shadows`);
+//! - `score`: one point's rows: its visibility and frame scored, a denoised light after its history;
 //! - `rays`: the ray benchmark (`umbra bench rays`): device traversals against obvhs on the CPU;
 //! - `report`: rows as CSV and JSON, the summary table;
 //! - `chart`: time against error per scene, SVG and PNG.
@@ -18,5 +19,6 @@ pub mod motion;
 pub mod rays;
 pub mod reference;
 pub mod report;
+pub mod score;
 pub mod shadows;
 pub mod sweep;

@@ -362,13 +362,18 @@ pub fn light_visibility(
     choice: ShadowChoice,
     frame_index: u32,
 ) -> crate::vk::GpuResult<Vec<f32>> {
-    let lights = light_total(renderer.scene());
-    let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); lights];
+    let mut s = visibility_settings(renderer.scene(), width, height, n, choice);
+    s.frame_index = frame_index;
+    Ok(red_channel(&renderer.render(&s)?))
+}
+
+/// The settings of light `n`'s visibility view with `choice` (the other lights' shadows off).
+pub fn visibility_settings(scene: &Scene, width: u32, height: u32, n: usize, choice: ShadowChoice) -> RenderSettings {
+    let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); light_total(scene)];
     shadows[n] = choice;
     let mut s = settings(width, height, OutputKind::SceneLinear, shadows);
     s.debug_view = Some(DebugView::Visibility(n as u32));
-    s.frame_index = frame_index;
-    Ok(red_channel(&renderer.render(&s)?))
+    s
 }
 
 /// RMSE of `a - b` over `mask`.

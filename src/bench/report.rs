@@ -36,6 +36,10 @@ pub struct Row {
     pub height: u32,
     /// Frames timed (after the warm-up frames).
     pub frames: u32,
+    /// Frames rendered from a fresh denoising history before the scored one, so that a
+    /// denoised light is scored with the history a run of frames builds
+    /// (`shadows::DENOISE_LEAD_IN`); 0 where no light keeps one.
+    pub lead_in_frames: u32,
     /// The frame's shadow work on the GPU, ms: the sum of its shadow passes (`shadow_passes`:
     /// every pass but the frame's own; acceleration-structure builds fall in the warm-up),
     /// median and interquartile range over the timed frames. Per frame, all lights together:
@@ -115,6 +119,7 @@ pub const CSV_COLUMNS: &[&str] = &[
     "width",
     "height",
     "frames",
+    "lead_in_frames",
     "shadow_gpu_ms",
     "shadow_gpu_iqr_ms",
     "frame_gpu_ms",
@@ -178,6 +183,7 @@ impl Row {
             self.width.to_string(),
             self.height.to_string(),
             self.frames.to_string(),
+            self.lead_in_frames.to_string(),
             opt(self.shadow_gpu_ms),
             opt(self.shadow_gpu_iqr_ms),
             opt(self.frame_gpu_ms),

@@ -7,7 +7,8 @@
 //! timestamps after `Renderer::calibrate_timings`, host time per render), then each light's
 //! visibility view with the point's settings for that light (other lights' shadows off), and,
 //! when the frame is stochastic, one more shaded frame on its own (the timed ones accumulate):
-//! every score is of one frame's worth of samples, the cost the times measure.
+//! every score is of one frame's worth of samples, the cost the times measure (`score`; a
+//! denoised light after the frames that build its history).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -17,12 +18,11 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use serde_json::json;
 
 use super::chart::Chart;
-use super::metrics::{flip_mean, scored_error, visibility_error, VisibilityError};
 use super::motion;
-use super::reference::{self, LightReference};
+use super::reference;
 use super::report::{self, Row};
 use super::sweep::{self, Axis, MethodSpec, Point};
-use crate::config::{OutputKind, ShadowChoice, ShadowMethod};
+use crate::config::OutputKind;
 use crate::graph::{CompiledGraph, ResourceDesc, Storage};
 use crate::renderer::Renderer;
 use crate::scene::{Light, Scene};
@@ -104,77 +104,12 @@ pub fn shadow_bytes(plan: &CompiledGraph) -> u64 {
     slots.into_iter().map(by_desc).sum()
 }
 
-/// The pooled error of several lights: their buffers stacked one under another, with a masked
-/// row between them so no shadow edge joins two lights.
-fn pooled_error(parts: &[(&[f32], &[f32], &[bool])], width: usize, height: usize) -> VisibilityError {
-    if parts.is_empty() {
-        return VisibilityError::default();
-    }
-    let rows = parts.len() * (height + 1) - 1;
-    let (mut r, mut t, mut m) = (Vec::new(), Vec::new(), Vec::new());
-    for (i, (rv, tv, mv)) in parts.iter().enumerate() {
-        if i > 0 {
-            r.extend(std::iter::repeat_n(0.0, width));
-            t.extend(std::iter::repeat_n(0.0, width));
-            m.extend(std::iter::repeat_n(false, width));
-        }
-        r.extend_from_slice(rv);
-        t.extend_from_slice(tv);
-        m.extend_from_slice(mv);
-    }
-    visibility_error(&r, &t, width, rows, Some(&m))
-}
-
-/// Which technique serves each light (rect lights last) at a point, and why not the one asked
-/// for.
-fn served(
-    renderer: &Renderer,
-    settings: &crate::config::RenderSettings,
-) -> crate::vk::GpuResult<Vec<(ShadowMethod, Option<String>)>> {
-    let plan = renderer.shadow_plan(settings)?;
-    Ok((0..reference::light_total(renderer.scene()))
-        .map(|i| {
-            let method = ShadowMethod::TECHNIQUES
-                .iter()
-                .copied()
-                .find(|&m| plan.served(m).iter().any(|s| s.light as usize == i))
-                .unwrap_or(ShadowMethod::None);
-            let why = plan.fallbacks.iter().find(|f| f.0 == i).map(|f| format!("{}: {}", f.1, f.2));
-            (method, why)
-        })
-        .collect())
-}
-
-/// Map texels a light's shadows touch per frame, from its parameters (none for a rect light:
-/// only `traced` serves it).
-fn map_texels(served_by: ShadowMethod, choice: &ShadowChoice, light: Option<&Light>) -> u64 {
-    match (crate::shadows::technique(served_by), light) {
-        (Some(t), Some(light)) => t.map_texels(choice, light),
-        _ => 0,
-    }
-}
-
-/// Rays `hybrid` traced for light `n` in one frame: the pixels its `hybrid:N` view marks, times
-/// the rays per pixel.
-fn hybrid_rays(renderer: &mut Renderer, width: u32, height: u32, n: usize, choice: ShadowChoice) -> Result<u64> {
-    let light = renderer.scene().lights[n];
-    let mut shadows = vec![ShadowChoice::of(ShadowMethod::None); renderer.scene().lights.len()];
-    shadows[n] = choice;
-    let mut s = reference::settings(width, height, OutputKind::SceneLinear, shadows);
-    s.debug_view = Some(crate::config::DebugView::Hybrid(n as u32));
-    let crate::renderer::Frame::Rgba32F { pixels, .. } = renderer.render(&s)? else {
-        bail!("the hybrid view is read back as floats")
-    };
-    let per_pixel = if choice.traced.is_soft(light.has_size()) { u64::from(choice.traced.spp) } else { 1 };
-    Ok(crate::shadows::hybrid::traced_pixels(&pixels) as u64 * per_pixel)
-}
-
 /// One scene as the run holds it.
-struct SceneJob {
+pub(super) struct SceneJob {
     label: String,
     stem: String,
-    scene: Scene,
-    size: (u32, u32),
+    pub(super) scene: Scene,
+    pub(super) size: (u32, u32),
     /// Per method: its points this process measures, each with its index in the method's sweep
     /// (all of them, or this shard's).
     points: Vec<(MethodSpec, Vec<(usize, Point)>)>,
@@ -224,7 +159,7 @@ fn prepare(options: &Options) -> Result<Vec<SceneJob>> {
                 sweep::base_choices(&scene.light_shadows, lights, m, &options.params).map_err(anyhow::Error::msg)?;
             let axes = match &options.axes {
                 Some(a) => a.clone(),
-                None => sweep::default_axes(m.method, options.quick, soft),
+                None => m.default_axes(options.quick, soft),
             };
             let swept = sweep::points(m.method, &base, &axes).map_err(anyhow::Error::msg)?;
             points.push((m.clone(), swept.into_iter().enumerate().collect()));
@@ -446,10 +381,13 @@ fn run_scene(
             // Scored at each instant (posed there, the frame rendered anew), then pooled.
             let mut instants = Vec::new();
             for (i, cached) in references.iter().enumerate() {
-                let fresh = job.instants.get(i).map(|&t| renderer.set_time(t)).is_some();
+                let instant = job.instants.get(i).copied();
+                if let Some(t) = instant {
+                    renderer.set_time(t);
+                }
                 let common = common.clone();
                 let (scored, visibility) =
-                    score(&mut renderer, job, &cached.reference, point, &measured, fresh, common)?;
+                    super::score::score(&mut renderer, job, &cached.reference, point, &measured, instant, common)?;
                 // The error picture shows the first instant.
                 if i == 0 {
                     let frame_row = rows.len() + scored.iter().position(|r| r.frame_row).unwrap_or(0);
@@ -526,15 +464,15 @@ fn run_scene(
 }
 
 /// What one point's timed frames measured.
-struct Measured {
-    settings: crate::config::RenderSettings,
+pub(super) struct Measured {
+    pub(super) settings: crate::config::RenderSettings,
     shadow_ms: Vec<f64>,
     frame_ms: Vec<f64>,
     host_ms: Vec<f64>,
     shadow_passes: Vec<&'static str>,
     plan_bytes: u64,
     /// The last shaded frame's display bytes, one frame's worth of samples.
-    display: Vec<u8>,
+    pub(super) display: Vec<u8>,
     /// In a moving scene, each timed frame's update: CPU ms and bytes (`Renderer::frame_update`).
     update_ms: Vec<f64>,
     update_bytes: Vec<u64>,
@@ -629,146 +567,4 @@ fn measure(
     }
     m.plan_bytes = renderer.last_plan().map_or(0, shadow_bytes);
     Ok(m)
-}
-
-/// `point`'s rows: each light's visibility and the frame scored against `reference`, one row per
-/// light and, with more than one, a pooled row for the frame; `common` holds the columns they
-/// share. `fresh`: the frame is scored at another instant than the timed frames', so it is
-/// rendered anew.
-#[allow(clippy::too_many_arguments)]
-fn score(
-    renderer: &mut Renderer,
-    job: &SceneJob,
-    reference: &reference::Reference,
-    point: &Point,
-    measured: &Measured,
-    fresh: bool,
-    common: Row,
-) -> Result<(Vec<Row>, Vec<Vec<f32>>)> {
-    let (width, height) = job.size;
-    let (w, h) = (width as usize, height as usize);
-    // Every light scored, rect lights after the others.
-    let total = reference::light_total(&job.scene);
-    let serving = served(renderer, &measured.settings)?;
-    let mut visibility = Vec::new();
-    for (n, &choice) in point.choices.iter().enumerate().take(total) {
-        // Each frame scored on its own rays: a denoised light's history starts afresh.
-        renderer.restart_denoise();
-        visibility.push(reference::light_visibility(renderer, width, height, n, choice, 0)?);
-    }
-    let mut display = measured.display.clone();
-    if fresh || crate::passes::accumulate::accumulates(&measured.settings, renderer.scene()) {
-        // The timed frames accumulated (soft shadows, ambient occlusion, rect lights' shadows);
-        // the views since broke the run, so this frame stands alone, whatever `--frames`.
-        let mut single = measured.settings.clone();
-        single.timestamps = false;
-        // At the instant the scene is posed at now (the one scored).
-        single.time = None;
-        renderer.restart_denoise();
-        display = reference::display_bytes(renderer.render(&single)?);
-    }
-    let flip = flip_mean(&reference.display, &display, width, height);
-    let lights = &job.scene.lights;
-    let mut light_rows = Vec::new();
-    for n in 0..total {
-        let light = lights.get(n);
-        let r = &reference.lights[n];
-        let e = visibility_error(&r.visibility, &visibility[n], w, h, Some(&r.mask));
-        let choice = point.choices[n];
-        let (by, why) = serving[n].clone();
-        let rays = match (by, light) {
-            // A rect light's rays: its scene file's spp (`reference` says none where it casts
-            // no shadows).
-            (ShadowMethod::Traced, None) if r.soft => {
-                r.pixels() as u64 * u64::from(job.scene.rect_lights[n - lights.len()].spp)
-            }
-            (ShadowMethod::Traced, None) => 0,
-            (ShadowMethod::Traced, Some(l)) if choice.traced.is_soft(l.has_size()) => {
-                r.pixels() as u64 * u64::from(choice.traced.spp)
-            }
-            (ShadowMethod::Traced, _) => r.pixels() as u64,
-            (ShadowMethod::Hybrid, _) => hybrid_rays(renderer, width, height, n, choice)?,
-            _ => 0,
-        };
-        let texels = map_texels(by, &choice, light);
-        light_rows.push(Row {
-            light: n.to_string(),
-            light_kind: reference::light_kind(&job.scene, n).into(),
-            served_by: by.id().into(),
-            fallback: why.unwrap_or_default(),
-            settings: choice.describe(),
-            reference_error: r.error,
-            reference_shadowed: r.shadowed_share(),
-            scored_error: scored_error(e.rmse, r.error),
-            rays,
-            map_texels: texels,
-            map_bytes: texels * 4,
-            ..with_error(&e, common.clone())
-        });
-    }
-    if total == 1 {
-        light_rows[0].frame_row = true;
-        light_rows[0].flip = Some(flip);
-    } else {
-        let all = pooled_row(reference, &visibility, &light_rows, (w, h), flip, common);
-        light_rows.push(all);
-    }
-    Ok((light_rows, visibility))
-}
-
-/// The frame's row where several lights are scored: their visibility pooled over every light's
-/// mask, the other columns summed or listed from `light_rows`.
-fn pooled_row(
-    reference: &reference::Reference,
-    visibility: &[Vec<f32>],
-    light_rows: &[Row],
-    (w, h): (usize, usize),
-    flip: f64,
-    common: Row,
-) -> Row {
-    let parts: Vec<(&[f32], &[f32], &[bool])> =
-        reference.lights.iter().zip(visibility).map(|(r, v)| (&r.visibility[..], &v[..], &r.mask[..])).collect();
-    let e = pooled_error(&parts, w, h);
-    let weighted: f64 = reference.lights.iter().map(|l| l.error * l.error * l.pixels() as f64).sum();
-    let pixels: usize = reference.lights.iter().map(LightReference::pixels).sum();
-    let ref_error = if pixels == 0 { 0.0 } else { (weighted / pixels as f64).sqrt() };
-    let shadowed: usize = reference.lights.iter().map(LightReference::shadowed).sum();
-    let mut served_set: Vec<&str> = light_rows.iter().map(|r| r.served_by.as_str()).collect();
-    served_set.sort_unstable();
-    served_set.dedup();
-    Row {
-        light: "all".into(),
-        light_kind: "all".into(),
-        served_by: served_set.join("+"),
-        fallback: light_rows
-            .iter()
-            .filter(|r| !r.fallback.is_empty())
-            .map(|r| format!("light {}: {}", r.light, r.fallback))
-            .collect::<Vec<_>>()
-            .join("; "),
-        settings: light_rows.iter().map(|r| r.settings.as_str()).collect::<Vec<_>>().join(" | "),
-        reference_error: ref_error,
-        reference_shadowed: if pixels == 0 { 0.0 } else { shadowed as f64 / pixels as f64 },
-        scored_error: scored_error(e.rmse, ref_error),
-        flip: Some(flip),
-        rays: light_rows.iter().map(|r| r.rays).sum(),
-        map_texels: light_rows.iter().map(|r| r.map_texels).sum(),
-        map_bytes: light_rows.iter().map(|r| r.map_bytes).sum(),
-        frame_row: true,
-        ..with_error(&e, common)
-    }
-}
-
-/// `row` with the visibility error `e`'s columns.
-fn with_error(e: &VisibilityError, row: Row) -> Row {
-    Row {
-        vis_rmse: e.rmse,
-        light_leak: e.light_leak,
-        false_shadow: e.false_shadow,
-        light_leak_away: e.light_leak_away,
-        false_shadow_away: e.false_shadow_away,
-        pixels: e.pixels,
-        pixels_away: e.pixels_away,
-        ..row
-    }
 }

@@ -13,11 +13,44 @@ use crate::config::{ShadowChoice, ShadowMethod};
 /// One method as `--methods` names it: the method and the softness its id implies.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MethodSpec {
-    /// The id as results show it: `traced`, `traced-soft`, `map`, ...
+    /// The id as results show it: `traced`, `traced-soft`, `traced-denoised`, `map`, ...
     pub id: String,
     pub method: ShadowMethod,
-    /// `Some(true)` for `traced-soft`; `None` leaves softness to each light's size.
+    /// `Some(true)` for `traced-soft` and `traced-denoised`; `None` leaves softness to each
+    /// light's size.
     pub soft: Option<bool>,
+    /// Parameters the id sets on every light before `--param` (`DENOISED_PARAMS`).
+    pub fixed: Vec<(&'static str, &'static str)>,
+}
+
+/// The bench's id for soft traced shadows through the denoiser (`traced.denoise`): one ray per
+/// pixel by default, swept over `DENOISED_SPP`; not a `--shadows` id (there it is `traced-soft`
+/// with `--param traced.denoise=true`).
+pub const DENOISED: &str = "traced-denoised";
+
+/// What `traced-denoised` sets on top of `traced-soft`.
+pub const DENOISED_PARAMS: &[(&str, &str)] = &[("traced.denoise", "true"), ("traced.spp", "1")];
+
+/// `traced-denoised`'s default sweep: rays per pixel, then the spatial filter alone (no history).
+const DENOISED_SPP: &[&str] = &["1", "2", "4"];
+const DENOISED_SPATIAL_ONLY: &[&str] = &["0"];
+
+impl MethodSpec {
+    /// The axes swept when `--sweep` is not given, in a scene where some light has a size
+    /// (`soft_lights`): the technique's full sweep, or with `quick` a tiny one.
+    pub fn default_axes(&self, quick: bool, soft_lights: bool) -> Vec<Axis> {
+        if self.id != DENOISED {
+            return default_axes(self.method, quick, soft_lights);
+        }
+        let axis = |key: &str, values: &[&str]| Axis {
+            keys: vec![key.to_string()],
+            values: values.iter().map(|v| v.to_string()).collect(),
+        };
+        match (quick, soft_lights) {
+            (false, true) => vec![axis("traced.spp", DENOISED_SPP), axis("traced.history", DENOISED_SPATIAL_ONLY)],
+            _ => Vec::new(),
+        }
+    }
 }
 
 /// The methods measured when `--methods` is not given: every technique of the registry.
@@ -32,15 +65,21 @@ pub fn parse_methods(text: &str) -> Result<Vec<MethodSpec>, String> {
         if part.is_empty() {
             return Err(format!("--methods {text:?}: an empty method id"));
         }
-        let (method, soft) = ShadowMethod::parse(part)?;
-        let id = match soft {
-            Some(true) => "traced-soft".to_string(),
-            _ => method.id().to_string(),
+        let (id, method, soft, fixed) = if part == DENOISED {
+            (DENOISED.to_string(), ShadowMethod::Traced, Some(true), DENOISED_PARAMS.to_vec())
+        } else {
+            let (method, soft) =
+                ShadowMethod::parse(part).map_err(|e| format!("{e}; the bench also has {DENOISED}"))?;
+            let id = match soft {
+                Some(true) => "traced-soft".to_string(),
+                _ => method.id().to_string(),
+            };
+            (id, method, soft, Vec::new())
         };
         if out.iter().any(|m| m.id == id) {
             return Err(format!("--methods {text:?}: {id} is named twice"));
         }
-        out.push(MethodSpec { id, method, soft });
+        out.push(MethodSpec { id, method, soft, fixed });
     }
     Ok(out)
 }
@@ -156,6 +195,9 @@ pub fn base_choices(
             c.method = method.method;
             if method.soft.is_some() {
                 c.traced.soft = method.soft;
+            }
+            for (k, v) in &method.fixed {
+                c.set(k, v).map_err(|e| format!("{}: {k}={v}: {e}", method.id))?;
             }
             for (k, v) in params {
                 c.set(k, v).map_err(|e| format!("--param {k}={v}: {e}"))?;

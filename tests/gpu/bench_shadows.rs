@@ -377,6 +377,23 @@ fn sweeps_parse_and_points_merge() {
     assert_eq!(methods[1].soft, Some(true));
     assert!(parse_methods("map,map").unwrap_err().contains("twice"));
     assert!(parse_methods("shadowmap").unwrap_err().contains("unknown shadow method"));
+    // traced-denoised: traced-soft with the denoiser on, one ray, swept over 1, 2 and 4 rays
+    // and the spatial filter alone; --param still has the last word.
+    let denoised = parse_methods("traced-soft,traced-denoised").unwrap()[1].clone();
+    assert_eq!(
+        (denoised.id.as_str(), denoised.method, denoised.soft),
+        ("traced-denoised", ShadowMethod::Traced, Some(true))
+    );
+    let base = base_choices(&[], 2, &denoised, &[]).unwrap();
+    assert!(base.iter().all(|c| c.traced.denoise && c.traced.spp == 1 && c.traced.soft == Some(true)));
+    let base4 = base_choices(&[], 1, &denoised, &[("traced.spp".into(), "4".into())]).unwrap();
+    assert_eq!(base4[0].traced.spp, 4);
+    let axes = denoised.default_axes(false, true);
+    let p = points(ShadowMethod::Traced, &base, &axes).unwrap();
+    let labels: Vec<String> = p.iter().map(|p| p.label()).collect();
+    assert_eq!(labels, ["traced.spp=1", "traced.spp=2", "traced.spp=4", "traced.history=0"]);
+    assert!(denoised.default_axes(true, true).is_empty() && denoised.default_axes(false, false).is_empty());
+    assert!(parse_methods("traced-denoised,traced-denoised").unwrap_err().contains("twice"));
 
     // Axes one at a time from the defaults; the default value's point is measured once.
     let map = methods[2].clone();
@@ -398,9 +415,47 @@ fn sweeps_parse_and_points_merge() {
     assert_eq!(default_axes(ShadowMethod::Hybrid, true, false)[0].keys, ["hybrid.resolution"]);
     assert_eq!(default_axes(ShadowMethod::Map, true, true)[0].values, ["512", "2048"]);
     assert!(default_axes(ShadowMethod::Traced, true, true).is_empty());
-    assert_eq!(default_axes(ShadowMethod::Traced, false, true)[0].values, ["1", "4", "16", "64", "256"]);
+    assert_eq!(default_axes(ShadowMethod::Traced, false, true)[0].values, ["1", "2", "4", "8", "16", "64", "256"]);
     assert!(default_axes(ShadowMethod::Traced, false, false).is_empty(), "no spp sweep without soft lights");
     assert_eq!(default_axes(ShadowMethod::Cascades, false, false)[0].values.len(), 6);
+}
+
+/// `traced-denoised` beside `traced-soft` at one ray: the denoised frame is scored after the
+/// frames that build its history (`lead_in_frames`), its time includes the denoiser's passes,
+/// and its error is well below the same ray count undenoised; its spatial filter alone (no
+/// history) sits between them. Same rays per frame in all three.
+#[test]
+fn denoised_points_are_scored_with_their_history_and_beat_the_same_rays_undenoised() {
+    let dir = temp_dir("denoised");
+    let cache = dir.join("cache");
+    let scene = dir.join("sphere.toml");
+    std::fs::write(&scene, SPHERE).unwrap();
+    let out = dir.join("out");
+    let args = [scene.to_str().unwrap(), "--methods", "traced-soft,traced-denoised", "--size", "96x72"];
+    let sweep = ["--sweep", "traced.spp=1", "--sweep", "traced.history=0,16", "--frames", "2"];
+    ok(&bench(&cache, &[&args[..], &sweep[..], &["-o", out.to_str().unwrap()]].concat()));
+    let (json, csv) = results(&out);
+    let lead = CSV_COLUMNS.iter().position(|c| *c == "lead_in_frames").unwrap();
+    assert!(csv[1..].iter().any(|r| r[lead] == "7"), "the CSV carries lead_in_frames");
+    let rows = |method: &str, sweep: &str| -> Value {
+        let all = rows_of(&json, "sphere.toml", method);
+        (*all.iter().find(|r| s(r, "sweep").contains(sweep)).unwrap_or_else(|| panic!("{method} {sweep}: {all:?}")))
+            .clone()
+    };
+    let plain = rows("traced-soft", "traced.spp=1");
+    let denoised = rows("traced-denoised", "traced.history=16");
+    let spatial = rows("traced-denoised", "traced.history=0");
+    assert_eq!(f(&plain, "lead_in_frames"), 0.0);
+    assert_eq!(f(&denoised, "lead_in_frames"), 7.0, "{denoised}");
+    assert_eq!(f(&spatial, "lead_in_frames"), 0.0, "no history to build: {spatial}");
+    assert_eq!(f(&plain, "rays"), f(&denoised, "rays"));
+    assert!(s(&denoised, "shadow_passes").contains("shadow denoise"), "{denoised}");
+    assert!(!s(&plain, "shadow_passes").contains("denoise"), "{plain}");
+    let (e_plain, e_spatial, e_denoised) = (f(&plain, "vis_rmse"), f(&spatial, "vis_rmse"), f(&denoised, "vis_rmse"));
+    eprintln!("one ray per pixel, RMSE: plain {e_plain:.4}, spatial only {e_spatial:.4}, with 8 frames of history {e_denoised:.4}");
+    assert!(e_spatial < 0.6 * e_plain, "the spatial filter alone: {e_spatial} against {e_plain}");
+    assert!(e_denoised < 0.7 * e_spatial, "with history: {e_denoised} against {e_spatial}");
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

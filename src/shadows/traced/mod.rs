@@ -61,7 +61,7 @@ impl super::Technique for Traced {
 
     fn sweep(&self, quick: bool, soft_lights: bool) -> Vec<(&'static [&'static str], &'static [&'static str])> {
         match (quick, soft_lights) {
-            (false, true) => vec![(&["traced.spp"], &["1", "4", "16", "64", "256"])],
+            (false, true) => vec![(&["traced.spp"], &["1", "2", "4", "8", "16", "64", "256"])],
             _ => Vec::new(),
         }
     }

@@ -422,15 +422,28 @@ fn target_stage<'a>(
         Target::Present { image: swap, view, desc, overlay, capture } => {
             assert!(!is_history, "presented frames are display-referred");
             let mut canvas = image;
-            if let Some(inputs) = overlay {
-                if debug {
-                    // Debug views are float; the overlay draws on 8-bit display values.
-                    let display = ImageDesc::new(crate::passes::DISPLAY_FORMAT, extent.width, extent.height);
-                    let mut converted = g.create_image("overlay canvas", display);
-                    present::blit(g, &canvas, &mut converted);
-                    canvas = converted;
+            // A frame rendered smaller than the window (the viewer while moving) is brought to
+            // its size first, so the overlay and captures are the window's.
+            let window = vk::Extent2D { width: desc.width, height: desc.height };
+            if window != extent {
+                let display = ImageDesc::new(crate::passes::DISPLAY_FORMAT, window.width, window.height);
+                let mut upscaled = g.create_image("upscaled", display);
+                // Debug views are float, whose linear filtering a device need not offer; they
+                // are upscaled by repeating texels.
+                match debug {
+                    false => present::upscale(g, &canvas, &mut upscaled),
+                    true => present::blit(g, &canvas, &mut upscaled),
                 }
-                overlay::add(g, pipelines, &inputs, &mut canvas, extent)?;
+                canvas = upscaled;
+            } else if debug && overlay.is_some() {
+                // Debug views are float; the overlay draws on 8-bit display values.
+                let display = ImageDesc::new(crate::passes::DISPLAY_FORMAT, extent.width, extent.height);
+                let mut converted = g.create_image("overlay canvas", display);
+                present::blit(g, &canvas, &mut converted);
+                canvas = converted;
+            }
+            if let Some(inputs) = overlay {
+                overlay::add(g, pipelines, &inputs, &mut canvas, window)?;
             }
             if let Some(buffer) = capture {
                 readback::add(g, &canvas, buffer);

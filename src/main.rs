@@ -511,10 +511,21 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
         shadow_backend: args.shadow_backend.or(scene_backend).unwrap_or_default(),
         frames: args.frames,
         vsync: args.vsync,
+        moving_fps: args.moving_fps,
         script,
     };
     let report = umbra::viewer::run(options)?;
     outln!("viewer: {} frames presented, {} turns without a frame", report.frames, report.skipped);
+    let moving = report.moving;
+    if moving.frames > 0 {
+        outln!(
+            "moving: {} frames at {:.1} fps, rendered at {:.2}x to {:.2}x of each side",
+            moving.frames,
+            moving.fps(),
+            moving.min_scale,
+            moving.max_scale
+        );
+    }
     if let Some(mode) = &report.present_mode {
         outln!("present mode: {mode}");
     }

@@ -219,6 +219,20 @@ pub(crate) struct ViewArgs {
     /// script replays the same on any machine. Default with --script: 1/60; without, the clock.
     #[arg(long, value_name = "SECONDS", value_parser = parse_fixed_dt)]
     pub(crate) fixed_dt: Option<f32>,
+    /// The frame rate to hold while the camera or the scene moves, by rendering fewer pixels
+    /// (down to a quarter of each side, upscaled to the window) with one denoised ray per pixel
+    /// for soft traced lights; still, the view refines at full size. 0: moving frames are
+    /// drawn like still ones.
+    #[arg(long, value_name = "FPS", default_value_t = umbra::viewer::interactive::DEFAULT_MOVING_FPS, value_parser = parse_moving_fps)]
+    pub(crate) moving_fps: f64,
+}
+
+pub(crate) fn parse_moving_fps(text: &str) -> Result<f64, String> {
+    match text.trim().parse::<f64>() {
+        Ok(fps) if (0.0..=1000.0).contains(&fps) => Ok(fps),
+        Ok(_) => Err(format!("{text:?}: frames per second must be in 0..=1000 (0: no scaling)")),
+        Err(e) => Err(format!("{text:?}: {e}")),
+    }
 }
 
 pub(crate) fn parse_fixed_dt(text: &str) -> Result<f32, String> {

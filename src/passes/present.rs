@@ -19,11 +19,27 @@ pub fn blit(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, target: &mu
     blit_named(graph, "blit", source, target);
 }
 
+/// Copies `source` into the larger `target`, filtering linearly (a frame rendered at a reduced
+/// size, brought to the window's).
+pub fn upscale(graph: &mut RenderGraph<'_>, source: &Handle<ImageKind>, target: &mut Handle<ImageKind>) {
+    blit_filtered(graph, "upscale", source, target, vk::Filter::LINEAR);
+}
+
 fn blit_named(
     graph: &mut RenderGraph<'_>,
     name: &'static str,
     source: &Handle<ImageKind>,
     target: &mut Handle<ImageKind>,
+) {
+    blit_filtered(graph, name, source, target, vk::Filter::NEAREST);
+}
+
+fn blit_filtered(
+    graph: &mut RenderGraph<'_>,
+    name: &'static str,
+    source: &Handle<ImageKind>,
+    target: &mut Handle<ImageKind>,
+    filter: vk::Filter,
 ) {
     let (src_desc, desc) = (graph.image_desc(source), graph.image_desc(target));
     let mut pass = graph.add_pass(name);
@@ -49,7 +65,7 @@ fn blit_named(
             .dst_image(ctx.image(dst).0)
             .dst_image_layout(Access::TransferWrite.info().layout)
             .regions(&regions)
-            .filter(vk::Filter::NEAREST);
+            .filter(filter);
         // SAFETY: recording state; both images are resolved for this frame.
         unsafe { ctx.device.cmd_blit_image2(ctx.cmd, &blit) };
         Ok(())

@@ -16,7 +16,9 @@ use winit::keyboard::{KeyCode, PhysicalKey};
 use winit::window::{CursorGrabMode, Window, WindowId};
 
 use super::camera::FlyCamera;
+use super::clock::{timestamp_name, FrameRate, Playback};
 use super::input::{InputEvent, InputState, Key};
+use super::interactive::{Interactive, MovingStats};
 use super::presenter::{Drawn, Presenter};
 use super::script::ScriptStep;
 use super::settings::ViewerSettings;
@@ -40,6 +42,9 @@ pub struct ViewerOptions {
     pub shadow_backend: crate::config::ShadowBackend,
     /// Present with FIFO (paced to the display) instead of mailbox.
     pub vsync: bool,
+    /// The frame rate held while the view or the scene moves (`interactive`); 0: moving frames
+    /// are drawn like still ones.
+    pub moving_fps: f64,
     /// Close after this many presented frames.
     /// (Script `frames N` counts turns of the loop, drawn or not, so it also runs while minimised.)
     pub frames: Option<u64>,
@@ -63,6 +68,8 @@ pub struct ViewerReport {
     pub failures: Vec<String>,
     /// The swapchain's present mode, as Vulkan names it.
     pub present_mode: Option<String>,
+    /// Frames drawn while the view or the scene moved, and their rate.
+    pub moving: MovingStats,
 }
 
 /// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
@@ -134,8 +141,12 @@ struct Running {
     script_frames: u64,
     script_wait_until: Option<Instant>,
     last_frame: Instant,
+    /// When the last frame was presented.
+    last_presented: Option<Instant>,
     /// A moving scene's clock: the instant shown, and whether it runs.
     playback: Option<Playback>,
+    /// Moving frames' size and rays.
+    interactive: Interactive,
     fps: FrameRate,
     timings: Vec<(&'static str, f64)>,
     screenshot_dir: PathBuf,
@@ -291,7 +302,9 @@ impl App {
             script_frames: 0,
             script_wait_until: None,
             last_frame: Instant::now(),
+            last_presented: None,
             playback: Playback::of(&o.scene),
+            interactive: Interactive::new(o.moving_fps),
             fps: FrameRate::default(),
             timings: Vec::new(),
             screenshot_dir: o.screenshot_dir.clone(),
@@ -319,8 +332,14 @@ impl App {
             p.advance(f64::from(dt));
             r.renderer.set_time(p.time);
         }
-        let mut settings = r.settings.render_settings(r.camera.to_camera(r.renderer.scene().camera.vfov_deg));
+        let camera = r.camera.to_camera(r.renderer.scene().camera.vfov_deg);
+        let mut settings = r.settings.render_settings(camera);
         settings.time = r.playback.as_ref().map(|p| p.time);
+        r.interactive.begin(&camera, r.playback.as_ref().is_some_and(|p| p.playing));
+        r.interactive.apply(&mut settings);
+        // A still view that converges over frames (soft shadows, occlusion) converges to the
+        // anti-aliased image, as `umbra render` does over its frames.
+        settings.antialias = crate::passes::accumulate::accumulates(&settings, r.renderer.scene());
         // A technique's view of a light it cannot serve (volumes on an open caster, say)
         // shows the shaded frame instead.
         if r.renderer.check_debug_view(&settings).is_err() {
@@ -328,8 +347,12 @@ impl App {
         }
         let lines = r.settings.overlay.then(|| r.overlay_lines());
         let capture = r.pending_capture.take();
-        match r.presenter.draw(&r.renderer, &settings, lines.as_deref(), capture.is_some())? {
+        let scale = r.interactive.scale();
+        match r.presenter.draw(&r.renderer, &settings, lines.as_deref(), capture.is_some(), scale)? {
             Drawn::Frame { timings, captured } => {
+                r.interactive.end((now - r.last_presented.unwrap_or(now)).as_secs_f64() * 1e3);
+                r.last_presented = Some(now);
+                self.report.moving = r.interactive.stats();
                 r.too_large_noted = None;
                 self.report.present_mode = r.presenter.present_mode().map(|m| format!("{m:?}"));
                 if !timings.is_empty() {
@@ -470,6 +493,7 @@ impl Running {
                     self.script_wait_until = Some(Instant::now() + d);
                     return Ok(false);
                 }
+                ScriptStep::Scale(share) => self.interactive.pin(share),
                 ScriptStep::Quit => {
                     self.quit = true;
                     event_loop.exit();
@@ -490,6 +514,7 @@ impl Running {
             lines.push(p.describe());
         }
         lines.extend(self.settings.describe(&scene.lights));
+        lines.push(self.interactive.describe(extent.0, extent.1));
         if self.presenter.accumulated_frames() > 0 {
             lines.push(format!("accumulated {} frames", self.presenter.accumulated_frames()));
         }
@@ -600,154 +625,4 @@ fn map_key(code: KeyCode) -> Option<Key> {
         KeyCode::Period => Key::Period,
         _ => return None,
     })
-}
-
-/// `umbra-YYYYMMDD-HHMMSS-mmm` in UTC, from the system clock.
-fn timestamp_name() -> String {
-    let since = std::time::SystemTime::now().duration_since(std::time::UNIX_EPOCH).unwrap_or_default();
-    let secs = since.as_secs();
-    let (days, rem) = (secs / 86_400, secs % 86_400);
-    let (y, m, d) = civil_from_days(days as i64);
-    format!(
-        "umbra-{y:04}{m:02}{d:02}-{:02}{:02}{:02}-{:03}",
-        rem / 3600,
-        rem % 3600 / 60,
-        rem % 60,
-        since.subsec_millis()
-    )
-}
-
-/// Howard Hinnant's days-to-civil-date conversion.
-fn civil_from_days(z: i64) -> (i64, u32, u32) {
-    let z = z + 719_468;
-    let era = z.div_euclid(146_097);
-    let doe = z.rem_euclid(146_097);
-    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
-    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
-    let mp = (5 * doy + 2) / 153;
-    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
-    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
-    (yoe + era * 400 + i64::from(m <= 2), m, d)
-}
-
-/// Frames per second over the last second of frames.
-#[derive(Default)]
-struct FrameRate {
-    times: std::collections::VecDeque<Instant>,
-}
-
-impl FrameRate {
-    fn tick(&mut self, now: Instant) {
-        self.times.push_back(now);
-        while self.times.front().is_some_and(|&t| now - t > Duration::from_secs(1)) {
-            self.times.pop_front();
-        }
-    }
-
-    fn fps(&self) -> f64 {
-        match (self.times.front(), self.times.back()) {
-            (Some(a), Some(b)) if self.times.len() > 1 => {
-                (self.times.len() - 1) as f64 / (*b - *a).as_secs_f64().max(1e-9)
-            }
-            _ => 0.0,
-        }
-    }
-
-    fn frame_ms(&self) -> f64 {
-        let fps = self.fps();
-        if fps > 0.0 {
-            1000.0 / fps
-        } else {
-            0.0
-        }
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::{civil_from_days, Key, Playback};
-
-    #[test]
-    fn playback_loops_stops_and_steps() {
-        let mut p = Playback { time: 3.5, playing: true, span: (0.0, 4.0), looping: true };
-        p.advance(1.0);
-        assert!((p.time - 0.5).abs() < 1e-12 && p.playing, "wrapped: {p:?}");
-        p.looping = false;
-        p.advance(10.0);
-        assert_eq!((p.time, p.playing), (4.0, false), "held at the end");
-        p.on_key(Key::Comma);
-        assert!((p.time - (4.0 - super::STEP_SECONDS)).abs() < 1e-12);
-        p.on_key(Key::Space);
-        assert!(p.playing);
-        p.on_key(Key::Period);
-        assert!(!p.playing, "a step pauses");
-    }
-
-    #[test]
-    fn civil_dates_from_the_epoch() {
-        assert_eq!(civil_from_days(0), (1970, 1, 1));
-        assert_eq!(civil_from_days(20_416), (2025, 11, 24));
-        assert_eq!(civil_from_days(11_016), (2000, 2, 29));
-    }
-}
-
-/// Seconds a step (`,` and `.`) moves a paused scene: one frame at 24 per second.
-pub const STEP_SECONDS: f64 = 1.0 / 24.0;
-
-/// A moving scene's clock in the viewer: Space plays and pauses, `,` and `.` step, the script's
-/// `time T` sets it (paused). Playing, it runs at real time (or the fixed step `--fixed-dt`
-/// gives), wrapping at the end of a looping animation and stopping at the end of another.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Playback {
-    pub time: f64,
-    pub playing: bool,
-    /// The animation's span in scene seconds.
-    pub span: (f64, f64),
-    pub looping: bool,
-}
-
-impl Playback {
-    /// Playing from the start, for a scene that moves.
-    pub fn of(scene: &crate::scene::Scene) -> Option<Playback> {
-        let animation = scene.animation.as_ref()?;
-        Some(Playback { time: 0.0, playing: true, span: animation.span(), looping: animation.looping })
-    }
-
-    pub fn on_key(&mut self, key: Key) {
-        match key {
-            Key::Space => self.playing = !self.playing,
-            Key::Comma => {
-                self.playing = false;
-                self.time = (self.time - STEP_SECONDS).max(self.span.0);
-            }
-            Key::Period => {
-                self.playing = false;
-                self.time = (self.time + STEP_SECONDS).min(self.span.1);
-            }
-            _ => {}
-        }
-    }
-
-    /// Moves the clock on by `dt` seconds while playing.
-    pub fn advance(&mut self, dt: f64) {
-        if !self.playing {
-            return;
-        }
-        let (start, end) = self.span;
-        self.time += dt;
-        if self.time > end {
-            if self.looping && end > start {
-                self.time = start + (self.time - start).rem_euclid(end - start);
-            } else {
-                self.time = end;
-                self.playing = false;
-            }
-        }
-    }
-
-    /// Its overlay line.
-    pub fn describe(&self) -> String {
-        let state = if self.playing { "playing" } else { "paused" };
-        format!("t {:6.2} s of {:.2}  {state} (Space, , .)", self.time, self.span.1)
-    }
 }

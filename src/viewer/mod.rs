@@ -3,7 +3,9 @@
 
 mod app;
 pub mod camera;
+mod clock;
 pub mod input;
+pub mod interactive;
 mod presenter;
 pub mod script;
 pub mod settings;

@@ -149,14 +149,16 @@ impl Presenter {
         unsafe { self.ctx.device.device_wait_idle() }.vk("vkDeviceWaitIdle")
     }
 
-    /// Renders and presents one frame at the swapchain's size, with `overlay_lines` on top;
-    /// with `capture`, also returns the presented image as the window shows it.
+    /// Renders one frame at `scale` times the swapchain's size on each side (1: its size) and
+    /// presents it at the swapchain's size, with `overlay_lines` on top; with `capture`, also
+    /// returns the presented image as the window shows it.
     pub fn draw(
         &mut self,
         renderer: &Renderer,
         settings: &RenderSettings,
         overlay_lines: Option<&[String]>,
         capture: bool,
+        scale: f32,
     ) -> GpuResult<Drawn> {
         if self.minimised() {
             return Ok(Drawn::Skipped);
@@ -191,8 +193,9 @@ impl Presenter {
             }
         };
         let mut frame_settings = settings.clone();
-        frame_settings.width = swapchain.extent.width;
-        frame_settings.height = swapchain.extent.height;
+        (frame_settings.width, frame_settings.height) =
+            super::interactive::scaled((swapchain.extent.width, swapchain.extent.height), scale);
+        let scaled = (frame_settings.width, frame_settings.height) != (swapchain.extent.width, swapchain.extent.height);
         let history = self.accumulator.prepare(&self.ctx, &mut frame_settings, renderer.scene())?;
         let accumulated = history.is_some();
         let overlay = overlay_lines.map(|lines| {
@@ -209,7 +212,7 @@ impl Presenter {
             }
         });
         // The presented canvas is 8-bit unless a float debug view goes out without an overlay.
-        let float_canvas = frame_settings.debug_view.is_some() && overlay.is_none();
+        let float_canvas = frame_settings.debug_view.is_some() && overlay.is_none() && !scaled;
         let (width, height) = (swapchain.extent.width, swapchain.extent.height);
         let bytes = u64::from(width) * u64::from(height) * if float_canvas { 16 } else { 4 };
         if capture && self.capture.as_ref().is_none_or(|b| b.size != bytes) {

@@ -15,6 +15,8 @@
 //! screenshot NAME      # NAME.png and NAME.exr beside the scene
 //! capture NAME         # NAME.png of exactly what the window shows next, overlay included
 //! wait_ms 100          # 0..=60000
+//! scale 0.5            # moving frames render at this share of each side (0.25..=1);
+//!                      # `scale auto` lets the frame-time target choose it again
 //! quit
 //! ```
 
@@ -38,6 +40,8 @@ pub enum ScriptStep {
     /// NAME.png of exactly what the window shows next (overlay included).
     Capture(String),
     Wait(Duration),
+    /// Moving frames' share of each side, or `None`: chosen by the frame-time target.
+    Scale(Option<f32>),
     Quit,
 }
 
@@ -163,6 +167,18 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
                 let ms = count(words.get(1), "milliseconds", 0..=MAX_WAIT_MS)?;
                 steps.push(ScriptStep::Wait(Duration::from_millis(ms)));
             }
+            "scale" => {
+                expect_args(1)?;
+                let share = match words[1] {
+                    "auto" => None,
+                    _ => Some(number(words.get(1), "a share of each side, or auto")?),
+                };
+                let range = super::interactive::MIN_SCALE..=1.0;
+                if let Some(s) = share.filter(|s| !range.contains(s)) {
+                    return Err(fail(format!("scale {s}: a share of each side in 0.25..=1, or auto")));
+                }
+                steps.push(ScriptStep::Scale(share));
+            }
             "quit" => {
                 expect_args(0)?;
                 steps.push(ScriptStep::Quit);
@@ -198,6 +214,12 @@ mod tests {
         assert_eq!(err("press X"), "demo.txt:1: unknown key \"X\"");
         assert!(err("frames -1").contains("whole number"));
         assert!(err("resize 0 10").contains("minimise"));
+        assert!(err("scale 0.1").contains("0.25..=1"));
+        assert!(err("scale big").contains("not a finite number"));
+        assert_eq!(
+            parse("scale 0.5\nscale auto", "s").unwrap(),
+            [ScriptStep::Scale(Some(0.5)), ScriptStep::Scale(None)]
+        );
         assert!(err("time -1").contains("0 or more"), "{}", err("time -1"));
         assert_eq!(parse("time 1.5\npress space", "s").unwrap()[0], ScriptStep::Input(InputEvent::Time(1.5)));
         assert!(err("screenshot ../x").contains("letters"));

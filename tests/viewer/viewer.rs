@@ -189,3 +189,41 @@ fn a_moving_scene_plays_pauses_and_goes_to_an_instant() {
     // The ball slides 1.25 m and the box turns 112 degrees between the two instants.
     assert!(moved * 50 > n, "only {moved} of {n} pixels changed between t = 0.5 and t = 1.75");
 }
+
+/// While the camera moves the viewer renders fewer pixels (one denoised ray per pixel for soft
+/// lights) and upscales them to the window, through resizes and scale changes, validation
+/// clean; once still it refines at full size to what `umbra render` makes of the same view.
+#[test]
+fn moving_frames_are_scaled_and_the_still_view_converges_to_render() {
+    let dir = scene_dir("scaled");
+    // W held for 13 turns of the loop (a resize and a pinned share on the way), then S for as
+    // many: the camera is back where it started, still for 100 frames.
+    let script = "frames 2\nkey down W\nframes 5\nresize 240 180\nframes 4\nscale 0.5\nframes 3\ncapture moving\n\
+                  key up W\nkey down S\nframes 13\nkey up S\nresize 320 240\npress F1\nscale auto\nframes 100\n\
+                  capture still\nquit\n";
+    let out = view(&dir, script, &[]);
+    let text = String::from_utf8_lossy(&out.stdout).into_owned();
+    let moving_line = text.lines().find(|l| l.starts_with("moving: ")).unwrap_or_else(|| panic!("{text}"));
+    let frames: u64 = moving_line["moving: ".len()..].split_whitespace().next().unwrap().parse().unwrap();
+    assert!(frames >= 26, "{moving_line}");
+    let smallest: f32 = moving_line.split("rendered at ").nth(1).unwrap().split('x').next().unwrap().parse().unwrap();
+    assert!(smallest <= 0.5, "{moving_line}");
+    // The moving frame was rendered at half of each side and shown at the window's size.
+    let moving = image::open(dir.join("moving.png")).unwrap();
+    assert_eq!((moving.width(), moving.height()), (240, 180));
+    let still = image::open(dir.join("still.png")).unwrap().to_rgba8();
+    assert_eq!(still.dimensions(), (320, 240));
+    // The viewer's rays per frame (4), over about as many frames as it accumulated.
+    let out = common::umbra()
+        .arg("render")
+        .arg(dir.join("scene.toml"))
+        .args(["--spp", "4", "--frames", "100", "-o"])
+        .arg(dir.join("render.png"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let render = image::open(dir.join("render.png")).unwrap().to_rgba8();
+    let flip = umbra::bench::metrics::flip_mean(render.as_raw(), still.as_raw(), 320, 240);
+    eprintln!("still viewer against render: FLIP {flip:.5}");
+    assert!(flip <= 0.005, "the still view has not converged to the render: FLIP {flip}");
+}

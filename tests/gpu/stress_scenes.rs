@@ -96,7 +96,7 @@ fn binary_diff(a: &[f32], b: &[f32]) -> usize {
     a.iter().zip(b).filter(|(x, y)| (**x >= 0.5) != (**y >= 0.5)).count()
 }
 
-const SCENES: [&str; 10] = [
+const SCENES: [&str; 14] = [
     "grazing.toml",
     "field.toml",
     "inside-volume.toml",
@@ -107,6 +107,10 @@ const SCENES: [&str; 10] = [
     "many-lights.toml",
     "shuffled.toml",
     "stacked.toml",
+    "soft/wide.toml",
+    "soft/narrow.toml",
+    "soft/contact.toml",
+    "soft/thin.toml",
 ];
 
 #[test]

@@ -63,6 +63,8 @@ pub struct Interactive {
     held: u32,
     /// Frames since the camera or the scene last moved.
     still_frames: u32,
+    /// The interval between the last two still frames, ms.
+    still_ms: Option<f64>,
     last_camera: Option<Camera>,
     moving: bool,
     was_moving: bool,
@@ -79,6 +81,7 @@ impl Interactive {
             smoothed_ms: None,
             held: 0,
             still_frames: SETTLE_FRAMES,
+            still_ms: None,
             last_camera: None,
             moving: false,
             was_moving: false,
@@ -100,6 +103,12 @@ impl Interactive {
         self.still_frames = if moved { 0 } else { self.still_frames.saturating_add(1) };
         self.was_moving = self.moving;
         self.moving = self.still_frames < SETTLE_FRAMES;
+        if let (true, None, None, Some(target), Some(still)) =
+            (self.moving, self.scale, self.pinned, self.target_ms, self.still_ms)
+        {
+            // The first movement: a still frame's cost (full size, full rays) is a first guess.
+            self.scale = Some(step((target / still.max(1e-3)).sqrt() as f32));
+        }
         self.moving
     }
 
@@ -133,6 +142,10 @@ impl Interactive {
         if !self.moving {
             self.smoothed_ms = None;
             self.held = 0;
+            // Between two still frames: what a full-size frame costs.
+            if self.still_frames > SETTLE_FRAMES && interval_ms > 0.0 {
+                self.still_ms = Some(interval_ms);
+            }
             return;
         }
         let scale = self.scale();
@@ -147,15 +160,7 @@ impl Interactive {
             s.seconds += interval_ms / 1e3;
         }
         let Some(target) = self.target_ms else { return };
-        if !self.was_moving {
-            // The interval since a still frame: that frame's cost at full size and full rays,
-            // a first guess where nothing has been measured yet.
-            if self.scale.is_none() && self.pinned.is_none() {
-                self.scale = Some(step((target / interval_ms.max(1e-3)).sqrt() as f32));
-            }
-            return;
-        }
-        if self.pinned.is_some() {
+        if !self.was_moving || self.pinned.is_some() {
             return;
         }
         let smoothed = self.smoothed_ms.map_or(interval_ms, |m| 0.6 * m + 0.4 * interval_ms);

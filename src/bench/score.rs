@@ -13,7 +13,6 @@ use super::metrics::{flip_mean, scored_error, visibility_error, VisibilityError}
 use super::motion;
 use super::reference::{self, LightReference};
 use super::report::Row;
-use super::shadows::{Measured, SceneJob};
 use super::sweep::Point;
 use crate::config::{OutputKind, ShadowChoice, ShadowMethod};
 use crate::renderer::Renderer;
@@ -122,44 +121,51 @@ fn render_after(
     Ok(renderer.render(&s)?)
 }
 
+/// What the timed frames of a point left to score: the scene at its size, the settings they
+/// were rendered with, and the last one's display bytes.
+pub(super) struct Timed<'a> {
+    pub(super) scene: &'a Scene,
+    pub(super) size: (u32, u32),
+    pub(super) settings: &'a crate::config::RenderSettings,
+    pub(super) display: &'a [u8],
+}
+
 /// `point`'s rows: each light's visibility and the frame scored against `reference`, one row per
 /// light and, with more than one, a pooled row for the frame; `common` holds the columns they
 /// share. `instant`: the instant of a moving scene the frame is scored at (another than the
 /// timed frames', so it is rendered anew).
-#[allow(clippy::too_many_arguments)]
 pub(super) fn score(
     renderer: &mut Renderer,
-    job: &SceneJob,
+    timed: &Timed<'_>,
     reference: &reference::Reference,
     point: &Point,
-    measured: &Measured,
     instant: Option<f64>,
     common: Row,
 ) -> Result<(Vec<Row>, Vec<Vec<f32>>)> {
-    let (width, height) = job.size;
+    let (width, height) = timed.size;
     let (w, h) = (width as usize, height as usize);
     // Every light scored, rect lights after the others.
-    let total = reference::light_total(&job.scene);
-    let serving = served(renderer, &measured.settings)?;
+    let total = reference::light_total(timed.scene);
+    let serving = served(renderer, timed.settings)?;
     // Each frame scored on one frame's rays; a denoised light with the history of the frames
     // before it, from a fresh start.
-    let lead_in = lead_in(&job.scene, &point.choices);
+    let lead_in = lead_in(timed.scene, &point.choices);
     let common = Row { lead_in_frames: lead_in, ..common };
     let mut visibility = Vec::new();
     for (n, &choice) in point.choices.iter().enumerate().take(total) {
         let s = reference::visibility_settings(renderer.scene(), width, height, n, choice);
         visibility.push(reference::red_channel(&render_after(renderer, &s, lead_in, instant)?));
     }
-    let mut display = measured.display.clone();
-    let accumulates = crate::passes::accumulate::accumulates(&measured.settings, renderer.scene());
+    let mut display = timed.display.to_vec();
+    let accumulates = crate::passes::accumulate::accumulates(timed.settings, renderer.scene());
     if instant.is_some() || accumulates || lead_in > 0 {
         // The timed frames accumulated (soft shadows, ambient occlusion, rect lights' shadows)
         // or kept a history; the views since broke the run, so this frame is rendered anew.
-        let single = measured.settings.clone();
+        let single = timed.settings.clone();
         display = reference::display_bytes(render_after(renderer, &single, lead_in, instant)?);
     }
     let flip = flip_mean(&reference.display, &display, width, height);
-    let lights = &job.scene.lights;
+    let lights = &timed.scene.lights;
     let mut light_rows = Vec::new();
     for n in 0..total {
         let light = lights.get(n);
@@ -171,7 +177,7 @@ pub(super) fn score(
             // A rect light's rays: its scene file's spp (`reference` says none where it casts
             // no shadows).
             (ShadowMethod::Traced, None) if r.soft => {
-                r.pixels() as u64 * u64::from(job.scene.rect_lights[n - lights.len()].spp)
+                r.pixels() as u64 * u64::from(timed.scene.rect_lights[n - lights.len()].spp)
             }
             (ShadowMethod::Traced, None) => 0,
             (ShadowMethod::Traced, Some(l)) if choice.traced.is_soft(l.has_size()) => {
@@ -184,7 +190,7 @@ pub(super) fn score(
         let texels = map_texels(by, &choice, light);
         light_rows.push(Row {
             light: n.to_string(),
-            light_kind: reference::light_kind(&job.scene, n).into(),
+            light_kind: reference::light_kind(timed.scene, n).into(),
             served_by: by.id().into(),
             fallback: why.unwrap_or_default(),
             settings: choice.describe(),

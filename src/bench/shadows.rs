@@ -105,11 +105,11 @@ pub fn shadow_bytes(plan: &CompiledGraph) -> u64 {
 }
 
 /// One scene as the run holds it.
-pub(super) struct SceneJob {
+struct SceneJob {
     label: String,
     stem: String,
-    pub(super) scene: Scene,
-    pub(super) size: (u32, u32),
+    scene: Scene,
+    size: (u32, u32),
     /// Per method: its points this process measures, each with its index in the method's sweep
     /// (all of them, or this shard's).
     points: Vec<(MethodSpec, Vec<(usize, Point)>)>,
@@ -386,8 +386,14 @@ fn run_scene(
                     renderer.set_time(t);
                 }
                 let common = common.clone();
+                let timed = super::score::Timed {
+                    scene: &job.scene,
+                    size: job.size,
+                    settings: &measured.settings,
+                    display: &measured.display,
+                };
                 let (scored, visibility) =
-                    super::score::score(&mut renderer, job, &cached.reference, point, &measured, instant, common)?;
+                    super::score::score(&mut renderer, &timed, &cached.reference, point, instant, common)?;
                 // The error picture shows the first instant.
                 if i == 0 {
                     let frame_row = rows.len() + scored.iter().position(|r| r.frame_row).unwrap_or(0);
@@ -464,15 +470,15 @@ fn run_scene(
 }
 
 /// What one point's timed frames measured.
-pub(super) struct Measured {
-    pub(super) settings: crate::config::RenderSettings,
+struct Measured {
+    settings: crate::config::RenderSettings,
     shadow_ms: Vec<f64>,
     frame_ms: Vec<f64>,
     host_ms: Vec<f64>,
     shadow_passes: Vec<&'static str>,
     plan_bytes: u64,
     /// The last shaded frame's display bytes, one frame's worth of samples.
-    pub(super) display: Vec<u8>,
+    display: Vec<u8>,
     /// In a moving scene, each timed frame's update: CPU ms and bytes (`Renderer::frame_update`).
     update_ms: Vec<f64>,
     update_bytes: Vec<u64>,

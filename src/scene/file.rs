@@ -90,14 +90,23 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
         _ => None,
     };
     let mut rig = super::animation::Rig::default();
-    // Rect lights go to their own list; the others keep their shadow choices in step.
-    let (mut lights, mut rect_lights, mut shadowed) = (Vec::new(), Vec::new(), Vec::new());
+    // Rect lights go to their own list; the others keep their shadow choices in step. A keyed
+    // light follows a rig node of its own: (its index, the node).
+    let (mut lights, mut rect_lights, mut shadowed, mut keyed_lights) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
     for (i, light) in file.lights.iter().enumerate() {
         let path = format!("lights[{i}]");
         if light.kind == LightKind::Rect {
             rect_lights.push(check.rect(&path, light)?);
         } else {
-            lights.push(check.light(&path, light)?);
+            let placed = check.light(&path, light)?;
+            if let Some([keys, mut placement]) = check.keyed_light(&path, light, &placed)? {
+                rig.nodes.push(keys);
+                placement.parent = Some(rig.nodes.len() - 1);
+                rig.nodes.push(placement);
+                keyed_lights.push((lights.len(), rig.nodes.len() - 1));
+            }
+            lights.push(placed);
             shadowed.push((path, light));
         }
     }
@@ -272,7 +281,17 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
     {
         motion::carry(animation, shadowed.len(), base, &moves, &light_nodes, camera_node.filter(|_| !has_path));
     }
+    if let Some(animation) = &mut animation {
+        animation.lights.extend(keyed_lights.iter().copied());
+    }
     scene.animation = animation.map(std::sync::Arc::new);
+    // A keyed light is placed at its first key, as a keyed object is.
+    if !keyed_lights.is_empty() {
+        let first = scene.lights_at(0.0);
+        for &(k, _) in &keyed_lights {
+            scene.lights[k] = first[k];
+        }
+    }
     scene.settle_deformed();
     Ok((scene, has_camera))
 }

@@ -327,3 +327,74 @@ fn the_scene_file_chooses_the_gltf_clip() {
         assert!(!err.contains('\n'), "{err}");
     }
 }
+
+/// Lights with keys: a point light slides, a spot light turns about its own position, a sun
+/// turns; each starts at its first key and `lights_at` follows the keys (linear or step).
+const KEYED_LIGHTS: &str = r#"
+[camera]
+eye = [0.0, 2.0, 6.0]
+target = [0.0, 0.0, 0.0]
+vfov_deg = 45.0
+[[lights]]
+type = "point"
+position = [0.0, 3.0, 0.0]
+intensity = [10.0, 10.0, 10.0]
+keys = [
+    { time = 0.0, translate = [-1.0, 0.0, 0.0] },
+    { time = 2.0, translate = [1.0, 0.0, 0.0] },
+]
+[[lights]]
+type = "spot"
+position = [0.0, 4.0, 0.0]
+direction = [0.0, -1.0, 0.0]
+intensity = [10.0, 10.0, 10.0]
+inner_deg = 10.0
+outer_deg = 20.0
+interpolation = "step"
+keys = [
+    { time = 0.0 },
+    { time = 1.0, rotate_deg = [0.0, 0.0, 90.0] },
+]
+[[lights]]
+type = "directional"
+direction = [0.0, -1.0, 0.0]
+irradiance = [1.0, 1.0, 1.0]
+keys = [
+    { time = 0.0 },
+    { time = 2.0, rotate_deg = [90.0, 0.0, 0.0] },
+]
+[[objects]]
+shape = "plane"
+"#;
+
+#[test]
+fn keyed_lights_follow_their_keys() {
+    use umbra::scene::Light;
+    let scene = Scene::parse(KEYED_LIGHTS, "lights.toml", Path::new(".")).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(scene.animation_span(), Some((0.0, 2.0)));
+    let Light::Point { position, .. } = scene.lights[0] else { panic!() };
+    assert!(close(position, DVec3::new(-1.0, 3.0, 0.0)), "placed at its first key: {position}");
+    let at = |t: f64| scene.lights_at(t);
+    let Light::Point { position, .. } = at(1.0)[0] else { panic!() };
+    assert!(close(position, DVec3::new(0.0, 3.0, 0.0)), "halfway: {position}");
+    // The spot turns 90 degrees about Z at t = 1 (step): the key's rotation acts on its
+    // placement, so it swings about the world origin, as an object's keys turn the object.
+    let Light::Spot { position, direction, .. } = at(0.9)[1] else { panic!() };
+    assert!(close(position, DVec3::new(0.0, 4.0, 0.0)) && (direction - glam::Vec3::NEG_Y).length() < 1e-6);
+    let Light::Spot { position, direction, .. } = at(1.0)[1] else { panic!() };
+    assert!((position - DVec3::new(-4.0, 0.0, 0.0)).length() < 1e-9, "{position}");
+    assert!((direction - glam::Vec3::X).length() < 1e-6, "{direction}");
+    // The sun turns about X: straight down, then along -Z... halfway at 45 degrees.
+    let Light::Directional { direction, .. } = at(1.0)[2] else { panic!() };
+    let half = std::f32::consts::FRAC_1_SQRT_2;
+    assert!((direction - glam::Vec3::new(0.0, -half, -half)).length() < 1e-5, "{direction}");
+    // Errors name the key.
+    let err = |text: String| Scene::parse(&text, "lights.toml", Path::new(".")).unwrap_err().to_string();
+    let e = err(KEYED_LIGHTS.replace("{ time = 2.0, translate", "{ time = 0.0, translate"));
+    assert!(e.contains("lights[0].keys[1].time") && e.contains("increase"), "{e}");
+    let rect = "[[lights]]\ntype = \"rect\"\ncenter = [0.0, 2.0, 0.0]\nhalf_edge_u = [1.0, 0.0, 0.0]\nhalf_edge_v = [0.0, 0.0, 1.0]\nradiance = [1.0, 1.0, 1.0]\nkeys = [{ time = 0.0 }]\n";
+    let e = err(KEYED_LIGHTS.replace("[[objects]]", &format!("{rect}[[objects]]")));
+    assert!(e.contains("lights[3].keys") && e.contains("rect lights do not move"), "{e}");
+    let e = err(KEYED_LIGHTS.replace("interpolation = \"step\"\nkeys = [\n    { time = 0.0 },\n    { time = 1.0, rotate_deg = [0.0, 0.0, 90.0] },\n]\n", "interpolation = \"step\"\n"));
+    assert!(e.contains("lights[1].interpolation") && e.contains("only `keys`"), "{e}");
+}

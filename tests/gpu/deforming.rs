@@ -184,6 +184,37 @@ fn a_light_on_an_animated_node_casts_as_the_same_light_baked_into_a_static_scene
     common::assert_clean(&ctx);
 }
 
+/// The same with a light keyed in the scene file: a spot sliding over a box casts, at each
+/// instant, as the same spot written where the keys put it.
+#[test]
+fn a_keyed_light_casts_as_the_same_light_baked_into_a_static_scene() {
+    let ctx = common::gpu();
+    let text = "[camera]\neye = [0.0, 5.0, 6.0]\ntarget = [0.0, 0.0, 0.0]\nvfov_deg = 50.0\n\
+                [[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, -0.3]\nirradiance = [0.5, 0.5, 0.5]\n\
+                [[lights]]\ntype = \"spot\"\nposition = [0.0, 3.0, 0.0]\ndirection = [0.0, -1.0, 0.0]\n\
+                intensity = [30.0, 30.0, 30.0]\ninner_deg = 40.0\nouter_deg = 60.0\n\
+                keys = [{ time = 0.0, translate = [-1.5, 0.0, 0.0] }, { time = 1.0, translate = [1.5, 0.0, 0.0] }]\n\
+                [[objects]]\nshape = \"plane\"\nsize = 10.0\n\
+                [[objects]]\nshape = \"cube\"\nscale = [0.6, 1.2, 0.6]\ntranslate = [0.0, 0.6, 0.0]\n";
+    let scene = Scene::parse(text, "keyed-spot.toml", std::path::Path::new(".")).expect("the keyed spot scene");
+    assert_eq!(scene.animation.as_ref().map(|a| a.lights.len()), Some(1), "the spot follows its keys");
+    let mut moving = Renderer::new(ctx.clone(), scene.clone()).expect("moving renderer");
+    let mut shadows = Vec::new();
+    for time in [0.2, 0.8] {
+        let mut baked = Renderer::new(ctx.clone(), scene.posed(time)).expect("baked renderer");
+        let posed = visibility(&mut moving, 1, ShadowMethod::Traced, Some(time));
+        let still = visibility(&mut baked, 1, ShadowMethod::Traced, None);
+        let shadowed = still.iter().filter(|&&v| v < 0.5).count();
+        assert!(shadowed > 200, "t = {time}: only {shadowed} pixels in the spot's shadow");
+        let share = differing(&posed, &still);
+        assert!(share <= 0.002, "at {time}: {:.3} % of pixels differ", 100.0 * share);
+        shadows.push(posed);
+    }
+    assert!(differing(&shadows[0], &shadows[1]) > 0.01, "the box's shadow did not move with the light");
+    drop(moving);
+    common::assert_clean(&ctx);
+}
+
 /// The motion channel on a skinned panel that slides (both joints moving by the same step)
 /// against the twin: a deforming mesh's vertices move from where the previous frame drew them,
 /// from the first frame on (over the 1/30 s before it), and a paused frame has no motion.

@@ -164,6 +164,10 @@ macro_rules! light_desc {
             pub(super) radiance: Option<Xyz>,
             pub(super) two_sided: Option<bool>,
             pub(super) spp: Option<u32>,
+            /// Keyframed motion of a point, spot or directional light: each key moves the
+            /// light's own placement as an object's keys move the object.
+            pub(super) keys: Option<Vec<KeyDesc>>,
+            pub(super) interpolation: Option<KeyInterpolation>,
             /// The shadow method's id (`crate::config::ShadowMethod::parse`).
             pub(super) shadows: Option<String>,
             /// Soft or hard traced shadows; unset: soft when the light has a size.

@@ -73,6 +73,13 @@ impl Check<'_> {
     /// Its shadows are not a per-light technique choice, so the shadow keys are refused.
     pub(super) fn rect(&self, path: &str, light: &LightDesc) -> Result<RectLight, SceneError> {
         self.light_keys(path, light)?;
+        if let Some(key) = [("keys", light.keys.is_some()), ("interpolation", light.interpolation.is_some())]
+            .iter()
+            .find_map(|(key, present)| present.then_some(key))
+        {
+            let message = "rect lights do not move: only point, spot and directional lights take keys";
+            return Err(self.fail(&format!("{path}.{key}"), message));
+        }
         let mut shadow_keys = vec![("shadows", light.shadows.is_some()), ("soft", light.soft.is_some())];
         shadow_keys.extend(light.tables_given());
         if let Some((key, _)) = shadow_keys.iter().find(|(_, present)| *present) {

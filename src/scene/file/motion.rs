@@ -59,22 +59,61 @@ impl Check<'_> {
 
     /// An object's keyed placement as a rig node (no parent), or `None` without `keys`.
     pub(super) fn keyed_node(&self, path: &str, object: &ObjectDesc) -> Result<Option<RigNode>, SceneError> {
-        let Some(keys) = &object.keys else {
-            if object.interpolation.is_some() {
-                return Err(self.fail(&format!("{path}.interpolation"), "only `keys` take it"));
-            }
-            return Ok(None);
-        };
         let placed = object.transform.is_some()
             || object.translate.is_some()
             || object.rotate_deg.is_some()
             || object.scale.is_some();
-        if placed {
+        if placed && object.keys.is_some() {
             return Err(self.fail(
                 &format!("{path}.keys"),
                 "the keys place the object: give them or transform/translate/rotate_deg/scale, not both",
             ));
         }
+        self.keys_node(path, object.keys.as_deref(), object.interpolation)
+    }
+
+    /// A keyed light's motion: a rig node of its keys (no parent, pushed first) and under it a
+    /// node that places the light as its file does (its position, and -Z turned to its
+    /// direction), the one the light follows (`Animation::lights`); `None` without `keys`.
+    pub(super) fn keyed_light(
+        &self,
+        path: &str,
+        light: &super::desc::LightDesc,
+        placed: &crate::scene::Light,
+    ) -> Result<Option<[RigNode; 2]>, SceneError> {
+        let Some(keyed) = self.keys_node(path, light.keys.as_deref(), light.interpolation)? else { return Ok(None) };
+        use crate::scene::Light;
+        let (position, direction) = match *placed {
+            Light::Point { position, .. } => (position, None),
+            Light::Spot { position, direction, .. } => (position, Some(direction)),
+            Light::Directional { direction, .. } => (DVec3::ZERO, Some(direction)),
+        };
+        let turn =
+            direction.map_or(DQuat::IDENTITY, |d| DQuat::from_rotation_arc(DVec3::NEG_Z, d.as_dvec3().normalize()));
+        let placement = RigNode {
+            parent: None,
+            offset: glam::DMat4::from_rotation_translation(turn, position),
+            rest: (DVec3::ZERO, DQuat::IDENTITY, DVec3::ONE),
+            translation: None,
+            rotation: None,
+            scale: None,
+        };
+        Ok(Some([keyed, placement]))
+    }
+
+    /// A rig node of `keys` (no parent), or `None` without them.
+    fn keys_node(
+        &self,
+        path: &str,
+        keys: Option<&[KeyDesc]>,
+        interpolation: Option<KeyInterpolation>,
+    ) -> Result<Option<RigNode>, SceneError> {
+        let Some(keys) = keys else {
+            if interpolation.is_some() {
+                return Err(self.fail(&format!("{path}.interpolation"), "only `keys` take it"));
+            }
+            return Ok(None);
+        };
         let keys_path = format!("{path}.keys");
         let times = self.key_times(&keys_path, keys.iter().map(|k| &k.time))?;
         let mut trs: Vec<(DVec3, DQuat, DVec3)> = Vec::with_capacity(keys.len());
@@ -90,7 +129,7 @@ impl Check<'_> {
             }
             trs.push(key);
         }
-        let interpolation = match object.interpolation.unwrap_or(KeyInterpolation::Linear) {
+        let interpolation = match interpolation.unwrap_or(KeyInterpolation::Linear) {
             KeyInterpolation::Linear => Interpolation::Linear,
             KeyInterpolation::Step => Interpolation::Step,
         };

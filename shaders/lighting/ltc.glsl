@@ -1,6 +1,6 @@
 // Linearly transformed cosines over a rect light or a cap (a sphere or disk light): twin of
-// src/lighting/ltc.rs (`lookup`, `form_factor`, `cap_polygon`, `cap_form_factor`, `lobe_over_polygon`, `frame`) and of
-// `shade_rect` and `shade_cap` in src/shading/area.rs.
+// src/lighting/ltc.rs (`lookup`, `form_factor`, `cap_polygon`, `cap_form_factor`, `lobe_over_polygon`, `frame`), of
+// src/lighting/cap_cubature.rs (a small cap's cubature) and of `shade_rect` and `shade_cap` in src/shading/area.rs.
 // Contract: before including, declare `float ltc_table[]` (ltc::table(), 5 floats a node, x
 // fastest) and `vec2 brdf_table[]`, and include brdf.glsl, lights.glsl and
 // lighting/environment.glsl.
@@ -419,10 +419,60 @@ vec2 ltc_cap_quadrature(LtcQuadrature q, vec3 centre, mat3 to_frame, vec3 t, vec
     return ltc_quadrature_result(sum, cosine_integral);
 }
 
-// Unshadowed radiance toward v at a point of normal n from the cap of half-angle theta
-// (one_minus_cos = 1 - cos(theta)) around `axis` with `radiance`: shading::shade_cap.
-vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v, vec3 base_color, float roughness,
-                  float metallic) {
+// A cap small against the lobe: the lobe by a 4-point cubature (lighting::cap_cubature).
+// The cap's size against the lobe's at or below which the cubature is whole, at or above which
+// it is gone (cap_cubature::CUBATURE_UP_TO).
+const vec2 LTC_CAP_CUBATURE_UP_TO = vec2(0.1, 0.125);
+
+// cap_cubature::weight.
+float ltc_cap_cubature_weight(float one_minus_cos, float roughness) {
+    float r = clamp(roughness, 0.0, 1.0);
+    float alpha = max(r * r, BRDF_MIN_ALPHA);
+    float size = sqrt(2.0 * max(one_minus_cos, 0.0)) / alpha;
+    return 1.0 - light_smoothstep(LTC_CAP_CUBATURE_UP_TO.x, LTC_CAP_CUBATURE_UP_TO.y, size);
+}
+
+// cap_cubature::cap_cubature: the lobe over the cap at the 4 points of cap_cubature::points, as
+// (F0's scale, bias), scaled to the cap's cosine integral over pi `cosine_integral`.
+vec2 ltc_cap_cubature(vec3 n, vec3 v, vec3 axis, float one_minus_cos, float roughness, float cosine_integral) {
+    float r = clamp(roughness, 0.0, 1.0);
+    float alpha = max(r * r, BRDF_MIN_ALPHA);
+    float n_dot_v = max(dot(n, v), BRDF_MIN_N_DOT_V);
+    vec3 up = n - axis * dot(n, axis);
+    vec3 t;
+    vec3 b;
+    if (dot(up, up) > 1e-12) {
+        t = normalize(up);
+        b = cross(axis, t);
+    } else {
+        orthonormal_basis(axis, t, b);
+    }
+    float sin_theta = sqrt(max(one_minus_cos * (2.0 - one_minus_cos), 0.0));
+    float turn = 1.0 - light_smoothstep(0.5, 1.0, dot(n, axis) / max(sin_theta, 1e-30));
+    t = normalize(t + b * turn);
+    b = cross(axis, t);
+    float e = 0.5 * one_minus_cos;
+    float s = sqrt(max(e * (2.0 - e), 0.0));
+    vec3 c = axis * (1.0 - e);
+    vec3 sum = vec3(0.0);
+    for (uint k = 0u; k < 4u; k++) {
+        // t, b, -t, -b as cap_cubature::points.
+        vec3 d = (k & 1u) == 0u ? t : b;
+        vec3 l = c + (k < 2u ? d : -d) * s;
+        float n_dot_l = dot(n, l);
+        if (n_dot_l <= 0.0) continue;
+        vec3 h = ltc_normalize_or_zero(v + l);
+        float f = ggx_d(clamp(dot(n, h), 0.0, 1.0), alpha) * smith_vis(n_dot_l, n_dot_v, alpha) * n_dot_l;
+        float m = 1.0 - clamp(dot(v, h), 0.0, 1.0);
+        float w = m * m * m * m * m;
+        sum += vec3(f * (1.0 - w), f * w, n_dot_l);
+    }
+    return sum.z > 0.0 ? sum.xy * (cosine_integral * LTC_PI / sum.z) : vec2(0.0);
+}
+
+// The lobe over a cap too large for the cubature: LTC over its octagon (shading::shade_cap's
+// `large`).
+vec2 ltc_cap_lobe(vec3 axis, float one_minus_cos, vec3 n, vec3 v, float roughness) {
     const float N = float(LTC_CAP_CORNERS);
     float e = clamp(one_minus_cos, 0.0, LTC_CAP_MAX_ONE_MINUS_COS);
     float omc_rho = clamp(sin(LTC_PI * e / N) / (sin(LTC_PI / N) * cos(LTC_PI * (1.0 - e) / N)), 0.0, 1.0);
@@ -434,9 +484,6 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
     vec3 x = ltc_frame_x(n, v);
     mat3 to_frame = transpose(mat3(x, cross(n, x), n));
     vec3 centre = to_frame * (axis * (1.0 - omc_rho));
-    float whole = clamp(one_minus_cos, 0.0, 1.0);
-    float diffuse_share = ltc_cap_diffuse(dot(n, axis), whole * (2.0 - whole));
-    roughness = clamp(roughness, 0.0, 1.0);
     float share;
     mat3 m = ltc_lookup(n_dot_v, roughness, share);
     vec3 form = ltc_cap_form_factor(m, centre, to_frame, t, b, sin_rho);
@@ -447,6 +494,21 @@ vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v,
         LtcQuadrature q = ltc_quadrature(m, v_frame, n_dot_v, roughness);
         lobe = mix(lobe, ltc_cap_quadrature(q, centre, to_frame, t, b, sin_rho, abs(form.z)), weight);
     }
+    return lobe;
+}
+
+// Unshadowed radiance toward v at a point of normal n from the cap of half-angle theta
+// (one_minus_cos = 1 - cos(theta)) around `axis` with `radiance`: shading::shade_cap. Each side
+// of the blend runs only where some lane needs it (on lavapipe a branch no lane takes is free).
+vec3 cap_radiance(vec3 axis, float one_minus_cos, vec3 radiance, vec3 n, vec3 v, vec3 base_color, float roughness,
+                  float metallic) {
+    float whole = clamp(one_minus_cos, 0.0, 1.0);
+    float diffuse_share = ltc_cap_diffuse(dot(n, axis), whole * (2.0 - whole));
+    roughness = clamp(roughness, 0.0, 1.0);
+    float cubature = ltc_cap_cubature_weight(one_minus_cos, roughness);
+    vec2 lobe = vec2(0.0);
+    if (cubature > 0.0) lobe = ltc_cap_cubature(n, v, axis, one_minus_cos, roughness, diffuse_share);
+    if (cubature < 1.0) lobe = mix(ltc_cap_lobe(axis, one_minus_cos, n, v, roughness), lobe, cubature);
     return ltc_shade(diffuse_share, lobe, base_color, metallic) * radiance;
 }
 

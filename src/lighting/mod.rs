@@ -3,6 +3,7 @@
 //! when the scene has it: a scene without `[environment]` pays for no table, pass or image.
 
 pub mod ao;
+pub mod cap_cubature;
 pub mod envmap;
 pub mod ltc;
 pub mod ltc_fit;

@@ -56,22 +56,34 @@ fn shade_lobe(
 }
 
 /// Unshadowed outgoing radiance toward `v` at a point of unit normal `n` from `cap`: Lambert
-/// exactly (`ltc::cap_diffuse`), GGX by LTC over the solid-angle-matched polygon of
-/// `ltc::cap_polygon`, as a rect's is.
+/// exactly (`ltc::cap_diffuse`); GGX, for a cap small against the lobe, by the 4-point
+/// cubature of `lighting::cap_cubature`, and for a larger one by LTC over the solid-angle-matched
+/// polygon of `ltc::cap_polygon`, as a rect's is (blended between, `cap_cubature::weight`).
 /// Twin of `cap_radiance` in ltc.glsl.
 pub fn shade_cap(n: Vec3, v: Vec3, material: &Material, cap: &Cap) -> Vec3 {
-    use crate::lighting::ltc;
+    use crate::lighting::{cap_cubature, ltc};
     let (x, y) = ltc::frame(n, v);
     let to_frame = |c: Vec3| Vec3::new(c.dot(x), c.dot(y), c.dot(n));
     let (centre, offsets) = ltc::cap_polygon(cap.axis, cap.one_minus_cos);
     let (centre, offsets) = (to_frame(centre), offsets.map(to_frame));
+    let whole = cap.one_minus_cos.clamp(0.0, 1.0);
+    let diffuse_share = ltc::cap_diffuse(n.dot(cap.axis), whole * (2.0 - whole));
+    let cubature = cap_cubature::weight(cap.one_minus_cos, material.roughness);
     let lobe = |node, m, v_frame, n_dot_v, roughness, ab| {
+        let small = if cubature > 0.0 {
+            cap_cubature::cap_cubature(n, v, cap.axis, cap.one_minus_cos, roughness, diffuse_share)
+        } else {
+            glam::Vec2::ZERO
+        };
+        if cubature >= 1.0 {
+            return small;
+        }
         let form = ltc::cap_form_factor(m, centre, &offsets);
         let corners = offsets.map(|o| centre + o);
-        ltc::lobe_over_polygon(node, m, form, &corners, ltc::CAP_QUADRATURE_SIDE, v_frame, n_dot_v, roughness, ab)
+        let large =
+            ltc::lobe_over_polygon(node, m, form, &corners, ltc::CAP_QUADRATURE_SIDE, v_frame, n_dot_v, roughness, ab);
+        large.lerp(small, cubature)
     };
-    let sin2 = cap.one_minus_cos * (2.0 - cap.one_minus_cos);
-    let diffuse_share = ltc::cap_diffuse(n.dot(cap.axis), sin2);
     shade_lobe(n, v, x, material, diffuse_share, lobe) * cap.radiance
 }
 

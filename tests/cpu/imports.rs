@@ -31,6 +31,7 @@ const LAYERS: &[(&str, u32)] = &[
     // The CPU scene: files, meshes, the BVH; and the CPU twins of the shaders.
     ("scene", 5),
     ("shading", 5),
+    ("lighting::cap_cubature", 5),
     ("lighting::ltc", 5),
     ("lighting::ltc_fit", 5),
     ("lighting::split_sum", 5),

@@ -12,6 +12,7 @@ mod gltf_builder;
 mod animation;
 mod bench_metrics;
 mod bvh_cpu;
+mod cap_cubature;
 mod file_references;
 mod gltf_checks;
 mod graph_layers;

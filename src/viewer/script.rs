@@ -265,6 +265,33 @@ mod tests {
     use super::*;
 
     #[test]
+    fn ui_commands_parse_to_the_handlers_commands() {
+        let text = "method 1 map\nparam 0 map.resolution 1024\nview albedo\nexposure -1.5\nspp 8\n\
+                    backend ray-query\nlight 2 direction 0 -1 0\nbookmark save 2\nbookmark 4\nopen a b.obj # c\n";
+        let steps = parse(text, "s").unwrap();
+        let commands: Vec<Command> = steps
+            .into_iter()
+            .map(|s| match s {
+                ScriptStep::Command(c) => c,
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(commands[0], Command::Method { light: 1, method: crate::config::ShadowMethod::Map });
+        assert_eq!(commands[1], Command::Param { light: 0, key: "map.resolution".into(), value: "1024".into() });
+        assert_eq!(commands[2], Command::View("albedo".into()));
+        assert_eq!(commands[3], Command::Exposure(-1.5));
+        assert_eq!(commands[4], Command::Spp(8));
+        assert_eq!(commands[5], Command::Backend(crate::config::ShadowBackend::RayQuery));
+        assert_eq!(commands[6], Command::Light { light: 2, edit: LightEdit::Direction(glam::Vec3::NEG_Y) });
+        assert_eq!(commands[7], Command::Bookmark { slot: 1, save: true });
+        assert_eq!(commands[8], Command::Bookmark { slot: 3, save: false });
+        assert_eq!(commands[9], Command::Open("a b.obj".into()));
+        for bad in ["method 0 fast", "spp 0", "bookmark 5", "light 0 colour 1 1 1", "backend gpu", "open"] {
+            assert!(parse(bad, "s").is_err(), "{bad}");
+        }
+    }
+
+    #[test]
     fn a_script_parses_to_steps() {
         let steps = parse("# demo\nframes 3\npress T\nkey down w # hold\nmouse 10 -5\nresize 64 48\nminimise\nrestore\nscreenshot a-1\nwait_ms 5\nquit\n", "s").unwrap();
         assert_eq!(steps[0], ScriptStep::Frames(3));

@@ -74,6 +74,17 @@ pub struct ViewerReport {
     pub present_mode: Option<String>,
     /// Frames drawn while the view or the scene moved, and their rate.
     pub moving: MovingStats,
+    /// The UI's cost: frames it was drawn in, and their summed GPU time of the `ui` pass and
+    /// host time laying it out (egui's layout and tessellation), in milliseconds.
+    pub ui: UiCost,
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+pub struct UiCost {
+    pub gpu_frames: u64,
+    pub gpu_ms: f64,
+    pub cpu_frames: u64,
+    pub cpu_ms: f64,
 }
 
 /// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
@@ -347,7 +358,12 @@ impl App {
             return Ok(());
         }
         // The UI first: what its controls change shows in this frame.
+        let laid_out = Instant::now();
         let meshes = r.settings.ui.then(|| r.lay_out_ui());
+        if meshes.is_some() {
+            self.report.ui.cpu_frames += 1;
+            self.report.ui.cpu_ms += laid_out.elapsed().as_secs_f64() * 1e3;
+        }
         let now = Instant::now();
         let dt = self.options.fixed_dt.unwrap_or((now - r.last_frame).as_secs_f32().min(0.25));
         r.last_frame = now;
@@ -380,6 +396,10 @@ impl App {
                 r.too_large_noted = None;
                 self.report.present_mode = r.presenter.present_mode().map(|m| format!("{m:?}"));
                 if !timings.is_empty() {
+                    if let Some((_, ms)) = timings.iter().find(|t| t.0 == "ui") {
+                        self.report.ui.gpu_frames += 1;
+                        self.report.ui.gpu_ms += ms;
+                    }
                     r.ui.record_timings(&timings);
                     r.timings = timings;
                 }

@@ -12,4 +12,4 @@ pub mod script;
 pub mod settings;
 mod ui;
 
-pub use app::{run, ViewerOptions, ViewerReport};
+pub use app::{run, UiCost, ViewerOptions, ViewerReport};

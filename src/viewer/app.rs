@@ -194,9 +194,10 @@ impl ApplicationHandler for App {
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
         let Some(r) = self.running.as_mut() else { return };
-        // egui sees every event; while the UI shows, what it takes (a click on a control, keys
-        // for a field being edited, the wheel over it) goes no further.
-        let taken = r.ui.on_window_event(&r.window, &event) && r.settings.ui;
+        // egui sees the events while the UI shows (hidden, it would only queue them), and what
+        // it takes (a click on a control, keys for a field being edited, the wheel over it)
+        // goes no further.
+        let taken = r.settings.ui && r.ui.on_window_event(&r.window, &event);
         let ui_has = |pointer: bool| r.settings.ui && if pointer { r.ui.pointer_over() } else { r.ui.wants_keyboard() };
         let input = match event {
             WindowEvent::CloseRequested => {
@@ -301,7 +302,7 @@ impl App {
             );
         }
         let renderer = Renderer::new(ctx.clone(), o.scene.clone()).context("preparing the scene")?;
-        // The overlay shows pass times: find how this driver can time passes (a fraction of a
+        // The UI shows pass times: find how this driver can time passes (a fraction of a
         // second, once) so they are right rather than plain stamps that some drivers defer.
         renderer.calibrate_timings().context("calibrating pass timings")?;
         let settings = ViewerSettings {

@@ -13,7 +13,7 @@
 //! resize 640 480       # 1..=16384 each
 //! minimise             # and `restore`
 //! screenshot NAME      # NAME.png and NAME.exr beside the scene
-//! capture NAME         # NAME.png of exactly what the window shows next, overlay included
+//! capture NAME         # NAME.png of exactly what the window shows next, UI included
 //! wait_ms 100          # 0..=60000
 //! scale 0.5            # moving frames render at this share of each side (0.25..=1);
 //!                      # `scale auto` lets the frame-time target choose it again
@@ -47,7 +47,7 @@ pub enum ScriptStep {
     Input(InputEvent),
     Minimise(bool),
     Screenshot(String),
-    /// NAME.png of exactly what the window shows next (overlay included).
+    /// NAME.png of exactly what the window shows next (UI included).
     Capture(String),
     Wait(Duration),
     /// Moving frames' share of each side, or `None`: chosen by the frame-time target.

@@ -147,7 +147,7 @@ impl ViewerSettings {
         s
     }
 
-    /// Overlay lines about the lights and the view.
+    /// Status lines (the UI) about the lights and the view.
     pub fn describe(&self, lights: &[Light]) -> Vec<String> {
         let mut lines = Vec::new();
         if let Some(light) = lights.get(self.selected_light) {
@@ -176,7 +176,7 @@ fn cycle(v: u32, values: &[u32]) -> u32 {
     values.iter().position(|&x| x == v).map_or(values[0], |i| values[(i + 1) % values.len()])
 }
 
-/// One light's technique and the parameters that matter to it, for the overlay.
+/// One light's technique and the parameters that matter to it, for the UI.
 fn describe_choice(c: &ShadowChoice, light: &Light) -> String {
     match crate::shadows::technique(c.method) {
         Some(t) => t.describe(c, light),
@@ -253,7 +253,7 @@ mod tests {
     }
 
     #[test]
-    fn the_overlay_names_the_view_as_the_command_line_does() {
+    fn the_status_names_the_view_as_the_command_line_does() {
         let mut s = ViewerSettings::new(1);
         let light = Light::Point { position: glam::DVec3::Y, intensity: glam::Vec3::ONE, radius: 0.0 };
         let view_line = |s: &ViewerSettings| s.describe(&[light]).into_iter().find(|l| l.starts_with("view ")).unwrap();

@@ -44,7 +44,7 @@
 #define RAYS_BVH_MASKS 5
 #define RAYS_BVH_ROOT 6
 
-// ui.vert/ui.frag: the viewer's egui meshes; the font atlas as RGBA8 texels
+// ui.vert and ui.frag: the viewer's egui meshes; the font atlas as RGBA8 texels
 #define UI_ATLAS 0
 
 // accumulate.comp: progressive average of a still view

@@ -124,7 +124,7 @@ impl ShadowChoice {
         Ok(())
     }
 
-    /// The chosen method's parameters as `key=value` pairs (logs, CSV rows, the overlay).
+    /// The chosen method's parameters as `key=value` pairs (logs, CSV rows, the viewer).
     pub fn describe(&self) -> String {
         let table = toml::Value::try_from(*self).ok();
         let section = table.as_ref().and_then(|t| t.get(self.method.id())).and_then(|s| s.as_table());

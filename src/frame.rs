@@ -13,8 +13,8 @@ use crate::gpu::{BvhHandles, CameraMatrices, SceneGpu, SCENE_ACCESS};
 use crate::graph::{Access, BufferKind, Handle, ImageKind, RenderGraph};
 use crate::passes::accumulate::{self, History};
 use crate::passes::debug_view::{self, DebugInputs};
-use crate::passes::overlay::OverlayInputs;
-use crate::passes::{compose, geometry, overlay, present, readback, tonemap, GBuffer};
+use crate::passes::ui::UiInputs;
+use crate::passes::{compose, geometry, present, readback, tonemap, ui, GBuffer};
 use crate::scene::Scene;
 use crate::shadows::{self, ShadowPlan};
 use crate::vk::{Buffer, GpuResult, ImageDesc, PipelineSource};
@@ -27,13 +27,13 @@ pub const BACKGROUND: Vec3 = crate::scene::DEFAULT_BACKGROUND;
 pub enum Target<'a> {
     /// Copied into a host-visible buffer.
     ReadBack(&'a Buffer),
-    /// Blitted into an acquired swapchain image, with the overlay drawn first when given; with
+    /// Blitted into an acquired swapchain image, with the viewer's UI drawn first when given; with
     /// `capture`, what is presented is also copied there.
     Present {
         image: vk::Image,
         view: vk::ImageView,
         desc: ImageDesc,
-        overlay: Option<OverlayInputs<'a>>,
+        ui: Option<UiInputs<'a>>,
         capture: Option<&'a Buffer>,
     },
     /// Left in the graph (for plans and tests).
@@ -419,11 +419,11 @@ fn target_stage<'a>(
                 g.export(image, history_access);
             }
         }
-        Target::Present { image: swap, view, desc, overlay, capture } => {
+        Target::Present { image: swap, view, desc, ui: drawn_ui, capture } => {
             assert!(!is_history, "presented frames are display-referred");
             let mut canvas = image;
             // A frame rendered smaller than the window (the viewer while moving) is brought to
-            // its size first, so the overlay and captures are the window's.
+            // its size first, so the UI and captures are the window's.
             let window = vk::Extent2D { width: desc.width, height: desc.height };
             if window != extent {
                 let display = ImageDesc::new(crate::passes::DISPLAY_FORMAT, window.width, window.height);
@@ -435,15 +435,15 @@ fn target_stage<'a>(
                     true => present::blit(g, &canvas, &mut upscaled),
                 }
                 canvas = upscaled;
-            } else if debug && overlay.is_some() {
-                // Debug views are float; the overlay draws on 8-bit display values.
+            } else if debug && drawn_ui.is_some() {
+                // Debug views are float; the UI draws on 8-bit display values.
                 let display = ImageDesc::new(crate::passes::DISPLAY_FORMAT, extent.width, extent.height);
-                let mut converted = g.create_image("overlay canvas", display);
+                let mut converted = g.create_image("ui canvas", display);
                 present::blit(g, &canvas, &mut converted);
                 canvas = converted;
             }
-            if let Some(inputs) = overlay {
-                overlay::add(g, pipelines, &inputs, &mut canvas, window)?;
+            if let Some(inputs) = drawn_ui {
+                ui::add(g, pipelines, inputs, &mut canvas, window)?;
             }
             if let Some(buffer) = capture {
                 readback::add(g, &canvas, buffer);

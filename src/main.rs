@@ -529,6 +529,17 @@ fn view(args: ViewArgs) -> Result<ExitCode> {
     if let Some(mode) = &report.present_mode {
         outln!("present mode: {mode}");
     }
+    let ui = report.ui;
+    if ui.cpu_frames > 0 {
+        // The pass's time lags by a frame in flight, so it may count one frame fewer.
+        let gpu = if ui.gpu_frames > 0 { ui.gpu_ms / ui.gpu_frames as f64 } else { 0.0 };
+        outln!(
+            "ui: {} frames, {:.3} ms GPU (ui pass), {:.3} ms CPU (layout and tessellation) per frame",
+            ui.cpu_frames,
+            gpu,
+            ui.cpu_ms / ui.cpu_frames as f64
+        );
+    }
     for shot in &report.screenshots {
         outln!("screenshot: {}", shot.display());
     }

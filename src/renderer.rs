@@ -205,6 +205,29 @@ impl Renderer {
         update
     }
 
+    /// Replaces the scene's lights (world frame; the same number, the viewer's light edits):
+    /// the shadow techniques read them at once, the next frame's first pass writes the device's
+    /// copy. A moving scene's animated lights are posed again by its next `set_time`.
+    pub fn set_lights(&mut self, lights: Vec<crate::scene::Light>) {
+        assert_eq!(lights.len(), self.scene.lights.len(), "light edits keep the lights");
+        let origin = self.gpu_scene.origin;
+        let local: Vec<_> = lights
+            .iter()
+            .map(|light| {
+                let mut light = *light;
+                if let crate::scene::Light::Point { position, .. } | crate::scene::Light::Spot { position, .. } =
+                    &mut light
+                {
+                    *position -= origin;
+                }
+                light
+            })
+            .collect();
+        self.local.lights = local.clone();
+        self.scene.lights = lights;
+        self.gpu_scene.move_lights(local);
+    }
+
     /// `set_time`'s work.
     fn pose(&mut self, time: f64) -> MotionUpdate {
         let Some(motion) = self.motion.as_mut().map(|m| m.get_mut().unwrap_or_else(|e| e.into_inner())) else {

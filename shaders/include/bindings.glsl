@@ -44,10 +44,8 @@
 #define RAYS_BVH_MASKS 5
 #define RAYS_BVH_ROOT 6
 
-// overlay.comp: text over the presented image
-#define OVERLAY_CANVAS 0
-#define OVERLAY_GLYPHS 1
-#define OVERLAY_TEXT 2
+// ui.vert and ui.frag: the viewer's egui meshes; the font atlas as RGBA8 texels
+#define UI_ATLAS 0
 
 // accumulate.comp: progressive average of a still view
 #define ACCUM_CURRENT 0

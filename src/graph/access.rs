@@ -27,6 +27,9 @@ pub enum Access {
     TransferRead,
     ComputeShaderWrite,
     ColorAttachmentWrite,
+    /// Blended over what the attachment holds (loaded, not cleared): a write that also reads
+    /// what came before it, so the pass that drew that is kept and ordered first (the UI).
+    ColorAttachmentBlend,
     /// Depth test and write (the depth attachment of a geometry pass).
     DepthAttachmentWrite,
     /// Depth and stencil both attached and written (a combined depth-stencil image being filled).
@@ -94,6 +97,7 @@ impl Access {
             Access::HostWrite
                 | Access::ComputeShaderWrite
                 | Access::ColorAttachmentWrite
+                | Access::ColorAttachmentBlend
                 | Access::DepthAttachmentWrite
                 | Access::DepthStencilAttachmentWrite
                 | Access::DepthReadStencilWrite
@@ -108,7 +112,7 @@ impl Access {
     /// Whether the write also reads what came before it (a read-modify-write), so the pass that
     /// wrote that must be kept and ordered first, as for a read.
     pub fn reads_previous(self) -> bool {
-        self == Access::ComputeShaderAtomic
+        matches!(self, Access::ComputeShaderAtomic | Access::ColorAttachmentBlend)
     }
 
     /// The table. Writes contribute their access mask to a barrier's source scope; reads only
@@ -191,6 +195,14 @@ impl Access {
             Access::ComputeShaderWrite => {
                 (S::COMPUTE_SHADER, A::SHADER_STORAGE_WRITE, L::GENERAL, I::STORAGE, B::STORAGE_BUFFER, Applies::Both)
             }
+            Access::ColorAttachmentBlend => (
+                S::COLOR_ATTACHMENT_OUTPUT,
+                A::COLOR_ATTACHMENT_READ | A::COLOR_ATTACHMENT_WRITE,
+                L::COLOR_ATTACHMENT_OPTIMAL,
+                I::COLOR_ATTACHMENT,
+                B::empty(),
+                Applies::Image,
+            ),
             Access::ColorAttachmentWrite => (
                 S::COLOR_ATTACHMENT_OUTPUT,
                 A::COLOR_ATTACHMENT_WRITE,
@@ -349,6 +361,7 @@ mod tests {
         Access::TransferRead,
         Access::ComputeShaderWrite,
         Access::ColorAttachmentWrite,
+        Access::ColorAttachmentBlend,
         Access::DepthAttachmentWrite,
         Access::DepthStencilAttachmentWrite,
         Access::DepthReadStencilWrite,

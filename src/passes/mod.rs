@@ -5,10 +5,10 @@ pub mod accumulate;
 pub mod compose;
 pub mod debug_view;
 pub mod geometry;
-pub mod overlay;
 pub mod present;
 pub mod readback;
 pub mod tonemap;
+pub mod ui;
 pub mod visibility;
 
 use ash::vk;
@@ -22,7 +22,7 @@ use crate::graph::{Handle, ImageKind};
 pub const TILE: [u32; 2] = [8, 8];
 
 /// Workgroup size of the full-screen passes that only read and write their pixels (compose,
-/// accumulate, tone map, the shadow-map and shadow-volume resolves, debug views, overlay): rows of
+/// accumulate, tone map, the shadow-map and shadow-volume resolves, debug views): rows of
 /// 64 pixels, so that each workgroup streams 1 KB runs of an RGBA32F image row where an 8 x 8
 /// one reads 128-byte stubs of eight rows. At 1920x1080 on lavapipe (one thread, Mesa 25) compose
 /// took 62-78 ms against 74-97 for 8 x 8, alternated (`tools/bench-passes`); 32 x 8 gained less,

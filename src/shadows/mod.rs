@@ -56,7 +56,7 @@ pub trait Technique: Sync {
         Err(format!("{} does not serve rect lights", self.method().id()))
     }
 
-    /// One light's choice in a few words, the parameters that matter (the viewer's overlay).
+    /// One light's choice in a few words, the parameters that matter (the viewer's UI).
     fn describe(&self, choice: &ShadowChoice, light: &Light) -> String;
 
     /// Whether `light`'s shadows are sampled stochastically, so successive frames average.

@@ -1,6 +1,8 @@
 //! The interactive viewer: a winit window showing the same frame graph as capture, with a fly
-//! camera, live shadow-method and debug-view switching, an overlay and screenshots. Scripted
-//! input (`--script`) drives exactly the same handlers as the keyboard and mouse.
+//! camera, live shadow-method and debug-view switching, a UI (egui) and screenshots. Scripted
+//! input (`--script`) drives exactly the same handlers as the keyboard, the mouse and the UI.
+
+mod handlers;
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -17,11 +19,13 @@ use winit::window::{CursorGrabMode, Window, WindowId};
 
 use super::camera::FlyCamera;
 use super::clock::{timestamp_name, FrameRate, Playback};
+use super::command::{Command, BOOKMARKS};
 use super::input::{InputEvent, InputState, Key};
 use super::interactive::{Interactive, MovingStats};
 use super::presenter::{Drawn, Presenter};
 use super::script::ScriptStep;
 use super::settings::ViewerSettings;
+use super::ui::{Ui, UiMeshes, UiView};
 use crate::renderer::{OutputKind, Renderer};
 use crate::scene::Scene;
 use crate::vk::{GpuContext, GpuOptions};
@@ -70,6 +74,17 @@ pub struct ViewerReport {
     pub present_mode: Option<String>,
     /// Frames drawn while the view or the scene moved, and their rate.
     pub moving: MovingStats,
+    /// The UI's cost: frames it was drawn in, and their summed GPU time of the `ui` pass and
+    /// host time laying it out (egui's layout and tessellation), in milliseconds.
+    pub ui: UiCost,
+}
+
+#[derive(Debug, Default, Clone, Copy)]
+pub struct UiCost {
+    pub gpu_frames: u64,
+    pub gpu_ms: f64,
+    pub cpu_frames: u64,
+    pub cpu_ms: f64,
 }
 
 /// Opens the window and runs until it is closed, `--frames` are drawn or the script ends.
@@ -136,6 +151,11 @@ struct Running {
     camera: FlyCamera,
     input: InputState,
     settings: ViewerSettings,
+    /// The UI's state (egui's context and its winit state, the font atlas, the plot's
+    /// history); drawn while `settings.ui`.
+    ui: Ui,
+    /// Camera poses saved by Shift+1..4 or the UI, restored by 1..4.
+    bookmarks: [Option<FlyCamera>; BOOKMARKS],
     script: std::collections::VecDeque<ScriptStep>,
     /// Frames the script still lets run before its next step.
     script_frames: u64,
@@ -174,12 +194,18 @@ impl ApplicationHandler for App {
 
     fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
         let Some(r) = self.running.as_mut() else { return };
+        // egui sees the events while the UI shows (hidden, it would only queue them), and what
+        // it takes (a click on a control, keys for a field being edited, the wheel over it)
+        // goes no further.
+        let taken = r.settings.ui && r.ui.on_window_event(&r.window, &event);
+        let ui_has = |pointer: bool| r.settings.ui && if pointer { r.ui.pointer_over() } else { r.ui.wants_keyboard() };
         let input = match event {
             WindowEvent::CloseRequested => {
                 event_loop.exit();
                 return;
             }
             WindowEvent::Resized(size) => Some(InputEvent::Resize(size.width, size.height)),
+            WindowEvent::KeyboardInput { .. } if ui_has(false) => None,
             WindowEvent::KeyboardInput { event, .. } => match event.physical_key {
                 PhysicalKey::Code(code) => map_key(code).map(|k| match event.state {
                     ElementState::Pressed if !event.repeat => InputEvent::KeyDown(k),
@@ -189,7 +215,13 @@ impl ApplicationHandler for App {
                 _ => None,
             },
             WindowEvent::MouseInput { button: MouseButton::Right, state, .. } => {
-                Some(InputEvent::RightButton(state == ElementState::Pressed))
+                let pressed = state == ElementState::Pressed;
+                (!(pressed && (taken || ui_has(true)))).then_some(InputEvent::RightButton(pressed))
+            }
+            WindowEvent::MouseWheel { .. } if taken || ui_has(true) => None,
+            WindowEvent::DroppedFile(path) => {
+                r.command(Command::Open(path));
+                None
             }
             WindowEvent::MouseWheel { delta, .. } => Some(InputEvent::Scroll(match delta {
                 MouseScrollDelta::LineDelta(_, y) => y,
@@ -270,7 +302,7 @@ impl App {
             );
         }
         let renderer = Renderer::new(ctx.clone(), o.scene.clone()).context("preparing the scene")?;
-        // The overlay shows pass times: find how this driver can time passes (a fraction of a
+        // The UI shows pass times: find how this driver can time passes (a fraction of a
         // second, once) so they are right rather than plain stamps that some drivers defer.
         renderer.calibrate_timings().context("calibrating pass timings")?;
         let settings = ViewerSettings {
@@ -295,6 +327,8 @@ impl App {
             camera,
             settings,
             renderer,
+            ui: Ui::new(&window),
+            bookmarks: Default::default(),
             window,
             ctx,
             input: InputState::default(),
@@ -324,6 +358,13 @@ impl App {
         if !draw {
             return Ok(());
         }
+        // The UI first: what its controls change shows in this frame.
+        let laid_out = Instant::now();
+        let meshes = r.settings.ui.then(|| r.lay_out_ui());
+        if meshes.is_some() {
+            self.report.ui.cpu_frames += 1;
+            self.report.ui.cpu_ms += laid_out.elapsed().as_secs_f64() * 1e3;
+        }
         let now = Instant::now();
         let dt = self.options.fixed_dt.unwrap_or((now - r.last_frame).as_secs_f32().min(0.25));
         r.last_frame = now;
@@ -345,10 +386,10 @@ impl App {
         if r.renderer.check_debug_view(&settings).is_err() {
             settings.debug_view = None;
         }
-        let lines = r.settings.overlay.then(|| r.overlay_lines());
         let capture = r.pending_capture.take();
         let scale = r.interactive.scale();
-        match r.presenter.draw(&r.renderer, &settings, lines.as_deref(), capture.is_some(), scale)? {
+        let ui = meshes.as_ref().map(|m| (m, &r.ui.atlas));
+        match r.presenter.draw(&r.renderer, &settings, ui, capture.is_some(), scale)? {
             Drawn::Frame { timings, captured } => {
                 r.interactive.end((now - r.last_presented.unwrap_or(now)).as_secs_f64() * 1e3);
                 r.last_presented = Some(now);
@@ -356,6 +397,11 @@ impl App {
                 r.too_large_noted = None;
                 self.report.present_mode = r.presenter.present_mode().map(|m| format!("{m:?}"));
                 if !timings.is_empty() {
+                    if let Some((_, ms)) = timings.iter().find(|t| t.0 == "ui") {
+                        self.report.ui.gpu_frames += 1;
+                        self.report.ui.gpu_ms += ms;
+                    }
+                    r.ui.record_timings(&timings);
                     r.timings = timings;
                 }
                 if let (Some(name), Some(frame)) = (capture, captured) {
@@ -430,6 +476,11 @@ impl Running {
                         failed(&mut self.failures, "screenshot", &e);
                     }
                 }
+                Key::One | Key::Two | Key::Three | Key::Four => {
+                    let slot = [Key::One, Key::Two, Key::Three, Key::Four].iter().position(|&k| k == key);
+                    let save = self.input.held(Key::Shift);
+                    self.command(Command::Bookmark { slot: slot.unwrap_or(0), save });
+                }
                 Key::B if !self.ctx.capabilities.ray_query => {
                     log::warn!("B: {} has no ray query; shadows stay on the compute BVH", self.ctx.device_name())
                 }
@@ -494,6 +545,7 @@ impl Running {
                     return Ok(false);
                 }
                 ScriptStep::Scale(share) => self.interactive.pin(share),
+                ScriptStep::Command(c) => self.command(c),
                 ScriptStep::Quit => {
                     self.quit = true;
                     event_loop.exit();
@@ -504,10 +556,12 @@ impl Running {
         Ok(true)
     }
 
-    fn overlay_lines(&self) -> Vec<String> {
+    /// The frame's status for the UI: rate and size, the scene, playback, the selected
+    /// light and the view, moving frames, accumulation.
+    fn status_lines(&self) -> Vec<String> {
         let extent = self.presenter.extent().map_or((0, 0), |e| (e.width, e.height));
         let mut lines =
-            vec![format!("umbra {:6.1} fps {:7.2} ms  {}x{}", self.fps.fps(), self.fps.frame_ms(), extent.0, extent.1)];
+            vec![format!("{:6.1} fps {:7.2} ms  {}x{}", self.fps.fps(), self.fps.frame_ms(), extent.0, extent.1)];
         let scene = self.renderer.scene();
         lines.push(format!("{} triangles  {} lights", scene.triangle_count(), scene.lights.len()));
         if let Some(p) = &self.playback {
@@ -518,17 +572,27 @@ impl Running {
         if self.presenter.accumulated_frames() > 0 {
             lines.push(format!("accumulated {} frames", self.presenter.accumulated_frames()));
         }
-        let total: f64 = self.timings.iter().map(|t| t.1).sum();
-        for (name, ms) in &self.timings {
-            lines.push(format!(" {name:<14} {ms:8.3} ms"));
-        }
-        if !self.timings.is_empty() {
-            lines.push(format!(" {:<14} {total:8.3} ms", "GPU total"));
-        }
-        lines.push("L light  T method  H soft  V view  [ ] spp  +/- EV".into());
-        lines.push("maps: R resolution  P pcf  G bias  C cascades".into());
-        lines.push("F1 overlay  F12 shot  Home reset  Esc quit".into());
         lines
+    }
+
+    /// Lays the UI out for this frame and applies what its controls changed.
+    fn lay_out_ui(&mut self) -> UiMeshes {
+        let size = match self.presenter.extent() {
+            Some(e) => [e.width, e.height],
+            None => self.window.inner_size().into(),
+        };
+        let view = UiView {
+            settings: &self.settings,
+            lights: &self.renderer.scene().lights,
+            status: self.status_lines(),
+            bookmarks: std::array::from_fn(|i| self.bookmarks[i].is_some()),
+            ray_query: self.ctx.capabilities.ray_query,
+        };
+        let (meshes, commands) = self.ui.frame(&self.window, &view, size);
+        for c in commands {
+            self.command(c);
+        }
+        meshes
     }
 
     /// How screenshots and captures are written: never over a file the scene was read from
@@ -615,6 +679,10 @@ fn map_key(code: KeyCode) -> Option<Key> {
         KeyCode::KeyP => Key::P,
         KeyCode::KeyG => Key::G,
         KeyCode::KeyC => Key::C,
+        KeyCode::Digit1 => Key::One,
+        KeyCode::Digit2 => Key::Two,
+        KeyCode::Digit3 => Key::Three,
+        KeyCode::Digit4 => Key::Four,
         KeyCode::Equal | KeyCode::NumpadAdd => Key::Plus,
         KeyCode::Minus | KeyCode::NumpadSubtract => Key::Minus,
         KeyCode::BracketLeft => Key::BracketLeft,

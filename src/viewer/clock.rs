@@ -120,7 +120,7 @@ impl Playback {
         }
     }
 
-    /// Its overlay line.
+    /// Its status line (the UI).
     pub fn describe(&self) -> String {
         let state = if self.playing { "playing" } else { "paused" };
         format!("t {:6.2} s of {:.2}  {state} (Space, , .)", self.time, self.span.1)

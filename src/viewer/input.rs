@@ -33,6 +33,11 @@ pub enum Key {
     G,
     /// Cycle the selected light's cascade count (1 .. 8).
     C,
+    /// Go to camera bookmark 1..4; with Shift held, save the pose there.
+    One,
+    Two,
+    Three,
+    Four,
     Plus,
     Minus,
     /// Halve / double the soft-shadow samples.
@@ -68,6 +73,10 @@ impl Key {
             "P" => Key::P,
             "G" => Key::G,
             "C" => Key::C,
+            "1" => Key::One,
+            "2" => Key::Two,
+            "3" => Key::Three,
+            "4" => Key::Four,
             "PLUS" | "+" => Key::Plus,
             "MINUS" | "-" => Key::Minus,
             "[" | "BRACKETLEFT" => Key::BracketLeft,

@@ -183,7 +183,7 @@ impl Interactive {
         self.stats
     }
 
-    /// The overlay's line: the frame's size and rays.
+    /// The status line (the UI): the frame's size and rays.
     pub fn describe(&self, width: u32, height: u32) -> String {
         let scale = self.scale();
         let (w, h) = scaled((width, height), scale);

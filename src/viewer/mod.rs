@@ -4,10 +4,12 @@
 mod app;
 pub mod camera;
 mod clock;
+pub mod command;
 pub mod input;
 pub mod interactive;
 mod presenter;
 pub mod script;
 pub mod settings;
+mod ui;
 
-pub use app::{run, ViewerOptions, ViewerReport};
+pub use app::{run, UiCost, ViewerOptions, ViewerReport};

@@ -1,5 +1,5 @@
 //! Frames in flight over the swapchain: each slot has its command buffer, fence, acquire
-//! semaphore, overlay text buffer and its own transient resources, so the CPU records frame
+//! semaphore, UI buffers (vertices, indices, font atlas) and its own transient resources, so the CPU records frame
 //! N+1 while the GPU still draws frame N. A 0x0 (minimised) window draws nothing.
 
 use std::sync::Arc;
@@ -7,22 +7,85 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
+use super::ui::{UiAtlas, UiMeshes};
 use crate::graph::TransientCache;
 use crate::passes::accumulate::Accumulator;
-use crate::passes::overlay::{self, OverlayInputs, OverlayText};
+use crate::passes::ui::UiInputs;
 use crate::renderer::{Frame, RenderSettings, Renderer, Target};
-use crate::vk::{Acquired, Buffer, GpuContext, GpuResult, Swapchain, VkContext, WindowSurface};
+use crate::vk::{Acquired, Buffer, GpuContext, GpuResult, Swapchain, TexelView, VkContext, WindowSurface};
 
 const FRAMES_IN_FLIGHT: usize = 2;
-/// Characters the overlay's text buffer holds (the overlay's largest grid).
-const OVERLAY_CAPACITY: usize = overlay::MAX_COLUMNS * overlay::MAX_ROWS;
+
+/// A frame slot's copy of the UI: its meshes and the font atlas, grown as they need.
+#[derive(Default)]
+struct UiBuffers {
+    vertices: Option<Buffer>,
+    indices: Option<Buffer>,
+    /// The atlas's texel view (destroyed first), the atlas, and the atlas version it holds.
+    atlas: Option<(TexelView, Buffer, u64)>,
+}
+
+impl UiBuffers {
+    /// Writes `meshes` and (where this slot's copy is older) `atlas` into the slot's buffers,
+    /// which the GPU no longer reads (the slot's fence was waited for).
+    fn write<'a>(
+        &'a mut self,
+        ctx: &Arc<GpuContext>,
+        meshes: &UiMeshes,
+        atlas: &UiAtlas,
+    ) -> GpuResult<Option<UiInputs<'a>>> {
+        if meshes.draws.is_empty() || atlas.texels.is_empty() {
+            return Ok(None);
+        }
+        let indices: &[u8] = bytemuck::cast_slice(&meshes.indices);
+        fill(ctx, &mut self.vertices, "ui vertices", &meshes.vertices, vk::BufferUsageFlags::VERTEX_BUFFER)?;
+        fill(ctx, &mut self.indices, "ui indices", indices, vk::BufferUsageFlags::INDEX_BUFFER)?;
+        let bytes = atlas.texels.len() as u64;
+        if self.atlas.as_ref().is_none_or(|(_, b, _)| b.size != bytes) {
+            let usage = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+            let buffer = Buffer::new(ctx, "ui atlas", bytes, usage, MemoryLocation::CpuToGpu)?;
+            let view = TexelView::new(ctx, &buffer, vk::Format::R8G8B8A8_UNORM)?;
+            self.atlas = Some((view, buffer, u64::MAX));
+        }
+        let (view, buffer, version) = self.atlas.as_mut().expect("made above");
+        if *version != atlas.version {
+            buffer.mapped_mut()[..atlas.texels.len()].copy_from_slice(&atlas.texels);
+            *version = atlas.version;
+        }
+        Ok(Some(UiInputs {
+            vertices: self.vertices.as_ref().expect("filled above"),
+            indices: self.indices.as_ref().expect("filled above"),
+            atlas: buffer,
+            atlas_view: view.view,
+            atlas_size: atlas.size,
+            screen_points: meshes.screen_points,
+            draws: meshes.draws.clone(),
+        }))
+    }
+}
+
+/// Copies `data` into `buffer`, made anew (twice as large as needed) where it is too small.
+fn fill(
+    ctx: &Arc<GpuContext>,
+    buffer: &mut Option<Buffer>,
+    name: &str,
+    data: &[u8],
+    usage: vk::BufferUsageFlags,
+) -> GpuResult<()> {
+    if buffer.as_ref().is_none_or(|b| b.size < data.len() as u64) {
+        let size = (data.len() as u64 * 2).max(64 * 1024);
+        *buffer = Some(Buffer::new(ctx, name, size, usage, MemoryLocation::CpuToGpu)?);
+    }
+    buffer.as_mut().expect("made above").mapped_mut()[..data.len()].copy_from_slice(data);
+    Ok(())
+}
 
 struct FrameSlot {
     cmd: vk::CommandBuffer,
     fence: vk::Fence,
     acquired: vk::Semaphore,
     cache: TransientCache,
-    text: Buffer,
+    ui: UiBuffers,
     /// Whether this slot has been submitted (its timings are then readable after the fence).
     used: bool,
 }
@@ -31,7 +94,6 @@ pub struct Presenter {
     slots: Vec<FrameSlot>,
     next: usize,
     swapchain: Option<Swapchain>,
-    glyphs: Buffer,
     surface: WindowSurface,
     size: (u32, u32),
     vsync: bool,
@@ -70,26 +132,13 @@ impl Presenter {
                     ctx.device.create_semaphore(&vk::SemaphoreCreateInfo::default(), None).vk("vkCreateSemaphore")?,
                 )
             };
-            let text = Buffer::new(
-                &ctx,
-                "overlay text",
-                (OVERLAY_CAPACITY * 4) as u64,
-                vk::BufferUsageFlags::STORAGE_BUFFER,
-                MemoryLocation::CpuToGpu,
-            )?;
-            slots.push(FrameSlot { cmd, fence, acquired, cache: TransientCache::new(&ctx)?, text, used: false });
+            let cache = TransientCache::new(&ctx)?;
+            slots.push(FrameSlot { cmd, fence, acquired, cache, ui: UiBuffers::default(), used: false });
         }
-        let glyphs = Buffer::with_data(
-            &ctx,
-            "glyphs",
-            bytemuck::cast_slice(&overlay::glyph_words()),
-            vk::BufferUsageFlags::STORAGE_BUFFER,
-        )?;
         let mut presenter = Presenter {
             slots,
             next: 0,
             swapchain: None,
-            glyphs,
             surface,
             size: (width, height),
             vsync,
@@ -112,6 +161,11 @@ impl Presenter {
 
     pub fn extent(&self) -> Option<vk::Extent2D> {
         self.swapchain.as_ref().map(|s| s.extent)
+    }
+
+    /// Starts the still view's running mean again (the scene's lights or the scene changed).
+    pub fn reset_accumulation(&mut self) {
+        self.accumulator.reset();
     }
 
     /// Frames averaged into the history (0 when nothing accumulates).
@@ -150,13 +204,13 @@ impl Presenter {
     }
 
     /// Renders one frame at `scale` times the swapchain's size on each side (1: its size) and
-    /// presents it at the swapchain's size, with `overlay_lines` on top; with `capture`, also
+    /// presents it at the swapchain's size, with the UI's meshes on top; with `capture`, also
     /// returns the presented image as the window shows it.
     pub fn draw(
         &mut self,
         renderer: &Renderer,
         settings: &RenderSettings,
-        overlay_lines: Option<&[String]>,
+        ui: Option<(&UiMeshes, &UiAtlas)>,
         capture: bool,
         scale: f32,
     ) -> GpuResult<Drawn> {
@@ -198,21 +252,12 @@ impl Presenter {
         let scaled = (frame_settings.width, frame_settings.height) != (swapchain.extent.width, swapchain.extent.height);
         let history = self.accumulator.prepare(&self.ctx, &mut frame_settings, renderer.scene())?;
         let accumulated = history.is_some();
-        let overlay = overlay_lines.map(|lines| {
-            let text = OverlayText::new(lines);
-            let n = text.chars.len().min(OVERLAY_CAPACITY);
-            slot.text.mapped_mut()[..n * 4].copy_from_slice(bytemuck::cast_slice(&text.chars[..n]));
-            let rows = (n as u32 / text.columns).max(1);
-            OverlayInputs {
-                glyphs: &self.glyphs,
-                text: &slot.text,
-                columns: text.columns,
-                rows,
-                scale: if swapchain.extent.height >= 720 { 2 } else { 1 },
-            }
-        });
-        // The presented canvas is 8-bit unless a float debug view goes out without an overlay.
-        let float_canvas = frame_settings.debug_view.is_some() && overlay.is_none() && !scaled;
+        let drawn_ui = match ui {
+            Some((meshes, atlas)) => slot.ui.write(&self.ctx, meshes, atlas)?,
+            None => None,
+        };
+        // The presented canvas is 8-bit unless a float debug view goes out without the UI.
+        let float_canvas = frame_settings.debug_view.is_some() && drawn_ui.is_none() && !scaled;
         let (width, height) = (swapchain.extent.width, swapchain.extent.height);
         let bytes = u64::from(width) * u64::from(height) * if float_canvas { 16 } else { 4 };
         if capture && self.capture.as_ref().is_none_or(|b| b.size != bytes) {
@@ -223,7 +268,7 @@ impl Presenter {
             image: swapchain.images[index as usize],
             view: vk::ImageView::null(),
             desc: swapchain.desc(),
-            overlay,
+            ui: drawn_ui,
             capture: self.capture.as_ref().filter(|_| capture),
         };
         // SAFETY: the slot's previous submission has completed (fence waited above).

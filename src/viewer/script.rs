@@ -13,16 +13,26 @@
 //! resize 640 480       # 1..=16384 each
 //! minimise             # and `restore`
 //! screenshot NAME      # NAME.png and NAME.exr beside the scene
-//! capture NAME         # NAME.png of exactly what the window shows next, overlay included
+//! capture NAME         # NAME.png of exactly what the window shows next, UI included
 //! wait_ms 100          # 0..=60000
 //! scale 0.5            # moving frames render at this share of each side (0.25..=1);
 //!                      # `scale auto` lets the frame-time target choose it again
+//! method 0 map         # light 0's shadow method (what the UI's method list sets)
+//! param 0 map.resolution 1024   # one parameter of light 0's shadows, as --param names it
+//! view albedo          # the debug view, as --debug-view names it (`shaded`: none)
+//! exposure 1.5         # EV
+//! spp 8                # soft-shadow rays per pixel and frame (1..=64)
+//! backend compute      # or ray-query
+//! light 0 intensity 2 2 2       # also `direction X Y Z`, `position X Y Z`
+//! bookmark save 1      # the camera's pose into bookmark 1 (1..=4); `bookmark 1` goes there
+//! open PATH            # a scene file or model in place of the scene (as a dropped file)
 //! quit
 //! ```
 
 use std::ops::RangeInclusive;
 use std::time::Duration;
 
+use super::command::{Command, LightEdit, BOOKMARKS};
 use super::input::{InputEvent, Key};
 
 /// Bounds on script arguments: `frames N` takes 1..=MAX_FRAMES, `wait_ms` at most
@@ -37,11 +47,13 @@ pub enum ScriptStep {
     Input(InputEvent),
     Minimise(bool),
     Screenshot(String),
-    /// NAME.png of exactly what the window shows next (overlay included).
+    /// NAME.png of exactly what the window shows next (UI included).
     Capture(String),
     Wait(Duration),
     /// Moving frames' share of each side, or `None`: chosen by the frame-time target.
     Scale(Option<f32>),
+    /// What a UI control does (`command::Command`), through the same handler.
+    Command(Command),
     Quit,
 }
 
@@ -183,6 +195,65 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
                 expect_args(0)?;
                 steps.push(ScriptStep::Quit);
             }
+            "method" => {
+                expect_args(2)?;
+                let light = count(words.get(1), "a light index", 0..=u32::MAX as u64)? as usize;
+                let method =
+                    super::command::method(words[2]).ok_or_else(|| fail(format!("unknown method {:?}", words[2])))?;
+                steps.push(ScriptStep::Command(Command::Method { light, method }));
+            }
+            "param" => {
+                expect_args(3)?;
+                let light = count(words.get(1), "a light index", 0..=u32::MAX as u64)? as usize;
+                let (key, value) = (words[2].to_owned(), words[3].to_owned());
+                steps.push(ScriptStep::Command(Command::Param { light, key, value }));
+            }
+            "view" => {
+                expect_args(1)?;
+                steps.push(ScriptStep::Command(Command::View(words[1].to_owned())));
+            }
+            "exposure" => {
+                expect_args(1)?;
+                steps.push(ScriptStep::Command(Command::Exposure(number(words.get(1), "EV")?)));
+            }
+            "spp" => {
+                expect_args(1)?;
+                let n = count(words.get(1), "rays per pixel", 1..=u64::from(super::settings::MAX_SPP))?;
+                steps.push(ScriptStep::Command(Command::Spp(n as u32)));
+            }
+            "backend" => {
+                expect_args(1)?;
+                let b = super::command::backend(words[1])
+                    .ok_or_else(|| fail(format!("backend {:?}: compute or ray-query", words[1])))?;
+                steps.push(ScriptStep::Command(Command::Backend(b)));
+            }
+            "light" => {
+                expect_args(5)?;
+                let light = count(words.get(1), "a light index", 0..=u32::MAX as u64)? as usize;
+                let v =
+                    glam::Vec3::new(number(words.get(3), "x")?, number(words.get(4), "y")?, number(words.get(5), "z")?);
+                let edit = match words[2] {
+                    "intensity" => LightEdit::Intensity(v),
+                    "direction" => LightEdit::Direction(v),
+                    "position" => LightEdit::Position(v.as_dvec3()),
+                    other => return Err(fail(format!("`light` sets intensity, direction or position, not {other:?}"))),
+                };
+                steps.push(ScriptStep::Command(Command::Light { light, edit }));
+            }
+            "bookmark" => {
+                let save = words.get(1) == Some(&"save");
+                expect_args(if save { 2 } else { 1 })?;
+                let slot = count(words.get(if save { 2 } else { 1 }), "a bookmark", 1..=BOOKMARKS as u64)? as usize - 1;
+                steps.push(ScriptStep::Command(Command::Bookmark { slot, save }));
+            }
+            "open" => {
+                // The rest of the line, so a path may hold spaces.
+                let path = line["open".len()..].trim();
+                if path.is_empty() {
+                    return Err(fail("`open` needs a path".into()));
+                }
+                steps.push(ScriptStep::Command(Command::Open(path.into())));
+            }
             other => return Err(fail(format!("unknown command {other:?}"))),
         }
     }
@@ -192,6 +263,33 @@ pub fn parse(text: &str, file: &str) -> Result<Vec<ScriptStep>, ScriptError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn ui_commands_parse_to_the_handlers_commands() {
+        let text = "method 1 map\nparam 0 map.resolution 1024\nview albedo\nexposure -1.5\nspp 8\n\
+                    backend ray-query\nlight 2 direction 0 -1 0\nbookmark save 2\nbookmark 4\nopen a b.obj # c\n";
+        let steps = parse(text, "s").unwrap();
+        let commands: Vec<Command> = steps
+            .into_iter()
+            .map(|s| match s {
+                ScriptStep::Command(c) => c,
+                other => panic!("{other:?}"),
+            })
+            .collect();
+        assert_eq!(commands[0], Command::Method { light: 1, method: crate::config::ShadowMethod::Map });
+        assert_eq!(commands[1], Command::Param { light: 0, key: "map.resolution".into(), value: "1024".into() });
+        assert_eq!(commands[2], Command::View("albedo".into()));
+        assert_eq!(commands[3], Command::Exposure(-1.5));
+        assert_eq!(commands[4], Command::Spp(8));
+        assert_eq!(commands[5], Command::Backend(crate::config::ShadowBackend::RayQuery));
+        assert_eq!(commands[6], Command::Light { light: 2, edit: LightEdit::Direction(glam::Vec3::NEG_Y) });
+        assert_eq!(commands[7], Command::Bookmark { slot: 1, save: true });
+        assert_eq!(commands[8], Command::Bookmark { slot: 3, save: false });
+        assert_eq!(commands[9], Command::Open("a b.obj".into()));
+        for bad in ["method 0 fast", "spp 0", "bookmark 5", "light 0 colour 1 1 1", "backend gpu", "open"] {
+            assert!(parse(bad, "s").is_err(), "{bad}");
+        }
+    }
 
     #[test]
     fn a_script_parses_to_steps() {

@@ -1,5 +1,5 @@
 //! The viewer's toggles as data: which light is selected, each light's shadow method, the debug
-//! view and the overlay. Keys change this; each frame turns it into `RenderSettings`.
+//! view, exposure, samples and whether the UI shows. Keys change this; each frame turns it into `RenderSettings`.
 
 use super::input::Key;
 use crate::config::DebugView;
@@ -31,7 +31,8 @@ pub struct ViewerSettings {
     /// Which lights are directional (cascades serve only those).
     pub directional: Vec<bool>,
     pub view: usize,
-    pub overlay: bool,
+    /// Whether the UI is drawn (F1).
+    pub ui: bool,
     pub exposure_ev: f32,
     /// Soft-shadow rays per pixel and light per frame, for every light (the view converges
     /// over frames while it is still).
@@ -49,7 +50,7 @@ impl ViewerSettings {
             shadows: vec![ShadowChoice::default(); lights],
             directional: vec![false; lights],
             view: 0,
-            overlay: true,
+            ui: true,
             exposure_ev: 0.0,
             soft_spp: 4,
             shadow_backend: ShadowBackend::Compute,
@@ -80,6 +81,18 @@ impl ViewerSettings {
         }
     }
 
+    /// The views offered for the selected light, by index and by the name `--debug-view`
+    /// gives them (`shaded` for none).
+    pub fn offered_views(&self) -> Vec<(usize, String)> {
+        (0..VIEWS.len())
+            .filter_map(|i| match (i, self.view_at(i)) {
+                (0, _) => Some((0, "shaded".to_string())),
+                (_, Some(v)) => Some((i, v.to_string())),
+                _ => None,
+            })
+            .collect()
+    }
+
     /// The next view with something to show (the shaded image always has).
     fn next_view(&mut self) {
         self.view = (1..=VIEWS.len())
@@ -90,7 +103,7 @@ impl ViewerSettings {
 
     pub fn on_key(&mut self, key: Key) {
         match key {
-            Key::F1 => self.overlay = !self.overlay,
+            Key::F1 => self.ui = !self.ui,
             Key::L if !self.shadows.is_empty() => self.selected_light = (self.selected_light + 1) % self.shadows.len(),
             Key::T => self.change(|c| c.method = c.method.next()),
             Key::H => self.change(|c| c.traced.soft = Some(!c.traced.soft.unwrap_or(true))),
@@ -134,7 +147,7 @@ impl ViewerSettings {
         s
     }
 
-    /// Overlay lines about the lights and the view.
+    /// Status lines (the UI) about the lights and the view.
     pub fn describe(&self, lights: &[Light]) -> Vec<String> {
         let mut lines = Vec::new();
         if let Some(light) = lights.get(self.selected_light) {
@@ -163,7 +176,7 @@ fn cycle(v: u32, values: &[u32]) -> u32 {
     values.iter().position(|&x| x == v).map_or(values[0], |i| values[(i + 1) % values.len()])
 }
 
-/// One light's technique and the parameters that matter to it, for the overlay.
+/// One light's technique and the parameters that matter to it, for the UI.
 fn describe_choice(c: &ShadowChoice, light: &Light) -> String {
     match crate::shadows::technique(c.method) {
         Some(t) => t.describe(c, light),
@@ -231,7 +244,7 @@ mod tests {
             Some(DebugView::Albedo)
         );
         s.on_key(Key::F1);
-        assert!(!s.overlay);
+        assert!(!s.ui);
         let cam = Camera { eye: glam::DVec3::Z, target: glam::DVec3::ZERO, up: glam::Vec3::Y, vfov_deg: 40.0 };
         s.on_key(Key::B);
         assert_eq!(s.render_settings(cam).shadow_backend, ShadowBackend::RayQuery);
@@ -240,7 +253,7 @@ mod tests {
     }
 
     #[test]
-    fn the_overlay_names_the_view_as_the_command_line_does() {
+    fn the_status_names_the_view_as_the_command_line_does() {
         let mut s = ViewerSettings::new(1);
         let light = Light::Point { position: glam::DVec3::Y, intensity: glam::Vec3::ONE, radius: 0.0 };
         let view_line = |s: &ViewerSettings| s.describe(&[light]).into_iter().find(|l| l.starts_with("view ")).unwrap();

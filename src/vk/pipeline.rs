@@ -277,6 +277,9 @@ pub struct GraphicsExtras<'a> {
     pub depth_clamp: bool,
     /// Colour attachments keep their contents (a write mask of nothing).
     pub no_color_writes: bool,
+    /// Blend premultiplied-alpha colour over what the attachments hold (`src + (1 - src.a) *
+    /// dst`; the UI's meshes).
+    pub premultiplied_blend: bool,
     /// Multiview: each draw is rendered once per set bit, into that layer of the attachments
     /// (`gl_ViewIndex` tells the shaders which); 0 is plain rendering.
     pub view_mask: u32,
@@ -413,7 +416,20 @@ impl GraphicsPipeline {
         let blend_attachments: Vec<_> = desc
             .color_formats
             .iter()
-            .map(|_| vk::PipelineColorBlendAttachmentState::default().color_write_mask(write_mask))
+            .map(|_| {
+                let state = vk::PipelineColorBlendAttachmentState::default().color_write_mask(write_mask);
+                match extras.premultiplied_blend {
+                    false => state,
+                    true => state
+                        .blend_enable(true)
+                        .src_color_blend_factor(vk::BlendFactor::ONE)
+                        .dst_color_blend_factor(vk::BlendFactor::ONE_MINUS_SRC_ALPHA)
+                        .color_blend_op(vk::BlendOp::ADD)
+                        .src_alpha_blend_factor(vk::BlendFactor::ONE_MINUS_DST_ALPHA)
+                        .dst_alpha_blend_factor(vk::BlendFactor::ONE)
+                        .alpha_blend_op(vk::BlendOp::ADD),
+                }
+            })
             .collect();
         let blend = vk::PipelineColorBlendStateCreateInfo::default().attachments(&blend_attachments);
         let mut dynamic_states = vec![vk::DynamicState::VIEWPORT, vk::DynamicState::SCISSOR];

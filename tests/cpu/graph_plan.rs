@@ -390,3 +390,27 @@ fn a_history_read_and_rewritten_each_frame_waits_for_the_last_frame_s_reads() {
     let back = &plan.export_barriers[0];
     assert_eq!(back.layouts, Some((vk::ImageLayout::GENERAL, vk::ImageLayout::SHADER_READ_ONLY_OPTIMAL)));
 }
+
+#[test]
+fn a_blended_attachment_keeps_what_it_is_drawn_over() {
+    // The viewer's UI blends over the display image: the pass that wrote the image stays, and
+    // the image goes from its storage layout to the attachment's with its contents kept.
+    let mut g = RenderGraph::new();
+    let mut display = g.create_image("display", ImageDesc::new(vk::Format::R8G8B8A8_UNORM, 64, 32));
+    let mut p = g.add_pass("tonemap");
+    p.write(&mut display, Access::ComputeShaderWrite);
+    p.render(noop);
+    let mut p = g.add_pass("ui");
+    p.write(&mut display, Access::ColorAttachmentBlend);
+    p.render(noop);
+    g.export(display, Access::TransferRead);
+    let plan = CompiledGraph::compile(&g);
+    assert_eq!(plan.live_pass_names(), vec!["tonemap", "ui"], "{plan}");
+    let ui = plan.barriers_before("ui");
+    assert_eq!(ui.len(), 1, "{plan}");
+    assert_eq!(ui[0].layouts, Some((vk::ImageLayout::GENERAL, vk::ImageLayout::COLOR_ATTACHMENT_OPTIMAL)));
+    assert_eq!(ui[0].src_access, vk::AccessFlags2::SHADER_STORAGE_WRITE);
+    assert!(ui[0]
+        .dst_access
+        .contains(vk::AccessFlags2::COLOR_ATTACHMENT_READ | vk::AccessFlags2::COLOR_ATTACHMENT_WRITE));
+}

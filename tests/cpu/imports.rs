@@ -44,7 +44,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("passes::compose", 10),
     ("passes::accumulate", 10),
     ("passes::debug_view", 10),
-    ("passes::overlay", 10),
+    ("passes::ui", 10),
     ("passes::tonemap", 10),
     ("passes::present", 10),
     // Diagnostics: the busy pass, the timestamp calibration and the ray batch measure the

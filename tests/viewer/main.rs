@@ -8,5 +8,6 @@
 mod common;
 
 mod soak;
+mod ui;
 mod viewer;
 mod viewer_hardening;

@@ -312,7 +312,8 @@ impl App {
                 .collect(),
             directional: o.scene.lights.iter().map(|l| matches!(l, crate::scene::Light::Directional { .. })).collect(),
             ..ViewerSettings::new(o.scene.lights.len())
-        };
+        }
+        .with_soft_spp(super::settings::DEFAULT_SOFT_SPP);
         let camera = FlyCamera::from_scene(&o.scene.camera);
         // A size asked for that no frame fits is refused now: waiting for the window to get
         // smaller (as after a resize) would wait for ever if it never does.

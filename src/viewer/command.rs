@@ -105,7 +105,7 @@ impl ViewerSettings {
             }
             Command::Exposure(ev) if ev.is_finite() => self.exposure_ev = *ev,
             Command::Exposure(ev) => return Err(format!("exposure {ev}: not a finite number")),
-            Command::Spp(n) => self.soft_spp = (*n).clamp(1, super::settings::MAX_SPP),
+            Command::Spp(n) => self.set_soft_spp(*n),
             Command::Backend(b) => self.shadow_backend = *b,
             Command::Light { .. } | Command::Bookmark { .. } | Command::Open(_) => {}
         }
@@ -146,10 +146,13 @@ mod tests {
             s.apply(&Command::Param { light: 1, key: key.clone(), value: value.to_string() }).unwrap();
         }
         s.apply(&Command::Param { light: 1, key: "map.resolution".into(), value: "1024".into() }).unwrap();
+        // The viewer's lights start at its rays per frame (`DEFAULT_SOFT_SPP`).
         let mut expected = ShadowChoice::of(ShadowMethod::Map);
+        expected.traced.spp = super::super::settings::DEFAULT_SOFT_SPP;
+        let start = ShadowChoice { method: ShadowMethod::Traced, ..expected };
         expected.set("map.resolution", "1024").unwrap();
         assert_eq!(s.shadows[1], expected);
-        assert_eq!(s.shadows[0], ShadowChoice::default(), "one light changes");
+        assert_eq!(s.shadows[0], start, "one light changes");
         // Refused as `--param` refuses it, and nothing changes.
         let bad = Command::Param { light: 1, key: "map.resolution".into(), value: "9".into() };
         assert!(s.apply(&bad).is_err());

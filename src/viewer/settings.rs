@@ -4,7 +4,7 @@
 use super::input::Key;
 use crate::config::DebugView;
 use crate::config::ShadowBackend;
-use crate::config::{OutputKind, RenderSettings, ShadowChoice, ShadowMethod, TracedParams};
+use crate::config::{OutputKind, RenderSettings, ShadowChoice, ShadowMethod};
 use crate::scene::{Camera, Light};
 
 /// The views V cycles through; the light-specific ones show the selected light, and are
@@ -42,6 +42,8 @@ pub struct ViewerSettings {
 }
 
 pub const MAX_SPP: u32 = 64;
+/// Soft-shadow rays per pixel and frame the viewer starts with, for every light.
+pub const DEFAULT_SOFT_SPP: u32 = 4;
 
 impl ViewerSettings {
     pub fn new(lights: usize) -> ViewerSettings {
@@ -52,9 +54,10 @@ impl ViewerSettings {
             view: 0,
             ui: true,
             exposure_ev: 0.0,
-            soft_spp: 4,
+            soft_spp: DEFAULT_SOFT_SPP,
             shadow_backend: ShadowBackend::Compute,
         }
+        .with_soft_spp(DEFAULT_SOFT_SPP)
     }
 
     /// The debug view; the visibility view shows the selected light.
@@ -114,14 +117,29 @@ impl ViewerSettings {
                 (c.map.constant_bias, c.map.slope_bias) = (bias, bias);
             }),
             Key::C => self.change(|c| c.cascades.count = c.cascades.count % 8 + 1),
-            Key::BracketLeft => self.soft_spp = (self.soft_spp / 2).max(1),
-            Key::BracketRight => self.soft_spp = (self.soft_spp * 2).min(MAX_SPP),
+            Key::BracketLeft => self.set_soft_spp(self.soft_spp / 2),
+            Key::BracketRight => self.set_soft_spp(self.soft_spp * 2),
             Key::V => self.next_view(),
             Key::B => self.shadow_backend = self.shadow_backend.next(),
             Key::Plus => self.exposure_ev += 0.5,
             Key::Minus => self.exposure_ev -= 0.5,
             _ => {}
         }
+    }
+
+    /// Soft-shadow rays per pixel and frame for every light (1 to `MAX_SPP`); a light's own
+    /// `traced.spp` (the UI's parameter list, a script's `param`) then changes it alone.
+    pub fn set_soft_spp(&mut self, spp: u32) {
+        self.soft_spp = spp.clamp(1, MAX_SPP);
+        for c in &mut self.shadows {
+            c.traced.spp = self.soft_spp;
+        }
+    }
+
+    /// These settings with every light at `spp` soft-shadow rays per frame (`set_soft_spp`).
+    pub fn with_soft_spp(mut self, spp: u32) -> ViewerSettings {
+        self.set_soft_spp(spp);
+        self
     }
 
     /// Applies `f` to the selected light's shadows.
@@ -138,11 +156,7 @@ impl ViewerSettings {
         s.debug_view = self.debug_view();
         s.timestamps = true;
         s.camera = Some(camera);
-        s.shadows = self
-            .shadows
-            .iter()
-            .map(|c| ShadowChoice { traced: TracedParams { spp: self.soft_spp, ..c.traced }, ..*c })
-            .collect();
+        s.shadows = self.shadows.clone();
         s.shadow_backend = self.shadow_backend;
         s
     }
@@ -216,7 +230,9 @@ mod tests {
         s.on_key(Key::L);
         s.on_key(Key::T);
         assert_eq!(s.shadows[2].method, ShadowMethod::Map);
-        assert_eq!(s.shadows[1], ShadowChoice::default(), "keys change the selected light only");
+        let mut start = ShadowChoice::default();
+        start.traced.spp = DEFAULT_SOFT_SPP;
+        assert_eq!(s.shadows[1], start, "keys change the selected light only");
         for _ in 0..10 {
             s.on_key(Key::BracketRight);
         }
@@ -225,6 +241,14 @@ mod tests {
             s.on_key(Key::BracketLeft);
         }
         assert_eq!(s.soft_spp, 1);
+        assert!(s.shadows.iter().all(|c| c.traced.spp == 1), "[ and ] set every light's rays");
+        // A light's own traced.spp (the UI's parameter list, a script's param) is its alone, and
+        // the frame uses it.
+        s.shadows[1].traced.spp = 16;
+        let cam = Camera { eye: glam::DVec3::Z, target: glam::DVec3::ZERO, up: glam::Vec3::Y, vfov_deg: 40.0 };
+        let spp: Vec<u32> = s.render_settings(cam).shadows.iter().map(|c| c.traced.spp).collect();
+        assert_eq!(spp, [1, 16, 1]);
+        assert!(ViewerSettings::new(2).shadows.iter().all(|c| c.traced.spp == DEFAULT_SOFT_SPP));
         s.on_key(Key::L);
         assert_eq!(s.selected_light, 0, "selection wraps");
         // Traced lights: the map, cascade, stencil and hybrid views are skipped.

@@ -95,7 +95,8 @@ impl Running {
             shadows: (0..scene.lights.len()).map(|i| scene.light_shadows.get(i).copied().unwrap_or_default()).collect(),
             directional: scene.lights.iter().map(|l| matches!(l, Light::Directional { .. })).collect(),
             ..ViewerSettings::new(scene.lights.len())
-        };
+        }
+        .with_soft_spp(kept.soft_spp);
         self.camera = FlyCamera::from_scene(&scene.camera);
         self.playback = Playback::of(&scene);
         self.presenter.reset_accumulation();

@@ -6,7 +6,7 @@ use std::collections::VecDeque;
 use egui::{Color32, ComboBox, DragValue, RichText};
 
 use super::UiView;
-use crate::config::{ShadowBackend, ShadowMethod};
+use crate::config::{ShadowBackend, ShadowChoice, ShadowMethod};
 use crate::scene::Light;
 use crate::viewer::command::{parameters, Command, LightEdit, BOOKMARKS};
 
@@ -109,7 +109,7 @@ fn light_controls(ui: &mut egui::Ui, view: &UiView<'_>, i: usize, light: &Light,
     egui::Grid::new(("params", i)).num_columns(2).show(ui, |ui| {
         for (key, value) in parameters(choice) {
             ui.label(RichText::new(&key).small());
-            if let Some(text) = parameter(ui, &value) {
+            if let Some(text) = parameter(ui, &value).and_then(|text| accepted(choice, &key, &value, text)) {
                 out.push(Command::Param { light: i, key, value: text });
             }
             ui.end_row();
@@ -137,6 +137,35 @@ fn light_controls(ui: &mut egui::Ui, view: &UiView<'_>, i: usize, light: &Light,
         let v = glam::DVec3::from_array(v).max(glam::DVec3::ZERO).as_vec3();
         out.push(Command::Light { light: i, edit: LightEdit::Intensity(v) });
     }
+}
+
+/// `text` where `ShadowChoice::set` takes it for `key`; for a whole number it refuses, the next
+/// one it takes in the direction of the change (within a factor of two, or 64 steps), so a drag
+/// steps through the values a parameter allows (`evsm.moments`: 2, 4) and stops at the ends of
+/// its range instead of asking for values that would be refused, one warning a frame.
+pub(super) fn accepted(choice: &ShadowChoice, key: &str, old: &toml::Value, text: String) -> Option<String> {
+    let takes = |t: &str| {
+        let mut c = *choice;
+        c.set(key, t).is_ok()
+    };
+    if takes(&text) {
+        return Some(text);
+    }
+    let (Some(old), Ok(new)) = (old.as_integer(), text.parse::<i64>()) else { return None };
+    let step = (new - old).signum();
+    let limit = match step {
+        1 => old.saturating_mul(2).max(old.saturating_add(64)),
+        -1 => (old / 2).min(old.saturating_sub(64)),
+        _ => return None,
+    };
+    let mut v = new;
+    while (step > 0 && v <= limit) || (step < 0 && v >= limit) {
+        if takes(&v.to_string()) {
+            return Some(v.to_string());
+        }
+        v += step;
+    }
+    None
 }
 
 /// A widget for one parameter's value; its new text (as `--param` takes it) when changed.
@@ -210,4 +239,22 @@ fn plot(ui: &mut egui::Ui, history: &VecDeque<Vec<(&'static str, f64)>>) {
         ui.label(RichText::new(format!("{total:8.3} ms")).small().monospace());
         ui.end_row();
     });
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_drag_steps_to_the_values_a_parameter_takes() {
+        let choice = ShadowChoice::of(ShadowMethod::Evsm);
+        let int = |n: i64| toml::Value::Integer(n);
+        // evsm.moments takes 2 or 4: up from 2 past 3 lands on 4, down from 4 on 2.
+        assert_eq!(accepted(&choice, "evsm.moments", &int(2), "3".into()), Some("4".into()));
+        assert_eq!(accepted(&choice, "evsm.moments", &int(4), "3".into()), Some("2".into()));
+        // Past the end of a range nothing is asked for.
+        assert_eq!(accepted(&choice, "map.resolution", &int(8192), "8193".into()), None);
+        assert_eq!(accepted(&choice, "map.resolution", &int(1024), "1025".into()), Some("1025".into()));
+        assert_eq!(accepted(&choice, "map.nothing", &int(1), "2".into()), None);
+    }
 }

@@ -156,10 +156,9 @@ impl Accumulator {
         let desc = crate::vk::ImageDesc::new(super::RADIANCE_FORMAT, settings.width, settings.height);
         if self.image.as_ref().is_none_or(|i| i.desc != desc) {
             if self.image.is_some() {
-                // SAFETY: the device is idle before the image that frames in flight may still
-                // use is destroyed (a new size: the viewer's moving frames change it now and then).
-                unsafe { ctx.device.device_wait_idle() }
-                    .map_err(|result| crate::vk::GpuError::Vk { call: "vkDeviceWaitIdle", result })?;
+                // Frames in flight may still use the image it replaces (a new size: the viewer's
+                // moving frames change it now and then).
+                ctx.wait_idle()?;
             }
             // Storage for the running mean, left sampled between frames, copied by a linear read-back.
             let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED | vk::ImageUsageFlags::TRANSFER_SRC;

@@ -307,13 +307,8 @@ impl App {
         renderer.calibrate_timings().context("calibrating pass timings")?;
         let settings = ViewerSettings {
             shadow_backend: o.shadow_backend,
-            shadows: (0..o.scene.lights.len())
-                .map(|i| o.scene.light_shadows.get(i).copied().unwrap_or_default())
-                .collect(),
-            directional: o.scene.lights.iter().map(|l| matches!(l, crate::scene::Light::Directional { .. })).collect(),
-            ..ViewerSettings::new(o.scene.lights.len())
-        }
-        .with_soft_spp(super::settings::DEFAULT_SOFT_SPP);
+            ..ViewerSettings::for_scene(&o.scene, super::settings::DEFAULT_SOFT_SPP)
+        };
         let camera = FlyCamera::from_scene(&o.scene.camera);
         // A size asked for that no frame fits is refused now: waiting for the window to get
         // smaller (as after a resize) would wait for ever if it never does.

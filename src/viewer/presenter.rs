@@ -199,8 +199,7 @@ impl Presenter {
     }
 
     pub fn wait_idle(&self) -> GpuResult<()> {
-        // SAFETY: valid device.
-        unsafe { self.ctx.device.device_wait_idle() }.vk("vkDeviceWaitIdle")
+        self.ctx.wait_idle()
     }
 
     /// Renders one frame at `scale` times the swapchain's size on each side (1: its size) and

@@ -127,6 +127,17 @@ impl ViewerSettings {
         }
     }
 
+    /// The settings a view of `scene` opens with: each light's shadows as the scene chooses
+    /// them, at `soft_spp` rays per frame; the rest as `new`.
+    pub fn for_scene(scene: &crate::scene::Scene, soft_spp: u32) -> ViewerSettings {
+        ViewerSettings {
+            shadows: (0..scene.lights.len()).map(|i| scene.light_shadows.get(i).copied().unwrap_or_default()).collect(),
+            directional: scene.lights.iter().map(|l| matches!(l, Light::Directional { .. })).collect(),
+            ..ViewerSettings::new(scene.lights.len())
+        }
+        .with_soft_spp(soft_spp)
+    }
+
     /// Soft-shadow rays per pixel and frame for every light (1 to `MAX_SPP`); a light's own
     /// `traced.spp` (the UI's parameter list, a script's `param`) then changes it alone.
     pub fn set_soft_spp(&mut self, spp: u32) {

@@ -55,6 +55,13 @@ pub struct GpuContext {
 }
 
 impl GpuContext {
+    /// Waits until the device has finished all submitted work: before a resource that frames in
+    /// flight may still use is destroyed or replaced (a resize, a new history size).
+    pub fn wait_idle(&self) -> GpuResult<()> {
+        // SAFETY: valid device; no queue is used from another thread while it waits.
+        unsafe { self.device.device_wait_idle() }.vk("vkDeviceWaitIdle")
+    }
+
     /// Shared: buffers and images hold an `Arc` so the device outlives every resource made on it.
     pub fn new(options: &GpuOptions) -> GpuResult<Arc<GpuContext>> {
         Self::create(options, None).map(|(ctx, _)| ctx)

@@ -121,10 +121,9 @@ impl DenoiseHistory {
         });
         if !fits {
             if self.images.is_some() {
-                // SAFETY: the device is idle before the images that frames in flight may still
-                // use are destroyed (a resize, a change of lights: rare).
-                unsafe { ctx.device.device_wait_idle() }
-                    .map_err(|result| crate::vk::GpuError::Vk { call: "vkDeviceWaitIdle", result })?;
+                // Frames in flight may still use the images these replace (a resize, a change
+                // of lights: rare).
+                ctx.wait_idle()?;
             }
             let usage = vk::ImageUsageFlags::STORAGE | vk::ImageUsageFlags::SAMPLED;
             let history = ImageDesc::array(HISTORY_FORMAT, extent.width, extent.height, layers);

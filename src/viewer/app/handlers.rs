@@ -91,12 +91,8 @@ impl Running {
             shadow_backend: kept.shadow_backend,
             ui: kept.ui,
             exposure_ev: kept.exposure_ev,
-            soft_spp: kept.soft_spp,
-            shadows: (0..scene.lights.len()).map(|i| scene.light_shadows.get(i).copied().unwrap_or_default()).collect(),
-            directional: scene.lights.iter().map(|l| matches!(l, Light::Directional { .. })).collect(),
-            ..ViewerSettings::new(scene.lights.len())
-        }
-        .with_soft_spp(kept.soft_spp);
+            ..ViewerSettings::for_scene(&scene, kept.soft_spp)
+        };
         self.camera = FlyCamera::from_scene(&scene.camera);
         self.playback = Playback::of(&scene);
         self.presenter.reset_accumulation();

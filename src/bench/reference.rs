@@ -100,7 +100,23 @@ pub struct Reference {
     pub display: Vec<u8>,
 }
 
-/// The hex SHA-256 that names a reference: the bench's reference format and umbra's version;
+/// SHA-256 of the running executable: its shaders, tables and code. A reference traced by one
+/// build is not served to another, whose shading may differ (a cached reference frame from
+/// before a compose change would shift every FLIP by the change). Its path where it cannot be
+/// read.
+fn build_digest() -> &'static [u8] {
+    static DIGEST: std::sync::OnceLock<Vec<u8>> = std::sync::OnceLock::new();
+    DIGEST.get_or_init(|| {
+        let exe = std::env::current_exe().unwrap_or_default();
+        match std::fs::read(&exe) {
+            Ok(bytes) => Sha256::digest(bytes).to_vec(),
+            Err(_) => exe.as_os_str().as_encoded_bytes().to_vec(),
+        }
+    })
+}
+
+/// The hex SHA-256 that names a reference: the bench's reference format, umbra's version and
+/// the build (`build_digest`);
 /// the device and driver (references from another device may differ on grazing rays); the size;
 /// the contents of every file the scene was read from (scene file, OBJ, MTL; one it could not
 /// read, a missing texture say, by its name); and the resolved
@@ -115,6 +131,7 @@ pub fn cache_key(scene: &Scene, width: u32, height: u32, device: &str) -> Result
     };
     field("format", &FORMAT_VERSION.to_le_bytes());
     field("umbra", env!("CARGO_PKG_VERSION").as_bytes());
+    field("build", build_digest());
     field("reference", format!("spp {SPP} frames {FRAMES} seed {SEED}").as_bytes());
     field("device", device.as_bytes());
     field("size", format!("{width}x{height}").as_bytes());

@@ -140,7 +140,7 @@ fn light_controls(ui: &mut egui::Ui, view: &UiView<'_>, i: usize, light: &Light,
 }
 
 /// `text` where `ShadowChoice::set` takes it for `key`; for a whole number it refuses, the next
-/// one it takes in the direction of the change (within a factor of two, or 64 steps), so a drag
+/// one it takes in the direction of the change (within `SEARCH_STEPS`), so a drag
 /// steps through the values a parameter allows (`evsm.moments`: 2, 4) and stops at the ends of
 /// its range instead of asking for values that would be refused, one warning a frame.
 pub(super) fn accepted(choice: &ShadowChoice, key: &str, old: &toml::Value, text: String) -> Option<String> {
@@ -153,20 +153,15 @@ pub(super) fn accepted(choice: &ShadowChoice, key: &str, old: &toml::Value, text
     }
     let (Some(old), Ok(new)) = (old.as_integer(), text.parse::<i64>()) else { return None };
     let step = (new - old).signum();
-    let limit = match step {
-        1 => old.saturating_mul(2).max(old.saturating_add(64)),
-        -1 => (old / 2).min(old.saturating_sub(64)),
-        _ => return None,
-    };
-    let mut v = new;
-    while (step > 0 && v <= limit) || (step < 0 && v >= limit) {
-        if takes(&v.to_string()) {
-            return Some(v.to_string());
-        }
-        v += step;
+    if step == 0 {
+        return None;
     }
-    None
+    // Each try is a `set` (a TOML round trip), run every frame of a drag: a few dozen at most.
+    (0..SEARCH_STEPS).map(|k| new.saturating_add(k * step).to_string()).find(|v| takes(v))
 }
+
+/// How many whole numbers past a refused one `accepted` tries.
+const SEARCH_STEPS: i64 = 64;
 
 /// A widget for one parameter's value; its new text (as `--param` takes it) when changed.
 fn parameter(ui: &mut egui::Ui, value: &toml::Value) -> Option<String> {

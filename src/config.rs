@@ -172,6 +172,10 @@ pub enum DebugView {
     Denoise(u32),
     /// Traced ambient occlusion (`[ambient_occlusion]`): 1 open, 0 enclosed.
     AmbientOcclusion,
+    /// What ambient occlusion's denoiser (`[ambient_occlusion] denoise`) starts from, as
+    /// `Denoise` shows a light's: the rays' openness (red) and the mean distance of their hits
+    /// (green), from the history where it keeps one.
+    DenoiseOcclusion,
     /// Each pixel's screen-space motion since the previous frame (gbuffer.glsl's motion
     /// channel): raw pixels (x, y, 0) in EXR; 0.5 + motion / 32 in red and green for display.
     Motion,
@@ -181,7 +185,7 @@ impl DebugView {
     /// The views the viewer cycles through (visibility of the selected light).
     pub const NAMES: &'static str =
         "albedo, normal, geometric-normal, depth, position, visibility[:N], shadow-map[:N[:C]], cascades[:N], stencil[:N], \
-         hybrid[:N], denoise[:N], ao, motion";
+         hybrid[:N], denoise[:N|:ao], ao, motion";
 
     /// The light whose shadow work the view needs, if any.
     pub fn light(self) -> Option<usize> {
@@ -221,6 +225,7 @@ impl std::str::FromStr for DebugView {
             "cascades" => Ok(DebugView::Cascades(light(arg)?)),
             "stencil" => Ok(DebugView::Stencil(light(arg)?)),
             "hybrid" => Ok(DebugView::Hybrid(light(arg)?)),
+            "denoise" if arg == Some("ao") => Ok(DebugView::DenoiseOcclusion),
             "denoise" => Ok(DebugView::Denoise(light(arg)?)),
             "ao" => plain(DebugView::AmbientOcclusion),
             "motion" => plain(DebugView::Motion),
@@ -254,6 +259,7 @@ impl std::fmt::Display for DebugView {
             DebugView::Hybrid(n) => write!(f, "hybrid:{n}"),
             DebugView::Denoise(n) => write!(f, "denoise:{n}"),
             DebugView::AmbientOcclusion => f.write_str("ao"),
+            DebugView::DenoiseOcclusion => f.write_str("denoise:ao"),
             DebugView::Motion => f.write_str("motion"),
         }
     }

@@ -40,6 +40,15 @@ pub enum Target<'a> {
     Inspect,
 }
 
+/// What a frame's denoised passes read and write (`crate::passes::denoise`).
+#[derive(Default)]
+pub struct FrameHistories {
+    /// The traced shadows' history, where a denoised light keeps one.
+    pub shadows: Option<crate::passes::denoise::DenoiseFrame>,
+    /// Ambient occlusion's, where it is denoised with a history.
+    pub occlusion: Option<crate::passes::denoise::DenoiseFrame>,
+}
+
 /// Everything a frame's graph is built from.
 pub struct FrameParts<'a> {
     /// Where passes get the pipelines they ask for as they declare themselves.
@@ -61,8 +70,8 @@ pub struct FrameParts<'a> {
     /// The camera the previous frame was drawn with (world frame; `None`: this one's), which
     /// the motion channel measures from.
     pub previous_camera: Option<crate::scene::Camera>,
-    /// The shadow denoiser's history, where a denoised light keeps one.
-    pub denoise: Option<shadows::traced::denoise::DenoiseFrame>,
+    /// The denoiser's histories, where a denoised light or the occlusion keeps one.
+    pub histories: FrameHistories,
 }
 
 /// The scene's buffers as this frame's graph sees them.
@@ -93,7 +102,7 @@ pub fn build<'a>(
         lighting,
         compose,
         previous_camera,
-        denoise,
+        histories,
     } = parts;
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     let seen_by =
@@ -102,9 +111,10 @@ pub fn build<'a>(
     let camera = seen_by(&this_camera);
     // The motion channel, for the frames that show it: this frame's camera without jitter, and
     // the previous frame's.
-    // The denoiser's history reprojects by it too.
+    // The denoiser's histories reproject by it too.
     let previous = seen_by(&previous_camera.unwrap_or(this_camera));
-    let motion = (settings.debug_view == Some(crate::config::DebugView::Motion) || denoise.is_some())
+    let reprojects = histories.shadows.is_some() || histories.occlusion.is_some();
+    let motion = (settings.debug_view == Some(crate::config::DebugView::Motion) || reprojects)
         .then(|| camera.motion_block(&previous, extent.width, extent.height));
     // Anti-aliasing: an accumulated frame after the first samples elsewhere in its pixel.
     let camera = match history.as_ref().filter(|h| settings.antialias && h.frames > 0) {
@@ -133,13 +143,20 @@ pub fn build<'a>(
         volumes,
         ray_query,
         rects,
-        denoise,
+        denoise: histories.shadows,
         previous_eye: previous.eye,
     };
     let visibility = shadows::add(&mut g, &inputs, &plan)?;
-    let occlusion = occlusion_stage(&mut g, pipelines, s, settings, &lighting, &gbuffer, &handles.bvh)?;
-    if let (true, Some(ao)) = (lighting.view, &occlusion) {
-        let image = crate::lighting::ao::add_view(&mut g, pipelines, ao, extent)?;
+    let view = crate::passes::denoise::View::new(&camera, previous.eye, extent.height);
+    let denoise = crate::lighting::ao::Denoise { state: histories.occlusion.as_ref(), view };
+    let occlusion = occlusion_stage(&mut g, pipelines, s, settings, &lighting, &gbuffer, &handles.bvh, denoise)?;
+    if let (true, Some((ao, shown))) = (lighting.view, &occlusion) {
+        let image = match (settings.debug_view, shown) {
+            (Some(crate::config::DebugView::DenoiseOcclusion), Some(shown)) => {
+                crate::passes::denoise::debug_view(&mut g, pipelines, extent, shown, 0)?
+            }
+            _ => crate::lighting::ao::add_view(&mut g, pipelines, ao, extent)?,
+        };
         let lit = Lit { image, debug: true, toned: false, history: Accumulated::No };
         let result = post_stage(&mut g, pipelines, settings, lit)?;
         target_stage(&mut g, pipelines, settings, result, target)?;
@@ -149,7 +166,7 @@ pub fn build<'a>(
         background: scene.lighting.background(),
         background_given: scene.lighting.background.is_some(),
         lighting,
-        occlusion,
+        occlusion: occlusion.map(|o| o.0),
         compose,
     };
     let lit = lighting_stage(
@@ -177,6 +194,7 @@ fn gbuffer_stage<'a>(
 }
 
 /// Traced ambient occlusion, where the frame has the pass (`crate::lighting::ao`).
+#[allow(clippy::too_many_arguments)]
 fn occlusion_stage<'a>(
     g: &mut RenderGraph<'a>,
     pipelines: PipelineSource<'a>,
@@ -185,7 +203,8 @@ fn occlusion_stage<'a>(
     lighting: &crate::lighting::Prepared<'a>,
     gbuffer: &GBuffer,
     bvh: &BvhHandles,
-) -> GpuResult<Option<Handle<ImageKind>>> {
+    denoise: crate::lighting::ao::Denoise<'_>,
+) -> GpuResult<Option<(Handle<ImageKind>, Option<crate::passes::denoise::Shown>)>> {
     let Some(mut params) = lighting.occlusion else { return Ok(None) };
     let extent = vk::Extent2D { width: settings.width, height: settings.height };
     if !s.has_casters {
@@ -193,7 +212,7 @@ fn occlusion_stage<'a>(
         params.radius = 0.0;
     }
     let casters = crate::gpu::Casters::bvh(bvh);
-    crate::lighting::ao::add(g, pipelines, gbuffer, &casters, params, settings.frame_index, extent).map(Some)
+    crate::lighting::ao::add(g, pipelines, gbuffer, &casters, params, settings.frame_index, extent, denoise).map(Some)
 }
 
 /// What compose adds beside the lights: the background, the environment and its occlusion.

@@ -9,6 +9,9 @@ use gpu_allocator::MemoryLocation;
 
 pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, ShadowChoice, ShadowMethod};
 pub use crate::frame::{Target, BACKGROUND};
+
+mod histories;
+
 use crate::gpu::accel::RayQueryScene;
 pub use crate::gpu::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
 use crate::graph::{CompiledGraph, GpuTimings, RenderGraph, TimingMode, TransientCache};
@@ -66,8 +69,8 @@ pub struct Renderer {
     /// The camera the last recorded frame was drawn with (world frame): where the next frame's
     /// motion channel measures camera motion from.
     previous_camera: std::sync::Mutex<Option<crate::scene::Camera>>,
-    /// The shadow denoiser's history between frames (`traced.denoise`).
-    denoise: std::sync::Mutex<crate::shadows::traced::denoise::DenoiseHistory>,
+    /// The denoiser's histories between frames (`traced.denoise`, `[ambient_occlusion] denoise`).
+    histories: histories::Histories,
     pub gpu_scene: SceneGpu,
     scene: Scene,
     /// `scene` in the local frame the GPU sees, less what f32 cannot hold there
@@ -158,7 +161,7 @@ impl Renderer {
             motion: motion.map(std::sync::Mutex::new),
             update: Default::default(),
             previous_camera: std::sync::Mutex::new(None),
-            denoise: std::sync::Mutex::new(Default::default()),
+            histories: Default::default(),
             gpu_scene,
             scene,
             local,
@@ -372,13 +375,23 @@ impl Renderer {
         if (shadows_read && crate::shadows::traces_rays(&plan)) || lighting.occlusion.is_some() {
             self.place_casters();
         }
-        // The denoiser's history goes on only in frames whose denoised passes run: frames that
+        // The shadows' history goes on only in frames whose denoised passes run: frames that
         // read their shadows, and in a light's view, that light's.
-        let mut plan_denoised = self.denoised_lights(&plan);
         let view_light = settings.debug_view.and_then(|v| v.light());
-        if !shadows_read || view_light.is_some_and(|l| plan_denoised.iter().all(|d| d.0 as usize != l)) {
-            plan_denoised.clear();
-        }
+        let denoised = crate::shadows::traced::denoise::denoised(&self.gpu_scene, plan.served(ShadowMethod::Traced));
+        let shadows_denoised =
+            shadows_read && view_light.is_none_or(|l| denoised.iter().any(|d| d.light as usize == l));
+        let extent = vk::Extent2D { width: settings.width, height: settings.height };
+        let moving = self.motion.is_some();
+        let histories = self.histories.prepare(
+            &self.ctx,
+            &self.gpu_scene,
+            extent,
+            &plan,
+            shadows_denoised,
+            lighting.occlusion,
+            moving,
+        )?;
         let compose = match settings.debug_view {
             Some(_) => None,
             None => {
@@ -407,43 +420,15 @@ impl Renderer {
             lighting,
             compose,
             previous_camera: *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()),
-            denoise: self.prepare_denoise(settings, plan_denoised)?,
+            histories,
         };
         Ok((crate::frame::build(parts, target, history)?, ray_query))
     }
 
-    /// The lights `traced` denoises in a frame of `plan`, in the order it serves them, with
-    /// their parameters and what they are on the device (a change restarts their history).
-    fn denoised_lights(
-        &self,
-        plan: &crate::shadows::ShadowPlan,
-    ) -> Vec<(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)> {
-        let served = crate::shadows::traced::denoise::denoised(&self.gpu_scene, plan.served(ShadowMethod::Traced));
-        served
-            .into_iter()
-            .map(|s| {
-                let light = &self.gpu_scene.local_lights[s.light as usize];
-                let bytes = crate::shading::gpu_lights(std::slice::from_ref(light));
-                (s.light, s.choice.traced, bytemuck::cast_slice(&bytes).to_vec())
-            })
-            .collect()
-    }
-
-    /// The denoiser's history for a frame of `settings` whose denoised lights are `lights`.
-    fn prepare_denoise(
-        &self,
-        settings: &RenderSettings,
-        lights: Vec<(u32, crate::shadows::traced::params::TracedParams, Vec<u8>)>,
-    ) -> GpuResult<Option<crate::shadows::traced::denoise::DenoiseFrame>> {
-        let extent = vk::Extent2D { width: settings.width, height: settings.height };
-        let mut history = self.denoise.lock().unwrap_or_else(|e| e.into_inner());
-        history.prepare(&self.ctx, extent, lights, self.motion.is_some())
-    }
-
-    /// Forgets the shadow denoiser's history: the next frame's denoised lights start afresh
-    /// (the bench scores each frame on its own rays).
+    /// Forgets the denoiser's histories: the next frame's denoised lights and occlusion start
+    /// afresh (the bench scores each frame on its own rays).
     pub fn restart_denoise(&self) {
-        self.denoise.lock().unwrap_or_else(|e| e.into_inner()).restart();
+        self.histories.restart();
     }
 
     /// Where this renderer's passes get their pipelines.
@@ -455,8 +440,8 @@ impl Renderer {
     /// needs the light to be served by that technique); why not.
     pub fn check_debug_view(&self, settings: &RenderSettings) -> Result<(), String> {
         let Some(view) = settings.debug_view else { return Ok(()) };
-        if view == DebugView::AmbientOcclusion && self.scene.lighting.ambient_occlusion.is_none() {
-            return Err("--debug-view ao: the scene has no [ambient_occlusion] table".to_owned());
+        if matches!(view, DebugView::AmbientOcclusion | DebugView::DenoiseOcclusion) {
+            crate::lighting::occlusion_view(&self.scene.lighting, view)?;
         }
         let plan = self.shadow_plan(settings).map_err(|e| e.to_string())?;
         crate::shadows::check_debug_view(view, &plan, &self.gpu_scene)
@@ -550,7 +535,7 @@ impl Renderer {
         let (graph, traversal) = self.graph(settings, target, history)?;
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         self.gpu_scene.recorded();
-        self.denoise.lock().unwrap_or_else(|e| e.into_inner()).advance();
+        self.histories.advance();
         *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) =
             Some(settings.camera.unwrap_or(self.scene.camera));
         if let Some(scene) = traversal {

@@ -87,14 +87,16 @@ fn hybrid_rays(renderer: &mut Renderer, width: u32, height: u32, n: usize, choic
 pub const DENOISE_LEAD_IN: u32 = 7;
 
 /// The frames to render before the scored one: `DENOISE_LEAD_IN` where some light of `scene`
-/// gets traced shadows denoised with a history (`traced.history` > 0), else none.
+/// gets traced shadows denoised with a history (`traced.history` > 0), or its ambient
+/// occlusion is denoised with one, else none.
 pub fn lead_in(scene: &Scene, choices: &[ShadowChoice]) -> u32 {
-    let keeps = scene
-        .lights
-        .iter()
-        .zip(choices)
-        .any(|(l, c)| c.method == ShadowMethod::Traced && c.traced.denoises(l.has_size()) && c.traced.history > 0);
-    if keeps {
+    let traced = |c: &ShadowChoice| c.method == ShadowMethod::Traced && c.traced.history > 0;
+    let lights = scene.lights.iter().zip(choices).any(|(l, c)| traced(c) && c.traced.denoises(l.has_size()));
+    // Rect lights are numbered after the others; their shadows are always soft.
+    let rects =
+        choices.iter().skip(scene.lights.len()).take(scene.rect_lights.len()).any(|c| traced(c) && c.traced.denoise);
+    let occlusion = scene.lighting.ambient_occlusion.is_some_and(|a| a.denoise && a.history > 0);
+    if lights || rects || occlusion {
         DENOISE_LEAD_IN
     } else {
         0

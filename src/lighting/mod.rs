@@ -123,6 +123,20 @@ pub struct Prepared<'a> {
     pub area: Option<&'a AreaTables>,
 }
 
+/// The occlusion the `ao` or `denoise:ao` view shows; why there is none.
+pub fn occlusion_view(
+    lighting: &SceneLighting,
+    view: crate::config::DebugView,
+) -> Result<crate::scene::AmbientOcclusion, String> {
+    let params = lighting
+        .ambient_occlusion
+        .ok_or_else(|| format!("--debug-view {view}: the scene has no [ambient_occlusion] table"))?;
+    if view == crate::config::DebugView::DenoiseOcclusion && !params.denoise {
+        return Err(format!("--debug-view {view}: [ambient_occlusion] is not denoised (denoise = true)"));
+    }
+    Ok(params)
+}
+
 /// What a frame with `view` takes of `lighting` (`environment`, the rect lights and the area
 /// tables on the device).
 pub fn prepare<'a>(
@@ -134,12 +148,8 @@ pub fn prepare<'a>(
 ) -> GpuResult<Prepared<'a>> {
     let mut prepared = Prepared::default();
     match view {
-        Some(crate::config::DebugView::AmbientOcclusion) => {
-            let params = lighting.ambient_occlusion.ok_or_else(|| {
-                crate::vk::GpuError::Unsupported(
-                    "--debug-view ao: the scene has no [ambient_occlusion] table".to_owned(),
-                )
-            })?;
+        Some(view @ (crate::config::DebugView::AmbientOcclusion | crate::config::DebugView::DenoiseOcclusion)) => {
+            let params = occlusion_view(lighting, view).map_err(crate::vk::GpuError::Unsupported)?;
             prepared.occlusion = Some(params);
             prepared.view = true;
         }

@@ -72,7 +72,8 @@ fn shader_view(view: DebugView) -> u32 {
         | DebugView::Stencil(_)
         | DebugView::Hybrid(_)
         | DebugView::Denoise(_)
-        | DebugView::AmbientOcclusion => {
+        | DebugView::AmbientOcclusion
+        | DebugView::DenoiseOcclusion => {
             unreachable!("a technique's own view")
         }
     }

@@ -4,6 +4,7 @@
 pub mod accumulate;
 pub mod compose;
 pub mod debug_view;
+pub mod denoise;
 pub mod geometry;
 pub mod present;
 pub mod readback;

@@ -44,6 +44,8 @@ impl EnvironmentDesc {
 pub(super) struct AmbientOcclusionDesc {
     radius: f64,
     spp: Option<u32>,
+    denoise: Option<bool>,
+    history: Option<u32>,
 }
 
 /// A constant environment: radiance `color * intensity` from every direction, W/(m^2 sr).
@@ -66,13 +68,24 @@ impl Environment {
 pub struct AmbientOcclusion {
     pub radius: f32,
     pub spp: u32,
+    /// Filter each frame's occlusion before compose (the shadows' denoiser, sized by the
+    /// distance the rays hit at), over a history reprojected from the frames before.
+    pub denoise: bool,
+    /// With `denoise`: the most frames the history keeps while the view or the scene moves
+    /// (all of them while everything stands still); 0: the spatial filter alone.
+    pub history: u32,
 }
 
 impl Default for AmbientOcclusion {
     fn default() -> Self {
-        AmbientOcclusion { radius: 0.5, spp: 4 }
+        AmbientOcclusion { radius: 0.5, spp: 4, denoise: false, history: DEFAULT_AO_HISTORY }
     }
 }
+
+/// Frames a moving view's occlusion history keeps (as `traced.history`'s default).
+pub const DEFAULT_AO_HISTORY: u32 = 16;
+/// Most frames it may keep (the history counts frames in half floats).
+pub const MAX_AO_HISTORY: u32 = 256;
 
 /// The scene's background, environment and ambient occlusion, each absent unless the file
 /// gives it.
@@ -178,7 +191,19 @@ pub(super) fn check(
             if environment.is_none() {
                 log::warn!("[ambient_occlusion] darkens only the environment light, and the scene has no [environment]: it changes nothing");
             }
-            Some(AmbientOcclusion { radius: a.radius as f32, spp })
+            let history = a.history.unwrap_or(DEFAULT_AO_HISTORY);
+            if history > MAX_AO_HISTORY {
+                return Err(fail(
+                    "ambient_occlusion.history",
+                    format!("{history} is outside 0 to {MAX_AO_HISTORY} frames"),
+                ));
+            }
+            if a.history.is_some() && a.denoise != Some(true) {
+                log::warn!(
+                    "[ambient_occlusion] history is the denoiser's, and denoise is not true: it changes nothing"
+                );
+            }
+            Some(AmbientOcclusion { radius: a.radius as f32, spp, denoise: a.denoise.unwrap_or(false), history })
         }
     };
     Ok(SceneLighting { background, environment, ambient_occlusion, environment_map: map })

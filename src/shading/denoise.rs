@@ -1,6 +1,6 @@
-//! Twin of the shadow denoiser (shaders/shadows/traced/denoise.glsl, denoise_spatial.comp and
-//! the mean of denoise_temporal.comp), operation for operation, so that tests can check the GPU
-//! filter against it on the same inputs (the `denoise:N` view, the G-buffer's position and
+//! Twin of the denoiser (shaders/denoise/filter.glsl, spatial_body.glsl with each entry point's
+//! width, and the mean of temporal.comp), operation for operation, so that tests can check the
+//! GPU filter against it on the same inputs (the `denoise:N` view, the G-buffer's position and
 //! normal views) and so that its arithmetic can be unit-tested: where every tap agrees the mean
 //! is that value exactly, and a pixel without blockers nearby is left as traced.
 
@@ -95,6 +95,38 @@ pub const MAX_RADIUS: f32 = 16.0;
 pub const MIN_RADIUS: f32 = 1.0;
 /// How far (pixels) a pixel none of whose rays counted looks for its visibility.
 pub const UNKNOWN_RADIUS: f32 = 3.0;
+/// A source texel's blocker distance where no ray counted (DENOISE_UNKNOWN).
+pub const UNKNOWN: f32 = -1.0;
+/// Where the value holds as it is (DENOISE_FIXED: a rect that cannot light the point).
+pub const FIXED: f32 = -2.0;
+
+/// What sizes the filter: the light whose penumbra it follows, or occlusion. Twin of each
+/// spatial entry point's `denoise_width`.
+#[derive(Clone, Copy, Debug)]
+pub enum Width {
+    /// A point, spot or sun light (spatial.comp).
+    Light(GpuLight),
+    /// A rect light, as a sphere of its half-diagonal at its centre (spatial_rect.comp).
+    Rect { center: Vec3, size: f32 },
+    /// Ambient occlusion: the blockers' distance itself (spatial_occlusion.comp).
+    Occlusion,
+}
+
+impl Width {
+    /// A rect light centred at `center` with half edges `u` and `v`.
+    pub fn rect(center: Vec3, u: Vec3, v: Vec3) -> Width {
+        Width::Rect { center, size: (u.dot(u) + v.dot(v)).sqrt() }
+    }
+
+    /// The width of the penumbra at `p` past blockers at `blocker`.
+    pub fn at(&self, p: Vec3, blocker: f32) -> f32 {
+        match self {
+            Width::Light(light) => penumbra_width(light, p, blocker),
+            Width::Rect { center, size } => sphere_width(*size, (*center - p).length(), blocker),
+            Width::Occlusion => blocker,
+        }
+    }
+}
 
 /// What the spatial pass reads for one light: per pixel (row-major, `width` x `height`) the
 /// source (x: visibility, y: mean blocker distance, 0 none, -1 no ray counted; z: frames, 0 or 1
@@ -118,20 +150,24 @@ pub fn tap(px: IVec2, rotation: u32, i: usize, radius: f32) -> IVec2 {
     px + IVec2::new(t.x.round_ties_even() as i32, t.y.round_ties_even() as i32)
 }
 
+/// Width of the penumbra a sphere of radius `size` at `distance` casts past a blocker at
+/// `blocker`. Twin of denoise_sphere_width.
+pub fn sphere_width(size: f32, distance: f32, blocker: f32) -> f32 {
+    2.0 * size * blocker / (distance - blocker).max(1e-3 * distance)
+}
+
 /// Width of the penumbra `light` casts at `p` past a blocker `blocker` along the rays. Twin of
-/// denoise_penumbra_width.
+/// spatial.comp's denoise_width.
 pub fn penumbra_width(light: &GpuLight, p: Vec3, blocker: f32) -> f32 {
     let size = light.size[0];
     if light.position_kind[3] == LIGHT_DIRECTIONAL {
         return 2.0 * blocker * size;
     }
-    let d = (Vec3::from_slice(&light.position_kind[..3]) - p).length();
-    2.0 * size * blocker / (d - blocker).max(1e-3 * d)
+    sphere_width(size, (Vec3::from_slice(&light.position_kind[..3]) - p).length(), blocker)
 }
 
-/// The filter's radius in pixels. Twin of denoise_radius.
-pub fn radius(light: &GpuLight, p: Vec3, blocker: f32, footprint: f32, rays: f32) -> f32 {
-    let width = penumbra_width(light, p, blocker);
+/// The filter's radius in pixels for a penumbra `width` wide. Twin of denoise_radius.
+pub fn radius(width: f32, footprint: f32, rays: f32) -> f32 {
     (WIDTH_SHARE * width / footprint).min(MAX_RADIUS) / rays.max(1.0).sqrt()
 }
 
@@ -150,15 +186,15 @@ pub fn tap_weight(p: Vec3, n: Vec3, footprint: f32, q: Vec4, nq: Vec3) -> f32 {
     along * c8 * c8
 }
 
-/// The denoised visibility of pixel (`x`, `y`) for `light`. Twin of denoise_spatial.comp's
-/// denoise_pixel.
-pub fn filter(inputs: &SpatialInputs, light: &GpuLight, x: u32, y: u32) -> f32 {
+/// The denoised value of pixel (`x`, `y`), its filter sized by `width`. Twin of
+/// spatial_body.glsl's denoise_pixel.
+pub fn filter(inputs: &SpatialInputs, width: &Width, x: u32, y: u32) -> f32 {
     let at = |q: IVec2| (q.y as u32 * inputs.width + q.x as u32) as usize;
     let inside = |q: IVec2| q.x >= 0 && q.y >= 0 && q.x < inputs.width as i32 && q.y < inputs.height as i32;
     let px = IVec2::new(x as i32, y as i32);
     let centre = inputs.source[at(px)];
     let p = inputs.position[at(px)];
-    if p.w <= 0.0 {
+    if p.w <= 0.0 || centre.y <= FIXED {
         return centre.x;
     }
     let n = inputs.normal[at(px)].normalize();
@@ -174,7 +210,7 @@ pub fn filter(inputs: &SpatialInputs, light: &GpuLight, x: u32, y: u32) -> f32 {
         found += if b > 0.0 { 1.0 } else { 0.0 };
     }
     let rays = centre.z.max(1.0) * inputs.rays as f32;
-    let mut r = if found > 0.0 { radius(light, p.xyz(), blockers / found, footprint, rays) } else { 0.0 };
+    let mut r = if found > 0.0 { radius(width.at(p.xyz(), blockers / found), footprint, rays) } else { 0.0 };
     let known = centre.y >= 0.0;
     if !known {
         r = r.max(UNKNOWN_RADIUS);
@@ -248,7 +284,11 @@ mod tests {
                     rays: 1,
                 };
                 for (x, y) in [(0, 0), (24, 20), (47, 39), (10, 30)] {
-                    assert_eq!(filter(&inputs, &sun(), x, y), value, "value {value}, blocker {blocker} at ({x}, {y})");
+                    assert_eq!(
+                        filter(&inputs, &Width::Light(sun()), x, y),
+                        value,
+                        "value {value}, blocker {blocker} at ({x}, {y})"
+                    );
                 }
             }
         }
@@ -273,13 +313,13 @@ mod tests {
             seed,
             rays: 1,
         };
-        let v = filter(&inputs, &sun(), 24, 20);
+        let v = filter(&inputs, &Width::Light(sun()), 24, 20);
         assert!(v > 0.2 && v < 0.8, "a noisy penumbra is averaged: {v}");
         // The same noise without any blocker (a lit pixel's rays hit nothing): left alone.
         let unblocked: Vec<Vec4> = noisy.iter().map(|s| Vec4::new(s.x, 0.0, 1.0, 0.0)).collect();
         inputs.source = &unblocked;
         for (x, y) in [(24, 20), (25, 20)] {
-            assert_eq!(filter(&inputs, &sun(), x, y), unblocked[(y * w + x) as usize].x);
+            assert_eq!(filter(&inputs, &Width::Light(sun()), x, y), unblocked[(y * w + x) as usize].x);
         }
         // A pixel on another surface (a wall standing up at x >= 30) takes nothing from the floor.
         let mut position = position.clone();
@@ -296,23 +336,29 @@ mod tests {
         inputs.source = &walled;
         inputs.position = &position;
         inputs.normal = &normal;
-        assert_eq!(filter(&inputs, &sun(), 29, 20), 0.0, "the floor's edge pixel");
-        assert_eq!(filter(&inputs, &sun(), 30, 20), 1.0, "the wall's edge pixel");
+        assert_eq!(filter(&inputs, &Width::Light(sun()), 29, 20), 0.0, "the floor's edge pixel");
+        assert_eq!(filter(&inputs, &Width::Light(sun()), 30, 20), 1.0, "the wall's edge pixel");
     }
 
     #[test]
     fn the_radius_follows_the_penumbra_and_narrows_with_rays() {
-        let light = sun();
+        let light = Width::Light(sun());
         let p = Vec3::ZERO;
+        let r = |width: &Width, blocker: f32, rays: f32| radius(width.at(p, blocker), 0.01, rays);
         // A blocker twice as far casts a penumbra twice as wide.
-        let a = radius(&light, p, 0.1, 0.01, 1.0);
-        let b = radius(&light, p, 0.2, 0.01, 1.0);
+        let a = r(&light, 0.1, 1.0);
+        let b = r(&light, 0.2, 1.0);
         assert!((b / a - 2.0).abs() < 1e-5, "{a} {b}");
         // Four times the rays: half the radius; never past MAX_RADIUS.
-        assert!((radius(&light, p, 0.1, 0.01, 4.0) * 2.0 - a).abs() < 1e-5);
-        assert_eq!(radius(&light, p, 1e6, 0.01, 1.0), MAX_RADIUS);
+        assert!((r(&light, 0.1, 4.0) * 2.0 - a).abs() < 1e-5);
+        assert_eq!(r(&light, 1e6, 1.0), MAX_RADIUS);
         // A contact shadow (blocker at 0) is not filtered.
-        assert!(radius(&light, p, 1e-4, 0.01, 1.0) < MIN_RADIUS);
+        assert!(r(&light, 1e-4, 1.0) < MIN_RADIUS);
+        // A rect as a sphere of its half-diagonal (5 m away, 0.3 x 0.4 half edges: 0.5); an
+        // occluder's scale is its distance.
+        let rect = Width::rect(Vec3::new(0.0, 5.0, 0.0), Vec3::new(0.3, 0.0, 0.0), Vec3::new(0.0, 0.0, 0.4));
+        assert!((rect.at(p, 1.0) - 2.0 * 0.5 * 1.0 / 4.0).abs() < 1e-6);
+        assert_eq!(Width::Occlusion.at(p, 0.25), 0.25);
         assert_eq!(fold(0.25, 3.0, 1.0), 0.25 + 0.75 / 4.0);
         assert_eq!(fold(1.0, 7.0, 1.0), 1.0);
         assert_eq!(fold(0.0, 7.0, 0.0), 0.0);

@@ -10,7 +10,7 @@
 //! - `trace`: shaders/shadows/traced/trace_body.glsl (soft-shadow sampling)
 //! - `area`: shaders/lighting/ltc.glsl (rect and cap lights' shading; `lighting::ltc` is the rest)
 //! - `compose`: shaders/include/compose_body.glsl (`shade_point`)
-//! - `denoise`: shaders/shadows/traced/denoise.glsl and its passes (`shading::denoise::filter`)
+//! - `denoise`: shaders/denoise/filter.glsl and its passes (`shading::denoise::filter`)
 //! - `tonemap`: shaders/include/tonemap.glsl
 //! - `surface`: shaders/include/gbuffer.glsl and shaders/include/ray_offset.glsl
 //!

@@ -449,7 +449,7 @@ fn ambient_occlusion_rays_respect_the_masks() {
     let ctx = common::gpu();
     let (spp, frame_index, radius) = (16u32, 2u32, 1.5f32);
     let mut scene = scene(dir.path());
-    scene.lighting.ambient_occlusion = Some(umbra::scene::AmbientOcclusion { radius, spp });
+    scene.lighting.ambient_occlusion = Some(umbra::scene::AmbientOcclusion { radius, spp, ..Default::default() });
     let mut renderer = Renderer::new(ctx.clone(), scene.clone()).unwrap();
     let render = |r: &mut Renderer, view: DebugView, frame_index: u32| {
         let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear);

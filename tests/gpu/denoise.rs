@@ -13,7 +13,7 @@ use glam::{Vec3, Vec4};
 use umbra::config::DebugView;
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowChoice};
 use umbra::scene::Scene;
-use umbra::shading::denoise::{filter, SpatialInputs};
+use umbra::shading::denoise::{filter, SpatialInputs, Width};
 use umbra::shading::gpu_lights;
 
 const W: u32 = 160;
@@ -124,7 +124,7 @@ fn the_gpu_filter_equals_its_cpu_twin_on_the_same_inputs() {
         for y in 0..H {
             for x in 0..W {
                 let i = (y * W + x) as usize;
-                let expected = filter(&inputs, &lights[light as usize], x, y);
+                let expected = filter(&inputs, &Width::Light(lights[light as usize]), x, y);
                 filtered += ((expected - source[i].x).abs() > 0.01) as usize;
                 // 8-bit UNORM: half a step, plus the two sides' float rounding.
                 if (denoised[i] - expected).abs() > 0.5 / 255.0 + 1e-3 {

@@ -232,11 +232,25 @@ fn lighting_keys_are_checked() {
         "ambient_occlusion.spp: 0 is outside 1 to 256",
     );
     fails(format!("{CAMERA}[ambient_occlusion]\nspp = 4\n"), "missing field `radius`");
+    fails(
+        format!("{CAMERA}[ambient_occlusion]\nradius = 0.5\ndenoise = true\nhistory = 300\n"),
+        "ambient_occlusion.history: 300 is outside 0 to 256 frames",
+    );
     let scene =
         parse(&format!("{CAMERA}[environment]\ncolor = [0.2, 0.4, 0.8]\n[ambient_occlusion]\nradius = 0.25\n{FLOOR}"));
     let lighting = scene.lighting;
     assert_eq!(lighting.environment.map(|e| (e.radiance(), e.intensity)), Some((Vec3::new(0.2, 0.4, 0.8), 1.0)));
     assert_eq!(lighting.ambient_occlusion.map(|a| (a.radius, a.spp)), Some((0.25, 4)), "spp defaults to 4");
+    assert_eq!(
+        lighting.ambient_occlusion.map(|a| (a.denoise, a.history)),
+        Some((false, 16)),
+        "not denoised by default"
+    );
+    let denoised = parse(&format!(
+        "{CAMERA}[environment]\ncolor = [1, 1, 1]\n[ambient_occlusion]\nradius = 0.25\nspp = 1\ndenoise = true\nhistory = 4\n{FLOOR}"
+    ));
+    let a = denoised.lighting.ambient_occlusion.expect("ao");
+    assert_eq!((a.spp, a.denoise, a.history), (1, true, 4));
 }
 
 #[test]
@@ -278,6 +292,8 @@ fn a_scene_without_environment_pays_nothing_for_it() {
     settings.debug_view = Some(DebugView::AmbientOcclusion);
     let err = renderer.plan(&settings).err().map(|e| e.to_string()).unwrap_or_default();
     assert!(err.contains("no [ambient_occlusion]"), "{err}");
+    assert!(renderer.check_debug_view(&settings).unwrap_err().contains("no [ambient_occlusion]"));
+    settings.debug_view = Some(DebugView::DenoiseOcclusion);
     assert!(renderer.check_debug_view(&settings).unwrap_err().contains("no [ambient_occlusion]"));
     drop(renderer);
     common::assert_clean(&ctx);

@@ -21,6 +21,7 @@ mod cli;
 mod data_uris;
 mod deforming;
 mod denoise;
+mod denoise_kinds;
 mod depth;
 mod devices;
 mod double_sided;

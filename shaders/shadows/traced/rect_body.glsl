@@ -10,6 +10,11 @@
 //   visibility target's 8 bits.
 // With spp 0 (shadows off, the layer kept for a visibility view) no ray is cast: the layer
 // holds where the rect can light the point.
+// RECT_BLOCKERS (the denoised variant, rect_trace_blockers*.comp, which define `shadow_hit_t`,
+// the t of the hit shadow_occluded found last) writes instead one RG16F texel for the denoiser
+// (src/passes/denoise.rs): the ratio unrounded and the mean distance to the blockers its rays
+// hit (0: none; -1: no point of the rect weighed anything; -2 where the rect cannot light the
+// point, the value 0 then, which the denoiser leaves as it is).
 //
 // Contract: before including, enable GL_KHR_shader_subgroup_basic and define
 // `bool shadow_occluded(vec3 origin, vec3 dir, float tmax)`, true when a caster lies on
@@ -27,8 +32,14 @@
 #include "gbuffer_inputs.glsl"
 layout(set = 0, binding = SHADOW_RECTS, std430) readonly buffer Rects { GpuRect rects[]; };
 // The rect's layer alone of each, bound through a view of that layer.
+#ifdef RECT_BLOCKERS
+layout(set = 0, binding = SHADOW_VISIBILITY, rg16f) uniform writeonly image2D visibility;
+#define RECT_HIT_T shadow_hit_t
+#else
 layout(set = 0, binding = SHADOW_VISIBILITY, r8) uniform writeonly image2D visibility;
 layout(set = 0, binding = SHADOW_RECT_RATIO, r32f) uniform writeonly image2D ratio_out;
+#define RECT_HIT_T 0.0
+#endif
 
 layout(push_constant) uniform Push {
     uvec4 dims;  // x: width, y: height, z: the rect (its index among the rects), w: rays per pixel
@@ -106,10 +117,13 @@ vec3 spherical_rect_point(SphericalRect r, vec2 uv) {
 // over the points a shadow ray reaches, over the sum over all of them. Exactly 1 where every
 // ray arrives, 0 where none does, so noise stays in penumbrae. The weight is the luminance of
 // f cos(surface) over the pdf, less its constant (and the constant radiance): 1 in solid
-// angle, cos(light) / d^2 in area.
+// angle, cos(light) / d^2 in area. `blocker`: the mean distance to what the blocked rays hit
+// (0: none), -1 where no point weighed anything (RECT_BLOCKERS only, else 0).
 float rect_visibility(GpuRect rect, uint i, uint spp, vec3 p, vec3 origin, vec3 n, vec3 v, vec4 material,
-                      float metallic, uint pixel) {
+                      float metallic, uint pixel, out float blocker) {
+    blocker = 0.0;
     if (spp == 0u) return 1.0;
+    float blocked = 0.0;
     vec3 u = rect.half_edge_u.xyz;
     vec3 w = rect.half_edge_v.xyz;
     vec3 normal = normalize(cross(u, w));
@@ -137,8 +151,15 @@ float rect_visibility(GpuRect rect, uint i, uint spp, vec3 p, vec3 origin, vec3 
         all_weight += weight;
         vec3 to_origin = q - origin;
         float dist = length(to_origin);
-        if (!shadow_occluded(origin, to_origin / dist, dist * (1.0 - 1e-4))) reached += weight;
+        if (!shadow_occluded(origin, to_origin / dist, dist * (1.0 - 1e-4))) {
+            reached += weight;
+        } else {
+            blocker += RECT_HIT_T;
+            blocked += 1.0;
+        }
     }
+    if (blocked > 0.0) blocker /= blocked;
+    if (!(all_weight > 0.0)) blocker = -1.0;
     // No point of the rect weighs anything here (its sliver above the horizon was missed):
     // the analytic term alone, which is about 0 there anyway.
     return all_weight > 0.0 ? reached / all_weight : 1.0;
@@ -161,6 +182,7 @@ void main() {
     // Background: nothing to shadow.
     float layer = 1.0;
     float ratio = 1.0;
+    float blocker = 0.0;
     if (position.w > 0.0) {
         uint i = pc.dims.z;
         GpuRect rect = rects[i];
@@ -171,6 +193,7 @@ void main() {
         if (rect.center_two_sided.w == 0.0 && dot(cross(u, w), position.xyz - center) <= 0.0) {
             layer = 0.0;
             ratio = 0.0;
+            blocker = -2.0;
         } else {
             // The rect lights pass's inputs, read as it read them when it cast these rays itself.
             vec4 normal_metallic = texelFetch(gbuffer_normal, ivec2(px), 0);
@@ -181,12 +204,20 @@ void main() {
             vec3 start = position.xyz + gbuffer_terminator_offset(surface);
             vec3 origin = offset_ray_origin(start, gbuffer_geometric_normal(surface));
             uint pixel = px.y * pc.dims.x + px.x;
-            ratio = rect_visibility(rect, i, pc.dims.w, position.xyz, origin, n, v, material, normal_metallic.w, pixel);
-            layer = rect_above_horizon(rect, position.xyz, n) ? ratio : 0.0;
+            ratio = rect_visibility(rect, i, pc.dims.w, position.xyz, origin, n, v, material, normal_metallic.w, pixel,
+                                    blocker);
+            bool above = rect_above_horizon(rect, position.xyz, n);
+            layer = above ? ratio : 0.0;
+            if (!above) blocker = -2.0;
         }
     }
+#ifdef RECT_BLOCKERS
+    // Below the horizon the shading is 0 whatever the ratio: the value is the layer's.
+    imageStore(visibility, ivec2(px), vec4(blocker == -2.0 ? 0.0 : ratio, blocker, 0.0, 0.0));
+#else
     imageStore(visibility, ivec2(px), vec4(layer));
     imageStore(ratio_out, ivec2(px), vec4(ratio));
+#endif
 }
 
 #endif

@@ -27,22 +27,4 @@
 #define SHADOW_RECTS 12
 #define SHADOW_RECT_RATIO 13
 
-// denoise_temporal.comp and denoise_spatial.comp: the trace's unrounded visibility and blocker
-// distance (or the history made from them), the G-buffer, and the lights
-#define DENOISE_SOURCE 0
-#define DENOISE_POSITION 1
-#define DENOISE_NORMAL 2
-#define DENOISE_LIGHTS 3
-// denoise_spatial.comp: the light's layer of the visibility target
-#define DENOISE_VISIBILITY 4
-// denoise_temporal.comp: the motion channel, last frame's history and view distances, and this
-// frame's
-#define DENOISE_MOTION 5
-#define DENOISE_HISTORY 6
-#define DENOISE_HISTORY_OUT 7
-#define DENOISE_DEPTH 8
-#define DENOISE_DEPTH_OUT 9
-// denoise_view.comp: the denoise:N debug view
-#define DENOISE_VIEW_OUTPUT 10
-
 #endif

@@ -106,18 +106,19 @@ impl super::Technique for Traced {
         served: &[Served],
         targets: &mut super::Targets,
     ) -> GpuResult<Option<Handle<ImageKind>>> {
-        // Rect lights (numbered after the others) have their own rays and pass.
-        let (rects, lights): (Vec<Served>, Vec<Served>) =
-            served.iter().partition(|s| super::rect_index(frame.scene, s.light).is_some());
-        // Denoised soft lights have rays and passes of their own (`denoise`).
+        // Denoised soft lights have rays and passes of their own (`denoise`); rect lights
+        // (numbered after the others) have their own rays and pass.
         let denoised: Vec<Served> = denoise::denoised(frame.scene, served).into_iter().copied().collect();
-        let lights: Vec<Served> = lights.into_iter().filter(|s| !denoised.contains(s)).collect();
+        let (rects, lights): (Vec<Served>, Vec<Served>) = served
+            .iter()
+            .filter(|s| !denoised.contains(s))
+            .partition(|s| super::rect_index(frame.scene, s.light).is_some());
         if !lights.is_empty() {
             add(g, frame, casters, &lights, &mut targets.visibility)?;
         }
         let mut debug = None;
         if !denoised.is_empty() {
-            let source = denoise::add(g, frame, casters, &denoised, &mut targets.visibility)?;
+            let source = denoise::add(g, frame, casters, &denoised, targets)?;
             if let Some(crate::config::DebugView::Denoise(light)) = frame.debug_view {
                 if let Some(k) = denoised.iter().position(|s| s.light == light) {
                     debug = Some(denoise::debug_view(g, frame, &source, k as u32)?);
@@ -125,7 +126,8 @@ impl super::Technique for Traced {
             }
         }
         if !rects.is_empty() {
-            rects::add(g, frame, casters, &rects, targets)?;
+            let buffer = rects::import(g, frame);
+            rects::add(g, frame, casters, &rects, &buffer, rects::Writes::Targets(targets))?;
         }
         Ok(debug)
     }

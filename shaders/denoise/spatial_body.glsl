@@ -1,25 +1,23 @@
-#version 460
-#extension GL_GOOGLE_include_directive : require
-#extension GL_KHR_shader_subgroup_basic : require
-// Shadow denoiser, spatial pass: one light's layer of the visibility target from the trace's
-// unrounded visibility and blocker distances, or from the history the temporal pass made of
-// them (denoise.glsl says how). Twin: shading::denoise::filter.
-#include "shadows/traced/traced_bindings.glsl"
-#include "lights.glsl"
-#include "shadows/traced/denoise.glsl"
-layout(local_size_x_id = 0, local_size_y_id = 1) in;
+// The denoiser's spatial pass (src/passes/denoise.rs), shared by its entry points: one layer of
+// the traced values (the rays, or the history the temporal pass made of them) filtered as
+// filter.glsl says into its output. Twin: shading::denoise::filter.
+//
+// Contract: before including, define `float denoise_width(vec3 p, float blocker)`, the width of
+// the penumbra past blockers at `blocker` from p (filter.glsl's sphere or sun width, or the
+// occlusion's scale), and `void denoise_store(ivec2 px, float value)`, which writes the output.
+#ifndef UMBRA_DENOISE_SPATIAL_BODY_GLSL
+#define UMBRA_DENOISE_SPATIAL_BODY_GLSL
+
+#include "denoise/filter.glsl"
 #include "tile.glsl"
 
-// x: visibility, y: mean blocker distance (0: no ray hit one), z: frames (0 or 1: one)
+// x: value, y: mean blocker distance (filter.glsl), z: frames (0 or 1: one)
 layout(set = 0, binding = DENOISE_SOURCE) uniform sampler2DArray source;
 layout(set = 0, binding = DENOISE_POSITION) uniform sampler2D gbuffer_position;
 layout(set = 0, binding = DENOISE_NORMAL) uniform sampler2D gbuffer_normal;
-layout(set = 0, binding = DENOISE_LIGHTS, std430) readonly buffer Lights { GpuLight lights[]; };
-// The light's layer alone, bound through a view of that layer.
-layout(set = 0, binding = DENOISE_VISIBILITY, r8) uniform writeonly image2D visibility;
 
 layout(push_constant) uniform Push {
-    uvec4 dims;  // x: width, y: height, z: the source's layer, w: the light
+    uvec4 dims;  // x: width, y: height, z: the source's layer, w: what sizes the filter (a light's number, a rect's index)
     uvec4 frame; // x: frame index (the taps' rotation), y: rays per pixel and frame
     vec4 eye;    // xyz: the camera; w: a pixel's width per unit of distance (2 tan(fov_y / 2) / height)
 } pc;
@@ -32,7 +30,7 @@ float denoise_pixel(ivec2 px) {
     int layer = int(pc.dims.z);
     vec4 centre = texelFetch(source, ivec3(px, layer), 0);
     vec4 p = texelFetch(gbuffer_position, px, 0);
-    if (p.w <= 0.0) return centre.x;
+    if (p.w <= 0.0 || centre.y <= DENOISE_FIXED) return centre.x;
     vec3 n = normalize(texelFetch(gbuffer_normal, px, 0).xyz);
     float footprint = pc.eye.w * length(p.xyz - pc.eye.xyz);
     uint rotation = pc.frame.x & 3u;
@@ -47,8 +45,9 @@ float denoise_pixel(ivec2 px) {
         blockers += max(b, 0.0);
         found += b > 0.0 ? 1.0 : 0.0;
     }
-    float radius = found > 0.0 ? denoise_radius(lights[pc.dims.w], p.xyz, blockers / found, footprint, max(centre.z, 1.0) * float(pc.frame.y)) : 0.0;
-    // A pixel none of whose rays counted takes its neighbours' visibility.
+    float rays = max(centre.z, 1.0) * float(pc.frame.y);
+    float radius = found > 0.0 ? denoise_radius(denoise_width(p.xyz, blockers / found), footprint, rays) : 0.0;
+    // A pixel none of whose rays counted takes its neighbours' value.
     bool known = centre.y >= 0.0;
     if (!known) radius = max(radius, DENOISE_UNKNOWN_RADIUS);
     if (radius < DENOISE_MIN_RADIUS) return centre.x;
@@ -71,5 +70,7 @@ float denoise_pixel(ivec2 px) {
 void main() {
     uvec2 px = tile_pixel();
     if (px.x >= pc.dims.x || px.y >= pc.dims.y) return;
-    imageStore(visibility, ivec2(px), vec4(denoise_pixel(ivec2(px))));
+    denoise_store(ivec2(px), denoise_pixel(ivec2(px)));
 }
+
+#endif

@@ -1,10 +1,10 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 // The denoise:N debug view: what light N's spatial filter starts from, unrounded: (visibility,
-// mean blocker distance (0: no ray hit one, -1: no ray counted), frames in the history, 1), from
+// mean blocker distance (0: no ray hit one, -1: no ray counted, -2: fixed), frames in the history, 1), from
 // the history where the light keeps one, else from this frame's rays (one frame, 0 where no ray
 // counted).
-#include "shadows/traced/traced_bindings.glsl"
+#include "denoise/denoise_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 
 layout(set = 0, binding = DENOISE_SOURCE) uniform sampler2DArray source;

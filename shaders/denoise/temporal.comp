@@ -1,8 +1,8 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
 #extension GL_KHR_shader_subgroup_basic : require
-// Shadow denoiser, temporal pass: folds one light's traced visibility and blocker distance into
-// its history, reprojected from the frame before by the motion channel (camera and object
+// The denoiser's temporal pass: folds one layer's traced value (a light's visibility, or
+// ambient occlusion's openness) and blocker distance into its history, reprojected from the frame before by the motion channel (camera and object
 // motion). The history at the pixel the surface came from is kept when that pixel saw the
 // surface at the distance it has from the previous camera now (within 1 % plus two pixels'
 // width at grazing angles): elsewhere (disocclusion, a pixel that was background or behind
@@ -10,9 +10,11 @@
 // still and over at most `history` frames (push `previous_eye.w`) where it moves; in a scene
 // that moves, where a shadow may have moved too, the history is first clamped to what the rays
 // around the pixel see now (3x3). Writes x: visibility, y: mean blocker distance (0: none yet),
-// z: frames; and (the first light's dispatch) each pixel's distance from the camera, which the
+// z: frames (a fixed value, filter.glsl's DENOISE_FIXED, passes through with none); and (the
+// first layer's dispatch) each pixel's distance from the camera, which the
 // next frame compares against. Twin of the mean: shading::denoise::fold.
-#include "shadows/traced/traced_bindings.glsl"
+#include "denoise/denoise_bindings.glsl"
+#include "denoise/filter.glsl"
 #include "gbuffer.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 #include "tile.glsl"
@@ -27,13 +29,13 @@ layout(set = 0, binding = DENOISE_DEPTH) uniform sampler2D depth;
 layout(set = 0, binding = DENOISE_DEPTH_OUT, r32f) uniform writeonly image2D depth_out;
 
 layout(push_constant) uniform Push {
-    uvec4 dims;         // x: width, y: height, z: the light's layer, w: flags (below)
+    uvec4 dims;         // x: width, y: height, z: the layer, w: flags (below)
     vec4 eye;           // xyz: this frame's camera; w: a pixel's width per unit of distance
     vec4 previous_eye;  // xyz: the previous frame's camera; w: most frames kept where a pixel moves
 } pc;
-// The history holds this light's previous frame (else start again).
+// The history holds this layer's previous frame (else start again).
 const uint DENOISE_HISTORY_VALID = 1u;
-// This dispatch writes the distances (the first light's).
+// This dispatch writes the distances (the first layer's).
 const uint DENOISE_WRITE_DEPTH = 2u;
 // Something in the scene moves: clamp the history to the rays around.
 const uint DENOISE_CLAMP = 4u;
@@ -50,9 +52,9 @@ void main() {
     vec4 p = texelFetch(gbuffer_position, px, 0);
     float dist = p.w > 0.0 ? length(p.xyz - pc.eye.xyz) : 0.0;
     if ((flags & DENOISE_WRITE_DEPTH) != 0u) imageStore(depth_out, px, vec4(dist));
-    // y < 0: no ray counted (see trace_body.glsl); such a pixel counts no frame.
+    // y < 0: no ray counted (see trace_body.glsl), or a fixed value; such a pixel counts no frame.
     vec4 result = vec4(now, now.y < 0.0 ? 0.0 : 1.0, 0.0);
-    if (p.w > 0.0 && (flags & DENOISE_HISTORY_VALID) != 0u) {
+    if (p.w > 0.0 && now.y > DENOISE_FIXED && (flags & DENOISE_HISTORY_VALID) != 0u) {
         vec2 motion = texelFetch(motion_channel, px, 0).xy;
         ivec2 q = ivec2(floor(vec2(px) + 0.5 - motion));
         bool placed = motion.x < GBUFFER_NO_MOTION && q.x >= 0 && q.y >= 0 && q.x < int(pc.dims.x) &&
@@ -82,7 +84,9 @@ void main() {
                     }
                     if (lo <= hi) kept = clamp(kept, lo, hi);
                 }
-                if (now.y < 0.0) {
+                if (h.y <= DENOISE_FIXED) {
+                    // The history held a fixed value: nothing to fold.
+                } else if (now.y < 0.0) {
                     // This frame's rays said nothing: the history stands.
                     result = vec4(kept, h.y, frames, 0.0);
                 } else if (frames >= 1.0 && h.y >= 0.0) {

@@ -1,14 +1,21 @@
-// The shadow denoiser's filter, shared by its passes (denoise_temporal.comp, denoise_spatial.comp)
-// and twinned on the CPU by src/shading/denoise.rs, operation for operation.
+// The denoiser's filter, shared by its passes (temporal.comp, spatial*.comp) and twinned on the
+// CPU by src/shading/denoise.rs, operation for operation.
 //
-// Spatial: a light's visibility averaged over a disc of taps as wide as half the penumbra the
-// rays' blockers imply there (the width a light of its size casts past a blocker at the mean
-// distance its rays hit, seen from the camera in pixels), narrowed as 1 / sqrt(frames) as the
-// history grows, so that a still view converges to the rays' own mean. Taps on another surface
-// (off the pixel's tangent plane by more than two pixels' width there, or turned away by more
-// than about 25 degrees) weigh nothing, so the filter does not cross depth or crease edges; where
-// no ray around found a blocker the pixel is left as traced, and where every tap agrees (all lit,
-// all shadowed) the weighted mean is that value exactly.
+// Spatial: a traced value (a light's visibility, or ambient occlusion's openness) averaged over
+// a disc of taps as wide as half the penumbra the rays' blockers imply there (the width a light
+// of its size casts past a blocker at the mean distance its rays hit; for occlusion, the mean
+// distance itself: the scale over which what its rays hit changes), seen from the camera in
+// pixels, narrowed as 1 / sqrt(frames) as the history grows, so that a still view converges to
+// the rays' own mean. Taps on another surface (off the pixel's tangent plane by more than two
+// pixels' width there, or turned away by more than about 25 degrees) weigh nothing, so the
+// filter does not cross depth or crease edges; where no ray around found a blocker the pixel is
+// left as traced, and where every tap agrees (all lit, all shadowed) the weighted mean is that
+// value exactly.
+//
+// A source texel's y: the blockers' mean distance (0: no ray hit one); DENOISE_UNKNOWN (-1): no
+// ray counted (the pixel takes its neighbours' value); DENOISE_FIXED (-2): the value holds as it
+// is (a rect that cannot light the point: behind it, or below its horizon), and no neighbour
+// takes it.
 #ifndef UMBRA_DENOISE_GLSL
 #define UMBRA_DENOISE_GLSL
 
@@ -39,20 +46,24 @@ ivec2 denoise_tap(ivec2 px, uint rotation, uint i, float radius) {
     return px + ivec2(roundEven(DENOISE_TAPS[rotation * DENOISE_TAP_COUNT + i] * radius));
 }
 
-// Width (world units) of the penumbra `light` casts at `p` past a blocker `blocker` along the
-// rays: a sphere of radius R at distance D, 2 R b / (D - b); a sun, 2 b tan(half its angle).
-float denoise_penumbra_width(GpuLight light, vec3 p, float blocker) {
-    float size = light.size.x;
-    if (light.position_kind.w == LIGHT_DIRECTIONAL) return 2.0 * blocker * size;
-    float d = length(light.position_kind.xyz - p);
-    return 2.0 * size * blocker / max(d - blocker, 1e-3 * d);
+const float DENOISE_UNKNOWN = -1.0;
+const float DENOISE_FIXED = -2.0;
+
+// Width (world units) of the penumbra a sphere of radius `size` at `distance` from the point
+// casts past a blocker `blocker` along the rays: 2 R b / (D - b).
+float denoise_sphere_width(float size, float distance, float blocker) {
+    return 2.0 * size * blocker / max(distance - blocker, 1e-3 * distance);
 }
 
-// The filter's radius (pixels) at `p`, whose pixels are `footprint` wide, past blockers at
-// `blocker` from it, whose visibility is the mean of `rays` rays (over its history's frames):
-// the noise falls as 1 / sqrt(rays), and so does the radius.
-float denoise_radius(GpuLight light, vec3 p, float blocker, float footprint, float rays) {
-    float width = denoise_penumbra_width(light, p, blocker);
+// A sun of angular radius `size` (radians' tangent): 2 b tan(half its angle).
+float denoise_sun_width(float size, float blocker) {
+    return 2.0 * blocker * size;
+}
+
+// The filter's radius (pixels) for a penumbra `width` wide at a point whose pixels are
+// `footprint` wide, whose value is the mean of `rays` rays (over its history's frames): the
+// noise falls as 1 / sqrt(rays), and so does the radius.
+float denoise_radius(float width, float footprint, float rays) {
     return min(DENOISE_WIDTH_SHARE * width / footprint, DENOISE_MAX_RADIUS) / sqrt(max(rays, 1.0));
 }
 

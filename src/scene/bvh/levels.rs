@@ -34,8 +34,9 @@ use obvhs::aabb::Aabb;
 use obvhs::bvh2::{node::Bvh2Node, Bvh2};
 
 use super::mask::{BvhMasks, MaskSource, UNMASKED};
+use super::refit::encode_fast;
 use super::refit::{node_room, Refit};
-use super::wide::{encode, node_step, safe_dir, WideBvh, WideNode, CHILD_INNER, FIRST_MASK, STACK_SIZE};
+use super::wide::{node_step, safe_dir, WideBvh, WideNode, CHILD_INNER, FIRST_MASK, STACK_SIZE};
 use super::ShadowBvh;
 
 /// Where one bottom tree is drawn: its group's object-to-world transform (in the renderer's
@@ -212,7 +213,11 @@ impl TwoLevel {
         self.placements = top.proxies.iter().map(|&k| drawn[k as usize]).collect();
         // The region: the top tree's nodes, the proxies after room for the most top nodes, the
         // records after room for the most proxies.
-        let mut region = vec![[0u32; 4]; self.region_texels()];
+        // The last region's memory again (a fresh 1 MB vector a frame at 10,000 instances is
+        // page faults).
+        let mut region = std::mem::take(&mut self.region);
+        region.clear();
+        region.resize(self.region_texels(), [0u32; 4]);
         for (k, node) in top.nodes.iter().enumerate() {
             region[3 * k..3 * k + 3].copy_from_slice(&node.texels);
         }
@@ -481,7 +486,7 @@ impl TopBuild<'_> {
                 *b = (self.boxes[k as usize].min.into(), self.boxes[k as usize].max.into());
             }
             codes[..items.len()].fill(CHILD_INNER);
-            self.nodes[slot] = encode(&boxes[..items.len()], codes, self.proxy_start + first, 0);
+            self.nodes[slot] = encode(&boxes[..items.len()], codes, self.proxy_start + first);
             // Entering a proxy pushes the rest of the group and the marker.
             return 2;
         }
@@ -492,13 +497,22 @@ impl TopBuild<'_> {
             *b = (bvh.nodes[c].aabb.min.into(), bvh.nodes[c].aabb.max.into());
         }
         codes[..count].fill(CHILD_INNER);
-        self.nodes[slot] = encode(&boxes[..count], codes, self.top_start + first_child as u32, 0);
+        self.nodes[slot] = encode(&boxes[..count], codes, self.top_start + first_child as u32);
         let mut need = 0;
         for (k, &c) in children[..count].iter().enumerate() {
             need = need.max(self.emit(bvh, c, first_child + k));
         }
         1 + need
     }
+}
+
+/// A top node over `boxes` (1 to 4) whose children start at `first_child`: `wide::encode`'s
+/// bits, by the refit's four-lane encoder (the top tree is rebuilt every frame that something
+/// moves; the scalar encoder took most of 10,000 instances' build).
+fn encode(boxes: &[(Vec3, Vec3)], codes: [u32; 4], first_child: u32) -> WideNode {
+    let lo = boxes.iter().fold(Vec3::splat(f32::INFINITY), |m, b| m.min(b.0));
+    let hi = boxes.iter().fold(Vec3::splat(f32::NEG_INFINITY), |m, b| m.max(b.1));
+    encode_fast(boxes, (lo, hi), codes, first_child, 0).0
 }
 
 /// The up to four binary subtrees that binary node `index` opens into (and how many): its two

@@ -183,7 +183,7 @@ impl WideBvh {
 /// Also returns the node's `node_weighted_area`, from the decoded coordinates the loops end on
 /// (the same operations on the same values as decoding the node: the same bits).
 #[inline(always)]
-fn encode_fast(
+pub(in crate::scene::bvh) fn encode_fast(
     children: &[(Vec3, Vec3)],
     (lo, hi): (Vec3, Vec3),
     codes: [u32; 4],

@@ -373,7 +373,7 @@ impl App {
         let mut settings = r.settings.render_settings(camera);
         settings.time = r.playback.as_ref().map(|p| p.time);
         r.interactive.begin(&camera, r.playback.as_ref().is_some_and(|p| p.playing));
-        r.interactive.apply(&mut settings);
+        r.interactive.apply(&mut settings, r.renderer.scene().lights.len());
         // A still view that converges over frames (soft shadows, occlusion) converges to the
         // anti-aliased image, as `umbra render` does over its frames.
         settings.antialias = crate::passes::accumulate::accumulates(&settings, r.renderer.scene());

@@ -127,10 +127,14 @@ impl Interactive {
         }
     }
 
-    /// A moving frame's settings: one ray per pixel for soft traced lights, denoised.
-    pub fn apply(&self, settings: &mut RenderSettings) {
+    /// A moving frame's settings: one ray per pixel for the scene's first `lights` lights'
+    /// soft traced shadows, denoised. Rect lights (numbered after them) keep their scene
+    /// file's rays and the user's settings: the denoiser cannot cut their rays to one, and on
+    /// top of their own rays it only costs (the window scene at 480x360 on one lavapipe
+    /// thread: 4 rays 40 ms, denoised 53 ms more).
+    pub fn apply(&self, settings: &mut RenderSettings, lights: usize) {
         if self.scaled() {
-            for c in &mut settings.shadows {
+            for c in settings.shadows.iter_mut().take(lights) {
                 c.traced.spp = 1;
                 c.traced.denoise = true;
             }
@@ -240,7 +244,7 @@ mod tests {
         assert_eq!(off.scale(), 1.0, "0 fps: never scaled");
         let mut s = RenderSettings::new(64, 48, crate::config::OutputKind::Display);
         s.shadows = vec![crate::config::ShadowChoice::default()];
-        off.apply(&mut s);
+        off.apply(&mut s, 1);
         assert!(!s.shadows[0].traced.denoise, "0 fps: the user's rays");
         assert_eq!(off.stats().frames, 1);
     }
@@ -287,9 +291,10 @@ mod tests {
         }
         assert_eq!(i.scale(), 0.3125, "measurements do not move a pinned share");
         let mut s = RenderSettings::new(64, 48, crate::config::OutputKind::Display);
-        s.shadows = vec![crate::config::ShadowChoice::default(); 2];
-        i.apply(&mut s);
-        assert!(s.shadows.iter().all(|c| c.traced.spp == 1 && c.traced.denoise));
+        s.shadows = vec![crate::config::ShadowChoice::default(); 3];
+        i.apply(&mut s, 2);
+        assert!(s.shadows[..2].iter().all(|c| c.traced.spp == 1 && c.traced.denoise));
+        assert!(!s.shadows[2].traced.denoise, "a rect light (numbered after the others) keeps its settings");
         assert_eq!(scaled((960, 540), 0.3125), (300, 169));
         assert_eq!(scaled((3, 1), MIN_SCALE), (1, 1));
         assert!(i.describe(960, 540).starts_with("moving: 300x169 (0.31x pinned)"), "{}", i.describe(960, 540));

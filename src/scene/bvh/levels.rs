@@ -34,8 +34,8 @@ use obvhs::aabb::Aabb;
 use obvhs::bvh2::{node::Bvh2Node, Bvh2};
 
 use super::mask::{BvhMasks, MaskSource, UNMASKED};
-use super::refit::encode_fast;
 use super::refit::{node_room, Refit};
+use super::wide::encode_fast;
 use super::wide::{node_step, safe_dir, WideBvh, WideNode, CHILD_INNER, FIRST_MASK, STACK_SIZE};
 use super::ShadowBvh;
 

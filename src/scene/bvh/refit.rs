@@ -18,7 +18,7 @@
 
 use glam::{UVec4, Vec3, Vec3A, Vec4};
 
-use super::wide::{WideBvh, WideNode, CHILD_INNER, FIRST_MASK};
+use super::wide::{child_weights, encode_fast, WideBvh, WideNode, CHILD_INNER, FIRST_MASK};
 
 /// The cost of a wide node step against one triangle test in `sah_cost`: the builder's own
 /// (`wide::TRAVERSAL_COST`, with which it chose its leaves), so that a tree the builder just made
@@ -167,121 +167,6 @@ impl WideBvh {
     }
 }
 
-/// `encode(children, codes, first_child, first_triangle)` bit for bit (the tests compare them),
-/// for 1 to 4 children whose union is `(lo, hi)`, each axis's four children quantised at once
-/// in vec4 arithmetic, without libm calls. x86-64's baseline has no rounding instruction, so
-/// `encode`'s floor, ceil and log2 are calls, and with its loops over one child at a time they
-/// took most of a refit's time (1M triangles on a 2-vCPU Xeon VM: 86 ms with `encode`, 65 with
-/// the calls replaced, 28 with the four lanes). What keeps it exact:
-/// - dividing by a power of two is multiplying by its inverse (both round the same real number);
-/// - `floor(x).max(0) as u32` and `.min(255)` is floor of x clamped to [0, 255] first (NaN to 0,
-///   as `max` takes it), likewise for ceil; and on [0, 255], `(x + 2^23) - 2^23` is x rounded to
-///   an integer, which floor and ceil correct by one where it went the wrong way;
-/// - the loops that widen a coordinate until its decoded value holds the box are `encode`'s,
-///   run on all four lanes until none moves.
-///
-/// Also returns the node's `node_weighted_area`, from the decoded coordinates the loops end on
-/// (the same operations on the same values as decoding the node: the same bits).
-#[inline(always)]
-pub(in crate::scene::bvh) fn encode_fast(
-    children: &[(Vec3, Vec3)],
-    (lo, hi): (Vec3, Vec3),
-    codes: [u32; 4],
-    first_child: u32,
-    first_triangle: u32,
-) -> (WideNode, f64) {
-    const ROUND: f32 = (1 << 23) as f32;
-    let (zero, one, top) = (Vec4::ZERO, Vec4::ONE, Vec4::splat(255.0));
-    // Absent children take the first one's box; their bytes are zeroed at the end.
-    let child = |i: usize| children[i.min(children.len() - 1)];
-    let present = Vec4::new(0.0, 1.0, 2.0, 3.0).cmplt(Vec4::splat(children.len() as f32));
-    let mut exps = [0u32; 3];
-    let mut words = [0u32; 6]; // lo x, hi x, lo y, hi y, lo z, hi z; child i in byte i
-    let mut sides = [Vec4::ZERO; 3]; // the decoded boxes' sides
-    for axis in 0..3 {
-        let origin = lo[axis];
-        let extent = hi[axis] - lo[axis];
-        let mut e = if extent > 0.0 { first_exponent(extent / 255.0) } else { -126 };
-        e = e.clamp(-126, 127);
-        while e < 127 && origin + 255.0 * exp2(e) < hi[axis] {
-            e += 1;
-        }
-        // 2^-e; for e = 127, 2^-127, below the normal range.
-        let (scale, inverse) = (exp2(e), if e == 127 { f32::from_bits(1 << 22) } else { exp2(-e) });
-        exps[axis] = (e + 127) as u32;
-        let (origin4, scale4) = (Vec4::splat(origin), Vec4::splat(scale));
-        let c_lo = Vec4::new(child(0).0[axis], child(1).0[axis], child(2).0[axis], child(3).0[axis]);
-        let c_hi = Vec4::new(child(0).1[axis], child(1).1[axis], child(2).1[axis], child(3).1[axis]);
-        let x = ((c_lo - origin4) * inverse).max(zero).min(top);
-        let r = (x + Vec4::splat(ROUND)) - Vec4::splat(ROUND);
-        let mut q_lo = r - Vec4::select(r.cmpgt(x), one, zero);
-        loop {
-            let down = q_lo.cmpgt(zero) & (origin4 + q_lo * scale4).cmpgt(c_lo);
-            if !down.any() {
-                break;
-            }
-            q_lo -= Vec4::select(down, one, zero);
-        }
-        let x = ((c_hi - origin4) * inverse).max(zero).min(top);
-        let r = (x + Vec4::splat(ROUND)) - Vec4::splat(ROUND);
-        let mut q_hi = r + Vec4::select(r.cmplt(x), one, zero);
-        loop {
-            let up = q_hi.cmplt(top) & (origin4 + q_hi * scale4).cmplt(c_hi);
-            if !up.any() {
-                break;
-            }
-            q_hi += Vec4::select(up, one, zero);
-        }
-        let (q_lo, q_hi) = (Vec4::select(present, q_lo, zero), Vec4::select(present, q_hi, zero));
-        words[2 * axis] = pack_bytes(q_lo);
-        words[2 * axis + 1] = pack_bytes(q_hi);
-        sides[axis] = (origin4 + q_hi * scale4) - (origin4 + q_lo * scale4);
-    }
-    let meta = codes.iter().enumerate().fold(0, |m, (i, c)| m | c << (4 * i));
-    let area = (sides[0] + sides[1]) * sides[2] + sides[0] * sides[1];
-    let node = WideNode {
-        texels: [
-            [
-                lo.x.to_bits(),
-                lo.y.to_bits(),
-                lo.z.to_bits(),
-                exps[0] | exps[1] << 8 | exps[2] << 16 | (meta & 0xff) << 24,
-            ],
-            [words[0], words[1], words[2], words[3]],
-            [words[4], words[5], first_child | (meta >> 12) << 28, first_triangle | (meta >> 8 & 0xf) << 28],
-        ],
-    };
-    (node, area.dot(child_weights(meta)) as f64)
-}
-
-/// Four whole numbers in [0, 255] as the bytes of a word, lane i in byte i: each plus 2^23 holds
-/// itself in its low mantissa bits.
-fn pack_bytes(q: Vec4) -> u32 {
-    let bits: UVec4 = bytemuck::cast(q + Vec4::splat((1 << 23) as f32));
-    let b = (bits & UVec4::splat(0xff)) << UVec4::new(0, 8, 16, 24);
-    b.x | b.y | b.z | b.w
-}
-
-/// `encode`'s first guess at an axis's exponent, `ceil(log2(y))` for `y > 0`, as libm's `log2`
-/// makes it (the loop after it only raises it, so it must be the same guess): from `y`'s bits,
-/// `k` for `y = 2^k` and `k + 1` for `y = m 2^k` with `m > 1`, except where `m` is so near 1
-/// (below 1 + 2^-16) that `log2` could round `k + log2(m)` down to `k` (half an ulp of `k` is at
-/// most 2^-18 for a normal `y`): there, and for a subnormal `y`, it asks libm.
-fn first_exponent(y: f32) -> i32 {
-    let bits = y.to_bits();
-    let (biased, mantissa) = ((bits >> 23) as i32, bits & 0x7f_ffff);
-    if (1..255).contains(&biased) && (mantissa == 0 || mantissa >= 1 << 7) {
-        biased - 127 + (mantissa != 0) as i32
-    } else {
-        y.log2().ceil() as i32
-    }
-}
-
-/// 2^e for e in -126..=127 (a normal f32), as node.rs's `exp2`.
-fn exp2(e: i32) -> f32 {
-    f32::from_bits(((e + 127) as u32) << 23)
-}
-
 /// The surface-area-heuristic cost of a wide tree: the expected cost of a ray that meets the
 /// root's box, in triangle tests, over the boxes a ray tests (decoded from the quantised nodes
 /// as bvh.glsl decodes them):
@@ -300,16 +185,6 @@ pub fn sah_cost(wide: &WideBvh) -> f32 {
     // its own triangles measures its build's cost exactly.
     let weighted: f64 = wide.nodes.iter().rev().map(node_weighted_area).sum();
     normalised_cost(weighted, &wide.nodes[0], wide.nodes.len(), wide.triangles.len())
-}
-
-/// Each child's weight in `sah_cost`: `NODE_STEP_COST` for an inner child, the triangle count
-/// for a leaf, 0 for none.
-fn child_weights(meta: u32) -> Vec4 {
-    let w = |i: u32| match meta >> (4 * i) & 0xf {
-        CHILD_INNER => NODE_STEP_COST,
-        code => code as f32,
-    };
-    Vec4::new(w(0), w(1), w(2), w(3))
 }
 
 /// The four children's boxes as bvh.glsl's `bvh_node_step` decodes them: per axis, each child's

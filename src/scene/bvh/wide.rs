@@ -63,7 +63,9 @@ use obvhs::bvh2::Bvh2;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 mod node;
-pub(super) use node::{encode, node_step, safe_dir};
+pub(super) use node::{child_weights, encode_fast, node_step, safe_dir};
+#[cfg(test)]
+pub(super) use node::{encode, first_exponent};
 
 /// Entries in the traversal stack (`BVH_STACK_SIZE` in bindings.glsl, which bvh.glsl reads).
 /// `WideBvh::stack_need` says how many a tree can use; a build that needs more is rebuilt
@@ -435,7 +437,11 @@ impl Collapsed {
         for (b, (c, _)) in boxes.iter_mut().zip(ordered) {
             *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
         }
-        self.nodes[slot] = encode(&boxes[..len], codes, first_child as u32, first_triangle as u32);
+        let boxes = &boxes[..len];
+        let lo = boxes.iter().fold(Vec3::INFINITY, |m, b| m.min(b.0));
+        let hi = boxes.iter().fold(Vec3::NEG_INFINITY, |m, b| m.max(b.1));
+        // `encode`'s bits, four children's quantisation at once.
+        self.nodes[slot] = encode_fast(boxes, (lo, hi), codes, first_child as u32, first_triangle as u32).0;
         let mut need_below = 0usize;
         for (k, &(child, at)) in ordered[..inner].iter().enumerate() {
             if plan.count(child.0) <= split {

@@ -6,7 +6,7 @@ use glam::{Affine3A, Vec2};
 use super::*;
 use crate::scene::bvh::levels::{Deformed, Placement, TexelRange, TwoLevel, REBUILD_RATIO};
 use crate::scene::bvh::mask::{BvhMasks, MaskMaterial, MaskSource};
-use crate::scene::bvh::wide::encode;
+use crate::scene::bvh::wide::{encode, first_exponent};
 use crate::scene::bvh::ShadowBvh;
 
 /// A seeded xorshift64*: random meshes and rays without a crate.

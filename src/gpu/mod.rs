@@ -7,6 +7,7 @@
 //! techniques and the renderer, which all read it.
 
 pub mod accel;
+pub mod accel_motion;
 mod bvh;
 mod camera;
 mod casters;

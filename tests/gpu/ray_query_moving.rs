@@ -251,3 +251,49 @@ fn only_frames_at_a_new_instant_rebuild() {
     }
     common::assert_clean(&ctx);
 }
+
+/// What keeping the crowd (64 skinned figures, 93,184 triangles) up to date costs each backend
+/// per frame, over 24 consecutive frames at 30 fps at 320x240: the CPU's share (`frame_update`:
+/// posing the draws, and the casters' share of it) and the GPU time of each pass that writes or
+/// builds the casters' structures, medians. Printed, not asserted (docs/performance.md quotes
+/// it): `LP_NUM_THREADS=1 cargo test --release --test gpu ray_query_moving::update_times --
+/// --ignored --nocapture`.
+#[test]
+#[ignore]
+fn update_times() {
+    let ctx = common::gpu();
+    let median = |mut v: Vec<f64>| {
+        v.sort_by(f64::total_cmp);
+        v.get(v.len() / 2).copied().unwrap_or(f64::NAN)
+    };
+    for backend in [ShadowBackend::Compute, ShadowBackend::RayQuery] {
+        let scene = load("assets/scenes/stress/moving/crowd.toml");
+        let lights = scene.lights.len();
+        let mut r = Renderer::new(ctx.clone(), scene).expect("renderer");
+        let traced = ShadowChoice { method: ShadowMethod::Traced, ..ShadowChoice::hard() };
+        let mut s = RenderSettings::new(320, 240, OutputKind::Display).all_lights(lights, traced);
+        s.shadow_backend = backend;
+        s.timestamps = true;
+        let (mut cpu, mut casters) = (Vec::new(), Vec::new());
+        let mut passes: std::collections::BTreeMap<&str, Vec<f64>> = Default::default();
+        for frame in 0..26 {
+            s.time = Some(0.1 + f64::from(frame) / 30.0);
+            r.render(&s).expect("render");
+            if frame < 2 {
+                continue; // the first frame builds everything; one more to settle
+            }
+            let u = r.frame_update();
+            cpu.push(u.cpu_ms);
+            casters.push(u.casters_ms);
+            for (name, ms) in r.last_gpu_timings().expect("timings").expect("timed").passes {
+                passes.entry(name).or_default().push(ms);
+            }
+        }
+        println!("{backend:?}: update CPU {:.2} ms (casters {:.2} ms); GPU per pass:", median(cpu), median(casters));
+        for (name, ms) in passes {
+            println!("  {name:24} {:8.3} ms", median(ms));
+        }
+        drop(r);
+    }
+    common::assert_clean(&ctx);
+}

@@ -372,9 +372,9 @@ impl Renderer {
         )?;
         // A moving scene's casters are placed for the frames that walk them: whose shadows are
         // traced and read (a shaded frame, a light's view; a channel view culls every shadow
-        // pass), or that trace ambient occlusion.
-        // With the ray-query backend, `traced` walks the driver's structures (placed by `pose`),
-        // and only the other techniques that trace rays walk the compute BVH.
+        // pass), or that trace ambient occlusion. With the ray-query backend `traced` walks the
+        // driver's structures (placed by `pose`), and only the other techniques that trace rays
+        // walk the compute BVH.
         let shadows_read = settings.debug_view.is_none_or(|view| view.light().is_some());
         let walks_bvh = match ray_query {
             None => crate::shadows::traces_rays(&plan),
@@ -697,13 +697,16 @@ pub struct MotionUpdate {
     /// Bytes the frame writes to the device (instance rows; top region and root).
     pub bytes: u64,
     /// Of those, the top level's: its build (ms) and its upload (bytes), with the refit or
-    /// rebuild of deformed meshes' bottom trees.
+    /// rebuild of deformed meshes' bottom trees; with the ray-query backend, its instance
+    /// records and deformed meshes' triangles laid out for the device's builds.
     pub casters_ms: f64,
     pub casters_bytes: u64,
     /// Of `cpu_ms`, posing the deforming meshes (skins, morph targets) on the CPU.
     pub deform_ms: f64,
     /// Deformed meshes' bottom trees refit, and rebuilt (their refit SAH cost past
     /// `levels::REBUILD_RATIO`), for this frame; the largest SAH ratio against the trees' builds.
+    /// With the ray-query backend: its bottom levels updated in place, and rebuilt (drifted past
+    /// `accel_motion::REBUILD_DRIFT`).
     pub refits: u32,
     pub rebuilds: u32,
     pub sah_ratio: f32,

@@ -343,11 +343,6 @@ impl RayQueryScene {
         self.top.buffer.size + self.bottoms.iter().map(|b| b.structure.buffer.size).sum::<u64>()
     }
 
-    /// Bottom levels: one in a static scene, one per non-empty group in a moving one.
-    pub fn bottom_count(&self) -> usize {
-        self.bottoms.len()
-    }
-
     /// Imports the structures into `g`; on the first frame, adds the passes that build them,
     /// and in a moving scene, on a frame that follows a new instant, the passes that write the
     /// instances and deformed triangles, update the deformed bottom levels and rebuild the top.
@@ -391,12 +386,12 @@ impl RayQueryScene {
         // graph orders the top level's build after theirs.
         let align = self.scratch_alignment;
         let mut regions = Vec::with_capacity(rebuilt.len());
-        let mut bottom_scratch = 0;
+        let mut bottom_scratch = 0u64;
         for &(k, rebuild) in &rebuilt {
             let b = &self.bottoms[k];
-            regions.push(bottom_scratch);
-            let need = if rebuild { b.build_scratch } else { b.update_scratch.max(b.build_scratch) };
-            bottom_scratch += need.div_ceil(align) * align;
+            let start = bottom_scratch.div_ceil(align) * align;
+            regions.push(start);
+            bottom_scratch = start + if rebuild { b.build_scratch } else { b.update_scratch.max(b.build_scratch) };
         }
         let mut scratch = g.create_buffer("AS scratch", bottom_scratch.max(self.top_scratch) + align);
         if !rebuilt.is_empty() {

@@ -265,10 +265,12 @@ impl RayQueryScene {
             });
             kept.push((k, arranged.built, mask_base));
         }
-        if masked_inputs.len() >= 1 << 24 {
+        // An instance's custom index, where its masks start, has 24 bits (a static scene's one
+        // instance starts at 0, whatever the count).
+        if let Some(&(_, _, base)) = kept.iter().find(|k| k.2 >= 1 << 24) {
             return Err(GpuError::Unsupported(format!(
-                "{} alpha-masked shadow casters exceed what an instance's 24-bit custom index can address",
-                masked_inputs.len()
+                "{base} alpha-masked shadow casters come before a moving group's own, more than an \
+                 instance's 24-bit custom index can address; use --shadow-backend compute"
             )));
         }
         let moving = placements.is_some();

@@ -34,7 +34,9 @@ void main() {
     while (rayQueryProceedEXT(query)) {
         if (rayQueryGetIntersectionTypeEXT(query, false) == gl_RayQueryCandidateIntersectionTriangleEXT) {
             vec2 b = rayQueryGetIntersectionBarycentricsEXT(query, false);
-            if (!bvh_mask_passes(uint(rayQueryGetIntersectionPrimitiveIndexEXT(query, false)), b.x, b.y)) {
+            uint masked = uint(rayQueryGetIntersectionInstanceCustomIndexEXT(query, false) +
+                               rayQueryGetIntersectionPrimitiveIndexEXT(query, false));
+            if (!bvh_mask_passes(masked, b.x, b.y)) {
                 rayQueryConfirmIntersectionEXT(query);
             }
         }

@@ -616,6 +616,7 @@ fn bench_shadows(args: BenchShadowsArgs) -> Result<ExitCode> {
         device: args.device,
         validate: args.validate,
         max_error: args.max_error,
+        shadow_backend: args.shadow_backend.unwrap_or_default(),
     };
     let outcome = shadows::run(&options)?;
     umbra::output::print_stdout(&outcome.summary)?;

@@ -245,24 +245,22 @@ impl Renderer {
         let mut bytes = self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
         let deform_start = std::time::Instant::now();
         let deformed = self.local.deformed(time);
+        let mut undeformed = Vec::new();
         if !deformed.is_empty() {
             bytes += self.gpu_scene.deform(&deformed);
-            let triangles = |(k, posed): &(usize, crate::scene::deform::Posed)| {
-                let group = motion.groups[*k]?;
-                let at = |v: u32| {
-                    let p = posed.positions[v as usize].as_vec3();
-                    if p.is_finite() {
-                        p
-                    } else {
-                        glam::Vec3::ZERO
-                    }
-                };
-                let indices = &self.local.meshes[*k].indices;
-                Some((group, indices.chunks_exact(3).map(|t| [at(t[0]), at(t[1]), at(t[2])]).collect()))
-            };
-            motion.undeformed = Some(deformed.iter().filter_map(triangles).collect());
+            undeformed = crate::gpu::accel_motion::posed_triangles(&motion.groups, &self.local, &deformed);
         }
         let deform_ms = deform_start.elapsed().as_secs_f64() * 1e3;
+        // The ray-query structures, once made, follow every instant: their next frame that
+        // traces writes the instances and the deformed triangles.
+        let mut placed = None;
+        if let (Some(rq), Some(placements)) = (self.ray_query.get(), &motion.unplaced) {
+            let start = std::time::Instant::now();
+            placed = Some((rq.place(placements, &undeformed), start.elapsed().as_secs_f64() * 1e3));
+        }
+        if !deformed.is_empty() {
+            motion.undeformed = Some(undeformed);
+        }
         if self.local.animation.as_ref().is_some_and(|a| !a.lights.is_empty()) {
             bytes += self.gpu_scene.move_lights(self.local.lights_at(time));
         }
@@ -282,7 +280,14 @@ impl Renderer {
                 *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) = Some(self.scene.camera_at(before));
             }
         }
-        MotionUpdate { cpu_ms: start.elapsed().as_secs_f64() * 1e3, bytes, deform_ms, ..Default::default() }
+        let mut update =
+            MotionUpdate { cpu_ms: start.elapsed().as_secs_f64() * 1e3, bytes, deform_ms, ..Default::default() };
+        if let Some((placed, ms)) = placed {
+            update.bytes += placed.bytes;
+            (update.casters_ms, update.casters_bytes) = (ms, placed.bytes);
+            (update.refits, update.rebuilds) = (placed.updates, placed.rebuilds);
+        }
+        update
     }
 
     /// Rebuilds the top level over the casters where the scene was posed since it was last
@@ -370,9 +375,19 @@ impl Renderer {
         )?;
         // A moving scene's casters are placed for the frames that walk them: whose shadows are
         // traced and read (a shaded frame, a light's view; a channel view culls every shadow
-        // pass), or that trace ambient occlusion.
+        // pass), or that trace ambient occlusion. With the ray-query backend `traced` walks the
+        // driver's structures (placed by `pose`), and only the other techniques that trace rays
+        // walk the compute BVH.
         let shadows_read = settings.debug_view.is_none_or(|view| view.light().is_some());
-        if (shadows_read && crate::shadows::traces_rays(&plan)) || lighting.occlusion.is_some() {
+        let walks_bvh = match ray_query {
+            None => crate::shadows::traces_rays(&plan),
+            Some(_) => plan.served.iter().any(|(&m, lights)| {
+                m != ShadowMethod::Traced
+                    && !lights.is_empty()
+                    && crate::shadows::technique(m).is_some_and(crate::shadows::Technique::traces_rays)
+            }),
+        };
+        if (shadows_read && walks_bvh) || lighting.occlusion.is_some() {
             self.place_casters();
         }
         // The shadows' history goes on only in frames whose denoised passes run: frames that
@@ -505,16 +520,17 @@ impl Renderer {
         if !self.gpu_scene.has_casters {
             return Ok(None);
         }
-        if self.motion.is_some() {
-            if self.fallbacks_noted.lock().is_ok_and(|mut seen| seen.insert((usize::MAX, ShadowMethod::Traced))) {
-                log::warn!(
-                    "the ray-query backend builds its structures once, and casters in this scene move: \
-                     shadow rays walk the compute BVH's two levels instead"
-                );
-            }
-            return Ok(None);
-        }
         let scene = crate::vk::get_or_make(&self.ray_query, || {
+            if let Some(motion) = &self.motion {
+                // A bottom level per group of the compute BVH's two levels, at the instant posed
+                // last; later instants reach it through `pose`.
+                let motion = motion.lock().unwrap_or_else(|e| e.into_inner());
+                let time = motion.posed_at;
+                let (groups, masks) =
+                    crate::gpu::accel_motion::caster_groups(&motion.levels, &motion.groups, &self.local, time);
+                let placements = motion.placements(&time.map(|t| self.local.mesh_motion(t)).unwrap_or_default());
+                return RayQueryScene::with_groups(&self.ctx, &groups, masks.as_ref(), &placements);
+            }
             let masks = crate::scene::bvh::mask::caster_masks(&self.local);
             let order = self.caster_order.as_deref();
             RayQueryScene::with_masks(&self.ctx, &caster_triangles(&self.local), order, masks.as_ref())
@@ -666,13 +682,16 @@ pub struct MotionUpdate {
     /// Bytes the frame writes to the device (instance rows; top region and root).
     pub bytes: u64,
     /// Of those, the top level's: its build (ms) and its upload (bytes), with the refit or
-    /// rebuild of deformed meshes' bottom trees.
+    /// rebuild of deformed meshes' bottom trees; with the ray-query backend, its instance
+    /// records and deformed meshes' triangles laid out for the device's builds.
     pub casters_ms: f64,
     pub casters_bytes: u64,
     /// Of `cpu_ms`, posing the deforming meshes (skins, morph targets) on the CPU.
     pub deform_ms: f64,
     /// Deformed meshes' bottom trees refit, and rebuilt (their refit SAH cost past
     /// `levels::REBUILD_RATIO`), for this frame; the largest SAH ratio against the trees' builds.
+    /// With the ray-query backend: its bottom levels updated in place, and rebuilt (drifted past
+    /// `accel_motion::REBUILD_DRIFT`).
     pub refits: u32,
     pub rebuilds: u32,
     pub sah_ratio: f32,

@@ -55,6 +55,8 @@ pub struct Options {
     pub validate: bool,
     /// The error bound under which the chart rings `auto`'s pick.
     pub max_error: f64,
+    /// What the timed frames' rays traverse (the references are the compute BVH's).
+    pub shadow_backend: crate::config::ShadowBackend,
 }
 
 /// What a run produced.
@@ -76,10 +78,13 @@ const QUICK_WARMUP: u32 = 1;
 
 /// Whether a pass is shadow work: every technique's passes are named `shadow ...`; the
 /// ray-query structures' builds ("build BLAS", "build TLAS") run in the first frame only,
-/// which is a warm-up frame.
+/// which is a warm-up frame, in a static scene; in a moving one, every frame that poses a new
+/// instant writes the instances, updates deformed bottom levels and rebuilds the top level, as
+/// the compute BVH's frames write its top level.
 pub fn is_shadow_pass(name: &str) -> bool {
-    use crate::gpu::accel::{BUILD_BOTTOM, BUILD_TOP};
-    name.starts_with("shadow") || name == BUILD_BOTTOM || name == BUILD_TOP || name == crate::gpu::TOP_LEVEL_PASS
+    use crate::gpu::accel::{BUILD_BOTTOM, BUILD_TOP, UPDATE_BOTTOM, WRITE_INSTANCES};
+    name.starts_with("shadow")
+        || [BUILD_BOTTOM, BUILD_TOP, UPDATE_BOTTOM, WRITE_INSTANCES, crate::gpu::TOP_LEVEL_PASS].contains(&name)
 }
 
 /// Bytes of the transient images and buffers the plan's shadow passes bring in (first used by
@@ -206,6 +211,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
 
     let ctx = GpuContext::new(&GpuOptions { validate: options.validate, device_name: options.device.clone() })?;
     let run = Run {
+        backend: options.shadow_backend,
         device: ctx.device_name(),
         driver: ctx.driver.clone(),
         frames: options.frames.unwrap_or(if options.quick { QUICK_FRAMES } else { FRAMES }).max(1),
@@ -269,6 +275,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
 
 /// What every scene of a run shares: the device, the frame counts and the progress bar.
 struct Run {
+    backend: crate::config::ShadowBackend,
     device: String,
     driver: String,
     frames: u32,
@@ -528,6 +535,7 @@ fn measure(
 ) -> Result<Measured> {
     let mut settings = reference::settings(width, height, OutputKind::Display, point.choices.clone());
     settings.timestamps = timestamps;
+    settings.shadow_backend = run.backend;
     let mut frame = 0;
     let mut next = |settings: &mut crate::config::RenderSettings| {
         settings.time = start.map(|s| motion::frame_time(s, frame));

@@ -1,12 +1,13 @@
 //! The scene on the device: the generic upload every on-device structure goes through (this
 //! file), the shadow casters (`casters.rs`: the compute BVH's buffers, `bvh.rs`, and the
-//! driver's acceleration structures, `accel.rs`, behind one type that every pass tracing rays
-//! binds), the vertex formats (`vertex.rs`), the scene's
-//! buffers, draws and material table (`scene.rs`), the camera matrices and depth convention
-//! (`camera.rs`) and the material textures (`textures.rs`). Below the passes, the shadow
-//! techniques and the renderer, which all read it.
+//! driver's acceleration structures, `accel.rs`, with what a moving scene's next frame writes
+//! into them, `accel_motion.rs`, behind one type that every pass tracing rays binds), the vertex
+//! formats (`vertex.rs`), the scene's buffers, draws and material table (`scene.rs`), the camera
+//! matrices and depth convention (`camera.rs`) and the material textures (`textures.rs`). Below
+//! the passes, the shadow techniques and the renderer, which all read it.
 
 pub mod accel;
+pub mod accel_motion;
 mod bvh;
 mod camera;
 mod casters;

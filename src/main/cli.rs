@@ -132,6 +132,12 @@ pub(crate) struct BenchShadowsArgs {
     /// evsm, none. Default: every technique (all but traced-soft and none).
     #[arg(long)]
     pub(crate) methods: Option<String>,
+    /// What the timed frames' shadow rays traverse: compute (the BVH in a compute shader) or
+    /// ray-query (the device's own acceleration structures; their per-frame updates in a moving
+    /// scene count as shadow time). Errors are scored against the compute BVH's reference either
+    /// way. Default: compute.
+    #[arg(long, value_enum)]
+    pub(crate) shadow_backend: Option<ShadowBackend>,
     /// The error bound (visibility RMSE) under which each chart rings the cheapest row whose
     /// every light is within it: `--shadows auto`'s rule with one setting for every light, among
     /// the points measured.

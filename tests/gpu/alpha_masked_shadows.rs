@@ -30,7 +30,7 @@ fn shape(uv: Vec2) -> bool {
 }
 
 /// The mask texture: alpha 255 where `shape` holds at the texel's centre, else 0.
-fn mask_png() -> Vec<u8> {
+pub(crate) fn mask_png() -> Vec<u8> {
     let image = image::RgbaImage::from_fn(N, N, |x, y| {
         let centre = Vec2::new((x as f32 + 0.5) / N as f32, (y as f32 + 0.5) / N as f32);
         image::Rgba([200, 200, 200, if shape(centre) { 255 } else { 0 }])

@@ -19,7 +19,7 @@ use crate::moving_scenes::{differing, visibility};
 /// joints: node 0 at the origin, node 1 (its child) at y = 1, which bends forward (about x) from
 /// 0 to 90 degrees over 1 s. Rows below 1 m follow joint 0, above it joint 1, the row at 1 m
 /// both; double-sided, so its shadow is its outline whichever way it faces.
-fn panel(dir: &Path) {
+pub(crate) fn panel(dir: &Path) {
     panel_moved(dir, Motion::Bend);
 }
 
@@ -77,7 +77,7 @@ fn panel_moved(dir: &Path, motion: Motion) {
     g.write_glb(&dir.join("panel.glb"));
 }
 
-const SCENE: &str = "[camera]\neye = [3.0, 4.0, 5.0]\ntarget = [0.0, 0.5, 0.0]\nvfov_deg = 45.0\n\
+pub(crate) const SCENE: &str = "[camera]\neye = [3.0, 4.0, 5.0]\ntarget = [0.0, 0.5, 0.0]\nvfov_deg = 45.0\n\
     [[lights]]\ntype = \"directional\"\ndirection = [-0.3, -1.0, -0.4]\nirradiance = [2.0, 2.0, 2.0]\n\
     [[lights]]\ntype = \"point\"\nposition = [-0.5, 2.5, -1.5]\nintensity = [6.0, 6.0, 6.0]\n\
     [[objects]]\nshape = \"plane\"\nsize = 8.0\n\

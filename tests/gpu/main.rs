@@ -38,6 +38,7 @@ mod many_lights;
 mod motion_vectors;
 mod moving_scenes;
 mod ray_query;
+mod ray_query_moving;
 mod rect_lights;
 mod rect_shadows;
 mod render_accuracy;

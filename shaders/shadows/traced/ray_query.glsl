@@ -10,8 +10,10 @@
 layout(set = 0, binding = SHADOW_TLAS) uniform accelerationStructureEXT shadow_tlas;
 // Any hit ends the ray. Unmasked casters are built opaque, so the driver confirms their hits
 // itself; a candidate that reaches this loop is an alpha-masked caster (the bottom level's
-// second, non-opaque geometry, whose primitives the masks list in order), confirmed unless its
-// alpha at the hit is below the cutoff, as the compute traversal decides.
+// second, non-opaque geometry, whose primitives the masks list in order from the instance's
+// custom index: 0 in a static scene's one instance, where its bottom level's masks start in a
+// moving scene's), confirmed unless its alpha at the hit is below the cutoff, as the compute
+// traversal decides.
 #ifdef RAY_QUERY_HIT_T
 // The t of the hit shadow_occluded found last (the denoised trace's blocker distances).
 float ray_query_hit_t = 0.0;
@@ -23,7 +25,9 @@ bool shadow_occluded(vec3 origin, vec3 dir, float tmax) {
         if (rayQueryGetIntersectionTypeEXT(query, false) == gl_RayQueryCandidateIntersectionTriangleEXT) {
 #ifdef BVH_MASKED
             vec2 b = rayQueryGetIntersectionBarycentricsEXT(query, false);
-            if (bvh_mask_passes(uint(rayQueryGetIntersectionPrimitiveIndexEXT(query, false)), b.x, b.y)) {
+            uint masked = uint(rayQueryGetIntersectionInstanceCustomIndexEXT(query, false) +
+                               rayQueryGetIntersectionPrimitiveIndexEXT(query, false));
+            if (bvh_mask_passes(masked, b.x, b.y)) {
                 continue;
             }
 #endif

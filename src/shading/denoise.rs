@@ -241,7 +241,7 @@ pub fn filter(inputs: &SpatialInputs, width: &Width, x: u32, y: u32) -> f32 {
 }
 
 /// The history's mean after a frame: `kept` (the history's visibility, clamped where the
-/// scene moves) over `frames` frames, and this frame's `now`. Twin of denoise_temporal.comp.
+/// scene moves) over `frames` frames, and this frame's `now`. Twin of shaders/denoise/temporal.comp.
 pub fn fold(kept: f32, frames: f32, now: f32) -> f32 {
     let n1 = frames + 1.0;
     kept + (now - kept) / n1

@@ -310,3 +310,19 @@ fn lights_and_cameras_on_animated_nodes_follow_them() {
     assert_eq!(spot(&posed.lights).0, p1);
     assert!((posed.camera.eye - DVec3::new(1.0, 5.0, 0.0)).length() < 1e-9);
 }
+
+/// A model opened without a scene file (`umbra render carried.glb`) keeps its animation: the
+/// camera on its sliding node follows it, whether named (`--camera 0`) or taken by default.
+#[test]
+fn a_model_opened_alone_views_from_its_animated_camera() {
+    let dir = tempfile::tempdir().unwrap();
+    carried(dir.path());
+    for camera in [Some(0), None] {
+        let options = umbra::scene::model::ModelOptions { camera, ..Default::default() };
+        let scene = umbra::scene::model::open(&dir.path().join("carried.glb"), &options).unwrap();
+        assert!(scene.is_animated(), "{camera:?}");
+        let c = scene.camera_at(1.0);
+        assert!((c.eye - DVec3::new(2.0, 5.0, 0.0)).length() < 1e-9, "{camera:?}: {}", c.eye);
+        assert!((scene.camera_at(0.5).eye - DVec3::new(1.0, 5.0, 0.0)).length() < 1e-9, "{camera:?}");
+    }
+}

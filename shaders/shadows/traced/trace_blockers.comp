@@ -3,7 +3,8 @@
 #extension GL_KHR_shader_subgroup_basic : require
 // Shadow trace pass over the CPU-built BVH for a light whose shadows are denoised: trace.comp's
 // rays, writing the visibility unrounded and the mean distance to the blockers the rays hit
-// (trace_body.glsl's TRACE_BLOCKERS), which size the denoiser's filter (denoise.glsl).
+// (trace_body.glsl's TRACE_BLOCKERS), which size the denoiser's filter
+// (shaders/denoise/filter.glsl).
 #include "shadows/traced/traced_bindings.glsl"
 layout(local_size_x_id = 0, local_size_y_id = 1) in;
 

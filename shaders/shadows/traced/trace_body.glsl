@@ -10,7 +10,7 @@
 // true when a caster lies on origin + t dir for t in (0, tmax). TRACE_BLOCKERS (the denoised
 // variant, trace_blockers*.comp): also define `shadow_hit_t`, the t of the hit shadow_occluded
 // last found; the pass then writes the visibility unrounded with the mean distance to the
-// blockers its rays hit (0: none) into an RG16F layer, which the denoiser reads (denoise.glsl).
+// blockers its rays hit (0: none) into an RG16F layer, which the denoiser reads (shaders/denoise/filter.glsl).
 #ifndef UMBRA_SHADOW_TRACE_BODY_GLSL
 #define UMBRA_SHADOW_TRACE_BODY_GLSL
 

@@ -91,7 +91,8 @@ impl Renderer {
             return Renderer::new_moving(ctx, scene, local, origin);
         }
         let start = std::time::Instant::now();
-        let bvh = ShadowBvh::build(&local);
+        let mut bvh = ShadowBvh::build(&local);
+        bvh.release_reference();
         log::info!(
             "BVH build: {} nodes over {} shadow-casting triangles in {:.1} ms ({} triangles, {} lights in the scene)",
             bvh.node_count(),
@@ -100,6 +101,7 @@ impl Renderer {
             scene.triangle_count(),
             scene.lights.len(),
         );
+        trim_heap();
         let start = std::time::Instant::now();
         let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::One(&bvh), &[], origin)?;
         log::info!(
@@ -776,5 +778,17 @@ impl Motion {
             .enumerate()
             .map(|(bottom, to_world)| crate::scene::bvh::levels::Placement { bottom, to_world })
             .collect()
+    }
+}
+
+/// Hands the memory the BVH build's threads freed back to the system. glibc's malloc gives each
+/// thread that allocates an arena of its own and keeps what is freed there for reuse; the
+/// build's buffers (its binary tree, clustering and reinsertion scratch: about 1.3 GB over the
+/// 10M-triangle bench scene) would otherwise stay resident through the upload that follows.
+fn trim_heap() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: malloc_trim only returns free memory to the system; it takes no pointer.
+    unsafe {
+        libc::malloc_trim(0);
     }
 }

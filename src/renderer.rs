@@ -782,9 +782,9 @@ impl Motion {
 }
 
 /// Hands the memory the BVH build's threads freed back to the system. glibc's malloc gives each
-/// thread that allocates an arena of its own and keeps what is freed there for reuse; the
-/// build's buffers (its binary tree, clustering and reinsertion scratch: about 1.3 GB over the
-/// 10M-triangle bench scene) would otherwise stay resident through the upload that follows.
+/// thread that allocates an arena of its own and keeps what is freed there for reuse, so the
+/// build's scratch would stay resident through the upload that follows: over the 10M-triangle
+/// bench scene the upload's resident memory peaked at 2.7 GB without this, 2.3 GB with it.
 fn trim_heap() {
     #[cfg(all(target_os = "linux", target_env = "gnu"))]
     // SAFETY: malloc_trim only returns free memory to the system; it takes no pointer.

@@ -16,8 +16,8 @@ use umbra::scene::Scene;
 use umbra::shading::denoise::{filter, SpatialInputs, Width};
 use umbra::shading::gpu_lights;
 
-const W: u32 = 160;
-const H: u32 = 120;
+pub(crate) const W: u32 = 160;
+pub(crate) const H: u32 = 120;
 
 /// A cube hovering over a floor (broad penumbrae) and a plate lying on it (contact shadows only)
 /// under a large point light and a sun of 6 degrees.
@@ -78,12 +78,13 @@ fn view(r: &mut Renderer, s: &RenderSettings) -> Vec<Vec4> {
     pixels(r.render(s).expect("render"))
 }
 
-fn xs(v: &[Vec4]) -> Vec<f32> {
+pub(crate) fn xs(v: &[Vec4]) -> Vec<f32> {
     v.iter().map(|p| p.x).collect()
 }
 
-/// RMSE of `a` against `reference` over the pixels the reference has in penumbra.
-fn penumbra_rmse(a: &[f32], reference: &[f32]) -> (f64, usize) {
+/// RMSE of `a` against `reference` over the pixels the reference has in penumbra (strictly
+/// between 0.02 and 0.98; for occlusion, partly occluded), and how many.
+pub(crate) fn penumbra_rmse(a: &[f32], reference: &[f32]) -> (f64, usize) {
     let (mut sum, mut n) = (0.0f64, 0usize);
     for (x, r) in a.iter().zip(reference) {
         if *r > 0.02 && *r < 0.98 {
@@ -94,6 +95,49 @@ fn penumbra_rmse(a: &[f32], reference: &[f32]) -> (f64, usize) {
     ((sum / n.max(1) as f64).sqrt(), n)
 }
 
+/// The spatial pass's geometric inputs for a frame (its position and normal views).
+pub(crate) struct Geometry {
+    pub(crate) position: Vec<Vec4>,
+    pub(crate) normal: Vec<Vec3>,
+}
+
+/// Pixels of a `W` x `H` frame of `scene` where `out` (8-bit or float) differs from the twin
+/// filtering `source` (frame 0's taps, one ray a frame) sized by `width`, by more than
+/// `tolerance`; and how many pixels the twin changes.
+pub(crate) fn against_twin(
+    scene: &Scene,
+    geometry: &Geometry,
+    source: &[Vec4],
+    out: &[f32],
+    width: &Width,
+    tolerance: f32,
+) -> (Vec<(u32, u32, f32, f32)>, usize) {
+    let fov = scene.camera.vfov_deg.to_radians();
+    let inputs = SpatialInputs {
+        width: W,
+        height: H,
+        source,
+        position: &geometry.position,
+        normal: &geometry.normal,
+        eye: scene.camera.eye.as_vec3(),
+        pixel_angle: 2.0 * (fov * 0.5).tan() / H as f32,
+        seed: 0,
+        rays: 1,
+    };
+    let (mut wrong, mut filtered) = (Vec::new(), 0);
+    for y in 0..H {
+        for x in 0..W {
+            let i = (y * W + x) as usize;
+            let expected = filter(&inputs, width, x, y);
+            filtered += ((expected - source[i].x).abs() > 0.01) as usize;
+            if (out[i] - expected).abs() > tolerance {
+                wrong.push((x, y, out[i], expected));
+            }
+        }
+    }
+    (wrong, filtered)
+}
+
 #[test]
 fn the_gpu_filter_equals_its_cpu_twin_on_the_same_inputs() {
     let ctx = common::gpu();
@@ -102,36 +146,16 @@ fn the_gpu_filter_equals_its_cpu_twin_on_the_same_inputs() {
     let position = view(&mut r, &settings(1, true, 0, DebugView::Position));
     let normal: Vec<Vec3> =
         view(&mut r, &settings(1, true, 0, DebugView::Normal)).iter().map(|n| n.truncate()).collect();
+    let geometry = Geometry { position, normal };
     let lights = gpu_lights(&scene.lights);
-    let fov = scene.camera.vfov_deg.to_radians();
     for light in 0..2u32 {
         // Without a history each frame's rays are the same (frame 0's seed): the view shows
         // the input the visibility view's frame filtered.
         let source = view(&mut r, &settings(1, true, 0, DebugView::Denoise(light)));
         let denoised = xs(&view(&mut r, &settings(1, true, 0, DebugView::Visibility(light))));
-        let inputs = SpatialInputs {
-            width: W,
-            height: H,
-            source: &source,
-            position: &position,
-            normal: &normal,
-            eye: scene.camera.eye.as_vec3(),
-            pixel_angle: 2.0 * (fov * 0.5).tan() / H as f32,
-            seed: 0,
-            rays: 1,
-        };
-        let (mut wrong, mut filtered) = (Vec::new(), 0);
-        for y in 0..H {
-            for x in 0..W {
-                let i = (y * W + x) as usize;
-                let expected = filter(&inputs, &Width::Light(lights[light as usize]), x, y);
-                filtered += ((expected - source[i].x).abs() > 0.01) as usize;
-                // 8-bit UNORM: half a step, plus the two sides' float rounding.
-                if (denoised[i] - expected).abs() > 0.5 / 255.0 + 1e-3 {
-                    wrong.push((x, y, denoised[i], expected));
-                }
-            }
-        }
+        // 8-bit UNORM: half a step, plus the two sides' float rounding.
+        let width = Width::Light(lights[light as usize]);
+        let (wrong, filtered) = against_twin(&scene, &geometry, &source, &denoised, &width, 0.5 / 255.0 + 1e-3);
         eprintln!("light {light}: {filtered} pixels changed by the filter, {} differ from the twin", wrong.len());
         let least = [300, 100][light as usize];
         assert!(filtered > least, "light {light}: the filter must act on this scene's penumbrae, changed {filtered}");

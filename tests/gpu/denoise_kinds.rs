@@ -14,10 +14,11 @@ use glam::{Vec3, Vec4};
 use umbra::config::DebugView;
 use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowChoice};
 use umbra::scene::Scene;
-use umbra::shading::denoise::{filter, SpatialInputs, Width, FIXED};
+use umbra::shading::denoise::{Width, FIXED};
 
-const W: u32 = 160;
-const H: u32 = 120;
+/// The frames' size and the helpers are `crate::denoise`'s, whose twin comparison these tests
+/// share.
+use crate::denoise::{against_twin, penumbra_rmse, xs, Geometry, H, W};
 
 /// A floor, a cube hovering over it and a one-sided 1.2 m x 0.8 m rect light standing at z = -1
 /// facing +z (the floor behind it, z < -1, is dark), `spp` rays a pixel; `ao`: an
@@ -60,70 +61,11 @@ fn render(r: &mut Renderer, s: &RenderSettings) -> Vec<Vec4> {
     common::floats(r.render(s).expect("render"))
 }
 
-fn xs(v: &[Vec4]) -> Vec<f32> {
-    v.iter().map(|p| p.x).collect()
-}
-
-/// RMSE of `a` against `reference` over the pixels where the reference is strictly between
-/// 0.02 and 0.98 (penumbrae, or partly occluded), and how many.
-fn partial_rmse(a: &[f32], reference: &[f32]) -> (f64, usize) {
-    let (mut sum, mut n) = (0.0f64, 0usize);
-    for (x, r) in a.iter().zip(reference) {
-        if *r > 0.02 && *r < 0.98 {
-            sum += f64::from(x - r).powi(2);
-            n += 1;
-        }
-    }
-    ((sum / n.max(1) as f64).sqrt(), n)
-}
-
-/// The spatial pass's inputs for the frame `r` draws with `s` (its position and normal views).
-struct Geometry {
-    position: Vec<Vec4>,
-    normal: Vec<Vec3>,
-}
-
 fn geometry(r: &mut Renderer, s: &RenderSettings) -> Geometry {
     let at = |view| RenderSettings { debug_view: Some(view), ..s.clone() };
     let position = render(r, &at(DebugView::Position));
     let normal = render(r, &at(DebugView::Normal)).iter().map(|n| n.truncate()).collect();
     Geometry { position, normal }
-}
-
-/// Pixels where `out` (8-bit or float) differs from the twin filtering `source` sized by
-/// `width`, by more than `tolerance`; and how many the twin changes.
-fn against_twin(
-    scene: &Scene,
-    geometry: &Geometry,
-    source: &[Vec4],
-    out: &[f32],
-    width: &Width,
-    tolerance: f32,
-) -> (Vec<(u32, u32, f32, f32)>, usize) {
-    let fov = scene.camera.vfov_deg.to_radians();
-    let inputs = SpatialInputs {
-        width: W,
-        height: H,
-        source,
-        position: &geometry.position,
-        normal: &geometry.normal,
-        eye: scene.camera.eye.as_vec3(),
-        pixel_angle: 2.0 * (fov * 0.5).tan() / H as f32,
-        seed: 0,
-        rays: 1,
-    };
-    let (mut wrong, mut filtered) = (Vec::new(), 0);
-    for y in 0..H {
-        for x in 0..W {
-            let i = (y * W + x) as usize;
-            let expected = filter(&inputs, width, x, y);
-            filtered += ((expected - source[i].x).abs() > 0.01) as usize;
-            if (out[i] - expected).abs() > tolerance {
-                wrong.push((x, y, out[i], expected));
-            }
-        }
-    }
-    (wrong, filtered)
 }
 
 #[test]
@@ -193,9 +135,9 @@ fn one_denoised_ray_on_a_rect_light_beats_eight_rays_and_shades_with_its_layer()
     // The 8th frame's layer is scored; the shaded image is the 9th frame.
     let (denoised, denoised_image) = visibility(1, true, 8);
     let (one, one_image) = visibility(1, false, 1);
-    let (e8, n) = partial_rmse(&eight, &reference);
-    let (ed, _) = partial_rmse(&denoised, &reference);
-    let (e1, _) = partial_rmse(&one, &reference);
+    let (e8, n) = penumbra_rmse(&eight, &reference);
+    let (ed, _) = penumbra_rmse(&denoised, &reference);
+    let (e1, _) = penumbra_rmse(&one, &reference);
     eprintln!("rect, {n} penumbra pixels: 1 ray {e1:.4}, 8 rays {e8:.4}, 1 denoised ray x 8 frames {ed:.4}");
     assert!(n > 300, "a penumbra to score: {n}");
     assert!(ed < e8, "denoised {ed:.4} against 8 rays' {e8:.4}");
@@ -283,9 +225,9 @@ fn one_denoised_occlusion_ray_beats_eight_rays() {
         out
     };
     let reference = occlusion(256, false, 1);
-    let (e8, n) = partial_rmse(&occlusion(8, false, 1), &reference);
-    let (e1, _) = partial_rmse(&occlusion(1, false, 1), &reference);
-    let (ed, _) = partial_rmse(&occlusion(1, true, 8), &reference);
+    let (e8, n) = penumbra_rmse(&occlusion(8, false, 1), &reference);
+    let (e1, _) = penumbra_rmse(&occlusion(1, false, 1), &reference);
+    let (ed, _) = penumbra_rmse(&occlusion(1, true, 8), &reference);
     eprintln!("ao, {n} partly occluded pixels: 1 ray {e1:.4}, 8 rays {e8:.4}, 1 denoised ray x 8 frames {ed:.4}");
     assert!(n > 300, "occlusion to score: {n}");
     assert!(ed < e8, "denoised {ed:.4} against 8 rays' {e8:.4}");

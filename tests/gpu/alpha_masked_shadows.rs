@@ -533,6 +533,21 @@ fn scenes_without_masked_casters_carry_no_masks() {
     assert!(!renderer.gpu_scene.bvh.masked());
 }
 
+/// A mesh of `g` with these positions, normals, texture coordinates and (16-bit) indices under
+/// a double-sided material alpha-masked by `mask_png` (cutoff 0.5); returns its index.
+pub(crate) fn masked_mesh(g: &mut Gltf, p: &[[f32; 3]], n: &[[f32; 3]], uv: &[[f32; 2]], idx: &[u32]) -> usize {
+    let (positions, normals, uvs, indices) = (g.vec3(p), g.vec3(n), g.vec2(uv), g.indices(idx, U16));
+    let view = g.view(&mask_png(), None);
+    g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
+    let material = g.material(json!({ "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
+        "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8,
+            "baseColorTexture": { "index": 0 } } }));
+    g.mesh(vec![json!({
+        "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
+        "indices": indices, "material": material
+    })])
+}
+
 /// A textured, alpha-masked leaf of 24 x 24 quads (the mask as its base colour, as `scene`'s)
 /// beside an opaque cube, with the leaf's faces as written or shuffled (`face_order`): the same
 /// scene either way, so every image must be the same. The shuffle moves masked triangles
@@ -558,16 +573,7 @@ fn gridded_leaf_scene(dir: &std::path::Path, shuffled: bool) -> Scene {
             idx.extend_from_slice(&[a, b, c, a, c, d]);
         }
     }
-    let (positions, normals, uvs, indices) = (g.vec3(&p), g.vec3(&n), g.vec2(&uv), g.indices(&idx, U16));
-    let view = g.view(&mask_png(), None);
-    g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
-    let material = g.material(json!({ "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
-        "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8,
-            "baseColorTexture": { "index": 0 } } }));
-    let mesh = g.mesh(vec![json!({
-        "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
-        "indices": indices, "material": material
-    })]);
+    let mesh = masked_mesh(&mut g, &p, &n, &uv, &idx);
     g.node(json!({ "mesh": mesh }), true);
     g.write_glb(&dir.join("grid-leaf.glb"));
     let order = if shuffled { "face_order = \"shuffled\"\n" } else { "" };

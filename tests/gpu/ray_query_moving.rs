@@ -12,7 +12,7 @@ use crate::common;
 
 use std::path::Path;
 
-use crate::gltf_builder::{quad_xz, Gltf, U16};
+use crate::gltf_builder::{quad_xz, Gltf};
 use serde_json::json;
 use umbra::config::{DebugView, ShadowMethod};
 use umbra::gpu::accel::{BUILD_BOTTOM, BUILD_TOP, UPDATE_BOTTOM, WRITE_INSTANCES};
@@ -184,16 +184,7 @@ fn masked_scene(dir: &Path) -> Scene {
     let mut g = Gltf::default();
     let (p, n, uv, idx) = quad_xz();
     let p: Vec<[f32; 3]> = p.iter().map(|v| [v[0] * 2.0, 0.0, v[2] * 2.0]).collect();
-    let (positions, normals, uvs, indices) = (g.vec3(&p), g.vec3(&n), g.vec2(&uv), g.indices(&idx, U16));
-    let view = g.view(&crate::alpha_masked_shadows::mask_png(), None);
-    g.images = vec![json!({ "bufferView": view, "mimeType": "image/png" })];
-    let material = g.material(json!({ "alphaMode": "MASK", "alphaCutoff": 0.5, "doubleSided": true,
-        "pbrMetallicRoughness": { "metallicFactor": 0.0, "roughnessFactor": 0.8,
-            "baseColorTexture": { "index": 0 } } }));
-    let mesh = g.mesh(vec![json!({
-        "attributes": { "POSITION": positions, "NORMAL": normals, "TEXCOORD_0": uvs },
-        "indices": indices, "material": material
-    })]);
+    let mesh = crate::alpha_masked_shadows::masked_mesh(&mut g, &p, &n, &uv, &idx);
     g.node(json!({ "mesh": mesh }), true);
     g.write_glb(&dir.join("leaf.glb"));
     let text = "[camera]\neye = [0.5, 10.0, 0.01]\ntarget = [0.5, 0.0, 0.0]\nvfov_deg = 50.0\n\

@@ -11,6 +11,7 @@ pub mod accel_motion;
 mod bvh;
 mod camera;
 mod casters;
+mod material_table;
 mod scene;
 pub mod textures;
 mod vertex;
@@ -18,6 +19,7 @@ mod vertex;
 pub use bvh::*;
 pub use camera::*;
 pub use casters::*;
+pub use material_table::*;
 pub use scene::*;
 pub use vertex::*;
 

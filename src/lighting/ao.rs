@@ -109,7 +109,8 @@ pub fn add<'a>(
         _ => None,
     };
     let filtered = history.as_ref().unwrap_or(&source);
-    denoise::spatial_occlusion(graph, &inputs, seed, filtered, params.spp, &mut image)?;
+    let layer = denoise::Layer { source: 0, sized_by: 0, rays: params.spp, target: 0, ratio: 0 };
+    denoise::spatial(graph, &inputs, seed, filtered, &[layer], denoise::Filtered::Occlusion { image: &mut image })?;
     Ok((image, Some(denoise::Shown { from_history: history.is_some(), image: history.unwrap_or(source) })))
 }
 

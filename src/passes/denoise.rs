@@ -300,71 +300,33 @@ pub fn temporal<'a>(
 pub struct Layer {
     /// Its layer of the source (the rays, or the history).
     pub source: u32,
-    /// What sizes its filter: a light's number (`spatial_lights`), a rect's index among the
-    /// rects (`spatial_rects`); unused for occlusion.
+    /// What sizes its filter: a light's number (`Filtered::Lights`), a rect's index among the
+    /// rects (`Filtered::Rects`); unused for occlusion.
     pub sized_by: u32,
     /// Rays per pixel and frame.
     pub rays: u32,
     /// Its layer of the output (the visibility target's; unused for occlusion).
     pub target: u32,
-    /// A rect's layer of the ratios its shading multiplies by (`spatial_rects` only).
+    /// A rect's layer of the ratios its shading multiplies by (`Filtered::Rects` only).
     pub ratio: u32,
 }
 
-/// Which spatial pass: its entry point and the bindings besides the common ones.
-enum Filtered<'t> {
-    /// Point, spot and sun lights: their layers of the visibility target.
+/// What a spatial pass writes, which picks its entry point and its bindings besides the common
+/// ones.
+pub enum Filtered<'t> {
+    /// Point, spot and sun lights' layers of the visibility target, their filters sized by the
+    /// lights in `lights` (`Layer::sized_by`: a light's number).
     Lights { lights: &'t Handle<BufferKind>, visibility: &'t mut Handle<ImageKind> },
-    /// Rect lights: their layers of the visibility target and of the ratios.
+    /// Rect lights' layers of the visibility target and of the ratios their shading multiplies
+    /// by, their filters sized by the rects in `rects` (`Layer::sized_by`: a rect's index).
     Rects { rects: &'t Handle<BufferKind>, visibility: &'t mut Handle<ImageKind>, ratios: &'t mut Handle<ImageKind> },
-    /// Occlusion: one image.
+    /// Ambient occlusion: one image (one layer, sized by the hits' distance).
     Occlusion { image: &'t mut Handle<ImageKind> },
 }
 
-/// Point, spot and sun lights' `layers` of `visibility` from `source`, their filters sized by
-/// the lights in `lights`; `seed` turns the taps from frame to frame.
-pub fn spatial_lights<'a>(
-    g: &mut RenderGraph<'a>,
-    inputs: &Inputs<'_, 'a>,
-    seed: u32,
-    source: &Handle<ImageKind>,
-    layers: &[Layer],
-    lights: &Handle<BufferKind>,
-    visibility: &mut Handle<ImageKind>,
-) -> GpuResult<()> {
-    spatial(g, inputs, seed, source, layers, Filtered::Lights { lights, visibility })
-}
-
-/// Rect lights' `layers` of `visibility` and of `ratios` from `source`, their filters sized by
-/// the rects in `rects`.
-#[allow(clippy::too_many_arguments)]
-pub fn spatial_rects<'a>(
-    g: &mut RenderGraph<'a>,
-    inputs: &Inputs<'_, 'a>,
-    seed: u32,
-    source: &Handle<ImageKind>,
-    layers: &[Layer],
-    rects: &Handle<BufferKind>,
-    visibility: &mut Handle<ImageKind>,
-    ratios: &mut Handle<ImageKind>,
-) -> GpuResult<()> {
-    spatial(g, inputs, seed, source, layers, Filtered::Rects { rects, visibility, ratios })
-}
-
-/// Ambient occlusion from layer 0 of `source` (`rays` per pixel and frame) into `image`.
-pub fn spatial_occlusion<'a>(
-    g: &mut RenderGraph<'a>,
-    inputs: &Inputs<'_, 'a>,
-    seed: u32,
-    source: &Handle<ImageKind>,
-    rays: u32,
-    image: &mut Handle<ImageKind>,
-) -> GpuResult<()> {
-    let layer = Layer { source: 0, sized_by: 0, rays, target: 0, ratio: 0 };
-    spatial(g, inputs, seed, source, &[layer], Filtered::Occlusion { image })
-}
-
-fn spatial<'a>(
+/// Filters `layers` of `source` into what `filtered` says; `seed` turns the taps from frame to
+/// frame.
+pub fn spatial<'a>(
     g: &mut RenderGraph<'a>,
     inputs: &Inputs<'_, 'a>,
     seed: u32,

@@ -9,8 +9,8 @@
 use super::rects::{self, Writes};
 use super::Rays;
 use crate::gpu::WalkBuild;
-use crate::graph::{Handle, ImageKind, RenderGraph};
-use crate::passes::denoise::{self as filter, DenoiseHistory, Inputs, Layer, Shown};
+use crate::graph::{BufferKind, Handle, ImageKind, RenderGraph};
+use crate::passes::denoise::{self as filter, DenoiseHistory, Filtered, Inputs, Layer, Shown};
 use crate::passes::TILE;
 use crate::shadows::traced::params::TracedParams;
 use crate::shadows::{rect_index, Casters, FrameInputs, Served, Targets};
@@ -39,16 +39,8 @@ pub fn denoised<'s>(scene: &crate::gpu::SceneGpu, served: &'s [Served]) -> Vec<&
     served.iter().filter(|s| denoises(scene, s)).collect()
 }
 
-/// Rays per pixel and frame of denoised light `served`: a rect's scene-file `spp`, else
-/// `traced.spp`.
-fn rays_of(frame: &FrameInputs, served: &Served) -> u32 {
-    match rect_index(frame.scene, served.light) {
-        Some(_) => rects::rays(served, frame),
-        None => served.choice.traced.spp.clamp(1, super::params::MAX_SPP),
-    }
-}
-
-/// The denoised lights `served` (`denoised`' order): their rays into a layer each of the
+/// The denoised lights `served` (`denoised`' order; `rect_buffer`: the rect lights, imported
+/// where any is served): their rays into a layer each of the
 /// unrounded target, then (with a history) the temporal pass, then the spatial passes into
 /// their visibility layers (and rects' ratios). Returns what the `denoise:N` view shows: the
 /// history where there is one, else the rays.
@@ -57,6 +49,7 @@ pub fn add<'a>(
     frame: &FrameInputs<'_, 'a>,
     casters: &Casters<'_>,
     served: &[Served],
+    rect_buffer: Option<&Handle<BufferKind>>,
     targets: &mut Targets,
 ) -> GpuResult<Shown> {
     let extent = frame.extent;
@@ -68,8 +61,8 @@ pub fn add<'a>(
     if !lights.is_empty() {
         super::trace(g, frame, casters, lights, &mut source, super::Traces::Denoised { frames })?;
     }
-    let rect_buffer = (!rect_lights.is_empty()).then(|| rects::import(g, frame));
-    if let Some(buffer) = &rect_buffer {
+    if !rect_lights.is_empty() {
+        let buffer = rect_buffer.expect("a frame with rect lights imports them");
         let writes = Writes::Denoised { source: &mut source, first: split as u32, frames };
         rects::add(g, frame, casters, rect_lights, buffer, writes)?;
     }
@@ -89,21 +82,34 @@ pub fn add<'a>(
     };
     let seed = frame.frame_index.wrapping_add(frames);
     let filtered = history.as_ref().unwrap_or(&source);
-    let layer = |(k, s): (usize, &Served)| Layer {
-        source: k as u32,
-        sized_by: rect_index(frame.scene, s.light).map_or(s.light, |r| r as u32),
-        rays: rays_of(frame, s),
-        target: s.layer,
-        ratio: s.layer.wrapping_sub(targets.first_rect_layer),
+    let first_rect_layer = targets.first_rect_layer;
+    let layer = |(k, s): (usize, &Served)| match rect_index(frame.scene, s.light) {
+        Some(rect) => Layer {
+            source: k as u32,
+            sized_by: rect as u32,
+            rays: rects::rays(s, frame),
+            target: s.layer,
+            ratio: s.layer - first_rect_layer,
+        },
+        None => Layer {
+            source: k as u32,
+            sized_by: s.light,
+            rays: s.choice.traced.spp.clamp(1, super::params::MAX_SPP),
+            target: s.layer,
+            ratio: 0,
+        },
     };
     let layers: Vec<Layer> = served.iter().enumerate().map(layer).collect();
     let (light_layers, rect_layers) = layers.split_at(split);
     if !light_layers.is_empty() {
-        filter::spatial_lights(g, &inputs, seed, filtered, light_layers, frame.lights, &mut targets.visibility)?;
+        let visibility = &mut targets.visibility;
+        filter::spatial(g, &inputs, seed, filtered, light_layers, Filtered::Lights { lights: frame.lights, visibility })?;
     }
-    if let Some(buffer) = &rect_buffer {
+    if !rect_layers.is_empty() {
+        let rects = rect_buffer.expect("a frame with rect lights imports them");
         let ratios = targets.rect_ratios.as_mut().expect("shadows::add makes rect lights' ratios");
-        filter::spatial_rects(g, &inputs, seed, filtered, rect_layers, buffer, &mut targets.visibility, ratios)?;
+        let outputs = Filtered::Rects { rects, visibility: &mut targets.visibility, ratios };
+        filter::spatial(g, &inputs, seed, filtered, rect_layers, outputs)?;
     }
     Ok(Shown { from_history: history.is_some(), image: history.unwrap_or(source) })
 }

@@ -116,18 +116,20 @@ impl super::Technique for Traced {
         if !lights.is_empty() {
             add(g, frame, casters, &lights, &mut targets.visibility)?;
         }
+        // The rect lights' buffer, imported once for the rect passes of both kinds.
+        let rect_buffer =
+            served.iter().any(|s| super::rect_index(frame.scene, s.light).is_some()).then(|| rects::import(g, frame));
         let mut debug = None;
         if !denoised.is_empty() {
-            let source = denoise::add(g, frame, casters, &denoised, targets)?;
+            let source = denoise::add(g, frame, casters, &denoised, rect_buffer.as_ref(), targets)?;
             if let Some(crate::config::DebugView::Denoise(light)) = frame.debug_view {
                 if let Some(k) = denoised.iter().position(|s| s.light == light) {
                     debug = Some(denoise::debug_view(g, frame, &source, k as u32)?);
                 }
             }
         }
-        if !rects.is_empty() {
-            let buffer = rects::import(g, frame);
-            rects::add(g, frame, casters, &rects, &buffer, rects::Writes::Targets(targets))?;
+        if let (false, Some(buffer)) = (rects.is_empty(), &rect_buffer) {
+            rects::add(g, frame, casters, &rects, buffer, rects::Writes::Targets(targets))?;
         }
         Ok(debug)
     }

@@ -43,8 +43,6 @@ pub struct ShadowBvh {
     masks: Option<mask::BvhMasks>,
     triangle_count: usize,
     depth: usize,
-    /// `release_reference` freed `reference` and `triangles`.
-    released: bool,
 }
 
 /// The shadow casters of `scene` as the BVH (and the ray-query backend's acceleration
@@ -190,7 +188,7 @@ impl ShadowBvh {
         // the whole tree once more, and recursively).
         let depth = wide.binary_depth;
         let triangle_count = tris.len();
-        ShadowBvh { reference, triangles: tris, wide, masks: None, triangle_count, depth, released: false }
+        ShadowBvh { reference, triangles: tris, wide, masks: None, triangle_count, depth }
     }
 
     /// The casters' indices (into `caster_triangles`) in the order of the tree's leaves, taken
@@ -239,7 +237,7 @@ impl ShadowBvh {
 
     /// obvhs's binary tree, before the collapse.
     pub fn binary(&self) -> &Bvh2 {
-        assert!(!self.released, "the binary tree was released (ShadowBvh::release_reference)");
+        assert!(!self.released(), "the binary tree was released (ShadowBvh::release_reference)");
         &self.reference
     }
 
@@ -250,7 +248,12 @@ impl ShadowBvh {
     pub fn release_reference(&mut self) {
         self.reference = Bvh2::default();
         self.triangles = Vec::new();
-        self.released = true;
+    }
+
+    /// Whether `release_reference` freed the reference traversal's tree (a tree over triangles
+    /// that no longer holds them).
+    fn released(&self) -> bool {
+        self.triangles.is_empty() && self.triangle_count > 0
     }
 
     /// Any-hit shadow query over the GPU arrays, a line-for-line twin of `bvh_occluded` in
@@ -269,7 +272,7 @@ impl ShadowBvh {
     /// The same query through obvhs's own Bvh2 traversal and triangle test: the independent
     /// reference for `occluded_gpu_layout`.
     pub fn occluded_obvhs(&self, origin: Vec3, dir: Vec3, tmax: f32) -> bool {
-        assert!(!self.released, "the reference traversal's tree was released (ShadowBvh::release_reference)");
+        assert!(!self.released(), "the reference traversal's tree was released (ShadowBvh::release_reference)");
         if self.is_empty() {
             return false;
         }

@@ -291,15 +291,17 @@ fn render(renderer: &mut Renderer, view: Option<DebugView>) -> Vec<Vec4> {
     common::floats(renderer.render(&settings).expect("render"))
 }
 
+/// A scene file's inline material table.
+fn material_text(base: Vec3, roughness: f32, metallic: f32) -> String {
+    format!("{{ base_color = [{}, {}, {}], roughness = {roughness}, metallic = {metallic} }}", base.x, base.y, base.z)
+}
+
 #[test]
 fn gpu_sphere_and_disk_shading_matches_the_cpu_twin() {
     let ctx = common::gpu();
     let materials = [(Vec3::new(0.75, 0.5, 0.25), 0.5f32, 0.0f32), (Vec3::new(1.0, 0.75, 0.5), 0.25, 1.0)];
     for (base, roughness, metallic) in materials {
-        let text = format!(
-            "{{ base_color = [{}, {}, {}], roughness = {roughness}, metallic = {metallic} }}",
-            base.x, base.y, base.z
-        );
+        let text = material_text(base, roughness, metallic);
         let scene = Scene::parse(&scene(&text), "area.toml", Path::new(".")).unwrap();
         let eye = scene.camera.eye.as_vec3();
         let lights = gpu_lights(&scene.lights);
@@ -364,10 +366,7 @@ fn gpu_small_caps_by_cubature_match_the_cpu_twin() {
     let ctx = common::gpu();
     let materials = [(Vec3::new(0.75, 0.5, 0.25), 0.6f32, 0.0f32), (Vec3::new(1.0, 0.75, 0.5), 0.35, 1.0)];
     for (base, roughness, metallic) in materials {
-        let text = format!(
-            "{{ base_color = [{}, {}, {}], roughness = {roughness}, metallic = {metallic} }}",
-            base.x, base.y, base.z
-        );
+        let text = material_text(base, roughness, metallic);
         let text = scene(&text)
             .replace("radius = 0.8", "radius = 0.05")
             .replace("angular_diameter_deg = 20.0", "angular_diameter_deg = 2.0");

@@ -11,6 +11,9 @@ pub use crate::config::{DebugView, OutputKind, RenderSettings, ShadowBackend, Sh
 pub use crate::frame::{Target, BACKGROUND};
 
 mod histories;
+mod motion;
+
+use motion::Motion;
 
 use crate::gpu::accel::RayQueryScene;
 pub use crate::gpu::{perspective_reversed_infinite, CameraMatrices, SceneGpu};
@@ -87,8 +90,8 @@ impl Renderer {
     /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
         let (local, origin) = scene.local_frame();
-        if local.is_animated() {
-            return Renderer::new_moving(ctx, scene, local, origin);
+        if local.is_animated() || local.has_kept_instances() {
+            return Renderer::new_two_level(ctx, scene, local, origin);
         }
         let start = std::time::Instant::now();
         let mut bvh = ShadowBvh::build(&local);
@@ -171,21 +174,26 @@ impl Renderer {
         })
     }
 
-    /// `new` for a scene where something moves: its casters in two levels (a bottom tree per
-    /// group that moves together, the static ones in one), its moving draws with instance rows
-    /// of their own, posed at the animation's start.
-    fn new_moving(ctx: Arc<GpuContext>, scene: Scene, local: Scene, origin: glam::DVec3) -> GpuResult<Renderer> {
+    /// `new` for a scene where something moves, or that keeps instances without world-space
+    /// copies: its casters in two levels (`motion.rs`: a bottom tree per group that moves
+    /// together, the static ones in one, each kept geometry once), its moving draws with
+    /// instance rows of their own, posed at the animation's start.
+    fn new_two_level(ctx: Arc<GpuContext>, scene: Scene, local: Scene, origin: glam::DVec3) -> GpuResult<Renderer> {
         let start = std::time::Instant::now();
-        let (levels, groups) = Motion::build_levels(&local);
+        let motion = Motion::build(&local);
+        let levels = &motion.levels;
         log::info!(
-            "BVH build, two levels: {} bottom trees over {} shadow-casting triangles in {:.1} ms ({} moving groups)",
+            "BVH build, two levels: {} bottom trees over {} shadow-casting triangles in {:.1} ms ({} moving groups, \
+             {} kept instances of {} geometries)",
             levels.bottoms().len(),
             levels.triangle_count(),
             start.elapsed().as_secs_f64() * 1e3,
-            levels.bottoms().len() - 1,
+            motion.group_count - 1,
+            motion.kept.len(),
+            levels.bottoms().len() - motion.group_count,
         );
         let moving: Vec<bool> = local.meshes.iter().map(|m| m.motion.is_some()).collect();
-        let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::Two(&levels), &moving, origin)?;
+        let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::Two(levels), &moving, origin)?;
         log::info!(
             "upload: {} KiB of scene buffers, {} moving and {} deforming draws; shadow BVH on the device {} KiB",
             gpu_scene.bytes() >> 10,
@@ -193,7 +201,6 @@ impl Renderer {
             gpu_scene.deforming.len(),
             gpu_scene.bvh.bytes() >> 10
         );
-        let motion = Motion { levels, groups, posed_at: None, unplaced: None, undeformed: None };
         Renderer::assemble(ctx, scene, local, gpu_scene, None, Some(motion))
     }
 
@@ -243,7 +250,7 @@ impl Renderer {
         }
         let start = std::time::Instant::now();
         let deltas = self.local.mesh_motion(time);
-        motion.unplaced = Some(motion.placements(&deltas));
+        motion.unplaced = Some(motion.placements(&self.local, &deltas));
         let mut bytes = self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
         let deform_start = std::time::Instant::now();
         let deformed = self.local.deformed(time);
@@ -330,7 +337,7 @@ impl Renderer {
 
     /// Whether anything in the scene moves.
     pub fn is_moving(&self) -> bool {
-        self.motion.is_some()
+        self.local.is_animated()
     }
 
     pub fn scene(&self) -> &Scene {
@@ -399,7 +406,7 @@ impl Renderer {
         let shadows_denoised =
             shadows_read && view_light.is_none_or(|l| denoised.iter().any(|d| d.light as usize == l));
         let extent = vk::Extent2D { width: settings.width, height: settings.height };
-        let moving = self.motion.is_some();
+        let moving = self.is_moving();
         let histories = self.histories.prepare(
             &self.ctx,
             &self.gpu_scene,
@@ -528,9 +535,15 @@ impl Renderer {
                 // last; later instants reach it through `pose`.
                 let motion = motion.lock().unwrap_or_else(|e| e.into_inner());
                 let time = motion.posed_at;
-                let (groups, masks) =
-                    crate::gpu::accel_motion::caster_groups(&motion.levels, &motion.groups, &self.local, time);
-                let placements = motion.placements(&time.map(|t| self.local.mesh_motion(t)).unwrap_or_default());
+                let (groups, masks) = crate::gpu::accel_motion::caster_groups(
+                    &motion.levels,
+                    &motion.groups,
+                    &self.local.kept_geometries(),
+                    &self.local,
+                    time,
+                );
+                let deltas = time.map(|t| self.local.mesh_motion(t)).unwrap_or_default();
+                let placements = motion.placements(&self.local, &deltas);
                 return RayQueryScene::with_groups(&self.ctx, &groups, masks.as_ref(), &placements);
             }
             let masks = crate::scene::bvh::mask::caster_masks(&self.local);
@@ -697,88 +710,6 @@ pub struct MotionUpdate {
     pub refits: u32,
     pub rebuilds: u32,
     pub sah_ratio: f32,
-}
-
-/// A moving scene's casters on the CPU: two levels, and which group each mesh's triangles went to.
-struct Motion {
-    levels: crate::scene::bvh::levels::TwoLevel,
-    /// Per mesh of the local scene: the bottom tree its triangles are in (0: the static casters),
-    /// `None` for a mesh that casts no shadow.
-    groups: Vec<Option<usize>>,
-    posed_at: Option<f64>,
-    /// Where each bottom tree goes, posed but not yet built into the top level.
-    unplaced: Option<Vec<crate::scene::bvh::levels::Placement>>,
-    /// Deformed meshes' triangles (local frame, the group's order) per bottom tree, posed but not
-    /// yet refit into it.
-    undeformed: Option<Vec<(usize, Vec<[glam::Vec3; 3]>)>>,
-}
-
-impl Motion {
-    /// The casters of `local` in two levels: the static ones in bottom tree 0, each group of
-    /// meshes that move together (the same animated node and rest pose) in a tree of its own,
-    /// in their rest pose, each deforming mesh in a tree of its own (refit as it deforms); all
-    /// placed at rest.
-    fn build_levels(local: &Scene) -> (crate::scene::bvh::levels::TwoLevel, Vec<Option<usize>>) {
-        use crate::scene::bvh::levels::{Placement, TwoLevel};
-        let mut keys: Vec<Option<(usize, [u64; 16])>> = vec![None];
-        let mut groups = Vec::with_capacity(local.meshes.len());
-        let mut triangles: Vec<Vec<[glam::Vec3; 3]>> = vec![Vec::new()];
-        // Each caster triangle's index in `caster_triangles`' order, grouped: the masks follow.
-        let mut order: Vec<Vec<usize>> = vec![Vec::new()];
-        let mut caster_index = 0usize;
-        for mesh in &local.meshes {
-            if !mesh.cast_shadows {
-                groups.push(None);
-                continue;
-            }
-            // A deforming mesh's key is its own (no node is numbered that high).
-            let key = match &mesh.deform {
-                Some(_) => Some((usize::MAX - groups.len(), [0; 16])),
-                None => mesh.motion.as_ref().map(|m| (m.node, m.rest.to_cols_array().map(f64::to_bits))),
-            };
-            let group = match keys.iter().position(|k| *k == key) {
-                Some(g) => g,
-                None => {
-                    keys.push(key);
-                    triangles.push(Vec::new());
-                    order.push(Vec::new());
-                    keys.len() - 1
-                }
-            };
-            groups.push(Some(group));
-            for tri in crate::scene::bvh::mesh_caster_triangles(mesh) {
-                triangles[group].push(tri);
-                order[group].push(caster_index);
-                caster_index += 1;
-            }
-        }
-        let masks = crate::scene::bvh::mask::caster_masks(local).map(|source| crate::scene::bvh::mask::MaskSource {
-            triangles: order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()).collect(),
-            materials: source.materials,
-        });
-        let placements: Vec<Placement> =
-            (0..triangles.len()).map(|bottom| Placement { bottom, to_world: glam::Affine3A::IDENTITY }).collect();
-        let deforming: Vec<bool> = keys.iter().map(|k| k.is_some_and(|(node, _)| node > usize::MAX / 2)).collect();
-        (TwoLevel::build(triangles, masks.as_ref(), &placements, &deforming), groups)
-    }
-
-    /// Each bottom tree's placement for the per-mesh `deltas` (local frame; `None`: at rest).
-    fn placements(&self, deltas: &[Option<glam::DMat4>]) -> Vec<crate::scene::bvh::levels::Placement> {
-        let bottoms = self.levels.bottoms().len();
-        let mut to_world = vec![glam::Affine3A::IDENTITY; bottoms];
-        for (mesh, group) in self.groups.iter().enumerate() {
-            if let (Some(g), Some(Some(d))) = (group, deltas.get(mesh)) {
-                if *g > 0 {
-                    to_world[*g] = glam::Affine3A::from_mat4(d.as_mat4());
-                }
-            }
-        }
-        to_world
-            .into_iter()
-            .enumerate()
-            .map(|(bottom, to_world)| crate::scene::bvh::levels::Placement { bottom, to_world })
-            .collect()
-    }
 }
 
 /// Hands the memory the BVH build's threads freed back to the system. glibc's malloc gives each

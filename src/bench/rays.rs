@@ -141,6 +141,12 @@ pub fn run(options: &Options) -> Result<Outcome> {
     let (width, height) = options.size.or(scene.image_size).unwrap_or((320, 240));
     let Some(light) = local.lights.first() else { bail!("{name}: no light to cast shadow rays toward") };
 
+    if local.has_kept_instances() {
+        bail!(
+            "{name}: keeps instances without world-space copies; bench rays times single-level tracers over \
+             world-space triangles (`[render] instances = \"copy\"` makes copies)"
+        );
+    }
     let tris = caster_triangles(&local);
     if tris.is_empty() {
         bail!("{name}: no shadow-casting triangles to trace");

@@ -150,11 +150,23 @@ pub fn cache_key(scene: &Scene, width: u32, height: u32, device: &str) -> Result
     for rect in &scene.rect_lights {
         field("rect light", format!("{rect:?}").as_bytes());
     }
+    let mut geometries: Vec<*const crate::scene::InstanceGeometry> = Vec::new();
     for mesh in &scene.meshes {
         field("mesh", &[u8::from(mesh.cast_shadows)]);
         field("positions", bytemuck::cast_slice(&mesh.positions));
         field("normals", bytemuck::cast_slice(&mesh.normals));
         field("indices", bytemuck::cast_slice(&mesh.indices));
+        // A kept instance: where it stands, and its geometry's triangles the first time.
+        if let Some(instance) = mesh.kept() {
+            field("instance", bytemuck::cast_slice(&instance.to_world.to_cols_array()));
+            let g = &instance.geometry;
+            if !geometries.contains(&std::sync::Arc::as_ptr(g)) {
+                geometries.push(std::sync::Arc::as_ptr(g));
+                field("geometry positions", bytemuck::cast_slice(&g.positions));
+                field("geometry normals", bytemuck::cast_slice(&g.normals));
+                field("geometry indices", bytemuck::cast_slice(&g.indices));
+            }
+        }
     }
     Ok(h.finalize().iter().map(|b| format!("{b:02x}")).collect())
 }

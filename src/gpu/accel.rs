@@ -96,6 +96,8 @@ pub struct RayQueryScene {
     /// where its bottom level's start); `None` without masked casters.
     masks: Option<crate::vk::TexelBuffer>,
     top_scratch: u64,
+    /// The top level's instances: one per placement of a bottom level.
+    instance_count: usize,
     scratch_alignment: u64,
     built: AtomicBool,
     /// A moving scene's groups and the writes its next frame makes; `None` for a static scene.
@@ -292,12 +294,13 @@ impl RayQueryScene {
             None => None,
         };
         let mask_bases: Vec<u32> = kept.iter().map(|k| k.2).collect();
-        let identity = [Placement { bottom: 0, to_world: glam::Affine3A::IDENTITY }];
-        let instances = instance_records(&bottoms, &kept, placements.unwrap_or(&identity), &mask_bases);
-        let [instances] = crate::gpu::upload(ctx, [("TLAS instances", &instance_bytes(&instances), input)])?;
+        let identity: Vec<Placement> =
+            (0..groups.len()).map(|bottom| Placement { bottom, to_world: glam::Affine3A::IDENTITY }).collect();
+        let records = instance_records(&bottoms, &kept, placements.unwrap_or(&identity), &mask_bases);
+        let [instances] = crate::gpu::upload(ctx, [("TLAS instances", &instance_bytes(&records), input)])?;
         let top_geometry = [top_geometry(instances.device_address())];
         let top_flags = vk::BuildAccelerationStructureFlagsKHR::PREFER_FAST_TRACE;
-        let count = [bottoms.len() as u32];
+        let count = [records.len() as u32];
         let top_sizes =
             build_sizes(&loader, vk::AccelerationStructureTypeKHR::TOP_LEVEL, top_flags, &top_geometry, &count);
         let top = Structure::new(
@@ -317,7 +320,7 @@ impl RayQueryScene {
             bottoms.iter().map(|b| b.structure.buffer.size).sum::<u64>(),
             flat.len() / 3,
             top_sizes.acceleration_structure_size,
-            bottoms.len(),
+            records.len(),
             bottoms.iter().map(|b| b.build_scratch).sum::<u64>().max(top_sizes.build_scratch_size)
         );
         let firsts: Vec<(bool, u64)> = bottoms.iter().map(|b| (b.deforms, b.first * 36)).collect();
@@ -329,6 +332,7 @@ impl RayQueryScene {
             instances,
             masks,
             top_scratch: top_sizes.build_scratch_size,
+            instance_count: records.len(),
             scratch_alignment: u64::from(accel_props.min_acceleration_structure_scratch_offset_alignment).max(1),
             built: AtomicBool::new(false),
             motion,
@@ -449,7 +453,7 @@ impl RayQueryScene {
         let scratch_ref = pass.write(&mut scratch, Access::AccelerationStructureBuildScratch);
         let _ = pass.write(&mut top, Access::AccelerationStructureBuildWrite);
         let loader = self.top.loader.clone();
-        let (instances_address, dst, count) = (self.instances.device_address(), self.top.raw, self.bottoms.len());
+        let (instances_address, dst, count) = (self.instances.device_address(), self.top.raw, self.instance_count);
         pass.render(move |pctx| {
             let scratch = align_up(buffer_address(pctx.device, pctx.buffer(scratch_ref)), align);
             let geometry = [top_geometry(instances_address)];
@@ -552,24 +556,24 @@ fn bottom_flags(deforms: bool) -> vk::BuildAccelerationStructureFlagsKHR {
     }
 }
 
-/// An instance per bottom level (`kept`: its group, build order and first mask), placed where
-/// its group's placement says (the identity where none does), its custom index where its
-/// masked triangles' alpha masks start (the shaders add the primitive index to it).
+/// An instance per placement (of a group with a bottom level: `kept` holds each bottom level's
+/// group, build order and first mask), its custom index where its bottom level's masked
+/// triangles' alpha masks start (the shaders add the primitive index to it). A group may be
+/// placed many times (a kept instance's geometry: `scene::Mesh::kept`).
 fn instance_records(
     bottoms: &[Bottom],
     kept: &[(usize, Vec<u32>, u32)],
     placements: &[Placement],
     mask_bases: &[u32],
 ) -> Vec<vk::AccelerationStructureInstanceKHR> {
-    let placement = |group: usize| {
-        placements.get(group).filter(|p| p.bottom == group).or_else(|| placements.iter().find(|p| p.bottom == group))
-    };
-    bottoms
+    let mut bottom_of = vec![None; kept.iter().map(|k| k.0 + 1).max().unwrap_or(0)];
+    for (b, (group, _, _)) in kept.iter().enumerate() {
+        bottom_of[*group] = Some(b);
+    }
+    placements
         .iter()
-        .zip(kept)
-        .zip(mask_bases)
-        .map(|((bottom, (group, _, _)), &mask_base)| {
-            let m = placement(*group).map_or(glam::Affine3A::IDENTITY, |p| p.to_world);
+        .filter_map(|p| bottom_of.get(p.bottom).copied().flatten().map(|b| (&bottoms[b], mask_bases[b], p.to_world)))
+        .map(|(bottom, mask_base, m)| {
             let (x, y, z, t) = (m.matrix3.x_axis, m.matrix3.y_axis, m.matrix3.z_axis, m.translation);
             // Row-major 3x4: each row is one coordinate of the three axes and the translation.
             let matrix = [x.x, y.x, z.x, t.x, x.y, y.y, z.y, t.y, x.z, y.z, z.z, t.z];

@@ -205,11 +205,17 @@ pub fn posed_triangles(
 pub fn caster_groups(
     levels: &TwoLevel,
     groups: &[Option<usize>],
+    kept: &[Arc<crate::scene::InstanceGeometry>],
     local: &Scene,
     time: Option<f64>,
 ) -> (Vec<CasterGroup>, Option<MaskSource>) {
     let count = levels.bottoms().len();
     let mut triangles: Vec<Vec<[Vec3; 3]>> = vec![Vec::new(); count];
+    // Kept instances' geometries are the last bottom levels, each once (never masked).
+    let first_kept = count - kept.len();
+    for (k, geometry) in kept.iter().enumerate() {
+        triangles[first_kept + k] = geometry.caster_triangles();
+    }
     let mut deforms = vec![false; count];
     // Each group's triangles' indices among all casters (`caster_masks`' order).
     let mut order: Vec<Vec<usize>> = vec![Vec::new(); count];
@@ -227,8 +233,11 @@ pub fn caster_groups(
     for (g, posed) in posed_triangles(groups, local, &posed) {
         triangles[g] = posed;
     }
+    let kept_triangles: usize = triangles[first_kept..].iter().map(Vec::len).sum();
     let masks = crate::scene::bvh::mask::caster_masks(local).map(|source| MaskSource {
-        triangles: order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()).collect(),
+        triangles: (order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()))
+            .chain(std::iter::repeat_n(None, kept_triangles))
+            .collect(),
         materials: source.materials,
     });
     let groups = triangles

@@ -262,7 +262,10 @@ impl Packing {
         Packing {
             instances: vec![InstanceRows::IDENTITY],
             textured: scene.meshes.iter().any(|m| m.surface.is_some()),
-            two_sets: scene.meshes.iter().any(|m| m.surface.as_ref().is_some_and(|s| !s.uvs_1.is_empty())),
+            two_sets: scene.meshes.iter().any(|m| {
+                let shared = m.instance.as_ref().is_some_and(|i| !i.geometry.uvs_1.is_empty());
+                m.surface.as_ref().is_some_and(|s| !s.uvs_1.is_empty() || shared)
+            }),
             lo: Vec3::splat(f32::INFINITY),
             hi: Vec3::splat(f32::NEG_INFINITY),
             ..Packing::default()
@@ -280,6 +283,14 @@ impl Packing {
         for p in &positions {
             self.lo = self.lo.min(*p);
             self.hi = self.hi.max(*p);
+        }
+        // A kept instance (no world-space copy) by its geometry's box moved.
+        if let Some((lo, hi)) = mesh.world_bounds().filter(|_| mesh.kept().is_some()) {
+            let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
+            bounds.include(lo);
+            bounds.include(hi);
+            self.lo = self.lo.min(lo);
+            self.hi = self.hi.max(hi);
         }
         let (first_index, index_count, vertex_offset, instance, flat) = match &mesh.instance {
             Some(instance) => {
@@ -473,7 +484,7 @@ impl SceneGpu {
         origin: DVec3,
     ) -> GpuResult<SceneGpu> {
         let mut packing = Packing::new(scene);
-        for (index, mesh) in scene.meshes.iter().enumerate().filter(|(_, m)| !m.indices.is_empty()) {
+        for (index, mesh) in scene.meshes.iter().enumerate().filter(|(_, m)| m.triangle_count() > 0) {
             packing.add(index, mesh, moving.get(index).copied().unwrap_or(false));
         }
         let (lo, hi) = if packing.draws.is_empty() { (Vec3::ZERO, Vec3::ZERO) } else { (packing.lo, packing.hi) };

@@ -9,7 +9,7 @@ use glam::{DMat4, DVec3, Vec3};
 use super::error::{short_number, shorten, SceneError, MAX_MESSAGE_CHARS};
 use super::mesh::{self, ObjectMesh};
 use super::values::Xyz;
-use super::{gltf, obj, shapes, Camera, LoadStats, Material, Scene};
+use super::{gltf, obj, shapes, Camera, Instancing, LoadStats, Material, Scene, KEEP_INSTANCES_ABOVE};
 
 mod camera;
 mod desc;
@@ -134,6 +134,7 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
         let path = format!("objects[{i}]");
         check.object(&path, object, base_dir).map(|placed| (path, Some(object), placed))
     });
+    let instancing = file.render.as_ref().and_then(|r| r.instances).unwrap_or_default();
     let mut triangles = 0u64;
     for next in whole_object.into_iter().map(Ok).chain(objects) {
         let (path, object, mut placed) = next?;
@@ -158,15 +159,38 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
             }
             (base, moves, instance_nodes)
         });
+        // Meshes that several instances draw are uploaded once; whether each instance is also
+        // copied into world space is `[render] instances` (see `keeps_instances`).
+        let shared = mesh::shared_geometry(&placed.meshes, &placed.instances);
+        let keepable = |i: usize, k: usize, to: &DMat4| {
+            shared[k].is_some()
+                && (placed.transform * *to).determinant() > 0.0
+                && placed.deforms.get(i).and_then(Option::as_ref).is_none()
+                && !mesh::alpha_masked(&placed.meshes[k])
+        };
+        let instance_triangles = |k: usize| placed.meshes[k].indices.len() as u64 / 3;
+        let keepable_copies: u64 = (placed.instances.iter().enumerate())
+            .filter(|(i, (k, to))| keepable(*i, *k, to))
+            .map(|(_, (k, _))| instance_triangles(*k))
+            .sum();
+        let keep = keeps_instances(instancing, keepable_copies);
         // Counted before the instances are flattened into world-space copies: a few kilobytes
-        // of glTF nodes can instance one mesh into more triangles than memory holds.
-        let object_triangles: u64 =
-            placed.instances.iter().map(|(k, _)| placed.meshes[*k].indices.len() as u64 / 3).sum();
+        // of glTF nodes can instance one mesh into more triangles than memory holds. A kept
+        // instance's triangles count once per mesh.
+        let mut counted = vec![false; placed.meshes.len()];
+        let mut object_triangles = 0u64;
+        for (i, (k, to)) in placed.instances.iter().enumerate() {
+            let once = keep && keepable(i, *k, to);
+            if !once || !std::mem::replace(&mut counted[*k], true) {
+                object_triangles += instance_triangles(*k);
+            }
+        }
         triangles += object_triangles;
         if triangles > MAX_SCENE_TRIANGLES {
             let message = format!(
                 "{} ({} instances of {} meshes: {object_triangles} triangles) takes the scene to {triangles} triangles, \
-                 past the {MAX_SCENE_TRIANGLES} one scene may hold (each instance is a copy in the shadow BVH)",
+                 past the {MAX_SCENE_TRIANGLES} one scene may hold (each instance is a copy in the shadow BVH \
+                 unless `[render] instances = \"keep\"`)",
                 shorten(&placed.source, MAX_MESSAGE_CHARS),
                 placed.instances.len(),
                 placed.meshes.len(),
@@ -177,11 +201,13 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
         let mut dropped = LoadStats::default();
         let meshes_before = meshes.len();
         let cast_shadows = object.and_then(|o| o.cast_shadows).unwrap_or(true);
-        let shared = mesh::shared_geometry(&placed.meshes, &placed.instances);
         for (i, (k, instance)) in placed.instances.iter().enumerate() {
             let local = &placed.meshes[*k];
             let material = placed.material.apply(local.material.unwrap_or_default());
             let to_world = placed.transform * *instance;
+            let kept = (keep && keepable(i, *k, instance))
+                .then(|| shared[*k].as_ref().map(|g| mesh::kept(&path, local, g, to_world, material, cast_shadows)))
+                .flatten();
             let deforming = placed.deforms.get(i).and_then(Option::as_ref).zip(file_rig.as_ref());
             if let Some((deform, (base, _, _))) = deforming {
                 let m = motion::place_deforming(
@@ -197,8 +223,11 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
                 meshes.extend(m);
                 continue;
             }
-            let mut placed_mesh = mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped);
-            if let (Some(m), Some(geometry)) = (&mut placed_mesh, &shared[*k]) {
+            let mut placed_mesh = match kept {
+                Some(kept) => Some(kept),
+                None => mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped),
+            };
+            if let (Some(m), Some(geometry)) = (placed_mesh.as_mut().filter(|m| m.kept().is_none()), &shared[*k]) {
                 // A mirroring instance would need the other winding: it stays a copy.
                 if to_world.determinant() > 0.0 {
                     m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
@@ -294,6 +323,17 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
     }
     scene.settle_deformed();
     Ok((scene, has_camera))
+}
+
+/// Whether an object's meshes drawn by several instances are kept as instances alone (no
+/// world-space copies; `Mesh::kept`) under `instancing`, where copying them would make
+/// `copies` triangles: `auto` keeps them past `KEEP_INSTANCES_ABOVE`.
+fn keeps_instances(instancing: Instancing, copies: u64) -> bool {
+    match instancing {
+        Instancing::Copy => false,
+        Instancing::Keep => copies > 0,
+        Instancing::Auto => copies > KEEP_INSTANCES_ABOVE,
+    }
 }
 
 /// An object ready to place: its meshes in object space, transform and material overrides.

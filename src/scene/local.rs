@@ -33,7 +33,12 @@ impl Scene {
         let within = |p: &DVec3| (*p - eye).abs().max_element() <= MAX_LOCAL_DISTANCE;
         let mut kept = self.clone();
         kept.meshes.retain(|mesh| {
-            let Some(far) = mesh.positions.iter().find(|p| !within(p)) else { return true };
+            // A kept instance by its bounds' corners (they hold its vertices).
+            let corners = match mesh.world_bounds().filter(|_| mesh.kept().is_some()) {
+                Some((lo, hi)) => vec![lo, hi],
+                None => Vec::new(),
+            };
+            let Some(far) = mesh.positions.iter().chain(&corners).find(|p| !within(p)) else { return true };
             log::warn!(
                 "{} ({}): a vertex lies {} m from the camera, beyond the {} m single precision can \
                  hold in the renderer's frame; the mesh is left out",
@@ -67,7 +72,7 @@ pub(super) fn too_far_to_render(light: &Light, eye: DVec3) -> Option<String> {
 pub const NEAR_EXTENT: f64 = 1000.0;
 
 /// Centre of the bounds of the mesh vertices within `NEAR_EXTENT` of `eye`, in world space;
-/// `None` when there are none.
+/// `None` when there are none. A kept instance counts by its bounds, clipped to that reach.
 fn geometry_centre(scene: &Scene, eye: DVec3) -> Option<DVec3> {
     let mut lo = DVec3::splat(f64::INFINITY);
     let mut hi = DVec3::splat(f64::NEG_INFINITY);
@@ -75,6 +80,14 @@ fn geometry_centre(scene: &Scene, eye: DVec3) -> Option<DVec3> {
     for p in scene.meshes.iter().flat_map(|m| &m.positions).filter(near) {
         lo = lo.min(*p);
         hi = hi.max(*p);
+    }
+    let reach = (eye - DVec3::splat(NEAR_EXTENT), eye + DVec3::splat(NEAR_EXTENT));
+    for (l, h) in scene.meshes.iter().filter(|m| m.kept().is_some()).filter_map(|m| m.world_bounds()) {
+        let (l, h) = (l.max(reach.0), h.min(reach.1));
+        if l.cmple(h).all() {
+            lo = lo.min(l);
+            hi = hi.max(h);
+        }
     }
     lo.x.is_finite().then(|| (lo + hi) * 0.5)
 }

@@ -222,6 +222,45 @@ fn place_surface(surface: &ObjectSurface, sources: &[usize], to_world: &DMat4, m
     Some(MeshSurface { uvs, uvs_1, tangents, textures })
 }
 
+/// `mesh` drawn at `to_world` as an instance of its shared `geometry` (`shared_geometry`'s),
+/// kept without a world-space copy (`Mesh::kept`): what a placed copy would be less its
+/// positions, normals, indices and per-vertex surface data, which the geometry holds.
+pub(super) fn kept(
+    object: &str,
+    mesh: &ObjectMesh,
+    geometry: &Arc<InstanceGeometry>,
+    to_world: DMat4,
+    material: Material,
+    cast_shadows: bool,
+) -> Mesh {
+    let textures = mesh.surface.textures.clone().filter(|_| !geometry.uvs.is_empty());
+    Mesh {
+        motion: None,
+        deform: None,
+        name: mesh.name.clone(),
+        object: object.to_owned(),
+        positions: Vec::new(),
+        normals: Vec::new(),
+        indices: Vec::new(),
+        material,
+        cast_shadows,
+        instance: Some(super::Instance { geometry: geometry.clone(), to_world }),
+        surface: textures.map(|textures| MeshSurface {
+            uvs: Vec::new(),
+            uvs_1: Vec::new(),
+            tangents: Vec::new(),
+            textures,
+        }),
+        double_sided: mesh.double_sided,
+    }
+}
+
+/// Whether `mesh`'s material masks its shadows by its alpha (`AlphaMask`): such a mesh is
+/// copied, not kept, as the shadow BVH's masks are per world-space triangle.
+pub(super) fn alpha_masked(mesh: &ObjectMesh) -> bool {
+    mesh.surface.textures.as_ref().is_some_and(|t| t.alpha_mask.is_some())
+}
+
 /// The geometry of each mesh that more than one instance draws, placed at the identity once
 /// (`None` for a mesh drawn once, or with no usable triangle).
 pub(super) fn shared_geometry(
@@ -243,8 +282,12 @@ pub(super) fn shared_geometry(
             let placed = place("", mesh, &DMat4::IDENTITY, Material::default(), true, &mut stats)?;
             let (uvs, uvs_1, tangents) =
                 placed.surface.map_or((Vec::new(), Vec::new(), Vec::new()), |s| (s.uvs, s.uvs_1, s.tangents));
+            let positions: Vec<Vec3> = placed.positions.iter().map(|p| p.as_vec3()).collect();
+            let finite = positions.iter().filter(|p| p.is_finite());
+            let bounds = finite.fold([Vec3::INFINITY, Vec3::NEG_INFINITY], |[lo, hi], p| [lo.min(*p), hi.max(*p)]);
             Some(Arc::new(InstanceGeometry {
-                positions: placed.positions.iter().map(|p| p.as_vec3()).collect(),
+                positions,
+                bounds,
                 normals: placed.normals,
                 indices: placed.indices,
                 uvs,

@@ -72,8 +72,11 @@ pub struct Mesh {
     pub material: Material,
     pub cast_shadows: bool,
     /// Set when several nodes of a glTF file draw this mesh: the renderer uploads the shared
-    /// geometry once and draws it per instance. Everything else (the BVH, shadow volumes, ray
-    /// query) uses the world-space copy above.
+    /// geometry once and draws it per instance. Where the loader made a world-space copy too
+    /// (`positions` not empty), the single-level BVH, shadow volumes and ray query use it;
+    /// where it kept the instance alone (`Mesh::kept`: `[render] instances`), `positions`,
+    /// `normals` and `indices` are empty and the casters go into two levels, the geometry's
+    /// tree built once.
     pub instance: Option<Instance>,
     /// Texture coordinates, tangents and textures, for a mesh whose material has textures.
     pub surface: Option<MeshSurface>,
@@ -101,6 +104,26 @@ pub struct MeshSurface {
     pub textures: Arc<MaterialTextures>,
 }
 
+/// `[render] instances`: whether a mesh that several glTF nodes draw is, beside its one
+/// geometry on the device, also copied into world space per node. Copies trace faster (one
+/// level of BVH: two cost 1.3-1.5x on `umbra bench rays`) and serve shadow volumes; kept
+/// instances cost their geometry once whatever their count (a forest of 10,000 trees).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Instancing {
+    /// Copies, unless an object's copies would pass `KEEP_INSTANCES_ABOVE` triangles.
+    #[default]
+    Auto,
+    Copy,
+    Keep,
+}
+
+/// `Instancing::Auto` keeps an object's instances once copying them would make more triangles
+/// than this: the copies would then take some 260 MB of the device's buffers (about 66 B a
+/// triangle on lavapipe) and 1.2 GB at the BVH build's peak (300 B a triangle), which one
+/// geometry under a two-level walk saves.
+pub const KEEP_INSTANCES_ABOVE: u64 = 4_000_000;
+
 /// One use of geometry that several meshes share: the geometry in its own space, and where
 /// this use puts it (object to world, not mirroring).
 #[derive(Clone, Debug)]
@@ -121,11 +144,59 @@ pub struct InstanceGeometry {
     pub uvs: Vec<glam::Vec2>,
     pub uvs_1: Vec<glam::Vec2>,
     pub tangents: Vec<glam::Vec4>,
+    /// The bounds of its finite positions (`[lo, hi]`; inverted where there are none).
+    pub bounds: [Vec3; 2],
+}
+
+impl InstanceGeometry {
+    /// Its triangles in its own space, as `bvh::mesh_caster_triangles` lists a mesh's (those
+    /// with a non-finite corner left out).
+    pub fn caster_triangles(&self) -> Vec<[Vec3; 3]> {
+        let tris = self.indices.chunks_exact(3).map(|k| [0, 1, 2].map(|c| self.positions[k[c] as usize]));
+        tris.filter(|tri| tri.iter().all(|v| v.is_finite())).collect()
+    }
+
+    /// Its bounds moved by `to_world`: the box around the moved corners of `bounds`, which
+    /// holds every moved vertex (`None` without a finite vertex).
+    pub fn world_bounds(&self, to_world: &DMat4) -> Option<(DVec3, DVec3)> {
+        let [lo, hi] = self.bounds.map(Vec3::as_dvec3);
+        if !lo.cmple(hi).all() {
+            return None;
+        }
+        let corner = |k: usize| {
+            let pick = |bit: usize, a: f64, b: f64| if k & bit == 0 { a } else { b };
+            to_world.transform_point3(DVec3::new(pick(1, lo.x, hi.x), pick(2, lo.y, hi.y), pick(4, lo.z, hi.z)))
+        };
+        let (lo, hi) =
+            (0..8).map(corner).fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
+        Some((lo, hi))
+    }
 }
 
 impl Mesh {
+    /// Its triangles: a kept instance's are its geometry's.
     pub fn triangle_count(&self) -> usize {
-        self.indices.len() / 3
+        match self.kept() {
+            Some(instance) => instance.geometry.indices.len() / 3,
+            None => self.indices.len() / 3,
+        }
+    }
+
+    /// The instance this mesh is when the loader kept it without a world-space copy (its
+    /// `positions`, `normals` and `indices` empty; see `instance`).
+    pub fn kept(&self) -> Option<&Instance> {
+        self.instance.as_ref().filter(|_| self.positions.is_empty())
+    }
+
+    /// The bounds of its finite world-space vertices (a kept instance's: its geometry's box
+    /// moved, which holds them); `None` without one.
+    pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
+        if let Some(instance) = self.kept() {
+            return instance.geometry.world_bounds(&instance.to_world);
+        }
+        let finite = self.positions.iter().filter(|p| p.is_finite());
+        let (lo, hi) = finite.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));
+        lo.cmple(hi).all().then_some((lo, hi))
     }
 
     /// Holds `posed` (its deformation's pose): positions, normals, and tangents where it has them.
@@ -182,8 +253,26 @@ pub fn read_input_file(path: &Path) -> Result<Vec<u8>, String> {
 const DEFAULT_SCENE: &str = include_str!("../../assets/default.toml");
 
 impl Scene {
+    /// Triangles drawn: a kept instance's count once per instance.
     pub fn triangle_count(&self) -> usize {
         self.meshes.iter().map(Mesh::triangle_count).sum()
+    }
+
+    /// The geometries of the kept instances that cast shadows, each once, in the order their
+    /// first instance comes: the shadow BVH's bottom trees after the groups'.
+    pub fn kept_geometries(&self) -> Vec<Arc<InstanceGeometry>> {
+        let mut geometries: Vec<Arc<InstanceGeometry>> = Vec::new();
+        for instance in self.meshes.iter().filter(|m| m.cast_shadows).filter_map(Mesh::kept) {
+            if !geometries.iter().any(|g| Arc::ptr_eq(g, &instance.geometry)) {
+                geometries.push(instance.geometry.clone());
+            }
+        }
+        geometries
+    }
+
+    /// Whether some mesh is a kept instance (`Mesh::kept`): its casters then go into two levels.
+    pub fn has_kept_instances(&self) -> bool {
+        self.meshes.iter().any(|m| m.kept().is_some())
     }
 
     /// Reads a scene file; mesh paths in it are relative to its directory.

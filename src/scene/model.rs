@@ -98,9 +98,7 @@ pub fn open(path: &Path, options: &ModelOptions) -> Result<Scene, SceneError> {
 
 /// The world-space bounds of `meshes`' vertices; `None` without any.
 fn bounds(meshes: &[Mesh]) -> Option<(DVec3, DVec3)> {
-    let mut points = meshes.iter().flat_map(|m| m.positions.iter().copied()).filter(|p| p.is_finite());
-    let first = points.next()?;
-    Some(points.fold((first, first), |(lo, hi), p| (lo.min(p), hi.max(p))))
+    meshes.iter().filter_map(Mesh::world_bounds).reduce(|(lo, hi), (l, h)| (lo.min(l), hi.max(h)))
 }
 
 /// A camera that frames the box `lo`..`hi`: looking at its centre from the front-right and

@@ -177,6 +177,20 @@ impl Surfaces {
                     flat,
                 });
             }
+            // A kept instance (no world-space copy): its geometry moved here, in f64 as the
+            // loader moves a copy, normals by the inverse-transpose.
+            if let Some(instance) = mesh.kept() {
+                let (g, m) = (&instance.geometry, instance.to_world);
+                let normals = glam::DMat3::from_mat4(m).inverse().transpose();
+                for t in g.indices.chunks_exact(3) {
+                    let at = |k: usize| t[k] as usize;
+                    triangles.push(SurfaceTriangle {
+                        corner: [0, 1, 2].map(|k| m.transform_point3(g.positions[at(k)].as_dvec3()).as_vec3()),
+                        normal: [0, 1, 2].map(|k| (normals * g.normals[at(k)].as_dvec3()).as_vec3().normalize()),
+                        flat,
+                    });
+                }
+            }
         }
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for t in &triangles {

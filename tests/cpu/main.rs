@@ -14,6 +14,7 @@ mod bench_metrics;
 mod bvh_cpu;
 mod cap_cubature;
 mod file_references;
+mod forest_asset;
 mod gltf_checks;
 mod graph_layers;
 mod graph_plan;

@@ -10,6 +10,8 @@ use std::path::Path;
 
 use serde_json::{json, Value};
 
+pub mod forest;
+
 #[derive(Default)]
 pub struct Gltf {
     pub bin: Vec<u8>,

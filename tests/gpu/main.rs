@@ -31,6 +31,7 @@ mod evsm;
 mod far_from_origin;
 mod gltf_scenes;
 mod hybrid;
+mod instancing;
 mod large_scene;
 mod light_sampling_gpu;
 mod lighting_with_textures;

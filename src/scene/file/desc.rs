@@ -80,6 +80,7 @@ pub(super) enum CameraPathDesc {
 #[serde(deny_unknown_fields)]
 pub(super) struct RenderDesc {
     pub(super) shadow_backend: Option<ShadowBackend>,
+    pub(super) instances: Option<crate::scene::Instancing>,
 }
 
 #[derive(Deserialize)]

@@ -131,6 +131,14 @@ impl VolumeScene {
                 mesh.object, mesh.name
             ));
         }
+        let kept = local.meshes.iter().filter(|m| m.cast_shadows && m.kept().is_some());
+        if let Some((count, mesh)) = kept.clone().next().map(|m| (kept.count(), m)) {
+            return refuse(format!(
+                "{} ({}) is one of {count} instances kept without world-space copies, and `volumes` extrudes \
+                 world-space casters (`[render] instances = \"copy\"` in the scene makes copies)",
+                mesh.object, mesh.name
+            ));
+        }
         if depth_stencil_format(ctx).is_none() {
             return refuse(
                 "`volumes` needs a depth-stencil format (D32S8 or D24S8) this device can attach and sample".into(),

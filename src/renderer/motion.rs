@@ -1,0 +1,134 @@
+//! The casters of a scene whose shadow BVH has two levels, on the CPU: a scene where something
+//! moves, or that keeps instances without world-space copies (`scene::Mesh::kept`). Bottom
+//! trees: the static casters (tree 0), each group of meshes that move together, each deforming
+//! mesh, then each kept instance's geometry once; the top tree places the groups (one placement
+//! each) and every kept instance (one placement per instance of its geometry's tree).
+
+use std::sync::Arc;
+
+use glam::{Affine3A, DMat4, Vec3};
+
+use crate::scene::bvh::levels::{Placement, TwoLevel};
+use crate::scene::bvh::mask::{caster_masks, MaskSource};
+use crate::scene::Scene;
+
+pub(super) struct Motion {
+    pub(super) levels: TwoLevel,
+    /// Per mesh of the local scene: the bottom tree its triangles are in (0: the static
+    /// casters; a kept instance's geometry's tree), `None` for a mesh that casts no shadow.
+    pub(super) groups: Vec<Option<usize>>,
+    /// The bottom trees of groups of meshes (the rest are kept instances' geometries).
+    pub(super) group_count: usize,
+    /// The kept instances that cast shadows: each one's mesh, in mesh order (placements
+    /// `group_count..` in that order).
+    pub(super) kept: Vec<usize>,
+    pub(super) posed_at: Option<f64>,
+    /// Where each bottom tree goes, posed but not yet built into the top level.
+    pub(super) unplaced: Option<Vec<Placement>>,
+    /// Deformed meshes' triangles (local frame, the group's order) per bottom tree, posed but not
+    /// yet refit into it.
+    pub(super) undeformed: Option<Vec<(usize, Vec<[Vec3; 3]>)>>,
+}
+
+impl Motion {
+    /// The casters of `local` in two levels (see the module docs), all at rest: the groups at
+    /// the identity, each kept instance where it stands.
+    pub(super) fn build(local: &Scene) -> Motion {
+        let mut keys: Vec<Option<(usize, [u64; 16])>> = vec![None];
+        let mut groups = Vec::with_capacity(local.meshes.len());
+        let mut triangles: Vec<Vec<[Vec3; 3]>> = vec![Vec::new()];
+        // Each caster triangle's index in `caster_triangles`' order, grouped: the masks follow.
+        let mut order: Vec<Vec<usize>> = vec![Vec::new()];
+        let mut caster_index = 0usize;
+        let geometries = local.kept_geometries();
+        let mut kept = Vec::new();
+        for (k, mesh) in local.meshes.iter().enumerate() {
+            if !mesh.cast_shadows {
+                groups.push(None);
+                continue;
+            }
+            if let Some(instance) = mesh.kept() {
+                kept.push(k);
+                groups.push(geometries.iter().position(|g| Arc::ptr_eq(g, &instance.geometry)));
+                continue;
+            }
+            // A deforming mesh's key is its own (no node is numbered that high).
+            let key = match &mesh.deform {
+                Some(_) => Some((usize::MAX - groups.len(), [0; 16])),
+                None => mesh.motion.as_ref().map(|m| (m.node, m.rest.to_cols_array().map(f64::to_bits))),
+            };
+            let group = match keys.iter().position(|k| *k == key) {
+                Some(g) => g,
+                None => {
+                    keys.push(key);
+                    triangles.push(Vec::new());
+                    order.push(Vec::new());
+                    keys.len() - 1
+                }
+            };
+            groups.push(Some(group));
+            for tri in crate::scene::bvh::mesh_caster_triangles(mesh) {
+                triangles[group].push(tri);
+                order[group].push(caster_index);
+                caster_index += 1;
+            }
+        }
+        let group_count = triangles.len();
+        for group in groups.iter_mut().zip(&local.meshes).filter(|(_, m)| m.kept().is_some()).map(|(g, _)| g) {
+            *group = group.map(|g| group_count + g);
+        }
+        // Kept instances are never alpha-masked (the loader copies those).
+        let kept_triangles: Vec<Vec<[Vec3; 3]>> = geometries.iter().map(|g| g.caster_triangles()).collect();
+        let masks = caster_masks(local).map(|source| MaskSource {
+            triangles: (order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()))
+                .chain(std::iter::repeat_n(None, kept_triangles.iter().map(Vec::len).sum()))
+                .collect(),
+            materials: source.materials,
+        });
+        let mut deforming: Vec<bool> = keys.iter().map(|k| k.is_some_and(|(node, _)| node > usize::MAX / 2)).collect();
+        deforming.resize(group_count + geometries.len(), false);
+        triangles.extend(kept_triangles);
+        let rest = placements(&groups, group_count, &kept, local, &[]);
+        Motion {
+            levels: TwoLevel::build(triangles, masks.as_ref(), &rest, &deforming),
+            groups,
+            group_count,
+            kept,
+            posed_at: None,
+            unplaced: None,
+            undeformed: None,
+        }
+    }
+
+    /// Where the bottom trees go for the per-mesh `deltas` (local frame; `None`: at rest): a
+    /// placement per group (bottom tree k for k < `group_count`), then one per kept instance.
+    pub(super) fn placements(&self, local: &Scene, deltas: &[Option<DMat4>]) -> Vec<Placement> {
+        placements(&self.groups, self.group_count, &self.kept, local, deltas)
+    }
+}
+
+/// `Motion::placements` of the trees `groups`, `group_count` and `kept` describe.
+fn placements(
+    groups: &[Option<usize>],
+    group_count: usize,
+    kept: &[usize],
+    local: &Scene,
+    deltas: &[Option<DMat4>],
+) -> Vec<Placement> {
+    let mut to_world = vec![Affine3A::IDENTITY; group_count];
+    for (mesh, group) in groups.iter().enumerate() {
+        if let (Some(g), Some(Some(d))) = (group, deltas.get(mesh)) {
+            if *g > 0 && *g < group_count {
+                to_world[*g] = Affine3A::from_mat4(d.as_mat4());
+            }
+        }
+    }
+    let placed = to_world.into_iter().enumerate().map(|(bottom, to_world)| Placement { bottom, to_world });
+    let instances = kept.iter().map(|&k| {
+        let instance = local.meshes[k].kept().expect("a kept instance");
+        let delta = deltas.get(k).copied().flatten().unwrap_or(DMat4::IDENTITY);
+        let bottom = groups[k].expect("a kept caster has a tree");
+        Placement { bottom, to_world: Affine3A::from_mat4((delta * instance.to_world).as_mat4()) }
+    });
+    placed.chain(instances).collect()
+}

@@ -31,6 +31,11 @@ impl Bounds {
         Bounds { min: self.min.min(other.min), max: self.max.max(other.max) }
     }
 
+    /// The box moved by `offset`.
+    pub fn shifted(&self, offset: Vec3) -> Bounds {
+        Bounds { min: self.min + offset, max: self.max + offset }
+    }
+
     pub fn corners(&self) -> [Vec3; 8] {
         let (a, b) = (self.min, self.max);
         [
@@ -86,4 +91,17 @@ pub fn orthographic_reversed(l: f32, r: f32, b: f32, t: f32, near: f32, far: f32
         Vec4::new(0.0, 0.0, sz, 0.0),
         Vec4::new(-(r + l) / (r - l), (t + b) / (t - b), far * sz, 1.0),
     )
+}
+
+/// Whether a box can touch the frustum of `view_proj` (reversed depth, clip z in [0, w]): false
+/// only when all eight corners are outside one of its planes.
+pub fn box_in_frustum(view_proj: &Mat4, b: &Bounds) -> bool {
+    let clip: [Vec4; 8] = b.corners().map(|c| *view_proj * c.extend(1.0));
+    let outside = |f: &dyn Fn(&Vec4) -> bool| clip.iter().all(f);
+    !(outside(&|c| c.x < -c.w)
+        || outside(&|c| c.x > c.w)
+        || outside(&|c| c.y < -c.w)
+        || outside(&|c| c.y > c.w)
+        || outside(&|c| c.z < 0.0)
+        || outside(&|c| c.z > c.w))
 }

@@ -201,6 +201,9 @@ impl Renderer {
             gpu_scene.deforming.len(),
             gpu_scene.bvh.bytes() >> 10
         );
+        if !motion.kept.is_empty() {
+            log::info!("{}", kept_report(&local, &motion, &gpu_scene));
+        }
         Renderer::assemble(ctx, scene, local, gpu_scene, None, Some(motion))
     }
 
@@ -710,6 +713,31 @@ pub struct MotionUpdate {
     pub refits: u32,
     pub rebuilds: u32,
     pub sah_ratio: f32,
+}
+
+/// What a scene's kept instances (`Mesh::kept`) cost, for the load's log: the triangles they
+/// draw against those stored, the device's bytes per instance beyond its geometry's (its draw's
+/// instance rows and its share of the shadow BVH's top region), and the process's resident
+/// memory now and at its peak.
+fn kept_report(local: &Scene, motion: &Motion, gpu_scene: &SceneGpu) -> String {
+    let kept: Vec<&crate::scene::Mesh> = local.meshes.iter().filter(|m| m.kept().is_some()).collect();
+    let drawn: usize = kept.iter().map(|m| m.triangle_count()).sum();
+    let geometries = local.kept_geometries();
+    let stored: usize = geometries.iter().map(|g| g.indices.len() / 3).sum();
+    let rows = std::mem::size_of::<crate::gpu::InstanceRows>() * if local.is_animated() { 2 } else { 1 };
+    let region = std::mem::size_of_val(motion.levels.region().1) / motion.kept.len().max(1);
+    let resident = crate::diagnostics::resident_memory()
+        .map_or_else(String::new, |(now, peak)| format!("; resident memory {} MB, peak {} MB", now >> 20, peak >> 20));
+    format!(
+        "instances: {} kept without world-space copies draw {drawn} triangles of {} geometries ({stored} stored); \
+         on the device {} B per instance ({rows} B of instance rows, {region} B of the shadow BVH's top level) \
+         beside {} KiB of scene buffers and {} KiB of shadow BVH{resident}",
+        kept.len(),
+        geometries.len(),
+        rows + region,
+        gpu_scene.bytes() >> 10,
+        gpu_scene.bvh.bytes() >> 10,
+    )
 }
 
 /// Hands the memory the BVH build's threads freed back to the system. glibc's malloc gives each

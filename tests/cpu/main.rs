@@ -19,6 +19,7 @@ mod gltf_checks;
 mod graph_layers;
 mod graph_plan;
 mod imports;
+mod kept_instances;
 mod ltc;
 mod mesh_formats;
 mod models;

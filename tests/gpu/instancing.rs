@@ -8,7 +8,10 @@
 //! Validation and synchronization validation on.
 
 use crate::common;
-use crate::gltf_builder::forest::{forest, forest_extent};
+use crate::gltf_builder::{
+    self,
+    forest::{forest, forest_extent},
+};
 
 use std::path::Path;
 
@@ -28,6 +31,11 @@ fn forest_scene(dir: &Path, instances: &str) -> Scene {
     if !glb.exists() {
         forest(TREES, TREE_TRIANGLES).write_glb(&glb);
     }
+    forest_text(dir, instances, "")
+}
+
+/// `forest_scene`'s text with `extra` after it.
+fn forest_text(dir: &Path, instances: &str, extra: &str) -> Scene {
     let e = forest_extent(TREES);
     let text = format!(
         r#"
@@ -50,7 +58,7 @@ shape = "plane"
 size = {ground}
 [[objects]]
 mesh = "forest.glb"
-"#,
+{extra}"#,
         eye = -1.1 * e,
         ground = 3.0 * e,
     );
@@ -59,10 +67,22 @@ mesh = "forest.glb"
 
 /// Light `light`'s hard visibility with `method` (both lights), through `backend`.
 fn visibility(r: &mut Renderer, light: u32, method: ShadowMethod, backend: ShadowBackend) -> Vec<f32> {
+    visibility_at(r, light, method, backend, None)
+}
+
+/// `visibility` at `time` where given.
+fn visibility_at(
+    r: &mut Renderer,
+    light: u32,
+    method: ShadowMethod,
+    backend: ShadowBackend,
+    time: Option<f64>,
+) -> Vec<f32> {
     let choice = ShadowChoice { method, ..ShadowChoice::hard() };
     let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(2, choice);
     s.debug_view = Some(DebugView::Visibility(light));
     s.shadow_backend = backend;
+    s.time = time;
     let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
     pixels.chunks_exact(4).map(|p| p[0]).collect()
 }
@@ -147,5 +167,48 @@ fn volumes_fall_back_to_traced_where_instances_are_kept_and_say_why() {
         assert!(why.contains("instances kept without world-space copies"), "{why}");
     }
     drop(r);
+    common::assert_clean(&ctx);
+}
+
+/// Kept instances on animated nodes move with them: the forest with one tree turning and one
+/// sliding (glTF channels on their nodes) shadows as its copies do at several instants, through
+/// both backends.
+#[test]
+fn kept_instances_on_animated_nodes_move_as_their_copies_do() {
+    let dir = common::scratch_dir("kept-moving");
+    let mut g = forest(TREES, TREE_TRIANGLES);
+    let times = g.times(&[0.0, 1.0, 2.0]);
+    let half = std::f32::consts::FRAC_1_SQRT_2;
+    let turn = g.outputs(&[0.0, 0.0, 0.0, 1.0, 0.0, half, 0.0, half, 0.0, 1.0, 0.0, 0.0], "VEC4");
+    let slide = g.outputs(&[0.0, 0.0, 0.0, 3.0, 0.0, 1.0, 6.0, 0.0, 0.0], "VEC3");
+    let mut clip = gltf_builder::Animation::new("sway");
+    clip.channel(7, "rotation", times, turn, "LINEAR");
+    clip.channel(14, "translation", times, slide, "LINEAR");
+    g.animation(&clip);
+    g.write_glb(&dir.join("forest.glb"));
+    let (kept, copied) = (forest_text(&dir, "keep", ""), forest_text(&dir, "copy", ""));
+    assert!(kept.has_kept_instances() && kept.is_animated());
+    let ctx = common::gpu();
+    let mut two = Renderer::new(ctx.clone(), kept).expect("kept renderer");
+    let mut one = Renderer::new(ctx.clone(), copied).expect("copied renderer");
+    let mut seen = Vec::new();
+    for time in [0.4, 1.3, 1.9] {
+        for (method, backend, allowed) in [
+            (ShadowMethod::Traced, ShadowBackend::Compute, 0.002),
+            (ShadowMethod::Traced, ShadowBackend::RayQuery, 0.002),
+            (ShadowMethod::Map, ShadowBackend::Compute, 0.01),
+        ] {
+            let a = visibility_at(&mut two, 0, method, backend, Some(time));
+            let b = visibility_at(&mut one, 0, method, backend, Some(time));
+            let share = differing(&a, &b);
+            println!("t = {time} {method:?} {backend:?}: {:.4} % differ", 100.0 * share);
+            assert!(share <= allowed, "t = {time} {method:?} {backend:?}: {:.3} % differ", 100.0 * share);
+            if method == ShadowMethod::Traced && backend == ShadowBackend::Compute {
+                seen.push(a);
+            }
+        }
+    }
+    assert!(differing(&seen[0], &seen[2]) > 0.001, "the moving trees' shadows moved");
+    drop((two, one));
     common::assert_clean(&ctx);
 }

@@ -22,6 +22,7 @@ use super::volumes::VolumeScene;
 use super::{Casters, FrameInputs, Served, ViewAnswer};
 use crate::config::{DebugView, ShadowChoice, ShadowMethod};
 use crate::gpu::{InstanceRows, SceneGpu, SurfaceVertex, Vertex, INSTANCE_ATTRIBUTES, SURFACE_ATTRIBUTES};
+use crate::maths::box_in_frustum;
 use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, ImageKind, RenderGraph};
 use crate::passes::{DEPTH_FORMAT, ROWS};
 use crate::scene::Light;
@@ -242,8 +243,7 @@ pub fn visible_receivers(scene: &SceneGpu, camera: &crate::gpu::CameraMatrices) 
         .draws
         .iter()
         .filter(|d| {
-            let shifted = Bounds::new(d.bounds.min - eye, d.bounds.max - eye);
-            !d.bounds.is_empty() && box_in_frustum(&vp, &shifted)
+            !d.bounds.is_empty() && box_in_frustum(&vp, &d.bounds.shifted(-eye))
         })
         .fold(Bounds::EMPTY, |b, d| b.union(&d.bounds))
 }
@@ -378,19 +378,6 @@ impl super::Technique for Map {
         }
         Ok(debug)
     }
-}
-
-/// Whether a box can touch the frustum of `view_proj` (reversed depth, clip z in [0, w]): false
-/// only when all eight corners are outside one of its planes.
-pub fn box_in_frustum(view_proj: &Mat4, b: &Bounds) -> bool {
-    let clip: Vec<Vec4> = b.corners().iter().map(|c| *view_proj * c.extend(1.0)).collect();
-    let outside = |f: &dyn Fn(&Vec4) -> bool| clip.iter().all(f);
-    !(outside(&|c| c.x < -c.w)
-        || outside(&|c| c.x > c.w)
-        || outside(&|c| c.y < -c.w)
-        || outside(&|c| c.y > c.w)
-        || outside(&|c| c.z < 0.0)
-        || outside(&|c| c.z > c.w))
 }
 
 /// For each layer of `map`, the draws that cast into it.

@@ -706,7 +706,9 @@ fn instancing_past_the_triangle_budget_is_refused_before_flattening() {
         g.node(json!({ "mesh": mesh, "translation": [k as f32 * 1.5, 0.0, 0.0] }), true);
     }
     g.write_glb(&dir.path().join("forest.glb"));
-    let text = format!("{CAMERA}{LIGHT}[[objects]]\nshape = \"cube\"\n[[objects]]\nmesh = \"forest.glb\"\n");
+    // Copied as asked (by default, instances whose copies pass 4M triangles are kept).
+    let objects = "[[objects]]\nshape = \"cube\"\n[[objects]]\nmesh = \"forest.glb\"\n";
+    let text = format!("[render]\ninstances = \"copy\"\n{CAMERA}{LIGHT}{objects}");
     let err = parse_in(dir.path(), &text).expect_err("refused");
     let triangles = 12 + nodes as u64 * 2 * 64 * 64;
     for needle in [
@@ -718,4 +720,6 @@ fn instancing_past_the_triangle_budget_is_refused_before_flattening() {
         assert!(err.contains(needle), "{needle:?} not in {err:?}");
     }
     assert_eq!(umbra::scene::MAX_SCENE_TRIANGLES, 2048 * 2 * 64 * 64);
+    let kept = parse_in(dir.path(), &format!("{CAMERA}{LIGHT}{objects}")).expect("kept by default");
+    assert_eq!(kept.meshes.iter().filter(|m| m.kept().is_some()).count(), nodes);
 }

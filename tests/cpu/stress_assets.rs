@@ -82,13 +82,8 @@ fn r6(x: f64) -> f64 {
 
 /// A number in [0, 1) from `k` and `salt`, by integer mixing.
 fn unit_hash(k: u32, salt: u32) -> f64 {
-    let mut h = k.wrapping_mul(0x9E37_79B9) ^ salt.wrapping_mul(0x85EB_CA6B) ^ 0x2545_F491;
-    h ^= h >> 16;
-    h = h.wrapping_mul(0x7FEB_352D);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x846C_A68B);
-    h ^= h >> 16;
-    f64::from(h) / 4_294_967_296.0
+    let h = k.wrapping_mul(0x9E37_79B9) ^ salt.wrapping_mul(0x85EB_CA6B) ^ 0x2545_F491;
+    f64::from(crate::gltf_builder::mix32(h)) / 4_294_967_296.0
 }
 
 // ---------------------------------------------------------------------------------------------

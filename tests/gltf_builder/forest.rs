@@ -49,13 +49,8 @@ pub fn forest_extent(trees: usize) -> f64 {
 
 /// A number in [0, 1) from a grid cell and `salt`, by integer mixing.
 fn cell_hash(col: u32, row: u32, salt: u32) -> f64 {
-    let mut h = col.wrapping_mul(0x8DA6_B343) ^ row.wrapping_mul(0xD816_3841) ^ salt.wrapping_mul(0xCB1A_B31F);
-    h ^= h >> 16;
-    h = h.wrapping_mul(0x7FEB_352D);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x846C_A68B);
-    h ^= h >> 16;
-    f64::from(h) / 4_294_967_296.0
+    let h = col.wrapping_mul(0x8DA6_B343) ^ row.wrapping_mul(0xD816_3841) ^ salt.wrapping_mul(0xCB1A_B31F);
+    f64::from(super::mix32(h)) / 4_294_967_296.0
 }
 
 /// `x` rounded to 0.1 mm: short, exact numbers in the JSON.

@@ -31,6 +31,16 @@ pub struct Gltf {
     pub extensions_required: Vec<String>,
 }
 
+/// The finaliser of an integer hash (lowbias32's): every bit of `h` moves every bit of the
+/// result. The generators' seeded jitter needs no RNG state.
+pub fn mix32(mut h: u32) -> u32 {
+    h ^= h >> 16;
+    h = h.wrapping_mul(0x7FEB_352D);
+    h ^= h >> 15;
+    h = h.wrapping_mul(0x846C_A68B);
+    h ^ (h >> 16)
+}
+
 /// glTF component types.
 pub const U8: u32 = 5121;
 pub const U16: u32 = 5123;

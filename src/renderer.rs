@@ -541,7 +541,7 @@ impl Renderer {
                 let (groups, masks) = crate::gpu::accel_motion::caster_groups(
                     &motion.levels,
                     &motion.groups,
-                    &self.local.kept_geometries(),
+                    &motion.geometries,
                     &self.local,
                     time,
                 );
@@ -722,9 +722,10 @@ pub struct MotionUpdate {
 fn kept_report(local: &Scene, motion: &Motion, gpu_scene: &SceneGpu) -> String {
     let kept: Vec<&crate::scene::Mesh> = local.meshes.iter().filter(|m| m.kept().is_some()).collect();
     let drawn: usize = kept.iter().map(|m| m.triangle_count()).sum();
-    let geometries = local.kept_geometries();
-    let stored: usize = geometries.iter().map(|g| g.indices.len() / 3).sum();
-    let rows = std::mem::size_of::<crate::gpu::InstanceRows>() * if local.is_animated() { 2 } else { 1 };
+    let stored: usize = motion.geometries.iter().map(|g| g.indices.len() / 3).sum();
+    // Twice where the rows are kept as the previous frame drew them too (a moving scene's).
+    let copies = if gpu_scene.previous_offset.is_some() { 2 } else { 1 };
+    let rows = std::mem::size_of::<crate::gpu::InstanceRows>() * copies;
     let region = std::mem::size_of_val(motion.levels.region().1) / motion.kept.len().max(1);
     let resident = crate::diagnostics::resident_memory()
         .map_or_else(String::new, |(now, peak)| format!("; resident memory {} MB, peak {} MB", now >> 20, peak >> 20));
@@ -733,7 +734,7 @@ fn kept_report(local: &Scene, motion: &Motion, gpu_scene: &SceneGpu) -> String {
          on the device {} B per instance ({rows} B of instance rows, {region} B of the shadow BVH's top level) \
          beside {} KiB of scene buffers and {} KiB of shadow BVH{resident}",
         kept.len(),
-        geometries.len(),
+        motion.geometries.len(),
         rows + region,
         gpu_scene.bytes() >> 10,
         gpu_scene.bvh.bytes() >> 10,

@@ -4,13 +4,14 @@
 //! mesh, then each kept instance's geometry once; the top tree places the groups (one placement
 //! each) and every kept instance (one placement per instance of its geometry's tree).
 
+use std::collections::HashMap;
 use std::sync::Arc;
 
 use glam::{Affine3A, DMat4, Vec3};
 
 use crate::scene::bvh::levels::{Placement, TwoLevel};
 use crate::scene::bvh::mask::{caster_masks, MaskSource};
-use crate::scene::Scene;
+use crate::scene::{InstanceGeometry, Scene};
 
 pub(super) struct Motion {
     pub(super) levels: TwoLevel,
@@ -22,6 +23,9 @@ pub(super) struct Motion {
     /// The kept instances that cast shadows: each one's mesh, in mesh order (placements
     /// `group_count..` in that order).
     pub(super) kept: Vec<usize>,
+    /// The kept instances' geometries, each once (`Scene::kept_geometries`): bottom trees
+    /// `group_count..` in that order.
+    pub(super) geometries: Vec<Arc<InstanceGeometry>>,
     pub(super) posed_at: Option<f64>,
     /// Where each bottom tree goes, posed but not yet built into the top level.
     pub(super) unplaced: Option<Vec<Placement>>,
@@ -41,6 +45,8 @@ impl Motion {
         let mut order: Vec<Vec<usize>> = vec![Vec::new()];
         let mut caster_index = 0usize;
         let geometries = local.kept_geometries();
+        let tree_of: HashMap<*const InstanceGeometry, usize> =
+            geometries.iter().enumerate().map(|(k, g)| (Arc::as_ptr(g), k)).collect();
         let mut kept = Vec::new();
         for (k, mesh) in local.meshes.iter().enumerate() {
             if !mesh.cast_shadows {
@@ -49,7 +55,8 @@ impl Motion {
             }
             if let Some(instance) = mesh.kept() {
                 kept.push(k);
-                groups.push(geometries.iter().position(|g| Arc::ptr_eq(g, &instance.geometry)));
+                // Numbered after the groups once their count is known (below).
+                groups.push(tree_of.get(&Arc::as_ptr(&instance.geometry)).copied());
                 continue;
             }
             // A deforming mesh's key is its own (no node is numbered that high).
@@ -94,6 +101,7 @@ impl Motion {
             groups,
             group_count,
             kept,
+            geometries,
             posed_at: None,
             unplaced: None,
             undeformed: None,

@@ -74,10 +74,14 @@ pub fn caster_triangles(scene: &Scene) -> Vec<[Vec3; 3]> {
 /// One mesh's caster triangles as `caster_triangles` lists them (rounded to f32, those with a
 /// non-finite vertex left out), whatever its `cast_shadows`.
 pub fn mesh_caster_triangles(mesh: &super::Mesh) -> impl Iterator<Item = [Vec3; 3]> + '_ {
-    mesh.indices
-        .chunks_exact(3)
-        .map(|k| [0, 1, 2].map(|c| mesh.positions[k[c] as usize].as_vec3()))
-        .filter(|tri| tri.iter().all(|v| v.is_finite()))
+    finite_triangles(&mesh.indices, |k| mesh.positions[k as usize].as_vec3())
+}
+
+/// The triangles `indices` make of the vertices `at` gives, those with a non-finite corner left
+/// out: a mesh's casters (`mesh_caster_triangles`), a kept geometry's
+/// (`InstanceGeometry::caster_triangles`).
+pub fn finite_triangles<'a>(indices: &'a [u32], at: impl Fn(u32) -> Vec3 + 'a) -> impl Iterator<Item = [Vec3; 3]> + 'a {
+    indices.chunks_exact(3).map(move |k| [0, 1, 2].map(|c| at(k[c]))).filter(|tri| tri.iter().all(|v| v.is_finite()))
 }
 
 /// Items at least this many are made on several threads (`parallel_map`).

@@ -162,25 +162,28 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
         // Meshes that several instances draw are uploaded once; whether each instance is also
         // copied into world space is `[render] instances` (see `keeps_instances`).
         let shared = mesh::shared_geometry(&placed.meshes, &placed.instances);
-        let keepable = |i: usize, k: usize, to: &DMat4| {
-            shared[k].is_some()
-                && (placed.transform * *to).determinant() > 0.0
-                && placed.deforms.get(i).and_then(Option::as_ref).is_none()
-                && !mesh::alpha_masked(&placed.meshes[k])
-        };
+        // Per instance: whether it may be kept (shared, not mirrored, not deforming, unmasked),
+        // then whether it is.
         let instance_triangles = |k: usize| placed.meshes[k].indices.len() as u64 / 3;
-        let keepable_copies: u64 = (placed.instances.iter().enumerate())
-            .filter(|(i, (k, to))| keepable(*i, *k, to))
-            .map(|(_, (k, _))| instance_triangles(*k))
-            .sum();
-        let keep = keeps_instances(instancing, keepable_copies);
+        let mut kept_here: Vec<bool> = (placed.instances.iter().enumerate())
+            .map(|(i, (k, to))| {
+                shared[*k].is_some()
+                    && (placed.transform * *to).determinant() > 0.0
+                    && placed.deforms.get(i).and_then(Option::as_ref).is_none()
+                    && !mesh::alpha_masked(&placed.meshes[*k])
+            })
+            .collect();
+        let keepable_copies: u64 =
+            placed.instances.iter().zip(&kept_here).filter(|(_, &k)| k).map(|((k, _), _)| instance_triangles(*k)).sum();
+        if !keeps_instances(instancing, keepable_copies) {
+            kept_here.fill(false);
+        }
         // Counted before the instances are flattened into world-space copies: a few kilobytes
         // of glTF nodes can instance one mesh into more triangles than memory holds. A kept
         // instance's triangles count once per mesh.
         let mut counted = vec![false; placed.meshes.len()];
         let mut object_triangles = 0u64;
-        for (i, (k, to)) in placed.instances.iter().enumerate() {
-            let once = keep && keepable(i, *k, to);
+        for ((k, _), &once) in placed.instances.iter().zip(&kept_here) {
             if !once || !std::mem::replace(&mut counted[*k], true) {
                 object_triangles += instance_triangles(*k);
             }
@@ -205,9 +208,8 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
             let local = &placed.meshes[*k];
             let material = placed.material.apply(local.material.unwrap_or_default());
             let to_world = placed.transform * *instance;
-            let kept = (keep && keepable(i, *k, instance))
-                .then(|| shared[*k].as_ref().map(|g| mesh::kept(&path, local, g, to_world, material, cast_shadows)))
-                .flatten();
+            let kept = (shared[*k].as_ref().filter(|_| kept_here[i]))
+                .map(|g| mesh::kept(&path, local, g, to_world, material, cast_shadows));
             let deforming = placed.deforms.get(i).and_then(Option::as_ref).zip(file_rig.as_ref());
             if let Some((deform, (base, _, _))) = deforming {
                 let m = motion::place_deforming(
@@ -331,7 +333,7 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
 fn keeps_instances(instancing: Instancing, copies: u64) -> bool {
     match instancing {
         Instancing::Copy => false,
-        Instancing::Keep => copies > 0,
+        Instancing::Keep => true,
         Instancing::Auto => copies > KEEP_INSTANCES_ABOVE,
     }
 }

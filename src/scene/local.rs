@@ -34,11 +34,10 @@ impl Scene {
         let mut kept = self.clone();
         kept.meshes.retain(|mesh| {
             // A kept instance by its bounds' corners (they hold its vertices).
-            let corners = match mesh.world_bounds().filter(|_| mesh.kept().is_some()) {
-                Some((lo, hi)) => vec![lo, hi],
-                None => Vec::new(),
+            let corners = mesh.world_bounds().filter(|_| mesh.kept().is_some()).map(|(lo, hi)| [lo, hi]);
+            let Some(far) = mesh.positions.iter().chain(corners.iter().flatten()).find(|p| !within(p)) else {
+                return true;
             };
-            let Some(far) = mesh.positions.iter().chain(&corners).find(|p| !within(p)) else { return true };
             log::warn!(
                 "{} ({}): a vertex lies {} m from the camera, beyond the {} m single precision can \
                  hold in the renderer's frame; the mesh is left out",

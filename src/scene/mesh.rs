@@ -283,8 +283,8 @@ pub(super) fn shared_geometry(
             let (uvs, uvs_1, tangents) =
                 placed.surface.map_or((Vec::new(), Vec::new(), Vec::new()), |s| (s.uvs, s.uvs_1, s.tangents));
             let positions: Vec<Vec3> = placed.positions.iter().map(|p| p.as_vec3()).collect();
-            let finite = positions.iter().filter(|p| p.is_finite());
-            let bounds = finite.fold([Vec3::INFINITY, Vec3::NEG_INFINITY], |[lo, hi], p| [lo.min(*p), hi.max(*p)]);
+            let mut bounds = crate::maths::Bounds::EMPTY;
+            positions.iter().filter(|p| p.is_finite()).for_each(|&p| bounds.include(p));
             Some(Arc::new(InstanceGeometry {
                 positions,
                 bounds,

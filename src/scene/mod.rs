@@ -144,32 +144,25 @@ pub struct InstanceGeometry {
     pub uvs: Vec<glam::Vec2>,
     pub uvs_1: Vec<glam::Vec2>,
     pub tangents: Vec<glam::Vec4>,
-    /// The bounds of its finite positions (`[lo, hi]`; inverted where there are none).
-    pub bounds: [Vec3; 2],
+    /// The bounds of its finite positions (empty where there are none).
+    pub bounds: crate::maths::Bounds,
 }
 
 impl InstanceGeometry {
     /// Its triangles in its own space, as `bvh::mesh_caster_triangles` lists a mesh's (those
     /// with a non-finite corner left out).
     pub fn caster_triangles(&self) -> Vec<[Vec3; 3]> {
-        let tris = self.indices.chunks_exact(3).map(|k| [0, 1, 2].map(|c| self.positions[k[c] as usize]));
-        tris.filter(|tri| tri.iter().all(|v| v.is_finite())).collect()
+        bvh::finite_triangles(&self.indices, |k| self.positions[k as usize]).collect()
     }
 
     /// Its bounds moved by `to_world`: the box around the moved corners of `bounds`, which
     /// holds every moved vertex (`None` without a finite vertex).
     pub fn world_bounds(&self, to_world: &DMat4) -> Option<(DVec3, DVec3)> {
-        let [lo, hi] = self.bounds.map(Vec3::as_dvec3);
-        if !lo.cmple(hi).all() {
+        if self.bounds.is_empty() {
             return None;
         }
-        let corner = |k: usize| {
-            let pick = |bit: usize, a: f64, b: f64| if k & bit == 0 { a } else { b };
-            to_world.transform_point3(DVec3::new(pick(1, lo.x, hi.x), pick(2, lo.y, hi.y), pick(4, lo.z, hi.z)))
-        };
-        let (lo, hi) =
-            (0..8).map(corner).fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(p), hi.max(p)));
-        Some((lo, hi))
+        let moved = self.bounds.corners().map(|c| to_world.transform_point3(c.as_dvec3()));
+        Some(moved.iter().fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
     }
 }
 
@@ -261,13 +254,9 @@ impl Scene {
     /// The geometries of the kept instances that cast shadows, each once, in the order their
     /// first instance comes: the shadow BVH's bottom trees after the groups'.
     pub fn kept_geometries(&self) -> Vec<Arc<InstanceGeometry>> {
-        let mut geometries: Vec<Arc<InstanceGeometry>> = Vec::new();
-        for instance in self.meshes.iter().filter(|m| m.cast_shadows).filter_map(Mesh::kept) {
-            if !geometries.iter().any(|g| Arc::ptr_eq(g, &instance.geometry)) {
-                geometries.push(instance.geometry.clone());
-            }
-        }
-        geometries
+        let mut seen = std::collections::HashSet::new();
+        let kept = self.meshes.iter().filter(|m| m.cast_shadows).filter_map(Mesh::kept);
+        kept.filter(|i| seen.insert(Arc::as_ptr(&i.geometry))).map(|i| i.geometry.clone()).collect()
     }
 
     /// Whether some mesh is a kept instance (`Mesh::kept`): its casters then go into two levels.

@@ -726,7 +726,7 @@ fn kept_report(local: &Scene, motion: &Motion, gpu_scene: &SceneGpu) -> String {
     // Twice where the rows are kept as the previous frame drew them too (a moving scene's).
     let copies = if gpu_scene.previous_offset.is_some() { 2 } else { 1 };
     let rows = std::mem::size_of::<crate::gpu::InstanceRows>() * copies;
-    let region = std::mem::size_of_val(motion.levels.region().1) / motion.kept.len().max(1);
+    let region = motion.levels.bytes_per_instance();
     let resident = crate::diagnostics::resident_memory()
         .map_or_else(String::new, |(now, peak)| format!("; resident memory {} MB, peak {} MB", now >> 20, peak >> 20));
     format!(

@@ -112,12 +112,6 @@ fn top_level_build_ms(levels: &mut TwoLevel) -> f64 {
     times[times.len() / 2]
 }
 
-/// Device bytes an instance adds beyond its tree: its record and its share of the top tree's
-/// nodes (at most one node per instance, `BvhBuffers::upload_levels`).
-fn level_bytes_per_instance() -> usize {
-    16 * (crate::scene::bvh::levels::INSTANCE_TEXELS + crate::scene::bvh::WideNode::TEXELS)
-}
-
 /// Barycentric tolerance under which two f32 implementations may disagree (as the tests use).
 const EDGE_EPS: f64 = 1e-6;
 
@@ -286,7 +280,7 @@ pub fn run(options: &Options) -> Result<Outcome> {
         tris.len(),
         options.threads,
         buffers.bytes() as f64 / tris.len() as f64,
-        level_bytes_per_instance(),
+        levels.bytes_per_instance(),
     );
     report += &format!(
         "{:<22} {:>9} {:>8} {:>12} {:>11} {:>12}\n",

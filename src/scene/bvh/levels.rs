@@ -20,8 +20,8 @@
 //! - `nodes`: every bottom tree's nodes one after another (each tree's child and triangle
 //!   indices shifted to where its arrays landed), then the *top region*: the top tree's nodes
 //!   from node `top_start` (its root first), the proxies from node `proxy_start` (instance k's
-//!   at `proxy_start + k`), and from texel `record_start` four texels per instance: the rows of
-//!   its world-to-object matrix (f32 bits, `x, y, z, translation`), then a padding texel. The
+//!   at `proxy_start + k`), and from texel `record_start` three texels per instance: the rows of
+//!   its world-to-object matrix (f32 bits, `x, y, z, translation`). The
 //!   region is rewritten whenever the instances move; its room is fixed at upload. A bottom tree
 //!   that deforms (`TwoLevel::deform`) is followed by room for the most nodes a rebuild of it
 //!   can need (`refit::node_room`), unused nodes zero, so a rebuild moves nothing after it.
@@ -47,8 +47,8 @@ pub struct Placement {
     pub to_world: Affine3A,
 }
 
-/// Texels per instance record (its three rows and a padding texel).
-pub const INSTANCE_TEXELS: usize = 4;
+/// Texels per instance record (its three rows).
+pub const INSTANCE_TEXELS: usize = 3;
 /// Instances under one of the top tree's lowest nodes (its median split stops there).
 const TOP_LEAF_SIZE: usize = 4;
 /// The stack entry that marks where a walk entered an instance (a group with no children, which
@@ -210,6 +210,7 @@ impl TwoLevel {
                 log::warn!("the two-level BVH's walk could need {need} stack entries, over the shader's {STACK_SIZE}");
             }
         }
+        assert!(top.nodes.len() <= top_node_room(self.room), "the top tree outgrew its room");
         self.placements = top.proxies.iter().map(|&k| drawn[k as usize]).collect();
         // The region: the top tree's nodes, the proxies after room for the most top nodes, the
         // records after room for the most proxies.
@@ -319,15 +320,21 @@ impl TwoLevel {
         (from, texels)
     }
 
-    /// Node of the first proxy: after room for the top tree's most nodes (a 4-wide tree over
-    /// `room` instances in leaves of at most `TOP_LEAF_SIZE` has fewer than `room` nodes).
+    /// Node of the first proxy: after room for the top tree's most nodes (`top_node_room`).
     fn proxy_start(&self) -> u32 {
-        self.top_start + self.room.max(1) as u32
+        self.top_start + top_node_room(self.room) as u32
     }
 
     /// Texel of the first instance record: after room for every proxy.
     fn record_start(&self) -> u32 {
         3 * (self.proxy_start() + self.room.max(1) as u32)
+    }
+
+    /// The device's bytes per instance the top region has room for (its share of the top
+    /// tree's nodes, its proxy and its record): what an instance costs the shadow BVH beyond
+    /// its bottom tree.
+    pub fn bytes_per_instance(&self) -> usize {
+        16 * self.region_texels() / self.room.max(1)
     }
 
     /// Texels of the top region.
@@ -618,7 +625,9 @@ fn median_split_boxes(boxes: &[Aabb]) -> Bvh2 {
         }
         let children = nodes.len();
         nodes.resize(children + 2, Bvh2Node::default());
-        let mid = order.len() / 2;
+        // Halved at a whole number of leaves: every leaf but the last is full, so the top
+        // region's room for nodes (`top_node_room`) is half an instance's node each.
+        let mid = order.len().div_ceil(TOP_LEAF_SIZE) / 2 * TOP_LEAF_SIZE;
         let left = build(boxes, &order[..mid], first, children, nodes);
         let right = build(boxes, &order[mid..], first + mid as u32, children + 1, nodes);
         let aabb = left.union(&right);
@@ -646,6 +655,13 @@ fn median_split_boxes(boxes: &[Aabb]) -> Bvh2 {
     nodes.reserve(2 * boxes.len() / TOP_LEAF_SIZE + 1);
     build(boxes, &order, 0, 0, &mut nodes);
     Bvh2 { nodes, primitive_indices: order, ..Bvh2::default() }
+}
+
+/// The most nodes the top tree over `instances` can take: `median_split_boxes` makes leaves of
+/// `TOP_LEAF_SIZE` instances (all but the last full), so ceil(n / 4) of them, and every inner
+/// node of the 4-wide tree has at least two children: fewer than twice as many nodes as leaves.
+fn top_node_room(instances: usize) -> usize {
+    2 * instances.max(1).div_ceil(TOP_LEAF_SIZE)
 }
 
 /// The 10 bits of `v` spread to every third bit (a Morton code's share of one axis).

@@ -330,6 +330,37 @@ fn deforming_levels(moving: usize, masks: Option<&MaskSource>, rng: &mut Rng) ->
     (meshes, TwoLevel::build(groups, masks, &placements, &deforming))
 }
 
+/// Many placements of one tree (a forest's instances): for counts around the top tree's leaf
+/// size and beyond, the top tree fits the region's room (`place` asserts it), an instance of 16
+/// or more costs the region at most 128 bytes, and the two levels answer as one tree over the placed
+/// triangles.
+#[test]
+fn many_placements_of_one_tree_fit_their_room_and_answer_as_one_tree() {
+    let mut rng = Rng(0x1257);
+    let tree = Mesh::sphere(6, 8, 0.5, Vec3::ZERO, 0.2, &mut rng).triangles();
+    for count in [1, 2, 3, 4, 5, 7, 8, 9, 16, 17, 33, 100, 257, 1000] {
+        let placements: Vec<Placement> = (0..count)
+            .map(|_| {
+                let turn = glam::Quat::from_rotation_y(rng.range(0.0, 6.3));
+                let at = rng.cube() * (count as f32).sqrt() * 2.0;
+                Placement {
+                    bottom: 0,
+                    to_world: Affine3A::from_scale_rotation_translation(Vec3::splat(rng.range(0.5, 2.0)), turn, at),
+                }
+            })
+            .collect();
+        let levels = TwoLevel::build(vec![tree.clone()], None, &placements, &[]);
+        assert_eq!(levels.instance_count(), count);
+        // The top tree's room rounds up to whole leaves: a handful of instances cost more each.
+        let bytes = levels.bytes_per_instance();
+        assert!(count < 16 || bytes <= 128, "{count}: {bytes} B an instance");
+        let posed = levels.posed_triangles();
+        let fresh = ShadowBvh::from_triangles(&posed);
+        let rays = rays(&posed, 400, &mut rng);
+        assert_eq!(disagreements(&fresh, &rays, |o, d, t| levels.occluded(o, d, t)), 0, "{count} instances");
+    }
+}
+
 /// Writes `range` over `texels`, as an upload of it does.
 fn apply(texels: &mut [[u32; 4]], (first, run): &TexelRange) {
     texels[*first..*first + run.len()].copy_from_slice(run);

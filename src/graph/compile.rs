@@ -122,7 +122,15 @@ fn cull(graph: &RenderGraph<'_>) -> Vec<bool> {
         last_writer[r].overlapping(layers).filter_map(|(_, w)| *w).collect()
     };
     let mut depends_on: Vec<Vec<usize>> = Vec::with_capacity(graph.passes.len());
+    // Each export keeps the writers of the version it exported (see `ExportDecl::after`).
+    let mut pending: Vec<usize> = Vec::new();
+    let exported_after = |i: usize, last_writer: &[PerLayer<Option<usize>>], pending: &mut Vec<usize>| {
+        for e in graph.exports.iter().filter(|e| e.after == i) {
+            pending.extend(writers_of(e.resource, Layers::all(layer_count(e.resource)), last_writer));
+        }
+    };
     for (i, pass) in graph.passes.iter().enumerate() {
+        exported_after(i, &last_writer, &mut pending);
         let mut deps = Vec::new();
         // Reads, and read-modify-writes (atomics), depend on what was written before.
         for a in pass.accesses.iter().filter(|a| !a.access.is_write() || a.access.reads_previous()) {
@@ -136,12 +144,8 @@ fn cull(graph: &RenderGraph<'_>) -> Vec<bool> {
         }
         depends_on.push(deps);
     }
+    exported_after(graph.passes.len(), &last_writer, &mut pending);
     let mut live = vec![false; graph.passes.len()];
-    let mut pending: Vec<usize> = graph
-        .exports
-        .iter()
-        .flat_map(|e| writers_of(e.resource, Layers::all(layer_count(e.resource)), &last_writer))
-        .collect();
     while let Some(p) = pending.pop() {
         if !live[p] {
             live[p] = true;

@@ -113,6 +113,10 @@ pub(crate) struct PassDecl<'a> {
 pub(crate) struct ExportDecl {
     pub resource: usize,
     pub access: Access,
+    /// Passes declared before the export: the version it exports is what they wrote, and their
+    /// writers of it survive culling even where a later pass writes the resource again (a
+    /// partial write, such as a buffer's rows, leaves the earlier writes in place).
+    pub after: usize,
 }
 
 /// One frame's graph, built fresh each frame; `'a` is the lifetime of what pass closures borrow.
@@ -212,7 +216,7 @@ impl<'a> RenderGraph<'a> {
     /// write's next use).
     pub fn export_version<K>(&mut self, handle: &Handle<K>, access: Access) {
         self.check_version(handle);
-        self.exports.push(ExportDecl { resource: handle.id, access });
+        self.exports.push(ExportDecl { resource: handle.id, access, after: self.passes.len() });
     }
 
     pub fn add_pass<'g>(&'g mut self, name: &'static str) -> PassBuilder<'g, 'a> {

@@ -100,6 +100,25 @@ fn read_after_read_needs_no_barrier() {
     assert_eq!(before_compose.len(), 1, "only the RAW on `a`:\n{plan}");
 }
 
+/// Passes that each write part of one buffer (a scene's deforming vertices, then its moving
+/// draws' rows), each exporting the version it wrote: an export keeps its version's writer,
+/// though a later pass writes the buffer again; a write that no export or read reaches goes.
+#[test]
+fn an_export_keeps_the_writer_of_the_version_it_exported() {
+    let mut g = RenderGraph::new();
+    let mut buffer = g.create_buffer("vertices", 256);
+    for (name, export) in [("skin", true), ("scratch", false), ("rows", true)] {
+        let mut p = g.add_pass(name);
+        p.write(&mut buffer, Access::TransferWrite);
+        p.render(noop);
+        if export {
+            g.export_version(&buffer, Access::AnyRead);
+        }
+    }
+    let plan = CompiledGraph::compile(&g);
+    assert_eq!(plan.live_pass_names(), vec!["skin", "rows"], "{plan}");
+}
+
 #[test]
 fn a_pass_that_reaches_no_export_is_culled_with_its_resources() {
     let mut g = RenderGraph::new();

@@ -185,7 +185,7 @@ fn gbuffer_stage<'a>(
     motion: Option<crate::gpu::MotionBlock>,
     extent: vk::Extent2D,
 ) -> GpuResult<(SceneHandles, GBuffer)> {
-    let vertices = s.import_vertices(g);
+    let vertices = s.import_vertices(g, pipelines)?;
     let indices = g.import_buffer("indices", &s.indices, SCENE_ACCESS);
     let lights = s.import_lights(g);
     let bvh = s.bvh.import(g, SCENE_ACCESS);

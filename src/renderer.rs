@@ -256,10 +256,13 @@ impl Renderer {
         motion.unplaced = Some(motion.placements(&self.local, &deltas));
         let mut bytes = self.gpu_scene.pose(|mesh| deltas.get(mesh).copied().flatten());
         let deform_start = std::time::Instant::now();
-        let deformed = self.local.deformed(time);
+        // The device poses the vertices the raster passes draw (the skin pass); the CPU poses
+        // the positions the shadow BVH's refit and the draws' bounds take.
+        let frames = self.local.deform_frames(time);
+        let deformed = self.local.posed_by(&frames, false);
         let mut undeformed = Vec::new();
         if !deformed.is_empty() {
-            bytes += self.gpu_scene.deform(&deformed);
+            bytes += self.gpu_scene.deform(&frames, &deformed);
             undeformed = crate::gpu::accel_motion::posed_triangles(&motion.groups, &self.local, &deformed);
         }
         let deform_ms = deform_start.elapsed().as_secs_f64() * 1e3;
@@ -287,7 +290,7 @@ impl Renderer {
             let before = time - 1.0 / FIRST_FRAME_FPS;
             let deltas = self.local.mesh_motion(before);
             self.gpu_scene.pose_previous(|mesh| deltas.get(mesh).copied().flatten());
-            self.gpu_scene.deform_previous(&self.local.deformed(before));
+            self.gpu_scene.deform_previous(&self.local.deform_frames(before));
             if self.scene.animation.as_ref().is_some_and(|a| a.camera.is_some()) {
                 *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) = Some(self.scene.camera_at(before));
             }
@@ -331,6 +334,19 @@ impl Renderer {
     /// rows, bounds) and, where the frame walked the casters, the top level's rebuild.
     pub fn frame_update(&self) -> MotionUpdate {
         *self.update.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// Where the scene-local frame the device holds the scene in starts, in the world.
+    pub fn origin(&self) -> glam::DVec3 {
+        self.gpu_scene.origin
+    }
+
+    /// Mesh `mesh`'s vertices (local frame) as the device's skin pass last posed them, now and
+    /// as the previous frame drew them; `None` for a mesh that does not deform. Waits for the
+    /// device.
+    pub fn skinned_vertices(&self, mesh: usize) -> GpuResult<Option<[Vec<crate::gpu::Vertex>; 2]>> {
+        let Some(draw) = self.gpu_scene.deforming.iter().position(|d| d.mesh == mesh) else { return Ok(None) };
+        crate::gpu::skin::read_vertices(&self.ctx, &self.gpu_scene, draw).map(Some)
     }
 
     /// The instant a moving scene is posed at (`None`: static, or not posed yet).

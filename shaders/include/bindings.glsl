@@ -80,4 +80,15 @@
 // the material's constants (the uniform block of material_constants.glsl)
 #define MATERIAL_CONSTANTS 6
 
+// skin.comp: a deforming mesh's data at rest and what poses it now and as the previous frame
+// drew it (RGBA32F texels, src/gpu/skin.rs), and the range of the vertex buffer it writes
+#define SKIN_REST 0
+#define SKIN_FRAME 1
+#define SKIN_VERTICES 2
+// skin.comp's flags (push constant `mesh.w`): joints and weights per vertex (else the mesh's
+// one placement), a second set of four, no normals (each vertex takes its posed face's normal)
+#define SKIN_SKINNED 1u
+#define SKIN_TWO_SETS 2u
+#define SKIN_FLAT 4u
+
 #endif

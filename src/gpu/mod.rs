@@ -13,6 +13,7 @@ mod camera;
 mod casters;
 mod material_table;
 mod scene;
+pub mod skin;
 pub mod textures;
 mod vertex;
 

@@ -95,9 +95,11 @@ pub struct SceneGpu {
     /// The draws whose meshes deform (skins, morph targets), in draw order: their vertices are
     /// rewritten whenever the scene is posed.
     pub deforming: Vec<DeformingDraw>,
-    /// The deformed vertices the next frame's first pass writes: (byte offset in `vertices`,
-    /// bytes), until a frame that wrote them is recorded.
+    /// The deforming draws' poses (`skin::pose_bytes`) the next frame's first passes write
+    /// into the skin pass's buffer, until a frame that wrote them is recorded.
     deformed: std::sync::Mutex<Tracked>,
+    /// The skin pass's data, in a scene with deforming draws.
+    skin: Option<super::skin::SkinGpu>,
     /// In a scene with deforming draws, where a copy of the vertices as the previous frame drew
     /// them starts (the motion channel's previous positions, vertex binding 5); `None` otherwise,
     /// and the motion variant reads the vertices themselves there.
@@ -520,30 +522,25 @@ impl SceneGpu {
                 .map(|m| Arc::new(bytemuck::bytes_of(&packing.instances[m.row as usize]).to_vec()))
                 .collect(),
         );
-        let vertex_size = std::mem::size_of::<Vertex>() as u64;
-        let deformed = Tracked::new(
-            packing
-                .deforming
-                .iter()
-                .map(|d| {
-                    let at = u64::from(d.first_vertex) * vertex_size;
-                    (at, vertex.previous_vertex_offset.unwrap_or(0) + at)
-                })
-                .collect(),
-            packing
-                .deforming
-                .iter()
-                .map(|d| {
-                    let at = d.first_vertex as usize..(d.first_vertex + d.vertex_count) as usize;
-                    Arc::new(bytemuck::cast_slice(&packing.vertices[at]).to_vec())
-                })
-                .collect(),
-        );
+        let (skin, deformed) = match packing.deforming.is_empty() {
+            true => (None, Tracked::new(Vec::new(), Vec::new())),
+            false => {
+                let previous = vertex.previous_vertex_offset.unwrap_or(0);
+                let skin = super::skin::SkinGpu::new(ctx, scene, &packing.deforming, previous)?;
+                let tracked = Tracked::new(skin.pose_offsets(), skin.held_poses());
+                (Some(skin), tracked)
+            }
+        };
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
-        // A moving scene's frames rewrite the instance rows.
-        let rows = match packing.moving.is_empty() && packing.deforming.is_empty() {
+        // A moving scene's frames rewrite the instance rows; the skin pass, deforming vertices.
+        let rows = match packing.moving.is_empty() {
             true => vk::BufferUsageFlags::empty(),
             false => vk::BufferUsageFlags::TRANSFER_DST,
+        } | match packing.deforming.is_empty() {
+            true => vk::BufferUsageFlags::empty(),
+            // The skin pass writes deforming vertices and copies their previous copy; the tests
+            // read them back.
+            false => storage | vk::BufferUsageFlags::TRANSFER_SRC | vk::BufferUsageFlags::TRANSFER_DST,
         };
         let [vertices, indices, lights] = upload(
             ctx,
@@ -585,6 +582,7 @@ impl SceneGpu {
             moving: packing.moving,
             deforming: packing.deforming,
             deformed: std::sync::Mutex::new(deformed),
+            skin,
             moved_lights: std::sync::Mutex::new(None),
         })
     }
@@ -621,12 +619,23 @@ impl SceneGpu {
         lights
     }
 
-    /// Poses the deforming draws: `posed` gives meshes' new vertices (`Scene::deformed`, in the
-    /// local frame); their bounds and the scene's follow at once, their vertices are written by
-    /// the next frame's first pass (and, for its motion channel, those the last recorded frame
-    /// drew). Returns the bytes that frame will move.
-    pub fn deform(&mut self, posed: &[(usize, crate::scene::deform::Posed)]) -> u64 {
-        let Some(now) = self.deformed_bytes(posed, true) else { return 0 };
+    /// Poses the deforming draws: `frames` gives what poses their meshes now
+    /// (`Scene::deform_frames`, in the local frame), `positions` their positions so posed (on the
+    /// CPU: `Scene::posed_by`); their bounds and the scene's follow at once, the next frame's
+    /// skin pass writes their vertices (and, for its motion channel, those the last recorded
+    /// frame drew). Returns the bytes that frame will move.
+    pub fn deform(
+        &mut self,
+        frames: &[(usize, crate::scene::deform::DeformFrame)],
+        positions: &[(usize, crate::scene::deform::Posed)],
+    ) -> u64 {
+        let Some(now) = self.pose_bytes(frames) else { return 0 };
+        for d in &self.deforming {
+            let Some((_, p)) = positions.iter().find(|(mesh, _)| *mesh == d.mesh) else { continue };
+            let mut box_ = Bounds::EMPTY;
+            p.positions.iter().map(|q| q.as_vec3()).filter(|q| q.is_finite()).for_each(|q| box_.include(q));
+            self.draws[d.draw].bounds = box_;
+        }
         self.bound_draws();
         self.deformed.lock().unwrap_or_else(|e| e.into_inner()).pose(now)
     }
@@ -639,42 +648,22 @@ impl SceneGpu {
         }
     }
 
-    /// Sets the deforming draws' vertices as the previous frame drew them to `posed` (for a
-    /// first frame, which has no previous one drawn): the next frame's motion starts there.
-    pub fn deform_previous(&mut self, posed: &[(usize, crate::scene::deform::Posed)]) {
-        let Some(before) = self.deformed_bytes(posed, false) else { return };
+    /// Sets the deforming draws' poses as the previous frame drew them to `frames` (for a first
+    /// frame, which has no previous one drawn): the next frame's motion starts there.
+    pub fn deform_previous(&mut self, frames: &[(usize, crate::scene::deform::DeformFrame)]) {
+        let Some(before) = self.pose_bytes(frames) else { return };
         self.deformed.lock().unwrap_or_else(|e| e.into_inner()).pose_previous(before);
     }
 
-    /// The deforming draws' vertex bytes for `posed` (a draw it leaves out keeps the vertices
-    /// posed last), and with `bounds` their draws' bounds set; `None` when it poses none.
-    fn deformed_bytes(
-        &mut self,
-        posed: &[(usize, crate::scene::deform::Posed)],
-        bounds: bool,
-    ) -> Option<Vec<Arc<Vec<u8>>>> {
+    /// The deforming draws' poses as the skin pass reads them, for `frames` (a draw it leaves out
+    /// keeps its pose); `None` when it poses none.
+    fn pose_bytes(&self, frames: &[(usize, crate::scene::deform::DeformFrame)]) -> Option<Vec<Arc<Vec<u8>>>> {
+        let skin = self.skin.as_ref()?;
         let mut out = self.deformed.lock().unwrap_or_else(|e| e.into_inner()).posed.clone();
         let mut any = false;
         for (k, d) in self.deforming.iter().enumerate() {
-            let Some((_, p)) = posed.iter().find(|(mesh, _)| *mesh == d.mesh) else { continue };
-            let mut box_ = Bounds::EMPTY;
-            let vertices: Vec<Vertex> = p
-                .positions
-                .iter()
-                .zip(&p.normals)
-                .map(|(position, normal)| {
-                    let position = position.as_vec3();
-                    if position.is_finite() {
-                        box_.include(position);
-                    }
-                    Vertex { position: position.to_array(), normal: normal.to_array() }
-                })
-                .collect();
-            debug_assert_eq!(vertices.len(), d.vertex_count as usize, "a pose keeps the mesh's vertices");
-            out[k] = Arc::new(bytemuck::cast_slice(&vertices).to_vec());
-            if bounds {
-                self.draws[d.draw].bounds = box_;
-            }
+            let Some((_, frame)) = frames.iter().find(|(mesh, _)| *mesh == d.mesh) else { continue };
+            out[k] = Arc::new(skin.pose_bytes(k, frame));
             any = true;
         }
         any.then_some(out)
@@ -722,22 +711,33 @@ impl SceneGpu {
     pub fn recorded(&self) {
         self.rows.lock().unwrap_or_else(|e| e.into_inner()).recorded();
         self.deformed.lock().unwrap_or_else(|e| e.into_inner()).recorded();
+        if let Some(skin) = &self.skin {
+            skin.recorded();
+        }
         self.moved_lights.lock().unwrap_or_else(|e| e.into_inner()).take();
         self.bvh.recorded();
     }
 
     /// Imports the vertex buffer into `g`; where the scene was posed since the last recorded
-    /// frame, first passes write the deforming draws' vertices and the moving draws' instance
-    /// rows, now and as the previous frame drew them (after every read of the old ones that
-    /// earlier frames submitted).
+    /// frame, first passes write the moving draws' instance rows and pose the deforming draws'
+    /// vertices (the skin pass), now and as the previous frame drew them (after every read of
+    /// the old ones that earlier frames submitted).
     pub fn import_vertices<'a>(
         &'a self,
         g: &mut crate::graph::RenderGraph<'a>,
-    ) -> crate::graph::Handle<crate::graph::BufferKind> {
+        pipelines: crate::vk::PipelineSource<'a>,
+    ) -> GpuResult<crate::graph::Handle<crate::graph::BufferKind>> {
         let mut vertices = g.import_buffer("vertices", &self.vertices, SCENE_ACCESS);
-        self.deformed.lock().unwrap_or_else(|e| e.into_inner()).write_pass(g, &mut vertices, "deformed vertices");
+        if let Some(skin) = &self.skin {
+            let deformed = self.deformed.lock().unwrap_or_else(|e| e.into_inner());
+            if let Some(writes) = deformed.pending.clone() {
+                let mut poses = g.import_buffer("skin poses", &skin.poses, SCENE_ACCESS);
+                deformed.write_pass(g, &mut poses, "skin poses");
+                skin.add(g, pipelines, &poses, &mut vertices, &writes)?;
+            }
+        }
         self.rows.lock().unwrap_or_else(|e| e.into_inner()).write_pass(g, &mut vertices, "instance rows");
-        vertices
+        Ok(vertices)
     }
 
     /// Bytes of the scene's buffers on the device.
@@ -747,6 +747,7 @@ impl SceneGpu {
             .map(|b| b.size)
             .sum::<u64>()
             + self.bvh.masks.as_ref().map_or(0, |m| m.buffer.size)
+            + self.skin.as_ref().map_or(0, |s| s.bytes())
     }
 
     /// A world-space camera in the scene-local frame (subtracted in f64).

@@ -23,6 +23,10 @@ pub enum Bound {
     /// (environment maps, read with `textureLod`).
     Filtered(Ref<ImageKind>),
     Buffer(Ref<BufferKind>),
+    /// Bytes `offset..offset + range` of a storage buffer (a pass that writes part of a buffer
+    /// larger than one binding may reach; `offset` a multiple of
+    /// `minStorageBufferOffsetAlignment`). The graph orders accesses on the whole buffer.
+    BufferRange(Ref<BufferKind>, u64, u64),
     /// An acceleration structure: the graph orders accesses on its backing buffer (the `Ref`),
     /// the descriptor names the structure itself.
     AccelerationStructure(Ref<BufferKind>, vk::AccelerationStructureKHR),
@@ -40,7 +44,7 @@ impl Bound {
                 _ => DescriptorKind::SampledImage,
             },
             Bound::Filtered(_) => DescriptorKind::FilteredImage,
-            Bound::Buffer(r) => match r.access {
+            Bound::Buffer(r) | Bound::BufferRange(r, ..) => match r.access {
                 Access::ComputeShaderReadUniformBuffer | Access::VertexShaderReadUniformBuffer => {
                     DescriptorKind::UniformBuffer
                 }
@@ -589,6 +593,8 @@ impl PassContext<'_> {
                 ),
                 Bound::Buffer(r) => buffer_infos
                     .push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(0).range(vk::WHOLE_SIZE)),
+                Bound::BufferRange(r, offset, range) => buffer_infos
+                    .push(vk::DescriptorBufferInfo::default().buffer(self.buffer(r)).offset(offset).range(range)),
                 Bound::AccelerationStructure(_, accel) => structures.push(accel),
                 Bound::TexelBuffer(_, view) => texel_views.push(view),
             }
@@ -616,7 +622,7 @@ impl PassContext<'_> {
                     ii += 1;
                     w.image_info(std::slice::from_ref(&image_infos[ii - 1]))
                 }
-                Bound::Buffer(_) => {
+                Bound::Buffer(_) | Bound::BufferRange(..) => {
                     bi += 1;
                     w.buffer_info(std::slice::from_ref(&buffer_infos[bi - 1]))
                 }

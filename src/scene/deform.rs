@@ -76,6 +76,16 @@ pub struct Posed {
     pub tangents: Vec<Vec4>,
 }
 
+/// What poses a deforming mesh at an instant (`Deform::frame`).
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct DeformFrame {
+    /// Skinned: per joint slot, its node's world transform times its inverse bind matrix;
+    /// otherwise the one matrix that places the mesh.
+    pub matrices: Vec<DMat4>,
+    /// Per morph target, its weight.
+    pub weights: Vec<f64>,
+}
+
 /// Below this weight a morph target or an influence adds nothing worth its cost.
 const NEGLIGIBLE: f64 = 0.0;
 
@@ -85,23 +95,43 @@ impl Deform {
         !self.joints.is_empty()
     }
 
+    /// The matrices and weights that pose the mesh at clip time `clip_time`, the rig's nodes at
+    /// `world` (`Rig::world`, shifted as the scene is): what the device's skin pass reads
+    /// (`crate::gpu::skin`) and what `pose_frame` poses by.
+    pub fn frame(&self, world: &[DMat4], clip_time: f64) -> DeformFrame {
+        let matrices = match self.skinned() {
+            true => self.joints.iter().map(|(node, inverse_bind)| world[*node] * *inverse_bind).collect(),
+            false => vec![world.get(self.node).copied().unwrap_or(DMat4::IDENTITY)],
+        };
+        DeformFrame { matrices, weights: self.weights.iter().map(|w| w.at(clip_time)).collect() }
+    }
+
     /// The mesh at clip time `clip_time`, the rig's nodes at `world` (`Rig::world`, shifted as
     /// the scene is), its triangles `indices` (for the faces' normals of a flat mesh).
     pub fn pose(&self, world: &[DMat4], clip_time: f64, indices: &[u32]) -> Posed {
+        self.pose_frame(&self.frame(world, clip_time), indices, true)
+    }
+
+    /// The mesh as `frame` poses it; without `full`, its positions alone (normals and tangents
+    /// empty: what the shadow BVH's refit and the draws' bounds need when the device poses the
+    /// vertices the raster passes draw).
+    pub fn pose_frame(&self, frame: &DeformFrame, indices: &[u32], full: bool) -> Posed {
         let rest = &self.rest;
         let n = rest.positions.len();
         let weights: Vec<(usize, f64)> =
-            self.weights.iter().map(|w| w.at(clip_time)).enumerate().filter(|(_, w)| w.abs() > NEGLIGIBLE).collect();
-        let skin: Vec<DMat4> = self.joints.iter().map(|(node, inverse_bind)| world[*node] * *inverse_bind).collect();
-        let placement = world.get(self.node).copied().unwrap_or(DMat4::IDENTITY);
+            frame.weights.iter().copied().enumerate().filter(|(_, w)| w.abs() > NEGLIGIBLE).collect();
+        let (skin, placement) = match self.skinned() {
+            true => (frame.matrices.as_slice(), DMat4::IDENTITY),
+            false => (&[][..], frame.matrices[0]),
+        };
         let mut posed = Posed {
             positions: Vec::with_capacity(n),
-            normals: Vec::with_capacity(n),
-            tangents: Vec::with_capacity(rest.tangents.len()),
+            normals: Vec::with_capacity(if full { n } else { 0 }),
+            tangents: Vec::with_capacity(if full { rest.tangents.len() } else { 0 }),
         };
         for i in 0..n {
             let mut p = rest.positions[i].as_dvec3();
-            let mut normal = rest.normals.get(i).map(|v| v.as_dvec3());
+            let mut normal = rest.normals.get(i).filter(|_| full).map(|v| v.as_dvec3());
             for &(t, w) in &weights {
                 let target = &rest.targets[t];
                 p += target.positions.get(i).map_or(DVec3::ZERO, |d| d.as_dvec3() * w);
@@ -109,8 +139,11 @@ impl Deform {
                     *nrm += d.as_dvec3() * w;
                 }
             }
-            let m = if skin.is_empty() { placement } else { blend(&skin, rest, i) };
+            let m = if skin.is_empty() { placement } else { blend(skin, rest, i) };
             posed.positions.push(m.transform_point3(p));
+            if !full {
+                continue;
+            }
             let linear = DMat3::from_mat4(m);
             if let Some(nrm) = normal {
                 posed.normals.push(normal_by(&linear, nrm).as_vec3());
@@ -121,7 +154,7 @@ impl Deform {
                 posed.tangents.push(moved.extend(sign));
             }
         }
-        if rest.normals.is_empty() {
+        if full && rest.normals.is_empty() {
             posed.normals = flat_normals(&posed.positions, indices);
         }
         posed

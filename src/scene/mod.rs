@@ -346,6 +346,13 @@ impl Scene {
     /// Each deforming mesh (index in `meshes`) posed at scene time `t`: positions in the frame
     /// the scene is in (its shift applied), normals, tangents. Empty in a scene nothing deforms.
     pub fn deformed(&self, t: f64) -> Vec<(usize, deform::Posed)> {
+        self.posed_by(&self.deform_frames(t), true)
+    }
+
+    /// Each deforming mesh (index in `meshes`) and the matrices and weights that pose it at
+    /// scene time `t` (`Deform::frame`, in the frame the scene is in). Empty in a scene nothing
+    /// deforms.
+    pub fn deform_frames(&self, t: f64) -> Vec<(usize, deform::DeformFrame)> {
         let Some(animation) = &self.animation else { return Vec::new() };
         if self.meshes.iter().all(|m| m.deform.is_none()) {
             return Vec::new();
@@ -355,8 +362,18 @@ impl Scene {
         self.meshes
             .iter()
             .enumerate()
-            .filter_map(|(k, m)| m.deform.as_ref().map(|d| (k, d.pose(&world, clip, &m.indices))))
+            .filter_map(|(k, m)| m.deform.as_ref().map(|d| (k, d.frame(&world, clip))))
             .collect()
+    }
+
+    /// The meshes `frames` names posed by them (`Deform::pose_frame`; without `full`, positions
+    /// alone).
+    pub fn posed_by(&self, frames: &[(usize, deform::DeformFrame)], full: bool) -> Vec<(usize, deform::Posed)> {
+        let pose = |(k, frame): &(usize, deform::DeformFrame)| {
+            let mesh = &self.meshes[*k];
+            mesh.deform.as_ref().map(|d| (*k, d.pose_frame(frame, &mesh.indices, full)))
+        };
+        frames.iter().filter_map(pose).collect()
     }
 
     /// Poses every deforming mesh at scene time 0: what its positions, normals and tangents

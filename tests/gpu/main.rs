@@ -48,6 +48,7 @@ mod shadow_choice;
 mod shadow_map;
 mod shadow_map_kinds;
 mod shadow_volumes;
+mod skinning;
 mod soft_shadows;
 mod stress_scenes;
 mod sync_validation;

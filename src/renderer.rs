@@ -266,6 +266,9 @@ impl Renderer {
             undeformed = crate::gpu::accel_motion::posed_triangles(&motion.groups, &self.local, &deformed);
         }
         let deform_ms = deform_start.elapsed().as_secs_f64() * 1e3;
+        if let Some(volumes) = self.volume_scene.get() {
+            bytes += volumes.pose(&self.local, &deltas, &deformed);
+        }
         // The ray-query structures, once made, follow every instant: their next frame that
         // traces writes the instances and the deformed triangles.
         let mut placed = None;
@@ -520,7 +523,14 @@ impl Renderer {
             return Ok(None);
         }
         let scene = crate::vk::get_or_make(&self.volume_scene, || {
-            crate::shadows::volumes::VolumeScene::new(&self.ctx, &self.local, self.gpu_scene.origin)
+            let volumes = crate::shadows::volumes::VolumeScene::new(&self.ctx, &self.local, self.gpu_scene.origin)?;
+            // Made from the scene at rest: a moving scene's casters go where it is posed now
+            // (later instants reach them through `pose`).
+            if let Some(time) = self.posed_at() {
+                let frames = self.local.deform_frames(time);
+                volumes.pose(&self.local, &self.local.mesh_motion(time), &self.local.posed_by(&frames, false));
+            }
+            Ok(volumes)
         })?;
         Ok(Some(scene))
     }
@@ -585,6 +595,9 @@ impl Renderer {
         let (graph, traversal) = self.graph(settings, target, history)?;
         let plan = execute(cache, graph, cmd, timing_mode(&self.timing, settings))?;
         self.gpu_scene.recorded();
+        if let Some(volumes) = self.volume_scene.get() {
+            volumes.recorded();
+        }
         self.histories.advance();
         *self.previous_camera.lock().unwrap_or_else(|e| e.into_inner()) =
             Some(settings.camera.unwrap_or(self.scene.camera));

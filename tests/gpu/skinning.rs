@@ -282,3 +282,43 @@ fn skinning_timings() {
     drop(renderer);
     common::assert_clean(&ctx);
 }
+
+/// Shadow volumes extrude the skinned crowd's posed positions (the CPU twin's, welded), as the
+/// same pose baked into a static scene: the ground casts no shadow here (an open plane refuses
+/// volumes), every figure is closed.
+#[test]
+fn volumes_extrude_the_skinned_crowd_as_the_same_pose_baked() {
+    use crate::moving_scenes::{differing, visibility};
+    let ctx = common::gpu();
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/stress/moving");
+    let text = std::fs::read_to_string(dir.join("crowd.toml")).expect("crowd.toml");
+    let text = text.replace("shape = \"plane\"\n", "shape = \"plane\"\ncast_shadows = false\n");
+    let scene = Scene::parse(&text, "crowd.toml", &dir).expect("the crowd");
+    let mut moving = Renderer::new(ctx.clone(), scene.clone()).expect("renderer");
+    let mut last = None;
+    for time in [0.2, 0.7] {
+        let mut baked = Renderer::new(ctx.clone(), scene.posed(time)).expect("baked renderer");
+        for light in 0..2 {
+            let posed = visibility(&mut moving, light, ShadowMethod::Volumes, Some(time));
+            let plan = moving.last_plan().map(|p| p.to_string()).unwrap_or_default();
+            assert!(plan.contains("shadow volumes"), "the moving frame drew no volumes");
+            let still = visibility(&mut baked, light, ShadowMethod::Volumes, None);
+            let plan = baked.last_plan().map(|p| p.to_string()).unwrap_or_default();
+            assert!(!plan.is_empty() && plan.contains("shadow volumes"), "the baked frame drew no volumes");
+            assert!(still.iter().filter(|&&v| v < 0.5).count() > 200, "t = {time}, light {light}: few shadowed pixels");
+            let share = differing(&posed, &still);
+            assert!(
+                share <= 0.002,
+                "light {light}, t = {time}: {:.3} % of pixels differ from the baked pose",
+                100.0 * share
+            );
+            if light == 0 {
+                if let Some(before) = last.replace(posed) {
+                    assert!(differing(&before, &last.clone().unwrap()) > 0.002, "the figures' shadows did not move");
+                }
+            }
+        }
+    }
+    drop(moving);
+    common::assert_clean(&ctx);
+}

@@ -61,6 +61,9 @@ impl fmt::Display for NotManifold {
 pub struct Adjacency {
     /// Welded positions.
     pub positions: Vec<Vec3>,
+    /// Per welded position, the first input vertex welded into it (where a moving mesh's
+    /// posed positions are read from).
+    pub sources: Vec<u32>,
     /// Triangles over `positions`, three indices each, in the input's order.
     pub triangles: Vec<[u32; 3]>,
     /// Six indices per triangle (see the module docs).
@@ -77,12 +80,15 @@ fn key(p: Vec3) -> [u32; 3] {
 /// checks that the rest form a closed, consistently wound 2-manifold.
 pub fn build(positions: &[Vec3], indices: &[u32]) -> Result<Adjacency, NotManifold> {
     let mut welded: Vec<Vec3> = Vec::new();
+    let mut sources: Vec<u32> = Vec::new();
     let mut index_of: HashMap<[u32; 3], u32> = HashMap::new();
     let remap: Vec<u32> = positions
         .iter()
-        .map(|&p| {
+        .enumerate()
+        .map(|(k, &p)| {
             *index_of.entry(key(p)).or_insert_with(|| {
                 welded.push(p);
+                sources.push(k as u32);
                 welded.len() as u32 - 1
             })
         })
@@ -136,7 +142,7 @@ pub fn build(positions: &[Vec3], indices: &[u32]) -> Result<Adjacency, NotManifo
             with_adjacency.push(opposite);
         }
     }
-    Ok(Adjacency { positions: welded, triangles, with_adjacency })
+    Ok(Adjacency { positions: welded, sources, triangles, with_adjacency })
 }
 
 /// Lexicographic order of positions.

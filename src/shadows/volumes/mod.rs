@@ -71,6 +71,18 @@ pub struct CasterAdjacency {
     pub indices: Vec<u32>,
     /// Shadow-casting meshes.
     pub meshes: u32,
+    /// The casters that move (rigidly or deforming), whose welded positions a moving scene's
+    /// frames rewrite.
+    pub moving: Vec<MovingCaster>,
+}
+
+/// A caster that moves: its mesh, where its welded positions start, and per welded position
+/// the mesh's vertex it is read from.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct MovingCaster {
+    pub mesh: usize,
+    pub first: u32,
+    pub sources: Vec<u32>,
 }
 
 impl CasterAdjacency {
@@ -94,6 +106,10 @@ pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdja
             )
         })?;
         let base = all.positions.len() as u32;
+        if mesh.motion.is_some() || mesh.deform.is_some() {
+            let index = scene.meshes.iter().position(|m| std::ptr::eq(m, mesh)).expect("a mesh of the scene");
+            all.moving.push(MovingCaster { mesh: index, first: base, sources: adj.sources.clone() });
+        }
         all.positions.extend(adj.positions.iter().map(|p| p.to_array()));
         all.indices.extend(adj.with_adjacency.iter().map(|i| i + base));
         all.meshes += 1;
@@ -106,6 +122,7 @@ pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdja
 
 /// The casters on the device.
 struct Casters {
+    /// Welded positions; a moving scene's frames rewrite its moving casters' (`VolumeScene::pose`).
     positions: Buffer,
     indices: Buffer,
     index_count: u32,
@@ -115,22 +132,25 @@ struct Casters {
 
 /// The casters as shadow volumes need them, made the first time a light uses `volumes`: from
 /// the scene in its local frame (the frame `SceneGpu` holds).
+#[derive(Default)]
 pub struct VolumeScene {
     /// Why the casters cannot make volumes (the first mesh that breaks it), if they cannot.
     refused: Option<String>,
     casters: Option<Casters>,
+    moving: Vec<MovingCaster>,
+    /// The moving casters' welded positions as posed last (byte offset, bytes), until a frame
+    /// that wrote them into `positions` is recorded; and the writes the frame built last made.
+    pending: std::sync::Mutex<Option<PositionWrites>>,
+    written: std::sync::Mutex<Option<PositionWrites>>,
 }
+
+/// Writes into the volumes' positions: (byte offset, bytes).
+type PositionWrites = Arc<Vec<(u64, Vec<u8>)>>;
 
 impl VolumeScene {
     /// `local`: the scene in the frame `SceneGpu` holds, whose origin is `origin` in the world.
     pub fn new(ctx: &Arc<GpuContext>, local: &Scene, origin: glam::DVec3) -> GpuResult<VolumeScene> {
-        let refuse = |why: String| Ok(VolumeScene { refused: Some(why), casters: None });
-        if let Some(mesh) = local.meshes.iter().find(|m| m.cast_shadows && m.motion.is_some()) {
-            return refuse(format!(
-                "{} ({}) moves, and `volumes` extrudes the casters as loaded (its adjacency is not rebuilt per frame)",
-                mesh.object, mesh.name
-            ));
-        }
+        let refuse = |why: String| Ok(VolumeScene { refused: Some(why), casters: None, ..VolumeScene::default() });
         let kept = local.meshes.iter().filter(|m| m.cast_shadows && m.kept().is_some());
         if let Some((count, mesh)) = kept.clone().next().map(|m| (kept.count(), m)) {
             return refuse(format!(
@@ -148,10 +168,15 @@ impl VolumeScene {
             Ok(all) => all,
             Err(why) => return refuse(why),
         };
+        // A moving scene's frames rewrite the moving casters' positions.
+        let rewritten = match all.moving.is_empty() {
+            true => vk::BufferUsageFlags::empty(),
+            false => vk::BufferUsageFlags::TRANSFER_DST,
+        };
         let [positions, indices] = upload(
             ctx,
             [
-                ("volume positions", bytemuck::cast_slice(&all.positions), vk::BufferUsageFlags::VERTEX_BUFFER),
+                ("volume positions", bytemuck::cast_slice(&all.positions), vk::BufferUsageFlags::VERTEX_BUFFER | rewritten),
                 ("volume indices", bytemuck::cast_slice(&all.indices), vk::BufferUsageFlags::INDEX_BUFFER),
             ],
         )?;
@@ -162,7 +187,48 @@ impl VolumeScene {
             meshes: all.meshes,
             triangles: all.triangles(),
         };
-        Ok(VolumeScene { refused: None, casters: Some(casters) })
+        Ok(VolumeScene { refused: None, casters: Some(casters), moving: all.moving, ..VolumeScene::default() })
+    }
+
+    /// Poses the moving casters (of `local`, the scene the volumes were made from): a rigid
+    /// one's welded positions moved by its `deltas` entry (`Scene::mesh_motion`), a deforming
+    /// one's read from `deformed` (`Scene::posed_by`, positions alone). The next frame that
+    /// draws volumes writes them. Returns the bytes it will write.
+    pub fn pose(
+        &self,
+        local: &Scene,
+        deltas: &[Option<glam::DMat4>],
+        deformed: &[(usize, crate::scene::deform::Posed)],
+    ) -> u64 {
+        if self.moving.is_empty() || self.casters.is_none() {
+            return 0;
+        }
+        let mut writes = Vec::with_capacity(self.moving.len());
+        for caster in &self.moving {
+            let mesh = &local.meshes[caster.mesh];
+            let posed = deformed.iter().find(|(k, _)| *k == caster.mesh).map(|(_, p)| &p.positions);
+            let delta = deltas.get(caster.mesh).copied().flatten().unwrap_or(glam::DMat4::IDENTITY);
+            let at = |v: u32| match posed {
+                Some(positions) => positions[v as usize],
+                None => delta.transform_point3(mesh.positions[v as usize]),
+            };
+            let moved: Vec<[f32; 3]> = caster.sources.iter().map(|&v| at(v).as_vec3().to_array()).collect();
+            writes.push((u64::from(caster.first) * 12, bytemuck::cast_slice(&moved).to_vec()));
+        }
+        let bytes = writes.iter().map(|(_, w)| w.len() as u64).sum();
+        *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = Some(Arc::new(writes));
+        bytes
+    }
+
+    /// A frame was recorded: the moving casters' positions it wrote are in place.
+    pub fn recorded(&self) {
+        let written = self.written.lock().unwrap_or_else(|e| e.into_inner()).take();
+        let mut pending = self.pending.lock().unwrap_or_else(|e| e.into_inner());
+        if let (Some(w), Some(p)) = (&written, pending.as_ref()) {
+            if Arc::ptr_eq(w, p) {
+                *pending = None;
+            }
+        }
     }
 
     /// Why the scene's casters cannot make volumes, if they cannot.
@@ -382,7 +448,21 @@ fn add<'a>(
         Ok(())
     });
 
-    let positions = graph.import_buffer("volume positions", &casters.positions, SCENE_ACCESS);
+    let mut positions = graph.import_buffer("volume positions", &casters.positions, SCENE_ACCESS);
+    let pending = scene.pending.lock().unwrap_or_else(|e| e.into_inner()).clone();
+    if let Some(writes) = pending {
+        *scene.written.lock().unwrap_or_else(|e| e.into_inner()) = Some(writes.clone());
+        let mut pass = graph.add_pass("volume positions");
+        pass.detail(format!("{} moving casters", writes.len()));
+        let dst = pass.write(&mut positions, Access::TransferWrite);
+        pass.render(move |ctx| {
+            for (at, bytes) in writes.iter() {
+                ctx.update_buffer(dst, *at, bytes);
+            }
+            Ok(())
+        });
+        graph.export_version(&positions, SCENE_ACCESS);
+    }
     let indices = graph.import_buffer("volume indices", &casters.indices, SCENE_ACCESS);
     for served in served {
         let light = &frame.scene.local_lights[served.light as usize];
@@ -542,7 +622,7 @@ mod tests {
         assert!(why.contains("geometry shader"), "{why}");
         let caps = Capabilities { geometry_shader: true, ..Default::default() };
         assert!(serves(&light, &caps, None).is_err());
-        let refused = VolumeScene { refused: Some("mesh \"plane\" cannot".into()), casters: None };
+        let refused = VolumeScene { refused: Some("mesh \"plane\" cannot".into()), ..VolumeScene::default() };
         assert_eq!(serves(&light, &caps, Some(&refused)).unwrap_err(), "mesh \"plane\" cannot");
     }
 }

@@ -80,11 +80,14 @@ const QUICK_WARMUP: u32 = 1;
 /// ray-query structures' builds ("build BLAS", "build TLAS") run in the first frame only,
 /// which is a warm-up frame, in a static scene; in a moving one, every frame that poses a new
 /// instant writes the instances, updates deformed bottom levels and rebuilds the top level, as
-/// the compute BVH's frames write its top level.
+/// the compute BVH's frames write its top level. The skin pass that poses deforming meshes on
+/// the device counts too: every method pays it (the G-buffer draws the posed vertices), as every
+/// method paid for posing them on the CPU before it.
 pub fn is_shadow_pass(name: &str) -> bool {
     use crate::gpu::accel::{BUILD_BOTTOM, BUILD_TOP, UPDATE_BOTTOM, WRITE_INSTANCES};
     name.starts_with("shadow")
         || [BUILD_BOTTOM, BUILD_TOP, UPDATE_BOTTOM, WRITE_INSTANCES, crate::gpu::TOP_LEVEL_PASS].contains(&name)
+        || crate::gpu::skin::PASSES.contains(&name)
 }
 
 /// Bytes of the transient images and buffers the plan's shadow passes bring in (first used by

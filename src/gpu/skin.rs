@@ -27,6 +27,9 @@ const TEXEL: u64 = 16;
 const ROW: u32 = 64 * 1024;
 const LOCAL_SIZE: [u32; 2] = [64, 1];
 
+/// The passes that pose deforming meshes on the device (the bench charges them to every method).
+pub const PASSES: [&str; 2] = ["skin", "skin copy"];
+
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, bytemuck::Pod, bytemuck::Zeroable)]
 struct Push {
@@ -209,7 +212,7 @@ impl SkinGpu {
         }
         *self.pending.lock().unwrap_or_else(|e| e.into_inner()) = pending;
         if !copies.is_empty() {
-            let mut pass = g.add_pass("skin copy");
+            let mut pass = g.add_pass(PASSES[1]);
             pass.detail(format!("{} meshes' previous vertices", copies.len()));
             let dst = pass.write(vertices, Access::TransferWrite);
             pass.render(move |pctx| {
@@ -225,7 +228,7 @@ impl SkinGpu {
             return Ok(());
         }
         let rest = g.import_buffer("skin rest", &self.rest, SCENE_ACCESS);
-        let mut pass = g.add_pass("skin");
+        let mut pass = g.add_pass(PASSES[0]);
         pass.detail(format!("{} poses of {} meshes", posed.len(), self.draws.len()));
         let texel = Access::ComputeShaderReadUniformTexelBuffer;
         let rest = Bound::TexelBuffer(pass.read(&rest, texel), self.rest_view.view);

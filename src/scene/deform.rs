@@ -293,42 +293,6 @@ mod tests {
         assert!((posed.normals[0] - Vec3::new(0.5, 0.0, 1.0).normalize()).length() < 1e-6);
     }
 
-    /// Skinning a million vertices on one CPU thread (four influences each over 64 joints, with
-    /// normals): the figure docs/performance.md reports. Not a timed test: run it with
-    /// `cargo test --release --lib skinning_timings -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn skinning_timings() {
-        let n = 1 << 20;
-        let joints = 64usize;
-        let hash = |i: usize, k: usize| ((i.wrapping_mul(2654435761) >> (4 * k)) % joints) as u16;
-        let rest = DeformRest {
-            positions: (0..n).map(|i| Vec3::new(i as f32 * 1e-3, (i % 977) as f32 * 1e-2, 0.5)).collect(),
-            normals: vec![Vec3::Z; n],
-            joints: [(0..n).map(|i| [0, 1, 2, 3].map(|k| hash(i, k))).collect(), Vec::new()],
-            weights: [vec![[0.4, 0.3, 0.2, 0.1]; n], Vec::new()],
-            ..Default::default()
-        };
-        let world: Vec<DMat4> = (0..joints)
-            .map(|j| DMat4::from_rotation_translation(DQuat::from_rotation_z(j as f64 * 0.01), DVec3::X * j as f64))
-            .collect();
-        let deform = Deform {
-            rest: Arc::new(rest),
-            joints: (0..joints).map(|j| (j, DMat4::IDENTITY)).collect(),
-            node: 0,
-            weights: Vec::new(),
-        };
-        let mut times = Vec::new();
-        for _ in 0..5 {
-            let start = std::time::Instant::now();
-            let posed = deform.pose(&world, 0.0, &[]);
-            times.push(start.elapsed().as_secs_f64() * 1e3);
-            assert_eq!(posed.positions.len(), n);
-        }
-        times.sort_by(f64::total_cmp);
-        println!("skinning {n} vertices (4 influences, normals, f64): median {:.1} ms of {times:?}", times[2]);
-    }
-
     #[test]
     fn a_mesh_without_normals_takes_its_posed_faces_normals() {
         let rest = DeformRest { positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y], ..Default::default() };

@@ -258,7 +258,7 @@ impl BvhBuffers {
         }
         for d in deformed {
             next.nodes.push(d.nodes);
-            next.triangles.push(d.triangles);
+            next.triangles.extend(d.triangles);
             next.masks.extend(d.masks);
         }
         // Runs can overlap (neighbouring trees share a triangle texel; a tree deformed twice

@@ -66,6 +66,12 @@ pub const REBUILD_RATIO: f32 = 1.5;
 /// A run of RGBA32UI texels to write into a buffer: the first texel's index and the texels.
 pub type TexelRange = (usize, Vec<[u32; 4]>);
 
+/// The most texels in one run of a deformed tree's triangles (1 MiB): runs this small come back
+/// from the allocator's heap frame after frame, where one run of a large mesh's (36 MB for 1M
+/// triangles) was a fresh mapping each frame whose page faults took longer than the refit's
+/// copy itself.
+pub const RUN_TEXELS: usize = 1 << 16;
+
 /// What `TwoLevel::deform` did to a bottom tree, and what to upload for it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Deformed {
@@ -79,9 +85,10 @@ pub struct Deformed {
     /// The node buffer's texels that changed: the tree's nodes (after a rebuild, as many as the
     /// larger of the old and the new tree, the rest of its room zero).
     pub nodes: TexelRange,
-    /// The triangle buffer's texels that hold the tree's triangles, whole: the first and last
-    /// can hold a neighbour's floats too, taken as they are now.
-    pub triangles: TexelRange,
+    /// The triangle buffer's texels that hold the tree's triangles, whole (the first and last
+    /// can hold a neighbour's floats too, taken as they are now), in consecutive runs of at
+    /// most `RUN_TEXELS`.
+    pub triangles: Vec<TexelRange>,
     /// The masks' texels that changed (after a rebuild of a tree with masked triangles: the
     /// words of its triangles, and its records), none otherwise.
     pub masks: Vec<TexelRange>,
@@ -265,7 +272,7 @@ impl TwoLevel {
         let (node_base, triangle_base) = (self.roots[bottom] as usize, self.triangle_starts[bottom] as usize);
         let old_nodes = tree.wide.nodes.len();
         if tree.is_empty() {
-            let (nodes, triangles) = ((3 * node_base, Vec::new()), (9 * triangle_base / 4, Vec::new()));
+            let (nodes, triangles) = ((3 * node_base, Vec::new()), Vec::new());
             return Deformed { rebuilt: false, refit_ratio: 1.0, sah_ratio: 1.0, nodes, triangles, masks: Vec::new() };
         }
         let refit_ratio = tree.wide.refit(input, &mut self.refit) / self.built_cost[bottom];
@@ -309,15 +316,22 @@ impl TwoLevel {
     }
 
     /// The texels of the triangle buffer (`triangle_texels`) that hold triangles `first` to
-    /// `first + count`: a triangle's nine floats start at word 9i, so the first and last texel
-    /// can hold neighbours' floats, and past the last triangle the buffer's padding (zeros).
-    fn triangle_range(&self, first: usize, count: usize) -> TexelRange {
+    /// `first + count`, in runs of at most `RUN_TEXELS`: a triangle's nine floats start at word
+    /// 9i, so the first and last texel can hold neighbours' floats, and past the last triangle
+    /// the buffer's padding (zeros).
+    fn triangle_range(&self, first: usize, count: usize) -> Vec<TexelRange> {
         let words: &[u32] = bytemuck::cast_slice(&self.triangles);
         let (from, to) = (9 * first / 4, (9 * (first + count)).div_ceil(4));
-        let mut texels = vec![[0u32; 4]; to - from];
-        let end = words.len().min(4 * to);
-        bytemuck::cast_slice_mut::<[u32; 4], u32>(&mut texels)[..end - 4 * from].copy_from_slice(&words[4 * from..end]);
-        (from, texels)
+        let word = |k: usize| words.get(k).copied().unwrap_or(0);
+        (from..to)
+            .step_by(RUN_TEXELS)
+            .map(|start| {
+                let end = (start + RUN_TEXELS).min(to);
+                let mut texels = Vec::with_capacity(end - start);
+                texels.extend((start..end).map(|t| [word(4 * t), word(4 * t + 1), word(4 * t + 2), word(4 * t + 3)]));
+                (start, texels)
+            })
+            .collect()
     }
 
     /// Node of the first proxy: after room for the top tree's most nodes (`top_node_room`).

@@ -373,7 +373,9 @@ fn deform_checked(levels: &mut TwoLevel, bottom: usize, input: &[[Vec3; 3]]) -> 
     let mut masks = levels.masks().map(|m| m.texels.clone());
     let deformed = levels.deform(bottom, input);
     apply(&mut nodes, &deformed.nodes);
-    apply(&mut triangles, &deformed.triangles);
+    for run in &deformed.triangles {
+        apply(&mut triangles, run);
+    }
     assert!(nodes == levels.node_texels(), "bottom {bottom}: the node ranges miss a change");
     assert!(triangles == levels.triangle_texels(), "bottom {bottom}: the triangle ranges miss a change");
     if let Some(masks) = &mut masks {
@@ -406,7 +408,29 @@ fn deformed_levels_answer_as_one_tree_over_the_posed_triangles() {
     assert!(refits > 10 && rebuilds > 5, "{refits} refits, {rebuilds} rebuilds: the test would be weak");
     // The empty group deforms to nothing.
     let empty = levels.deform(1, &[]);
-    assert!(!empty.rebuilt && empty.nodes.1.is_empty() && empty.triangles.1.is_empty());
+    assert!(!empty.rebuilt && empty.nodes.1.is_empty() && empty.triangles.is_empty());
+}
+
+/// A deformed tree past one run (`RUN_TEXELS`) uploads its triangles in consecutive runs that
+/// together turn the old texels into the new ones, refit and rebuilt alike.
+#[test]
+fn a_large_deformed_tree_uploads_its_triangles_in_runs() {
+    let mut rng = Rng(0x7a11);
+    let mesh = Mesh::sphere(150, 200, 1.0, Vec3::ZERO, 0.05, &mut rng);
+    let identity = [Placement { bottom: 0, to_world: Affine3A::IDENTITY }];
+    let mut levels = TwoLevel::build(
+        vec![Vec::new(), mesh.triangles()],
+        None,
+        &[identity[0], Placement { bottom: 1, ..identity[0] }],
+        &[false, true],
+    );
+    for kind in [0, 6] {
+        let deformed = deform_checked(&mut levels, 1, &mesh.deformed(kind, &mut rng).triangles());
+        let runs = &deformed.triangles;
+        assert!(runs.len() > 1, "{} texels in one run", runs[0].1.len());
+        assert!(runs.iter().all(|(_, t)| t.len() <= crate::scene::bvh::levels::RUN_TEXELS));
+        assert!(runs.windows(2).all(|w| w[0].0 + w[0].1.len() == w[1].0), "runs with gaps");
+    }
 }
 
 #[test]

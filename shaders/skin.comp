@@ -41,7 +41,8 @@ vec3 morphed(uint v, uint pose, bool normal, out vec3 n) {
     uint weights = pose + 3u * pc.frame.z;
     for (uint t = 0u; t < count; t++) {
         float w = texelFetch(skin_frame, int(weights + t / 4u))[t % 4u];
-        if (w == 0.0) continue;
+        // Skipped where zero or not a number, as the CPU twin skips it.
+        if (!(abs(w) > 0.0)) continue;
         uint at = pc.targets.x + 2u * (t * pc.mesh.x + v);
         vec4 d = texelFetch(skin_rest, int(at));
         p += d.xyz * w;

@@ -101,6 +101,13 @@ impl SkinGpu {
                     limits.max_storage_buffer_range >> 20
                 )));
             }
+            if deform.rest.normals.is_empty() && d.vertex_count >= 1 << 24 {
+                // skin.comp reads a flat mesh's face corners as f32, exact below 2^24.
+                return Err(GpuError::Unsupported(format!(
+                    "{} ({}) deforms {} vertices without normals, over the skin pass's 2^24",
+                    mesh.object, mesh.name, d.vertex_count
+                )));
+            }
             let (first_rest, stride, flags) = pack_rest(deform, &mesh.indices, &mut rest);
             let first_target = rest.len() as u32;
             pack_targets(deform, &mut rest);
@@ -123,11 +130,11 @@ impl SkinGpu {
             rest_poses.push(bytes);
         }
         let elements = u64::from(ctx.capabilities.max_texel_buffer_elements);
-        if rest.len() as u64 > elements {
+        if rest.len() as u64 > elements || pose_texels > elements {
             return Err(GpuError::Unsupported(format!(
-                "the deforming meshes' data at rest takes {} MiB, over the device's {} MiB for one texel buffer \
-                 (maxTexelBufferElements): use fewer or smaller deforming meshes",
-                (rest.len() as u64 * TEXEL) >> 20,
+                "the deforming meshes' data at rest and poses take {} MiB, over the device's {} MiB for one texel \
+                 buffer (maxTexelBufferElements): use fewer or smaller deforming meshes",
+                ((rest.len() as u64).max(pose_texels) * TEXEL) >> 20,
                 (elements * TEXEL) >> 20
             )));
         }
@@ -198,7 +205,7 @@ impl SkinGpu {
         for (at, bytes) in written {
             let found =
                 self.draws.iter().enumerate().find_map(|(k, d)| d.poses.iter().position(|p| p == at).map(|w| (k, w)));
-            let Some((draw, which)) = found else { continue };
+            let Some((draw, which)) = found.filter(|&(k, _)| self.draws[k].push.mesh.x > 0) else { continue };
             if which == 1 && holds[draw] == *bytes {
                 let d = &self.draws[draw];
                 let size = u64::from(d.push.mesh.x) * std::mem::size_of::<super::Vertex>() as u64;
@@ -214,6 +221,8 @@ impl SkinGpu {
         if !copies.is_empty() {
             let mut pass = g.add_pass(PASSES[1]);
             pass.detail(format!("{} meshes' previous vertices", copies.len()));
+            // Reads the vertices now and writes their previous copy, in one buffer.
+            pass.read(vertices, Access::TransferRead);
             let dst = pass.write(vertices, Access::TransferWrite);
             pass.render(move |pctx| {
                 // SAFETY: recording state; each copy moves a draw's vertices to its previous
@@ -224,7 +233,6 @@ impl SkinGpu {
             g.export_version(vertices, SCENE_ACCESS);
         }
         if posed.is_empty() {
-            g.export_version(vertices, SCENE_ACCESS);
             return Ok(());
         }
         let rest = g.import_buffer("skin rest", &self.rest, SCENE_ACCESS);
@@ -365,6 +373,9 @@ pub fn read_vertices(
     draw: usize,
 ) -> GpuResult<[Vec<super::Vertex>; 2]> {
     let d = &scene.deforming[draw];
+    if d.vertex_count == 0 {
+        return Ok([Vec::new(), Vec::new()]);
+    }
     let vertex_size = std::mem::size_of::<super::Vertex>() as u64;
     let size = u64::from(d.vertex_count) * vertex_size;
     let now = u64::from(d.first_vertex) * vertex_size;

@@ -79,14 +79,21 @@ fn key(p: Vec3) -> [u32; 3] {
 /// Welds `positions`, drops triangles that weld to fewer than three distinct corners, and
 /// checks that the rest form a closed, consistently wound 2-manifold.
 pub fn build(positions: &[Vec3], indices: &[u32]) -> Result<Adjacency, NotManifold> {
+    build_keyed(positions, None, indices)
+}
+
+/// `build`, where vertices weld only if their `keys` agree as well as their positions (a
+/// deforming mesh's: how each vertex deforms).
+pub fn build_keyed(positions: &[Vec3], keys: Option<&[u64]>, indices: &[u32]) -> Result<Adjacency, NotManifold> {
     let mut welded: Vec<Vec3> = Vec::new();
     let mut sources: Vec<u32> = Vec::new();
-    let mut index_of: HashMap<[u32; 3], u32> = HashMap::new();
+    let mut index_of: HashMap<([u32; 3], u64), u32> = HashMap::new();
     let remap: Vec<u32> = positions
         .iter()
         .enumerate()
         .map(|(k, &p)| {
-            *index_of.entry(key(p)).or_insert_with(|| {
+            let extra = keys.and_then(|keys| keys.get(k)).copied().unwrap_or(0);
+            *index_of.entry((key(p), extra)).or_insert_with(|| {
                 welded.push(p);
                 sources.push(k as u32);
                 welded.len() as u32 - 1
@@ -226,6 +233,20 @@ mod tests {
                 assert_ne!(opposite, tri[(k + 1) % 3]);
             }
         }
+    }
+
+    /// Keys that agree weld as positions alone do, each welded position naming the first vertex
+    /// at it; keys that part the faces' corners (a mesh whose faces would deform apart) leave the
+    /// cube open.
+    #[test]
+    fn keyed_vertices_weld_only_where_their_keys_agree() {
+        let (p, i) = split_cube();
+        let same = vec![7u64; p.len()];
+        let adj = build_keyed(&p, Some(&same), &i).expect("the cube is closed");
+        assert_eq!(adj.positions.len(), 8);
+        assert!(adj.sources.iter().zip(&adj.positions).all(|(&k, &at)| p[k as usize] == at));
+        let faces: Vec<u64> = (0..p.len() as u64).map(|k| k / 4).collect();
+        assert!(matches!(build_keyed(&p, Some(&faces), &i), Err(NotManifold::Open { .. })));
     }
 
     #[test]

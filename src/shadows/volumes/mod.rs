@@ -98,7 +98,10 @@ pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdja
     let mut all = CasterAdjacency::default();
     for mesh in scene.meshes.iter().filter(|m| m.cast_shadows && !m.indices.is_empty()) {
         let positions: Vec<glam::Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
-        let adj = adjacency::build(&positions, &mesh.indices).map_err(|e| {
+        // A deforming mesh's vertices weld only where they also deform alike: two that meet at
+        // rest but follow other joints (lips closed at rest) would part as it moves.
+        let deforms_alike = mesh.deform.as_ref().map(|d| deform_keys(d, positions.len()));
+        let adj = adjacency::build_keyed(&positions, deforms_alike.as_deref(), &mesh.indices).map_err(|e| {
             format!(
                 "mesh {:?} cannot cast shadow volumes: {} (`cast_shadows = false` on it would leave it out)",
                 mesh.name,
@@ -118,6 +121,26 @@ pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdja
         0 => Err("no mesh casts shadows".into()),
         _ => Ok(all),
     }
+}
+
+/// Per vertex of a deforming mesh, a hash of how it deforms (its joints and weights and its
+/// morph targets' offsets): vertices weld only where these agree.
+fn deform_keys(deform: &crate::scene::deform::Deform, count: usize) -> Vec<u64> {
+    use std::hash::{Hash, Hasher};
+    let rest = &deform.rest;
+    (0..count)
+        .map(|i| {
+            let mut h = std::collections::hash_map::DefaultHasher::new();
+            for set in 0..2 {
+                rest.joints[set].get(i).hash(&mut h);
+                rest.weights[set].get(i).map(|w| w.map(f32::to_bits)).hash(&mut h);
+            }
+            for target in &rest.targets {
+                target.positions.get(i).map(|d| d.to_array().map(f32::to_bits)).hash(&mut h);
+            }
+            h.finish()
+        })
+        .collect()
 }
 
 /// The casters on the device.
@@ -451,7 +474,6 @@ fn add<'a>(
     let mut positions = graph.import_buffer("volume positions", &casters.positions, SCENE_ACCESS);
     let pending = scene.pending.lock().unwrap_or_else(|e| e.into_inner()).clone();
     if let Some(writes) = pending {
-        *scene.written.lock().unwrap_or_else(|e| e.into_inner()) = Some(writes.clone());
         let mut pass = graph.add_pass("volume positions");
         pass.detail(format!("{} moving casters", writes.len()));
         let dst = pass.write(&mut positions, Access::TransferWrite);
@@ -459,6 +481,8 @@ fn add<'a>(
             for (at, bytes) in writes.iter() {
                 ctx.update_buffer(dst, *at, bytes);
             }
+            // Marked when recorded: a graph built and never run (`Renderer::plan`) wrote nothing.
+            *scene.written.lock().unwrap_or_else(|e| e.into_inner()) = Some(writes.clone());
             Ok(())
         });
         graph.export_version(&positions, SCENE_ACCESS);

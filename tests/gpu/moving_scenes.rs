@@ -31,6 +31,35 @@ pub(crate) fn visibility(r: &mut Renderer, light: u32, method: ShadowMethod, tim
     pixels.chunks_exact(4).map(|p| p[0]).collect()
 }
 
+/// Light `light`'s `method` visibility of `moving` at `time` against `baked` (the same pose baked
+/// into a static scene): at least `shadowed` pixels in shadow, at most `allowed` of them
+/// differing, and for volumes both frames drawing volumes (not falling back). Returns the posed
+/// visibility.
+pub(crate) fn against_baked(
+    (moving, baked): (&mut Renderer, &mut Renderer),
+    light: u32,
+    method: ShadowMethod,
+    time: f64,
+    (allowed, shadowed): (f64, usize),
+) -> Vec<f32> {
+    let drew = |r: &mut Renderer, time: Option<f64>| {
+        let v = visibility(r, light, method, time);
+        let plan = r.last_plan().map(|p| p.to_string()).unwrap_or_default();
+        assert!(method != ShadowMethod::Volumes || plan.contains("shadow volumes"), "a frame drew no volumes");
+        v
+    };
+    let posed = drew(moving, Some(time));
+    let still = drew(baked, None);
+    assert!(still.iter().filter(|&&v| v < 0.5).count() > shadowed, "t = {time}, light {light}: few shadowed pixels");
+    let share = differing(&posed, &still);
+    assert!(
+        share <= allowed,
+        "{method:?}, light {light}, t = {time}: {:.3} % of pixels differ from the baked pose",
+        100.0 * share
+    );
+    posed
+}
+
 /// The share of pixels whose visibility differs by more than 0.1.
 pub(crate) fn differing(a: &[f32], b: &[f32]) -> f64 {
     a.iter().zip(b).filter(|(x, y)| (*x - *y).abs() > 0.1).count() as f64 / a.len() as f64
@@ -95,15 +124,7 @@ fn volumes_follow_a_moving_scene_as_the_same_pose_baked() {
     for time in [0.5, 1.25, 3.7] {
         let mut baked = Renderer::new(ctx.clone(), scene.posed(time)).expect("baked renderer");
         for light in 0..2 {
-            let posed = visibility(&mut r, light, ShadowMethod::Volumes, Some(time));
-            let still = visibility(&mut baked, light, ShadowMethod::Volumes, None);
-            assert!(still.iter().filter(|&&v| v < 0.5).count() > 500, "t = {time}, light {light}: few shadowed pixels");
-            let share = differing(&posed, &still);
-            assert!(
-                share <= 0.002,
-                "light {light}, t = {time}: {:.3} % of pixels differ from the baked pose",
-                100.0 * share
-            );
+            against_baked((&mut r, &mut baked), light, ShadowMethod::Volumes, time, (0.002, 500));
         }
     }
     let rows_only = {

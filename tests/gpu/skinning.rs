@@ -288,7 +288,7 @@ fn skinning_timings() {
 /// volumes), every figure is closed.
 #[test]
 fn volumes_extrude_the_skinned_crowd_as_the_same_pose_baked() {
-    use crate::moving_scenes::{differing, visibility};
+    use crate::moving_scenes::{against_baked, differing};
     let ctx = common::gpu();
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("assets/scenes/stress/moving");
     let text = std::fs::read_to_string(dir.join("crowd.toml")).expect("crowd.toml");
@@ -299,19 +299,7 @@ fn volumes_extrude_the_skinned_crowd_as_the_same_pose_baked() {
     for time in [0.2, 0.7] {
         let mut baked = Renderer::new(ctx.clone(), scene.posed(time)).expect("baked renderer");
         for light in 0..2 {
-            let posed = visibility(&mut moving, light, ShadowMethod::Volumes, Some(time));
-            let plan = moving.last_plan().map(|p| p.to_string()).unwrap_or_default();
-            assert!(plan.contains("shadow volumes"), "the moving frame drew no volumes");
-            let still = visibility(&mut baked, light, ShadowMethod::Volumes, None);
-            let plan = baked.last_plan().map(|p| p.to_string()).unwrap_or_default();
-            assert!(!plan.is_empty() && plan.contains("shadow volumes"), "the baked frame drew no volumes");
-            assert!(still.iter().filter(|&&v| v < 0.5).count() > 200, "t = {time}, light {light}: few shadowed pixels");
-            let share = differing(&posed, &still);
-            assert!(
-                share <= 0.002,
-                "light {light}, t = {time}: {:.3} % of pixels differ from the baked pose",
-                100.0 * share
-            );
+            let posed = against_baked((&mut moving, &mut baked), light, ShadowMethod::Volumes, time, (0.002, 200));
             if light == 0 {
                 if let Some(before) = last.replace(posed) {
                     assert!(differing(&before, &last.clone().unwrap()) > 0.002, "the figures' shadows did not move");

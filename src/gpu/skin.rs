@@ -186,10 +186,10 @@ impl SkinGpu {
     }
 
     /// The skin pass over the vertex buffer `vertices`, for the poses `written` (byte offset in
-    /// `poses` and bytes: the writes `poses`' pass just made): each draw's vertices posed now,
-    /// and their previous copy, which a copy pass ahead of it takes from the vertices where they
-    /// already hold that pose (a sequence's frames), and which is posed again otherwise (a first
-    /// frame, or a frame after an instant's jump).
+    /// `poses` and bytes: the writes `poses`' pass just made): each draw's vertices posed now
+    /// (unless they hold that pose already), and their previous copy, which a copy pass ahead of
+    /// it takes from the vertices where they already hold that pose (a sequence's frames), and
+    /// which is posed again otherwise (a first frame, or a frame after an instant's jump).
     pub fn add<'a>(
         &'a self,
         g: &mut RenderGraph<'a>,
@@ -206,12 +206,16 @@ impl SkinGpu {
             let found =
                 self.draws.iter().enumerate().find_map(|(k, d)| d.poses.iter().position(|p| p == at).map(|w| (k, w)));
             let Some((draw, which)) = found.filter(|&(k, _)| self.draws[k].push.mesh.x > 0) else { continue };
-            if which == 1 && holds[draw] == *bytes {
-                let d = &self.draws[draw];
-                let size = u64::from(d.push.mesh.x) * std::mem::size_of::<super::Vertex>() as u64;
-                copies.push(vk::BufferCopy { src_offset: d.vertices[0], dst_offset: d.vertices[1], size });
-            } else {
-                posed.push((draw, which));
+            let held = holds[draw] == *bytes;
+            match which {
+                1 if held => {
+                    let d = &self.draws[draw];
+                    let size = u64::from(d.push.mesh.x) * std::mem::size_of::<super::Vertex>() as u64;
+                    copies.push(vk::BufferCopy { src_offset: d.vertices[0], dst_offset: d.vertices[1], size });
+                }
+                // The vertices hold this pose already (a clip held at its end, say).
+                0 if held => {}
+                _ => posed.push((draw, which)),
             }
             if which == 0 {
                 pending.push((draw, bytes.clone()));

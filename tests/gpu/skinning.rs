@@ -194,8 +194,18 @@ fn the_skin_pass_blends_eight_influences_mirrors_and_shades_flat_as_the_cpu_twin
     assert!(deforms.iter().any(|d| d.rest.normals.is_empty()), "one strip has no normals");
     assert!(deforms.iter().any(|d| !d.rest.normals.is_empty()), "one strip has normals");
     assert!(deforms.iter().all(|d| !d.rest.joints[1].is_empty() && d.rest.targets.len() == 1));
-    // 0.9 s: joint 3 mirrors (its scale's x is -0.8).
-    check(scene, &[0.3, 0.9], "strip");
+    // 0.9 s: joint 3 mirrors (its scale's x is -0.8). Past the 1 s clip the pose holds: the
+    // frame at 3 s copies the previous vertices and poses nothing.
+    check(scene.clone(), &[0.3, 0.9, 2.0, 3.0], "strip");
+    let ctx = common::gpu();
+    let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
+    for t in [2.0, 3.0] {
+        render_at(&mut renderer, t);
+    }
+    let passes = renderer.last_plan().expect("a plan").live_pass_names();
+    assert!(passes.contains(&"skin copy") && !passes.contains(&"skin"), "{passes:?}");
+    drop(renderer);
+    common::assert_clean(&ctx);
 }
 
 /// Skinning a million vertices (a 1024 x 1024 grid skinned to 64 joints, four influences each,

@@ -348,8 +348,18 @@ impl Renderer {
     /// as the previous frame drew them; `None` for a mesh that does not deform. Waits for the
     /// device.
     pub fn skinned_vertices(&self, mesh: usize) -> GpuResult<Option<[Vec<crate::gpu::Vertex>; 2]>> {
-        let Some(draw) = self.gpu_scene.deforming.iter().position(|d| d.mesh == mesh) else { return Ok(None) };
-        crate::gpu::skin::read_vertices(&self.ctx, &self.gpu_scene, draw).map(Some)
+        let Some(d) = self.gpu_scene.deforming.iter().find(|d| d.mesh == mesh) else { return Ok(None) };
+        let size = std::mem::size_of::<crate::gpu::Vertex>() as u64;
+        let (now, count) = (u64::from(d.first_vertex) * size, u64::from(d.vertex_count) * size);
+        let previous = self.gpu_scene.previous_vertex_offset.unwrap_or(0) + now;
+        let bytes = crate::passes::readback::read_buffer(
+            &self.ctx,
+            &self.gpu_scene.vertices,
+            crate::gpu::SCENE_ACCESS,
+            &[(now, count), (previous, count)],
+        )?;
+        let (a, b) = bytes.split_at(count as usize);
+        Ok(Some([bytemuck::pod_collect_to_vec(a), bytemuck::pod_collect_to_vec(b)]))
     }
 
     /// The instant a moving scene is posed at (`None`: static, or not posed yet).

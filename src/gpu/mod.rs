@@ -29,7 +29,7 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
+use crate::graph::{Access, RenderGraph};
 use crate::vk::{Buffer, GpuContext, GpuResult};
 
 /// How frames find the scene's buffers: uploaded once and made visible to any read, so no
@@ -101,8 +101,6 @@ pub fn upload_staged<const N: usize>(
     for h in handles {
         g.export(h, SCENE_ACCESS);
     }
-    let plan = CompiledGraph::compile(&g);
-    let mut cache = TransientCache::new(ctx)?;
-    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
+    g.run_once(ctx)?;
     Ok(targets.try_into().unwrap_or_else(|_| unreachable!("one target per item")))
 }

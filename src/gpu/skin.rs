@@ -26,6 +26,8 @@ const TEXEL: u64 = 16;
 /// Invocations per row of a dispatch (workgroups of 64 along x, rows along y).
 const ROW: u32 = 64 * 1024;
 const LOCAL_SIZE: [u32; 2] = [64, 1];
+/// Bytes of one vertex in the vertex buffer (`gpu::Vertex`).
+const VERTEX_BYTES: u64 = std::mem::size_of::<super::Vertex>() as u64;
 
 /// The passes that pose deforming meshes on the device (the bench charges them to every method).
 pub const PASSES: [&str; 2] = ["skin", "skin copy"];
@@ -60,14 +62,16 @@ pub struct SkinGpu {
     pub(super) poses: Buffer,
     poses_view: TexelView,
     draws: Vec<SkinDraw>,
+    /// Each pose's byte offset in `poses`: its draw, and 0 for the pose now, 1 for the previous.
+    by_offset: std::collections::HashMap<u64, (usize, usize)>,
     /// The vertex buffer's offset alignment for a storage binding.
     alignment: u64,
     /// Per draw, the pose its vertices in the vertex buffer hold now, as of the last recorded
     /// frame (at first the rest pose, which the upload wrote): where the next frame's previous
     /// copy is that pose, it is copied rather than posed again.
-    holds: std::sync::Mutex<Vec<Arc<Vec<u8>>>>,
+    holds: std::sync::Mutex<Vec<PoseBytes>>,
     /// The poses the frame built last writes into the draws' vertices, until it is recorded.
-    pending: std::sync::Mutex<Vec<(usize, Arc<Vec<u8>>)>>,
+    pending: std::sync::Mutex<Vec<(usize, PoseBytes)>>,
 }
 
 impl SkinGpu {
@@ -86,11 +90,10 @@ impl SkinGpu {
         let mut pose_texels: u64 = 0;
         let mut draws = Vec::with_capacity(deforming.len());
         let mut rest_poses = Vec::with_capacity(deforming.len());
-        let vertex_size = std::mem::size_of::<super::Vertex>() as u64;
         for d in deforming {
             let mesh = &scene.meshes[d.mesh];
             let deform = mesh.deform.as_ref().expect("a deforming draw's mesh deforms");
-            let vertex_bytes = u64::from(d.vertex_count) * vertex_size + alignment;
+            let vertex_bytes = u64::from(d.vertex_count) * VERTEX_BYTES + alignment;
             if vertex_bytes > u64::from(limits.max_storage_buffer_range) {
                 return Err(GpuError::Unsupported(format!(
                     "{} ({}) deforms {} vertices, over the {} MiB the device binds for the skin pass to write \
@@ -116,7 +119,7 @@ impl SkinGpu {
             let size = bytes.len() as u64;
             let poses = [pose_texels * TEXEL, pose_texels * TEXEL + size];
             pose_texels += 2 * size / TEXEL;
-            let now = u64::from(d.first_vertex) * vertex_size;
+            let now = u64::from(d.first_vertex) * VERTEX_BYTES;
             draws.push(SkinDraw {
                 push: Push {
                     mesh: UVec4::new(d.vertex_count, first_rest, stride, flags),
@@ -151,7 +154,10 @@ impl SkinGpu {
                 ("skin poses", &initial, texel | vk::BufferUsageFlags::TRANSFER_DST),
             ],
         )?;
+        let by_offset =
+            draws.iter().enumerate().flat_map(|(k, d)| [(d.poses[0], (k, 0)), (d.poses[1], (k, 1))]).collect();
         let skin = SkinGpu {
+            by_offset,
             rest_view: TexelView::new(ctx, &rest_buffer, TEXEL_FORMAT)?,
             rest: rest_buffer,
             poses_view: TexelView::new(ctx, &poses, TEXEL_FORMAT)?,
@@ -196,21 +202,20 @@ impl SkinGpu {
         pipelines: PipelineSource<'a>,
         poses: &Handle<BufferKind>,
         vertices: &mut Handle<BufferKind>,
-        written: &[(u64, Arc<Vec<u8>>)],
+        written: &[(u64, PoseBytes)],
     ) -> GpuResult<()> {
         let holds = self.holds.lock().unwrap_or_else(|e| e.into_inner());
         let mut copies = Vec::new();
         let mut posed = Vec::new();
         let mut pending = Vec::new();
         for (at, bytes) in written {
-            let found =
-                self.draws.iter().enumerate().find_map(|(k, d)| d.poses.iter().position(|p| p == at).map(|w| (k, w)));
+            let found = self.by_offset.get(at).copied();
             let Some((draw, which)) = found.filter(|&(k, _)| self.draws[k].push.mesh.x > 0) else { continue };
             let held = holds[draw] == *bytes;
             match which {
                 1 if held => {
                     let d = &self.draws[draw];
-                    let size = u64::from(d.push.mesh.x) * std::mem::size_of::<super::Vertex>() as u64;
+                    let size = u64::from(d.push.mesh.x) * VERTEX_BYTES;
                     copies.push(vk::BufferCopy { src_offset: d.vertices[0], dst_offset: d.vertices[1], size });
                 }
                 // The vertices hold this pose already (a clip held at its end, say).
@@ -251,7 +256,7 @@ impl SkinGpu {
             let d = &self.draws[draw];
             let start = d.vertices[which];
             let offset = start - start % self.alignment;
-            let range = start + u64::from(d.push.mesh.x) * std::mem::size_of::<super::Vertex>() as u64 - offset;
+            let range = start + u64::from(d.push.mesh.x) * VERTEX_BYTES - offset;
             let mut push = d.push;
             push.frame.x = (d.poses[which] / TEXEL) as u32;
             push.dst.x = ((start - offset) / 4) as u32;
@@ -366,50 +371,4 @@ fn pack_targets(deform: &Deform, rest: &mut Vec<Vec4>) {
             rest.push(Vec4::new(dn.y, dn.z, 0.0, 0.0));
         }
     }
-}
-
-/// Deforming draw `draw`'s vertices as the device holds them in `scene`: as posed now and the
-/// previous frame's copy, copied to the host (waits for the device). What the tests hold the
-/// skin pass to the CPU twin with.
-pub fn read_vertices(
-    ctx: &Arc<GpuContext>,
-    scene: &super::SceneGpu,
-    draw: usize,
-) -> GpuResult<[Vec<super::Vertex>; 2]> {
-    let d = &scene.deforming[draw];
-    if d.vertex_count == 0 {
-        return Ok([Vec::new(), Vec::new()]);
-    }
-    let vertex_size = std::mem::size_of::<super::Vertex>() as u64;
-    let size = u64::from(d.vertex_count) * vertex_size;
-    let now = u64::from(d.first_vertex) * vertex_size;
-    let previous = scene.previous_vertex_offset.unwrap_or(0) + now;
-    let host = Buffer::new(
-        ctx,
-        "skinned read-back",
-        2 * size,
-        vk::BufferUsageFlags::TRANSFER_DST,
-        gpu_allocator::MemoryLocation::GpuToCpu,
-    )?;
-    let mut g = RenderGraph::new();
-    let src = g.import_buffer("vertices", &scene.vertices, SCENE_ACCESS);
-    let mut dst = g.import_buffer("skinned read-back", &host, Access::Nothing);
-    let mut pass = g.add_pass("read skinned vertices");
-    let (from, to) = (pass.read(&src, Access::TransferRead), pass.write(&mut dst, Access::TransferWrite));
-    pass.render(move |pctx| {
-        let regions = [
-            vk::BufferCopy { src_offset: now, dst_offset: 0, size },
-            vk::BufferCopy { src_offset: previous, dst_offset: size, size },
-        ];
-        // SAFETY: recording state; both ranges lie inside both buffers.
-        unsafe { pctx.device.cmd_copy_buffer(pctx.cmd, pctx.buffer(from), pctx.buffer(to), &regions) };
-        Ok(())
-    });
-    g.export(dst, Access::HostRead);
-    let plan = crate::graph::CompiledGraph::compile(&g);
-    let mut cache = crate::graph::TransientCache::new(ctx)?;
-    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
-    let bytes = host.mapped();
-    let half = size as usize;
-    Ok([bytemuck::pod_collect_to_vec(&bytes[..half]), bytemuck::pod_collect_to_vec(&bytes[half..2 * half])])
 }

@@ -15,7 +15,7 @@ use std::sync::Arc;
 
 use ash::vk;
 
-use crate::graph::{Access, CompiledGraph, RenderGraph, TransientCache};
+use crate::graph::{Access, RenderGraph};
 use crate::scene::{MaterialTextures, Texture};
 use crate::vk::{bindings, Buffer, GpuContext, GpuResult, Image, ImageDesc, SamplerDesc, VkContext};
 
@@ -303,9 +303,7 @@ pub(crate) fn fill_images(
     for h in outputs {
         g.export(h, access);
     }
-    let plan = CompiledGraph::compile(&g);
-    let mut cache = TransientCache::new(ctx)?;
-    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))
+    g.run_once(ctx)
 }
 
 /// What a draw of a mesh with `textures` pushes (see `DrawMaps`).

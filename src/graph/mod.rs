@@ -219,6 +219,15 @@ impl<'a> RenderGraph<'a> {
         self.exports.push(ExportDecl { resource: handle.id, access, after: self.passes.len() });
     }
 
+    /// Compiles the graph, records it into a command buffer of its own with transients from a
+    /// fresh cache, submits it and waits: a one-off graph (an upload, a read-back, a bake).
+    pub fn run_once(self, ctx: &std::sync::Arc<crate::vk::GpuContext>) -> crate::vk::GpuResult<()> {
+        let plan = CompiledGraph::compile(&self);
+        let mut cache = TransientCache::new(ctx)?;
+        ctx.submit_and_wait(|cmd| cache.execute(self, &plan, cmd, false))?;
+        Ok(())
+    }
+
     pub fn add_pass<'g>(&'g mut self, name: &'static str) -> PassBuilder<'g, 'a> {
         PassBuilder { graph: self, pass: PassDecl { name, detail: None, accesses: Vec::new(), run: None } }
     }

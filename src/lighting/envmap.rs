@@ -186,46 +186,12 @@ impl EnvironmentMapGpu {
     /// The SH irradiance coefficients (of the map as given: `scale` divided out) and
     /// `brdf_table` (the table `new` made) as the GPU computed them (tests).
     pub fn read_back(&self, ctx: &Arc<GpuContext>, brdf_table: &Buffer) -> GpuResult<(Vec<Vec3>, Vec<Vec2>)> {
-        let usage = vk::BufferUsageFlags::TRANSFER_DST;
-        let sh_host = Buffer::new(ctx, "SH read-back", self.sh.size, usage, MemoryLocation::GpuToCpu)?;
-        let table_host = Buffer::new(ctx, "table read-back", brdf_table.size, usage, MemoryLocation::GpuToCpu)?;
-        let mut g = RenderGraph::new();
+        use crate::passes::readback::read_buffer;
         let scene = crate::gpu::SCENE_ACCESS;
-        let mut pairs = [
-            (
-                g.import_buffer("environment SH", &self.sh, scene),
-                g.import_buffer("SH read-back", &sh_host, Access::Nothing),
-            ),
-            (
-                g.import_buffer("split-sum table (GPU)", brdf_table, scene),
-                g.import_buffer("table read-back", &table_host, Access::Nothing),
-            ),
-        ];
-        let mut pass = g.add_pass("read back environment");
-        let mut copies = Vec::new();
-        for (src, dst) in &mut pairs {
-            let size = 9 * 16;
-            copies.push((pass.read(src, Access::TransferRead), pass.write(dst, Access::TransferWrite), size));
-        }
-        copies[1].2 = table_host.size;
-        let outputs = pairs.map(|(_, dst)| dst);
-        pass.render(move |pctx| {
-            for (src, dst, size) in &copies {
-                let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size: *size };
-                // SAFETY: recording state; both buffers hold `size` bytes.
-                unsafe { pctx.device.cmd_copy_buffer(pctx.cmd, pctx.buffer(*src), pctx.buffer(*dst), &[region]) };
-            }
-            Ok(())
-        });
-        for h in outputs {
-            g.export(h, Access::HostRead);
-        }
-        let plan = CompiledGraph::compile(&g);
-        let mut cache = TransientCache::new(ctx)?;
-        ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
-        let sh: &[glam::Vec4] = bytemuck::cast_slice(&sh_host.mapped()[..9 * 16]);
-        let table: &[Vec2] = bytemuck::cast_slice(&table_host.mapped()[..table_host.size as usize]);
-        Ok((sh.iter().map(|c| c.truncate() / self.scale).collect(), table.to_vec()))
+        let sh = read_buffer(ctx, &self.sh, scene, &[(0, 9 * 16)])?;
+        let table = read_buffer(ctx, brdf_table, scene, &[(0, brdf_table.size)])?;
+        let sh: Vec<glam::Vec4> = bytemuck::pod_collect_to_vec(&sh);
+        Ok((sh.iter().map(|c| c.truncate() / self.scale).collect(), bytemuck::pod_collect_to_vec(&table)))
     }
 }
 

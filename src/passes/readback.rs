@@ -24,12 +24,44 @@ pub fn add(graph: &mut RenderGraph<'_>, image: &Handle<ImageKind>, target: &Buff
 
 /// Copies a graph buffer into `target`, exported for host reads.
 pub fn add_buffer(graph: &mut RenderGraph<'_>, source: &Handle<BufferKind>, target: &Buffer) {
-    let size = target.size;
+    add_buffer_regions(graph, source, target, vec![vk::BufferCopy { src_offset: 0, dst_offset: 0, size: target.size }]);
+}
+
+/// Copies `regions` of a graph buffer into `target`, exported for host reads.
+pub fn add_buffer_regions(
+    graph: &mut RenderGraph<'_>,
+    source: &Handle<BufferKind>,
+    target: &Buffer,
+    regions: Vec<vk::BufferCopy>,
+) {
     copy_to_host(graph, source, target, move |ctx, src, dst| {
-        let region = vk::BufferCopy { src_offset: 0, dst_offset: 0, size };
-        // SAFETY: recording state; both buffers hold at least `size` bytes.
-        unsafe { ctx.device.cmd_copy_buffer(ctx.cmd, ctx.buffer(src), dst, &[region]) };
+        // SAFETY: recording state; the caller's regions lie inside both buffers.
+        unsafe { ctx.device.cmd_copy_buffer(ctx.cmd, ctx.buffer(src), dst, &regions) };
     });
+}
+
+/// `regions` of `source` (left last in `access`) copied to the host, one after another: a
+/// one-off graph, waited for (tests and bakes that check what the device computed).
+pub fn read_buffer(
+    ctx: &std::sync::Arc<crate::vk::GpuContext>,
+    source: &Buffer,
+    access: Access,
+    regions: &[(u64, u64)],
+) -> crate::vk::GpuResult<Vec<u8>> {
+    let size: u64 = regions.iter().map(|r| r.1).sum();
+    let usage = vk::BufferUsageFlags::TRANSFER_DST;
+    let host = Buffer::new(ctx, "read-back", size.max(4), usage, gpu_allocator::MemoryLocation::GpuToCpu)?;
+    let mut copies = Vec::with_capacity(regions.len());
+    let mut at = 0;
+    for &(src_offset, size) in regions.iter().filter(|r| r.1 > 0) {
+        copies.push(vk::BufferCopy { src_offset, dst_offset: at, size });
+        at += size;
+    }
+    let mut g = RenderGraph::new();
+    let source = g.import_buffer("read source", source, access);
+    add_buffer_regions(&mut g, &source, &host, copies);
+    g.run_once(ctx)?;
+    Ok(host.mapped()[..size as usize].to_vec())
 }
 
 /// The read-back pass around `copy`: reads `source` as a transfer source, writes the imported

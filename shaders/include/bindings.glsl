@@ -66,6 +66,9 @@
 // bvh.glsl: the traversal stack's top entries kept in variables (s0..s7, so 8 is the only value
 // it takes); deeper ones spill to an array. The CPU twin's tests pick rays that go deeper.
 #define BVH_REGISTER_STACK 8u
+// bvh.glsl: texels of an instance's record in the top region, its world-to-object rows
+// (src/scene/bvh/levels.rs, INSTANCE_TEXELS there)
+#define BVH_INSTANCE_TEXELS 3u
 // bvh.glsl: entries in the whole traversal stack (one per level of the tree at most); the CPU
 // build keeps every tree's depth within it (src/scene/bvh/wide.rs, STACK_SIZE there).
 #define BVH_STACK_SIZE 64u

@@ -262,8 +262,8 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
 // rays` on the 100k scene, one lavapipe thread.) The top tree's lowest nodes have proxies for children, one per instance
 // (a copy of its bottom tree's root, from node `bvh_levels.x` on). Going down to a proxy, the
 // walk pushes a marker (BVH_ENTERED: a group without children, never pushed otherwise), moves the
-// ray into the instance's space by its world-to-object rows (texels from `bvh_levels.y`, three
-// an instance: levels.rs' INSTANCE_TEXELS) and walks on into the bottom tree; popping the marker restores the world ray. The
+// ray into the instance's space by its world-to-object rows (texels from `bvh_levels.y`, BVH_INSTANCE_TEXELS
+// an instance) and walks on into the bottom tree; popping the marker restores the world ray. The
 // rows are affine, so t means the same on both rays and tmax carries over. (A bottom walk nested
 // in the top tree's loop cost 1.4-1.6x the one-level walk on `umbra bench rays`, lavapipe: each
 // loop's lanes waited for the other's.)
@@ -315,7 +315,7 @@ bool bvh_occluded(vec3 world_origin, vec3 world_dir, float tmax) {
         // every iteration, taken or not, and the descent iterates once per node.
         if (entered != BVH_NONE) {
             BVH_PUSH(BVH_ENTERED);
-            int rows = int(bvh_levels.y + 3u * (entered - bvh_levels.x));
+            int rows = int(bvh_levels.y + BVH_INSTANCE_TEXELS * (entered - bvh_levels.x));
             vec4 x = uintBitsToFloat(texelFetch(bvh_nodes, rows));
             vec4 y = uintBitsToFloat(texelFetch(bvh_nodes, rows + 1));
             vec4 z = uintBitsToFloat(texelFetch(bvh_nodes, rows + 2));

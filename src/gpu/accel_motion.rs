@@ -209,37 +209,12 @@ pub fn caster_groups(
     local: &Scene,
     time: Option<f64>,
 ) -> (Vec<CasterGroup>, Option<MaskSource>) {
-    let count = levels.bottoms().len();
-    let mut triangles: Vec<Vec<[Vec3; 3]>> = vec![Vec::new(); count];
-    // Kept instances' geometries are the last bottom levels, each once (never masked).
-    let first_kept = count - kept.len();
-    for (k, geometry) in kept.iter().enumerate() {
-        triangles[first_kept + k] = geometry.caster_triangles();
-    }
-    let mut deforms = vec![false; count];
-    // Each group's triangles' indices among all casters (`caster_masks`' order).
-    let mut order: Vec<Vec<usize>> = vec![Vec::new(); count];
-    let mut caster_index = 0usize;
-    for (mesh, group) in local.meshes.iter().zip(groups) {
-        let Some(g) = *group else { continue };
-        deforms[g] |= mesh.deform.is_some();
-        for tri in crate::scene::bvh::mesh_caster_triangles(mesh) {
-            triangles[g].push(tri);
-            order[g].push(caster_index);
-            caster_index += 1;
-        }
-    }
-    let posed = time.map(|t| local.deformed(t)).unwrap_or_default();
+    let (mut triangles, deforms, masks) =
+        crate::scene::bvh::mask::grouped_casters(local, groups, levels.bottoms().len(), kept);
+    let posed = time.map(|t| local.posed_by(&local.deform_frames(t), false)).unwrap_or_default();
     for (g, posed) in posed_triangles(groups, local, &posed) {
         triangles[g] = posed;
     }
-    let kept_triangles: usize = triangles[first_kept..].iter().map(Vec::len).sum();
-    let masks = crate::scene::bvh::mask::caster_masks(local).map(|source| MaskSource {
-        triangles: (order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()))
-            .chain(std::iter::repeat_n(None, kept_triangles))
-            .collect(),
-        materials: source.materials,
-    });
     let groups = triangles
         .into_iter()
         .zip(deforms)

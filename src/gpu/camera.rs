@@ -90,6 +90,12 @@ pub struct MotionBlock {
 }
 
 impl CameraMatrices {
+    /// Whether `bounds` (the scene-local frame) reach this camera's frustum: what the geometry
+    /// pass draws and the maps fit their receivers to.
+    pub fn sees(&self, bounds: &crate::maths::Bounds) -> bool {
+        !bounds.is_empty() && crate::maths::box_in_frustum(&self.view_proj_relative, &bounds.shifted(-self.eye))
+    }
+
     /// The motion block of a frame seen by `self` (unjittered) after one seen by `previous`,
     /// `width` x `height` pixels.
     pub fn motion_block(&self, previous: &CameraMatrices, width: u32, height: u32) -> MotionBlock {

@@ -287,7 +287,7 @@ impl Packing {
             self.hi = self.hi.max(*p);
         }
         // A kept instance (no world-space copy) by its geometry's box moved.
-        if let Some((lo, hi)) = mesh.world_bounds().filter(|_| mesh.kept().is_some()) {
+        if let Some((lo, hi)) = mesh.kept_bounds() {
             let (lo, hi) = (lo.as_vec3(), hi.as_vec3());
             bounds.include(lo);
             bounds.include(hi);

@@ -26,7 +26,6 @@ use crate::gpu::{
     SURFACE_ATTRIBUTES, TABLE_ACCESS,
 };
 use crate::graph::{layout_of, Access, Bound, BufferKind, Handle, ImageDesc, PassContext, Ref, RenderGraph};
-use crate::maths::{box_in_frustum, Bounds};
 use crate::vk::{
     bindings, spirv, DescriptorKind, GpuContext, GpuResult, GraphicsExtras, GraphicsPipeline, GraphicsPipelineDesc,
     PipelineKey, PipelineSource,
@@ -345,8 +344,7 @@ fn draw_scene(
     let mut current: Option<(bool, bool)> = None;
     // A draw whose bounds lie outside the view's frustum draws no fragment: left out, it costs
     // no vertex work either (a forest seen from its edge leaves out the trees behind the view).
-    let seen = |b: &Bounds| !b.is_empty() && box_in_frustum(&camera.view_proj_relative, &b.shifted(-camera.eye));
-    for draw in scene.draws.iter().filter(|d| seen(&d.bounds)) {
+    for draw in scene.draws.iter().filter(|d| camera.sees(&d.bounds)) {
         // In a textured scene every draw is textured (its rendering has the emission
         // attachment); a mesh without textures reads the white set.
         let textured = scene.materials.as_ref().map(|m| (m, draw.maps.unwrap_or(m.untextured)));

@@ -10,7 +10,7 @@ use std::sync::Arc;
 use glam::{Affine3A, DMat4, Vec3};
 
 use crate::scene::bvh::levels::{Placement, TwoLevel};
-use crate::scene::bvh::mask::{caster_masks, MaskSource};
+use crate::scene::bvh::mask::grouped_casters;
 use crate::scene::{InstanceGeometry, Scene};
 
 pub(super) struct Motion {
@@ -40,10 +40,6 @@ impl Motion {
     pub(super) fn build(local: &Scene) -> Motion {
         let mut keys: Vec<Option<(usize, [u64; 16])>> = vec![None];
         let mut groups = Vec::with_capacity(local.meshes.len());
-        let mut triangles: Vec<Vec<[Vec3; 3]>> = vec![Vec::new()];
-        // Each caster triangle's index in `caster_triangles`' order, grouped: the masks follow.
-        let mut order: Vec<Vec<usize>> = vec![Vec::new()];
-        let mut caster_index = 0usize;
         let geometries = local.kept_geometries();
         let tree_of: HashMap<*const InstanceGeometry, usize> =
             geometries.iter().enumerate().map(|(k, g)| (Arc::as_ptr(g), k)).collect();
@@ -64,37 +60,18 @@ impl Motion {
                 Some(_) => Some((usize::MAX - groups.len(), [0; 16])),
                 None => mesh.motion.as_ref().map(|m| (m.node, m.rest.to_cols_array().map(f64::to_bits))),
             };
-            let group = match keys.iter().position(|k| *k == key) {
-                Some(g) => g,
-                None => {
-                    keys.push(key);
-                    triangles.push(Vec::new());
-                    order.push(Vec::new());
-                    keys.len() - 1
-                }
-            };
+            let group = keys.iter().position(|k| *k == key).unwrap_or_else(|| {
+                keys.push(key);
+                keys.len() - 1
+            });
             groups.push(Some(group));
-            for tri in crate::scene::bvh::mesh_caster_triangles(mesh) {
-                triangles[group].push(tri);
-                order[group].push(caster_index);
-                caster_index += 1;
-            }
         }
-        let group_count = triangles.len();
+        let group_count = keys.len();
         for group in groups.iter_mut().zip(&local.meshes).filter(|(_, m)| m.kept().is_some()).map(|(g, _)| g) {
             *group = group.map(|g| group_count + g);
         }
-        // Kept instances are never alpha-masked (the loader copies those).
-        let kept_triangles: Vec<Vec<[Vec3; 3]>> = geometries.iter().map(|g| g.caster_triangles()).collect();
-        let masks = caster_masks(local).map(|source| MaskSource {
-            triangles: (order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()))
-                .chain(std::iter::repeat_n(None, kept_triangles.iter().map(Vec::len).sum()))
-                .collect(),
-            materials: source.materials,
-        });
-        let mut deforming: Vec<bool> = keys.iter().map(|k| k.is_some_and(|(node, _)| node > usize::MAX / 2)).collect();
-        deforming.resize(group_count + geometries.len(), false);
-        triangles.extend(kept_triangles);
+        let (triangles, deforming, masks) =
+            grouped_casters(local, &groups, group_count + geometries.len(), &geometries);
         let rest = placements(&groups, group_count, &kept, local, &[]);
         Motion {
             levels: TwoLevel::build(triangles, masks.as_ref(), &rest, &deforming),

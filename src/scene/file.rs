@@ -208,8 +208,6 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
             let local = &placed.meshes[*k];
             let material = placed.material.apply(local.material.unwrap_or_default());
             let to_world = placed.transform * *instance;
-            let kept = (shared[*k].as_ref().filter(|_| kept_here[i]))
-                .map(|g| mesh::kept(&path, local, g, to_world, material, cast_shadows));
             let deforming = placed.deforms.get(i).and_then(Option::as_ref).zip(file_rig.as_ref());
             if let Some((deform, (base, _, _))) = deforming {
                 let m = motion::place_deforming(
@@ -225,16 +223,20 @@ fn parse_with(text: &str, source_name: &str, base_dir: &Path, model: bool) -> Re
                 meshes.extend(m);
                 continue;
             }
-            let mut placed_mesh = match kept {
-                Some(kept) => Some(kept),
-                None => mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped),
-            };
-            if let (Some(m), Some(geometry)) = (placed_mesh.as_mut().filter(|m| m.kept().is_none()), &shared[*k]) {
-                // A mirroring instance would need the other winding: it stays a copy.
-                if to_world.determinant() > 0.0 {
-                    m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
+            let mut placed_mesh = match (&shared[*k], kept_here[i]) {
+                (Some(geometry), true) => Some(mesh::kept(&path, local, geometry, to_world, material, cast_shadows)),
+                (geometry, _) => {
+                    let mut copy = mesh::place(&path, local, &to_world, material, cast_shadows, &mut dropped);
+                    // Drawn from the shared geometry beside its world-space copy, but for a
+                    // mirroring instance, which would need the other winding.
+                    if let (Some(m), Some(geometry)) =
+                        (&mut copy, geometry.as_ref().filter(|_| to_world.determinant() > 0.0))
+                    {
+                        m.instance = Some(super::Instance { geometry: geometry.clone(), to_world });
+                    }
+                    copy
                 }
-            }
+            };
             if let Some(m) = &mut placed_mesh {
                 m.motion = match &file_rig {
                     // Placed at `to_world`: its motion is its node's world from there.

@@ -34,7 +34,7 @@ impl Scene {
         let mut kept = self.clone();
         kept.meshes.retain(|mesh| {
             // A kept instance by its bounds' corners (they hold its vertices).
-            let corners = mesh.world_bounds().filter(|_| mesh.kept().is_some()).map(|(lo, hi)| [lo, hi]);
+            let corners = mesh.kept_bounds().map(|(lo, hi)| [lo, hi]);
             let Some(far) = mesh.positions.iter().chain(corners.iter().flatten()).find(|p| !within(p)) else {
                 return true;
             };

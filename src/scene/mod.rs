@@ -181,11 +181,17 @@ impl Mesh {
         self.instance.as_ref().filter(|_| self.positions.is_empty())
     }
 
-    /// The bounds of its finite world-space vertices (a kept instance's: its geometry's box
-    /// moved, which holds them); `None` without one.
+    /// A kept instance's bounds in world space: its geometry's box moved, which holds every
+    /// vertex it draws (`None` for a mesh that is not one, or without a finite vertex).
+    pub fn kept_bounds(&self) -> Option<(DVec3, DVec3)> {
+        self.kept().and_then(|instance| instance.geometry.world_bounds(&instance.to_world))
+    }
+
+    /// The bounds of its finite world-space vertices (a kept instance's: `kept_bounds`); `None`
+    /// without one.
     pub fn world_bounds(&self) -> Option<(DVec3, DVec3)> {
-        if let Some(instance) = self.kept() {
-            return instance.geometry.world_bounds(&instance.to_world);
+        if self.kept().is_some() {
+            return self.kept_bounds();
         }
         let finite = self.positions.iter().filter(|p| p.is_finite());
         let (lo, hi) = finite.fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), p| (lo.min(*p), hi.max(*p)));

@@ -48,7 +48,7 @@ pub struct Placement {
 }
 
 /// Texels per instance record (its three rows).
-pub const INSTANCE_TEXELS: usize = 3;
+pub const INSTANCE_TEXELS: usize = crate::vk::bindings::BVH_INSTANCE_TEXELS as usize;
 /// Instances under one of the top tree's lowest nodes (its median split stops there).
 const TOP_LEAF_SIZE: usize = 4;
 /// The stack entry that marks where a walk entered an instance (a group with no children, which
@@ -400,7 +400,8 @@ impl TwoLevel {
                 if child >= proxy_start {
                     stack[len.min(STACK_SIZE - 1)] = ENTERED;
                     len += 1;
-                    let record = &self.region[records + INSTANCE_TEXELS * (child - proxy_start) as usize..][..3];
+                    let record =
+                        &self.region[records + INSTANCE_TEXELS * (child - proxy_start) as usize..][..INSTANCE_TEXELS];
                     (o, d) = to_object(record, world_origin, world_dir);
                     inv = Vec3::ONE / safe_dir(d);
                 }

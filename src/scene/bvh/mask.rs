@@ -224,3 +224,41 @@ pub fn triangle_hit(&[v0, e1, e2]: &[Vec3; 3], origin: Vec3, dir: Vec3, tmax: f3
     let t = e2.dot(q) * inv_det;
     (t > 0.0 && t < tmax).then_some((u, v))
 }
+/// The casters of `local` grouped into the bottom trees of two levels: per mesh its tree
+/// (`groups`, `None` for one that casts no shadow), `count` trees in all, the last of them the
+/// kept instances' geometries (`kept`, each once, never masked). Per tree its triangles in its
+/// own space, in mesh order (a kept instance's mesh adds none: its geometry is its tree), and
+/// whether a mesh in it deforms; with the alpha masks of all those triangles, tree after tree.
+pub fn grouped_casters(
+    local: &Scene,
+    groups: &[Option<usize>],
+    count: usize,
+    kept: &[Arc<crate::scene::InstanceGeometry>],
+) -> (Vec<Vec<[Vec3; 3]>>, Vec<bool>, Option<MaskSource>) {
+    let mut triangles: Vec<Vec<[Vec3; 3]>> = vec![Vec::new(); count];
+    let first_kept = count - kept.len();
+    for (k, geometry) in kept.iter().enumerate() {
+        triangles[first_kept + k] = geometry.caster_triangles();
+    }
+    let mut deforms = vec![false; count];
+    // Each tree's triangles' indices among all casters (`caster_masks`' order).
+    let mut order: Vec<Vec<usize>> = vec![Vec::new(); count];
+    let mut caster_index = 0usize;
+    for (mesh, group) in local.meshes.iter().zip(groups) {
+        let Some(g) = *group else { continue };
+        deforms[g] |= mesh.deform.is_some();
+        for tri in super::mesh_caster_triangles(mesh) {
+            triangles[g].push(tri);
+            order[g].push(caster_index);
+            caster_index += 1;
+        }
+    }
+    let kept_triangles: usize = triangles[first_kept..].iter().map(Vec::len).sum();
+    let masks = caster_masks(local).map(|source| MaskSource {
+        triangles: (order.iter().flatten().map(|&k| source.triangles.get(k).copied().flatten()))
+            .chain(std::iter::repeat_n(None, kept_triangles))
+            .collect(),
+        materials: source.materials,
+    });
+    (triangles, deforms, masks)
+}

@@ -237,15 +237,7 @@ pub fn visible_bounds(frame: &FrameInputs<'_, '_>) -> Bounds {
 
 /// Bounds of the draws whose bounds reach `camera`'s frustum.
 pub fn visible_receivers(scene: &SceneGpu, camera: &crate::gpu::CameraMatrices) -> Bounds {
-    let vp = camera.view_proj_relative;
-    let eye = camera.eye;
-    scene
-        .draws
-        .iter()
-        .filter(|d| {
-            !d.bounds.is_empty() && box_in_frustum(&vp, &d.bounds.shifted(-eye))
-        })
-        .fold(Bounds::EMPTY, |b, d| b.union(&d.bounds))
+    scene.draws.iter().filter(|d| camera.sees(&d.bounds)).fold(Bounds::EMPTY, |b, d| b.union(&d.bounds))
 }
 
 /// `served`'s map this frame, or None when nothing can shadow what the camera sees.

@@ -96,7 +96,7 @@ impl CasterAdjacency {
 /// shows it, in world coordinates (`origin`: where the scene-local frame's origin is).
 pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdjacency, String> {
     let mut all = CasterAdjacency::default();
-    for mesh in scene.meshes.iter().filter(|m| m.cast_shadows && !m.indices.is_empty()) {
+    for (index, mesh) in scene.meshes.iter().enumerate().filter(|(_, m)| m.cast_shadows && !m.indices.is_empty()) {
         let positions: Vec<glam::Vec3> = mesh.positions.iter().map(|p| p.as_vec3()).collect();
         // A deforming mesh's vertices weld only where they also deform alike: two that meet at
         // rest but follow other joints (lips closed at rest) would part as it moves.
@@ -110,7 +110,6 @@ pub fn caster_adjacency(scene: &Scene, origin: glam::DVec3) -> Result<CasterAdja
         })?;
         let base = all.positions.len() as u32;
         if mesh.motion.is_some() || mesh.deform.is_some() {
-            let index = scene.meshes.iter().position(|m| std::ptr::eq(m, mesh)).expect("a mesh of the scene");
             all.moving.push(MovingCaster { mesh: index, first: base, sources: adj.sources.clone() });
         }
         all.positions.extend(adj.positions.iter().map(|p| p.to_array()));

@@ -208,6 +208,27 @@ pub fn floats(frame: umbra::renderer::Frame) -> Vec<glam::Vec4> {
     }
 }
 
+/// Light `light`'s hard-shadow visibility (its debug view's red channel) in a `w` x `h` frame of
+/// `renderer` where every light takes `method` through `backend`, at scene time `time` where
+/// given (a moving scene: where it was posed last otherwise).
+pub fn light_visibility(
+    renderer: &mut umbra::renderer::Renderer,
+    (w, h): (u32, u32),
+    light: u32,
+    method: umbra::config::ShadowMethod,
+    backend: umbra::config::ShadowBackend,
+    time: Option<f64>,
+) -> Vec<f32> {
+    use umbra::config::{DebugView, OutputKind, RenderSettings, ShadowChoice};
+    let choice = ShadowChoice { method, ..ShadowChoice::hard() };
+    let lights = renderer.scene().lights.len();
+    let mut s = RenderSettings::new(w, h, OutputKind::SceneLinear).all_lights(lights, choice);
+    s.debug_view = Some(DebugView::Visibility(light));
+    s.shadow_backend = backend;
+    s.time = time;
+    floats(renderer.render(&s).expect("render")).iter().map(|p| p.x).collect()
+}
+
 /// One scene-linear `w` x `h` frame of `renderer`, or its debug `view`.
 pub fn render_linear(
     renderer: &mut umbra::renderer::Renderer,

@@ -12,11 +12,12 @@ use crate::gltf_builder::{
     self,
     forest::{forest, forest_extent},
 };
+use crate::moving_scenes::differing;
 
 use std::path::Path;
 
-use umbra::config::{DebugView, ShadowBackend, ShadowChoice, ShadowMethod};
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
+use umbra::config::{ShadowBackend, ShadowChoice, ShadowMethod};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer};
 use umbra::scene::Scene;
 
 const W: u32 = 160;
@@ -78,18 +79,7 @@ fn visibility_at(
     backend: ShadowBackend,
     time: Option<f64>,
 ) -> Vec<f32> {
-    let choice = ShadowChoice { method, ..ShadowChoice::hard() };
-    let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(2, choice);
-    s.debug_view = Some(DebugView::Visibility(light));
-    s.shadow_backend = backend;
-    s.time = time;
-    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
-    pixels.chunks_exact(4).map(|p| p[0]).collect()
-}
-
-/// The share of pixels whose visibility differs by more than 0.1.
-fn differing(a: &[f32], b: &[f32]) -> f64 {
-    a.iter().zip(b).filter(|(x, y)| (*x - *y).abs() > 0.1).count() as f64 / a.len() as f64
+    common::light_visibility(r, (W, H), light, method, backend, time)
 }
 
 #[test]

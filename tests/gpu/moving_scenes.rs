@@ -9,7 +9,7 @@ use crate::common;
 
 use std::path::Path;
 
-use umbra::config::{DebugView, ShadowChoice, ShadowMethod};
+use umbra::config::{ShadowBackend, ShadowChoice, ShadowMethod};
 use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer};
 use umbra::scene::Scene;
 
@@ -23,12 +23,7 @@ fn spinning() -> Scene {
 
 /// Light `light`'s visibility with `method` for both lights, at `time` where given.
 pub(crate) fn visibility(r: &mut Renderer, light: u32, method: ShadowMethod, time: Option<f64>) -> Vec<f32> {
-    let choice = ShadowChoice { method, ..ShadowChoice::hard() };
-    let mut s = RenderSettings::new(W, H, OutputKind::SceneLinear).all_lights(2, choice);
-    s.debug_view = Some(DebugView::Visibility(light));
-    s.time = time;
-    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
-    pixels.chunks_exact(4).map(|p| p[0]).collect()
+    common::light_visibility(r, (W, H), light, method, ShadowBackend::Compute, time)
 }
 
 /// Light `light`'s `method` visibility of `moving` at `time` against `baked` (the same pose baked

@@ -14,9 +14,9 @@ use std::path::Path;
 
 use crate::gltf_builder::{quad_xz, Gltf};
 use serde_json::json;
-use umbra::config::{DebugView, ShadowMethod};
+use umbra::config::ShadowMethod;
 use umbra::gpu::accel::{BUILD_BOTTOM, BUILD_TOP, UPDATE_BOTTOM, WRITE_INSTANCES};
-use umbra::renderer::{Frame, OutputKind, RenderSettings, Renderer, ShadowBackend, ShadowChoice};
+use umbra::renderer::{OutputKind, RenderSettings, Renderer, ShadowBackend, ShadowChoice};
 use umbra::scene::Scene;
 
 /// At most this share of pixels may differ between the backends: rays that graze an edge,
@@ -30,15 +30,8 @@ fn load(path: &str) -> Scene {
 }
 
 /// Light `light`'s hard traced visibility at `time` through `backend`.
-fn visibility(r: &mut Renderer, (w, h): (u32, u32), light: u32, backend: ShadowBackend, time: f64) -> Vec<f32> {
-    let lights = r.scene().lights.len();
-    let traced = ShadowChoice { method: ShadowMethod::Traced, ..ShadowChoice::hard() };
-    let mut s = RenderSettings::new(w, h, OutputKind::SceneLinear).all_lights(lights, traced);
-    s.shadow_backend = backend;
-    s.debug_view = Some(DebugView::Visibility(light));
-    s.time = Some(time);
-    let Frame::Rgba32F { pixels, .. } = r.render(&s).expect("render") else { panic!("float frame") };
-    pixels.chunks_exact(4).map(|p| p[0]).collect()
+fn visibility(r: &mut Renderer, size: (u32, u32), light: u32, backend: ShadowBackend, time: f64) -> Vec<f32> {
+    common::light_visibility(r, size, light, ShadowMethod::Traced, backend, Some(time))
 }
 
 fn ran(r: &Renderer, name: &str) -> bool {

@@ -263,7 +263,7 @@ impl Renderer {
         let mut undeformed = Vec::new();
         if !deformed.is_empty() {
             bytes += self.gpu_scene.deform(&frames, &deformed);
-            undeformed = crate::gpu::accel_motion::posed_triangles(&motion.groups, &self.local, &deformed);
+            undeformed = crate::gpu::accel_motion::posed_groups(&motion.groups, &deformed);
         }
         let deform_ms = deform_start.elapsed().as_secs_f64() * 1e3;
         if let Some(volumes) = self.volume_scene.get() {
@@ -274,7 +274,8 @@ impl Renderer {
         let mut placed = None;
         if let (Some(rq), Some(placements)) = (self.ray_query.get(), &motion.unplaced) {
             let start = std::time::Instant::now();
-            placed = Some((rq.place(placements, &undeformed), start.elapsed().as_secs_f64() * 1e3));
+            let triangles: Vec<_> = undeformed.iter().map(|p| (p.group, p.triangles(&self.local))).collect();
+            placed = Some((rq.place(placements, &triangles), start.elapsed().as_secs_f64() * 1e3));
         }
         if !deformed.is_empty() {
             motion.undeformed = Some(undeformed);
@@ -316,8 +317,9 @@ impl Renderer {
         let Some(placements) = motion.unplaced.take() else { return };
         let start = std::time::Instant::now();
         let mut deformed = Vec::new();
-        for (group, triangles) in motion.undeformed.take().unwrap_or_default() {
-            deformed.push(motion.levels.deform(group, &triangles));
+        for posed in motion.undeformed.take().unwrap_or_default() {
+            let indices = &self.local.meshes[posed.mesh].indices;
+            deformed.push(motion.levels.deform(posed.group, posed.positions, indices));
         }
         motion.levels.place(&placements);
         let (refits, rebuilds) =

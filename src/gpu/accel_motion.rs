@@ -15,7 +15,7 @@
 use std::collections::BTreeMap;
 use std::sync::{Arc, Mutex};
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 
 use crate::scene::bvh::levels::TwoLevel;
 use crate::scene::bvh::mask::MaskSource;
@@ -173,29 +173,40 @@ fn drift(reference: &[Vec3], now: &[Vec3]) -> f32 {
     spread / n as f32
 }
 
-/// Deforming meshes' `posed` triangles (local frame, in the order of their meshes' indices) per
-/// group (`groups`: per mesh of `local`, its group): what `TwoLevel::deform` and
-/// `RayQueryScene::place` take, the same f32 positions the G-buffer draws (a non-finite one at
-/// the origin).
-pub fn posed_triangles(
-    groups: &[Option<usize>],
-    local: &Scene,
-    posed: &[(usize, crate::scene::deform::Posed)],
-) -> Vec<(usize, Vec<[Vec3; 3]>)> {
-    let triangles = |(k, posed): &(usize, crate::scene::deform::Posed)| {
-        let group = groups[*k]?;
-        let at = |v: u32| {
-            let p = posed.positions[v as usize].as_vec3();
-            if p.is_finite() {
-                p
-            } else {
-                Vec3::ZERO
-            }
-        };
-        let indices = &local.meshes[*k].indices;
-        Some((group, indices.chunks_exact(3).map(|t| [at(t[0]), at(t[1]), at(t[2])]).collect()))
+/// A deforming mesh's posed positions (local frame, f32: the positions the G-buffer draws, a
+/// non-finite one at the origin), and its caster group.
+pub struct PosedGroup {
+    pub group: usize,
+    pub mesh: usize,
+    pub positions: Vec<Vec3A>,
+}
+
+impl PosedGroup {
+    /// The triangles, in the order of the mesh's indices: what `RayQueryScene::place` takes.
+    pub fn triangles(&self, local: &Scene) -> Vec<[Vec3; 3]> {
+        let at = |v: u32| Vec3::from(self.positions[v as usize]);
+        local.meshes[self.mesh].indices.chunks_exact(3).map(|t| [at(t[0]), at(t[1]), at(t[2])]).collect()
+    }
+}
+
+/// The `posed` meshes that cast shadows, with their groups (`groups`: per mesh of `local`, its
+/// group): what `TwoLevel::deform` takes, with the mesh's indices.
+pub fn posed_groups(groups: &[Option<usize>], posed: &[(usize, crate::scene::deform::Posed)]) -> Vec<PosedGroup> {
+    let finite = |p: glam::DVec3| {
+        let p = p.as_vec3a();
+        if p.is_finite() {
+            p
+        } else {
+            Vec3A::ZERO
+        }
     };
-    posed.iter().filter_map(triangles).collect()
+    posed
+        .iter()
+        .filter_map(|(k, posed)| {
+            let positions = || posed.positions.iter().map(|&p| finite(p)).collect();
+            groups[*k].map(|group| PosedGroup { group, mesh: *k, positions: positions() })
+        })
+        .collect()
 }
 
 /// The groups of `local`'s casters as the compute BVH's two levels hold them (`groups`: per
@@ -212,8 +223,8 @@ pub fn caster_groups(
     let (mut triangles, deforms, masks) =
         crate::scene::bvh::mask::grouped_casters(local, groups, levels.bottoms().len(), kept);
     let posed = time.map(|t| local.posed_by(&local.deform_frames(t), false)).unwrap_or_default();
-    for (g, posed) in posed_triangles(groups, local, &posed) {
-        triangles[g] = posed;
+    for posed in posed_groups(groups, &posed) {
+        triangles[posed.group] = posed.triangles(local);
     }
     let groups = triangles
         .into_iter()

@@ -7,7 +7,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use glam::{Affine3A, DMat4, Vec3};
+use glam::{Affine3A, DMat4};
 
 use crate::scene::bvh::levels::{Placement, TwoLevel};
 use crate::scene::bvh::mask::grouped_casters;
@@ -29,9 +29,9 @@ pub(super) struct Motion {
     pub(super) posed_at: Option<f64>,
     /// Where each bottom tree goes, posed but not yet built into the top level.
     pub(super) unplaced: Option<Vec<Placement>>,
-    /// Deformed meshes' triangles (local frame, the group's order) per bottom tree, posed but not
-    /// yet refit into it.
-    pub(super) undeformed: Option<Vec<(usize, Vec<[Vec3; 3]>)>>,
+    /// Deformed meshes' positions (local frame) with their bottom trees, posed but not yet
+    /// refit into them.
+    pub(super) undeformed: Option<Vec<crate::gpu::accel_motion::PosedGroup>>,
 }
 
 impl Motion {

@@ -59,8 +59,8 @@ const ENTERED: u32 = 0;
 /// past this many times its cost when last built: a start, to be tuned on real animation. On a
 /// sphere of 1M triangles swelling and twisting (`refit_timings` in refit.rs) the refit crosses
 /// 1.5 where a fresh build would cost about 1.1 (the refit tree's rays then cost some 35 % more
-/// than a fresh tree's), while a rebuild takes about 20 refits' time (430 ms on two threads
-/// against 23 ms on one, on a 2-vCPU VM).
+/// than a fresh tree's), while a rebuild takes about 18 refits' time (300-330 ms on two threads
+/// against 17.5 ms on one, on a 2-vCPU VM).
 pub const REBUILD_RATIO: f32 = 1.5;
 
 /// A run of RGBA32UI texels to write into a buffer: the first texel's index and the texels.
@@ -94,6 +94,23 @@ pub struct Deformed {
     pub masks: Vec<TexelRange>,
 }
 
+/// A deforming bottom tree's triangles as its last `deform` gave them: vertex positions and the
+/// index list (three a triangle, in input order), with each leaf slot's three indices
+/// (`WideBvh::leaf_corners`, made again when a rebuild reorders the leaves).
+#[derive(Clone, Debug)]
+struct PosedMesh {
+    positions: Vec<Vec3A>,
+    indices: Vec<u32>,
+    corners: Vec<[u32; 3]>,
+}
+
+impl PosedMesh {
+    /// The triangles in input order.
+    fn triangles(&self) -> Vec<[Vec3; 3]> {
+        self.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|c| self.positions[t[c] as usize].into())).collect()
+    }
+}
+
 /// The bottom trees, concatenated as uploaded, and the top tree over their placements.
 pub struct TwoLevel {
     bottoms: Vec<ShadowBvh>,
@@ -113,6 +130,8 @@ pub struct TwoLevel {
     built_cost: Vec<f32>,
     /// `deform`'s scratch, kept so a frame's refit allocates nothing.
     refit: Refit,
+    /// Per bottom tree, what its last `deform` gave it (`None` before one).
+    posed: Vec<Option<PosedMesh>>,
     /// Nodes of the bottom trees: where the top region starts.
     top_start: u32,
     /// The most instances the top region has room for (`with_room`).
@@ -149,6 +168,7 @@ impl TwoLevel {
             deforming: (0..bottoms.len()).map(|k| deforming.get(k).copied().unwrap_or(false)).collect(),
             built_cost: Vec::with_capacity(bottoms.len()),
             refit: Refit::new(),
+            posed: vec![None; bottoms.len()],
             top_start: 0,
             room: placements.len(),
             placements: Vec::new(),
@@ -252,10 +272,11 @@ impl TwoLevel {
         self.place(&placements);
     }
 
-    /// Moves bottom tree `bottom`'s triangles to `input` (its group's triangles, posed, in the
-    /// group's own input order: the same triangles as at the build, moved, with finite vertices
-    /// as `caster_triangles` keeps them) and makes the tree
-    /// follow: a refit (`WideBvh::refit`), or a rebuild where the refit tree's SAH cost has grown
+    /// Moves bottom tree `bottom`'s triangles to those that vertex `positions` make through
+    /// `indices` (three a triangle, in the group's own input order: the same triangles as at the
+    /// build, moved; the first deform of a tree keeps its indices and every later one must pass
+    /// the same) and makes the tree follow: a refit (`WideBvh::refit_vertices`, writing straight
+    /// into the concatenated triangles), or a rebuild where the refit tree's SAH cost has grown
     /// past `REBUILD_RATIO` times its cost at the tree's last build. The bottom must have been
     /// built deforming (`build`); its triangles keep their place in the triangle buffer and a
     /// rebuild fits in its room, so nothing after it moves. A rebuild reorders the tree's leaves:
@@ -263,45 +284,56 @@ impl TwoLevel {
     ///
     /// The top level is not touched: call `place` next (with the frame's placements), which
     /// boxes each instance by its bottom's current bounds and copies its new root into the
-    /// proxies, then upload the returned ranges and the top `region`. The bottom's `binary()`
-    /// (obvhs's tree, the reference traversal) stays that of its last build.
-    pub fn deform(&mut self, bottom: usize, input: &[[Vec3; 3]]) -> Deformed {
+    /// proxies, then upload the returned ranges and the top `region`. A refit frees the bottom's
+    /// reference tree and its own copies of the triangles (`binary()` may not be called after);
+    /// the concatenation and `posed_triangles` hold the posed triangles.
+    pub fn deform(&mut self, bottom: usize, positions: Vec<Vec3A>, indices: &[u32]) -> Deformed {
         assert!(self.deforming[bottom], "bottom tree {bottom} was not built deforming");
         let tree = &mut self.bottoms[bottom];
-        assert_eq!(input.len(), tree.triangle_count(), "bottom tree {bottom} deformed to another triangle count");
+        let count = tree.triangle_count();
+        assert_eq!(indices.len(), 3 * count, "bottom tree {bottom} deformed to another triangle count");
         let (node_base, triangle_base) = (self.roots[bottom] as usize, self.triangle_starts[bottom] as usize);
         let old_nodes = tree.wide.nodes.len();
         if tree.is_empty() {
             let (nodes, triangles) = ((3 * node_base, Vec::new()), Vec::new());
             return Deformed { rebuilt: false, refit_ratio: 1.0, sah_ratio: 1.0, nodes, triangles, masks: Vec::new() };
         }
-        let refit_ratio = tree.wide.refit(input, &mut self.refit) / self.built_cost[bottom];
-        let mut rebuilt = None;
-        if refit_ratio > REBUILD_RATIO {
-            let fresh = ShadowBvh::from_triangles(input);
+        let posed = self.posed[bottom].get_or_insert_with(|| PosedMesh {
+            positions: Vec::new(),
+            indices: indices.to_vec(),
+            corners: tree.wide.leaf_corners(indices),
+        });
+        debug_assert!(posed.indices == indices, "bottom tree {bottom} deformed with other indices");
+        posed.positions = positions;
+        let out = &mut self.triangles[triangle_base..][..count];
+        let refit_cost = tree.wide.refit_vertices(&posed.positions, &posed.corners, out, &mut self.refit);
+        let refit_ratio = refit_cost / self.built_cost[bottom];
+        let mut masks = Vec::new();
+        let rebuilt = refit_ratio > REBUILD_RATIO;
+        let sah_ratio = if rebuilt {
+            let fresh = ShadowBvh::from_triangles(&posed.triangles());
             // `node_room` bounds every build; a tree past it would overwrite its neighbour.
             assert!(fresh.wide.nodes.len() <= self.rooms[bottom] as usize, "a rebuild outgrew its room");
-            rebuilt = Some(std::mem::replace(tree, fresh));
-        }
-        let tree = &mut self.bottoms[bottom];
-        let mut masks = Vec::new();
-        let sah_ratio = match &rebuilt {
-            Some(old) => {
-                self.built_cost[bottom] = tree.wide.sah_cost();
-                self.bounds[bottom] = tree.reference.nodes[0].aabb;
-                if let Some(m) = &mut self.masks {
-                    masks = reorder_masks(m, triangle_base, &old.wide.order, &tree.wide.order);
-                }
-                1.0
+            let old = std::mem::replace(tree, fresh);
+            self.built_cost[bottom] = tree.wide.sah_cost();
+            self.bounds[bottom] = tree.reference.nodes[0].aabb;
+            posed.corners = tree.wide.leaf_corners(&posed.indices);
+            if let Some(m) = &mut self.masks {
+                masks = reorder_masks(m, triangle_base, &old.wide.order, &tree.wide.order);
             }
-            None => {
-                tree.triangles.copy_from_slice(input);
-                let (lo, hi) = self.refit.bounds().expect("a refit tree holds triangles");
-                self.bounds[bottom] = Aabb { min: lo.into(), max: hi.into() };
-                refit_ratio
-            }
+            self.triangles[triangle_base..][..count].copy_from_slice(&tree.wide.triangles);
+            1.0
+        } else {
+            // The refit wrote the concatenation; the tree's own triangles (input and leaf order)
+            // are stale, and freed.
+            tree.release_reference();
+            tree.wide.triangles = Vec::new();
+            let (lo, hi) = self.refit.bounds().expect("a refit tree holds triangles");
+            self.bounds[bottom] = Aabb { min: lo.into(), max: hi.into() };
+            refit_ratio
         };
-        // The concatenation takes the tree, its indices shifted; a smaller rebuild leaves zeros.
+        // The concatenation takes the tree's nodes, its indices shifted; a smaller rebuild
+        // leaves zeros.
         let wide = &tree.wide;
         let (base, first) = (node_base as u32, triangle_base as u32);
         for (to, &node) in self.nodes[node_base..].iter_mut().zip(&wide.nodes) {
@@ -309,10 +341,9 @@ impl TwoLevel {
         }
         let written = old_nodes.max(wide.nodes.len());
         self.nodes[node_base + wide.nodes.len()..node_base + written].fill(WideNode::default());
-        self.triangles[triangle_base..][..wide.triangles.len()].copy_from_slice(&wide.triangles);
         let nodes = bytemuck::cast_slice::<WideNode, [u32; 4]>(&self.nodes[node_base..node_base + written]).to_vec();
-        let triangles = self.triangle_range(triangle_base, input.len());
-        Deformed { rebuilt: rebuilt.is_some(), refit_ratio, sah_ratio, nodes: (3 * node_base, nodes), triangles, masks }
+        let triangles = self.triangle_range(triangle_base, count);
+        Deformed { rebuilt, refit_ratio, sah_ratio, nodes: (3 * node_base, nodes), triangles, masks }
     }
 
     /// The texels of the triangle buffer (`triangle_texels`) that hold triangles `first` to
@@ -430,8 +461,11 @@ impl TwoLevel {
         self.placements
             .iter()
             .flat_map(|p| {
-                let bottom = &self.bottoms[p.bottom];
-                bottom.triangles.iter().map(|tri| tri.map(|v| p.to_world.transform_point3(v)))
+                let own = match &self.posed[p.bottom] {
+                    Some(posed) => posed.triangles(),
+                    None => self.bottoms[p.bottom].triangles.clone(),
+                };
+                own.into_iter().map(|tri| tri.map(|v| p.to_world.transform_point3(v)))
             })
             .collect()
     }

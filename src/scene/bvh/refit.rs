@@ -16,9 +16,9 @@
 //! by the time the sweep reaches a node every child has its new box. `refit` checks this as it
 //! goes: a child before its parent is a panic, not a silently stale box.
 
-use glam::{UVec4, Vec3, Vec3A, Vec4};
+use glam::{Mat4, UVec4, Vec3, Vec3A, Vec4};
 
-use super::wide::{child_weights, encode_fast, WideBvh, WideNode, CHILD_INNER, FIRST_MASK};
+use super::wide::{child_weights, encode_lanes, WideBvh, WideNode, CHILD_INNER, FIRST_MASK};
 
 /// The cost of a wide node step against one triangle test in `sah_cost`: the builder's own
 /// (`wide::TRAVERSAL_COST`, with which it chose its leaves), so that a tree the builder just made
@@ -46,7 +46,7 @@ pub fn node_room(triangles: usize) -> usize {
 /// largest tree: each node's true (unquantised) box, which its parent encodes from.
 #[derive(Clone, Debug, Default)]
 pub struct Refit {
-    boxes: Vec<(Vec3, Vec3)>,
+    boxes: Vec<(Vec3A, Vec3A)>,
 }
 
 impl Refit {
@@ -57,33 +57,85 @@ impl Refit {
     /// The true box of everything the last refit tree holds (`None` before a refit or after one
     /// of an empty tree): the tree's own-space bounds, for a top level over it.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
-        self.boxes.first().copied()
+        self.boxes.first().map(|&(lo, hi)| (lo.into(), hi.into()))
     }
 }
 
-/// How many nodes ahead of the one it refits the sweep asks for the input triangles of a
-/// node's leaves. The reads through `order` are scattered over the input, and the sweep waited
-/// on them: on a 1M-triangle sphere, 35 % of the sweep's own time sat on that one load.
+/// How many nodes ahead of the one it refits the sweep asks for the corners of a node's leaves.
+/// The reads are scattered over the input, and the sweep waited on them: on a 1M-triangle
+/// sphere read through `order`, 35 % of the sweep's own time sat on that one load.
 const PREFETCH_NODES: usize = 8;
 
-/// Asks the cache for the input triangles of `node`'s leaf children (a hint: nothing is read,
-/// and an address past the input does no harm).
+/// Where a refit reads each leaf slot's three corners.
+trait Corners {
+    /// Slot `s`'s corners.
+    fn corners(&self, s: usize) -> [Vec3A; 3];
+    /// Asks the cache for slot `s`'s corners (a hint: nothing is read).
+    fn prefetch(&self, s: usize);
+}
+
+/// Triangles in input order, each slot reading the one `order` names: 36 bytes gathered a slot.
+struct ByOrder<'a> {
+    input: &'a [[Vec3; 3]],
+    order: &'a [u32],
+}
+
+impl Corners for ByOrder<'_> {
+    #[inline(always)]
+    fn corners(&self, s: usize) -> [Vec3A; 3] {
+        self.input[self.order[s] as usize].map(Vec3A::from)
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, s: usize) {
+        if let Some(&k) = self.order.get(s) {
+            prefetch(self.input.as_ptr().wrapping_add(k as usize));
+        }
+    }
+}
+
+/// Vertex positions and each slot's three vertex indices, in leaf order (`leaf_corners`): the
+/// indices read in sequence, the positions (16 bytes each, about half a triangle's 36 where a
+/// mesh shares its vertices) near one another as a leaf's triangles are.
+struct ByVertex<'a> {
+    positions: &'a [Vec3A],
+    corners: &'a [[u32; 3]],
+}
+
+impl Corners for ByVertex<'_> {
+    #[inline(always)]
+    fn corners(&self, s: usize) -> [Vec3A; 3] {
+        self.corners[s].map(|v| self.positions[v as usize])
+    }
+
+    #[inline(always)]
+    fn prefetch(&self, s: usize) {
+        if let Some(corners) = self.corners.get(s) {
+            corners.iter().for_each(|&v| prefetch(self.positions.as_ptr().wrapping_add(v as usize)));
+        }
+    }
+}
+
+/// A prefetch of `at` (a hint: nothing is read, and an address past the input does no harm).
 #[inline(always)]
-fn prefetch_leaves(node: &WideNode, order: &[u32], input: &[[Vec3; 3]]) {
+fn prefetch<T>(at: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a prefetch reads nothing and faults on no address.
+    unsafe {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        _mm_prefetch::<_MM_HINT_T0>(at.cast());
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = at;
+}
+
+/// Asks the cache for the corners of `node`'s leaf children.
+#[inline(always)]
+fn prefetch_leaves(node: &WideNode, source: &impl Corners) {
     let meta = node_meta(node);
     let first = (node.texels[2][3] & FIRST_MASK) as usize;
     let count: usize = (0..4).map(|i| meta >> (4 * i) & 0xf).filter(|&c| c != CHILD_INNER).sum::<u32>() as usize;
-    for &k in order.iter().skip(first).take(count) {
-        let at = input.as_ptr().wrapping_add(k as usize);
-        #[cfg(target_arch = "x86_64")]
-        // SAFETY: a prefetch reads nothing and faults on no address.
-        unsafe {
-            use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-            _mm_prefetch::<_MM_HINT_T0>(at.cast());
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        let _ = at;
-    }
+    (first..first + count).for_each(|s| source.prefetch(s));
 }
 
 /// A node's child codes, 4 bits each (child i at bit 4i), from the top bits of three words: the
@@ -104,66 +156,171 @@ impl WideBvh {
     /// same sweep. One pass over the nodes and one over the triangles (read through `order`),
     /// no allocation once `scratch` has grown to the tree.
     pub fn refit(&mut self, input: &[[Vec3; 3]], scratch: &mut Refit) -> f32 {
-        let n = self.nodes.len();
-        if input.is_empty() && n == 1 && node_meta(&self.nodes[0]) == 0 {
-            // The empty tree: a root without children and a dummy triangle no node points at.
-            scratch.boxes.clear();
-            return NODE_STEP_COST;
+        if self.childless() {
+            return refit_empty(input.len(), scratch);
         }
         assert_eq!(input.len(), self.order.len(), "a refit takes the triangles the tree was built over");
-        scratch.boxes.resize(n, (Vec3::ZERO, Vec3::ZERO));
-        let (nodes, triangles, order, boxes) = (&mut self.nodes, &mut self.triangles, &self.order, &mut scratch.boxes);
-        let mut weighted = 0.0f64;
-        for i in (0..n).rev() {
-            if let Some(ahead) = i.checked_sub(PREFETCH_NODES) {
-                prefetch_leaves(&nodes[ahead], order, input);
-            }
-            let meta = node_meta(&nodes[i]);
-            let [_, _, t2] = nodes[i].texels;
-            let (first_child, first_triangle) = (t2[2] & FIRST_MASK, t2[3] & FIRST_MASK);
-            let mut children = [(Vec3::ZERO, Vec3::ZERO); 4];
-            let mut codes = [0u32; 4];
-            let (mut len, mut inner, mut slot) = (0, 0, first_triangle as usize);
-            // Children are inner ones, then leaves, then none (code 0) to the fourth.
-            while len < 4 {
-                let code = meta >> (4 * len) & 0xf;
-                if code == 0 {
-                    break;
-                }
-                children[len] = if code == CHILD_INNER {
-                    let child = first_child as usize + inner;
-                    assert!(child > i && child < n, "node {i}'s child {child} is not after it: the layout changed");
-                    inner += 1;
-                    boxes[child]
-                } else {
-                    let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-                    for s in slot..slot + code as usize {
-                        let [a, b, c] = input[order[s] as usize].map(Vec3A::from);
-                        // obvhs's triangle box (`Aabb::from_points`): the builder's leaf boxes.
-                        lo = lo.min(a).min(b).min(c);
-                        hi = hi.max(a).max(b).max(c);
-                        triangles[s] = [a.into(), (b - a).into(), (c - a).into()];
-                    }
-                    slot += code as usize;
-                    (lo.into(), hi.into())
-                };
-                codes[len] = code;
-                len += 1;
-            }
-            let children = &children[..len];
-            let lo = children.iter().fold(Vec3::INFINITY, |m, b| m.min(b.0));
-            let hi = children.iter().fold(Vec3::NEG_INFINITY, |m, b| m.max(b.1));
-            boxes[i] = (lo, hi);
-            let (node, area) = encode_fast(children, (lo, hi), codes, first_child, first_triangle);
-            nodes[i] = node;
-            weighted += area;
+        let source = ByOrder { input, order: &self.order };
+        refit_nodes(&mut self.nodes, &mut self.triangles, &source, scratch)
+    }
+
+    /// `refit` to the triangles that vertex `positions` make, `corners` holding each leaf slot's
+    /// three vertex indices (`leaf_corners`), writing the leaf-order triangles to `triangles`
+    /// (as long as `corners`) instead of the tree's own, which are left as they were: the same
+    /// nodes and triangles, bit for bit, as `refit` to those triangles in input order, which are
+    /// never made. What a deforming mesh's frame costs (`TwoLevel::deform`): the indices are
+    /// read in sequence and the positions near one another, where `refit` gathers 36 bytes a
+    /// triangle from all over its input.
+    pub fn refit_vertices(
+        &mut self,
+        positions: &[Vec3A],
+        corners: &[[u32; 3]],
+        triangles: &mut [[Vec3; 3]],
+        scratch: &mut Refit,
+    ) -> f32 {
+        if self.childless() {
+            return refit_empty(corners.len(), scratch);
         }
-        normalised_cost(weighted, &nodes[0], n, self.order.len())
+        assert_eq!(corners.len(), self.order.len(), "a refit takes the triangles the tree was built over");
+        assert_eq!(triangles.len(), corners.len(), "a refit writes each of its triangles");
+        refit_nodes(&mut self.nodes, triangles, &ByVertex { positions, corners }, scratch)
+    }
+
+    /// Whether this is the empty tree: a root without children (and a dummy triangle no node
+    /// points at).
+    fn childless(&self) -> bool {
+        self.nodes.len() == 1 && node_meta(&self.nodes[0]) == 0
+    }
+
+    /// Each leaf slot's three vertex indices, for a tree built over the triangles `indices`
+    /// lists (three a triangle, in input order): what `refit_vertices` reads.
+    pub fn leaf_corners(&self, indices: &[u32]) -> Vec<[u32; 3]> {
+        if self.childless() {
+            return Vec::new();
+        }
+        assert_eq!(indices.len(), 3 * self.order.len(), "a tree's corners come from the indices it was built over");
+        self.order.iter().map(|&k| [0, 1, 2].map(|c| indices[3 * k as usize + c])).collect()
     }
 
     /// `sah_cost` of this tree as it stands.
     pub fn sah_cost(&self) -> f32 {
         sah_cost(self)
+    }
+}
+
+/// The refit's sweep (`WideBvh::refit`) over a tree's `nodes`, writing its leaf-order
+/// `triangles` (one for each of the tree's) from the corners `source` reads.
+#[inline(always)]
+fn refit_nodes(nodes: &mut [WideNode], triangles: &mut [[Vec3; 3]], source: &impl Corners, scratch: &mut Refit) -> f32 {
+    let n = nodes.len();
+    scratch.boxes.resize(n, (Vec3A::ZERO, Vec3A::ZERO));
+    let boxes = &mut scratch.boxes;
+    let mut weighted = 0.0f64;
+    for i in (0..n).rev() {
+        if let Some(ahead) = i.checked_sub(PREFETCH_NODES) {
+            prefetch_leaves(&nodes[ahead], source);
+        }
+        let meta = node_meta(&nodes[i]);
+        let [_, _, t2] = nodes[i].texels;
+        let (first_child, first_triangle) = (t2[2] & FIRST_MASK, t2[3] & FIRST_MASK);
+        let (mut c_lo, mut c_hi) = ([Vec3A::ZERO; 4], [Vec3A::ZERO; 4]);
+        let mut codes = [0u32; 4];
+        let (mut len, mut inner, mut slot) = (0, 0, first_triangle as usize);
+        // Children are inner ones, then leaves, then none (code 0) to the fourth.
+        while len < 4 {
+            let code = meta >> (4 * len) & 0xf;
+            if code == 0 {
+                break;
+            }
+            (c_lo[len], c_hi[len]) = if code == CHILD_INNER {
+                let child = first_child as usize + inner;
+                assert!(child > i && child < n, "node {i}'s child {child} is not after it: the layout changed");
+                inner += 1;
+                boxes[child]
+            } else {
+                let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
+                for (s, to) in triangles.iter_mut().enumerate().skip(slot).take(code as usize) {
+                    let [a, b, c] = source.corners(s);
+                    // obvhs's triangle box (`Aabb::from_points`): the builder's leaf boxes.
+                    lo = lo.min(a).min(b).min(c);
+                    hi = hi.max(a).max(b).max(c);
+                    store_triangle(to, [a, b - a, c - a]);
+                }
+                slot += code as usize;
+                (lo, hi)
+            };
+            codes[len] = code;
+            len += 1;
+        }
+        // The node's box, and absent children given the last one's (`encode_lanes` zeroes them).
+        let (mut lo, mut hi) = (c_lo[0], c_hi[0]);
+        for k in 1..4 {
+            if k < len {
+                (lo, hi) = (lo.min(c_lo[k]), hi.max(c_hi[k]));
+            } else {
+                (c_lo[k], c_hi[k]) = (c_lo[len - 1], c_hi[len - 1]);
+            }
+        }
+        boxes[i] = (lo, hi);
+        let (node, area) = encode_lanes(
+            (by_axis(c_lo), by_axis(c_hi)),
+            len,
+            (lo.into(), hi.into()),
+            codes,
+            first_child,
+            first_triangle,
+        );
+        nodes[i] = node;
+        weighted += area;
+    }
+    finish_stores();
+    normalised_cost(weighted, &nodes[0], n, triangles.len())
+}
+
+/// The refit of the empty tree, to `count` triangles (none): it stays as it is.
+fn refit_empty(count: usize, scratch: &mut Refit) -> f32 {
+    assert_eq!(count, 0, "a refit takes the triangles the tree was built over");
+    scratch.boxes.clear();
+    NODE_STEP_COST
+}
+
+/// Four points as three lanes of coordinates, x, y, z (a transpose in registers).
+#[inline(always)]
+fn by_axis(points: [Vec3A; 4]) -> [Vec4; 3] {
+    let t = Mat4::from_cols(points[0].extend(0.0), points[1].extend(0.0), points[2].extend(0.0), points[3].extend(0.0))
+        .transpose();
+    [t.x_axis, t.y_axis, t.z_axis]
+}
+
+/// Writes a refit triangle with stores that bypass the cache (`movnti`): a refit writes 36
+/// bytes a triangle it never reads again, and ordinary stores first read each line in; on a
+/// 1M-triangle sphere the refit took 1.5x as long with them (`refit_timings`).
+#[inline(always)]
+fn store_triangle(to: &mut [Vec3; 3], corners: [Vec3A; 3]) {
+    let words: [u32; 9] = bytemuck::cast(corners.map(Vec3::from));
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: `to` is nine writable, aligned words; `finish_stores` orders these stores before
+    // anything the refit's caller does next.
+    unsafe {
+        use std::arch::x86_64::_mm_stream_si32;
+        let at = to.as_mut_ptr().cast::<i32>();
+        for (k, &word) in words.iter().enumerate() {
+            _mm_stream_si32(at.add(k), word as i32);
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        *to = bytemuck::cast(words);
+    }
+}
+
+/// Orders `store_triangle`'s stores (weakly ordered) before every later load and store.
+#[inline(always)]
+fn finish_stores() {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: a fence has no operands.
+    unsafe {
+        std::arch::x86_64::_mm_sfence();
     }
 }
 

@@ -63,7 +63,7 @@ use obvhs::bvh2::Bvh2;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
 mod node;
-pub(super) use node::{child_weights, encode_fast, node_step, safe_dir};
+pub(super) use node::{child_weights, encode_fast, encode_lanes, node_step, safe_dir};
 #[cfg(test)]
 pub(super) use node::{encode, first_exponent};
 

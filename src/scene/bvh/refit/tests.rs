@@ -6,7 +6,7 @@ use glam::{Affine3A, Vec2};
 use super::*;
 use crate::scene::bvh::levels::{Deformed, Placement, TexelRange, TwoLevel, REBUILD_RATIO};
 use crate::scene::bvh::mask::{BvhMasks, MaskMaterial, MaskSource};
-use crate::scene::bvh::wide::{encode, first_exponent};
+use crate::scene::bvh::wide::{encode, encode_fast, first_exponent};
 use crate::scene::bvh::ShadowBvh;
 
 /// A seeded xorshift64*: random meshes and rays without a crate.
@@ -231,7 +231,8 @@ fn refitting_to_the_build_triangles_gives_the_built_tree_bit_for_bit() {
         let built = ShadowBvh::from_triangles(&tris).wide().clone();
         let mut wide = built.clone();
         let mut scratch = Refit::new();
-        let moved = mesh.deformed(1, &mut rng).triangles();
+        let moved_mesh = mesh.deformed(1, &mut rng);
+        let moved = moved_mesh.triangles();
         let moved_cost = wide.refit(&moved, &mut scratch);
         // (A root over one leaf costs C + its triangles wherever they are.)
         assert!(tris.len() <= 4 || moved_cost != built.sah_cost());
@@ -241,6 +242,18 @@ fn refitting_to_the_build_triangles_gives_the_built_tree_bit_for_bit() {
         assert_eq!(wide.nodes, built.nodes, "{} triangles", tris.len());
         assert_eq!(wide.triangles, built.triangles);
         assert_eq!(cost, built.sah_cost());
+        // From the vertices and the leaves' corners: the same tree and triangles as from the
+        // triangles, for the moved mesh and back at rest.
+        let flat: Vec<u32> = mesh.indices.iter().flatten().copied().collect();
+        let corners = built.leaf_corners(&flat);
+        for (positions, triangles) in [(&moved_mesh.positions, &moved), (&mesh.positions, &tris)] {
+            let positions: Vec<Vec3A> = positions.iter().map(|&p| p.into()).collect();
+            let (mut by_vertex, mut out) = (built.clone(), vec![[Vec3::NAN; 3]; tris.len()]);
+            let vertex_cost = by_vertex.refit_vertices(&positions, &corners, &mut out, &mut scratch);
+            let by_triangle_cost = wide.refit(triangles, &mut scratch);
+            assert_eq!((by_vertex.nodes, vertex_cost), (wide.nodes.clone(), by_triangle_cost));
+            assert_eq!(out, wide.triangles);
+        }
     }
     // The empty tree stays as it is.
     let mut empty = ShadowBvh::from_triangles(&[]).wide().clone();
@@ -361,6 +374,13 @@ fn many_placements_of_one_tree_fit_their_room_and_answer_as_one_tree() {
     }
 }
 
+/// `TwoLevel::deform` to `triangles`, given as three vertices each (the indices 0, 1, 2, ...).
+fn deform_triangles(levels: &mut TwoLevel, bottom: usize, triangles: &[[Vec3; 3]]) -> Deformed {
+    let positions = triangles.iter().flatten().map(|&v| v.into()).collect();
+    let indices: Vec<u32> = (0..3 * triangles.len() as u32).collect();
+    levels.deform(bottom, positions, &indices)
+}
+
 /// Writes `range` over `texels`, as an upload of it does.
 fn apply(texels: &mut [[u32; 4]], (first, run): &TexelRange) {
     texels[*first..*first + run.len()].copy_from_slice(run);
@@ -371,7 +391,7 @@ fn apply(texels: &mut [[u32; 4]], (first, run): &TexelRange) {
 fn deform_checked(levels: &mut TwoLevel, bottom: usize, input: &[[Vec3; 3]]) -> Deformed {
     let (mut nodes, mut triangles) = (levels.node_texels(), levels.triangle_texels());
     let mut masks = levels.masks().map(|m| m.texels.clone());
-    let deformed = levels.deform(bottom, input);
+    let deformed = deform_triangles(levels, bottom, input);
     apply(&mut nodes, &deformed.nodes);
     for run in &deformed.triangles {
         apply(&mut triangles, run);
@@ -407,7 +427,7 @@ fn deformed_levels_answer_as_one_tree_over_the_posed_triangles() {
     }
     assert!(refits > 10 && rebuilds > 5, "{refits} refits, {rebuilds} rebuilds: the test would be weak");
     // The empty group deforms to nothing.
-    let empty = levels.deform(1, &[]);
+    let empty = deform_triangles(&mut levels, 1, &[]);
     assert!(!empty.rebuilt && empty.nodes.1.is_empty() && empty.triangles.is_empty());
 }
 
@@ -510,16 +530,18 @@ fn median_ms(runs: usize, mut f: impl FnMut()) -> f64 {
 fn refit_timings() {
     let mut rng = Rng(1);
     // Bumps along the normal and a twist about y, both growing with `a` (the radius is 1).
-    let deform = |mesh: &Mesh, a: f32| -> Vec<[Vec3; 3]> {
-        let moved: Vec<Vec3> = mesh
-            .positions
+    let moved = |mesh: &Mesh, a: f32| -> Vec<Vec3> {
+        mesh.positions
             .iter()
             .map(|&p| {
                 let p = p * (1.0 + a * (9.0 * p.x + 3.0).sin() * (7.0 * p.y).cos());
                 let (s, c) = (a * std::f32::consts::PI * p.y).sin_cos();
                 Vec3::new(c * p.x - s * p.z, p.y, s * p.x + c * p.z)
             })
-            .collect();
+            .collect()
+    };
+    let deform = |mesh: &Mesh, a: f32| -> Vec<[Vec3; 3]> {
+        let moved = moved(mesh, a);
         mesh.indices.iter().map(|t| t.map(|k| moved[k as usize])).collect()
     };
     println!("build threads: {}", crate::scene::bvh::build_threads());
@@ -533,9 +555,20 @@ fn refit_timings() {
         let (mut wide, mut scratch) = (built.clone(), Refit::new());
         let small = deform(&mesh, 0.03);
         wide.refit(&small, &mut scratch); // the scratch grows once, outside the timing
-        let refit_ms = median_ms(5, || {
-            wide.refit(&small, &mut scratch);
-        });
+        let flat: Vec<u32> = mesh.indices.iter().flatten().copied().collect();
+        let corners = wide.leaf_corners(&flat);
+        let small_positions: Vec<Vec3A> = moved(&mesh, 0.03).into_iter().map(Vec3A::from).collect();
+        let mut out = wide.triangles.clone();
+        // The two inputs alternate over three rounds, each keeping its fastest.
+        let (mut refit_ms, mut vertex_ms) = (f64::MAX, f64::MAX);
+        for _ in 0..3 {
+            refit_ms = refit_ms.min(median_ms(5, || {
+                wide.refit(&small, &mut scratch);
+            }));
+            vertex_ms = vertex_ms.min(median_ms(5, || {
+                wide.refit_vertices(&small_positions, &corners, &mut out, &mut scratch);
+            }));
+        }
         let cost_ms = median_ms(5, || {
             std::hint::black_box(wide.sah_cost());
         });
@@ -545,9 +578,15 @@ fn refit_timings() {
             &[Placement { bottom: 0, to_world: Default::default() }],
             &[true],
         );
-        let deform_ms = median_ms(5, || assert!(!levels.deform(0, &small).rebuilt));
+        // Each frame hands over its positions (made outside the timing, as the pose makes them).
+        let mut frames = vec![small_positions.clone(); 5];
+        let deform_ms = median_ms(5, || {
+            let positions = frames.pop().expect("a frame's positions");
+            assert!(!levels.deform(0, positions, &flat).rebuilt);
+        });
         println!(
-            "{} triangles, {} nodes: build {build_ms:.0} ms, refit {refit_ms:.1} ms, sah_cost {cost_ms:.1} ms, \
+            "{} triangles, {} nodes: build {build_ms:.0} ms, refit from triangles {refit_ms:.1} ms, \
+             from vertices {vertex_ms:.1} ms, sah_cost {cost_ms:.1} ms, \
              TwoLevel::deform (refit) {deform_ms:.1} ms",
             tris.len(),
             built.nodes.len()

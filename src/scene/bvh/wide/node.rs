@@ -102,11 +102,30 @@ pub(in crate::scene::bvh) fn encode_fast(
     first_child: u32,
     first_triangle: u32,
 ) -> (WideNode, f64) {
+    // Absent children take the last one's box; their bytes are zeroed at the end.
+    let child = |i: usize| children[i.min(children.len() - 1)];
+    let lanes = |side: fn((Vec3, Vec3)) -> Vec3| {
+        [0, 1, 2].map(|axis| Vec4::from_array([0, 1, 2, 3].map(|i| side(child(i))[axis])))
+    };
+    let boxes = (lanes(|b| b.0), lanes(|b| b.1));
+    encode_lanes(boxes, children.len(), (lo, hi), codes, first_child, first_triangle)
+}
+
+/// `encode_fast` with the children's boxes given per axis (`c_lo[axis]`: the four children's low
+/// coordinates on that axis), `len` of them present: absent lanes hold any finite box (their
+/// bytes are zeroed), as a caller that keeps its boxes in lanes has them.
+#[inline(always)]
+pub(in crate::scene::bvh) fn encode_lanes(
+    (c_los, c_his): ([Vec4; 3], [Vec4; 3]),
+    len: usize,
+    (lo, hi): (Vec3, Vec3),
+    codes: [u32; 4],
+    first_child: u32,
+    first_triangle: u32,
+) -> (WideNode, f64) {
     const ROUND: f32 = (1 << 23) as f32;
     let (zero, one, top) = (Vec4::ZERO, Vec4::ONE, Vec4::splat(255.0));
-    // Absent children take the first one's box; their bytes are zeroed at the end.
-    let child = |i: usize| children[i.min(children.len() - 1)];
-    let present = Vec4::new(0.0, 1.0, 2.0, 3.0).cmplt(Vec4::splat(children.len() as f32));
+    let present = Vec4::new(0.0, 1.0, 2.0, 3.0).cmplt(Vec4::splat(len as f32));
     let mut exps = [0u32; 3];
     let mut words = [0u32; 6]; // lo x, hi x, lo y, hi y, lo z, hi z; child i in byte i
     let mut sides = [Vec4::ZERO; 3]; // the decoded boxes' sides
@@ -122,8 +141,7 @@ pub(in crate::scene::bvh) fn encode_fast(
         let (scale, inverse) = (exp2(e), if e == 127 { f32::from_bits(1 << 22) } else { exp2(-e) });
         exps[axis] = (e + 127) as u32;
         let (origin4, scale4) = (Vec4::splat(origin), Vec4::splat(scale));
-        let c_lo = Vec4::new(child(0).0[axis], child(1).0[axis], child(2).0[axis], child(3).0[axis]);
-        let c_hi = Vec4::new(child(0).1[axis], child(1).1[axis], child(2).1[axis], child(3).1[axis]);
+        let (c_lo, c_hi) = (c_los[axis], c_his[axis]);
         let x = ((c_lo - origin4) * inverse).max(zero).min(top);
         let r = (x + Vec4::splat(ROUND)) - Vec4::splat(ROUND);
         let mut q_lo = r - Vec4::select(r.cmpgt(x), one, zero);

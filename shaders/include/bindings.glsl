@@ -88,6 +88,11 @@
 #define SKIN_REST 0
 #define SKIN_FRAME 1
 #define SKIN_VERTICES 2
+// refit_leaves.comp: posed vertex positions (RGBA32F texels), each leaf slot's three vertex
+// indices (RGBA32UI texels), the leaf-order triangles it writes (src/gpu/refit_leaves.rs)
+#define REFIT_POSITIONS 0
+#define REFIT_CORNERS 1
+#define REFIT_TRIANGLES 2
 // skin.comp's flags (push constant `mesh.w`): joints and weights per vertex (else the mesh's
 // one placement), a second set of four, no normals (each vertex takes its posed face's normal)
 #define SKIN_SKINNED 1u

@@ -8,6 +8,7 @@ pub mod denoise;
 pub mod geometry;
 pub mod present;
 pub mod readback;
+pub mod refit_leaves;
 pub mod tonemap;
 pub mod ui;
 pub mod visibility;

@@ -42,6 +42,7 @@ mod ray_query;
 mod ray_query_moving;
 mod rect_lights;
 mod rect_shadows;
+mod refit_leaves;
 mod render_accuracy;
 mod samplers;
 mod shadow_choice;

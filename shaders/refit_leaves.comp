@@ -1,6 +1,6 @@
 #version 460
 #extension GL_GOOGLE_include_directive : require
-// The leaf half of a bottom tree's refit on the device (src/gpu/refit_leaves.rs): each leaf
+// The leaf half of a bottom tree's refit on the device (src/passes/refit_leaves.rs): each leaf
 // slot's triangle from the posed vertices, written as the shadow BVH's triangle buffer holds it
 // (v0, e1 = v1 - v0, e2 = v2 - v0: nine floats), twin of WideBvh::refit_vertices's writes. What
 // any device refit must do at least, timed against the CPU's whole refit to choose where the

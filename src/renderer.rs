@@ -94,8 +94,7 @@ impl Renderer {
             return Renderer::new_two_level(ctx, scene, local, origin);
         }
         let start = std::time::Instant::now();
-        let mut bvh = ShadowBvh::build(&local);
-        bvh.release_reference();
+        let bvh = ShadowBvh::build_released(&local);
         log::info!(
             "BVH build: {} nodes over {} shadow-casting triangles in {:.1} ms ({} triangles, {} lights in the scene)",
             bvh.node_count(),

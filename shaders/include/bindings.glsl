@@ -89,7 +89,7 @@
 #define SKIN_FRAME 1
 #define SKIN_VERTICES 2
 // refit_leaves.comp: posed vertex positions (RGBA32F texels), each leaf slot's three vertex
-// indices (RGBA32UI texels), the leaf-order triangles it writes (src/gpu/refit_leaves.rs)
+// indices (RGBA32UI texels), the leaf-order triangles it writes (src/passes/refit_leaves.rs)
 #define REFIT_POSITIONS 0
 #define REFIT_CORNERS 1
 #define REFIT_TRIANGLES 2

@@ -203,8 +203,9 @@ impl BvhBuffers {
         let dst = vk::BufferUsageFlags::TRANSFER_DST;
         let limit = ctx.capabilities.max_texel_buffer_elements as usize;
         let nodes = levels.node_texels();
-        let triangles = levels.triangle_texels();
-        for (what, texels) in [("nodes", nodes.len()), ("triangles", triangles.len())] {
+        // `upload` pads the triangles' bytes to whole texels.
+        let triangles = levels.triangle_bytes();
+        for (what, texels) in [("nodes", nodes.len()), ("triangles", triangles.len().div_ceil(16))] {
             if texels > limit {
                 return Err(GpuError::Unsupported(format!(
                     "the shadow BVH's {what} need {texels} texels in one texel buffer; {} allows at most {limit} \
@@ -218,7 +219,7 @@ impl BvhBuffers {
             ctx,
             [
                 ("bvh nodes", bytemuck::cast_slice(&nodes), texel | dst),
-                ("bvh triangles", bytemuck::cast_slice(&triangles), texel | dst),
+                ("bvh triangles", triangles, texel | dst),
                 ("bvh root", bytemuck::cast_slice(&root), vk::BufferUsageFlags::UNIFORM_BUFFER | dst),
             ],
         )?;
@@ -290,13 +291,14 @@ impl BvhBuffers {
     /// buffers).
     pub fn upload(ctx: &Arc<GpuContext>, bvh: &ShadowBvh) -> GpuResult<BvhBuffers> {
         BvhBuffers::check(ctx, bvh)?;
-        let triangles = bvh.wide().triangle_texels();
         let texel = vk::BufferUsageFlags::UNIFORM_TEXEL_BUFFER;
+        // The triangles' own bytes: `upload` pads a texel buffer to whole texels
+        // (`WideBvh::triangle_texels`' layout, without its copy).
         let uploaded = upload(
             ctx,
             [
                 ("bvh nodes", bytemuck::cast_slice(&bvh.wide().nodes), texel),
-                ("bvh triangles", bytemuck::cast_slice(&triangles), texel),
+                ("bvh triangles", bytemuck::cast_slice(&bvh.wide().triangles), texel),
                 ("bvh root", BvhBuffers::root_bytes(bvh), vk::BufferUsageFlags::UNIFORM_BUFFER),
             ],
         )?;

@@ -119,13 +119,52 @@ impl ShadowBvh {
     /// non-finite vertices are skipped: they would poison the bounding boxes.
     /// Alpha-masked casters keep their masks (`masks`).
     pub fn build(scene: &Scene) -> ShadowBvh {
-        let mut bvh = ShadowBvh::from_triangle_vec(caster_triangles(scene));
-        if !bvh.is_empty() {
+        let bvh = ShadowBvh::from_triangle_vec(caster_triangles(scene));
+        bvh.with_masks(scene)
+    }
+
+    /// `build` then `release_reference` (the tree the device reads, and nothing the reference
+    /// traversal needs), holding less at the build's peak: the casters' triangles are made for
+    /// the clustering's leaves and dropped as soon as their boxes are (the clustering reads
+    /// nothing else), the binary tree is dropped once the 4-wide nodes are made from it, and
+    /// the triangles are made again for the leaves. With the clustering's 32-byte working nodes
+    /// and the upload's unpadded triangles, the 10M-triangle scene's peak fell from 3.15 to
+    /// 2.46 GB (docs/performance.md).
+    pub fn build_released(scene: &Scene) -> ShadowBvh {
+        let tris = caster_triangles(scene);
+        let triangle_count = tris.len();
+        if triangle_count == 0 {
+            return ShadowBvh::from_triangle_vec(tris);
+        }
+        assert!(triangle_count < wide::MAX_TRIANGLES, "{triangle_count} triangles exceed the layout's 2^28");
+        let reference = logged(ploc::build_owned(tris));
+        let start = std::time::Instant::now();
+        let mut wide = WideBvh::from_bvh2_nodes(&reference, triangle_count);
+        drop(reference);
+        log::debug!("BVH 4-wide collapse (nodes): {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
+        let tris = caster_triangles(scene);
+        let depth = wide.binary_depth;
+        if wide.stack_need > BVH_STACK_SIZE {
+            let deep =
+                ShadowBvh { reference: Bvh2::default(), triangles: tris, wide, masks: None, triangle_count, depth };
+            let mut bvh = deep.within_stack();
+            bvh.release_reference();
+            return bvh.with_masks(scene);
+        }
+        wide.place_triangles(&tris);
+        drop(tris);
+        ShadowBvh { reference: Bvh2::default(), triangles: Vec::new(), wide, masks: None, triangle_count, depth }
+            .with_masks(scene)
+    }
+
+    /// This tree with the alpha masks of `scene`'s masked casters (the scene it was built over).
+    fn with_masks(mut self, scene: &Scene) -> ShadowBvh {
+        if !self.is_empty() {
             if let Some(source) = mask::caster_masks(scene) {
-                bvh.masks = Some(mask::BvhMasks::new(&source, &bvh.wide.order));
+                self.masks = Some(mask::BvhMasks::new(&source, &self.wide.order));
             }
         }
-        bvh
+        self
     }
 
     /// The alpha masks of the scene's masked casters (`None` when it has none): the traced
@@ -145,30 +184,23 @@ impl ShadowBvh {
         // chosen by the 4-wide collapse), with a guard that stops the clustering where it stalls
         // (coincident or nested triangles) and joins what it built by a median split.
         // Spatial pre-splits stay off so each triangle is in one leaf.
-        let bvh = ShadowBvh::with_builder(tris, |tris| {
-            let (bvh, report) = ploc::build(tris);
-            if report.stopped_with > 0 {
-                log::info!(
-                    "shadow BVH: clustering stalled after {} passes with {} nodes left; \
-                     joined them by a median split",
-                    report.passes,
-                    report.stopped_with
-                );
-            }
-            bvh
-        });
-        if bvh.stack_need() <= BVH_STACK_SIZE {
-            return bvh;
+        ShadowBvh::with_builder(tris, ploc_tree).within_stack()
+    }
+
+    /// This tree where the shader's stack holds its walk; otherwise, as PLOC gives no depth
+    /// bound, a balanced tree over its triangles instead, slower to trace but never deeper than
+    /// log2(triangles) levels.
+    fn within_stack(self) -> ShadowBvh {
+        if self.stack_need() <= BVH_STACK_SIZE {
+            return self;
         }
-        // PLOC gives no depth bound; a pathological input gets a balanced tree instead,
-        // slower to trace but never deeper than log2(triangles) levels.
         log::warn!(
             "shadow BVH traversal could need {} stack entries, over the shader's {BVH_STACK_SIZE} \
              (binary depth {}): falling back to a median-split build",
-            bvh.stack_need(),
-            bvh.depth()
+            self.stack_need(),
+            self.depth()
         );
-        ShadowBvh::with_builder(bvh.triangles, median_split_bvh)
+        ShadowBvh::with_builder(self.triangles, median_split_bvh)
     }
 
     /// The balanced fallback build that `from_triangles` uses when PLOC's tree is too deep for
@@ -346,6 +378,23 @@ impl ShadowBvh {
 /// Triangles per leaf in the fallback build (a leaf of the wide tree holds them all).
 const MEDIAN_SPLIT_LEAF_SIZE: usize = 4;
 const _: () = assert!(MEDIAN_SPLIT_LEAF_SIZE as u32 <= wide::MAX_LEAF_TRIANGLES);
+
+/// PLOC's tree over `tris` (`ploc::build`), logging where the clustering stalled.
+fn ploc_tree(tris: &[[Vec3; 3]]) -> Bvh2 {
+    logged(ploc::build(tris))
+}
+
+/// A PLOC build's tree, where the clustering stalled logged.
+fn logged((bvh, report): (Bvh2, ploc::PlocReport)) -> Bvh2 {
+    if report.stopped_with > 0 {
+        log::info!(
+            "shadow BVH: clustering stalled after {} passes with {} nodes left; joined them by a median split",
+            report.passes,
+            report.stopped_with
+        );
+    }
+    bvh
+}
 
 /// A balanced Bvh2: each node splits its triangles in half at the median centroid along the
 /// widest axis of their centroids. Children are allocated in pairs, depth first, as obvhs does.

@@ -120,7 +120,7 @@ pub enum Instancing {
 
 /// `Instancing::Auto` keeps an object's instances once copying them would make more triangles
 /// than this: the copies would then take some 260 MB of the device's buffers (about 66 B a
-/// triangle on lavapipe) and 1.2 GB at the BVH build's peak (300 B a triangle), which one
+/// triangle on lavapipe) and 0.9 GB at the peak of a load (234 B a triangle), which one
 /// geometry under a two-level walk saves.
 pub const KEEP_INSTANCES_ABOVE: u64 = 4_000_000;
 

@@ -44,8 +44,22 @@ impl Buffer {
 
     /// A host-visible buffer filled with `data` (device-local too on unified-memory devices).
     pub fn with_data(ctx: &Arc<GpuContext>, name: &str, data: &[u8], usage: vk::BufferUsageFlags) -> GpuResult<Buffer> {
-        let mut buffer = Buffer::new(ctx, name, data.len() as u64, usage, MemoryLocation::CpuToGpu)?;
-        buffer.mapped_mut()[..data.len()].copy_from_slice(data);
+        Buffer::with_data_padded(ctx, name, data, data.len() as u64, usage)
+    }
+
+    /// `with_data` in a buffer of `size` bytes (at least the data's), zeros after the data.
+    pub fn with_data_padded(
+        ctx: &Arc<GpuContext>,
+        name: &str,
+        data: &[u8],
+        size: u64,
+        usage: vk::BufferUsageFlags,
+    ) -> GpuResult<Buffer> {
+        assert!(size >= data.len() as u64, "{name}: {size} bytes cannot hold {} of data", data.len());
+        let mut buffer = Buffer::new(ctx, name, size, usage, MemoryLocation::CpuToGpu)?;
+        let mapped = buffer.mapped_mut();
+        mapped[..data.len()].copy_from_slice(data);
+        mapped[data.len()..].fill(0);
         Ok(buffer)
     }
 

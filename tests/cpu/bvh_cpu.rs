@@ -316,6 +316,31 @@ fn ordinary_scenes_keep_obvhs_tree_exactly() {
     }
 }
 
+/// The renderer's build, which drops the casters' triangles while it clusters and keeps
+/// nothing for the reference traversal, uploads the same tree as the full build.
+#[test]
+fn the_released_build_is_the_full_build_without_its_reference() {
+    let scenes = [
+        Scene::default_scene(),
+        Scene::parse(
+            "[camera]\neye = [0, 1, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n\
+             [[objects]]\nshape = \"sphere\"\nsegments = 120\n\
+             [[objects]]\nshape = \"plane\"\nsegments = 30\ncast_shadows = false\n",
+            "inline.toml",
+            std::path::Path::new("."),
+        )
+        .unwrap_or_else(|e| panic!("{e}")),
+    ];
+    for scene in &scenes {
+        let (full, released) = (ShadowBvh::build(scene), ShadowBvh::build_released(scene));
+        assert!(released.triangle_count() > 1000 && released.triangle_count() == full.triangle_count());
+        assert_eq!(released.wide().nodes, full.wide().nodes);
+        assert_eq!(released.wide().triangles, full.wide().triangles);
+        assert_eq!(released.wide().order, full.wide().order);
+        assert_eq!((released.depth(), released.stack_need()), (full.depth(), full.stack_need()));
+    }
+}
+
 /// A million copies of one triangle: every PLOC pass merged one pair of them (quadratic time,
 /// a tree a million levels deep before the median-split fallback). The guarded build must be
 /// fast and close to balanced, and still find the triangle.

@@ -483,6 +483,12 @@ impl TwoLevel {
         (3 * self.top_start as usize, &self.region)
     }
 
+    /// The bottom triangles' (all trees') bytes, nine floats each: `triangle_texels` without
+    /// its last texel's padding, what an upload that pads texel buffers takes without a copy.
+    pub fn triangle_bytes(&self) -> &[u8] {
+        bytemuck::cast_slice(&self.triangles)
+    }
+
     /// Bottom triangles (all trees) as RGBA32UI texels, as `WideBvh::triangle_texels` packs them.
     pub fn triangle_texels(&self) -> Vec<[u32; 4]> {
         WideBvh { triangles: self.triangles.clone(), ..WideBvh::default() }.triangle_texels()

@@ -310,14 +310,41 @@ impl WideBvh {
     /// binary node's two children and keeps opening the inner child with the largest surface
     /// area until it has four.
     pub fn from_bvh2(bvh: &Bvh2, tris: &[[Vec3; 3]]) -> WideBvh {
-        let threads = if bvh.nodes.len() >= PARALLEL_MIN_NODES { super::build_threads() } else { 1 };
+        let threads = threads_for(bvh);
         WideBvh::collapse(bvh, tris, threads)
+    }
+
+    /// `from_bvh2` without the triangles (`triangles` empty), for a tree over `count`
+    /// triangles: the nodes and the leaf order need only the binary tree, so a caller may drop
+    /// that before it makes the triangles (`place_triangles`).
+    pub(super) fn from_bvh2_nodes(bvh: &Bvh2, count: usize) -> WideBvh {
+        WideBvh::collapse_nodes(bvh, count, threads_for(bvh))
+    }
+
+    /// Makes the leaf-order triangles of a tree `from_bvh2_nodes` made, over `tris`: the tree
+    /// `from_bvh2` makes.
+    pub(super) fn place_triangles(&mut self, tris: &[[Vec3; 3]]) {
+        // As `collapse` chose for the binary tree's 2n - 1 nodes.
+        let threads = if 2 * self.order.len() > PARALLEL_MIN_NODES { super::build_threads() } else { 1 };
+        self.triangles = match tris.is_empty() {
+            true => vec![[Vec3::ZERO; 3]],
+            false => leaf_triangles(tris, &self.order, threads),
+        };
     }
 
     /// `from_bvh2` on up to `threads` threads.
     fn collapse(bvh: &Bvh2, tris: &[[Vec3; 3]], threads: usize) -> WideBvh {
+        let mut out = WideBvh::collapse_nodes(bvh, tris.len(), threads);
+        if !tris.is_empty() && !bvh.nodes.is_empty() {
+            out.triangles = leaf_triangles(tris, &out.order, threads);
+        }
+        out
+    }
+
+    /// `collapse` but for the triangles (`triangles` left empty, but for the empty tree's dummy).
+    fn collapse_nodes(bvh: &Bvh2, count: usize, threads: usize) -> WideBvh {
         let mut out = WideBvh::default();
-        if tris.is_empty() || bvh.nodes.is_empty() {
+        if count == 0 || bvh.nodes.is_empty() {
             out.nodes.push(WideNode::default()); // no children: nothing is hit
             out.triangles.push([Vec3::ZERO; 3]);
             out.order.push(0);
@@ -326,7 +353,7 @@ impl WideBvh {
         }
         // The layout's 28-bit first triangle (and first child: a tree has fewer nodes than
         // triangles) holds every index below the limit.
-        assert!(tris.len() < MAX_TRIANGLES, "{} triangles exceed the layout's 2^28", tris.len());
+        assert!(count < MAX_TRIANGLES, "{count} triangles exceed the layout's 2^28");
         let plan = LeafPlan::new(bvh);
         out.binary_depth = plan.depth;
         let root = if plan.is_leaf(0) {
@@ -340,16 +367,15 @@ impl WideBvh {
         // Then one depth-first pass emits the nodes above them and appends each where it meets
         // it, node and triangle indices shifted: node for node the tree one pass over
         // everything makes.
-        let split = if threads > 1 { (tris.len() / (threads * TASKS_PER_THREAD)).max(1) as u32 } else { u32::MAX };
+        let split = if threads > 1 { (count / (threads * TASKS_PER_THREAD)).max(1) as u32 } else { u32::MAX };
         let mut tasks = Vec::new();
         find_tasks(bvh, &plan, &root, 0, split, &mut tasks);
         let done = in_parallel(tasks.len(), threads, |k| Collapsed::subtree(bvh, &plan, tasks[k]));
         let mut tree = Collapsed::default();
         tree.nodes.reserve(done.iter().map(|sub| sub.nodes.len()).sum::<usize>() + 1);
-        tree.order.reserve(tris.len());
+        tree.order.reserve(count);
         tree.nodes.push(WideNode::default());
         out.stack_need = tree.emit(bvh, &plan, 0, &root, 0, split, &mut done.into_iter());
-        out.triangles = leaf_triangles(tris, &tree.order, threads);
         (out.nodes, out.order) = (tree.nodes, tree.order);
         out
     }
@@ -628,6 +654,15 @@ fn find_tasks(
 }
 
 /// `v0, e1, e2` of `tris[p]` for each `p` of `prims`, on up to `threads` threads.
+/// The threads a collapse of `bvh` runs on.
+fn threads_for(bvh: &Bvh2) -> usize {
+    if bvh.nodes.len() >= PARALLEL_MIN_NODES {
+        super::build_threads()
+    } else {
+        1
+    }
+}
+
 fn leaf_triangles(tris: &[[Vec3; 3]], prims: &[u32], threads: usize) -> Vec<[Vec3; 3]> {
     super::parallel_map(prims.len(), threads, |i| {
         let [a, b, c] = tris[prims[i] as usize];

@@ -8,7 +8,7 @@ use crate::common;
 use glam::{Vec3, Vec3A};
 use umbra::passes::refit_leaves::DeviceLeaves;
 use umbra::scene::bvh::refit::Refit;
-use umbra::scene::bvh::ShadowBvh;
+use umbra::scene::bvh::{ShadowBvh, WideBvh};
 
 /// A `side` x `side` grid of vertices on a bumpy sheet (two triangles a cell) and its indices,
 /// with its vertices moved by `wave`.
@@ -28,15 +28,20 @@ fn sheet(side: u32, wave: f32) -> (Vec<Vec3A>, Vec<u32>) {
     (positions, indices)
 }
 
-/// The sheet's tree built at rest, refit on the CPU to the sheet moved; the leaf corners and
-/// the moved positions; and the refit's triangles.
-fn refit_on_cpu(side: u32) -> (Vec<Vec3A>, Vec<[u32; 3]>, Vec<[Vec3; 3]>) {
+/// The sheet's tree built at rest, its leaf corners, and the sheet moved.
+fn moved_sheet(side: u32) -> (WideBvh, Vec<[u32; 3]>, Vec<Vec3A>) {
     let (rest, indices) = sheet(side, 0.0);
     let triangles: Vec<[Vec3; 3]> =
         indices.chunks_exact(3).map(|t| [0, 1, 2].map(|c| Vec3::from(rest[t[c] as usize]))).collect();
-    let mut wide = ShadowBvh::from_triangles(&triangles).wide().clone();
+    let wide = ShadowBvh::from_triangles(&triangles).wide().clone();
     let corners = wide.leaf_corners(&indices);
-    let (moved, _) = sheet(side, 0.7);
+    (wide, corners, sheet(side, 0.7).0)
+}
+
+/// `moved_sheet`'s tree refit on the CPU: the moved positions, the leaf corners and the
+/// refit's triangles.
+fn refit_on_cpu(side: u32) -> (Vec<Vec3A>, Vec<[u32; 3]>, Vec<[Vec3; 3]>) {
+    let (mut wide, corners, moved) = moved_sheet(side);
     let mut out = vec![[Vec3::NAN; 3]; corners.len()];
     wide.refit_vertices(&moved, &corners, &mut out, &mut Refit::new());
     (moved, corners, out)
@@ -64,13 +69,8 @@ fn the_device_writes_the_refit_triangles_of_the_cpu_bit_for_bit() {
 #[ignore]
 fn device_refit_leaves_timings() {
     let ctx = common::gpu();
-    let side = 725; // 2 * 724^2 = 1,048,352 triangles
-    let (rest, indices) = sheet(side, 0.0);
-    let triangles: Vec<[Vec3; 3]> =
-        indices.chunks_exact(3).map(|t| [0, 1, 2].map(|c| Vec3::from(rest[t[c] as usize]))).collect();
-    let mut wide = ShadowBvh::from_triangles(&triangles).wide().clone();
-    let corners = wide.leaf_corners(&indices);
-    let (moved, _) = sheet(side, 0.7);
+    // 2 * 724^2 = 1,048,352 triangles.
+    let (mut wide, corners, moved) = moved_sheet(725);
     let device = DeviceLeaves::new(&ctx, &moved, &corners).expect("upload");
     let (mut out, mut scratch) = (vec![[Vec3::ZERO; 3]; corners.len()], Refit::new());
     let time = |f: &mut dyn FnMut()| {

@@ -266,7 +266,8 @@ impl ShadowBvh {
         self.wide.stack_need
     }
 
-    /// The layout the GPU reads: nodes and triangles, never empty.
+    /// The layout the GPU reads: nodes and triangles, never empty (but for a bottom tree of
+    /// two levels that was refit, whose triangles are the levels': `TwoLevel::bottoms`).
     pub fn wide(&self) -> &WideBvh {
         &self.wide
     }

@@ -311,7 +311,7 @@ impl TwoLevel {
         let mut masks = Vec::new();
         let rebuilt = refit_ratio > REBUILD_RATIO;
         let sah_ratio = if rebuilt {
-            let fresh = ShadowBvh::from_triangles(&posed.triangles());
+            let fresh = ShadowBvh::from_triangle_vec(posed.triangles());
             // `node_room` bounds every build; a tree past it would overwrite its neighbour.
             assert!(fresh.wide.nodes.len() <= self.rooms[bottom] as usize, "a rebuild outgrew its room");
             let old = std::mem::replace(tree, fresh);
@@ -515,7 +515,9 @@ impl TwoLevel {
         self.placements.len()
     }
 
-    /// The bottom trees, in group order (a deformed one's `binary()` is of its last build).
+    /// The bottom trees, in group order. A refit one (`deform`) holds its nodes and leaf order
+    /// alone: its triangles are in the concatenation (`triangle_texels`, `posed_triangles`), its
+    /// own `wide().triangles` are empty and its `binary()` is released.
     pub fn bottoms(&self) -> &[ShadowBvh] {
         &self.bottoms
     }

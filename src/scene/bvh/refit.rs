@@ -160,6 +160,7 @@ impl WideBvh {
             return refit_empty(input.len(), scratch);
         }
         assert_eq!(input.len(), self.order.len(), "a refit takes the triangles the tree was built over");
+        assert_eq!(self.triangles.len(), self.order.len(), "the tree's triangles were released (TwoLevel::deform)");
         let source = ByOrder { input, order: &self.order };
         refit_nodes(&mut self.nodes, &mut self.triangles, &source, scratch)
     }
@@ -213,6 +214,8 @@ impl WideBvh {
 #[inline(always)]
 fn refit_nodes(nodes: &mut [WideNode], triangles: &mut [[Vec3; 3]], source: &impl Corners, scratch: &mut Refit) -> f32 {
     let n = nodes.len();
+    // Fences the cache-bypassing stores however the sweep ends, a panic's unwinding included.
+    let _fence = StoreFence;
     scratch.boxes.resize(n, (Vec3A::ZERO, Vec3A::ZERO));
     let boxes = &mut scratch.boxes;
     let mut weighted = 0.0f64;
@@ -273,7 +276,6 @@ fn refit_nodes(nodes: &mut [WideNode], triangles: &mut [[Vec3; 3]], source: &imp
         nodes[i] = node;
         weighted += area;
     }
-    finish_stores();
     normalised_cost(weighted, &nodes[0], n, triangles.len())
 }
 
@@ -293,14 +295,15 @@ fn by_axis(points: [Vec3A; 4]) -> [Vec4; 3] {
 }
 
 /// Writes a refit triangle with stores that bypass the cache (`movnti`): a refit writes 36
-/// bytes a triangle it never reads again, and ordinary stores first read each line in; on a
-/// 1M-triangle sphere the refit took 1.5x as long with them (`refit_timings`).
+/// bytes a triangle it does not read itself (the upload reads them once, later, from memory),
+/// and ordinary stores first read each line in; on a 1M-triangle sphere the refit took 1.5x as
+/// long with them (`refit_timings`).
 #[inline(always)]
 fn store_triangle(to: &mut [Vec3; 3], corners: [Vec3A; 3]) {
     let words: [u32; 9] = bytemuck::cast(corners.map(Vec3::from));
     #[cfg(target_arch = "x86_64")]
-    // SAFETY: `to` is nine writable, aligned words; `finish_stores` orders these stores before
-    // anything the refit's caller does next.
+    // SAFETY: `to` is nine writable words, 4-byte aligned; `StoreFence` orders these stores
+    // before anything after the sweep, however it ends.
     unsafe {
         use std::arch::x86_64::_mm_stream_si32;
         let at = to.as_mut_ptr().cast::<i32>();
@@ -314,13 +317,17 @@ fn store_triangle(to: &mut [Vec3; 3], corners: [Vec3A; 3]) {
     }
 }
 
-/// Orders `store_triangle`'s stores (weakly ordered) before every later load and store.
-#[inline(always)]
-fn finish_stores() {
-    #[cfg(target_arch = "x86_64")]
-    // SAFETY: a fence has no operands.
-    unsafe {
-        std::arch::x86_64::_mm_sfence();
+/// Orders `store_triangle`'s stores (weakly ordered) before every later load and store, when
+/// dropped: at the end of the sweep, or as a panic unwinds out of it.
+struct StoreFence;
+
+impl Drop for StoreFence {
+    fn drop(&mut self) {
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: a fence has no operands.
+        unsafe {
+            std::arch::x86_64::_mm_sfence();
+        }
     }
 }
 

@@ -75,11 +75,23 @@ impl Cluster {
         Cluster { min: aabb.min.into(), prim_count, max: aabb.max.into(), first_index }
     }
 
-    /// The box, read as obvhs's `Aabb` in place: each corner's fourth lane holds a word, which
-    /// no operation on the box reads into x, y or z (obvhs's `small_bvh2_node` does the same).
+    /// The box, read as obvhs's `Aabb` in place with each corner's fourth lane (the word beside
+    /// it) cleared: as a float that word is a denormal, which the box's arithmetic would carry
+    /// in its fourth lane, and many CPUs take a slow path on denormal operands.
     #[inline(always)]
     fn aabb(&self) -> Aabb {
-        bytemuck::cast(*self)
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::{_mm_and_ps, _mm_castsi128_ps, _mm_set_epi32};
+            let raw: Aabb = bytemuck::cast(*self);
+            // SAFETY: SSE2 is part of x86-64's baseline; these read and write registers only.
+            unsafe {
+                let xyz = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
+                Aabb { min: _mm_and_ps(raw.min.into(), xyz).into(), max: _mm_and_ps(raw.max.into(), xyz).into() }
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        Aabb { min: self.min.into(), max: self.max.into() }
     }
 
     /// The node in obvhs's layout, as the tree holds it (the corners' fourth lanes zero).

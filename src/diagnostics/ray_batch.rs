@@ -130,15 +130,13 @@ fn trace_buffers(ctx: &Arc<GpuContext>, bvh: &BvhBuffers, rays: &[GpuRay]) -> Gp
         vk::BufferUsageFlags::TRANSFER_DST,
         MemoryLocation::GpuToCpu,
     )?;
-    let mut cache = TransientCache::new(ctx)?;
     let mut g = RenderGraph::new();
     let r = g.import_buffer("rays", &ray_buf.buffer, crate::gpu::SCENE_ACCESS);
     let walk = bvh.import(&mut g, crate::gpu::SCENE_ACCESS);
     let source = PipelineSource { ctx, cache: &pipelines };
     let hits = add(&mut g, source, (&r, ray_buf.view()), &walk, count)?;
     crate::passes::readback::add_buffer(&mut g, &hits, &out);
-    let plan = CompiledGraph::compile(&g);
-    ctx.submit_and_wait(|cmd| cache.execute(g, &plan, cmd, false))?;
+    g.run_once(ctx)?;
     let flags: &[u32] = bytemuck::cast_slice(&out.mapped()[..rays.len() * 4]);
     Ok(flags.iter().map(|&h| h != 0).collect())
 }

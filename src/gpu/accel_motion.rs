@@ -184,8 +184,7 @@ pub struct PosedGroup {
 impl PosedGroup {
     /// The triangles, in the order of the mesh's indices: what `RayQueryScene::place` takes.
     pub fn triangles(&self, local: &Scene) -> Vec<[Vec3; 3]> {
-        let at = |v: u32| Vec3::from(self.positions[v as usize]);
-        local.meshes[self.mesh].indices.chunks_exact(3).map(|t| [at(t[0]), at(t[1]), at(t[2])]).collect()
+        crate::scene::bvh::levels::indexed_triangles(&self.positions, &local.meshes[self.mesh].indices)
     }
 }
 

@@ -92,9 +92,9 @@ pub fn upload_staged<const N: usize>(
     let mut g = RenderGraph::new();
     let mut pass_inputs = Vec::new();
     let mut handles = Vec::new();
-    for ((name, bytes, usage), (src, dst)) in items.iter().zip(staging.iter().zip(&targets)) {
+    for ((name, bytes, _), (src, dst)) in items.iter().zip(staging.iter().zip(&targets)) {
         if !bytes.is_empty() {
-            pass_inputs.push((g.import_buffer("staging", src, Access::HostWrite), upload_size(bytes, *usage)));
+            pass_inputs.push((g.import_buffer("staging", src, Access::HostWrite), src.size));
             handles.push(g.import_buffer(name, dst, Access::Nothing));
         }
     }

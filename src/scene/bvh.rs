@@ -136,25 +136,19 @@ impl ShadowBvh {
         if triangle_count == 0 {
             return ShadowBvh::from_triangle_vec(tris);
         }
-        assert!(triangle_count < wide::MAX_TRIANGLES, "{triangle_count} triangles exceed the layout's 2^28");
         let reference = logged(ploc::build_owned(tris));
         let start = std::time::Instant::now();
         let mut wide = WideBvh::from_bvh2_nodes(&reference, triangle_count);
         drop(reference);
         log::debug!("BVH 4-wide collapse (nodes): {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         let tris = caster_triangles(scene);
-        let depth = wide.binary_depth;
-        if wide.stack_need > BVH_STACK_SIZE {
-            let deep =
-                ShadowBvh { reference: Bvh2::default(), triangles: tris, wide, masks: None, triangle_count, depth };
-            let mut bvh = deep.within_stack();
-            bvh.release_reference();
-            return bvh.with_masks(scene);
-        }
         wide.place_triangles(&tris);
-        drop(tris);
-        ShadowBvh { reference: Bvh2::default(), triangles: Vec::new(), wide, masks: None, triangle_count, depth }
-            .with_masks(scene)
+        let depth = wide.binary_depth;
+        let mut bvh =
+            ShadowBvh { reference: Bvh2::default(), triangles: tris, wide, masks: None, triangle_count, depth }
+                .within_stack();
+        bvh.release_reference();
+        bvh.with_masks(scene)
     }
 
     /// This tree with the alpha masks of `scene`'s masked casters (the scene it was built over).

@@ -36,7 +36,7 @@ use obvhs::bvh2::{node::Bvh2Node, Bvh2};
 use super::mask::{BvhMasks, MaskSource, UNMASKED};
 use super::refit::{node_room, Refit};
 use super::wide::encode_fast;
-use super::wide::{node_step, safe_dir, WideBvh, WideNode, CHILD_INNER, FIRST_MASK, STACK_SIZE};
+use super::wide::{node_step, safe_dir, WideNode, CHILD_INNER, FIRST_MASK, STACK_SIZE};
 use super::ShadowBvh;
 
 /// Where one bottom tree is drawn: its group's object-to-world transform (in the renderer's
@@ -107,8 +107,14 @@ struct PosedMesh {
 impl PosedMesh {
     /// The triangles in input order.
     fn triangles(&self) -> Vec<[Vec3; 3]> {
-        self.indices.chunks_exact(3).map(|t| [0, 1, 2].map(|c| self.positions[t[c] as usize].into())).collect()
+        indexed_triangles(&self.positions, &self.indices)
     }
+}
+
+/// The triangles `indices` (three a triangle) make of `positions`, every one of them: what
+/// `TwoLevel::deform` takes, as triangles.
+pub fn indexed_triangles(positions: &[Vec3A], indices: &[u32]) -> Vec<[Vec3; 3]> {
+    indices.chunks_exact(3).map(|t| [0, 1, 2].map(|c| positions[t[c] as usize].into())).collect()
 }
 
 /// The bottom trees, concatenated as uploaded, and the top tree over their placements.
@@ -353,13 +359,14 @@ impl TwoLevel {
     fn triangle_range(&self, first: usize, count: usize) -> Vec<TexelRange> {
         let words: &[u32] = bytemuck::cast_slice(&self.triangles);
         let (from, to) = (9 * first / 4, (9 * (first + count)).div_ceil(4));
-        let word = |k: usize| words.get(k).copied().unwrap_or(0);
         (from..to)
             .step_by(RUN_TEXELS)
             .map(|start| {
                 let end = (start + RUN_TEXELS).min(to);
-                let mut texels = Vec::with_capacity(end - start);
-                texels.extend((start..end).map(|t| [word(4 * t), word(4 * t + 1), word(4 * t + 2), word(4 * t + 3)]));
+                // The run's words, zeros past the last triangle (the buffer's padding).
+                let run = &words[4 * start..(4 * end).min(words.len())];
+                let mut texels = vec![[0u32; 4]; end - start];
+                bytemuck::cast_slice_mut::<[u32; 4], u32>(&mut texels)[..run.len()].copy_from_slice(run);
                 (start, texels)
             })
             .collect()
@@ -489,9 +496,11 @@ impl TwoLevel {
         bytemuck::cast_slice(&self.triangles)
     }
 
-    /// Bottom triangles (all trees) as RGBA32UI texels, as `WideBvh::triangle_texels` packs them.
+    /// Bottom triangles (all trees) as RGBA32UI texels, as `WideBvh::triangle_texels` packs them
+    /// (what the uploaded buffer holds: the tests' reference).
+    #[cfg(test)]
     pub fn triangle_texels(&self) -> Vec<[u32; 4]> {
-        WideBvh { triangles: self.triangles.clone(), ..WideBvh::default() }.triangle_texels()
+        super::WideBvh { triangles: self.triangles.clone(), ..Default::default() }.triangle_texels()
     }
 
     /// The root uniform's texels: the top tree's root node, then `proxy_start` and

@@ -528,7 +528,10 @@ impl WideBvh {
     }
 
     /// The triangle buffer's RGBA32UI texels (see the module docs): each triangle's nine floats'
-    /// bits, one triangle after another, padded with zeros to `triangle_texel_count` texels.
+    /// bits, one triangle after another, padded with zeros to `triangle_texel_count` texels: what
+    /// the uploaded buffer holds (`gpu::upload` pads the triangles' own bytes), the tests'
+    /// reference.
+    #[cfg(test)]
     pub fn triangle_texels(&self) -> Vec<[u32; 4]> {
         // One vector, written once: the triangles' own bytes (nine f32 each, packed), then the
         // zeros of the last texel (at 10M triangles a copy is 377 MB).

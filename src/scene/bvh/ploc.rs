@@ -147,20 +147,22 @@ fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -
         return PlocReport::default();
     }
 
+    // The output: a 32-byte node a slot, widened to obvhs's 48-byte nodes in place once the
+    // clustering is done and its working arrays are freed (`into_bvh2_nodes`): at the
+    // 10M-triangle scene the clustering held 1.0 GB of output beside them.
     let nodes_count = 2 * prim_count - 1;
-    bvh.nodes.resize(nodes_count, Bvh2Node::default());
+    let mut output: Vec<Cluster> = bytemuck::zeroed_vec(nodes_count);
     let mut insert_index = nodes_count;
 
     // The kernel maps fresh memory a page at a time, zeroing each, when it is first written:
-    // on the 1M bench scene the output nodes and the second node array (144 MB) took as long
-    // as making the leaves and sorting them. With threads to spare, two others write them
-    // (taking those faults) meanwhile; every output node is overwritten by the merges below.
+    // on the 1M bench scene the output and the second node array took as long as making the
+    // leaves and sorting them. With threads to spare, two others write them (taking those
+    // faults) meanwhile; every output node is overwritten by the merges below.
     let (mut current_nodes, mut next_nodes) = std::thread::scope(|scope| {
-        let (output, prim_indices) = (&mut bvh.nodes, &bvh.primitive_indices);
+        let (touch, prim_indices) = (&mut output, &bvh.primitive_indices);
         let spare = threads > 1;
-        let _touch_output = spare.then(|| scope.spawn(move || output.fill(Bvh2Node::default())));
+        let _touch_output = spare.then(|| scope.spawn(move || touch.fill(Cluster::default())));
         let next = spare.then(|| scope.spawn(move || vec![Cluster::default(); prim_count]));
-
         let mut total_aabb = Aabb::empty();
         let mut leaves: Vec<Cluster> = Vec::with_capacity(prim_count);
         leaves.extend(triangles.iter().zip(prim_indices).map(|(tri, &prim_index)| {
@@ -221,8 +223,8 @@ fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -
             let left = current_nodes[index];
             let right = current_nodes[best_index];
             insert_index -= 2;
-            bvh.nodes[insert_index] = left.node();
-            bvh.nodes[insert_index + 1] = right.node();
+            output[insert_index] = left;
+            output[insert_index + 1] = right;
             next_nodes[next_nodes_idx] = Cluster::new(left.aabb().union(&right.aabb()), 0, insert_index as u32);
             next_nodes_idx += 1;
             index += 1;
@@ -233,6 +235,13 @@ fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -
         count = next_nodes_idx;
         next_nodes_idx = 0;
         depth += 1;
+        // Hand back the working arrays' pages as the passes leave them behind.
+        if count < current_nodes.len() / 2 {
+            for nodes in [&mut current_nodes, &mut next_nodes] {
+                nodes.truncate(count);
+                nodes.shrink_to_fit();
+            }
+        }
         let before = count + merged;
         if count > 1 && before >= GUARD_MIN_COUNT && merged * GUARD_DIVISOR < before {
             slow_work += before;
@@ -250,13 +259,15 @@ fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -
         // precede their children.
         debug_assert_eq!(insert_index, 2 * count - 1);
         let mut next_free = 1;
-        let levels = median_split(&mut current_nodes[..count], 0, &mut next_free, &mut bvh.nodes);
+        let levels = median_split(&mut current_nodes[..count], 0, &mut next_free, &mut output);
         debug_assert_eq!(next_free, insert_index);
         depth += levels;
     } else {
         debug_assert_eq!(insert_index, 1);
-        bvh.nodes[0] = current_nodes[0].node();
+        output[0] = current_nodes[0];
     }
+    drop((current_nodes, next_nodes));
+    bvh.nodes = into_bvh2_nodes(output);
     bvh.max_depth = DEFAULT_MAX_STACK_DEPTH.max(depth + 1);
     bvh.children_are_ordered_after_parents = true;
     report
@@ -310,9 +321,9 @@ fn search_radius(nodes: &[Cluster], start: usize, out: &mut [i8]) {
 /// Writes a balanced tree over `roots` with its root at `nodes[slot]`, taking child pairs from
 /// `*next_free` upwards. Each split halves the roots by position at the median centroid along
 /// the widest axis of their centroids. Returns the levels added above the roots.
-fn median_split(roots: &mut [Cluster], slot: usize, next_free: &mut usize, nodes: &mut [Bvh2Node]) -> usize {
+fn median_split(roots: &mut [Cluster], slot: usize, next_free: &mut usize, nodes: &mut [Cluster]) -> usize {
     if roots.len() == 1 {
-        nodes[slot] = roots[0].node();
+        nodes[slot] = roots[0];
         return 0;
     }
     let mut aabb = Aabb::empty();
@@ -326,11 +337,46 @@ fn median_split(roots: &mut [Cluster], slot: usize, next_free: &mut usize, nodes
     roots.select_nth_unstable_by(mid, |a, b| a.aabb().center()[axis].total_cmp(&b.aabb().center()[axis]));
     let children = *next_free;
     *next_free += 2;
-    nodes[slot] = Bvh2Node::new(aabb, 0, children as u32);
+    nodes[slot] = Cluster::new(aabb, 0, children as u32);
     let (left, right) = roots.split_at_mut(mid);
     let left_levels = median_split(left, children, next_free, nodes);
     let right_levels = median_split(right, children + 1, next_free, nodes);
     1 + left_levels.max(right_levels)
+}
+
+/// `nodes` in obvhs's 48-byte layout, widened in place: the allocation grows (the allocator
+/// remaps a large block's pages rather than copying them) and each node is rewritten from the
+/// last to the first, so no second array is ever held. Node `i` moves from byte 32 i to 48 i,
+/// past every node still to be read.
+fn into_bvh2_nodes(nodes: Vec<Cluster>) -> Vec<Bvh2Node> {
+    use std::alloc::{handle_alloc_error, realloc, Layout};
+    const { assert!(align_of::<Cluster>() == align_of::<Bvh2Node>() && size_of::<Cluster>() < size_of::<Bvh2Node>()) };
+    let len = nodes.len();
+    if len == 0 {
+        return Vec::new();
+    }
+    // A boxed slice's allocation is exactly `len` nodes, so its layout is known.
+    let raw = Box::into_raw(nodes.into_boxed_slice()).cast::<u8>();
+    let (old, new) = (Layout::array::<Cluster>(len), Layout::array::<Bvh2Node>(len));
+    let (old, new) = (old.expect("the nodes exist"), new.unwrap_or_else(|_| panic!("{len} nodes overflow")));
+    // SAFETY: `raw` was allocated by the global allocator with `old` (a boxed slice of `len`
+    // nodes); `new` has the same alignment and a non-zero size.
+    let ptr = unsafe { realloc(raw, old, new.size()) };
+    if ptr.is_null() {
+        handle_alloc_error(new);
+    }
+    for i in (0..len).rev() {
+        // SAFETY: node `i` is read from bytes [32 i, 32 i + 32) before anything is written over
+        // them, and written to [48 i, 48 i + 48), which overlaps no node below `i` still to be
+        // read (those end by 32 i); both lie within the `new`-sized block, aligned to 16.
+        unsafe {
+            let node = ptr.add(i * size_of::<Cluster>()).cast::<Cluster>().read();
+            ptr.add(i * size_of::<Bvh2Node>()).cast::<Bvh2Node>().write(node.node());
+        }
+    }
+    // SAFETY: the block holds `len` initialised nodes and was allocated with `new`'s layout,
+    // which is `Vec<Bvh2Node>`'s for a capacity of `len`.
+    unsafe { Vec::from_raw_parts(ptr.cast::<Bvh2Node>(), len, len) }
 }
 
 /// obvhs's `Morton64`: the code and the node's index, sorted by code alone.

@@ -75,7 +75,11 @@ pub struct Renderer {
     /// The denoiser's histories between frames (`traced.denoise`, `[ambient_occlusion] denoise`).
     histories: histories::Histories,
     pub gpu_scene: SceneGpu,
+    /// The scene as given, without its meshes' vertices (`Scene::without_vertices`): its camera,
+    /// lights, lighting, animation and sources. The geometry is held once, in `local`.
     scene: Scene,
+    /// Triangles in the scene as given (`Scene::triangle_count`).
+    triangles: usize,
     /// `scene` in the local frame the GPU sees, less what f32 cannot hold there
     /// (`Scene::local_frame`); what the ray-query and volume structures are built from.
     local: Scene,
@@ -90,8 +94,10 @@ impl Renderer {
     /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
         let (local, origin) = scene.local_frame();
+        let triangles = scene.triangle_count();
+        let scene = scene.without_vertices();
         if local.is_animated() || local.has_kept_instances() {
-            return Renderer::new_two_level(ctx, scene, local, origin);
+            return Renderer::new_two_level(ctx, (scene, triangles), local, origin);
         }
         let start = std::time::Instant::now();
         let bvh = ShadowBvh::build_released(&local);
@@ -100,7 +106,7 @@ impl Renderer {
             bvh.node_count(),
             bvh.triangle_count(),
             start.elapsed().as_secs_f64() * 1e3,
-            scene.triangle_count(),
+            triangles,
             scene.lights.len(),
         );
         trim_heap();
@@ -125,14 +131,15 @@ impl Renderer {
             );
         }
         let caster_order = (ctx.capabilities.ray_query && !bvh.is_empty()).then(|| bvh.into_leaf_order());
-        Renderer::assemble(ctx, scene, local, gpu_scene, caster_order, None)
+        Renderer::assemble(ctx, (scene, triangles), local, gpu_scene, caster_order, None)
     }
 
-    /// The renderer around `gpu_scene` (uploaded from `local`, `scene` in the local frame): the
-    /// lighting's structures on the device, the capture state, and nothing else made yet.
+    /// The renderer around `gpu_scene` (uploaded from `local`, `scene` in the local frame;
+    /// `scene` comes without its vertices, with its triangle count): the lighting's structures
+    /// on the device, the capture state, and nothing else made yet.
     fn assemble(
         ctx: Arc<GpuContext>,
-        scene: Scene,
+        (scene, triangles): (Scene, usize),
         local: Scene,
         gpu_scene: SceneGpu,
         caster_order: Option<Vec<u32>>,
@@ -168,6 +175,7 @@ impl Renderer {
             histories: Default::default(),
             gpu_scene,
             scene,
+            triangles,
             local,
             ctx,
         })
@@ -177,7 +185,12 @@ impl Renderer {
     /// copies: its casters in two levels (`motion.rs`: a bottom tree per group that moves
     /// together, the static ones in one, each kept geometry once), its moving draws with
     /// instance rows of their own, posed at the animation's start.
-    fn new_two_level(ctx: Arc<GpuContext>, scene: Scene, local: Scene, origin: glam::DVec3) -> GpuResult<Renderer> {
+    fn new_two_level(
+        ctx: Arc<GpuContext>,
+        scene: (Scene, usize),
+        local: Scene,
+        origin: glam::DVec3,
+    ) -> GpuResult<Renderer> {
         let start = std::time::Instant::now();
         let motion = Motion::build(&local);
         let levels = &motion.levels;
@@ -373,8 +386,23 @@ impl Renderer {
         self.local.is_animated()
     }
 
+    /// The scene as given, without its meshes' vertices and indices (`Scene::without_vertices`:
+    /// the renderer holds the geometry once, in its own frame, `local_scene`): its camera,
+    /// lights, lighting, animation and sources.
     pub fn scene(&self) -> &Scene {
         &self.scene
+    }
+
+    /// The scene in the frame the device holds it in (`origin` is where that frame starts in
+    /// the world), with its geometry: what the device's buffers and the shadow BVH were made
+    /// from, less meshes too far from the camera for single precision (`Scene::local_frame`).
+    pub fn local_scene(&self) -> &Scene {
+        &self.local
+    }
+
+    /// Triangles in the scene as given (a kept instance's once per instance).
+    pub fn triangle_count(&self) -> usize {
+        self.triangles
     }
 
     /// The pipelines frames have asked for so far (tests check which variants were made).

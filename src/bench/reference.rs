@@ -321,11 +321,13 @@ pub struct Cached {
 /// traced now and cached.
 pub fn load_or_compute(renderer: &mut Renderer, width: u32, height: u32, device: &str) -> anyhow::Result<Cached> {
     use anyhow::Context as _;
-    // A moving scene's reference is of the instant it is posed at: keyed by the scene posed
-    // there (every mesh and the camera where the animation puts them).
+    // Keyed by the scene the device holds (the renderer keeps the geometry only in its own
+    // frame; that frame's origin follows from the scene's files, which the key reads). A moving
+    // scene's reference is of the instant it is posed at: keyed by the scene posed there (every
+    // mesh and the camera where the animation puts them).
     let key = match renderer.posed_at() {
-        Some(time) => cache_key(&renderer.scene().posed(time), width, height, device),
-        None => cache_key(renderer.scene(), width, height, device),
+        Some(time) => cache_key(&renderer.local_scene().posed(time), width, height, device),
+        None => cache_key(renderer.local_scene(), width, height, device),
     }
     .map_err(anyhow::Error::msg)?;
     let dir = cache_dir();
@@ -427,7 +429,7 @@ pub fn compute(renderer: &mut Renderer, width: u32, height: u32) -> crate::vk::G
     let lights: Vec<crate::scene::Light> = renderer.scene().lights.clone();
     let total = light_total(renderer.scene());
     // A rect light's rays per frame: none where it casts no shadows.
-    let casters = renderer.scene().meshes.iter().any(|m| m.cast_shadows);
+    let casters = renderer.local_scene().meshes.iter().any(|m| m.cast_shadows);
     let rect_spp: Vec<u32> = renderer.scene().rect_lights.iter().map(|r| if casters { r.spp } else { 0 }).collect();
     let mut depth = settings(width, height, OutputKind::SceneLinear, vec![ShadowChoice::of(ShadowMethod::None); total]);
     depth.debug_view = Some(DebugView::Depth);

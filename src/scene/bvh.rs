@@ -129,7 +129,7 @@ impl ShadowBvh {
     /// nothing else), the binary tree is dropped once the 4-wide nodes are made from it, and
     /// the triangles are made again for the leaves. With the clustering's 32-byte working nodes
     /// and the upload's unpadded triangles, the 10M-triangle scene's peak fell from 3.15 to
-    /// 2.46 GB (docs/performance.md).
+    /// 2.46 GB (docs/performance.md#memory-at-10m-triangles).
     pub fn build_released(scene: &Scene) -> ShadowBvh {
         let tris = caster_triangles(scene);
         let triangle_count = tris.len();

@@ -559,7 +559,7 @@ impl Running {
         let mut lines =
             vec![format!("{:6.1} fps {:7.2} ms  {}x{}", self.fps.fps(), self.fps.frame_ms(), extent.0, extent.1)];
         let scene = self.renderer.scene();
-        lines.push(format!("{} triangles  {} lights", scene.triangle_count(), scene.lights.len()));
+        lines.push(format!("{} triangles  {} lights", self.renderer.triangle_count(), scene.lights.len()));
         if let Some(p) = &self.playback {
             lines.push(p.describe());
         }

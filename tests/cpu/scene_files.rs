@@ -896,3 +896,21 @@ fn lights_choose_their_shadow_method_by_id() {
     let message = parse_error(&with_camera(&format!("{}{}", light(""), light("shadows = \"shadowmap\"\n"))));
     assert!(message.contains("lights[1].shadows") && message.contains("traced"), "{message}");
 }
+
+/// What a renderer keeps of the scene it was given: everything but the meshes' vertices and
+/// indices (the geometry is held once, in the renderer's frame).
+#[test]
+fn a_scene_without_vertices_keeps_all_but_its_geometry() {
+    let scene = Scene::default_scene();
+    assert!(scene.triangle_count() > 0 && scene.meshes.iter().any(|m| !m.positions.is_empty()));
+    let bare = scene.clone().without_vertices();
+    assert_eq!(bare.triangle_count(), 0);
+    assert_eq!(bare.meshes.len(), scene.meshes.len());
+    for (b, m) in bare.meshes.iter().zip(&scene.meshes) {
+        assert!(b.positions.is_empty() && b.normals.is_empty() && b.indices.is_empty(), "{}", m.name);
+        assert_eq!((&b.name, b.cast_shadows, b.material), (&m.name, m.cast_shadows, m.material));
+    }
+    assert_eq!(format!("{:?}", bare.camera), format!("{:?}", scene.camera));
+    assert_eq!(format!("{:?}", bare.lights), format!("{:?}", scene.lights));
+    assert_eq!(bare.sources, scene.sources);
+}

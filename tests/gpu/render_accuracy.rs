@@ -69,14 +69,15 @@ struct GBuffer {
 }
 
 impl GBuffer {
-    fn read(renderer: &mut Renderer) -> GBuffer {
+    /// `scene`: the scene the renderer was made from (world frame).
+    fn read(renderer: &mut Renderer, scene: &Scene) -> GBuffer {
         let depth = render(renderer, Some(DebugView::Depth));
         let position = render(renderer, Some(DebugView::Position));
         let normal = render(renderer, Some(DebugView::Normal));
         let covered: Vec<bool> = depth.iter().map(|d| d.x > 0.0).collect();
         let position: Vec<Vec3> = position.iter().map(|p| p.truncate()).collect();
-        let surfaces = Surfaces::new(renderer.scene());
-        let eye = renderer.scene().camera.eye.as_vec3();
+        let surfaces = Surfaces::new(scene);
+        let eye = scene.camera.eye.as_vec3();
         let surface = (0..covered.len())
             .map(|i| {
                 let at = surfaces.at(position[i], eye, surface_tolerance(position[i]));
@@ -191,9 +192,9 @@ fn shaded_pixels_match_the_cpu_evaluation() {
     let eye = scene.camera.eye;
     let bvh = ShadowBvh::build(&scene);
 
-    let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
+    let mut renderer = Renderer::new(ctx.clone(), scene.clone()).expect("renderer");
     let radiance = render(&mut renderer, None);
-    let g = GBuffer::read(&mut renderer);
+    let g = GBuffer::read(&mut renderer, &scene);
 
     // The floor: the plane at y = 0 seen from above (the cube's faces are >= 0.5 m up).
     let floor: Vec<bool> =
@@ -310,7 +311,7 @@ fn visibility_view_matches_cpu_traced_visibility() {
     let bvh = ShadowBvh::build(&scene);
     let mut renderer = Renderer::new(ctx.clone(), scene.clone()).expect("renderer");
     let gpu = visibility_view(&mut renderer);
-    let g = GBuffer::read(&mut renderer);
+    let g = GBuffer::read(&mut renderer, &scene);
     let (cpu, rays) = cpu_visibility_view(&scene, &g);
 
     let covered = g.covered.iter().filter(|&&c| c).count();
@@ -373,11 +374,11 @@ fn shadows_hold_100_km_from_the_origin() {
     let far_scene = scene.translated(offset);
     let mut renderer = Renderer::new(ctx.clone(), scene.clone()).expect("renderer");
     let near = visibility_view(&mut renderer);
-    let g = GBuffer::read(&mut renderer);
+    let g = GBuffer::read(&mut renderer, &scene);
     drop(renderer);
     let mut far_renderer = Renderer::new(ctx.clone(), far_scene.clone()).expect("renderer far away");
     let far = visibility_view(&mut far_renderer);
-    let far_g = GBuffer::read(&mut far_renderer);
+    let far_g = GBuffer::read(&mut far_renderer, &far_scene);
     drop(far_renderer);
 
     let either = |i: usize| g.covered[i] || far_g.covered[i];

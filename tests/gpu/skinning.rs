@@ -118,9 +118,9 @@ fn render_at(renderer: &mut Renderer, time: f64) {
 
 /// The largest distances between every deforming mesh's vertices on the device (as posed now,
 /// and as the previous frame drew them) and the CPU twin's poses at `now` and `before`: positions
-/// per unit of the scene's size, normals. Counts the vertices compared.
-fn largest_errors(renderer: &Renderer, now: f64, before: f64) -> (f64, f32, usize) {
-    let scene = renderer.scene();
+/// per unit of the scene's size, normals. Counts the vertices compared. `scene` is the scene the
+/// renderer was made from (world frame).
+fn largest_errors(renderer: &Renderer, scene: &Scene, now: f64, before: f64) -> (f64, f32, usize) {
     let origin = renderer.origin();
     let size = scene.meshes.iter().flat_map(|m| &m.positions).fold(1.0f64, |s, p| s.max(p.abs().max_element()));
     let (mut position, mut normal, mut count) = (0.0f64, 0.0f32, 0);
@@ -144,12 +144,12 @@ fn largest_errors(renderer: &Renderer, now: f64, before: f64) -> (f64, f32, usiz
 fn check(scene: Scene, instants: &[f64], what: &str) {
     let ctx = common::gpu();
     assert!(scene.meshes.iter().any(|m| m.deform.is_some()), "{what} deforms");
-    let mut renderer = Renderer::new(ctx.clone(), scene).expect("renderer");
+    let mut renderer = Renderer::new(ctx.clone(), scene.clone()).expect("renderer");
     let mut before = None;
     for &t in instants {
         render_at(&mut renderer, t);
         if let Some(before) = before {
-            let (position, normal, count) = largest_errors(&renderer, t, before);
+            let (position, normal, count) = largest_errors(&renderer, &scene, t, before);
             assert!(count > 0);
             assert!(
                 position <= POSITION_TOLERANCE && normal <= NORMAL_TOLERANCE,
@@ -163,7 +163,7 @@ fn check(scene: Scene, instants: &[f64], what: &str) {
     render_at(&mut renderer, *instants.last().expect("instants"));
     render_at(&mut renderer, *instants.last().expect("instants"));
     let t = *instants.last().expect("instants");
-    let (position, normal, _) = largest_errors(&renderer, t, t);
+    let (position, normal, _) = largest_errors(&renderer, &scene, t, t);
     assert!(position <= POSITION_TOLERANCE && normal <= NORMAL_TOLERANCE, "{what}: the still frame's copy");
     drop(renderer);
     common::assert_clean(&ctx);

@@ -347,7 +347,7 @@ fn an_alpha_masked_quad_is_cut_out_and_so_is_its_map_shadow() {
         [[lights]]\ntype = \"directional\"\ndirection = [0.0, -1.0, 0.0]\nirradiance = [2.0, 2.0, 2.0]\n\
         [[objects]]\nmesh = \"leaf.glb\"\n[[objects]]\nshape = \"plane\"\nsize = 8.0\n";
     let scene = parse_in(dir.path(), text);
-    let mut renderer = Renderer::new(ctx.clone(), scene).unwrap();
+    let mut renderer = Renderer::new(ctx.clone(), scene.clone()).unwrap();
     let frame = |r: &mut Renderer, method: ShadowMethod, view: Option<DebugView>| {
         let mut settings = RenderSettings::new(W, H, OutputKind::SceneLinear)
             .all_lights(1, ShadowChoice { method, ..ShadowChoice::hard() });
@@ -388,7 +388,7 @@ fn an_alpha_masked_quad_is_cut_out_and_so_is_its_map_shadow() {
     assert!(cut > 30 && kept > 30, "cut {cut}, kept {kept}");
     assert!(lit_floor > 30, "{lit_floor} floor pixels under the cut half");
     // The floor under the kept half, seen from beside the quad: from a camera off to the side.
-    let mut side = renderer.scene().clone();
+    let mut side = scene;
     side.camera.eye = glam::DVec3::new(3.5, 2.0, 0.0);
     let mut side = Renderer::new(ctx.clone(), side).unwrap();
     let position = frame(&mut side, ShadowMethod::Map, Some(DebugView::Position));

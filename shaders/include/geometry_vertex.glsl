@@ -44,9 +44,10 @@ layout(location = 10) out vec2 out_uv_1;
 void main() {
     vec3 p = instance_point(in_position);
     out_position = p;
-    out_normal = instance_normal(in_normal);
+    vec4 normal_rows[3] = instance_normal_rows();
+    out_normal = instance_normal(normal_rows, in_normal);
     out_model = vec4[3](instance_model_0, instance_model_1, instance_model_2);
-    out_normal_rows = vec4[3](instance_normal_0, instance_normal_1, instance_normal_2);
+    out_normal_rows = normal_rows;
 #ifdef TEXTURED
     out_uv = in_uv;
     out_uv_1 = in_uv_1;

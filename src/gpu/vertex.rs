@@ -2,7 +2,7 @@
 //! through.
 
 use ash::vk;
-use glam::{DMat3, DMat4};
+use glam::DMat4;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, bytemuck::Pod, bytemuck::Zeroable)]
@@ -12,40 +12,33 @@ pub struct Vertex {
 }
 
 /// Per-instance vertex data (vertex binding 1, read per instance): the rows of the
-/// object-to-local-frame matrix and of its normal matrix (inverse transpose). Instance 0 is the
+/// object-to-local-frame matrix. The vertex shader derives the normal matrix from them
+/// (instance.glsl), so an instance costs 48 bytes here rather than 96. Instance 0 is the
 /// identity, which every mesh drawn once uses: its vertices are already in the local frame, and
-/// multiplying by exact ones and zeros leaves them bit for bit as they are.
+/// multiplying by exact ones and zeros leaves them, and their normals, bit for bit as they are.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
 pub struct InstanceRows {
     pub model: [[f32; 4]; 3],
-    pub normal: [[f32; 4]; 3],
 }
 
 impl InstanceRows {
-    pub const IDENTITY: InstanceRows = InstanceRows {
-        model: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
-        normal: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]],
-    };
+    pub const IDENTITY: InstanceRows =
+        InstanceRows { model: [[1.0, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0]] };
 
     /// The rows of `to_local` (affine, computed in f64 and rounded once).
     pub(super) fn of(to_local: &DMat4) -> InstanceRows {
-        let normal = DMat3::from_mat4(*to_local).inverse().transpose();
         let row4 = |r: usize| [0, 1, 2, 3].map(|c| to_local.col(c)[r] as f32);
-        let row3 = |r: usize| [normal.col(0)[r] as f32, normal.col(1)[r] as f32, normal.col(2)[r] as f32, 0.0];
-        InstanceRows { model: [row4(0), row4(1), row4(2)], normal: [row3(0), row3(1), row3(2)] }
+        InstanceRows { model: [row4(0), row4(1), row4(2)] }
     }
 }
 
 /// The geometry passes' vertex inputs: `Vertex` at binding 0, `InstanceRows` at binding 1
-/// (locations 2-4 the model rows, 5-7 the normal rows).
-pub const INSTANCE_ATTRIBUTES: [(u32, vk::Format, u32); 6] = [
+/// (locations 2-4, the model rows).
+pub const INSTANCE_ATTRIBUTES: [(u32, vk::Format, u32); 3] = [
     (2, vk::Format::R32G32B32A32_SFLOAT, 0),
     (3, vk::Format::R32G32B32A32_SFLOAT, 16),
     (4, vk::Format::R32G32B32A32_SFLOAT, 32),
-    (5, vk::Format::R32G32B32A32_SFLOAT, 48),
-    (6, vk::Format::R32G32B32A32_SFLOAT, 64),
-    (7, vk::Format::R32G32B32A32_SFLOAT, 80),
 ];
 
 /// The motion variant's inputs at vertex binding 4, read per instance: the model rows of the

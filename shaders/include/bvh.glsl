@@ -15,8 +15,8 @@
 //
 // Two levels (src/scene/bvh/levels.rs gives the layout): build.rs also compiles every shader that
 // includes this file with BVH_INSTANCED defined (`..._INSTANCED` SPIR-V, and with BVH_MASKED too),
-// used only for scenes where something moves: `bvh_nodes` then also holds the top tree, its
-// proxies and the instances' records, and `BvhRoot` the top tree's root and where they start.
+// used only for scenes where something moves: `bvh_nodes` then also holds the top tree, the
+// instances' records and their bottom roots, and `BvhRoot` the top tree's root and where they start.
 // Without BVH_INSTANCED the walk compiles exactly as it did before instances existed.
 #ifndef UMBRA_BVH_GLSL
 #define UMBRA_BVH_GLSL
@@ -39,7 +39,8 @@ layout(set = BVH_SET, binding = BVH_TRIANGLES_BINDING) uniform usamplerBuffer bv
 layout(set = BVH_SET, binding = BVH_ROOT_BINDING, std140) uniform BvhRoot {
     uvec4 bvh_root[3];
 #ifdef BVH_INSTANCED
-    // x: the first proxy node; y: the texel of the first instance record (levels.rs).
+    // x: instance 0's child index in the top tree; y: the texel of the first instance record;
+    // z: the texel of the first instances' bottom roots, four a texel (levels.rs).
     uvec4 bvh_levels;
 #endif
 };
@@ -259,11 +260,13 @@ bool bvh_occluded(vec3 origin, vec3 dir, float tmax) {
 // both, as bvh_walk's. (It stays a function of its own: the one-level walk written as this one
 // with the instance steps under #ifdef, images the same, traced 1.06-1.18x obvhs's rays against
 // 1.28x before and this one 1.72-1.75x the one-level walk's time against 1.56x, `umbra bench
-// rays` on the 100k scene, one lavapipe thread.) The top tree's lowest nodes have proxies for children, one per instance
-// (a copy of its bottom tree's root, from node `bvh_levels.x` on). Going down to a proxy, the
-// walk pushes a marker (BVH_ENTERED: a group without children, never pushed otherwise), moves the
-// ray into the instance's space by its world-to-object rows (texels from `bvh_levels.y`, BVH_INSTANCE_TEXELS
-// an instance) and walks on into the bottom tree; popping the marker restores the world ray. The
+// rays` on the 100k scene, one lavapipe thread.) The top tree's lowest nodes have instances for
+// children: child `bvh_levels.x + k` is instance k, a number past every node. Going down to an
+// instance, the walk pushes a marker (BVH_ENTERED: a group without children, never pushed
+// otherwise), moves the ray into the instance's space by its world-to-object rows (texels from
+// `bvh_levels.y`, BVH_INSTANCE_TEXELS an instance), reads its bottom tree's root (from texel
+// `bvh_levels.z`, four instances a texel) and walks on into that tree; popping the marker
+// restores the world ray. The
 // rows are affine, so t means the same on both rays and tmax carries over. (A bottom walk nested
 // in the top tree's loop cost 1.4-1.6x the one-level walk on `umbra bench rays`, lavapipe: each
 // loop's lanes waited for the other's.)
@@ -315,7 +318,8 @@ bool bvh_occluded(vec3 world_origin, vec3 world_dir, float tmax) {
         // every iteration, taken or not, and the descent iterates once per node.
         if (entered != BVH_NONE) {
             BVH_PUSH(BVH_ENTERED);
-            int rows = int(bvh_levels.y + BVH_INSTANCE_TEXELS * (entered - bvh_levels.x));
+            uint instance = entered - bvh_levels.x;
+            int rows = int(bvh_levels.y + BVH_INSTANCE_TEXELS * instance);
             vec4 x = uintBitsToFloat(texelFetch(bvh_nodes, rows));
             vec4 y = uintBitsToFloat(texelFetch(bvh_nodes, rows + 1));
             vec4 z = uintBitsToFloat(texelFetch(bvh_nodes, rows + 2));
@@ -327,7 +331,7 @@ bool bvh_occluded(vec3 world_origin, vec3 world_dir, float tmax) {
                        y.x * world_dir.x + y.y * world_dir.y + y.z * world_dir.z,
                        z.x * world_dir.x + z.y * world_dir.y + z.z * world_dir.z);
             inv_dir = 1.0 / vec3(bvh_safe_component(dir.x), bvh_safe_component(dir.y), bvh_safe_component(dir.z));
-            int at = int(3u * entered);
+            int at = int(3u * texelFetch(bvh_nodes, int(bvh_levels.z + (instance >> 2)))[instance & 3u]);
             bvh_node_step(texelFetch(bvh_nodes, at), texelFetch(bvh_nodes, at + 1), texelFetch(bvh_nodes, at + 2),
                           origin, inv_dir, tmax, group, first, triangles);
         }

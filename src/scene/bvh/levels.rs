@@ -7,27 +7,30 @@
 //! where the refit has grown too costly for rays, in place (`TwoLevel::deform`, `refit.rs`).
 //!
 //! `occluded` is the line-for-line twin of bvh.glsl's `BVH_INSTANCED` walk: one loop and one
-//! stack for both levels, as the single-level walk. The top tree's lowest nodes have as children
-//! *proxies*: per instance a copy of its bottom tree's root node, all in one run of nodes. Where
-//! the walk goes down to a proxy it pushes a marker, moves the ray into the instance's space by
-//! its world-to-object rows and walks on through the bottom tree; popping the marker restores the
-//! world ray. The rows are affine, so a point at parameter t on the world ray is the point at t on
-//! the moved ray: `tmax` and every hit distance carry over. (Walking the bottom tree in a loop
-//! nested in the top tree's cost 1.4-1.6x the single-level walk on `umbra bench rays`, lavapipe:
-//! both loops' lanes waited for each other.)
+//! stack for both levels, as the single-level walk. The top tree's lowest nodes have instances for
+//! children: child `instance_base + k` is instance k, a number past every node. Where the walk
+//! goes down to an instance it pushes a marker, moves the ray into the instance's space by its
+//! world-to-object rows, reads its bottom tree's root node index and walks on through that tree;
+//! popping the marker restores the world ray. The rows are affine, so a point at parameter t on
+//! the world ray is the point at t on the moved ray: `tmax` and every hit distance carry over.
+//! (Walking the bottom tree in a loop nested in the top tree's cost 1.4-1.6x the single-level
+//! walk on `umbra bench rays`, lavapipe: both loops' lanes waited for each other. Each instance
+//! once had a copy of its bottom root, a *proxy*, to enter through: 48 bytes an instance where
+//! the root's index is 4.)
 //!
 //! # Layout on the device: the single-level buffers, the nodes extended
 //! - `nodes`: every bottom tree's nodes one after another (each tree's child and triangle
 //!   indices shifted to where its arrays landed), then the *top region*: the top tree's nodes
-//!   from node `top_start` (its root first), the proxies from node `proxy_start` (instance k's
-//!   at `proxy_start + k`), and from texel `record_start` three texels per instance: the rows of
-//!   its world-to-object matrix (f32 bits, `x, y, z, translation`). The
+//!   from node `top_start` (its root first); from texel `record_start` (right after room for the
+//!   top tree's most nodes) three texels per instance: the rows of its world-to-object matrix
+//!   (f32 bits, `x, y, z, translation`); and from texel `roots_start` its bottom tree's root node,
+//!   four instances a texel (instance k's in component k % 4 of texel `roots_start + k / 4`). The
 //!   region is rewritten whenever the instances move; its room is fixed at upload. A bottom tree
 //!   that deforms (`TwoLevel::deform`) is followed by room for the most nodes a rebuild of it
 //!   can need (`refit::node_room`), unused nodes zero, so a rebuild moves nothing after it.
 //! - `triangles`: every bottom tree's triangles one after another.
-//! - the root uniform (`BvhRoot`): the top tree's root node, then a texel of `proxy_start` and
-//!   `record_start`.
+//! - the root uniform (`BvhRoot`): the top tree's root node, then a texel of `instance_base`,
+//!   `record_start` and `roots_start`.
 
 use glam::{Affine3A, Vec3, Vec3A};
 use obvhs::aabb::Aabb;
@@ -142,7 +145,7 @@ pub struct TwoLevel {
     top_start: u32,
     /// The most instances the top region has room for (`with_room`).
     room: usize,
-    /// The current placements in proxy order, and the top region's texels.
+    /// The current placements in instance order, and the top region's texels.
     placements: Vec<Placement>,
     region: Vec<[u32; 4]>,
     triangle_count: usize,
@@ -232,9 +235,9 @@ impl TwoLevel {
         let mut top = TopBuild {
             boxes: &boxes,
             nodes: vec![WideNode::default()], // a root without children hits nothing
-            proxies: Vec::new(),
+            instances: Vec::new(),
             top_start: self.top_start,
-            proxy_start: self.proxy_start(),
+            instance_base: self.instance_base(),
         };
         if !boxes.is_empty() {
             let bvh = median_split_boxes(&boxes);
@@ -244,9 +247,9 @@ impl TwoLevel {
             }
         }
         assert!(top.nodes.len() <= top_node_room(self.room), "the top tree outgrew its room");
-        self.placements = top.proxies.iter().map(|&k| drawn[k as usize]).collect();
-        // The region: the top tree's nodes, the proxies after room for the most top nodes, the
-        // records after room for the most proxies.
+        self.placements = top.instances.iter().map(|&k| drawn[k as usize]).collect();
+        // The region: the top tree's nodes, the records after room for the most top nodes, the
+        // bottom roots after room for the most records.
         // The last region's memory again (a fresh 1 MB vector a frame at 10,000 instances is
         // page faults).
         let mut region = std::mem::take(&mut self.region);
@@ -255,11 +258,10 @@ impl TwoLevel {
         for (k, node) in top.nodes.iter().enumerate() {
             region[3 * k..3 * k + 3].copy_from_slice(&node.texels);
         }
-        let proxies = 3 * (self.proxy_start() - self.top_start) as usize;
         let records = (self.record_start() - 3 * self.top_start) as usize;
+        let roots = (self.roots_start() - 3 * self.top_start) as usize;
         for (k, p) in self.placements.iter().enumerate() {
-            let root = self.nodes[self.roots[p.bottom] as usize];
-            region[proxies + 3 * k..][..3].copy_from_slice(&root.texels);
+            region[roots + k / 4][k % 4] = self.roots[p.bottom];
             let to_object = p.to_world.inverse();
             let (m, t) = (to_object.matrix3, to_object.translation);
             for r in 0..3 {
@@ -289,8 +291,8 @@ impl TwoLevel {
     /// its masks' entries are reordered with them.
     ///
     /// The top level is not touched: call `place` next (with the frame's placements), which
-    /// boxes each instance by its bottom's current bounds and copies its new root into the
-    /// proxies, then upload the returned ranges and the top `region`. A refit frees the bottom's
+    /// boxes each instance by its bottom's current bounds, then upload the returned ranges and
+    /// the top `region`. A refit frees the bottom's
     /// reference tree and its own copies of the triangles (`binary()` may not be called after);
     /// the concatenation and `posed_triangles` hold the posed triangles.
     pub fn deform(&mut self, bottom: usize, positions: Vec<Vec3A>, indices: &[u32]) -> Deformed {
@@ -372,26 +374,32 @@ impl TwoLevel {
             .collect()
     }
 
-    /// Node of the first proxy: after room for the top tree's most nodes (`top_node_room`).
-    fn proxy_start(&self) -> u32 {
+    /// The child index of instance 0 in the top tree's lowest nodes: the node after room for
+    /// the top tree's most nodes (`top_node_room`), past every node the walk fetches.
+    fn instance_base(&self) -> u32 {
         self.top_start + top_node_room(self.room) as u32
     }
 
-    /// Texel of the first instance record: after room for every proxy.
+    /// Texel of the first instance record: right after room for the top tree's nodes.
     fn record_start(&self) -> u32 {
-        3 * (self.proxy_start() + self.room.max(1) as u32)
+        3 * self.instance_base()
+    }
+
+    /// Texel of the first instances' bottom roots: after room for every record.
+    fn roots_start(&self) -> u32 {
+        self.record_start() + (INSTANCE_TEXELS * self.room.max(1)) as u32
     }
 
     /// The device's bytes per instance the top region has room for (its share of the top
-    /// tree's nodes, its proxy and its record): what an instance costs the shadow BVH beyond
-    /// its bottom tree.
+    /// tree's nodes, its record and its bottom root's index): what an instance costs the shadow
+    /// BVH beyond its bottom tree.
     pub fn bytes_per_instance(&self) -> usize {
         16 * self.region_texels() / self.room.max(1)
     }
 
     /// Texels of the top region.
     fn region_texels(&self) -> usize {
-        (self.record_start() - 3 * self.top_start) as usize + INSTANCE_TEXELS * self.room.max(1)
+        (self.roots_start() - 3 * self.top_start) as usize + self.room.max(1).div_ceil(4)
     }
 
     /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` in its `BVH_INSTANCED` variant
@@ -407,8 +415,9 @@ impl TwoLevel {
                 }
             }
         };
-        let proxy_start = self.proxy_start();
+        let instance_base = self.instance_base();
         let records = (self.record_start() - 3 * self.top_start) as usize;
+        let roots = (self.roots_start() - 3 * self.top_start) as usize;
         let (world_origin, world_dir) = (origin, dir);
         let world_inv = Vec3::ONE / safe_dir(dir);
         let (mut o, mut d, mut inv) = (origin, dir, world_inv);
@@ -435,15 +444,17 @@ impl TwoLevel {
                     stack[len.min(STACK_SIZE - 1)] = (group & FIRST_MASK) | rest << 28;
                     len += 1;
                 }
-                if child >= proxy_start {
+                let mut at = child;
+                if child >= instance_base {
                     stack[len.min(STACK_SIZE - 1)] = ENTERED;
                     len += 1;
-                    let record =
-                        &self.region[records + INSTANCE_TEXELS * (child - proxy_start) as usize..][..INSTANCE_TEXELS];
+                    let k = (child - instance_base) as usize;
+                    let record = &self.region[records + INSTANCE_TEXELS * k..][..INSTANCE_TEXELS];
                     (o, d) = to_object(record, world_origin, world_dir);
                     inv = Vec3::ONE / safe_dir(d);
+                    at = self.region[roots + k / 4][k % 4];
                 }
-                (group, first, triangles) = node_step(&node(child), o, inv, tmax);
+                (group, first, triangles) = node_step(&node(at), o, inv, tmax);
             }
             while triangles != 0 {
                 let index = first + triangles.trailing_zeros();
@@ -503,11 +514,11 @@ impl TwoLevel {
         super::WideBvh { triangles: self.triangles.clone(), ..Default::default() }.triangle_texels()
     }
 
-    /// The root uniform's texels: the top tree's root node, then `proxy_start` and
-    /// `record_start`.
+    /// The root uniform's texels: the top tree's root node, then `instance_base`,
+    /// `record_start` and `roots_start`.
     pub fn root_texels(&self) -> [[u32; 4]; 4] {
         let [a, b, c] = [self.region[0], self.region[1], self.region[2]];
-        [a, b, c, [self.proxy_start(), self.record_start(), 0, 0]]
+        [a, b, c, [self.instance_base(), self.record_start(), self.roots_start(), 0]]
     }
 
     pub fn masks(&self) -> Option<&BvhMasks> {
@@ -533,18 +544,18 @@ impl TwoLevel {
 }
 
 /// The top tree being emitted in the 4-wide layout: its nodes (the root first), and the
-/// instances (indices into `boxes`) in the order of their proxies.
+/// instances (indices into `boxes`) in the order the top tree numbers them.
 struct TopBuild<'b> {
     boxes: &'b [Aabb],
     nodes: Vec<WideNode>,
-    proxies: Vec<u32>,
+    instances: Vec<u32>,
     top_start: u32,
-    proxy_start: u32,
+    instance_base: u32,
 }
 
 impl TopBuild<'_> {
-    /// Fills node `slot` from binary node `index` of `bvh`: a leaf's instances become proxies
-    /// (the node's children, next to each other in the proxy run); an inner node's children are
+    /// Fills node `slot` from binary node `index` of `bvh`: a leaf's instances become the
+    /// node's children (numbered together, from `instance_base`); an inner node's children are
     /// the binary subtrees it opens into (up to four, widest first), each a node of its own,
     /// placed together and then filled in turn. Returns the stack the walk below can need.
     fn emit(&mut self, bvh: &Bvh2, index: usize, slot: usize) -> usize {
@@ -552,15 +563,15 @@ impl TopBuild<'_> {
         let mut codes = [0u32; 4];
         let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
         if node.prim_count > 0 {
-            let first = self.proxies.len() as u32;
+            let first = self.instances.len() as u32;
             let items = &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize];
-            self.proxies.extend_from_slice(items);
+            self.instances.extend_from_slice(items);
             for (b, &k) in boxes.iter_mut().zip(items) {
                 *b = (self.boxes[k as usize].min.into(), self.boxes[k as usize].max.into());
             }
             codes[..items.len()].fill(CHILD_INNER);
-            self.nodes[slot] = encode(&boxes[..items.len()], codes, self.proxy_start + first);
-            // Entering a proxy pushes the rest of the group and the marker.
+            self.nodes[slot] = encode(&boxes[..items.len()], codes, self.instance_base + first);
+            // Entering an instance pushes the rest of the group and the marker.
             return 2;
         }
         let (children, count) = open(bvh, index);

@@ -365,8 +365,10 @@ fn many_placements_of_one_tree_fit_their_room_and_answer_as_one_tree() {
         let levels = TwoLevel::build(vec![tree.clone()], None, &placements, &[]);
         assert_eq!(levels.instance_count(), count);
         // The top tree's room rounds up to whole leaves: a handful of instances cost more each.
+        // With the draw's instance rows (48 B, `gpu::InstanceRows`) an instance costs the device
+        // at most 128 B beyond its mesh's tree.
         let bytes = levels.bytes_per_instance();
-        assert!(count < 16 || bytes <= 128, "{count}: {bytes} B an instance");
+        assert!(count < 16 || bytes <= 128 - 48, "{count}: {bytes} B an instance");
         let posed = levels.posed_triangles();
         let fresh = ShadowBvh::from_triangles(&posed);
         let rays = rays(&posed, 400, &mut rng);

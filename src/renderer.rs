@@ -39,6 +39,26 @@ struct Capture {
     last_plan: Option<CompiledGraph>,
 }
 
+/// A scene made ready for a device on the CPU alone (`Renderer::prepare`), to be uploaded by
+/// `Renderer::with_prepared`.
+pub struct PreparedScene {
+    /// The scene as given, without its vertices, and its triangle count.
+    scene: Scene,
+    triangles: usize,
+    /// The scene in its local frame, which starts at `origin` in the world.
+    local: Scene,
+    origin: glam::DVec3,
+    casters: Casters,
+}
+
+/// A prepared scene's casters: one BVH, or two levels where something moves or instances are
+/// kept.
+#[allow(clippy::large_enum_variant)] // made once a scene and moved once: no boxing needed
+enum Casters {
+    One(ShadowBvh),
+    Two(Motion),
+}
+
 pub struct Renderer {
     // Field order is drop order: everything on the device goes before the context.
     /// Taken out while a capture records (so `record` can borrow the rest); always there between.
@@ -93,25 +113,60 @@ impl Renderer {
     /// sits in the world. Meshes too far from the camera for f32 there are left out, with a
     /// warning each.
     pub fn new(ctx: Arc<GpuContext>, scene: Scene) -> GpuResult<Renderer> {
+        Renderer::with_prepared(ctx, Renderer::prepare(scene))
+    }
+
+    /// What `new` does before it needs the device: the scene moved into its local frame and
+    /// its casters' BVH built (one level, or two where something moves or instances are kept).
+    /// A caller that opens the device after this (`umbra render`) keeps the device's own
+    /// memory out of the build's peak: on lavapipe, some 80 MB of the process.
+    pub fn prepare(scene: Scene) -> PreparedScene {
         let (local, origin) = scene.local_frame();
         let triangles = scene.triangle_count();
         let scene = scene.without_vertices();
-        if local.is_animated() || local.has_kept_instances() {
-            return Renderer::new_two_level(ctx, (scene, triangles), local, origin);
-        }
         let start = std::time::Instant::now();
-        let bvh = ShadowBvh::build_released(&local);
-        log::info!(
-            "BVH build: {} nodes over {} shadow-casting triangles in {:.1} ms ({} triangles, {} lights in the scene)",
-            bvh.node_count(),
-            bvh.triangle_count(),
-            start.elapsed().as_secs_f64() * 1e3,
-            triangles,
-            scene.lights.len(),
-        );
-        trim_heap();
+        let casters = if local.is_animated() || local.has_kept_instances() {
+            let motion = Motion::build(&local);
+            let levels = &motion.levels;
+            log::info!(
+                "BVH build, two levels: {} bottom trees over {} shadow-casting triangles in {:.1} ms ({} moving \
+                 groups, {} kept instances of {} geometries)",
+                levels.bottoms().len(),
+                levels.triangle_count(),
+                start.elapsed().as_secs_f64() * 1e3,
+                motion.group_count - 1,
+                motion.kept.len(),
+                levels.bottoms().len() - motion.group_count,
+            );
+            Casters::Two(motion)
+        } else {
+            let bvh = ShadowBvh::build_released(&local);
+            log::info!(
+                "BVH build: {} nodes over {} shadow-casting triangles in {:.1} ms ({} triangles, {} lights in the \
+                 scene)",
+                bvh.node_count(),
+                bvh.triangle_count(),
+                start.elapsed().as_secs_f64() * 1e3,
+                triangles,
+                scene.lights.len(),
+            );
+            trim_heap();
+            Casters::One(bvh)
+        };
+        PreparedScene { scene, triangles, local, origin, casters }
+    }
+
+    /// The renderer of a `prepare`d scene on `ctx`'s device: its buffers and BVH uploaded.
+    pub fn with_prepared(ctx: Arc<GpuContext>, prepared: PreparedScene) -> GpuResult<Renderer> {
+        let PreparedScene { scene, triangles, local, origin, casters } = prepared;
+        let mut bvh = match casters {
+            Casters::One(bvh) => bvh,
+            Casters::Two(motion) => return Renderer::new_two_level(ctx, (scene, triangles), local, origin, motion),
+        };
+        let (casters, leaf_triangles) = (bvh.triangle_count(), bvh.wide().triangles.len());
+        let caster_order = (ctx.capabilities.ray_query && casters > 0).then(|| bvh.take_leaf_order());
         let start = std::time::Instant::now();
-        let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::One(&bvh), &[], origin)?;
+        let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::One(bvh), &[], origin)?;
         log::info!(
             "upload: {} KiB of scene buffers in {:.1} ms; {} of {} draws flat-shaded (the geometry pass reads \
              none of their triangles)",
@@ -120,17 +175,16 @@ impl Renderer {
             gpu_scene.draws.iter().filter(|d| d.flat).count(),
             gpu_scene.draws.len(),
         );
-        if !bvh.is_empty() {
+        if casters > 0 {
             log::info!(
                 "shadow BVH on the device: {} KiB, {:.1} bytes per triangle (4-wide nodes of {} B, \
                  triangles of {} B)",
                 gpu_scene.bvh.bytes() >> 10,
-                gpu_scene.bvh.bytes() as f64 / bvh.triangle_count() as f64,
+                gpu_scene.bvh.bytes() as f64 / casters as f64,
                 std::mem::size_of::<WideNode>(),
-                gpu_scene.bvh.triangles.buffer.size as usize / bvh.wide().triangles.len()
+                gpu_scene.bvh.triangles.buffer.size as usize / leaf_triangles
             );
         }
-        let caster_order = (ctx.capabilities.ray_query && !bvh.is_empty()).then(|| bvh.into_leaf_order());
         Renderer::assemble(ctx, (scene, triangles), local, gpu_scene, caster_order, None)
     }
 
@@ -190,20 +244,9 @@ impl Renderer {
         scene: (Scene, usize),
         local: Scene,
         origin: glam::DVec3,
+        motion: Motion,
     ) -> GpuResult<Renderer> {
-        let start = std::time::Instant::now();
-        let motion = Motion::build(&local);
         let levels = &motion.levels;
-        log::info!(
-            "BVH build, two levels: {} bottom trees over {} shadow-casting triangles in {:.1} ms ({} moving groups, \
-             {} kept instances of {} geometries)",
-            levels.bottoms().len(),
-            levels.triangle_count(),
-            start.elapsed().as_secs_f64() * 1e3,
-            motion.group_count - 1,
-            motion.kept.len(),
-            levels.bottoms().len() - motion.group_count,
-        );
         let moving: Vec<bool> = local.meshes.iter().map(|m| m.motion.is_some()).collect();
         let gpu_scene = SceneGpu::upload(&ctx, &local, crate::gpu::BvhSource::Two(levels), &moving, origin)?;
         log::info!(

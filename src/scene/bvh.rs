@@ -18,6 +18,7 @@ mod ploc;
 mod ray_offset;
 pub mod refit;
 mod reinsertion;
+mod tree;
 pub mod wide;
 pub use ray_offset::{offset_ray_origin, RAY_OFFSET_MIN, RAY_OFFSET_ULPS};
 pub use wide::{WideBvh, WideNode};
@@ -136,10 +137,13 @@ impl ShadowBvh {
         if triangle_count == 0 {
             return ShadowBvh::from_triangle_vec(tris);
         }
-        let reference = logged(ploc::build_owned(tris));
+        let mut tree = logged(ploc::build_owned(tris));
+        // The identity (a PLOC tree's leaves index the triangles directly): the collapse does
+        // without it.
+        tree.primitive_indices = Vec::new();
         let start = std::time::Instant::now();
-        let mut wide = WideBvh::from_bvh2_nodes(&reference, triangle_count);
-        drop(reference);
+        let mut wide = WideBvh::from_tree_nodes(&tree, triangle_count);
+        drop(tree);
         log::debug!("BVH 4-wide collapse (nodes): {:.0} ms", start.elapsed().as_secs_f64() * 1e3);
         let tris = caster_triangles(scene);
         wide.place_triangles(&tris);
@@ -222,13 +226,14 @@ impl ShadowBvh {
     }
 
     /// The casters' indices (into `caster_triangles`) in the order of the tree's leaves, taken
-    /// out of the tree without a copy: a spatially coherent order, which the ray-query backend
-    /// gives the driver's builder (`RayQueryScene::with_masks`). Empty for an empty tree.
-    pub fn into_leaf_order(self) -> Vec<u32> {
+    /// out of the tree without a copy (the tree keeps an empty order; its nodes, triangles and
+    /// masks, what the device reads, stay): a spatially coherent order, which the ray-query
+    /// backend gives the driver's builder (`RayQueryScene::with_masks`). Empty for an empty tree.
+    pub fn take_leaf_order(&mut self) -> Vec<u32> {
         if self.is_empty() {
             return Vec::new();
         }
-        self.wide.order
+        std::mem::take(&mut self.wide.order)
     }
 
     /// Shadow-casting triangles in the BVH (the dummy triangle of an empty BVH not counted).
@@ -380,7 +385,7 @@ fn ploc_tree(tris: &[[Vec3; 3]]) -> Bvh2 {
 }
 
 /// A PLOC build's tree, where the clustering stalled logged.
-fn logged((bvh, report): (Bvh2, ploc::PlocReport)) -> Bvh2 {
+fn logged<T>((bvh, report): (T, ploc::PlocReport)) -> T {
     if report.stopped_with > 0 {
         log::info!(
             "shadow BVH: clustering stalled after {} passes with {} nodes left; joined them by a median split",

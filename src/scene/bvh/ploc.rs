@@ -29,8 +29,9 @@ use std::borrow::Cow;
 
 use glam::Vec3;
 use obvhs::aabb::Aabb;
-use obvhs::bvh2::node::Bvh2Node;
 use obvhs::bvh2::{Bvh2, DEFAULT_MAX_STACK_DEPTH};
+
+pub use super::tree::{Cluster, Tree};
 use obvhs::ploc::morton::morton_encode_u64_unorm;
 use rdst::{RadixKey, RadixSort};
 
@@ -46,6 +47,12 @@ const SEARCH_DEPTH_THRESHOLD: usize = 2;
 /// `fast_build()`'s reinsertion setting (its leaf collapse is left to the wide collapse).
 const REINSERTION_BATCH_RATIO: f32 = 0.02;
 
+/// Builds over more triangles than this leave the output's pages to the merges (see
+/// `build_ploc`): its 32 bytes a node would otherwise sit beside both working arrays from the
+/// start, 0.67 GB at the 10M-triangle scene. Below it, writing it ahead on a spare thread saves
+/// about a tenth of the build.
+const PRETOUCH_MAX: usize = 4_000_000;
+
 /// Passes over this many nodes or more search on several threads (below it, starting threads
 /// costs more than it saves).
 const PARALLEL_SEARCH_MIN: usize = 32_768;
@@ -56,50 +63,6 @@ const GUARD_MIN_COUNT: usize = 256;
 const GUARD_DIVISOR: usize = 16;
 /// Slow passes may search this many times the triangle count in all before the clustering stops.
 const SLOW_WORK_BUDGET: usize = 4;
-
-/// A node of the clustering's working arrays (the clusters of a pass, and the next pass's):
-/// obvhs's node in 32 bytes, its box's corners each followed by a word, where a `Bvh2Node`
-/// takes 48 (two `Vec3A`s and two words, padded). The two arrays hold a node a triangle each:
-/// 335 MB less at the 10M-triangle scene, where they were a third of the build's peak.
-#[derive(Clone, Copy, Default, bytemuck::Pod, bytemuck::Zeroable)]
-#[repr(C, align(16))]
-struct Cluster {
-    min: Vec3,
-    prim_count: u32,
-    max: Vec3,
-    first_index: u32,
-}
-
-impl Cluster {
-    fn new(aabb: Aabb, prim_count: u32, first_index: u32) -> Cluster {
-        Cluster { min: aabb.min.into(), prim_count, max: aabb.max.into(), first_index }
-    }
-
-    /// The box, read as obvhs's `Aabb` in place with each corner's fourth lane (the word beside
-    /// it) cleared: as a float that word is a denormal, which the box's arithmetic would carry
-    /// in its fourth lane, and many CPUs take a slow path on denormal operands.
-    #[inline(always)]
-    fn aabb(&self) -> Aabb {
-        #[cfg(target_arch = "x86_64")]
-        {
-            use std::arch::x86_64::{_mm_and_ps, _mm_castsi128_ps, _mm_set_epi32};
-            let raw: Aabb = bytemuck::cast(*self);
-            // SAFETY: SSE2 is part of x86-64's baseline; these read and write registers only.
-            unsafe {
-                let xyz = _mm_castsi128_ps(_mm_set_epi32(0, -1, -1, -1));
-                Aabb { min: _mm_and_ps(raw.min.into(), xyz).into(), max: _mm_and_ps(raw.max.into(), xyz).into() }
-            }
-        }
-        #[cfg(not(target_arch = "x86_64"))]
-        Aabb { min: self.min.into(), max: self.max.into() }
-    }
-
-    /// The node in obvhs's layout, as the tree holds it (the corners' fourth lanes zero).
-    fn node(&self) -> Bvh2Node {
-        let aabb = Aabb { min: self.min.into(), max: self.max.into() };
-        Bvh2Node::new(aabb, self.prim_count, self.first_index)
-    }
-}
 
 /// How a build went, for tests and the log.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -112,18 +75,19 @@ pub struct PlocReport {
 
 /// Builds a Bvh2 over `triangles` as obvhs's fast preset does, guarded as the module docs say.
 pub fn build(triangles: &[[Vec3; 3]]) -> (Bvh2, PlocReport) {
-    build_from(Cow::Borrowed(triangles))
+    let (tree, report) = build_tree(Cow::Borrowed(triangles));
+    (tree.into_bvh2(), report)
 }
 
-/// `build`, dropping `triangles` as soon as the leaves' boxes are made (the clustering reads
-/// nothing else of them): 377 MB less through the clustering at the 10M-triangle scene.
-pub fn build_owned(triangles: Vec<[Vec3; 3]>) -> (Bvh2, PlocReport) {
-    build_from(Cow::Owned(triangles))
+/// `build` in the builder's own nodes, dropping `triangles` as soon as the leaves' boxes are
+/// made (the clustering reads nothing else of them): 377 MB less through the clustering at the
+/// 10M-triangle scene, and a third less than obvhs's nodes through the reinsertion.
+pub fn build_owned(triangles: Vec<[Vec3; 3]>) -> (Tree, PlocReport) {
+    build_tree(Cow::Owned(triangles))
 }
 
-fn build_from(triangles: Cow<'_, [[Vec3; 3]]>) -> (Bvh2, PlocReport) {
+fn build_tree(triangles: Cow<'_, [[Vec3; 3]]>) -> (Tree, PlocReport) {
     let count = triangles.len();
-    let mut bvh = Bvh2::zeroed(count);
     let mut clock = std::time::Instant::now();
     let mut lap = || {
         let ms = clock.elapsed().as_secs_f64() * 1e3;
@@ -131,20 +95,20 @@ fn build_from(triangles: Cow<'_, [[Vec3; 3]]>) -> (Bvh2, PlocReport) {
         ms
     };
     let threads = super::build_threads();
-    let report = build_ploc(&mut bvh, triangles, threads);
+    let (mut tree, report) = build_ploc(triangles, threads);
     let ploc_ms = lap();
-    bvh.uses_spatial_splits = false;
-    super::reinsertion::run(&mut bvh, REINSERTION_BATCH_RATIO, threads);
+    super::reinsertion::run(&mut tree, REINSERTION_BATCH_RATIO, threads);
     log::debug!("BVH build over {count} triangles: PLOC {ploc_ms:.0} ms, reinsertion {:.0} ms", lap());
-    (bvh, report)
+    (tree, report)
 }
 
 /// `PlocBuilder::build_ploc::<6>` followed by `build_ploc_from_leaves::<6, false>`.
-fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -> PlocReport {
+fn build_ploc(triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -> (Tree, PlocReport) {
     let prim_count = triangles.len();
-    bvh.reset_for_reuse(prim_count, Some((0..prim_count as u32).collect()));
+    let mut tree = Tree { primitive_indices: (0..prim_count as u32).collect(), ..Tree::default() };
     if prim_count == 0 {
-        return PlocReport::default();
+        tree.max_depth = DEFAULT_MAX_STACK_DEPTH;
+        return (tree, PlocReport::default());
     }
 
     // The output: a 32-byte node a slot, widened to obvhs's 48-byte nodes in place once the
@@ -157,21 +121,24 @@ fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -
     // The kernel maps fresh memory a page at a time, zeroing each, when it is first written:
     // on the 1M bench scene the output and the second node array took as long as making the
     // leaves and sorting them. With threads to spare, two others write them (taking those
-    // faults) meanwhile; every output node is overwritten by the merges below.
+    // faults) while the leaves are sorted, once the triangles are dropped; every output node is
+    // overwritten by the merges below. Past `PRETOUCH_MAX` triangles the output is left to
+    // fill as the merges write it, beside working arrays that shrink as it grows.
+    let mut total_aabb = Aabb::empty();
+    let mut leaves: Vec<Cluster> = Vec::with_capacity(prim_count);
+    leaves.extend(triangles.iter().zip(&tree.primitive_indices).map(|(tri, &prim_index)| {
+        let aabb = super::triangle_aabb(tri);
+        total_aabb.extend(aabb.min);
+        total_aabb.extend(aabb.max);
+        Cluster::new(aabb, 1, prim_index)
+    }));
+    drop(triangles);
     let (mut current_nodes, mut next_nodes) = std::thread::scope(|scope| {
-        let (touch, prim_indices) = (&mut output, &bvh.primitive_indices);
+        let touch = &mut output;
         let spare = threads > 1;
-        let _touch_output = spare.then(|| scope.spawn(move || touch.fill(Cluster::default())));
+        let _touch_output =
+            (spare && prim_count <= PRETOUCH_MAX).then(|| scope.spawn(move || touch.fill(Cluster::default())));
         let next = spare.then(|| scope.spawn(move || vec![Cluster::default(); prim_count]));
-        let mut total_aabb = Aabb::empty();
-        let mut leaves: Vec<Cluster> = Vec::with_capacity(prim_count);
-        leaves.extend(triangles.iter().zip(prim_indices).map(|(tri, &prim_index)| {
-            let aabb = super::triangle_aabb(tri);
-            total_aabb.extend(aabb.min);
-            total_aabb.extend(aabb.max);
-            Cluster::new(aabb, 1, prim_index)
-        }));
-        drop(triangles);
         let scale = 1.0 / total_aabb.diagonal().as_dvec3();
         let offset = -total_aabb.min.as_dvec3() * scale;
         let order = morton_order(&leaves, scale, offset);
@@ -236,7 +203,7 @@ fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -
         next_nodes_idx = 0;
         depth += 1;
         // Hand back the working arrays' pages as the passes leave them behind.
-        if count < current_nodes.len() / 2 {
+        if count < current_nodes.len() / 4 * 3 {
             for nodes in [&mut current_nodes, &mut next_nodes] {
                 nodes.truncate(count);
                 nodes.shrink_to_fit();
@@ -267,10 +234,9 @@ fn build_ploc(bvh: &mut Bvh2, triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -
         output[0] = current_nodes[0];
     }
     drop((current_nodes, next_nodes));
-    bvh.nodes = into_bvh2_nodes(output);
-    bvh.max_depth = DEFAULT_MAX_STACK_DEPTH.max(depth + 1);
-    bvh.children_are_ordered_after_parents = true;
-    report
+    tree.nodes = output;
+    tree.max_depth = DEFAULT_MAX_STACK_DEPTH.max(depth + 1);
+    (tree, report)
 }
 
 /// Runs `search(start, out)` over `merge` cut into `chunks` pieces, each on a thread of its own
@@ -342,41 +308,6 @@ fn median_split(roots: &mut [Cluster], slot: usize, next_free: &mut usize, nodes
     let left_levels = median_split(left, children, next_free, nodes);
     let right_levels = median_split(right, children + 1, next_free, nodes);
     1 + left_levels.max(right_levels)
-}
-
-/// `nodes` in obvhs's 48-byte layout, widened in place: the allocation grows (the allocator
-/// remaps a large block's pages rather than copying them) and each node is rewritten from the
-/// last to the first, so no second array is ever held. Node `i` moves from byte 32 i to 48 i,
-/// past every node still to be read.
-fn into_bvh2_nodes(nodes: Vec<Cluster>) -> Vec<Bvh2Node> {
-    use std::alloc::{handle_alloc_error, realloc, Layout};
-    const { assert!(align_of::<Cluster>() == align_of::<Bvh2Node>() && size_of::<Cluster>() < size_of::<Bvh2Node>()) };
-    let len = nodes.len();
-    if len == 0 {
-        return Vec::new();
-    }
-    // A boxed slice's allocation is exactly `len` nodes, so its layout is known.
-    let raw = Box::into_raw(nodes.into_boxed_slice()).cast::<u8>();
-    let (old, new) = (Layout::array::<Cluster>(len), Layout::array::<Bvh2Node>(len));
-    let (old, new) = (old.expect("the nodes exist"), new.unwrap_or_else(|_| panic!("{len} nodes overflow")));
-    // SAFETY: `raw` was allocated by the global allocator with `old` (a boxed slice of `len`
-    // nodes); `new` has the same alignment and a non-zero size.
-    let ptr = unsafe { realloc(raw, old, new.size()) };
-    if ptr.is_null() {
-        handle_alloc_error(new);
-    }
-    for i in (0..len).rev() {
-        // SAFETY: node `i` is read from bytes [32 i, 32 i + 32) before anything is written over
-        // them, and written to [48 i, 48 i + 48), which overlaps no node below `i` still to be
-        // read (those end by 32 i); both lie within the `new`-sized block, aligned to 16.
-        unsafe {
-            let node = ptr.add(i * size_of::<Cluster>()).cast::<Cluster>().read();
-            ptr.add(i * size_of::<Bvh2Node>()).cast::<Bvh2Node>().write(node.node());
-        }
-    }
-    // SAFETY: the block holds `len` initialised nodes and was allocated with `new`'s layout,
-    // which is `Vec<Bvh2Node>`'s for a capacity of `len`.
-    unsafe { Vec::from_raw_parts(ptr.cast::<Bvh2Node>(), len, len) }
 }
 
 /// obvhs's `Morton64`: the code and the node's index, sorted by code alone.

@@ -62,7 +62,9 @@ use glam::Vec3;
 use obvhs::bvh2::Bvh2;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
+mod binary;
 mod node;
+pub(super) use binary::{parents, Binary, BinaryNode};
 pub(super) use node::{child_weights, encode_fast, encode_lanes, node_step, safe_dir};
 #[cfg(test)]
 pub(super) use node::{encode, first_exponent};
@@ -168,47 +170,81 @@ impl LeafPlan {
     /// - Top down, by increasing index: a node's triangles start where its parent's do (the
     ///   left child), or after its left sibling's (the right); a node whose parent has a larger
     ///   index gets its start when its parent does. Leaves put their primitives there.
-    fn new(bvh: &Bvh2) -> LeafPlan {
+    fn new<N: BinaryNode>(bvh: &Binary<N>) -> LeafPlan {
         let n = bvh.nodes.len();
         let computed;
         let parents: &[u32] = if bvh.parents.len() == n {
-            &bvh.parents
+            bvh.parents
         } else {
-            let mut p = Vec::new();
-            Bvh2::compute_parents(&bvh.nodes, &mut p);
-            computed = p;
+            computed = parents(bvh.nodes);
             &computed
         };
 
-        // What a parent reads of its children, together: 16 bytes a node, where the nodes
-        // themselves are 48 (children's entries are read out of order, the nodes in order).
+        // What a parent reads of its children, together: 12 bytes a node, where the nodes
+        // themselves are 32 or 48 (children's entries are read out of order, the nodes in
+        // order). What a parent's SAH sum adds, a child's cost times its half area, is made
+        // again from the child's box (the pair's boxes share a cache line): 4 bytes less a node,
+        // 84 MB at the 10M-triangle scene, the same floats.
         #[derive(Clone, Copy)]
         struct Entry {
             plan: u32,
             cost: f32,
-            /// The cost times the node's half area: what its parent's SAH sum adds.
-            weighted: f32,
             depth: u32,
         }
-        let mut entries = vec![Entry { plan: UNKNOWN, cost: 0.0, weighted: 0.0, depth: 0 }; n];
+        let mut entries = vec![Entry { plan: UNKNOWN, cost: 0.0, depth: 0 }; n];
+        /// The entries' plans, written over the entries' own memory and the rest handed back:
+        /// the plan never sits beside the entries (84 MB at the 10M-triangle scene, where this
+        /// was the build's peak).
+        fn plans_in_place(entries: Vec<Entry>) -> Vec<u32> {
+            use std::alloc::{handle_alloc_error, realloc, Layout};
+            const { assert!(align_of::<Entry>() == align_of::<u32>() && size_of::<Entry>() > size_of::<u32>()) };
+            let n = entries.len();
+            if n == 0 {
+                return Vec::new();
+            }
+            let raw = Box::into_raw(entries.into_boxed_slice()).cast::<u8>();
+            for i in 0..n {
+                // SAFETY: entry i (bytes [12 i, 12 i + 12)) is read before plan i (bytes
+                // [4 i, 4 i + 4)) is written, and plan i overlaps no entry after i.
+                unsafe {
+                    let plan = raw.add(i * size_of::<Entry>()).cast::<Entry>().read().plan;
+                    raw.add(i * size_of::<u32>()).cast::<u32>().write(plan);
+                }
+            }
+            let (old, new) = (Layout::array::<Entry>(n).expect("entries exist"), Layout::array::<u32>(n));
+            let new = new.expect("fewer bytes than the entries");
+            // SAFETY: `raw` is the boxed slice's block, allocated with `old`; `new` has the same
+            // alignment and a non-zero size.
+            let ptr = unsafe { realloc(raw, old, new.size()) };
+            if ptr.is_null() {
+                handle_alloc_error(new);
+            }
+            // SAFETY: the block holds `n` plans written above, allocated with `Vec<u32>`'s layout
+            // for a capacity of `n`.
+            unsafe { Vec::from_raw_parts(ptr.cast::<u32>(), n, n) }
+        }
         for i in (0..n).rev() {
             let mut x = i;
             loop {
                 let node = &bvh.nodes[x];
-                let area = node.aabb.half_area();
-                let (plan, cost, depth) = if node.prim_count > 0 {
+                let area = node.bounds().half_area();
+                let prim_count = node.prim_count();
+                let (plan, cost, depth) = if prim_count > 0 {
                     // The builders make leaves of one triangle (PLOC) or up to 4 (the median
                     // split); a bigger one could not be opened into children.
-                    assert!(node.prim_count <= MAX_LEAF_TRIANGLES, "a binary leaf of {} triangles", node.prim_count);
-                    (node.prim_count | PLAN_LEAF, node.prim_count as f32, 1)
+                    assert!(prim_count <= MAX_LEAF_TRIANGLES, "a binary leaf of {prim_count} triangles");
+                    (prim_count | PLAN_LEAF, prim_count as f32, 1)
                 } else {
-                    let (l, r) = (entries[node.first_index as usize], entries[node.first_index as usize + 1]);
+                    let first = node.first_index() as usize;
+                    let (l, r) = (entries[first], entries[first + 1]);
                     if l.plan == UNKNOWN || r.plan == UNKNOWN {
                         break; // planned when its last child is
                     }
                     let count = (l.plan & !PLAN_LEAF) + (r.plan & !PLAN_LEAF);
                     let walk = if area > 0.0 && area.is_finite() {
-                        TRAVERSAL_COST + (l.weighted + r.weighted) / area
+                        let l_weighted = bvh.nodes[first].bounds().half_area() * l.cost;
+                        let r_weighted = bvh.nodes[first + 1].bounds().half_area() * r.cost;
+                        TRAVERSAL_COST + (l_weighted + r_weighted) / area
                     } else {
                         TRAVERSAL_COST + l.cost + r.cost
                     };
@@ -217,7 +253,7 @@ impl LeafPlan {
                     let cost = if is_leaf { as_leaf } else { walk };
                     (count | if is_leaf { PLAN_LEAF } else { 0 }, cost, 1 + l.depth.max(r.depth))
                 };
-                entries[x] = Entry { plan, cost, weighted: area * cost, depth };
+                entries[x] = Entry { plan, cost, depth };
                 // A parent already passed (a larger index) waited for this node.
                 let parent = parents[x] as usize;
                 if x == 0 || parent < i {
@@ -227,11 +263,10 @@ impl LeafPlan {
             }
         }
         let tree_depth = entries[0].depth as usize;
-        let plan: Vec<u32> = entries.iter().map(|e| e.plan).collect();
-        drop(entries);
+        let plan = plans_in_place(entries);
 
         let mut start = vec![UNKNOWN; n];
-        let mut prims = vec![0u32; bvh.primitive_indices.len()];
+        let mut prims = vec![0u32; (plan[0] & !PLAN_LEAF) as usize];
         let mut waiting = Vec::new();
         for i in 0..n {
             if i == 0 {
@@ -242,12 +277,16 @@ impl LeafPlan {
             waiting.push(i);
             while let Some(x) = waiting.pop() {
                 let node = &bvh.nodes[x];
-                if node.prim_count > 0 {
-                    let run = &bvh.primitive_indices[node.first_index as usize..][..node.prim_count as usize];
-                    prims[start[x] as usize..][..run.len()].copy_from_slice(run);
+                if node.prim_count() > 0 {
+                    let (first, count) = (node.first_index() as usize, node.prim_count() as usize);
+                    let to = &mut prims[start[x] as usize..][..count];
+                    match bvh.primitive_indices.is_empty() {
+                        true => to.iter_mut().zip(first as u32..).for_each(|(p, i)| *p = i),
+                        false => to.copy_from_slice(&bvh.primitive_indices[first..][..count]),
+                    }
                     continue;
                 }
-                let (l, r) = (node.first_index as usize, node.first_index as usize + 1);
+                let (l, r) = (node.first_index() as usize, node.first_index() as usize + 1);
                 start[l] = start[x];
                 start[r] = start[x] + (plan[l] & !PLAN_LEAF);
                 // Children the scan has passed waited for this start.
@@ -258,7 +297,7 @@ impl LeafPlan {
                 }
             }
         }
-        debug_assert_eq!(plan[0] & !PLAN_LEAF, bvh.primitive_indices.len() as u32);
+        debug_assert!(bvh.primitive_indices.is_empty() || plan[0] & !PLAN_LEAF == bvh.primitive_indices.len() as u32);
         LeafPlan { nodes: plan, prims, depth: tree_depth }
     }
 
@@ -310,15 +349,17 @@ impl WideBvh {
     /// binary node's two children and keeps opening the inner child with the largest surface
     /// area until it has four.
     pub fn from_bvh2(bvh: &Bvh2, tris: &[[Vec3; 3]]) -> WideBvh {
-        let threads = threads_for(bvh);
-        WideBvh::collapse(bvh, tris, threads)
+        let bvh = Binary::of(bvh);
+        let threads = threads_for(&bvh);
+        WideBvh::collapse(&bvh, tris, threads)
     }
 
-    /// `from_bvh2` without the triangles (`triangles` empty), for a tree over `count`
-    /// triangles: the nodes and the leaf order need only the binary tree, so a caller may drop
-    /// that before it makes the triangles (`place_triangles`).
-    pub(super) fn from_bvh2_nodes(bvh: &Bvh2, count: usize) -> WideBvh {
-        WideBvh::collapse_nodes(bvh, count, threads_for(bvh))
+    /// `from_bvh2` without the triangles (`triangles` empty), over the builder's own binary
+    /// tree (`ploc::Tree`) over `count` triangles: the nodes and the leaf order need only the
+    /// binary tree, so a caller may drop that before it makes the triangles (`place_triangles`).
+    pub(super) fn from_tree_nodes(tree: &super::tree::Tree, count: usize) -> WideBvh {
+        let bvh = Binary::of_tree(tree);
+        WideBvh::collapse_nodes(&bvh, count, threads_for(&bvh))
     }
 
     /// Makes the leaf-order triangles of a tree `from_bvh2_nodes` made, over `tris`: the tree
@@ -333,7 +374,7 @@ impl WideBvh {
     }
 
     /// `from_bvh2` on up to `threads` threads.
-    fn collapse(bvh: &Bvh2, tris: &[[Vec3; 3]], threads: usize) -> WideBvh {
+    fn collapse<N: BinaryNode>(bvh: &Binary<N>, tris: &[[Vec3; 3]], threads: usize) -> WideBvh {
         let mut out = WideBvh::collapse_nodes(bvh, tris.len(), threads);
         if !tris.is_empty() && !bvh.nodes.is_empty() {
             out.triangles = leaf_triangles(tris, &out.order, threads);
@@ -342,7 +383,7 @@ impl WideBvh {
     }
 
     /// `collapse` but for the triangles (`triangles` left empty, but for the empty tree's dummy).
-    fn collapse_nodes(bvh: &Bvh2, count: usize, threads: usize) -> WideBvh {
+    fn collapse_nodes<N: BinaryNode>(bvh: &Binary<N>, count: usize, threads: usize) -> WideBvh {
         let mut out = WideBvh::default();
         if count == 0 || bvh.nodes.is_empty() {
             out.nodes.push(WideNode::default()); // no children: nothing is hit
@@ -384,7 +425,7 @@ impl WideBvh {
 impl Collapsed {
     /// The wide tree under inner binary node `child`, whose triangles start at `start` of the
     /// plan's order, with its root at node 0 and its triangles from 0.
-    fn subtree(bvh: &Bvh2, plan: &LeafPlan, (child, start): (Child, u32)) -> Collapsed {
+    fn subtree<N: BinaryNode>(bvh: &Binary<N>, plan: &LeafPlan, (child, start): (Child, u32)) -> Collapsed {
         let mut sub = Collapsed::default();
         // A node per 6 triangles (the bench scenes need fewer): no reallocation while it grows.
         sub.nodes.reserve(plan.count(child.0) as usize / 6 + 1);
@@ -418,9 +459,9 @@ impl Collapsed {
     /// collapsed beforehand, are taken from `done` in depth-first order and appended. Returns
     /// the stack this subtree's traversal can need.
     #[allow(clippy::too_many_arguments)]
-    fn emit(
+    fn emit<N: BinaryNode>(
         &mut self,
-        bvh: &Bvh2,
+        bvh: &Binary<N>,
         plan: &LeafPlan,
         slot: usize,
         children: &[Child],
@@ -461,7 +502,8 @@ impl Collapsed {
         }
         let mut boxes = [(Vec3::ZERO, Vec3::ZERO); 4];
         for (b, (c, _)) in boxes.iter_mut().zip(ordered) {
-            *b = (bvh.nodes[c.0].aabb.min.into(), bvh.nodes[c.0].aabb.max.into());
+            let aabb = bvh.nodes[c.0].bounds();
+            *b = (aabb.min.into(), aabb.max.into());
         }
         let boxes = &boxes[..len];
         let lo = boxes.iter().fold(Vec3::INFINITY, |m, b| m.min(b.0));
@@ -611,19 +653,19 @@ impl std::ops::Deref for Children {
 }
 
 /// The children of binary node `index` as a wide node takes them.
-fn open(bvh: &Bvh2, plan: &LeafPlan, index: usize) -> Children {
-    let first = bvh.nodes[index].first_index as usize;
+fn open<N: BinaryNode>(bvh: &Binary<N>, plan: &LeafPlan, index: usize) -> Children {
+    let first = bvh.nodes[index].first_index() as usize;
     let mut c = Children { items: [Child(first), Child(first + 1), Child(0), Child(0)], len: 2 };
     while c.len < 4 {
         let mut widest: Option<(usize, f32)> = None;
         for (i, child) in c.items[..c.len].iter().enumerate() {
-            let area = bvh.nodes[child.0].aabb.half_area();
+            let area = bvh.nodes[child.0].bounds().half_area();
             if !plan.is_leaf(child.0) && widest.is_none_or(|(_, a)| area > a) {
                 widest = Some((i, area));
             }
         }
         let Some((i, _)) = widest else { break };
-        let first = bvh.nodes[c.items[i].0].first_index as usize;
+        let first = bvh.nodes[c.items[i].0].first_index() as usize;
         c.items.copy_within(i + 1..c.len, i + 2);
         c.items[i] = Child(first);
         c.items[i + 1] = Child(first + 1);
@@ -635,8 +677,8 @@ fn open(bvh: &Bvh2, plan: &LeafPlan, index: usize) -> Children {
 /// The inner subtrees of at most `split` triangles among `children` (whose triangles start at
 /// `start` of the plan's order) and below them, with their starts, in the depth-first order
 /// `Collapsed::emit` meets them.
-fn find_tasks(
-    bvh: &Bvh2,
+fn find_tasks<N: BinaryNode>(
+    bvh: &Binary<N>,
     plan: &LeafPlan,
     children: &[Child],
     mut start: u32,
@@ -658,7 +700,7 @@ fn find_tasks(
 
 /// `v0, e1, e2` of `tris[p]` for each `p` of `prims`, on up to `threads` threads.
 /// The threads a collapse of `bvh` runs on.
-fn threads_for(bvh: &Bvh2) -> usize {
+fn threads_for<N>(bvh: &Binary<N>) -> usize {
     if bvh.nodes.len() >= PARALLEL_MIN_NODES {
         super::build_threads()
     } else {
@@ -749,7 +791,8 @@ mod tests {
             .collect();
         let (bvh, _) = super::super::ploc::build(&tris);
         assert!(bvh.nodes.len() >= PARALLEL_MIN_NODES);
-        let (one, many) = (WideBvh::collapse(&bvh, &tris, 1), WideBvh::collapse(&bvh, &tris, 4));
+        let (one, many) =
+            (WideBvh::collapse(&Binary::of(&bvh), &tris, 1), WideBvh::collapse(&Binary::of(&bvh), &tris, 4));
         assert!(one.nodes.len() > 1000);
         assert_eq!(one.nodes, many.nodes);
         assert_eq!(one.order, many.order);
@@ -806,7 +849,7 @@ mod tests {
             .filter(|&i| bvh.nodes[i].prim_count == 0 && (bvh.nodes[i].first_index as usize) < i)
             .count();
         assert!(moved > 0, "no child precedes its parent");
-        let plan = LeafPlan::new(&bvh);
+        let plan = LeafPlan::new(&Binary::of(&bvh));
         let (nodes, prims, depth) = reference_plan(&bvh);
         // Entries of nodes below a leaf are never read; compare the rest.
         let mut read = vec![false; bvh.nodes.len()];

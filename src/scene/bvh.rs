@@ -128,9 +128,9 @@ impl ShadowBvh {
     /// traversal needs), holding less at the build's peak: the casters' triangles are made for
     /// the clustering's leaves and dropped as soon as their boxes are (the clustering reads
     /// nothing else), the binary tree is dropped once the 4-wide nodes are made from it, and
-    /// the triangles are made again for the leaves. With the clustering's 32-byte working nodes
-    /// and the upload's unpadded triangles, the 10M-triangle scene's peak fell from 3.15 to
-    /// 2.46 GB (docs/performance.md#memory-at-10m-triangles).
+    /// the triangles are made again for the leaves. The binary tree stays in the builder's
+    /// 32-byte nodes throughout (`tree.rs`), and the collapse reads its leaves' triangle indices
+    /// as the identity they are (docs/performance.md#memory-at-10m-triangles).
     pub fn build_released(scene: &Scene) -> ShadowBvh {
         let tris = caster_triangles(scene);
         let triangle_count = tris.len();

@@ -120,7 +120,7 @@ pub enum Instancing {
 
 /// `Instancing::Auto` keeps an object's instances once copying them would make more triangles
 /// than this: the copies would then take some 260 MB of the device's buffers (about 66 B a
-/// triangle on lavapipe) and 0.8 GB at the peak of a load (about 200 B a triangle), which one
+/// triangle on lavapipe) and 0.56 GB at the peak of a load (about 140 B a triangle), which one
 /// geometry under a two-level walk saves.
 pub const KEEP_INSTANCES_ABOVE: u64 = 4_000_000;
 
@@ -254,12 +254,17 @@ const DEFAULT_SCENE: &str = include_str!("../../assets/default.toml");
 impl Scene {
     /// This scene without its meshes' vertices and indices. Each mesh keeps its name, object,
     /// material, flags, motion, deformation and kept instance (an instance's geometry is shared,
-    /// so it stays), so the camera, lights, lighting, animation and sources answer as before;
-    /// but the meshes have no triangles to draw, trace or hash. What a `Renderer` keeps of the
+    /// so it stays; a world-space copy's instance goes), so the camera, lights, lighting,
+    /// animation and sources answer as before; but only kept instances have triangles left. What a `Renderer` keeps of the
     /// scene it was given once it holds the geometry in its own frame (a copy of the
     /// 10M-triangle scene's geometry is 0.36 GB).
     pub fn without_vertices(mut self) -> Scene {
         for mesh in &mut self.meshes {
+            // A world-space copy of an instance would read as a kept instance without its
+            // positions (`Mesh::kept`): it keeps no instance.
+            if !mesh.positions.is_empty() {
+                mesh.instance = None;
+            }
             mesh.positions = Vec::new();
             mesh.normals = Vec::new();
             mesh.indices = Vec::new();

@@ -111,9 +111,9 @@ fn build_ploc(triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -> (Tree, PlocRep
         return (tree, PlocReport::default());
     }
 
-    // The output: a 32-byte node a slot, widened to obvhs's 48-byte nodes in place once the
-    // clustering is done and its working arrays are freed (`into_bvh2_nodes`): at the
-    // 10M-triangle scene the clustering held 1.0 GB of output beside them.
+    // The output: a 32-byte node a slot, which the reinsertion and the collapse read as they
+    // are (only the reference build widens them to obvhs's 48, `Tree::into_bvh2`): at the
+    // 10M-triangle scene obvhs's nodes held 1.0 GB through the clustering and after.
     let nodes_count = 2 * prim_count - 1;
     let mut output: Vec<Cluster> = bytemuck::zeroed_vec(nodes_count);
     let mut insert_index = nodes_count;

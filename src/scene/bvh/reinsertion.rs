@@ -17,7 +17,7 @@ use obvhs::aabb::Aabb;
 use obvhs::bvh2::reinsertion::Reinsertion;
 use rdst::{RadixKey, RadixSort};
 
-use super::tree::{Cluster, Tree};
+use super::tree::Tree;
 
 /// Batches of at least this many candidates search on several threads (below it, starting
 /// threads costs more than it saves).
@@ -60,18 +60,6 @@ fn left_sibling(node_id: usize) -> usize {
     }
 }
 
-/// Each node's parent (the root's is 0), as obvhs's `Bvh2::compute_parents`.
-pub fn parents(nodes: &[Cluster]) -> Vec<u32> {
-    let mut parents = vec![0u32; nodes.len()];
-    for (i, node) in nodes.iter().enumerate() {
-        if node.prim_count == 0 {
-            parents[node.first_index as usize] = i as u32;
-            parents[node.first_index as usize + 1] = i as u32;
-        }
-    }
-    parents
-}
-
 /// Reinserts nodes of `tree` in batches of `batch_size_ratio` of its nodes, then of 1/3, 1/5 ...
 /// 1/31 of that (obvhs's default sequence), searching on up to `threads` threads. Leaves
 /// `tree.parents` filled.
@@ -80,7 +68,7 @@ pub fn run(tree: &mut Tree, batch_size_ratio: f32, threads: usize) {
         return;
     }
     if tree.parents.len() != tree.nodes.len() {
-        tree.parents = parents(&tree.nodes);
+        tree.parents = super::wide::parents(&tree.nodes);
     }
     let mut touched = vec![false; tree.nodes.len()];
     let mut candidates: Vec<Candidate> = Vec::new();

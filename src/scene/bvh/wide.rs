@@ -1,4 +1,5 @@
-//! The GPU's shadow BVH: obvhs's binary tree collapsed into a 4-wide tree whose children's boxes
+//! The GPU's shadow BVH: a binary tree (the builder's own, or obvhs's for the reference build)
+//! collapsed into a 4-wide tree whose children's boxes
 //! are quantised to 8 bits against their parent's box (Ylitie, Karras, Laine 2017 do the same
 //! for 8-wide nodes), read by the shader through uniform texel buffers. `occluded` is the
 //! line-for-line twin of `bvh_occluded` in shaders/include/bvh.glsl.
@@ -123,7 +124,7 @@ pub struct WideBvh {
     pub binary_depth: usize,
 }
 
-/// A child of a node being collapsed: a binary node's index in the obvhs tree.
+/// A child of a node being collapsed: a binary node's index in the binary tree.
 #[derive(Clone, Copy)]
 struct Child(usize);
 
@@ -362,8 +363,8 @@ impl WideBvh {
         WideBvh::collapse_nodes(&bvh, count, threads_for(&bvh))
     }
 
-    /// Makes the leaf-order triangles of a tree `from_bvh2_nodes` made, over `tris`: the tree
-    /// `from_bvh2` makes.
+    /// Makes the leaf-order triangles of a tree `from_tree_nodes` made, over `tris`: the tree
+    /// `from_bvh2` makes from the same binary tree.
     pub(super) fn place_triangles(&mut self, tris: &[[Vec3; 3]]) {
         // As `collapse` chose for the binary tree's 2n - 1 nodes.
         let threads = if 2 * self.order.len() > PARALLEL_MIN_NODES { super::build_threads() } else { 1 };

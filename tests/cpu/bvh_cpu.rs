@@ -330,6 +330,15 @@ fn the_released_build_is_the_full_build_without_its_reference() {
             std::path::Path::new("."),
         )
         .unwrap_or_else(|e| panic!("{e}")),
+        // 261,120 triangles: past the sizes where the collapse and the reinsertion's search go
+        // on several threads, over the builder's own nodes in the released build.
+        Scene::parse(
+            "[camera]\neye = [0, 1, 5]\ntarget = [0, 0, 0]\nvfov_deg = 40\n\
+             [[objects]]\nshape = \"sphere\"\nsegments = 512\n",
+            "inline.toml",
+            std::path::Path::new("."),
+        )
+        .unwrap_or_else(|e| panic!("{e}")),
     ];
     for scene in &scenes {
         let (full, released) = (ShadowBvh::build(scene), ShadowBvh::build_released(scene));

@@ -383,7 +383,7 @@ fn render(mut args: RenderArgs) -> Result<ExitCode> {
             bail!("--debug-view {view}: light {light} does not exist; {}", lights_counted(&scene));
         }
     }
-    // The BVH is built before the device opens: the device's own memory (some 80 MB on
+    // The BVH is built before the device opens: the device's own memory (some 130 MB on
     // lavapipe) then stays out of a large scene's build peak.
     let prepared = Renderer::prepare(scene);
     let ctx = GpuContext::new(&GpuOptions { validate: args.validate, device_name: args.device.clone() })?;

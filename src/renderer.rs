@@ -119,7 +119,7 @@ impl Renderer {
     /// What `new` does before it needs the device: the scene moved into its local frame and
     /// its casters' BVH built (one level, or two where something moves or instances are kept).
     /// A caller that opens the device after this (`umbra render`) keeps the device's own
-    /// memory out of the build's peak: on lavapipe, some 80 MB of the process.
+    /// memory out of the build's peak: on lavapipe, some 130 MB of the process.
     pub fn prepare(scene: Scene) -> PreparedScene {
         let (local, origin) = scene.local_frame();
         let triangles = scene.triangle_count();

@@ -129,18 +129,15 @@ impl ShadowBvh {
     /// the clustering's leaves and dropped as soon as their boxes are (the clustering reads
     /// nothing else), the binary tree is dropped once the 4-wide nodes are made from it, and
     /// the triangles are made again for the leaves. The binary tree stays in the builder's
-    /// 32-byte nodes throughout (`tree.rs`), and the collapse reads its leaves' triangle indices
-    /// as the identity they are (docs/performance.md#memory-at-10m-triangles).
+    /// 32-byte nodes throughout (`tree.rs`), whose leaves index the triangles directly
+    /// (docs/performance.md#memory-at-10m-triangles).
     pub fn build_released(scene: &Scene) -> ShadowBvh {
         let tris = caster_triangles(scene);
         let triangle_count = tris.len();
         if triangle_count == 0 {
             return ShadowBvh::from_triangle_vec(tris);
         }
-        let mut tree = logged(ploc::build_owned(tris));
-        // The identity (a PLOC tree's leaves index the triangles directly): the collapse does
-        // without it.
-        tree.primitive_indices = Vec::new();
+        let tree = logged(ploc::build_owned(tris));
         let start = std::time::Instant::now();
         let mut wide = WideBvh::from_tree_nodes(&tree, triangle_count);
         drop(tree);

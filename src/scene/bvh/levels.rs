@@ -258,8 +258,7 @@ impl TwoLevel {
         for (k, node) in top.nodes.iter().enumerate() {
             region[3 * k..3 * k + 3].copy_from_slice(&node.texels);
         }
-        let records = (self.record_start() - 3 * self.top_start) as usize;
-        let roots = (self.roots_start() - 3 * self.top_start) as usize;
+        let (records, roots) = self.region_offsets();
         for (k, p) in self.placements.iter().enumerate() {
             region[roots + k / 4][k % 4] = self.roots[p.bottom];
             let to_object = p.to_world.inverse();
@@ -399,7 +398,13 @@ impl TwoLevel {
 
     /// Texels of the top region.
     fn region_texels(&self) -> usize {
-        (self.roots_start() - 3 * self.top_start) as usize + self.room.max(1).div_ceil(4)
+        self.region_offsets().1 + self.room.max(1).div_ceil(4)
+    }
+
+    /// Where the records and the bottom roots start within `region` (texels).
+    fn region_offsets(&self) -> (usize, usize) {
+        let region = 3 * self.top_start;
+        ((self.record_start() - region) as usize, (self.roots_start() - region) as usize)
     }
 
     /// Any-hit query, the twin of bvh.glsl's `bvh_occluded` in its `BVH_INSTANCED` variant
@@ -416,8 +421,7 @@ impl TwoLevel {
             }
         };
         let instance_base = self.instance_base();
-        let records = (self.record_start() - 3 * self.top_start) as usize;
-        let roots = (self.roots_start() - 3 * self.top_start) as usize;
+        let (records, roots) = self.region_offsets();
         let (world_origin, world_dir) = (origin, dir);
         let world_inv = Vec3::ONE / safe_dir(dir);
         let (mut o, mut d, mut inv) = (origin, dir, world_inv);

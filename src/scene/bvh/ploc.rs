@@ -105,7 +105,7 @@ fn build_tree(triangles: Cow<'_, [[Vec3; 3]]>) -> (Tree, PlocReport) {
 /// `PlocBuilder::build_ploc::<6>` followed by `build_ploc_from_leaves::<6, false>`.
 fn build_ploc(triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -> (Tree, PlocReport) {
     let prim_count = triangles.len();
-    let mut tree = Tree { primitive_indices: (0..prim_count as u32).collect(), ..Tree::default() };
+    let mut tree = Tree::default();
     if prim_count == 0 {
         tree.max_depth = DEFAULT_MAX_STACK_DEPTH;
         return (tree, PlocReport::default());
@@ -126,7 +126,7 @@ fn build_ploc(triangles: Cow<'_, [[Vec3; 3]]>, threads: usize) -> (Tree, PlocRep
     // fill as the merges write it, beside working arrays that shrink as it grows.
     let mut total_aabb = Aabb::empty();
     let mut leaves: Vec<Cluster> = Vec::with_capacity(prim_count);
-    leaves.extend(triangles.iter().zip(&tree.primitive_indices).map(|(tri, &prim_index)| {
+    leaves.extend(triangles.iter().zip(0u32..).map(|(tri, prim_index)| {
         let aabb = super::triangle_aabb(tri);
         total_aabb.extend(aabb.min);
         total_aabb.extend(aabb.max);

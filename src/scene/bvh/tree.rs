@@ -22,8 +22,9 @@ pub struct Cluster {
     /// Triangles in a leaf; 0 for an inner node.
     pub prim_count: u32,
     max: Vec3,
-    /// A leaf's first entry of `primitive_indices`; an inner node's first child (the second
-    /// follows it).
+    /// A leaf's first triangle (in obvhs's layout, its first entry of `primitive_indices`; in a
+    /// `Tree`, whose leaves hold one triangle each, the triangle itself); an inner node's first
+    /// child (the second follows it).
     pub first_index: u32,
 }
 
@@ -68,24 +69,26 @@ impl Cluster {
 #[derive(Default)]
 pub struct Tree {
     pub nodes: Vec<Cluster>,
-    /// Each node's parent (the root's 0): filled by the reinsertion; empty before.
+    /// Each node's parent (the root's 0): filled by the reinsertion; empty before. (Leaves index
+    /// the triangles directly, so the tree keeps no `primitive_indices`: obvhs's would be the
+    /// identity, 40 MB at the 10M-triangle scene.)
     pub parents: Vec<u32>,
-    /// The triangles' indices, leaves' runs of it.
-    pub primitive_indices: Vec<u32>,
     /// obvhs's `max_depth`: the stack its traversal would reserve.
     pub max_depth: usize,
 }
 
 impl Tree {
-    /// obvhs's `Bvh2` with this tree's nodes, widened in place (`into_bvh2_nodes`).
+    /// obvhs's `Bvh2` with this tree's nodes, widened in place (`map_in_place`).
     pub fn into_bvh2(self) -> Bvh2 {
         // The clustering places children after parents; the reinsertion, which runs on any
         // tree of more than one node, moves them.
         let ordered = self.nodes.len() == 1;
+        // A binary tree over n triangles has 2n - 1 nodes.
+        let triangles = self.nodes.len().div_ceil(2) as u32;
         Bvh2 {
-            nodes: into_bvh2_nodes(self.nodes),
+            nodes: map_in_place(self.nodes, |node| node.node()),
             parents: self.parents,
-            primitive_indices: self.primitive_indices,
+            primitive_indices: (0..triangles).collect(),
             max_depth: self.max_depth,
             children_are_ordered_after_parents: ordered,
             uses_spatial_splits: false,
@@ -94,37 +97,75 @@ impl Tree {
     }
 }
 
-/// `nodes` in obvhs's 48-byte layout, widened in place: the allocation grows (the allocator
-/// remaps a large block's pages rather than copying them) and each node is rewritten from the
-/// last to the first, so no second array is ever held. Node `i` moves from byte 32 i to 48 i,
-/// past every node still to be read.
-fn into_bvh2_nodes(nodes: Vec<Cluster>) -> Vec<Bvh2Node> {
+/// `f` of each item of `items`, made over the items' own allocation: the block is resized once
+/// (a large block's pages are remapped, not copied) and each item rewritten in turn, so the
+/// input and the output are never held side by side. Growing, the items are rewritten from the
+/// last (item `i` moves up, past every item below it still to be read); shrinking, from the
+/// first (item `i` moves down, below every item above it still to be read). `A` and `B` must
+/// have one alignment: what obvhs's 48-byte nodes take from the builder's 32-byte ones
+/// (`Tree::into_bvh2`), and the leaf plan's plans from its entries (wide.rs).
+pub fn map_in_place<A, B>(items: Vec<A>, f: impl Fn(A) -> B) -> Vec<B> {
     use std::alloc::{handle_alloc_error, realloc, Layout};
-    const { assert!(align_of::<Cluster>() == align_of::<Bvh2Node>() && size_of::<Cluster>() < size_of::<Bvh2Node>()) };
-    let len = nodes.len();
+    const { assert!(align_of::<A>() == align_of::<B>() && size_of::<A>() > 0 && size_of::<B>() > 0) };
+    let len = items.len();
     if len == 0 {
         return Vec::new();
     }
-    // A boxed slice's allocation is exactly `len` nodes, so its layout is known.
-    let raw = Box::into_raw(nodes.into_boxed_slice()).cast::<u8>();
-    let (old, new) = (Layout::array::<Cluster>(len), Layout::array::<Bvh2Node>(len));
-    let (old, new) = (old.expect("the nodes exist"), new.unwrap_or_else(|_| panic!("{len} nodes overflow")));
-    // SAFETY: `raw` was allocated by the global allocator with `old` (a boxed slice of `len`
-    // nodes); `new` has the same alignment and a non-zero size.
-    let ptr = unsafe { realloc(raw, old, new.size()) };
-    if ptr.is_null() {
-        handle_alloc_error(new);
-    }
-    for i in (0..len).rev() {
-        // SAFETY: node `i` is read from bytes [32 i, 32 i + 32) before anything is written over
-        // them, and written to [48 i, 48 i + 48), which overlaps no node below `i` still to be
-        // read (those end by 32 i); both lie within the `new`-sized block, aligned to 16.
-        unsafe {
-            let node = ptr.add(i * size_of::<Cluster>()).cast::<Cluster>().read();
-            ptr.add(i * size_of::<Bvh2Node>()).cast::<Bvh2Node>().write(node.node());
+    let (a, b) = (size_of::<A>(), size_of::<B>());
+    let (old, new) = (Layout::array::<A>(len).expect("the items exist"), Layout::array::<B>(len));
+    let new = new.unwrap_or_else(|_| panic!("{len} items overflow"));
+    // A boxed slice's allocation is exactly `len` items, so its layout is `old`.
+    let raw = Box::into_raw(items.into_boxed_slice()).cast::<u8>();
+    let resize = |raw: *mut u8| {
+        // SAFETY: `raw` is the global allocator's block with layout `old`; `new` has the same
+        // alignment and a non-zero size.
+        let ptr = unsafe { realloc(raw, old, new.size()) };
+        if ptr.is_null() {
+            handle_alloc_error(new);
+        }
+        ptr
+    };
+    // SAFETY (both): item `i` is read whole from [a i, a i + a) before anything is written over
+    // it, and written to [b i, b i + b), which overlaps no item still to be read (growing, those
+    // lie below i and end by a i <= b i; shrinking, they lie above i and start at a (i + 1) >=
+    // b (i + 1)); every offset is a multiple of the shared alignment, within the block. A panic
+    // in `f` leaks the block, never frees it twice.
+    let ptr = if b > a {
+        let ptr = resize(raw);
+        for i in (0..len).rev() {
+            unsafe { ptr.add(i * b).cast::<B>().write(f(ptr.add(i * a).cast::<A>().read())) };
+        }
+        ptr
+    } else {
+        for i in 0..len {
+            unsafe { raw.add(i * b).cast::<B>().write(f(raw.add(i * a).cast::<A>().read())) };
+        }
+        if b < a {
+            resize(raw)
+        } else {
+            raw
+        }
+    };
+    // SAFETY: the block holds `len` initialised `B`s and has `Vec<B>`'s layout for a capacity
+    // of `len`.
+    unsafe { Vec::from_raw_parts(ptr.cast::<B>(), len, len) }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::map_in_place;
+
+    #[test]
+    fn map_in_place_grows_shrinks_and_keeps_every_item() {
+        for len in [0usize, 1, 2, 3, 1000, 100_000] {
+            let items: Vec<[u32; 3]> = (0..len as u32).map(|i| [i, i ^ 0x5555, i.wrapping_mul(7)]).collect();
+            let grown = map_in_place(items.clone(), |[a, b, c]| [a, b, c, a + b]);
+            assert!(grown.iter().zip(&items).all(|(g, i)| g[..3] == i[..] && g[3] == i[0] + i[1]), "{len} grown");
+            let shrunk = map_in_place(grown, |g| g[1]);
+            assert!(shrunk.iter().zip(&items).all(|(s, i)| *s == i[1]), "{len} shrunk");
+            let same = map_in_place(shrunk, |s| s + 1);
+            assert!(same.iter().zip(&items).all(|(s, i)| *s == i[1] + 1), "{len} same size");
+            assert_eq!(same.len(), len);
         }
     }
-    // SAFETY: the block holds `len` initialised nodes and was allocated with `new`'s layout,
-    // which is `Vec<Bvh2Node>`'s for a capacity of `len`.
-    unsafe { Vec::from_raw_parts(ptr.cast::<Bvh2Node>(), len, len) }
 }

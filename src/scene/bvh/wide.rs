@@ -193,37 +193,6 @@ impl LeafPlan {
             depth: u32,
         }
         let mut entries = vec![Entry { plan: UNKNOWN, cost: 0.0, depth: 0 }; n];
-        /// The entries' plans, written over the entries' own memory and the rest handed back:
-        /// the plan never sits beside the entries (84 MB at the 10M-triangle scene, where this
-        /// was the build's peak).
-        fn plans_in_place(entries: Vec<Entry>) -> Vec<u32> {
-            use std::alloc::{handle_alloc_error, realloc, Layout};
-            const { assert!(align_of::<Entry>() == align_of::<u32>() && size_of::<Entry>() > size_of::<u32>()) };
-            let n = entries.len();
-            if n == 0 {
-                return Vec::new();
-            }
-            let raw = Box::into_raw(entries.into_boxed_slice()).cast::<u8>();
-            for i in 0..n {
-                // SAFETY: entry i (bytes [12 i, 12 i + 12)) is read before plan i (bytes
-                // [4 i, 4 i + 4)) is written, and plan i overlaps no entry after i.
-                unsafe {
-                    let plan = raw.add(i * size_of::<Entry>()).cast::<Entry>().read().plan;
-                    raw.add(i * size_of::<u32>()).cast::<u32>().write(plan);
-                }
-            }
-            let (old, new) = (Layout::array::<Entry>(n).expect("entries exist"), Layout::array::<u32>(n));
-            let new = new.expect("fewer bytes than the entries");
-            // SAFETY: `raw` is the boxed slice's block, allocated with `old`; `new` has the same
-            // alignment and a non-zero size.
-            let ptr = unsafe { realloc(raw, old, new.size()) };
-            if ptr.is_null() {
-                handle_alloc_error(new);
-            }
-            // SAFETY: the block holds `n` plans written above, allocated with `Vec<u32>`'s layout
-            // for a capacity of `n`.
-            unsafe { Vec::from_raw_parts(ptr.cast::<u32>(), n, n) }
-        }
         for i in (0..n).rev() {
             let mut x = i;
             loop {
@@ -264,7 +233,9 @@ impl LeafPlan {
             }
         }
         let tree_depth = entries[0].depth as usize;
-        let plan = plans_in_place(entries);
+        // The plans written over the entries' own memory: the plan never sits beside the entries
+        // (84 MB at the 10M-triangle scene, where this was the build's peak).
+        let plan = super::tree::map_in_place(entries, |e| e.plan);
 
         let mut start = vec![UNKNOWN; n];
         let mut prims = vec![0u32; (plan[0] & !PLAN_LEAF) as usize];

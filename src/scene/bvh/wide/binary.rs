@@ -61,10 +61,8 @@ impl<'a> Binary<'a, Bvh2Node> {
 }
 
 impl<'a> Binary<'a, Cluster> {
-    /// A PLOC build's tree, whose leaves index the triangles directly (its `primitive_indices`
-    /// are the identity, and may have been dropped).
+    /// The builder's tree, whose leaves index the triangles directly.
     pub fn of_tree(tree: &'a Tree) -> Self {
-        debug_assert!(tree.primitive_indices.iter().enumerate().all(|(i, &p)| p as usize == i));
         Binary { nodes: &tree.nodes, parents: &tree.parents, primitive_indices: &[] }
     }
 }
